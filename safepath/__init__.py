@@ -1,0 +1,74 @@
+"""safepath: safe, fast robot motions from taught joint poses.
+
+Collision-checked paths (Pinocchio + coal, OMPL when the direct way is blocked),
+time-optimal timing under the robot's limits (TOPPRA), an independent re-check of
+the timed result (python-fcl) before release, ROS 2 goals, and browser review (viser).
+"""
+
+from __future__ import annotations
+
+import logging
+
+from .cell import Cell, PoseCheck, check_poses, load_cell
+from .collision import CheckOptions, CollisionChecker, SegmentReport, StateReport
+from .errors import (
+    CollisionError,
+    ConfigError,
+    FrameNotFound,
+    IKError,
+    InputError,
+    PlannerTimeout,
+    PlanningError,
+    PoseError,
+    RobotNotFound,
+    RosError,
+    SafepathError,
+    TimingError,
+    TrajectoryError,
+    VerificationError,
+)
+from .poses import dump_poses, load_poses, save_poses
+from .robot import Robot, ToolSpec, load_robot, robot_names
+from .scene import AllowedContact, Grasp, Scene, SceneObject, Shape, load_scene, placement
+
+logging.getLogger(__name__).addHandler(logging.NullHandler())
+
+__version__ = "0.1.0"
+
+__all__ = [
+    "AllowedContact",
+    "Cell",
+    "CheckOptions",
+    "CollisionChecker",
+    "CollisionError",
+    "ConfigError",
+    "FrameNotFound",
+    "Grasp",
+    "IKError",
+    "InputError",
+    "PlannerTimeout",
+    "PlanningError",
+    "PoseCheck",
+    "PoseError",
+    "Robot",
+    "RobotNotFound",
+    "RosError",
+    "SafepathError",
+    "Scene",
+    "SceneObject",
+    "SegmentReport",
+    "Shape",
+    "StateReport",
+    "TimingError",
+    "ToolSpec",
+    "TrajectoryError",
+    "VerificationError",
+    "check_poses",
+    "dump_poses",
+    "load_cell",
+    "load_poses",
+    "load_robot",
+    "placement",
+    "robot_names",
+    "save_poses",
+]

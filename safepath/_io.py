@@ -1,0 +1,131 @@
+"""File helpers: YAML reading that names the file on failure, atomic writes with backup."""
+
+from __future__ import annotations
+
+import math
+import os
+import shutil
+import tempfile
+from collections.abc import Callable, Iterator, Sequence
+from contextlib import contextmanager
+from pathlib import Path
+from typing import IO, Any
+
+import yaml
+
+from .errors import ConfigError, InputError
+
+__all__ = ["read_yaml", "atomic_write", "atomic_write_text", "get_key", "as_float",
+           "as_vector", "as_str"]
+
+
+def read_yaml(path: str | Path, *, error: type[InputError] = ConfigError) -> Any:
+    """Read a YAML file.
+
+    Raises:
+        InputError: The file is missing, unreadable or not valid YAML.
+    """
+    path = Path(path)
+    try:
+        text = path.read_text(encoding="utf-8")
+    except FileNotFoundError:
+        raise error("file not found", path=path) from None
+    except (OSError, UnicodeDecodeError) as exc:
+        raise error(f"cannot read file ({exc})", path=path) from None
+    try:
+        return yaml.safe_load(text)
+    except yaml.YAMLError as exc:
+        mark = getattr(exc, "problem_mark", None)
+        where = f" at line {mark.line + 1}, column {mark.column + 1}" if mark else ""
+        problem = getattr(exc, "problem", None) or str(exc).splitlines()[0]
+        raise error(f"malformed YAML{where}: {problem}", path=path) from None
+
+
+def get_key(mapping: Any, key: str, *, path: Path | None, prefix: str = "",
+            default: Any = ..., error: type[InputError] = ConfigError) -> Any:
+    """Return ``mapping[key]``, or raise a typed error naming the file and dotted key."""
+    full = f"{prefix}.{key}" if prefix else key
+    if not isinstance(mapping, dict):
+        raise error("expected a mapping", path=path, key=prefix or None)
+    if key not in mapping:
+        if default is not ...:
+            return default
+        raise error("missing key", path=path, key=full)
+    return mapping[key]
+
+
+def as_float(value: Any, *, path: Path | None, key: str, positive: bool = False,
+             non_negative: bool = False, error: type[InputError] = ConfigError) -> float:
+    """Convert a YAML scalar to a finite float, or raise a typed error."""
+    if isinstance(value, bool) or not isinstance(value, (int, float)):
+        raise error(f"expected a number, got {value!r}", path=path, key=key)
+    out = float(value)
+    if not math.isfinite(out):
+        raise error(f"value {value!r} is not finite", path=path, key=key)
+    if positive and out <= 0.0:
+        raise error(f"must be > 0, got {out:g}", path=path, key=key)
+    if non_negative and out < 0.0:
+        raise error(f"must be >= 0, got {out:g}", path=path, key=key)
+    return out
+
+
+def as_vector(value: Any, n: int | None, *, path: Path | None, key: str,
+              error: type[InputError] = ConfigError) -> list[float]:
+    """Convert a YAML list to ``n`` finite floats, or raise a typed error."""
+    if not isinstance(value, (list, tuple)):
+        raise error(f"expected a list of {n or ''} numbers, got {value!r}".replace("  ", " "),
+                    path=path, key=key)
+    if n is not None and len(value) != n:
+        raise error(f"expected {n} values, got {len(value)}", path=path, key=key)
+    return [as_float(v, path=path, key=f"{key}[{i}]", error=error) for i, v in enumerate(value)]
+
+
+def as_str(value: Any, *, path: Path | None, key: str,
+           error: type[InputError] = ConfigError) -> str:
+    """Check that a YAML value is a non-empty string."""
+    if not isinstance(value, str) or not value:
+        raise error(f"expected a non-empty string, got {value!r}", path=path, key=key)
+    return value
+
+
+@contextmanager
+def atomic_write(path: str | Path, *, mode: str = "w", backup: bool = False) -> Iterator[IO[Any]]:
+    """Write a file so that it is either wholly replaced or left untouched.
+
+    The content goes to a temporary file in the same folder, is flushed to disk, and
+    only then renamed over ``path``. With ``backup``, the previous file is kept as
+    ``path~`` (copied before the rename). On any exception the temporary file is
+    removed and ``path`` is unchanged.
+    """
+    path = Path(path)
+    folder = path.parent if str(path.parent) else Path(".")
+    folder.mkdir(parents=True, exist_ok=True)
+    fd, tmp_name = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=folder)
+    tmp = Path(tmp_name)
+    try:
+        encoding = None if "b" in mode else "utf-8"
+        with os.fdopen(fd, mode, encoding=encoding) as handle:
+            yield handle
+            handle.flush()
+            os.fsync(handle.fileno())
+        if backup and path.exists():
+            shutil.copy2(path, path.with_name(path.name + "~"))
+        os.replace(tmp, path)
+    except BaseException:
+        tmp.unlink(missing_ok=True)
+        raise
+
+
+def atomic_write_text(path: str | Path, text: str, *, backup: bool = False) -> None:
+    """Atomically replace ``path`` with ``text`` (see :func:`atomic_write`)."""
+    with atomic_write(path, backup=backup) as handle:
+        handle.write(text)
+
+
+def check_names(names: Sequence[str], known: Sequence[str], *, path: Path | None, key: str,
+                what: str, error: type[InputError] = ConfigError,
+                transform: Callable[[str], str] = str) -> None:
+    """Raise a typed error for the first name of ``names`` not in ``known``."""
+    for name in names:
+        if transform(name) not in known:
+            raise error(f"unknown {what} '{name}' (known: {', '.join(known)})", path=path, key=key)

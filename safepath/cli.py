@@ -1,0 +1,144 @@
+"""The ``safepath`` command line.
+
+Every command turns a :class:`~safepath.errors.SafepathError` into one line on
+standard error and exit status 2; an unsafe result (a pose in collision) is exit 1.
+"""
+
+from __future__ import annotations
+
+import argparse
+import logging
+import sys
+from collections.abc import Callable, Sequence
+
+from .errors import SafepathError
+
+__all__ = ["main"]
+
+EXIT_UNSAFE = 1
+EXIT_ERROR = 2
+
+
+def _fmt_pair(pair: tuple[str, str] | None) -> str:
+    return "-" if pair is None else f"{pair[0]} / {pair[1]}"
+
+
+def cmd_check(args: argparse.Namespace) -> int:
+    """Check every taught pose of a cell."""
+    from .cell import check_poses, load_cell
+    from .collision import CheckOptions
+
+    cell = load_cell(args.scene)
+    options = CheckOptions(margin=args.margin)
+    rows = check_poses(cell, options)
+    grasped = cell.scene.grasp.object if cell.scene.grasp else "object"
+    print(f"cell {cell.scene.name}: robot {cell.robot.name}, {len(cell.poses)} poses, "
+          f"margin {cell.scene.margin * 1000 if args.margin is None else args.margin * 1000:.0f}"
+          " mm")
+    header = (f"{'pose':<10} {'gripper':<8} {'limits':<7} {'free':<5} {'clearance[mm]':>13} "
+              f"{'margin':<7} pair")
+    print(header)
+    print("-" * len(header))
+    unsafe = 0
+    for row in rows:
+        rep = row.report
+        if not rep.valid:
+            unsafe += 1
+        pair = rep.collisions[0] if rep.collisions else (
+            rep.margin_violations[0][0] if rep.margin_violations else rep.closest_pair)
+        margin = "ok" if rep.margin_ok else "LOW"
+        print(f"{row.pose:<10} {(grasped if row.held else 'empty'):<8} "
+              f"{'ok' if rep.within_limits else 'OUT':<7} {'yes' if not rep.collisions else 'NO':<5}"
+              f" {rep.clearance * 1000:>13.1f} {margin:<7} {_fmt_pair(pair)}")
+        if rep.limit_violation:
+            print(f"{'':<10} {rep.limit_violation}")
+    low = sum(1 for r in rows if r.report.valid and not r.report.margin_ok)
+    print(f"{len(rows) - unsafe}/{len(rows)} states valid, {low} below margin")
+    if unsafe or (low and args.strict):
+        return EXIT_UNSAFE
+    return 0
+
+
+def cmd_robot_pairs(args: argparse.Namespace) -> int:
+    """Regenerate a robot folder's allowed self-collision pairs."""
+    from pathlib import Path
+
+    from .robot import load_robot
+    from .self_collision import write_allowed_pairs
+
+    robot = load_robot(args.robot)
+    if robot.source is None:
+        raise SafepathError(f"'{args.robot}' is not a robot folder; nothing to write")
+    import yaml
+
+    spec = yaml.safe_load(robot.source.read_text())
+    target = Path(robot.source).parent / spec.get("allowed_collisions", "allowed_collisions.yaml")
+    stats = write_allowed_pairs(robot, target, samples=args.samples, seed=args.seed)
+    counts: dict[str, int] = {}
+    for s in stats:
+        counts[s.reason] = counts.get(s.reason, 0) + 1
+    print(f"wrote {target}: " + ", ".join(f"{v} {k}" for k, v in sorted(counts.items())))
+    return 0
+
+
+def build_parser() -> argparse.ArgumentParser:
+    """The argument parser of ``safepath``."""
+    parser = argparse.ArgumentParser(prog="safepath", description=__doc__.splitlines()[0])
+    parser.add_argument("-v", "--verbose", action="store_true", help="log progress")
+    sub = parser.add_subparsers(dest="command", required=True)
+
+    p = sub.add_parser("check", help="check every taught pose of a cell")
+    p.add_argument("scene", help="scene folder (e.g. scenes/quality_check_cell)")
+    p.add_argument("--margin", type=float, default=None, help="safety margin [m]")
+    p.add_argument("--strict", action="store_true", help="exit 1 when a margin is not kept")
+    p.set_defaults(func=cmd_check)
+
+    p = sub.add_parser("robot-pairs", help="regenerate a robot's allowed self-collision pairs")
+    p.add_argument("robot", help="robot folder or name (e.g. robots/ned3pro)")
+    p.add_argument("--samples", type=int, default=100_000)
+    p.add_argument("--seed", type=int, default=0)
+    p.set_defaults(func=cmd_robot_pairs)
+
+    for register in _EXTRA:
+        register(sub)
+    return parser
+
+
+#: Commands added by other modules (plan, view): functions that add a subparser.
+_EXTRA: list[Callable[[argparse._SubParsersAction], None]] = []
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """Entry point of the ``safepath`` command."""
+    _load_extra()
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    logging.basicConfig(level=logging.INFO if args.verbose else logging.WARNING,
+                        format="%(levelname)s %(name)s: %(message)s")
+    try:
+        return int(args.func(args))
+    except SafepathError as exc:
+        print(f"safepath {args.command}: error: {exc}", file=sys.stderr)
+        return EXIT_ERROR
+    except KeyboardInterrupt:
+        print(f"safepath {args.command}: interrupted", file=sys.stderr)
+        return 130
+
+
+def _load_extra() -> None:
+    import importlib
+
+    for name in ("safepath.planning.cli", "safepath.view.cli"):
+        try:
+            module = importlib.import_module(name)
+        except ModuleNotFoundError as exc:
+            if exc.name and exc.name.startswith("safepath"):
+                continue
+            raise
+        register = getattr(module, "register", None)
+        if register is not None and register not in _EXTRA:
+            _EXTRA.append(register)
+
+
+if __name__ == "__main__":  # pragma: no cover
+    sys.exit(main())

@@ -1,0 +1,445 @@
+"""Collision checking with Pinocchio and coal: states, clearance, margins, segments.
+
+A :class:`CollisionChecker` is built for one robot, one scene and one *world state*
+(which movable object is held, where the others rest, which contacts are allowed).
+It answers, for a joint vector: inside the limits? collision-free? if not, which
+pair? how far from the environment (clearance), and is every object's safety margin
+kept? For a straight joint-space segment it checks states so densely that no point
+of the robot (or of what it holds) moves more than ``resolution`` between two checked
+states (the bound is computed from the kinematic chain, see :meth:`displacement_bound`).
+
+Conventions: a *pair* is reported as two names, a robot link (``forearm_link``) or a
+scene object (``qc_conveyor``). *Clearance* is the smallest distance between the
+robot or the object it holds and the environment [m]; self-distances are not part
+of it. Allowed contacts are excluded from clearance and margins.
+"""
+
+from __future__ import annotations
+
+import logging
+import re
+from collections.abc import Iterable, Mapping, Sequence
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+import pinocchio as pin
+
+from .errors import ConfigError
+from .robot import Robot
+from .scene import GRIPPER, AllowedContact, Scene, SceneObject
+
+__all__ = ["CheckOptions", "StateReport", "SegmentReport", "CollisionChecker"]
+
+log = logging.getLogger(__name__)
+
+Pair = tuple[str, str]
+
+
+@dataclass(frozen=True)
+class CheckOptions:
+    """Options of the collision checker.
+
+    Attributes:
+        resolution: Largest motion of any robot point between two checked states of a
+            segment [m].
+        margin: Safety margin override for every object [m]; None keeps the scene's
+            default and per-object margins.
+        enforce_margin: Count a state closer to the environment than the margin as
+            invalid (planning does; pose checks only report it).
+    """
+
+    resolution: float = 0.002
+    margin: float | None = None
+    enforce_margin: bool = False
+
+    def __post_init__(self) -> None:
+        if not np.isfinite(self.resolution) or self.resolution <= 0:
+            raise ConfigError(f"resolution must be > 0, got {self.resolution}",
+                              key="resolution")
+        if self.margin is not None and (not np.isfinite(self.margin) or self.margin < 0):
+            raise ConfigError(f"margin must be >= 0, got {self.margin}", key="margin")
+
+
+@dataclass(frozen=True)
+class StateReport:
+    """What the checker found at one joint vector.
+
+    Attributes:
+        q: The joint vector [rad].
+        within_limits: Every joint inside its position limits.
+        limit_violation: Which joint is outside, if any.
+        collisions: Colliding pairs (empty when collision-free).
+        clearance: Smallest distance to the environment [m] (<= 0 in contact).
+        closest_pair: The pair at that distance.
+        margin_violations: Pairs closer than their required margin, with distance [m]
+            and margin [m].
+    """
+
+    q: np.ndarray = field(repr=False)
+    within_limits: bool
+    limit_violation: str | None
+    collisions: tuple[Pair, ...]
+    clearance: float
+    closest_pair: Pair | None
+    margin_violations: tuple[tuple[Pair, float, float], ...] = ()
+
+    @property
+    def valid(self) -> bool:
+        """Inside the limits and collision-free."""
+        return self.within_limits and not self.collisions
+
+    @property
+    def margin_ok(self) -> bool:
+        """Valid, and every object's safety margin is kept."""
+        return self.valid and not self.margin_violations
+
+
+@dataclass(frozen=True)
+class SegmentReport:
+    """Result of checking a straight joint-space segment.
+
+    Attributes:
+        valid: Every checked state is valid.
+        checked: How many states were checked.
+        fraction: Where the first invalid state lies, in [0, 1] (None if valid).
+        q: The first invalid state found [rad] (None if valid).
+        collisions: Its colliding pairs.
+        limit_violation: Its limit violation, if that is why.
+    """
+
+    valid: bool
+    checked: int
+    fraction: float | None = None
+    q: np.ndarray | None = field(default=None, repr=False)
+    collisions: tuple[Pair, ...] = ()
+    limit_violation: str | None = None
+
+
+class CollisionChecker:
+    """Checks joint vectors and segments of one robot in one scene and world state.
+
+    Args:
+        robot: The robot.
+        scene: Its surroundings; None for self-collision only.
+        held: Name of the movable object held by the gripper (placed by the scene's
+            grasp), or None.
+        resting: World placements (4x4) of movable objects that are not held; a
+            movable object missing here rests at its scene placement; None removes it.
+        allowed: Contacts allowed in this state (see :class:`AllowedContact`).
+        options: Resolution and margin.
+
+    Not thread-safe: one checker per thread (:meth:`clone` makes another).
+    """
+
+    def __init__(self, robot: Robot, scene: Scene | None = None, *, held: str | None = None,
+                 resting: Mapping[str, np.ndarray | None] | None = None,
+                 allowed: Iterable[AllowedContact] = (),
+                 options: CheckOptions | None = None) -> None:
+        self.robot = robot
+        self.scene = scene
+        self.held = held
+        self.resting = dict(resting or {})
+        self.allowed = tuple(allowed)
+        self.options = options or CheckOptions()
+        self._build()
+
+    # -- construction ----------------------------------------------------------------------
+    def clone(self, **changes: Any) -> CollisionChecker:
+        """A new checker with the same inputs except ``changes`` (held, resting, ...)."""
+        kwargs: dict[str, Any] = dict(held=self.held, resting=self.resting,
+                                      allowed=self.allowed, options=self.options)
+        kwargs.update(changes)
+        return CollisionChecker(self.robot, self.scene, **kwargs)
+
+    def _build(self) -> None:
+        robot, scene = self.robot, self.scene
+        model = robot.model
+        gmodel = robot.collision_model.copy()
+        gmodel.removeAllCollisionPairs()  # loaders may have added their own
+        n_robot = gmodel.ngeoms
+        self._names: list[str] = [robot.geometry_link(i) for i in range(n_robot)]
+        self._margins: list[float] = [0.0] * n_robot
+        env: list[int] = []
+        if scene is not None:
+            for obj in scene.objects.values():
+                if obj.movable:
+                    if obj.name == self.held:
+                        continue
+                    T = self.resting.get(obj.name, obj.T_world_object)
+                    if T is None:
+                        continue
+                    obj = obj.placed(T)
+                env.append(self._add(gmodel, obj.name, 0, 0, obj.T_world_object, obj))
+        held_idx: int | None = None
+        if self.held is not None:
+            if scene is None or scene.grasp is None or scene.grasp.object != self.held:
+                raise ConfigError(f"cannot hold '{self.held}': the scene has no grasp for it",
+                                  key="grasp.object")
+            obj = scene.objects[self.held]
+            tcp = model.frames[robot.tcp_frame_id]
+            T_joint_obj = tcp.placement.homogeneous @ scene.grasp.T_tcp_object
+            held_idx = self._add(gmodel, obj.name, tcp.parentJoint, robot.tcp_frame_id,
+                                 T_joint_obj, obj)
+        self._env = env
+        self._held_idx = held_idx
+        self.geometry_model = gmodel
+
+        # Which pairs to check.
+        skip_self = robot.allowed_self_pairs
+        contact_links = set(robot.tool.contact_links) if robot.tool else set()
+        allowed = self._expand_allowed(contact_links)
+        pairs: list[tuple[int, int, float | None]] = []  # (a, b, -security margin)
+        movers = list(range(n_robot)) + ([held_idx] if held_idx is not None else [])
+        geoms = gmodel.geometryObjects
+        for ia, a in enumerate(movers):
+            for b in movers[ia + 1:]:
+                na, nb = self._names[a], self._names[b]
+                if na == nb or geoms[a].parentJoint == geoms[b].parentJoint:
+                    continue
+                if b == held_idx and na in contact_links:
+                    continue  # the jaws hold it
+                if tuple(sorted((na, nb))) in skip_self and b != held_idx:
+                    continue
+                depth = allowed.get(tuple(sorted((na, nb))), 0.0)
+                if depth is None:
+                    continue
+                pairs.append((a, b, depth))
+            for e in env:
+                if geoms[a].parentJoint == 0:
+                    continue  # both fixed to the world
+                depth = allowed.get(tuple(sorted((self._names[a], self._names[e]))), 0.0)
+                if depth is None:
+                    continue
+                pairs.append((a, e, depth))
+        for a, b, _ in pairs:
+            gmodel.addCollisionPair(pin.CollisionPair(a, b))
+        self._pairs = [(a, b) for a, b, _ in pairs]
+        self._pair_names = [(self._names[a], self._names[b]) for a, b in self._pairs]
+        self._data = model.createData()
+        self._gdata = pin.GeometryData(gmodel)
+        env_set = set(env)
+        margin_default = (self.options.margin if self.options.margin is not None
+                          else (scene.margin if scene else 0.0))
+        self._pair_margin = []
+        for a, b in self._pairs:
+            env_name = self._names[b] if b in env_set else self._names[a]
+            if self.options.margin is None and scene is not None:
+                self._pair_margin.append(scene.margin_for(env_name))
+            else:
+                self._pair_margin.append(margin_default)
+        for k, (a, b, depth) in enumerate(pairs):
+            if depth:
+                self._gdata.collisionRequests[k].security_margin = -depth
+            elif self.options.enforce_margin and ((a in env_set) != (b in env_set)):
+                self._gdata.collisionRequests[k].security_margin = self._pair_margin[k]
+        # Distances: robot (and held object) against the environment, not allowed ones.
+        self._dist_pairs = [k for k, (a, b) in enumerate(self._pairs)
+                            if (a in env_set) != (b in env_set) and not pairs[k][2]]
+        self._dist_gdata = pin.GeometryData(gmodel)
+        active = np.zeros(len(self._pairs), dtype=bool)
+        active[self._dist_pairs] = True
+        for k in range(len(self._pairs)):
+            self._dist_gdata.activeCollisionPairs[k] = bool(active[k])
+        self._weights = self._displacement_weights()
+
+    def _add(self, gmodel: pin.GeometryModel, name: str, joint: int, frame: int,
+             T: np.ndarray, obj: SceneObject) -> int:
+        geom = pin.GeometryObject(name, joint, frame, pin.SE3(np.asarray(T)),
+                                  obj.shape.to_coal())
+        idx = gmodel.addGeometryObject(geom)
+        self._names.append(name)
+        self._margins.append(obj.margin or 0.0)
+        return int(idx)
+
+    def _expand_allowed(self, contact_links: set[str]) -> dict[Pair, float | None]:
+        out: dict[Pair, float | None] = {}
+        for contact in self.allowed:
+            sides = [sorted(contact_links) if n == GRIPPER else [n] for n in contact.between]
+            for a in sides[0]:
+                for b in sides[1]:
+                    key = (a, b) if a <= b else (b, a)
+                    prev = out.get(key, 0.0)
+                    if prev is None or contact.max_depth is None:
+                        out[key] = None
+                    else:
+                        out[key] = max(prev, contact.max_depth)
+        return out
+
+    # -- facts -----------------------------------------------------------------------------
+    @property
+    def pairs(self) -> list[Pair]:
+        """The pairs checked, as names."""
+        return list(self._pair_names)
+
+    def displacement_bound(self, q0: np.ndarray, q1: np.ndarray) -> float:
+        """Upper bound on how far any point of the robot (or held object) moves along the
+        straight joint segment ``q0 -> q1`` [m]."""
+        return float(self._weights @ np.abs(np.asarray(q1) - np.asarray(q0)))
+
+    @property
+    def displacement_weights(self) -> np.ndarray:
+        """Per joint, the largest distance [m] of any downstream point from the joint
+        (a point moves at most ``weight * |dq|`` when the joint turns by ``dq`` [rad])."""
+        return self._weights.copy()
+
+    def _displacement_weights(self) -> np.ndarray:
+        model, gmodel = self.robot.model, self.geometry_model
+        nj = model.njoints
+        # Reach of each joint's own geometry about its origin.
+        reach = np.zeros(nj)
+        for g in gmodel.geometryObjects:
+            if g.parentJoint == 0:
+                continue
+            r = np.linalg.norm(g.placement.translation) + _bounding_radius(g.geometry)
+            reach[g.parentJoint] = max(reach[g.parentJoint], r)
+        # Propagate from the leaves: reach(i) >= |origin of child| + reach(child).
+        for j in range(nj - 1, 0, -1):
+            parent = model.parents[j]
+            if parent > 0:
+                offset = float(np.linalg.norm(model.jointPlacements[j].translation))
+                reach[parent] = max(reach[parent], offset + reach[j])
+        w = np.zeros(model.nv)
+        for j in range(1, nj):
+            joint = model.joints[j]
+            short = joint.shortname()
+            prismatic = "Prismatic" in short or re.fullmatch(r"JointModelP[XYZ]", short)
+            w[joint.idx_v] = 1.0 if prismatic else reach[j]
+        return w
+
+    # -- single states ---------------------------------------------------------------------
+    def is_valid(self, q: np.ndarray) -> bool:
+        """Inside the limits and collision-free (fast path, no details)."""
+        r = self.robot
+        if np.any(q < r.lower) or np.any(q > r.upper):
+            return False
+        return not pin.computeCollisions(r.model, self._data, self.geometry_model, self._gdata,
+                                         q, True)
+
+    def collisions(self, q: np.ndarray) -> list[Pair]:
+        """Every colliding pair at ``q`` (limits ignored)."""
+        pin.computeCollisions(self.robot.model, self._data, self.geometry_model, self._gdata,
+                              q, False)
+        return [self._pair_names[k] for k, res in enumerate(self._gdata.collisionResults)
+                if res.isCollision()]
+
+    def distances(self, q: np.ndarray) -> list[tuple[Pair, float]]:
+        """Distance [m] of every robot-environment pair at ``q`` (allowed ones excluded)."""
+        pin.computeDistances(self.robot.model, self._data, self.geometry_model,
+                             self._dist_gdata, q)
+        results = self._dist_gdata.distanceResults
+        return [(self._pair_names[k], float(results[k].min_distance)) for k in self._dist_pairs]
+
+    def clearance(self, q: np.ndarray) -> tuple[float, Pair | None]:
+        """Smallest robot-environment distance at ``q`` [m], and its pair."""
+        best, pair = float("inf"), None
+        for p, d in self.distances(q):
+            if d < best:
+                best, pair = d, p
+        return best, pair
+
+    def check(self, q: Any) -> StateReport:
+        """Full report for one joint vector (see :class:`StateReport`).
+
+        Raises:
+            PoseError: ``q`` has the wrong length or a non-finite value.
+        """
+        q = self.robot.as_joint_vector(q, check_limits=False)
+        violation = self.robot.limit_violation(q)
+        collisions = tuple(self.collisions(q))
+        dists = self.distances(q)
+        clearance, closest = float("inf"), None
+        margin_bad = []
+        margin_of = {self._pair_names[k]: self._pair_margin[k] for k in self._dist_pairs}
+        for p, d in dists:
+            if d < clearance:
+                clearance, closest = d, p
+            m = margin_of[p]
+            if d < m:
+                margin_bad.append((p, d, m))
+        margin_bad.sort(key=lambda item: item[1])
+        return StateReport(q=q, within_limits=violation is None, limit_violation=violation,
+                           collisions=collisions, clearance=clearance, closest_pair=closest,
+                           margin_violations=tuple(margin_bad))
+
+    # -- segments --------------------------------------------------------------------------
+    def segment_states(self, q0: np.ndarray, q1: np.ndarray) -> int:
+        """Number of intervals a segment is cut into to meet the resolution."""
+        return max(1, int(np.ceil(self.displacement_bound(q0, q1) / self.options.resolution)))
+
+    def segment_is_valid(self, q0: np.ndarray, q1: np.ndarray, *,
+                         check_ends: bool = True) -> bool:
+        """Whether the straight segment is valid at the checker's resolution."""
+        return self.check_segment(q0, q1, check_ends=check_ends, details=False).valid
+
+    def check_segment(self, q0: Any, q1: Any, *, check_ends: bool = True,
+                      details: bool = True) -> SegmentReport:
+        """Check the straight joint segment ``q0 -> q1``.
+
+        States are checked in bisection order (ends, middle, quarters, ...) so that a
+        collision is found early; together they are spaced so that no robot point
+        moves more than ``options.resolution`` between neighbours.
+        """
+        q0 = np.asarray(q0, dtype=float)
+        q1 = np.asarray(q1, dtype=float)
+        n = self.segment_states(q0, q1)
+        order = _bisection_order(n, check_ends)
+        dq = q1 - q0
+        for i in order:
+            s = i / n
+            q = q0 + s * dq
+            if not self.is_valid(q):
+                if not details:
+                    return SegmentReport(False, 0, s, q)
+                return SegmentReport(False, len(order), s, q, tuple(self.collisions(q)),
+                                     self.robot.limit_violation(q))
+        return SegmentReport(True, len(order))
+
+    def check_path(self, path: Sequence[np.ndarray]) -> SegmentReport:
+        """Check a joint-space polyline segment by segment."""
+        total = 0
+        for k in range(len(path) - 1):
+            rep = self.check_segment(path[k], path[k + 1], check_ends=(k == 0))
+            total += rep.checked
+            if not rep.valid:
+                frac = (k + (rep.fraction or 0.0)) / max(1, len(path) - 1)
+                return SegmentReport(False, total, frac, rep.q, rep.collisions,
+                                     rep.limit_violation)
+        return SegmentReport(True, total)
+
+
+def _bisection_order(n: int, check_ends: bool) -> list[int]:
+    """Indices 0..n in coarse-to-fine order: ends (if asked), middle, quarters, ..."""
+    from collections import deque
+
+    out = [0, n] if check_ends else []
+    queue = deque([(0, n)])
+    while queue:
+        lo, hi = queue.popleft()
+        if hi - lo < 2:
+            continue
+        mid = (lo + hi) // 2
+        out.append(mid)
+        queue.append((lo, mid))
+        queue.append((mid, hi))
+    return out
+
+
+def _bounding_radius(geometry: Any) -> float:
+    import coal
+
+    if isinstance(geometry, coal.Box):
+        return float(np.linalg.norm(geometry.halfSide))
+    if isinstance(geometry, coal.Sphere):
+        return float(geometry.radius)
+    if isinstance(geometry, coal.Cylinder):
+        return float(np.hypot(geometry.radius, geometry.halfLength))
+    if isinstance(geometry, coal.Capsule):
+        return float(geometry.radius + geometry.halfLength)
+    if isinstance(geometry, coal.ConvexBase):
+        pts = np.asarray(geometry.points())
+        return float(np.max(np.linalg.norm(pts, axis=1)))
+    geometry.computeLocalAABB()
+    aabb = geometry.aabb_local
+    corner = np.maximum(np.abs(aabb.min_), np.abs(aabb.max_))
+    return float(np.linalg.norm(corner))

@@ -1,0 +1,181 @@
+"""The one exception tree of safepath.
+
+Every failure the library reports is a :class:`SafepathError`. Each subclass carries
+the evidence of what went wrong (the file, the key, the pose, the colliding pair,
+the planner status) as attributes, and a message that names them, so that the
+command line can print it as one line.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from pathlib import Path
+from typing import Any
+
+__all__ = [
+    "SafepathError",
+    "InputError",
+    "ConfigError",
+    "PoseError",
+    "RobotNotFound",
+    "FrameNotFound",
+    "CollisionError",
+    "PlanningError",
+    "PlannerTimeout",
+    "IKError",
+    "TimingError",
+    "VerificationError",
+    "TrajectoryError",
+    "RosError",
+]
+
+
+class SafepathError(Exception):
+    """Base class of every error raised by safepath."""
+
+
+class InputError(SafepathError, ValueError):
+    """Bad input in a file or an argument: names the file, the key and the reason.
+
+    Attributes:
+        path: File the bad value came from, or None for an in-memory value.
+        key: Dotted key or name of the bad value inside the file.
+        reason: What is wrong with it.
+    """
+
+    def __init__(self, reason: str, *, path: str | Path | None = None, key: str | None = None):
+        self.path = None if path is None else Path(path)
+        self.key = key
+        self.reason = reason
+        where = []
+        if self.path is not None:
+            where.append(str(self.path))
+        if key:
+            where.append(f"key '{key}'")
+        prefix = ": ".join([", ".join(where)]) if where else ""
+        super().__init__(f"{prefix}: {reason}" if prefix else reason)
+
+
+class ConfigError(InputError):
+    """A robot, scene or route description is malformed or inconsistent."""
+
+
+class PoseError(InputError):
+    """A joint pose is malformed, not finite, outside the joint limits or unknown."""
+
+
+class RobotNotFound(InputError):
+    """No robot of that name or path.
+
+    Attributes:
+        name: The name that was asked for.
+        known: Names that would have worked.
+    """
+
+    def __init__(self, name: str, known: Sequence[str], *, path: str | Path | None = None):
+        self.name = name
+        self.known = list(known)
+        super().__init__(
+            f"unknown robot '{name}' (known: {', '.join(self.known)})", path=path, key="robot"
+        )
+
+
+class FrameNotFound(InputError):
+    """A frame or link name that the robot does not have.
+
+    Attributes:
+        name: The name that was asked for.
+        frames: The frame names the robot has.
+    """
+
+    def __init__(self, name: str, frames: Sequence[str], *, path: str | Path | None = None,
+                 key: str | None = None):
+        self.name = name
+        self.frames = list(frames)
+        super().__init__(f"no frame '{name}' (frames: {', '.join(self.frames)})",
+                         path=path, key=key)
+
+
+class CollisionError(SafepathError):
+    """A state that must be valid is not (in collision or outside the joint limits).
+
+    Attributes:
+        q: The joint vector [rad].
+        pairs: The colliding pairs of geometry names.
+        reason: Human-readable summary.
+    """
+
+    def __init__(self, reason: str, *, q: Any = None, pairs: Sequence[tuple[str, str]] = ()):
+        self.q = q
+        self.pairs = list(pairs)
+        self.reason = reason
+        super().__init__(reason)
+
+
+class PlanningError(SafepathError):
+    """No collision-free motion was found.
+
+    Attributes:
+        step: Name or index of the route step that failed, if any.
+        status: The planner's status string, if a planner ran.
+    """
+
+    def __init__(self, reason: str, *, step: str | None = None, status: str | None = None):
+        self.step = step
+        self.status = status
+        self.reason = reason
+        msg = reason if step is None else f"step '{step}': {reason}"
+        if status:
+            msg += f" (planner status: {status})"
+        super().__init__(msg)
+
+
+class PlannerTimeout(PlanningError):
+    """The planner ran out of its time budget before finding a path."""
+
+
+class IKError(PlanningError):
+    """A Cartesian motion could not be followed by inverse kinematics.
+
+    Attributes:
+        fraction: Where along the line it failed, in [0, 1].
+        position: The TCP target position there [m], world frame.
+    """
+
+    def __init__(self, reason: str, *, step: str | None = None, fraction: float = 0.0,
+                 position: Any = None):
+        self.fraction = fraction
+        self.position = position
+        super().__init__(f"{reason} at {fraction:.0%} of the line", step=step)
+
+
+class TimingError(SafepathError):
+    """Time parameterisation failed or its result breaks a limit."""
+
+
+class VerificationError(SafepathError):
+    """A timed trajectory failed the independent re-check; it is never released.
+
+    Attributes:
+        time: Trajectory time of the first failing sample [s].
+        q: The joint vector there [rad].
+        pairs: The colliding pairs.
+        step: Route step the sample belongs to.
+    """
+
+    def __init__(self, reason: str, *, time: float, q: Any, pairs: Sequence[tuple[str, str]],
+                 step: str | None = None):
+        self.time = time
+        self.q = q
+        self.pairs = list(pairs)
+        self.step = step
+        where = f" in step '{step}'" if step else ""
+        super().__init__(f"{reason} at t={time:.3f} s{where}")
+
+
+class TrajectoryError(InputError):
+    """A trajectory is malformed (names, times, non-finite values, sampling)."""
+
+
+class RosError(SafepathError):
+    """A ROS 2 message or bag could not be built, written or read."""

@@ -1,0 +1,168 @@
+"""Joint-space planning with OMPL when the direct segment is blocked.
+
+The planner (RRTConnect by default, any OMPL geometric planner by name) uses the
+safepath checker for states and its own motion validator for edges, so every edge is
+checked at the checker's guaranteed resolution (OMPL's default resolution is far too
+coarse for arms). The path is then shortcut with our own seeded shortcutter, which
+checks every new edge the same way.
+
+Determinism: OMPL draws from one process-wide generator. Each call reseeds it from the
+caller's seed under a lock, before any planner exists, and plans while holding that
+lock, so a seed gives the same path in any process and any thread.
+"""
+
+from __future__ import annotations
+
+import logging
+import threading
+import time
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..collision import CollisionChecker
+from ..errors import ConfigError, PlannerTimeout, PlanningError
+
+__all__ = ["PlannerOptions", "plan_joint_path", "shortcut", "PLANNERS"]
+
+log = logging.getLogger(__name__)
+
+#: OMPL geometric planners selectable by name.
+PLANNERS = ("RRTConnect", "RRT", "RRTstar", "InformedRRTstar", "AORRTC", "SORRTstar")
+
+_OMPL_LOCK = threading.Lock()
+
+
+@dataclass(frozen=True)
+class PlannerOptions:
+    """Options of the sampling planner.
+
+    Attributes:
+        planner: OMPL planner name (see :data:`PLANNERS`).
+        time_limit: Planning time budget [s].
+        seed: Seed of OMPL's generator and of the shortcutter.
+        range: Planner extension range [rad]; 0 lets OMPL choose.
+        shortcut_iterations: Random shortcut attempts after planning.
+    """
+
+    planner: str = "RRTConnect"
+    time_limit: float = 2.0
+    seed: int = 0
+    range: float = 0.0
+    shortcut_iterations: int = 60
+
+    def __post_init__(self) -> None:
+        if self.planner not in PLANNERS:
+            raise ConfigError(f"unknown planner '{self.planner}' (known: {', '.join(PLANNERS)})",
+                              key="planner")
+        if not self.time_limit > 0:
+            raise ConfigError(f"time_limit must be > 0, got {self.time_limit}", key="time_limit")
+
+
+def plan_joint_path(checker: CollisionChecker, q_start: np.ndarray, q_goal: np.ndarray, *,
+                    options: PlannerOptions = PlannerOptions(), step: str | None = None
+                    ) -> list[np.ndarray]:
+    """A collision-free joint path from ``q_start`` to ``q_goal`` (a polyline).
+
+    Raises:
+        PlanningError: Start or goal invalid (names the pair), or no path found.
+        PlannerTimeout: The time budget ran out.
+    """
+    for label, q in (("start", q_start), ("goal", q_goal)):
+        if not checker.is_valid(q):
+            rep = checker.check(q)
+            why = rep.limit_violation or "collision " + ", ".join(
+                f"{a} / {b}" for a, b in rep.collisions)
+            raise PlanningError(f"{label} state is invalid: {why}", step=step)
+    if checker.segment_is_valid(q_start, q_goal):
+        return [q_start.copy(), q_goal.copy()]
+    with _OMPL_LOCK:
+        raw = _solve(checker, q_start, q_goal, options, step)
+    rng = np.random.default_rng(options.seed)
+    return shortcut(checker, raw, rng, iterations=options.shortcut_iterations)
+
+
+def _solve(checker: CollisionChecker, q_start: np.ndarray, q_goal: np.ndarray,
+           options: PlannerOptions, step: str | None) -> list[np.ndarray]:
+    from ompl import base as ob
+    from ompl import geometric as og
+    from ompl import util as ou
+
+    ou.setLogLevel(ou.LOG_ERROR)
+    ou.RNG.setSeed(int(options.seed) % (2**31 - 1) + 1)  # before any planner exists
+    robot = checker.robot
+    n = robot.dof
+    space = ob.RealVectorStateSpace(n)
+    bounds = ob.RealVectorBounds(n)
+    for i in range(n):
+        bounds.setLow(i, float(robot.lower[i]))
+        bounds.setHigh(i, float(robot.upper[i]))
+    space.setBounds(bounds)
+    setup = og.SimpleSetup(space)
+
+    def to_array(state: object) -> np.ndarray:
+        return np.fromiter((state[i] for i in range(n)), float, n)  # type: ignore[index]
+
+    setup.setStateValidityChecker(lambda s: checker.is_valid(to_array(s)))
+    si = setup.getSpaceInformation()
+
+    class _Edges(ob.MotionValidator):  # type: ignore[misc]
+        def checkMotion(self, s1: object, s2: object, *_: object) -> bool:  # noqa: N802
+            return checker.segment_is_valid(to_array(s1), to_array(s2), check_ends=False)
+
+    validator = _Edges(si)
+    si.setMotionValidator(validator)
+    start, goal = space.allocState(), space.allocState()
+    for i in range(n):
+        start[i] = float(q_start[i])
+        goal[i] = float(q_goal[i])
+    setup.setStartAndGoalStates(start, goal)
+    planner = getattr(og, options.planner)(si)
+    if options.range > 0 and hasattr(planner, "setRange"):
+        planner.setRange(options.range)
+    setup.setPlanner(planner)
+    t0 = time.perf_counter()
+    status = setup.solve(options.time_limit)
+    elapsed = time.perf_counter() - t0
+    text = str(status)
+    log.info("OMPL %s: %s in %.3f s", options.planner, text, elapsed)
+    if text != "Exact solution" or not setup.haveExactSolutionPath():
+        if "imeout" in text or "Approximate" in text or elapsed >= options.time_limit * 0.99:
+            raise PlannerTimeout(f"no path within {options.time_limit:g} s", step=step,
+                                 status=text)
+        raise PlanningError("no collision-free path found", step=step, status=text)
+    path = setup.getSolutionPath()
+    states = [to_array(path.getState(i)) for i in range(path.getStateCount())]
+    states[0], states[-1] = q_start.copy(), q_goal.copy()
+    return states
+
+
+def shortcut(checker: CollisionChecker, path: list[np.ndarray], rng: np.random.Generator, *,
+             iterations: int = 60) -> list[np.ndarray]:
+    """Shorten a valid polyline by random shortcuts, each checked at full resolution.
+
+    First removes every vertex whose neighbours see each other (greedy, from the start),
+    then tries ``iterations`` random shortcuts between points on two segments.
+    """
+    pts = [p.copy() for p in path]
+    # Greedy vertex removal.
+    i = 0
+    while i < len(pts) - 2:
+        if checker.segment_is_valid(pts[i], pts[i + 2], check_ends=False):
+            del pts[i + 1]
+        else:
+            i += 1
+    for _ in range(iterations):
+        if len(pts) < 3:
+            break
+        a, b = sorted(rng.choice(len(pts) - 1, size=2, replace=False))
+        if a == b:
+            continue
+        ta, tb = rng.random(), rng.random()
+        qa = pts[a] + ta * (pts[a + 1] - pts[a])
+        qb = pts[b] + tb * (pts[b + 1] - pts[b])
+        if checker.segment_is_valid(qa, qb, check_ends=True):
+            pts = pts[: a + 1] + [qa, qb] + pts[b + 1:]
+            pts = [p for k, p in enumerate(pts)
+                   if k == 0 or np.max(np.abs(p - pts[k - 1])) > 1e-9]
+    return pts

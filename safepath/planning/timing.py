@@ -1,0 +1,236 @@
+"""Time-optimal timing of a joint path with TOPPRA, under the robot's limits.
+
+The path (a polyline of joint waypoints) is interpolated by a cubic spline through
+evenly spaced points, which rounds the corners a little (the caller re-checks the
+spline for collisions and falls back to stopping at corners). TOPPRA then finds the
+fastest timing under joint velocity and acceleration limits that vary along the path
+(each route step has its own speed scale and an optional TCP speed limit), with the
+``ParametrizeConstAccel`` parametrizer, which respects the limits. The output is
+sampled and checked: no sample may exceed a limit by more than ``tolerance``; if one
+does, the limits are tightened by the excess and the timing is redone.
+"""
+
+from __future__ import annotations
+
+import logging
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..errors import TimingError
+from ..robot import Robot
+
+__all__ = ["TimingOptions", "TimedPiece", "spline_path", "time_path"]
+
+log = logging.getLogger(__name__)
+logging.getLogger("toppra").setLevel(logging.WARNING)
+
+
+@dataclass(frozen=True)
+class TimingOptions:
+    """Options of the time parameterisation.
+
+    Attributes:
+        speed_scale: Global fraction of the velocity and acceleration limits, in (0, 1].
+        knot_period: Period of the output knots [s].
+        spacing: Spacing of the spline's interpolation points along the path [rad].
+        grid_step: Spacing of TOPPRA's grid along the path [rad].
+        tolerance: Allowed relative excess of a limit on a sample (0.001 = 0.1 %).
+    """
+
+    speed_scale: float = 1.0
+    knot_period: float = 0.004
+    spacing: float = 0.06
+    grid_step: float = 0.01
+    tolerance: float = 0.001
+
+    def __post_init__(self) -> None:
+        from ..errors import ConfigError
+
+        if not 0 < self.speed_scale <= 1:
+            raise ConfigError(f"speed_scale must lie in (0, 1], got {self.speed_scale}",
+                              key="speed_scale")
+        if not self.knot_period > 0:
+            raise ConfigError(f"knot_period must be > 0, got {self.knot_period}",
+                              key="knot_period")
+
+
+@dataclass(frozen=True)
+class TimedPiece:
+    """A rest-to-rest timed piece of path.
+
+    Attributes:
+        t: Knot times from 0 [s].
+        q: Positions [rad] (N, dof).
+        qd: Velocities [rad/s].
+        qdd: Accelerations [rad/s^2].
+        s: Path parameter of each knot.
+        segment: Index of the input polyline segment of each knot.
+    """
+
+    t: np.ndarray
+    q: np.ndarray
+    qd: np.ndarray
+    qdd: np.ndarray
+    s: np.ndarray
+    segment: np.ndarray
+
+
+def spline_path(waypoints: Sequence[np.ndarray], spacing: float
+                ) -> tuple[object, np.ndarray, np.ndarray]:
+    """A cubic spline through a polyline resampled every ``spacing`` [rad].
+
+    Returns:
+        The toppra spline, the path parameter of each input waypoint, and the spline's
+        parameter breakpoints.
+    """
+    import toppra as ta
+
+    W = np.asarray(waypoints, dtype=float)
+    seg = np.linalg.norm(np.diff(W, axis=0), axis=1)
+    s_way = np.concatenate([[0.0], np.cumsum(seg)])
+    pts, ss = [W[0]], [0.0]
+    for k in range(len(W) - 1):
+        m = max(1, int(np.ceil(seg[k] / spacing)))
+        for j in range(1, m + 1):
+            pts.append(W[k] + (j / m) * (W[k + 1] - W[k]))
+            ss.append(s_way[k] + (j / m) * seg[k])
+    ss_arr = np.asarray(ss)
+    if len(pts) == 2:  # a straight line: a linear "spline"
+        mid = 0.5 * (pts[0] + pts[1])
+        pts.insert(1, mid)
+        ss_arr = np.array([0.0, ss_arr[-1] / 2, ss_arr[-1]])
+    path = ta.SplineInterpolator(ss_arr, np.asarray(pts), bc_type="not-a-knot")
+    return path, s_way, ss_arr
+
+
+def time_path(robot: Robot, path: object, s_way: np.ndarray, *, scales: Sequence[float],
+              tcp_speeds: Sequence[float | None], options: TimingOptions = TimingOptions(),
+              step: str | None = None) -> TimedPiece:
+    """Time a spline path rest to rest.
+
+    Args:
+        robot: Limits and kinematics.
+        path: Spline from :func:`spline_path`.
+        s_way: Path parameter of the input waypoints (segment boundaries).
+        scales: Speed scale of each input segment, in (0, 1].
+        tcp_speeds: TCP speed limit of each input segment [m/s], or None.
+        options: Timing options.
+        step: Step name for errors.
+
+    Raises:
+        TimingError: TOPPRA found no feasible timing, or limits could not be met.
+    """
+    import toppra as ta
+    import toppra.algorithm as algo
+    import toppra.constraint as constraint
+
+    length = float(s_way[-1])
+    n_grid = max(20, int(np.ceil(length / options.grid_step)) + 1)
+    grid = np.union1d(np.linspace(0.0, length, n_grid), s_way)
+    seg_of_grid = np.clip(np.searchsorted(s_way, grid, side="right") - 1, 0, len(scales) - 1)
+    scale_grid = np.asarray(scales, dtype=float)[seg_of_grid] * options.speed_scale
+    vmax = robot.velocity_limits
+    amax = robot.acceleration_limits
+    # TCP speed: sdot <= v_tcp / |dp/ds|, expressed as per-joint velocity bounds.
+    dq = path(grid, 1)  # type: ignore[operator]
+    vlim_grid = scale_grid[:, None] * vmax[None, :]
+    if any(v is not None for v in tcp_speeds):
+        q_grid = path(grid)  # type: ignore[operator]
+        p = np.array([robot.tcp_position(q) for q in q_grid])
+        dp = np.gradient(p, grid, axis=0)
+        speed = np.linalg.norm(dp, axis=1)
+        for g, seg in enumerate(seg_of_grid):
+            v = tcp_speeds[seg]
+            if v is None or speed[g] < 1e-9:
+                continue
+            sd_max = v / speed[g]
+            vlim_grid[g] = np.minimum(vlim_grid[g], np.maximum(np.abs(dq[g]) * sd_max, 1e-9))
+    factor = 1.0
+    for attempt in range(4):
+        piece = _toppra(ta, algo, constraint, path, grid, vlim_grid * factor,
+                        scale_grid[:, None] * amax[None, :] * factor, options, step)
+        seg_index = np.clip(np.searchsorted(s_way, piece.s, side="right") - 1, 0,
+                            len(scales) - 1)
+        piece = TimedPiece(piece.t, piece.q, piece.qd, piece.qdd, piece.s, seg_index)
+        ratio = _limit_ratio(piece, robot, np.asarray(scales) * options.speed_scale)
+        if ratio <= 1.0 + options.tolerance:
+            return piece
+        log.debug("timing attempt %d exceeds limits by %.3f %%; tightening", attempt,
+                  (ratio - 1) * 100)
+        factor /= ratio * (1 + options.tolerance / 4)
+    raise TimingError(f"timing exceeds the limits by {(ratio - 1) * 100:.2f} % after retries"
+                      + (f" (step '{step}')" if step else ""))
+
+
+def _toppra(ta: object, algo: object, constraint: object, path: object, grid: np.ndarray,
+            vlim_grid: np.ndarray, alim_grid: np.ndarray, options: TimingOptions,
+            step: str | None) -> TimedPiece:
+    def vlim(s: float) -> np.ndarray:
+        g = min(int(np.searchsorted(grid, s - 1e-12)), len(grid) - 1)
+        v = vlim_grid[g]
+        return np.stack([-v, v], axis=1)
+
+    pc_vel = constraint.JointVelocityConstraintVarying(vlim)  # type: ignore[attr-defined]
+    pc_acc = _VaryingAcceleration(alim_grid)
+    instance = algo.TOPPRA([pc_vel, pc_acc], path, gridpoints=grid,  # type: ignore[attr-defined]
+                           parametrizer="ParametrizeConstAccel")
+    traj = instance.compute_trajectory(0.0, 0.0)
+    if traj is None:
+        raise TimingError("TOPPRA found no feasible timing" + (f" (step '{step}')" if step
+                                                                 else ""))
+    duration = float(traj.duration)
+    n = max(2, int(np.ceil(duration / options.knot_period)) + 1)
+    t = np.linspace(0.0, duration, n)
+    q, qd, qdd = traj(t), traj(t, 1), traj(t, 2)
+    qd[0] = qd[-1] = 0.0
+    s = _path_parameter(traj, t, grid)
+    return TimedPiece(t, np.asarray(q), np.asarray(qd), np.asarray(qdd), s,
+                      np.zeros(n, dtype=int))
+
+
+def _path_parameter(traj: object, t: np.ndarray, grid: np.ndarray) -> np.ndarray:
+    evaluate = getattr(traj, "_eval_params", None)
+    if evaluate is not None:
+        return np.asarray(evaluate(t)[0])
+    return np.interp(t, np.linspace(0, t[-1], len(grid)), grid)  # pragma: no cover
+
+
+def _limit_ratio(piece: TimedPiece, robot: Robot, seg_scales: np.ndarray) -> float:
+    scale = seg_scales[piece.segment][:, None]
+    v = np.max(np.abs(piece.qd) / (robot.velocity_limits[None, :] * scale))
+    a = np.max(np.abs(piece.qdd) / (robot.acceleration_limits[None, :] * scale))
+    return float(max(v, a))
+
+
+class _VaryingAcceleration:
+    """Joint acceleration limits that vary along the path (collocation form)."""
+
+    def __new__(cls, alim_grid: np.ndarray) -> object:
+        import toppra.constraint as constraint
+        from toppra.constraint import DiscretizationType
+
+        class VaryingAcceleration(constraint.LinearConstraint):  # type: ignore[misc]
+            def __init__(self, alim: np.ndarray) -> None:
+                super().__init__()
+                self.alim = alim
+                self.dof = alim.shape[1]
+                self.identical = False
+                self.set_discretization_type(DiscretizationType.Collocation)
+
+            def compute_constraint_params(self, path: object, gridpoints: np.ndarray,
+                                          *args: object, **kwargs: object) -> tuple:
+                ps = path(gridpoints, 1)  # type: ignore[operator]
+                pss = path(gridpoints, 2)  # type: ignore[operator]
+                dof = self.dof
+                N = len(gridpoints)
+                F = np.zeros((N, 2 * dof, dof))
+                g = np.zeros((N, 2 * dof))
+                F[:, :dof, :] = np.eye(dof)
+                F[:, dof:, :] = -np.eye(dof)
+                g[:, :dof] = self.alim
+                g[:, dof:] = self.alim
+                return ps, pss, np.zeros_like(ps), F, g, None, None
+
+        return VaryingAcceleration(alim_grid)

@@ -1,0 +1,121 @@
+"""Taught joint poses: ``poses.yaml`` in both layouts the Niryo cell uses.
+
+Layouts read:
+
+* nested, as the cell node loads it::
+
+    poses:
+      grip: [-0.0168, -0.0208, -0.8436, -0.0459, -0.6519, -0.0245]
+
+* flat, as ``record_joint_pose.sh`` appends it (one ``name: [..]`` line per pose)::
+
+    grip: [-0.0168,-0.0208,-0.8436,-0.0459,-0.6519,-0.0245]
+
+A file may hold both (a nested file to which the recorder appended lines). Saving
+always writes the nested layout, atomically, keeping the previous file as ``poses.yaml~``.
+"""
+
+from __future__ import annotations
+
+import re
+from collections.abc import Mapping, Sequence
+from pathlib import Path
+
+import numpy as np
+
+from ._io import atomic_write_text, read_yaml
+from .errors import PoseError
+from .robot import Robot
+
+__all__ = ["load_poses", "save_poses", "dump_poses"]
+
+_NAME = re.compile(r"^[A-Za-z_][A-Za-z0-9_\-]*$")
+
+
+def load_poses(path: str | Path, robot: Robot, *, names: Sequence[str] | None = None
+               ) -> dict[str, np.ndarray]:
+    """Read and validate a poses file.
+
+    Args:
+        path: The YAML file.
+        robot: Gives the joint count and limits every pose is checked against.
+        names: If given, the pose names the file must hold: a missing one or an
+            unknown extra one is an error.
+
+    Returns:
+        Pose name to joint vector [rad], in file order.
+
+    Raises:
+        PoseError: Malformed YAML, a pose with the wrong count, a non-finite value, a
+            value outside the joint limits, a bad or unknown name; names file and key.
+    """
+    path = Path(path)
+    data = read_yaml(path, error=PoseError)
+    if data is None:
+        data = {}
+    if not isinstance(data, dict):
+        raise PoseError("expected a mapping of pose names to joint lists", path=path)
+    raw: dict[str, tuple[str, object]] = {}
+    for key, value in data.items():
+        if key == "poses" and isinstance(value, dict):
+            for name, q in value.items():
+                _add(raw, str(name), f"poses.{name}", q, path)
+        elif key == "poses" and value is None:
+            continue
+        else:
+            _add(raw, str(key), str(key), value, path)
+    poses: dict[str, np.ndarray] = {}
+    for name, (key, q) in raw.items():
+        if not _NAME.match(name):
+            raise PoseError(f"'{name}' is not a valid pose name", path=path, key=key)
+        if not isinstance(q, list):
+            raise PoseError(f"expected a list of {robot.dof} joint values, got {q!r}",
+                            path=path, key=key)
+        for i, v in enumerate(q):
+            if isinstance(v, bool) or not isinstance(v, (int, float)):
+                raise PoseError(f"value {i} is not a number: {v!r}", path=path, key=key)
+        poses[name] = robot.as_joint_vector(q, name=key, path=path)
+    if names is not None:
+        known = list(names)
+        for name, (key, _) in raw.items():
+            if name not in known:
+                raise PoseError(f"unknown pose name '{name}' (expected: {', '.join(known)})",
+                                path=path, key=key)
+        missing = [n for n in known if n not in poses]
+        if missing:
+            raise PoseError(f"missing pose(s): {', '.join(missing)}", path=path)
+    return poses
+
+
+def _add(raw: dict[str, tuple[str, object]], name: str, key: str, q: object, path: Path) -> None:
+    if name in raw:
+        raise PoseError(f"pose '{name}' is defined twice", path=path, key=key)
+    raw[name] = (key, q)
+
+
+def dump_poses(poses: Mapping[str, Sequence[float] | np.ndarray]) -> str:
+    """The nested YAML text of ``poses``, with every value at full double precision."""
+    lines = ["poses:"]
+    for name, q in poses.items():
+        values = ", ".join(repr(float(v)) for v in np.asarray(q, dtype=float))
+        lines.append(f"  {name}: [{values}]")
+    return "\n".join(lines) + "\n"
+
+
+def save_poses(path: str | Path, poses: Mapping[str, Sequence[float] | np.ndarray],
+               robot: Robot, *, backup: bool = True) -> None:
+    """Validate and atomically write ``poses`` in the nested layout.
+
+    The previous file, if any, is kept as ``<path>~`` when ``backup`` is true. When
+    validation or writing fails, the file on disk is left as it was.
+
+    Raises:
+        PoseError: A pose is malformed or outside the limits (nothing is written).
+    """
+    path = Path(path)
+    checked = {}
+    for name, q in poses.items():
+        if not _NAME.match(str(name)):
+            raise PoseError(f"'{name}' is not a valid pose name", path=path, key=str(name))
+        checked[str(name)] = robot.as_joint_vector(q, name=f"poses.{name}", path=path)
+    atomic_write_text(path, dump_poses(checked), backup=backup)

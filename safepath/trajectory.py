@@ -1,0 +1,254 @@
+"""Timed joint trajectories: the library's output.
+
+A :class:`Trajectory` holds dense knots (time, position, velocity, acceleration), the
+route step every knot belongs to, and the gripper events. Between knots it is
+interpolated with cubic Hermite polynomials on position and velocity (and linearly on
+acceleration), so it can be sampled at any rate. It exports to JSON (lossless) and
+CSV, and reports its duration per step.
+"""
+
+from __future__ import annotations
+
+import csv
+import io
+import json
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, Literal
+
+import numpy as np
+
+from ._io import atomic_write_text
+from .errors import TrajectoryError
+
+__all__ = ["GripperEvent", "Trajectory", "load_trajectory"]
+
+FORMAT = "safepath.trajectory/1"
+
+
+@dataclass(frozen=True)
+class GripperEvent:
+    """A gripper action at a stop of the trajectory.
+
+    Attributes:
+        time: When it happens [s] (the robot is at rest).
+        action: ``open`` or ``close``.
+        step: Route step name.
+        object: Object attached (close) or released (open), if any.
+    """
+
+    time: float
+    action: Literal["open", "close"]
+    step: str
+    object: str | None = None
+
+
+@dataclass(frozen=True)
+class Trajectory:
+    """A timed, verified joint trajectory.
+
+    Attributes:
+        joint_names: Joint order of the columns.
+        t: Knot times [s], strictly increasing, starting at 0.
+        q: Positions [rad], shape (N, dof).
+        qd: Velocities [rad/s], shape (N, dof).
+        qdd: Accelerations [rad/s^2], shape (N, dof).
+        step_index: For each knot, the index into :attr:`steps` it belongs to.
+        steps: Route step names.
+        events: Gripper events.
+        robot: Robot name.
+        route: Route name.
+        info: Free-form facts (planning time, clearance, ...), JSON-serialisable.
+    """
+
+    joint_names: tuple[str, ...]
+    t: np.ndarray = field(repr=False)
+    q: np.ndarray = field(repr=False)
+    qd: np.ndarray = field(repr=False)
+    qdd: np.ndarray = field(repr=False)
+    step_index: np.ndarray = field(repr=False)
+    steps: tuple[str, ...] = ()
+    events: tuple[GripperEvent, ...] = ()
+    robot: str = ""
+    route: str = ""
+    info: dict[str, Any] = field(default_factory=dict, compare=False)
+
+    def __post_init__(self) -> None:
+        n = len(self.joint_names)
+        t = np.asarray(self.t, dtype=float)
+        if t.ndim != 1 or t.size < 1:
+            raise TrajectoryError("times must be a non-empty 1-D array", key="t")
+        for name in ("q", "qd", "qdd"):
+            arr = np.asarray(getattr(self, name), dtype=float)
+            if arr.shape != (t.size, n):
+                raise TrajectoryError(f"expected shape {(t.size, n)}, got {arr.shape}", key=name)
+            if not np.all(np.isfinite(arr)):
+                row = int(np.argwhere(~np.isfinite(arr))[0][0])
+                raise TrajectoryError(f"non-finite value at knot {row}", key=name)
+            object.__setattr__(self, name, arr)
+        if not np.all(np.isfinite(t)):
+            raise TrajectoryError("non-finite time", key="t")
+        if t.size > 1 and np.any(np.diff(t) <= 0):
+            k = int(np.flatnonzero(np.diff(t) <= 0)[0])
+            raise TrajectoryError(f"times not increasing at knot {k + 1} "
+                                  f"({t[k]:.6f} -> {t[k + 1]:.6f} s)", key="t")
+        object.__setattr__(self, "t", t)
+        idx = np.asarray(self.step_index, dtype=int)
+        if idx.shape != t.shape:
+            raise TrajectoryError(f"expected {t.size} step indices, got {idx.size}",
+                                  key="step_index")
+        if self.steps and (idx.min() < 0 or idx.max() >= len(self.steps)):
+            raise TrajectoryError("step index out of range", key="step_index")
+        object.__setattr__(self, "step_index", idx)
+        object.__setattr__(self, "joint_names", tuple(self.joint_names))
+
+    # -- facts -----------------------------------------------------------------------------
+    @property
+    def duration(self) -> float:
+        """Total motion time [s]."""
+        return float(self.t[-1] - self.t[0])
+
+    @property
+    def dof(self) -> int:
+        """Number of joints."""
+        return len(self.joint_names)
+
+    def step_durations(self) -> dict[str, float]:
+        """Time spent in each step [s] (a step's knots span to the next step's first)."""
+        out: dict[str, float] = {}
+        for k, name in enumerate(self.steps):
+            sel = np.flatnonzero(self.step_index == k)
+            if sel.size == 0:
+                out[name] = 0.0
+                continue
+            end = min(sel[-1] + 1, self.t.size - 1)
+            out[name] = float(self.t[end] - self.t[sel[0]])
+        return out
+
+    def step_at(self, time: float) -> str:
+        """Name of the step being executed at ``time`` [s]."""
+        k = int(np.clip(np.searchsorted(self.t, time, side="right") - 1, 0, self.t.size - 1))
+        return self.steps[self.step_index[k]] if self.steps else ""
+
+    # -- sampling --------------------------------------------------------------------------
+    def sample(self, times: Sequence[float] | np.ndarray
+               ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Positions, velocities and accelerations at ``times`` [s] (clamped to the ends)."""
+        times = np.clip(np.asarray(times, dtype=float), self.t[0], self.t[-1])
+        if self.t.size == 1:
+            n = times.size
+            return (np.repeat(self.q, n, 0), np.repeat(self.qd, n, 0), np.repeat(self.qdd, n, 0))
+        k = np.clip(np.searchsorted(self.t, times, side="right") - 1, 0, self.t.size - 2)
+        t0, t1 = self.t[k], self.t[k + 1]
+        h = (t1 - t0)[:, None]
+        s = ((times - t0) / (t1 - t0))[:, None]
+        p0, p1 = self.q[k], self.q[k + 1]
+        m0, m1 = self.qd[k] * h, self.qd[k + 1] * h
+        s2, s3 = s * s, s * s * s
+        q = ((2 * s3 - 3 * s2 + 1) * p0 + (s3 - 2 * s2 + s) * m0
+             + (-2 * s3 + 3 * s2) * p1 + (s3 - s2) * m1)
+        dq = ((6 * s2 - 6 * s) * p0 + (3 * s2 - 4 * s + 1) * m0
+              + (-6 * s2 + 6 * s) * p1 + (3 * s2 - 2 * s) * m1) / h
+        a0, a1 = self.qdd[k], self.qdd[k + 1]
+        ddq = a0 + s * (a1 - a0)
+        return q, dq, ddq
+
+    def resample(self, period: float) -> Trajectory:
+        """The same trajectory with knots every ``period`` [s] (and the final knot).
+
+        Raises:
+            TrajectoryError: ``period`` is not positive and finite.
+        """
+        if not np.isfinite(period) or period <= 0:
+            raise TrajectoryError(f"sampling period must be > 0, got {period}", key="period")
+        times = np.arange(self.t[0], self.t[-1], period)
+        if times.size == 0 or self.t[-1] - times[-1] > 1e-9:
+            times = np.append(times, self.t[-1])
+        q, qd, qdd = self.sample(times)
+        qd[0], qdd[0] = self.qd[0], self.qdd[0]
+        q[-1], qd[-1], qdd[-1] = self.q[-1], self.qd[-1], self.qdd[-1]
+        k = np.clip(np.searchsorted(self.t, times, side="right") - 1, 0, self.t.size - 1)
+        return Trajectory(self.joint_names, times, q, qd, qdd, self.step_index[k], self.steps,
+                          self.events, self.robot, self.route, dict(self.info))
+
+    # -- export ----------------------------------------------------------------------------
+    def to_dict(self) -> dict[str, Any]:
+        """Lossless JSON-compatible form (floats at full precision)."""
+        return {
+            "format": FORMAT,
+            "robot": self.robot,
+            "route": self.route,
+            "joint_names": list(self.joint_names),
+            "steps": list(self.steps),
+            "events": [e.__dict__ for e in self.events],
+            "info": self.info,
+            "t": self.t.tolist(),
+            "q": self.q.tolist(),
+            "qd": self.qd.tolist(),
+            "qdd": self.qdd.tolist(),
+            "step_index": self.step_index.tolist(),
+        }
+
+    def to_json(self, path: str | Path | None = None) -> str:
+        """JSON text; written atomically to ``path`` when given."""
+        text = json.dumps(self.to_dict(), indent=None, separators=(",", ":"))
+        if path is not None:
+            atomic_write_text(path, text + "\n")
+        return text
+
+    def to_csv(self, path: str | Path | None = None, *, period: float | None = None) -> str:
+        """CSV with columns t, step, q_*, qd_*, qdd_*; resampled at ``period`` if given."""
+        traj = self if period is None else self.resample(period)
+        buf = io.StringIO()
+        writer = csv.writer(buf, lineterminator="\n")
+        writer.writerow(["t", "step"] + [f"q_{n}" for n in self.joint_names]
+                        + [f"qd_{n}" for n in self.joint_names]
+                        + [f"qdd_{n}" for n in self.joint_names])
+        for k in range(traj.t.size):
+            step = traj.steps[traj.step_index[k]] if traj.steps else ""
+            writer.writerow([repr(float(traj.t[k])), step]
+                            + [repr(float(v)) for v in traj.q[k]]
+                            + [repr(float(v)) for v in traj.qd[k]]
+                            + [repr(float(v)) for v in traj.qdd[k]])
+        text = buf.getvalue()
+        if path is not None:
+            atomic_write_text(path, text)
+        return text
+
+    @classmethod
+    def from_dict(cls, data: Any, *, path: str | Path | None = None) -> Trajectory:
+        """Inverse of :meth:`to_dict`.
+
+        Raises:
+            TrajectoryError: Missing keys or inconsistent arrays (names the file).
+        """
+        if not isinstance(data, dict) or data.get("format") != FORMAT:
+            raise TrajectoryError(f"not a safepath trajectory (format {FORMAT!r} expected)",
+                                  path=path, key="format")
+        try:
+            events = tuple(GripperEvent(**e) for e in data.get("events", []))
+            return cls(tuple(data["joint_names"]), np.array(data["t"], dtype=float),
+                       np.array(data["q"], dtype=float), np.array(data["qd"], dtype=float),
+                       np.array(data["qdd"], dtype=float),
+                       np.array(data["step_index"], dtype=int), tuple(data.get("steps", [])),
+                       events, str(data.get("robot", "")), str(data.get("route", "")),
+                       dict(data.get("info", {})))
+        except KeyError as exc:
+            raise TrajectoryError("missing key", path=path, key=str(exc.args[0])) from None
+        except TrajectoryError as exc:
+            raise TrajectoryError(exc.reason, path=path, key=exc.key) from None
+        except (TypeError, ValueError) as exc:
+            raise TrajectoryError(f"malformed trajectory ({exc})", path=path) from None
+
+
+def load_trajectory(path: str | Path) -> Trajectory:
+    """Read a trajectory written by :meth:`Trajectory.to_json`."""
+    path = Path(path)
+    try:
+        data = json.loads(path.read_text(encoding="utf-8"))
+    except FileNotFoundError:
+        raise TrajectoryError("file not found", path=path) from None
+    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
+        raise TrajectoryError(f"cannot read trajectory ({exc})", path=path) from None
+    return Trajectory.from_dict(data, path=path)
