@@ -242,6 +242,10 @@ class CollisionChecker:
         for k in range(len(self._pairs)):
             self._dist_gdata.activeCollisionPairs[k] = bool(active[k])
         self._weights = self._displacement_weights()
+        # Broad phase (AABB tree) for the fast path; it honours the same pairs and the
+        # same per-pair margins, and answers like the pair-by-pair loop (tested).
+        self._broad = pin.BroadPhaseManager_DynamicAABBTreeCollisionManager(
+            model, gmodel, self._gdata)
 
     def _add(self, gmodel: pin.GeometryModel, name: str, joint: int, frame: int,
              T: np.ndarray, obj: SceneObject) -> int:
@@ -311,10 +315,12 @@ class CollisionChecker:
     def is_valid(self, q: np.ndarray) -> bool:
         """Inside the limits and collision-free (fast path, no details)."""
         r = self.robot
-        if np.any(q < r.lower) or np.any(q > r.upper):
+        if (q < r.lower).any() or (q > r.upper).any():
             return False
-        return not pin.computeCollisions(r.model, self._data, self.geometry_model, self._gdata,
-                                         q, True)
+        return not pin.computeCollisions(r.model, self._data, self._broad, q, True)
+
+    def _free(self, q: np.ndarray) -> bool:
+        return not pin.computeCollisions(self.robot.model, self._data, self._broad, q, True)
 
     def collisions(self, q: np.ndarray) -> list[Pair]:
         """Every colliding pair at ``q`` (limits ignored)."""
@@ -378,17 +384,24 @@ class CollisionChecker:
 
         States are checked in bisection order (ends, middle, quarters, ...) so that a
         collision is found early; together they are spaced so that no robot point
-        moves more than ``options.resolution`` between neighbours.
+        moves more than ``options.resolution`` between neighbours. Joint limits are
+        checked at the ends (the joint-limit box is convex, so the segment is inside
+        it when both ends are, even with ``check_ends=False``).
         """
         q0 = np.asarray(q0, dtype=float)
         q1 = np.asarray(q1, dtype=float)
+        robot = self.robot
+        for end in (q0, q1):
+            if not robot.within_limits(end):
+                s = 0.0 if end is q0 else 1.0
+                return SegmentReport(False, 0, s, end.copy(), (), robot.limit_violation(end))
         n = self.segment_states(q0, q1)
         order = _bisection_order(n, check_ends)
         dq = q1 - q0
         for i in order:
             s = i / n
             q = q0 + s * dq
-            if not self.is_valid(q):
+            if not self._free(q):
                 if not details:
                     return SegmentReport(False, 0, s, q)
                 return SegmentReport(False, len(order), s, q, tuple(self.collisions(q)),

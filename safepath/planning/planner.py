@@ -20,7 +20,7 @@ import numpy as np
 
 from ..cell import Cell
 from ..collision import CheckOptions, CollisionChecker
-from ..errors import IKError, PlanningError
+from ..errors import IKError, PlanningError, TimingError
 from ..scene import AllowedContact
 from ..trajectory import GripperEvent, Trajectory
 from .cartesian import LineOptions, cartesian_line
@@ -29,8 +29,8 @@ from .sampling import PlannerOptions, plan_joint_path
 from .timing import TimedPiece, TimingOptions, spline_path, time_path
 from .verify import FclVerifier
 
-__all__ = ["PlanOptions", "WorldState", "plan_route", "plan_cell", "baseline_duration",
-           "route_order"]
+__all__ = ["PlanOptions", "WorldState", "plan_route", "plan_cell", "route_order",
+           "initial_world", "rest_to_rest_time"]
 
 log = logging.getLogger(__name__)
 
@@ -45,6 +45,8 @@ class PlanOptions:
         line: Cartesian lines.
         timing: Time parameterisation (global speed scale).
         grasp_tolerance: How far the object may be from the gripper when it closes [m].
+        baseline: Also time the stop-and-go baseline (every motion step rest to rest
+            along its own path, same limits) into ``info["baseline_duration"]``.
     """
 
     check: CheckOptions = field(default_factory=lambda: CheckOptions(enforce_margin=True))
@@ -52,6 +54,7 @@ class PlanOptions:
     line: LineOptions = field(default_factory=LineOptions)
     timing: TimingOptions = field(default_factory=TimingOptions)
     grasp_tolerance: float = 0.005
+    baseline: bool = False
 
 
 @dataclass
@@ -190,9 +193,9 @@ def _plan(cell: Cell, route: Route, world: WorldState, options: PlanOptions,
         label = labels[i]
         if step.is_motion:
             assert step.target is not None
-            goal = cell.pose(step.target)
+            goal, goal_name = _resolve(cell, step, q, label, options)
             if step.kind == "line":
-                allowed = scene.contacts_at(pose_name) + scene.contacts_at(step.target)
+                allowed = scene.contacts_at(pose_name) + scene.contacts_at(goal_name)
                 checker = cache.checker(world, allowed)
                 waypoints = cartesian_line(robot, q, goal, options=options.line, step_name=label)
                 report = checker.check_path(waypoints)
@@ -211,7 +214,7 @@ def _plan(cell: Cell, route: Route, world: WorldState, options: PlanOptions,
                                         planner_opts.shortcut_iterations)
                 waypoints = plan_joint_path(checker, q, goal, options=seeded, step=label)
             current.append(_Segment(i, step, waypoints, allowed))
-            q, pose_name = goal, step.target
+            q, pose_name = goal, goal_name
             if step.stop:
                 chunks.append((current, world.copy()))
                 current = []
@@ -242,15 +245,55 @@ def _plan(cell: Cell, route: Route, world: WorldState, options: PlanOptions,
                     min_clear, closest = result.min_clearance, result.closest_pair
             pieces.append((piece, steps_of_knots))
     traj = _assemble(cell, route, labels, pieces, chunks, actions)
+    _check_position_limits(cell, traj)
     traj.info.update({
         "planning_time": plan_time,
         "total_time": time.perf_counter() - t_start,
         "min_clearance": min_clear,
         "closest_pair": list(closest) if closest else None,
-        "baseline_duration": baseline_duration(cell, route, options),
         "seed": options.planner.seed,
+        "speed_scale": options.timing.speed_scale,
+        "resolution": options.check.resolution,
     })
+    if options.baseline:
+        total = 0.0
+        for segments, chunk_world in chunks:
+            for seg in segments:
+                piece, _ = _time_segments(cell, [seg], chunk_world, options, cache,
+                                          check=False, blend=0.0)
+                total += float(piece.t[-1])
+        traj.info["baseline_duration"] = total
     return traj, world
+
+
+def _check_position_limits(cell: Cell, traj: Trajectory) -> None:
+    robot = cell.robot
+    tol = 1e-9
+    low = traj.q < robot.lower - tol
+    high = traj.q > robot.upper + tol
+    if low.any() or high.any():
+        k, j = np.argwhere(low | high)[0]
+        raise TimingError(f"{robot.joint_names[j]} leaves its limits at t={traj.t[k]:.3f} s "
+                          f"({traj.q[k, j]:.5f} rad) in step '{traj.steps[traj.step_index[k]]}'")
+
+
+def _resolve(cell: Cell, step: Step, q: np.ndarray, label: str, options: PlanOptions
+             ) -> tuple[np.ndarray, str | None]:
+    """Joint goal of a motion step, and the taught pose it is exactly (or None)."""
+    from .cartesian import solve_ik
+
+    target = step.target
+    assert target is not None
+    if target.exact_pose is not None:
+        return cell.pose(target.exact_pose), target.exact_pose
+    seed = cell.pose(target.pose) if target.pose is not None else q
+    T = cell.robot.frame_pose(seed)
+    T.translation = T.translation + np.asarray(target.offset)
+    goal = solve_ik(cell.robot, T, seed, options=options.line)
+    if goal is None:
+        raise IKError("no inverse-kinematics solution for the target", step=label,
+                      fraction=1.0, position=T.translation.copy())
+    return goal, None
 
 
 def _gripper(cell: Cell, world: WorldState, step: Step, q: np.ndarray, label: str,
@@ -258,7 +301,7 @@ def _gripper(cell: Cell, world: WorldState, step: Step, q: np.ndarray, label: st
     scene, robot = cell.scene, cell.robot
     grasp = scene.grasp
     world = world.copy()
-    obj = step.target or (grasp.object if grasp else None)
+    obj = step.object or (grasp.object if grasp else None)
     if obj is None or grasp is None or grasp.object != obj:
         if step.kind == "close" and obj is not None:
             raise PlanningError(f"the scene defines no grasp for '{obj}'", step=label)
@@ -284,15 +327,18 @@ def _gripper(cell: Cell, world: WorldState, step: Step, q: np.ndarray, label: st
 
 def _time_chunk(cell: Cell, segments: list[_Segment], world: WorldState, options: PlanOptions,
                 cache: _Checkers) -> list[tuple[TimedPiece, list[int]]]:
-    """Time a chunk blended; fall back to stops at step boundaries, then at corners."""
-    try:
-        return [_time_segments(cell, segments, world, options, cache)]
-    except _NotFree:
-        pass
+    """Time a chunk blended through its via points (large blends first, then smaller,
+    then passing exactly); fall back to stops at step boundaries, then at corners."""
+    if len(segments) > 1 or len(segments[0].waypoints) > 2:
+        for blend in options.timing.blend_radii:
+            try:
+                return [_time_segments(cell, segments, world, options, cache, blend=blend)]
+            except _NotFree:
+                log.debug("blend %.3f rad not collision-free", blend)
     out = []
     for seg in segments:
         try:
-            out.append(_time_segments(cell, [seg], world, options, cache))
+            out.append(_time_segments(cell, [seg], world, options, cache, blend=0.0))
         except _NotFree:
             if seg.step.kind == "line":
                 raise PlanningError("the smoothed line is not collision-free",
@@ -308,21 +354,33 @@ class _NotFree(Exception):
 
 
 def _time_segments(cell: Cell, segments: list[_Segment], world: WorldState,
-                   options: PlanOptions, cache: _Checkers, *, check: bool = True
-                   ) -> tuple[TimedPiece, list[int]]:
+                   options: PlanOptions, cache: _Checkers, *, check: bool = True,
+                   blend: float = 0.0) -> tuple[TimedPiece, list[int]]:
     waypoints: list[np.ndarray] = []
+    corners: list[tuple[int, float]] = []
+    lengths = [float(np.sum(np.linalg.norm(np.diff(np.asarray(s.waypoints), axis=0), axis=1)))
+               for s in segments]
     seg_steps: list[int] = []
     scales: list[float] = []
     tcp: list[float | None] = []
     seg_of_poly: list[int] = []
     for n, seg in enumerate(segments):
+        if waypoints and n > 0 and blend > 0:
+            # A via pose between two steps: blend, within 40 % of either step.
+            corners.append((len(waypoints) - 1, min(blend, 0.4 * lengths[n - 1],
+                                                    0.4 * lengths[n])))
         pts = seg.waypoints if not waypoints else seg.waypoints[1:]
-        for p in pts:
+        for j, p in enumerate(pts):
             if waypoints and np.max(np.abs(p - waypoints[-1])) < 1e-10:
                 continue
             if waypoints:
                 seg_of_poly.append(n)
             waypoints.append(p)
+            inner = seg.step.kind == "move" and 0 < j < len(pts) - 1 and blend > 0
+            if inner:  # a vertex of a planned detour
+                a = np.linalg.norm(p - pts[j - 1])
+                b = np.linalg.norm(pts[j + 1] - p)
+                corners.append((len(waypoints) - 1, min(blend, 0.4 * a, 0.4 * b)))
     for n in seg_of_poly:
         seg = segments[n]
         seg_steps.append(seg.step_index)
@@ -334,7 +392,7 @@ def _time_segments(cell: Cell, segments: list[_Segment], world: WorldState,
         return TimedPiece(np.zeros(1), q[None, :], z, z, np.zeros(1), np.zeros(1, dtype=int)), \
             [segments[0].step_index]
     spacing = options.timing.spacing
-    path, s_way, _ = spline_path(waypoints, spacing)
+    path, s_way, _ = spline_path(waypoints, spacing, corners=corners)
     if check and len(waypoints) > 2:
         _check_spline(cell, path, s_way, seg_of_poly, segments, world, options, cache)
     piece = time_path(cell.robot, path, s_way, scales=scales, tcp_speeds=tcp,
@@ -384,7 +442,7 @@ def _assemble(cell: Cell, route: Route, labels: list[str],
     chunk_time = _chunk_end_times(pieces, chunks)
     for after_chunk, i, step in actions:
         when = 0.0 if after_chunk == 0 else chunk_time[after_chunk - 1]
-        obj = step.target or (cell.scene.grasp.object if cell.scene.grasp else None)
+        obj = step.object or (cell.scene.grasp.object if cell.scene.grasp else None)
         events.append(GripperEvent(when, step.kind, labels[i], obj))  # type: ignore[arg-type]
     return Trajectory(cell.robot.joint_names, t, np.vstack(q_all), np.vstack(qd_all),
                       np.vstack(qdd_all), np.concatenate(idx_all), tuple(labels), tuple(events),
@@ -401,24 +459,6 @@ def _chunk_end_times(pieces: list[tuple[TimedPiece, list[int]]], chunks: list) -
             p += 1
         out.append(offset)
     return out
-
-
-def baseline_duration(cell: Cell, route: Route, options: PlanOptions | None = None) -> float:
-    """Motion time of the stop-and-go baseline [s]: every motion step a separate
-    rest-to-rest straight joint move at the same limits (the seed's JOINTS goals)."""
-    options = options or PlanOptions()
-    robot = cell.robot
-    q = cell.pose(route.start)
-    total = 0.0
-    for step in route.steps:
-        if not step.is_motion or step.target is None:
-            continue
-        goal = cell.pose(step.target)
-        scale = step.speed * options.timing.speed_scale
-        total += rest_to_rest_time(goal - q, robot.velocity_limits * scale,
-                                   robot.acceleration_limits * scale)
-        q = goal
-    return total
 
 
 def rest_to_rest_time(delta: np.ndarray, vmax: np.ndarray, amax: np.ndarray) -> float:

@@ -11,8 +11,10 @@ A route starts at a taught pose and lists steps::
             speed: 0.3             # fraction of the joint limits for this step
             tcp_speed: 0.10        # TCP speed limit [m/s]
           - move: high2            # free joint move (planned around obstacles)
+          - move: {pose: low1, offset: [0, 0, 0.05]}   # 5 cm above a taught pose
           - line: low1
           - open: vial             # released where it is
+          - line: {up: 0.05}       # straight up from where the TCP is
       phase2_safe:
         after: phase1              # starts in the world phase1 leaves (vial on the plate)
         start: high2
@@ -30,12 +32,37 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Literal
 
-from .._io import as_float, as_str, get_key, read_yaml
+from .._io import as_float, as_str, as_vector, get_key, read_yaml
 from ..errors import ConfigError
 
-__all__ = ["Step", "Route", "load_routes"]
+__all__ = ["Target", "Step", "Route", "load_routes"]
 
 StepKind = Literal["move", "line", "open", "close"]
+
+
+@dataclass(frozen=True)
+class Target:
+    """Where a motion step goes.
+
+    Attributes:
+        pose: A taught pose, or None for a target relative to the current TCP.
+        offset: TCP translation added in the world frame [m] (orientation kept); a
+            non-zero offset is reached by inverse kinematics seeded from the pose.
+    """
+
+    pose: str | None
+    offset: tuple[float, float, float] = (0.0, 0.0, 0.0)
+
+    @property
+    def exact_pose(self) -> str | None:
+        """The taught pose, if the target is exactly it."""
+        return self.pose if not any(self.offset) else None
+
+    def __str__(self) -> str:
+        if self.exact_pose:
+            return self.exact_pose
+        off = ",".join(f"{v:+.3f}" for v in self.offset)
+        return f"{self.pose or 'here'}{off}"
 
 
 @dataclass(frozen=True)
@@ -44,14 +71,16 @@ class Step:
 
     Attributes:
         kind: ``move``, ``line``, ``open`` or ``close``.
-        target: Pose name (motions) or object name (gripper actions, may be None).
+        target: Where a motion goes (None for gripper actions).
+        object: Object a gripper action takes or releases (None: the scene's grasp).
         speed: Fraction of the velocity and acceleration limits, in (0, 1].
         tcp_speed: TCP speed limit [m/s], or None.
         stop: Whether the robot stops at the end of this motion.
     """
 
     kind: StepKind
-    target: str | None
+    target: Target | None
+    object: str | None = None
     speed: float = 1.0
     tcp_speed: float | None = None
     stop: bool = False
@@ -63,7 +92,8 @@ class Step:
 
     def label(self, index: int) -> str:
         """Short unique name, e.g. ``2 line high1``."""
-        return f"{index} {self.kind} {self.target or ''}".rstrip()
+        what = self.target if self.target is not None else (self.object or "")
+        return f"{index} {self.kind} {what}".rstrip()
 
 
 @dataclass(frozen=True)
@@ -136,6 +166,26 @@ def _check_pose(name: Any, poses: Sequence[str], path: Path, key: str) -> str:
     return name
 
 
+def _parse_target(raw: Any, poses: Sequence[str], path: Path, key: str) -> Target:
+    """``high1``, ``{pose: safe, offset: [0, 0, 0.05]}`` or ``{up: 0.05}``."""
+    if isinstance(raw, str):
+        return Target(_check_pose(raw, poses, path, key))
+    if isinstance(raw, dict):
+        if set(raw) == {"up"}:
+            dz = as_float(raw["up"], path=path, key=f"{key}.up")
+            return Target(None, (0.0, 0.0, dz))
+        unknown = set(raw) - {"pose", "offset"}
+        if unknown:
+            raise ConfigError(f"unknown key(s) {sorted(unknown)}", path=path, key=key)
+        pose = _check_pose(get_key(raw, "pose", path=path, prefix=key), poses, path,
+                           f"{key}.pose")
+        offset = as_vector(raw.get("offset", [0.0, 0.0, 0.0]), 3, path=path,
+                           key=f"{key}.offset")
+        return Target(pose, (offset[0], offset[1], offset[2]))
+    raise ConfigError(f"expected a pose name, {{pose: .., offset: [..]}} or {{up: ..}}, "
+                      f"got {raw!r}", path=path, key=key)
+
+
 def _parse_route(name: str, raw: Any, path: Path, poses: Sequence[str],
                  objects: Sequence[str], defaults: Mapping[str, Any]) -> Route:
     key = f"routes.{name}"
@@ -180,16 +230,16 @@ def _parse_step(raw: Any, path: Path, key: str, poses: Sequence[str], objects: S
     if not isinstance(stop, bool):
         raise ConfigError(f"expected true or false, got {stop!r}", path=path, key=f"{key}.stop")
     if kind in ("open", "close"):
-        target = raw[kind]
-        if target is not None:
-            target = as_str(target, path=path, key=f"{key}.{kind}")
-            if target not in objects:
-                raise ConfigError(f"unknown object '{target}' (objects: {', '.join(objects)})",
+        obj = raw[kind]
+        if obj is not None:
+            obj = as_str(obj, path=path, key=f"{key}.{kind}")
+            if obj not in objects:
+                raise ConfigError(f"unknown object '{obj}' (objects: {', '.join(objects)})",
                                   path=path, key=f"{key}.{kind}")
-        return Step(kind, target, speed, tcp_speed, True)  # type: ignore[arg-type]
-    target = _check_pose(raw[kind], poses, path, f"{key}.{kind}")
+        return Step(kind, None, obj, speed, tcp_speed, True)  # type: ignore[arg-type]
+    target = _parse_target(raw[kind], poses, path, f"{key}.{kind}")
     if kind == "via":
         if stop:
             raise ConfigError("a via point never stops", path=path, key=f"{key}.stop")
-        return Step("move", target, speed, tcp_speed, False)
-    return Step(kind, target, speed, tcp_speed, stop)  # type: ignore[arg-type]
+        return Step("move", target, None, speed, tcp_speed, False)
+    return Step(kind, target, None, speed, tcp_speed, stop)  # type: ignore[arg-type]

@@ -37,13 +37,16 @@ class TimingOptions:
         spacing: Spacing of the spline's interpolation points along the path [rad].
         grid_step: Spacing of TOPPRA's grid along the path [rad].
         tolerance: Allowed relative excess of a limit on a sample (0.001 = 0.1 %).
+        blend_radii: Blend radii tried at via points, largest first [rad]; 0 passes
+            through the via pose exactly.
     """
 
     speed_scale: float = 1.0
     knot_period: float = 0.004
     spacing: float = 0.06
-    grid_step: float = 0.01
+    grid_step: float = 0.015
     tolerance: float = 0.001
+    blend_radii: tuple[float, ...] = (0.3, 0.1, 0.0)
 
     def __post_init__(self) -> None:
         from ..errors import ConfigError
@@ -77,13 +80,22 @@ class TimedPiece:
     segment: np.ndarray
 
 
-def spline_path(waypoints: Sequence[np.ndarray], spacing: float
+def spline_path(waypoints: Sequence[np.ndarray], spacing: float, *,
+                corners: Sequence[tuple[int, float]] = ()
                 ) -> tuple[object, np.ndarray, np.ndarray]:
     """A cubic spline through a polyline resampled every ``spacing`` [rad].
 
+    Args:
+        waypoints: The polyline.
+        spacing: Largest distance between interpolation points [rad].
+        corners: Interior waypoints the spline may cut (via points), each with its
+            blend radius [rad]: interpolation points closer than that to the corner
+            (and the corner itself) are left out, so the spline rounds the corner
+            instead of passing through it.
+
     Returns:
-        The toppra spline, the path parameter of each input waypoint, and the spline's
-        parameter breakpoints.
+        The toppra spline, the path parameter of each input waypoint (its closest
+        point for cut corners), and the spline's interpolation parameters.
     """
     import toppra as ta
 
@@ -96,13 +108,23 @@ def spline_path(waypoints: Sequence[np.ndarray], spacing: float
         for j in range(1, m + 1):
             pts.append(W[k] + (j / m) * (W[k + 1] - W[k]))
             ss.append(s_way[k] + (j / m) * seg[k])
-    ss_arr = np.asarray(ss)
-    if len(pts) == 2:  # a straight line: a linear "spline"
-        mid = 0.5 * (pts[0] + pts[1])
-        pts.insert(1, mid)
-        ss_arr = np.array([0.0, ss_arr[-1] / 2, ss_arr[-1]])
-    path = ta.SplineInterpolator(ss_arr, np.asarray(pts), bc_type="not-a-knot")
-    return path, s_way, ss_arr
+    P, S = np.asarray(pts), np.asarray(ss)
+    if any(r > 0 for _, r in corners):
+        keep = np.ones(len(S), dtype=bool)
+        for c, r in corners:
+            if 0 < c < len(W) - 1 and r > 0:
+                keep &= ~(np.abs(S - s_way[c]) < r)
+        keep[0] = keep[-1] = True
+        P = P[keep]
+        # Re-parametrise the kept points by chord length, and map the waypoints.
+        chord = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(P, axis=0), axis=1))])
+        s_way = np.interp(s_way, S[keep], chord)
+        S = chord
+    if len(P) == 2:  # a straight line: a linear "spline"
+        P = np.vstack([P[0], 0.5 * (P[0] + P[1]), P[1]])
+        S = np.array([0.0, S[-1] / 2, S[-1]])
+    path = ta.SplineInterpolator(S, P, bc_type="not-a-knot")
+    return path, s_way, S
 
 
 def time_path(robot: Robot, path: object, s_way: np.ndarray, *, scales: Sequence[float],
@@ -167,12 +189,7 @@ def time_path(robot: Robot, path: object, s_way: np.ndarray, *, scales: Sequence
 def _toppra(ta: object, algo: object, constraint: object, path: object, grid: np.ndarray,
             vlim_grid: np.ndarray, alim_grid: np.ndarray, options: TimingOptions,
             step: str | None) -> TimedPiece:
-    def vlim(s: float) -> np.ndarray:
-        g = min(int(np.searchsorted(grid, s - 1e-12)), len(grid) - 1)
-        v = vlim_grid[g]
-        return np.stack([-v, v], axis=1)
-
-    pc_vel = constraint.JointVelocityConstraintVarying(vlim)  # type: ignore[attr-defined]
+    pc_vel = _VaryingVelocity(vlim_grid)
     pc_acc = _VaryingAcceleration(alim_grid)
     instance = algo.TOPPRA([pc_vel, pc_acc], path, gridpoints=grid,  # type: ignore[attr-defined]
                            parametrizer="ParametrizeConstAccel")
@@ -204,12 +221,37 @@ def _limit_ratio(piece: TimedPiece, robot: Robot, seg_scales: np.ndarray) -> flo
     return float(max(v, a))
 
 
+class _VaryingVelocity:
+    """Joint velocity limits that vary along the path, as bounds on the path speed."""
+
+    def __new__(cls, vlim_grid: np.ndarray) -> object:
+        import toppra.constraint as constraint
+
+        class VaryingVelocity(constraint.LinearConstraint):  # type: ignore[misc]
+            def __init__(self, vlim: np.ndarray) -> None:
+                super().__init__()
+                self.vlim = vlim
+                self.dof = vlim.shape[1]
+
+            def compute_constraint_params(self, path: object, gridpoints: np.ndarray,
+                                          *args: object, **kwargs: object) -> tuple:
+                qs = np.abs(path(gridpoints, 1))  # type: ignore[operator]
+                with np.errstate(divide="ignore"):
+                    sd = np.where(qs > 1e-12, self.vlim / np.maximum(qs, 1e-300), np.inf)
+                xmax = np.min(sd, axis=1) ** 2
+                xbound = np.stack([np.zeros_like(xmax), np.minimum(xmax, 1e12)], axis=1)
+                return None, None, None, None, None, None, xbound
+
+        return VaryingVelocity(vlim_grid)
+
+
 class _VaryingAcceleration:
     """Joint acceleration limits that vary along the path (collocation form)."""
 
     def __new__(cls, alim_grid: np.ndarray) -> object:
         import toppra.constraint as constraint
         from toppra.constraint import DiscretizationType
+        from toppra.constraint.linear_constraint import canlinear_colloc_to_interpolate
 
         class VaryingAcceleration(constraint.LinearConstraint):  # type: ignore[misc]
             def __init__(self, alim: np.ndarray) -> None:
@@ -217,7 +259,7 @@ class _VaryingAcceleration:
                 self.alim = alim
                 self.dof = alim.shape[1]
                 self.identical = False
-                self.set_discretization_type(DiscretizationType.Collocation)
+                self.set_discretization_type(DiscretizationType.Interpolation)
 
             def compute_constraint_params(self, path: object, gridpoints: np.ndarray,
                                           *args: object, **kwargs: object) -> tuple:
@@ -231,6 +273,7 @@ class _VaryingAcceleration:
                 F[:, dof:, :] = -np.eye(dof)
                 g[:, :dof] = self.alim
                 g[:, dof:] = self.alim
-                return ps, pss, np.zeros_like(ps), F, g, None, None
+                return canlinear_colloc_to_interpolate(ps, pss, np.zeros_like(ps), F, g, None,
+                                                       None, gridpoints, identical=False)
 
         return VaryingAcceleration(alim_grid)

@@ -1,1 +1,82 @@
-"""ROS 2 interface of safepath."""
+"""ROS 2 interface of safepath: goals, bags and the cell's decision logic.
+
+Messages are built with the pure-Python ``rosbags`` type system, so this package
+works without a ROS 2 installation; in a sourced ROS 2 workspace the goal builders
+return the native ``rclpy`` message classes instead (``backend="auto"``).
+
+* :mod:`safepath.ros.goals`: ``JointTrajectory``, ``FollowJointTrajectory``,
+  Niryo ``RobotMove`` and ``Tool`` goals from a :class:`~safepath.trajectory.Trajectory`.
+* :mod:`safepath.ros.bag`: write and read a ROS 2 bag (MCAP) of a cycle.
+* :mod:`safepath.ros.controller`: the quality-check cell's state machine, ROS-free.
+* :mod:`safepath.ros.messages`: the type store and CDR (de)serialisation.
+"""
+
+from __future__ import annotations
+
+from .bag import BagContents, BagMessage, read_bag, write_bag
+from .controller import (
+    ActuateGripper,
+    CancelGoal,
+    CellState,
+    Command,
+    ControllerOptions,
+    CycleReport,
+    Fault,
+    MoveArm,
+    QualityCheckController,
+    RequestVerdict,
+    SetConveyor,
+)
+from .goals import (
+    DEFAULT_PERIOD,
+    FOLLOW_JOINT_TRAJECTORY_ACTION,
+    GOAL_TIME_TOLERANCE,
+    GOAL_TOLERANCE,
+    NED_JOINT_NAMES,
+    ROBOT_MOVE_ACTION,
+    TOOL_ACTION,
+    check_start,
+    follow_joint_trajectory_goal,
+    joint_trajectory,
+    robot_move_goal,
+    split_at_gripper_events,
+    tool_goal,
+    tool_goals,
+)
+from .messages import deserialize, message_factory, serialize, typestore
+
+__all__ = [
+    "ActuateGripper",
+    "BagContents",
+    "BagMessage",
+    "CancelGoal",
+    "CellState",
+    "Command",
+    "ControllerOptions",
+    "CycleReport",
+    "DEFAULT_PERIOD",
+    "FOLLOW_JOINT_TRAJECTORY_ACTION",
+    "Fault",
+    "GOAL_TIME_TOLERANCE",
+    "GOAL_TOLERANCE",
+    "MoveArm",
+    "NED_JOINT_NAMES",
+    "QualityCheckController",
+    "ROBOT_MOVE_ACTION",
+    "RequestVerdict",
+    "SetConveyor",
+    "TOOL_ACTION",
+    "check_start",
+    "deserialize",
+    "follow_joint_trajectory_goal",
+    "joint_trajectory",
+    "message_factory",
+    "read_bag",
+    "robot_move_goal",
+    "serialize",
+    "split_at_gripper_events",
+    "tool_goal",
+    "tool_goals",
+    "typestore",
+    "write_bag",
+]

@@ -1,0 +1,29 @@
+"""Planning: routes of taught poses to verified, timed trajectories."""
+
+from .cartesian import LineOptions, cartesian_line, solve_ik
+from .planner import PlanOptions, WorldState, initial_world, plan_cell, plan_route
+from .routes import Route, Step, Target, load_routes
+from .sampling import PLANNERS, PlannerOptions, plan_joint_path
+from .timing import TimingOptions
+from .verify import FclVerifier, VerifyResult
+
+__all__ = [
+    "PLANNERS",
+    "FclVerifier",
+    "LineOptions",
+    "PlanOptions",
+    "PlannerOptions",
+    "Route",
+    "Step",
+    "Target",
+    "TimingOptions",
+    "VerifyResult",
+    "WorldState",
+    "cartesian_line",
+    "initial_world",
+    "load_routes",
+    "plan_cell",
+    "plan_joint_path",
+    "plan_route",
+    "solve_ik",
+]

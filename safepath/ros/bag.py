@@ -1,0 +1,233 @@
+"""ROS 2 bags (MCAP storage) of a cycle of trajectories, for review and replay.
+
+One bag holds a cycle: the trajectories in the order the robot runs them, back to
+back on one clock. Only standard ROS 2 types are used, so ``ros2 bag play``, Foxglove
+or PlotJuggler read it with no Niryo packages installed:
+
+=======================  ==================================  ===============================
+topic                    type                                one message
+=======================  ==================================  ===============================
+``/safepath/trajectory`` ``trajectory_msgs/msg/JointTrajectory``  per trajectory, at its start
+``/safepath/route``      ``std_msgs/msg/String`` (JSON)       per trajectory, at its start
+``/safepath/gripper``    ``std_msgs/msg/String`` (JSON)       per gripper event, at its time
+``/joint_states``        ``sensor_msgs/msg/JointState``       every 1/``joint_state_rate``
+=======================  ==================================  ===============================
+"""
+
+from __future__ import annotations
+
+import json
+import logging
+import math
+import os
+import shutil
+import tempfile
+from collections.abc import Iterable, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from rosbags.rosbag2 import Reader, ReaderError, StoragePlugin, Writer, WriterError
+
+from ..errors import RosError, TrajectoryError
+from ..trajectory import Trajectory
+from .goals import DEFAULT_PERIOD, NED_JOINT_NAMES, joint_trajectory
+from .messages import deserialize, serialize, typestore
+
+__all__ = ["BagContents", "BagMessage", "GRIPPER_TOPIC", "JOINT_STATES_TOPIC", "ROUTE_TOPIC",
+           "TRAJECTORY_TOPIC", "read_bag", "write_bag"]
+
+logger = logging.getLogger(__name__)
+
+TRAJECTORY_TOPIC = "/safepath/trajectory"
+ROUTE_TOPIC = "/safepath/route"
+GRIPPER_TOPIC = "/safepath/gripper"
+JOINT_STATES_TOPIC = "/joint_states"
+#: Largest jump allowed between the end of one trajectory and the start of the next [rad].
+JOIN_TOLERANCE = 1e-4
+
+_NS = 1_000_000_000
+_TOPICS = {
+    TRAJECTORY_TOPIC: "trajectory_msgs/msg/JointTrajectory",
+    ROUTE_TOPIC: "std_msgs/msg/String",
+    GRIPPER_TOPIC: "std_msgs/msg/String",
+    JOINT_STATES_TOPIC: "sensor_msgs/msg/JointState",
+}
+
+
+@dataclass(frozen=True)
+class BagMessage:
+    """One message read from a bag.
+
+    Attributes:
+        topic: Topic name.
+        timestamp: Log time [ns].
+        msg: The deserialised message (rosbags class).
+    """
+
+    topic: str
+    timestamp: int
+    msg: Any
+
+
+@dataclass(frozen=True)
+class BagContents:
+    """Everything in a bag, in log-time order.
+
+    Attributes:
+        topics: Message type of each topic.
+        messages: The messages.
+    """
+
+    topics: dict[str, str]
+    messages: tuple[BagMessage, ...] = field(repr=False)
+
+    def on(self, topic: str) -> list[BagMessage]:
+        """The messages of one topic, in log-time order."""
+        return [m for m in self.messages if m.topic == topic]
+
+
+def _string(data: dict[str, Any]) -> Any:
+    return typestore().types["std_msgs/msg/String"](data=json.dumps(data, sort_keys=True))
+
+
+def _joint_states(trajs: Sequence[Trajectory], starts_ns: Sequence[int], total_ns: int,
+                  rate: float, names: tuple[str, ...], start_time_ns: int) -> list[tuple[int, Any]]:
+    """``/joint_states`` every 1/``rate`` over the whole cycle, from the true motion."""
+    types = typestore().types
+    step_ns = round(_NS / rate)
+    times = np.arange(0, total_ns + step_ns, step_ns, dtype=np.int64)
+    which = np.clip(np.searchsorted(np.asarray(starts_ns), times, side="right") - 1,
+                    0, len(trajs) - 1)
+    out: list[tuple[int, Any]] = []
+    for k, traj in enumerate(trajs):
+        mine = times[which == k]
+        if mine.size == 0:
+            continue
+        cols = [traj.joint_names.index(n) for n in names]
+        q, qd, _ = traj.sample(traj.t[0] + (mine - starts_ns[k]) / _NS)
+        for j, t_ns in enumerate(mine):
+            stamp_ns = start_time_ns + int(t_ns)
+            header = types["std_msgs/msg/Header"](
+                stamp=types["builtin_interfaces/msg/Time"](sec=stamp_ns // _NS,
+                                                           nanosec=stamp_ns % _NS),
+                frame_id="")
+            out.append((stamp_ns, types["sensor_msgs/msg/JointState"](
+                header=header, name=list(names), position=q[j, cols].astype(np.float64),
+                velocity=qd[j, cols].astype(np.float64), effort=np.zeros(0))))
+    return out
+
+
+def _check_joins(trajs: Sequence[Trajectory], names: tuple[str, ...]) -> None:
+    for k in range(1, len(trajs)):
+        prev, cur = trajs[k - 1], trajs[k]
+        end = prev.q[-1, [prev.joint_names.index(n) for n in names]]
+        start = cur.q[0, [cur.joint_names.index(n) for n in names]]
+        jump = float(np.max(np.abs(end - start)))
+        if not jump <= JOIN_TOLERANCE:
+            raise TrajectoryError(f"route '{cur.route}' starts {jump:.4g} rad away from where "
+                                  f"'{prev.route}' ends: not one cycle", key=f"trajectories[{k}]")
+
+
+def write_bag(path: str | Path, trajectories: Iterable[Trajectory], *,
+              joint_state_rate: float = 50.0, period: float = DEFAULT_PERIOD,
+              robot_joint_names: Sequence[str] | None = None, start_time_ns: int = 0) -> Path:
+    """Write a ROS 2 bag (MCAP) of a cycle; see the module docstring for its layout.
+
+    Each trajectory starts where the previous one ends, on one clock from
+    ``start_time_ns``; ``/joint_states`` samples the motion every 1/``joint_state_rate``
+    from the cycle's start to its end (the last sample at or just after the end holds
+    the final pose). The bag is written to a temporary folder next to ``path`` and
+    renamed at the end: ``path`` is either the whole bag or absent.
+
+    Args:
+        path: The bag folder to create (must not exist).
+        trajectories: The cycle's trajectories, in execution order.
+        joint_state_rate: ``/joint_states`` rate [Hz] (the Ned publishes at 50 Hz).
+        period: Point spacing of the ``JointTrajectory`` messages [s].
+        robot_joint_names: The robot's joint names; default ``joint_1``..``joint_6``.
+        start_time_ns: Clock time of the cycle's start [ns since the epoch].
+
+    Returns:
+        ``path``.
+
+    Raises:
+        TrajectoryError: No trajectories, a bad trajectory, consecutive trajectories that
+            do not join, or a bad rate or period.
+        RosError: ``path`` exists or the bag cannot be written.
+    """
+    path = Path(path)
+    trajs = list(trajectories)
+    if not trajs:
+        raise TrajectoryError("no trajectories to write", key="trajectories")
+    if isinstance(joint_state_rate, bool) or not isinstance(joint_state_rate, (int, float)) \
+            or not math.isfinite(joint_state_rate) or not 0 < joint_state_rate <= 1e6:
+        raise TrajectoryError(f"must be in (0, 1e6] [Hz], got {joint_state_rate!r}",
+                              key="joint_state_rate")
+    names = tuple(NED_JOINT_NAMES if robot_joint_names is None else robot_joint_names)
+
+    # Build (and so validate) every message before touching the file system.
+    records: list[tuple[int, int, str, Any]] = []  # (time [ns], order, topic, message)
+    starts_ns: list[int] = []
+    clock_ns = 0
+    for traj in trajs:
+        msg = joint_trajectory(traj, period=period, robot_joint_names=names,
+                               stamp_ns=start_time_ns + clock_ns, backend="rosbags")
+        starts_ns.append(clock_ns)
+        t0 = start_time_ns + clock_ns
+        records.append((t0, 0, TRAJECTORY_TOPIC, msg))
+        records.append((t0, 1, ROUTE_TOPIC, _string(
+            {"route": traj.route, "robot": traj.robot, "duration": traj.duration,
+             "steps": traj.step_durations()})))
+        for event in traj.events:
+            records.append((t0 + round((event.time - traj.t[0]) * _NS), 2, GRIPPER_TOPIC,
+                            _string({"route": traj.route, "time": event.time,
+                                     "action": event.action, "step": event.step,
+                                     "object": event.object})))
+        last = msg.points[-1].time_from_start
+        clock_ns += last.sec * _NS + last.nanosec
+    _check_joins(trajs, names)
+    records += [(t, 3, JOINT_STATES_TOPIC, m) for t, m in
+                _joint_states(trajs, starts_ns, clock_ns, joint_state_rate, names,
+                              start_time_ns)]
+    records.sort(key=lambda r: (r[0], r[1]))
+
+    if path.exists():
+        raise RosError(f"{path} exists already, not overwriting")
+    path.parent.mkdir(parents=True, exist_ok=True)
+    tmp_root = Path(tempfile.mkdtemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent))
+    try:
+        # Inside the temp folder the bag has its final name, so its .mcap file has too.
+        tmp_bag = tmp_root / path.name
+        with Writer(tmp_bag, version=Writer.VERSION_LATEST,
+                    storage_plugin=StoragePlugin.MCAP) as writer:
+            conns = {topic: writer.add_connection(topic, msgtype, typestore=typestore())
+                     for topic, msgtype in _TOPICS.items()}
+            for time_ns, _, topic, msg in records:
+                writer.write(conns[topic], time_ns, serialize(msg, _TOPICS[topic]))
+        os.rename(tmp_bag, path)
+    except (WriterError, OSError) as exc:
+        raise RosError(f"cannot write bag {path}: {exc}") from None
+    finally:
+        shutil.rmtree(tmp_root, ignore_errors=True)
+    logger.info("wrote %s: %d trajectories, %.3f s, %d messages", path, len(trajs),
+                clock_ns / _NS, len(records))
+    return path
+
+
+def read_bag(path: str | Path) -> BagContents:
+    """Read every message of a ROS 2 bag (any storage) with the safepath type store.
+
+    Raises:
+        RosError: No bag at ``path``, a corrupt bag, or a type the store does not know.
+    """
+    path = Path(path)
+    try:
+        with Reader(path) as reader:
+            topics = {c.topic: c.msgtype for c in reader.connections}
+            messages = tuple(BagMessage(conn.topic, timestamp, deserialize(raw, conn.msgtype))
+                             for conn, timestamp, raw in reader.messages())
+    except (ReaderError, OSError) as exc:
+        raise RosError(f"cannot read bag {path}: {exc}") from None
+    return BagContents(topics, messages)

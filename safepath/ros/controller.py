@@ -1,0 +1,405 @@
+"""The decision logic of the quality-check cell, without ROS: an explicit state machine.
+
+Inputs are events (routes planned, sensor reading, safety verdict, goal result, clock
+tick), each with the current time; outputs are the commands each event returns, for
+the ROS node to carry out and answer with ``on_goal_result`` / ``on_verdict``. No
+threads and no clock inside, so every cycle can be replayed in a test.
+
+::
+
+    PLANNING --all routes planned--> IDLE (conveyor running)
+    IDLE --object seen--> PHASE1: stop conveyor, pick, place on the test plate, clear the camera
+    PHASE1 --done--> VERDICT: ask the test zone, with a time-out
+    VERDICT --'safe'--> PHASE2 (safe route: packaging)
+    VERDICT --'unsafe', none, malformed, time-out--> PHASE2 (unsafe route: reject)
+    PHASE2 --done--> report the cycle; IDLE (conveyor restarted) or PHASE1 (object waiting)
+    any --failed or overdue goal, failed planning--> FAULT: conveyor stopped, no motion
+    FAULT --reset()--> IDLE
+
+A route runs as the steps of :func:`~safepath.ros.goals.split_at_gripper_events`: each
+motion or gripper goal is sent only after the previous one succeeded. Only the exact
+verdict ``'safe'`` sends a vial to packaging.
+"""
+
+from __future__ import annotations
+
+import enum
+import logging
+import math
+from dataclasses import dataclass, field
+from typing import Literal
+
+from ..errors import InputError, TrajectoryError
+from ..trajectory import GripperEvent, Trajectory
+from .goals import split_at_gripper_events
+
+__all__ = [
+    "ActuateGripper",
+    "CancelGoal",
+    "CellState",
+    "Command",
+    "ControllerOptions",
+    "CycleReport",
+    "Fault",
+    "MoveArm",
+    "QualityCheckController",
+    "RequestVerdict",
+    "SetConveyor",
+]
+
+logger = logging.getLogger(__name__)
+
+
+class CellState(enum.Enum):
+    """States of :class:`QualityCheckController`."""
+
+    PLANNING = "planning"
+    IDLE = "idle"
+    PHASE1 = "phase1"
+    VERDICT = "verdict"
+    PHASE2 = "phase2"
+    FAULT = "fault"
+
+
+@dataclass(frozen=True)
+class ControllerOptions:
+    """Route names and time-outs of the cell.
+
+    Attributes:
+        phase1_route: Conveyor -> test plate -> out of the camera's view.
+        safe_route: Test plate -> packaging line -> back to the conveyor.
+        unsafe_route: Test plate -> reject bin -> back to the conveyor.
+        verdict_timeout: Longest wait for the verdict before deciding 'unsafe' [s].
+        motion_timeout_margin: Time allowed beyond a motion's duration [s].
+        gripper_timeout: Longest gripper action [s].
+        conveyor_timeout: Longest conveyor service call [s].
+    """
+
+    phase1_route: str = "phase1"
+    safe_route: str = "phase2_safe"
+    unsafe_route: str = "phase2_unsafe"
+    verdict_timeout: float = 5.0
+    motion_timeout_margin: float = 5.0
+    gripper_timeout: float = 5.0
+    conveyor_timeout: float = 5.0
+
+    def __post_init__(self) -> None:
+        routes = (self.phase1_route, self.safe_route, self.unsafe_route)
+        if not all(isinstance(r, str) and r for r in routes) or len(set(routes)) != 3:
+            raise InputError(f"need three distinct route names, got {list(routes)}",
+                             key="routes")
+        for name in ("verdict_timeout", "motion_timeout_margin", "gripper_timeout",
+                     "conveyor_timeout"):
+            value = getattr(self, name)
+            if not isinstance(value, (int, float)) or not math.isfinite(value) or value <= 0:
+                raise InputError(f"must be > 0 [s], got {value!r}", key=name)
+
+    @property
+    def routes(self) -> tuple[str, str, str]:
+        """The three route names."""
+        return (self.phase1_route, self.safe_route, self.unsafe_route)
+
+
+# -- commands ------------------------------------------------------------------------------
+@dataclass(frozen=True)
+class SetConveyor:
+    """Run or stop the conveyor; answer with ``on_goal_result(goal_id, ...)``."""
+
+    goal_id: int
+    running: bool
+
+
+@dataclass(frozen=True)
+class MoveArm:
+    """Execute one motion of a route; answer with ``on_goal_result(goal_id, ...)``."""
+
+    goal_id: int
+    route: str
+    index: int
+    trajectory: Trajectory = field(repr=False)
+
+
+@dataclass(frozen=True)
+class ActuateGripper:
+    """Open or close the gripper; answer with ``on_goal_result(goal_id, ...)``."""
+
+    goal_id: int
+    route: str
+    index: int
+    event: GripperEvent
+
+
+@dataclass(frozen=True)
+class RequestVerdict:
+    """Ask the test zone for the vial's verdict; answer with ``on_verdict``."""
+
+    request_id: int
+
+
+@dataclass(frozen=True)
+class CancelGoal:
+    """Cancel a goal that is overdue."""
+
+    goal_id: int
+
+
+@dataclass(frozen=True)
+class CycleReport:
+    """One vial handled: for the HMI and the logs.
+
+    Attributes:
+        cycle: Cycle number, from 1.
+        verdict: The decision taken.
+        reason: Why (the verdict received, or why it counts as 'unsafe').
+        route: The phase-2 route run.
+        cycle_time: Object seen -> back at the conveyor [s].
+        motion_time: Time the arm's motion goals took [s].
+        planned_motion_time: Duration of those motions as planned by safepath [s].
+        verdict_time: Wait for the verdict [s].
+    """
+
+    cycle: int
+    verdict: Literal["safe", "unsafe"]
+    reason: str
+    route: str
+    cycle_time: float
+    motion_time: float
+    planned_motion_time: float
+    verdict_time: float
+
+
+@dataclass(frozen=True)
+class Fault:
+    """The cell stopped: conveyor stopped, no further motion until ``reset()``."""
+
+    reason: str
+
+
+Command = (SetConveyor | MoveArm | ActuateGripper | RequestVerdict | CancelGoal | CycleReport
+           | Fault)
+_Step = Trajectory | GripperEvent | bool  # bool: a conveyor command (running?)
+
+
+@dataclass
+class _Pending:
+    """The one answer the controller is waiting for."""
+
+    goal_id: int
+    kind: Literal["conveyor", "motion", "gripper", "verdict"]
+    sent: float
+    deadline: float
+    planned: float = 0.0
+
+
+class QualityCheckController:
+    """The quality-check cell's state machine (see the module docstring).
+
+    Not thread-safe: a node calls it from one thread at a time (e.g. under a lock).
+
+    Args:
+        options: Route names and time-outs.
+    """
+
+    def __init__(self, options: ControllerOptions | None = None):
+        self.options = options or ControllerOptions()
+        self._programs: dict[str, list[Trajectory | GripperEvent]] = {}
+        self._state = CellState.PLANNING
+        self._object_present = False
+        self._next_id = 0
+        self._pending: _Pending | None = None
+        self._queue: list[tuple[str, int, _Step]] = []
+        self._cycles = 0
+        self._cycle_start = 0.0
+        self._motion_time = self._planned_time = self._verdict_time = 0.0
+        self._verdict: tuple[Literal["safe", "unsafe"], str] = ("unsafe", "")
+        self.last_report: CycleReport | None = None
+
+    @property
+    def state(self) -> CellState:
+        """The current state."""
+        return self._state
+
+    @property
+    def cycles(self) -> int:
+        """Number of completed cycles."""
+        return self._cycles
+
+    # -- events ----------------------------------------------------------------------------
+    def on_route_ready(self, name: str, trajectory: Trajectory, now: float) -> list[Command]:
+        """A route has been planned; once all three are, the conveyor starts.
+
+        Routes are taken while planning and in FAULT (kept for after ``reset()``);
+        never while the cell runs.
+        """
+        if name not in self.options.routes:
+            raise InputError(f"unknown route '{name}' (known: {', '.join(self.options.routes)})",
+                             key="route")
+        if self._state not in (CellState.PLANNING, CellState.FAULT):
+            logger.warning("route '%s' arrived in state %s: ignored", name, self._state.value)
+            return []
+        try:
+            self._programs[name] = split_at_gripper_events(trajectory)
+        except TrajectoryError as exc:
+            return self._fault(f"route '{name}' cannot be executed: {exc}")
+        if self._state is CellState.PLANNING and all(r in self._programs
+                                                     for r in self.options.routes):
+            return self._ready(now)
+        return []
+
+    def on_route_failed(self, name: str, reason: str, now: float) -> list[Command]:
+        """Planning a route failed: the cell cannot run."""
+        return self._fault(f"planning route '{name}' failed: {reason}")
+
+    def on_sensor(self, object_present: bool, now: float) -> list[Command]:
+        """The conveyor's presence sensor changed. Only acted on in IDLE."""
+        self._object_present = bool(object_present)
+        if self._state is CellState.IDLE and self._object_present:
+            return self._begin_cycle(now)
+        if object_present and self._state is not CellState.IDLE:
+            logger.debug("object reading in state %s: not acted on", self._state.value)
+        return []
+
+    def on_verdict(self, verdict: str | None, now: float, *,
+                   request_id: int | None = None) -> list[Command]:
+        """The test zone answered (``None``: the call failed). Anything but 'safe' is unsafe.
+
+        Args:
+            verdict: The service's answer.
+            now: Current time [s].
+            request_id: The :class:`RequestVerdict` it answers; an answer to an older
+                request (after a time-out) is ignored.
+        """
+        pending = self._pending
+        if self._state is not CellState.VERDICT or pending is None or (
+                request_id is not None and request_id != pending.goal_id):
+            logger.warning("verdict %r arrived in state %s: ignored", verdict, self._state.value)
+            return []
+        self._verdict_time = now - pending.sent
+        if verdict == "safe":
+            return self._decide("safe", "verdict 'safe'", now)
+        if verdict == "unsafe":
+            return self._decide("unsafe", "verdict 'unsafe'", now)
+        reason = "verdict call failed" if verdict is None else f"malformed verdict {verdict!r}"
+        logger.warning("vial treated as unsafe: %s", reason)
+        return self._decide("unsafe", reason, now)
+
+    def on_goal_result(self, goal_id: int, success: bool, message: str,
+                       now: float) -> list[Command]:
+        """A conveyor, motion or gripper goal finished."""
+        pending = self._pending
+        if pending is None or pending.goal_id != goal_id or pending.kind == "verdict":
+            logger.debug("result of goal %d ignored (not the one awaited)", goal_id)
+            return []
+        self._pending = None
+        if not success:
+            return self._fault(f"{pending.kind} goal {goal_id} failed: {message}")
+        if pending.kind == "motion":
+            self._motion_time += now - pending.sent
+            self._planned_time += pending.planned
+        return self._next(now)
+
+    def on_tick(self, now: float) -> list[Command]:
+        """Time passes: enforce the time-outs."""
+        pending = self._pending
+        if pending is None or now < pending.deadline:
+            return []
+        if pending.kind == "verdict":
+            self._verdict_time = now - pending.sent
+            reason = f"no verdict within {self.options.verdict_timeout:g} s"
+            logger.warning("vial treated as unsafe: %s", reason)
+            return self._decide("unsafe", reason, now)
+        return self._fault(f"{pending.kind} goal {pending.goal_id} overdue "
+                           f"({now - pending.sent:.1f} s)")
+
+    def reset(self, now: float) -> list[Command]:
+        """Leave FAULT once an operator has cleared the cell and brought the arm back to
+        the start of the phase-1 route. A no-op in any other state."""
+        if self._state is not CellState.FAULT:
+            return []
+        logger.info("reset")
+        self._object_present = False  # ask for a fresh reading, not a stale one
+        self._state = CellState.PLANNING
+        if all(r in self._programs for r in self.options.routes):
+            return self._ready(now)
+        return []
+
+    # -- transitions -----------------------------------------------------------------------
+    def _new_id(self) -> int:
+        self._next_id += 1
+        return self._next_id
+
+    def _ready(self, now: float) -> list[Command]:
+        """Wait for the next object (or take the one already there)."""
+        if self._object_present:
+            return self._begin_cycle(now)
+        self._state = CellState.IDLE
+        self._queue = [("", 0, True)]
+        return self._next(now)
+
+    def _begin_cycle(self, now: float) -> list[Command]:
+        logger.info("object detected: cycle %d", self._cycles + 1)
+        self._state = CellState.PHASE1
+        self._cycle_start = now
+        self._motion_time = self._planned_time = self._verdict_time = 0.0
+        self._queue = [("", 0, False)] + self._route(self.options.phase1_route)
+        return self._next(now)
+
+    def _route(self, name: str) -> list[tuple[str, int, _Step]]:
+        return [(name, k, step) for k, step in enumerate(self._programs[name])]
+
+    def _decide(self, verdict: Literal["safe", "unsafe"], reason: str,
+                now: float) -> list[Command]:
+        self._pending = None
+        self._verdict = (verdict, reason)
+        self._state = CellState.PHASE2
+        route = self.options.safe_route if verdict == "safe" else self.options.unsafe_route
+        self._queue = self._route(route)
+        return self._next(now)
+
+    def _next(self, now: float) -> list[Command]:
+        """Send the next step of the current phase, or finish the phase."""
+        if not self._queue:
+            return self._phase_done(now)
+        route, index, step = self._queue.pop(0)
+        goal_id = self._new_id()
+        opts = self.options
+        if isinstance(step, Trajectory):
+            self._pending = _Pending(goal_id, "motion", now,
+                                     now + step.duration + opts.motion_timeout_margin,
+                                     planned=step.duration)
+            return [MoveArm(goal_id, route, index, step)]
+        if isinstance(step, GripperEvent):
+            self._pending = _Pending(goal_id, "gripper", now, now + opts.gripper_timeout)
+            return [ActuateGripper(goal_id, route, index, step)]
+        self._pending = _Pending(goal_id, "conveyor", now, now + opts.conveyor_timeout)
+        return [SetConveyor(goal_id, running=step)]
+
+    def _phase_done(self, now: float) -> list[Command]:
+        if self._state is CellState.PHASE1:
+            self._state = CellState.VERDICT
+            request_id = self._new_id()
+            self._pending = _Pending(request_id, "verdict", now,
+                                     now + self.options.verdict_timeout)
+            return [RequestVerdict(request_id)]
+        if self._state is CellState.PHASE2:
+            self._cycles += 1
+            verdict, reason = self._verdict
+            report = CycleReport(
+                cycle=self._cycles, verdict=verdict, reason=reason,
+                route=self.options.safe_route if verdict == "safe" else self.options.unsafe_route,
+                cycle_time=now - self._cycle_start, motion_time=self._motion_time,
+                planned_motion_time=self._planned_time, verdict_time=self._verdict_time)
+            self.last_report = report
+            return [report, *self._ready(now)]
+        return []  # IDLE: the conveyor is confirmed running
+
+    def _fault(self, reason: str) -> list[Command]:
+        logger.error("fault: %s", reason)
+        out: list[Command] = []
+        if self._pending is not None and self._pending.kind in ("motion", "gripper"):
+            out.append(CancelGoal(self._pending.goal_id))
+        self._state = CellState.FAULT
+        self._pending = None
+        self._queue = []
+        out += [SetConveyor(self._new_id(), running=False), Fault(reason)]
+        return out

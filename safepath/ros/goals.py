@@ -1,0 +1,399 @@
+"""ROS 2 goals from a timed :class:`~safepath.trajectory.Trajectory`.
+
+Three ways to hand a trajectory to a Ned3 Pro, in order of preference:
+
+* :func:`follow_joint_trajectory_goal` for the arm's trajectory controller
+  (``control_msgs/FollowJointTrajectory``). The controller keeps our timing, so the
+  velocity and acceleration limits that safepath verified are the ones executed.
+* :func:`robot_move_goal` for Niryo's arm commander (``RobotMove`` with
+  ``EXECUTE_FULL_TRAJ``): the robot keeps the path but re-times it itself.
+* ``EXECUTE_RAW_TRAJ`` is not offered: on the robot it reads a field that
+  ``JointTrajectory`` does not have and fails.
+
+Gripper events are not part of a trajectory message. :func:`split_at_gripper_events`
+cuts a trajectory at its (resting) gripper events so that a node can run motion,
+gripper, motion, ... each after the previous one has finished, and :func:`tool_goal`
+builds the gripper goals.
+
+Every builder takes ``backend``: ``rosbags`` messages (always available, serialisable
+with :func:`safepath.ros.messages.serialize`), native ``rclpy`` messages, or ``auto``.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import itertools
+import math
+from collections.abc import Mapping, Sequence
+from typing import Any, Literal
+
+import numpy as np
+
+from ..errors import InputError, TrajectoryError
+from ..trajectory import GripperEvent, Trajectory
+from .messages import Backend, MessageFactory, message_factory
+
+__all__ = [
+    "CLOSE_GRIPPER",
+    "DEFAULT_PERIOD",
+    "EXECUTE_FULL_TRAJ",
+    "FOLLOW_JOINT_TRAJECTORY_ACTION",
+    "GOAL_TIME_TOLERANCE",
+    "GOAL_TOLERANCE",
+    "GRIPPER_1_TOOL_ID",
+    "NED_JOINT_NAMES",
+    "OPEN_GRIPPER",
+    "ROBOT_MOVE_ACTION",
+    "TOOL_ACTION",
+    "check_start",
+    "follow_joint_trajectory_goal",
+    "joint_trajectory",
+    "robot_move_goal",
+    "split_at_gripper_events",
+    "tool_goal",
+    "tool_goals",
+]
+
+#: Time between trajectory points [s]: one point per cycle of the Ned's 25 Hz
+#: trajectory controller (see :func:`joint_trajectory`).
+DEFAULT_PERIOD = 0.04
+#: Joint names of the Ned3 Pro's ``/joint_states`` and trajectory controller.
+NED_JOINT_NAMES: tuple[str, ...] = tuple(f"joint_{i}" for i in range(1, 7))
+#: Goal tolerances of the Ned3 Pro trajectory controller [rad], joint_1..joint_6.
+GOAL_TOLERANCE: tuple[float, ...] = (0.002, 0.001, 0.001, 0.03, 0.03, 0.03)
+#: Time the controller allows after the trajectory's end to reach the goal [s].
+GOAL_TIME_TOLERANCE = 1.0
+FOLLOW_JOINT_TRAJECTORY_ACTION = (
+    "/niryo_robot_follow_joint_trajectory_controller/follow_joint_trajectory"
+)
+ROBOT_MOVE_ACTION = "/niryo_robot_arm_commander/robot_action"
+TOOL_ACTION = "/niryo_robot_tools_commander/action_server"
+EXECUTE_FULL_TRAJ = 11
+OPEN_GRIPPER = 1
+CLOSE_GRIPPER = 2
+GRIPPER_1_TOOL_ID = 11
+#: Largest joint speed at a gripper event that still counts as "at rest" [rad/s].
+REST_SPEED = 1e-3
+
+_NS = 1_000_000_000
+_NIRYO = "niryo_ned_ros2_interfaces"
+_JT_TYPES = ("trajectory_msgs/msg/JointTrajectory", "trajectory_msgs/msg/JointTrajectoryPoint",
+             "std_msgs/msg/Header", "builtin_interfaces/msg/Time",
+             "builtin_interfaces/msg/Duration")
+
+
+@dataclasses.dataclass(frozen=True)
+class _Points:
+    """Trajectory samples in the robot's joint order, times in integer [ns]."""
+
+    names: tuple[str, ...]
+    time_ns: np.ndarray
+    q: np.ndarray
+    qd: np.ndarray
+    qdd: np.ndarray
+
+
+def _validated(traj: Trajectory) -> Trajectory:
+    """Re-run the Trajectory checks: its arrays may have been changed in place since."""
+    return dataclasses.replace(traj)
+
+
+def _robot_columns(traj: Trajectory, robot_joint_names: Sequence[str] | None) -> tuple[
+        tuple[str, ...], list[int]]:
+    """The robot's joint names and, for each, its column in ``traj``."""
+    robot = tuple(NED_JOINT_NAMES if robot_joint_names is None else robot_joint_names)
+    if len(set(robot)) != len(robot):
+        raise TrajectoryError(f"duplicate robot joint names {list(robot)}",
+                              key="robot_joint_names")
+    if sorted(traj.joint_names) != sorted(robot):
+        raise TrajectoryError(f"trajectory joints {list(traj.joint_names)} do not match the "
+                              f"robot's {list(robot)}", key="joint_names")
+    return robot, [traj.joint_names.index(name) for name in robot]
+
+
+def _period_ns(period: float) -> int:
+    if isinstance(period, bool) or not isinstance(period, (int, float)) \
+            or not math.isfinite(period) or period <= 0:
+        raise TrajectoryError(f"sampling period must be a number > 0 [s], got {period!r}",
+                              key="period")
+    period_ns = round(period * _NS)
+    if period_ns < 1:
+        raise TrajectoryError(f"sampling period {period!r} s is below 1 ns", key="period")
+    return period_ns
+
+
+def _points(traj: Trajectory, period: float, robot_joint_names: Sequence[str] | None) -> _Points:
+    """Sample ``traj`` every ``period`` [s] from its start, plus its exact final knot."""
+    period_ns = _period_ns(period)
+    traj = _validated(traj)
+    names, cols = _robot_columns(traj, robot_joint_names)
+    end_ns = round((traj.t[-1] - traj.t[0]) * _NS)
+    # Integer nanoseconds: the grid is exact and the final time is not duplicated.
+    time_ns = np.append(np.arange(0, end_ns, period_ns, dtype=np.int64), np.int64(end_ns))
+    q, qd, qdd = traj.sample(traj.t[0] + time_ns / _NS)
+    q[0], qd[0], qdd[0] = traj.q[0], traj.qd[0], traj.qdd[0]
+    q[-1], qd[-1], qdd[-1] = traj.q[-1], traj.qd[-1], traj.qdd[-1]
+    return _Points(names, time_ns, q[:, cols], qd[:, cols], qdd[:, cols])
+
+
+def _duration(f: MessageFactory, time_ns: int) -> Any:
+    sec, nanosec = divmod(int(time_ns), _NS)
+    return f.new("builtin_interfaces/msg/Duration", sec=sec, nanosec=nanosec)
+
+
+def _build_joint_trajectory(f: MessageFactory, pts: _Points, stamp_ns: int) -> Any:
+    sec, nanosec = divmod(int(stamp_ns), _NS)
+    header = f.new("std_msgs/msg/Header", frame_id="",
+                   stamp=f.new("builtin_interfaces/msg/Time", sec=sec, nanosec=nanosec))
+    points = [
+        f.new("trajectory_msgs/msg/JointTrajectoryPoint", positions=f.floats(pts.q[k]),
+              velocities=f.floats(pts.qd[k]), accelerations=f.floats(pts.qdd[k]),
+              effort=f.floats([]), time_from_start=_duration(f, pts.time_ns[k]))
+        for k in range(pts.time_ns.size)
+    ]
+    return f.new("trajectory_msgs/msg/JointTrajectory", header=header,
+                 joint_names=list(pts.names), points=points)
+
+
+def joint_trajectory(traj: Trajectory, *, period: float = DEFAULT_PERIOD,
+                     robot_joint_names: Sequence[str] | None = None, stamp_ns: int = 0,
+                     backend: Backend = "auto") -> Any:
+    """``trajectory_msgs/msg/JointTrajectory`` sampled from ``traj``.
+
+    Points carry positions [rad], velocities [rad/s], accelerations [rad/s^2] and
+    ``time_from_start`` (rounded to the nanosecond), every ``period`` from the start and
+    at the exact final knot. Columns come in the robot's joint order, whatever the
+    order in ``traj``.
+
+    Why 0.04 s by default: the Ned's joint trajectory controller runs at 25 Hz and
+    joins consecutive points with quintic splines matching position, velocity and
+    acceleration at both ends. With one point per control cycle, every spline spans a
+    single cycle between two states of our own trajectory, so what the controller
+    samples is our motion (our timing, hence the limits safepath verified) up to a
+    negligible spline error. Sparser points let the controller's spline, not our
+    collision-checked path, decide where the arm is in between; denser points change
+    nothing the controller can execute at 25 Hz and only make the goal larger.
+
+    Args:
+        traj: The timed trajectory.
+        period: Time between points [s].
+        robot_joint_names: The robot's joint names; default ``joint_1``..``joint_6``.
+        stamp_ns: ``header.stamp`` [ns]; 0 asks the controller to start on receipt.
+        backend: ``auto``, ``rosbags`` or ``rclpy`` (see
+            :func:`safepath.ros.messages.message_factory`).
+
+    Raises:
+        TrajectoryError: Joint names that do not match the robot's, times not strictly
+            increasing, non-finite values, or a period that is not > 0.
+        RosError: ``backend='rclpy'`` without a ROS 2 installation.
+    """
+    pts = _points(traj, period, robot_joint_names)
+    return _build_joint_trajectory(message_factory(backend, _JT_TYPES), pts, stamp_ns)
+
+
+def follow_joint_trajectory_goal(
+        traj: Trajectory, *, period: float = DEFAULT_PERIOD,
+        robot_joint_names: Sequence[str] | None = None,
+        goal_tolerance: Sequence[float] | None = GOAL_TOLERANCE,
+        goal_time_tolerance: float = GOAL_TIME_TOLERANCE,
+        backend: Backend = "auto") -> Any:
+    """``control_msgs/action/FollowJointTrajectory_Goal`` for the arm's trajectory controller.
+
+    Send it to :data:`FOLLOW_JOINT_TRAJECTORY_ACTION`. The controller executes the points
+    with our timing. Path tolerances are left to the controller's defaults.
+
+    Args:
+        traj: The timed trajectory.
+        period: Time between points [s] (see :func:`joint_trajectory`).
+        robot_joint_names: The robot's joint names; default ``joint_1``..``joint_6``.
+        goal_tolerance: Final position tolerance per robot joint [rad], or None to leave
+            the controller's own.
+        goal_time_tolerance: Time allowed after the end to reach the goal [s].
+        backend: ``auto``, ``rosbags`` or ``rclpy``.
+
+    Raises:
+        TrajectoryError: Bad trajectory, period or tolerances.
+        RosError: ``backend='rclpy'`` without control_msgs.
+    """
+    pts = _points(traj, period, robot_joint_names)
+    tolerance = [] if goal_tolerance is None else [float(v) for v in goal_tolerance]
+    if tolerance and (len(tolerance) != len(pts.names)
+                      or not all(math.isfinite(v) and v >= 0 for v in tolerance)):
+        raise TrajectoryError(f"expected {len(pts.names)} finite tolerances >= 0 [rad], "
+                              f"got {list(goal_tolerance or [])}", key="goal_tolerance")
+    if not math.isfinite(goal_time_tolerance) or goal_time_tolerance < 0:
+        raise TrajectoryError(f"must be >= 0 [s], got {goal_time_tolerance}",
+                              key="goal_time_tolerance")
+    f = message_factory(backend, (*_JT_TYPES, "control_msgs/msg/JointTolerance",
+                                  "control_msgs/action/FollowJointTrajectory_Goal",
+                                  "trajectory_msgs/msg/MultiDOFJointTrajectory"))
+    no_multi_dof = f.new("trajectory_msgs/msg/MultiDOFJointTrajectory",
+                         header=f.new("std_msgs/msg/Header", frame_id="",
+                                      stamp=f.new("builtin_interfaces/msg/Time", sec=0,
+                                                  nanosec=0)),
+                         joint_names=[], points=[])
+    goal_tol = [f.new("control_msgs/msg/JointTolerance", name=name, position=value,
+                      velocity=0.0, acceleration=0.0)
+                for name, value in zip(pts.names, tolerance, strict=True)] if tolerance else []
+    return f.new("control_msgs/action/FollowJointTrajectory_Goal",
+                 trajectory=_build_joint_trajectory(f, pts, 0),
+                 multi_dof_trajectory=no_multi_dof, path_tolerance=[],
+                 component_path_tolerance=[], goal_tolerance=goal_tol,
+                 component_goal_tolerance=[],
+                 goal_time_tolerance=_duration(f, round(goal_time_tolerance * _NS)))
+
+
+def robot_move_goal(traj: Trajectory, *, period: float = DEFAULT_PERIOD,
+                    robot_joint_names: Sequence[str] | None = None,
+                    backend: Backend = "auto") -> Any:
+    """Niryo ``RobotMove`` goal running ``traj`` as ``EXECUTE_FULL_TRAJ``.
+
+    Send it to :data:`ROBOT_MOVE_ACTION`. The arm commander checks the points against
+    the position limits, moves from where the arm is to the first point, then **re-times
+    the whole path itself**: our velocities and times are dropped, so the executed
+    speeds are not the ones safepath verified. The dense points keep the path (and so
+    its collision check); prefer :func:`follow_joint_trajectory_goal`.
+
+    Raises:
+        TrajectoryError: Bad trajectory or period.
+        RosError: ``backend='rclpy'`` without niryo_ned_ros2_interfaces.
+    """
+    pts = _points(traj, period, robot_joint_names)
+    f = message_factory(backend, (*_JT_TYPES, f"{_NIRYO}/action/RobotMove_Goal",
+                                  f"{_NIRYO}/msg/ArmMoveCommand", f"{_NIRYO}/msg/RPY",
+                                  f"{_NIRYO}/msg/ShiftPose", "geometry_msgs/msg/Point",
+                                  "geometry_msgs/msg/Quaternion"))
+    cmd = f.new(f"{_NIRYO}/msg/ArmMoveCommand", cmd_type=EXECUTE_FULL_TRAJ,
+                tcp_version=0,  # read for pose commands only
+                joints=f.floats([]), position=f.new("geometry_msgs/msg/Point", x=0.0, y=0.0,
+                                                    z=0.0),
+                rpy=f.new(f"{_NIRYO}/msg/RPY", roll=0.0, pitch=0.0, yaw=0.0),
+                orientation=f.new("geometry_msgs/msg/Quaternion", x=0.0, y=0.0, z=0.0, w=1.0),
+                shift=f.new(f"{_NIRYO}/msg/ShiftPose", axis_number=0, value=0.0),
+                list_poses=[], dist_smoothing=0.0,
+                trajectory=_build_joint_trajectory(f, pts, 0), args=f.floats([]))
+    return f.new(f"{_NIRYO}/action/RobotMove_Goal", cmd=cmd)
+
+
+def _check_int(value: int, low: int, high: int, key: str) -> int:
+    if isinstance(value, bool) or not isinstance(value, int) or not low <= value <= high:
+        raise InputError(f"expected an integer in [{low}, {high}], got {value!r}", key=key)
+    return value
+
+
+def tool_goal(action: Literal["open", "close"], *, tool_id: int = GRIPPER_1_TOOL_ID,
+              max_torque: int = 100, hold_torque: int = 100,
+              backend: Backend = "auto") -> Any:
+    """Niryo ``Tool`` goal opening or closing a gripper (send to :data:`TOOL_ACTION`).
+
+    Args:
+        action: ``open`` or ``close``.
+        tool_id: Niryo tool id (Gripper 1, the cell's custom gripper, is 11).
+        max_torque: Torque while moving [% of max], 0..100.
+        hold_torque: Torque once closed or open [% of max], 0..100.
+        backend: ``auto``, ``rosbags`` or ``rclpy``.
+
+    Raises:
+        InputError: Unknown action or an out-of-range number.
+        RosError: ``backend='rclpy'`` without niryo_ned_ros2_interfaces.
+    """
+    codes = {"open": OPEN_GRIPPER, "close": CLOSE_GRIPPER}
+    if action not in codes:
+        raise InputError(f"unknown gripper action {action!r} (known: open, close)",
+                         key="action")
+    f = message_factory(backend, (f"{_NIRYO}/action/Tool_Goal", f"{_NIRYO}/msg/ToolCommand"))
+    cmd = f.new(f"{_NIRYO}/msg/ToolCommand", cmd_type=codes[action],
+                tool_id=_check_int(tool_id, -128, 127, "tool_id"), speed=0,
+                max_torque_percentage=_check_int(max_torque, 0, 100, "max_torque"),
+                hold_torque_percentage=_check_int(hold_torque, 0, 100, "hold_torque"),
+                activate=False, gpio="")
+    return f.new(f"{_NIRYO}/action/Tool_Goal", cmd=cmd)
+
+
+def tool_goals(traj: Trajectory, *, tool_id: int = GRIPPER_1_TOOL_ID, max_torque: int = 100,
+               hold_torque: int = 100, backend: Backend = "auto"
+               ) -> list[tuple[GripperEvent, Any]]:
+    """A :func:`tool_goal` for each gripper event of ``traj``, in time order."""
+    return [(event, tool_goal(event.action, tool_id=tool_id, max_torque=max_torque,
+                              hold_torque=hold_torque, backend=backend))
+            for event in sorted(traj.events, key=lambda e: e.time)]
+
+
+def _segment(traj: Trajectory, t_from: float, t_to: float, index: int) -> Trajectory:
+    """The part of ``traj`` between two times [s], re-timed to start at 0."""
+    inner = traj.t[(traj.t > t_from + 1e-9) & (traj.t < t_to - 1e-9)]
+    times = np.concatenate([[t_from], inner, [t_to]])
+    q, qd, qdd = traj.sample(times)
+    if t_to >= traj.t[-1]:
+        q[-1], qd[-1], qdd[-1] = traj.q[-1], traj.qd[-1], traj.qdd[-1]
+    knot = np.clip(np.searchsorted(traj.t, times, side="right") - 1, 0, traj.t.size - 1)
+    info = {**traj.info, "segment": index, "time_offset": t_from}
+    return Trajectory(traj.joint_names, times - t_from, q, qd, qdd, traj.step_index[knot],
+                      traj.steps, (), traj.robot, traj.route, info)
+
+
+def split_at_gripper_events(traj: Trajectory) -> list[Trajectory | GripperEvent]:
+    """``traj`` as the sequence to execute: motions and gripper events, in time order.
+
+    A motion goal that has succeeded means the arm is at its end, at rest; only then
+    may the gripper act, and only once the gripper has finished may the next motion
+    start. Firing the gripper on a clock while one long trajectory runs would instead
+    bet on both ends keeping time. Motions of zero duration (an event at the very start
+    or end) are left out; each motion keeps the route's step names and starts at t=0
+    (``info['time_offset']`` holds where it started in ``traj``).
+
+    Raises:
+        TrajectoryError: An event outside the trajectory's time span, or where the arm
+            is not at rest (a joint faster than :data:`REST_SPEED`).
+    """
+    traj = _validated(traj)
+    events = sorted(traj.events, key=lambda e: e.time)
+    for k, event in enumerate(events):
+        if not (math.isfinite(event.time) and traj.t[0] - 1e-9 <= event.time <= traj.t[-1] + 1e-9):
+            raise TrajectoryError(f"gripper event at t={event.time} s is outside "
+                                  f"[{traj.t[0]}, {traj.t[-1]}] s", key=f"events[{k}]")
+        speed = float(np.max(np.abs(traj.sample([event.time])[1])))
+        if speed > REST_SPEED:
+            raise TrajectoryError(f"arm not at rest at the '{event.action}' in step "
+                                  f"'{event.step}' (t={event.time:.3f} s, joint speed "
+                                  f"{speed:.3g} rad/s)", key=f"events[{k}]")
+    cuts = sorted({float(np.clip(e.time, traj.t[0], traj.t[-1])) for e in events})
+    bounds = [float(traj.t[0]), *cuts, float(traj.t[-1])]
+    out: list[Trajectory | GripperEvent] = []
+    done = n_motions = 0
+    for t_from, t_to in itertools.pairwise(bounds):
+        while done < len(events) and events[done].time <= t_from + 1e-9:
+            out.append(events[done])
+            done += 1
+        if t_to - t_from > 1e-9:
+            out.append(_segment(traj, t_from, t_to, n_motions))
+            n_motions += 1
+    out.extend(events[done:])
+    return out
+
+
+def check_start(traj: Trajectory, positions: Mapping[str, float], *,
+                tolerance: float = 0.05) -> None:
+    """Refuse to start ``traj`` unless the arm is at its first point.
+
+    A trajectory controller given a first point away from the arm's pose bridges the gap
+    within one control cycle, a jump. Tracking error after a successful goal stays
+    within the goal tolerance (<= 0.03 rad); the default catches an arm that is
+    somewhere else (after a fault, a manual move), not tracking error.
+
+    Args:
+        traj: The trajectory about to be sent.
+        positions: Measured joint positions by name [rad] (e.g. from ``/joint_states``).
+        tolerance: Largest allowed difference per joint [rad].
+
+    Raises:
+        TrajectoryError: A joint missing from ``positions`` or too far from the start.
+    """
+    for k, name in enumerate(traj.joint_names):
+        if name not in positions:
+            raise TrajectoryError(f"no measured position for '{name}'", key="positions")
+        error = abs(float(positions[name]) - float(traj.q[0, k]))
+        if not error <= tolerance:
+            raise TrajectoryError(f"'{name}' is {error:.4f} rad from the start of route "
+                                  f"'{traj.route}' (tolerance {tolerance} rad)",
+                                  key="positions")
