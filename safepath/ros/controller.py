@@ -14,7 +14,7 @@ threads and no clock inside, so every cycle can be replayed in a test.
     VERDICT --'unsafe', none, malformed, time-out--> PHASE2 (unsafe route: reject)
     PHASE2 --done--> report the cycle; IDLE (conveyor restarted) or PHASE1 (object waiting)
     any --failed or overdue goal, failed planning--> FAULT: conveyor stopped, no motion
-    FAULT --reset()--> IDLE
+    FAULT --reset()--> IDLE (PLANNING while a route is missing)
 
 A route runs as the steps of :func:`~safepath.ros.goals.split_at_gripper_events`: each
 motion or gripper goal is sent only after the previous one succeeded. Only the exact

@@ -1,0 +1,153 @@
+"""ROS 2 bags (MCAP) of a cycle, read back with rosbags' own Reader."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+import yaml
+from rosbags.rosbag2 import Reader
+from rosbags.typesys import Stores, get_types_from_msg, get_typestore
+
+from safepath.errors import RosError, TrajectoryError
+from safepath.ros import bag as bag_module
+from safepath.ros.bag import (
+    GRIPPER_TOPIC,
+    JOINT_STATES_TOPIC,
+    ROUTE_TOPIC,
+    TRAJECTORY_TOPIC,
+    read_bag,
+    write_bag,
+)
+from safepath.ros.goals import NED_JOINT_NAMES, joint_trajectory
+
+from .test_messages import assert_same, phase1, phase2
+
+START = 1_700_000_000 * 10**9  # a fixed clock start [ns]
+
+
+def _ns(seconds: float) -> int:
+    return round(seconds * 1e9)
+
+
+@pytest.fixture()
+def cycle_bag(tmp_path: Path) -> Path:
+    return write_bag(tmp_path / "cycle", [phase1(), phase2("safe")], start_time_ns=START)
+
+
+def test_bag_is_mcap_and_nothing_else_is_left(cycle_bag: Path) -> None:
+    assert sorted(p.name for p in cycle_bag.parent.iterdir()) == ["cycle"]
+    assert sorted(p.name for p in cycle_bag.iterdir()) == ["cycle.mcap", "metadata.yaml"]
+    meta = yaml.safe_load((cycle_bag / "metadata.yaml").read_text())["rosbag2_bagfile_information"]
+    assert meta["storage_identifier"] == "mcap"
+    assert (cycle_bag / "cycle.mcap").read_bytes()[:8] == b"\x89MCAP0\r\n"
+
+
+def test_bag_decodes_from_its_own_definitions(cycle_bag: Path) -> None:
+    """A reader with no safepath types (like ros2 bag or Foxglove) can decode every topic."""
+    store = get_typestore(Stores.EMPTY)
+    with Reader(cycle_bag) as reader:
+        for conn in reader.connections:
+            store.register(get_types_from_msg(conn.msgdef.data, conn.msgtype))
+        counts: dict[str, int] = {}
+        for conn, _, raw in reader.messages():
+            store.deserialize_cdr(raw, conn.msgtype)
+            counts[conn.topic] = counts.get(conn.topic, 0) + 1
+        topics = {c.topic: c.msgtype for c in reader.connections}
+        assert reader.start_time == START
+    assert topics == {TRAJECTORY_TOPIC: "trajectory_msgs/msg/JointTrajectory",
+                      ROUTE_TOPIC: "std_msgs/msg/String", GRIPPER_TOPIC: "std_msgs/msg/String",
+                      JOINT_STATES_TOPIC: "sensor_msgs/msg/JointState"}
+    total = phase1().duration + phase2("safe").duration  # 2.4 + 3.6 s
+    assert counts == {TRAJECTORY_TOPIC: 2, ROUTE_TOPIC: 2, GRIPPER_TOPIC: 4,
+                      JOINT_STATES_TOPIC: round(total * 50) + 1}
+
+
+def test_bag_contents(cycle_bag: Path) -> None:
+    one, two = phase1(), phase2("safe")
+    bag = read_bag(cycle_bag)
+    # Trajectories back to back on one clock, each as joint_trajectory() builds it.
+    trajs = bag.on(TRAJECTORY_TOPIC)
+    assert [m.timestamp for m in trajs] == [START, START + _ns(one.duration)]
+    for m, traj in zip(trajs, (one, two), strict=True):
+        assert_same(m.msg, joint_trajectory(traj, stamp_ns=m.timestamp, backend="rosbags"))
+    routes = [json.loads(m.msg.data) for m in bag.on(ROUTE_TOPIC)]
+    assert [(r["route"], r["duration"]) for r in routes] == [("phase1", one.duration),
+                                                            ("phase2_safe", two.duration)]
+    grip = [(m.timestamp - START, json.loads(m.msg.data)) for m in bag.on(GRIPPER_TOPIC)]
+    assert [(t, g["action"], g["step"]) for t, g in grip] == [
+        (0, "close", "grip"), (_ns(1.8), "open", "low1"),
+        (_ns(2.4 + 0.6), "close", "low1"), (_ns(2.4 + 1.8), "open", "safe")]
+    # Joint states every 20 ms, consecutive across the two trajectories.
+    states = bag.on(JOINT_STATES_TOPIC)
+    stamps = np.array([m.timestamp for m in states])
+    assert stamps[0] == START and np.all(np.diff(stamps) == 20_000_000)
+    assert all(m.msg.name == list(NED_JOINT_NAMES) for m in states)
+    assert all(m.msg.header.stamp.sec * 10**9 + m.msg.header.stamp.nanosec == m.timestamp
+               for m in states)
+    pos = np.array([m.msg.position for m in states])
+    assert np.array_equal(pos[0], one.q[0])
+    boundary = int((_ns(one.duration)) // 20_000_000)  # the sample at 2.4 s
+    assert np.allclose(pos[boundary], two.q[0], atol=1e-12)
+    assert np.allclose(pos[-1], two.q[-1], atol=1e-12)
+    t_mid = 2.4 + 1.0
+    q_mid, qd_mid, _ = two.sample([1.0])
+    k = round(t_mid / 0.02)
+    assert np.allclose(pos[k], q_mid[0], atol=1e-12)
+    assert np.allclose(states[k].msg.velocity, qd_mid[0], atol=1e-12)
+    assert all(m.msg.effort.size == 0 for m in states)
+
+
+def test_rate_and_start_time(tmp_path: Path) -> None:
+    path = write_bag(tmp_path / "slow", [phase1()], joint_state_rate=10.0)
+    states = read_bag(path).on(JOINT_STATES_TOPIC)
+    assert [m.timestamp for m in states] == [100_000_000 * k for k in range(25)]
+
+
+def test_existing_path_is_never_overwritten(cycle_bag: Path) -> None:
+    before = (cycle_bag / "cycle.mcap").read_bytes()
+    with pytest.raises(RosError, match="exists"):
+        write_bag(cycle_bag, [phase1()])
+    assert (cycle_bag / "cycle.mcap").read_bytes() == before
+
+
+def test_bad_input_leaves_nothing(tmp_path: Path) -> None:
+    target = tmp_path / "bad"
+    with pytest.raises(TrajectoryError, match="not one cycle"):
+        write_bag(target, [phase1(), phase1()])  # phase1 ends at high2, not at grip
+    with pytest.raises(TrajectoryError):
+        write_bag(target, [])
+    with pytest.raises(TrajectoryError):
+        write_bag(target, [phase1()], joint_state_rate=0.0)
+    with pytest.raises(TrajectoryError):
+        write_bag(target, [phase1()], period=-1.0)
+    broken = phase1()
+    broken.q[2, 0] = float("nan")
+    with pytest.raises(TrajectoryError):
+        write_bag(target, [broken])
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_failure_while_writing_removes_the_temporary_bag(tmp_path: Path,
+                                                         monkeypatch: pytest.MonkeyPatch) -> None:
+    real = bag_module.serialize
+    calls = {"n": 0}
+
+    def failing(msg: object, typename: str | None = None) -> bytes:
+        calls["n"] += 1
+        if calls["n"] == 50:
+            raise OSError("disk full")
+        return real(msg, typename)
+
+    monkeypatch.setattr(bag_module, "serialize", failing)
+    with pytest.raises(RosError, match="disk full"):
+        write_bag(tmp_path / "cut", [phase1(), phase2("unsafe")])
+    assert calls["n"] == 50
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_read_bag_errors(tmp_path: Path) -> None:
+    with pytest.raises(RosError):
+        read_bag(tmp_path / "missing")
