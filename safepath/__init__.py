@@ -27,9 +27,23 @@ from .errors import (
     TrajectoryError,
     VerificationError,
 )
+from .planning import (
+    LineOptions,
+    PlannerOptions,
+    PlanOptions,
+    Route,
+    Step,
+    Target,
+    TimingOptions,
+    WorldState,
+    load_routes,
+    plan_cell,
+    plan_route,
+)
 from .poses import dump_poses, load_poses, save_poses
 from .robot import Robot, ToolSpec, load_robot, robot_names
 from .scene import AllowedContact, Grasp, Scene, SceneObject, Shape, load_scene, placement
+from .trajectory import GripperEvent, Trajectory, load_trajectory
 
 logging.getLogger(__name__).addHandler(logging.NullHandler())
 
@@ -44,6 +58,16 @@ __all__ = [
     "ConfigError",
     "FrameNotFound",
     "Grasp",
+    "GripperEvent",
+    "LineOptions",
+    "PlanOptions",
+    "PlannerOptions",
+    "Route",
+    "Step",
+    "Target",
+    "TimingOptions",
+    "Trajectory",
+    "WorldState",
     "IKError",
     "InputError",
     "PlannerTimeout",
@@ -68,6 +92,11 @@ __all__ = [
     "load_cell",
     "load_poses",
     "load_robot",
+    "load_routes",
+    "load_scene",
+    "load_trajectory",
+    "plan_cell",
+    "plan_route",
     "placement",
     "robot_names",
     "save_poses",

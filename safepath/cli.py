@@ -47,8 +47,9 @@ def cmd_check(args: argparse.Namespace) -> int:
         pair = rep.collisions[0] if rep.collisions else (
             rep.margin_violations[0][0] if rep.margin_violations else rep.closest_pair)
         margin = "ok" if rep.margin_ok else "LOW"
-        print(f"{row.pose:<10} {(grasped if row.held else 'empty'):<8} "
-              f"{'ok' if rep.within_limits else 'OUT':<7} {'yes' if not rep.collisions else 'NO':<5}"
+        limits = "ok" if rep.within_limits else "OUT"
+        free = "yes" if not rep.collisions else "NO"
+        print(f"{row.pose:<10} {(grasped if row.held else 'empty'):<8} {limits:<7} {free:<5}"
               f" {rep.clearance * 1000:>13.1f} {margin:<7} {_fmt_pair(pair)}")
         if rep.limit_violation:
             print(f"{'':<10} {rep.limit_violation}")

@@ -201,14 +201,15 @@ class CollisionChecker:
                     continue  # the jaws hold it
                 if tuple(sorted((na, nb))) in skip_self and b != held_idx:
                     continue
-                depth = allowed.get(tuple(sorted((na, nb))), 0.0)
+                depth = allowed.get((min(na, nb), max(na, nb)), 0.0)
                 if depth is None:
                     continue
                 pairs.append((a, b, depth))
             for e in env:
                 if geoms[a].parentJoint == 0:
                     continue  # both fixed to the world
-                depth = allowed.get(tuple(sorted((self._names[a], self._names[e]))), 0.0)
+                ne = self._names[e]
+                depth = allowed.get((min(self._names[a], ne), max(self._names[a], ne)), 0.0)
                 if depth is None:
                     continue
                 pairs.append((a, e, depth))

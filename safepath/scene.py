@@ -249,7 +249,8 @@ def _parse_object(name: str, raw: Any, path: Path) -> SceneObject:
                           "movable", "color", "note"}
     if unknown:
         raise ConfigError(f"unknown key(s) {sorted(unknown)}", path=path, key=key)
-    return SceneObject(name, Shape(kind, tuple(size)), placement(xyz, rpy), margin, movable,
+    shape = Shape(kind, tuple(size))  # type: ignore[arg-type]  # kind checked above
+    return SceneObject(name, shape, placement(xyz, rpy), margin, movable,
                        (rgb[0], rgb[1], rgb[2]))
 
 

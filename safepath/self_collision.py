@@ -54,12 +54,12 @@ def compute_allowed_pairs(robot: Robot, *, samples: int = 100_000, seed: int = 0
     gmodel = robot.collision_model.copy()
     gmodel.removeAllCollisionPairs()
     links = [robot.geometry_link(i) for i in range(gmodel.ngeoms)]
-    adjacent = {tuple(sorted(p)) for p in adjacent_link_pairs(model, gmodel)}
+    adjacent = {(min(a, b), max(a, b)) for a, b in adjacent_link_pairs(model, gmodel)}
     link_names = sorted(set(links))
     candidates = [p for p in itertools.combinations(link_names, 2) if p not in adjacent]
     index: list[tuple[str, str]] = []
     for a, b in itertools.combinations(range(gmodel.ngeoms), 2):
-        key = tuple(sorted((links[a], links[b])))
+        key = (min(links[a], links[b]), max(links[a], links[b]))
         if key in adjacent or links[a] == links[b]:
             continue
         gmodel.addCollisionPair(pin.CollisionPair(a, b))

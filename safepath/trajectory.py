@@ -135,14 +135,14 @@ class Trajectory:
     def sample(self, times: Sequence[float] | np.ndarray
                ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Positions, velocities and accelerations at ``times`` [s] (clamped to the ends)."""
-        times = np.clip(np.asarray(times, dtype=float), self.t[0], self.t[-1])
+        ts = np.clip(np.asarray(times, dtype=float), self.t[0], self.t[-1])
         if self.t.size == 1:
-            n = times.size
+            n = ts.size
             return (np.repeat(self.q, n, 0), np.repeat(self.qd, n, 0), np.repeat(self.qdd, n, 0))
-        k = np.clip(np.searchsorted(self.t, times, side="right") - 1, 0, self.t.size - 2)
+        k = np.clip(np.searchsorted(self.t, ts, side="right") - 1, 0, self.t.size - 2)
         t0, t1 = self.t[k], self.t[k + 1]
         h = (t1 - t0)[:, None]
-        s = ((times - t0) / (t1 - t0))[:, None]
+        s = ((ts - t0) / (t1 - t0))[:, None]
         p0, p1 = self.q[k], self.q[k + 1]
         m0, m1 = self.qd[k] * h, self.qd[k + 1] * h
         s2, s3 = s * s, s * s * s

@@ -358,8 +358,9 @@ def _time_segments(cell: Cell, segments: list[_Segment], world: WorldState,
                    blend: float = 0.0) -> tuple[TimedPiece, list[int]]:
     waypoints: list[np.ndarray] = []
     corners: list[tuple[int, float]] = []
-    lengths = [float(np.sum(np.linalg.norm(np.diff(np.asarray(s.waypoints), axis=0), axis=1)))
-               for s in segments]
+    lengths: list[float] = [
+        float(np.sum(np.linalg.norm(np.diff(np.asarray(s.waypoints), axis=0), axis=1)))
+        for s in segments]
     seg_steps: list[int] = []
     scales: list[float] = []
     tcp: list[float | None] = []
@@ -367,8 +368,8 @@ def _time_segments(cell: Cell, segments: list[_Segment], world: WorldState,
     for n, seg in enumerate(segments):
         if waypoints and n > 0 and blend > 0:
             # A via pose between two steps: blend, within 40 % of either step.
-            corners.append((len(waypoints) - 1, min(blend, 0.4 * lengths[n - 1],
-                                                    0.4 * lengths[n])))
+            corners.append((len(waypoints) - 1, float(min(blend, 0.4 * lengths[n - 1],
+                                                          0.4 * lengths[n]))))
         pts = seg.waypoints if not waypoints else seg.waypoints[1:]
         for j, p in enumerate(pts):
             if waypoints and np.max(np.abs(p - waypoints[-1])) < 1e-10:
@@ -378,8 +379,8 @@ def _time_segments(cell: Cell, segments: list[_Segment], world: WorldState,
             waypoints.append(p)
             inner = seg.step.kind == "move" and 0 < j < len(pts) - 1 and blend > 0
             if inner:  # a vertex of a planned detour
-                a = np.linalg.norm(p - pts[j - 1])
-                b = np.linalg.norm(pts[j + 1] - p)
+                a = float(np.linalg.norm(p - pts[j - 1]))
+                b = float(np.linalg.norm(pts[j + 1] - p))
                 corners.append((len(waypoints) - 1, min(blend, 0.4 * a, 0.4 * b)))
     for n in seg_of_poly:
         seg = segments[n]

@@ -189,8 +189,10 @@ def time_path(robot: Robot, path: object, s_way: np.ndarray, *, scales: Sequence
 def _toppra(ta: object, algo: object, constraint: object, path: object, grid: np.ndarray,
             vlim_grid: np.ndarray, alim_grid: np.ndarray, options: TimingOptions,
             step: str | None) -> TimedPiece:
-    pc_vel = _VaryingVelocity(vlim_grid)
-    pc_acc = _VaryingAcceleration(alim_grid)
+    from ._constraints import VaryingAcceleration, VaryingVelocity
+
+    pc_vel = VaryingVelocity(vlim_grid)
+    pc_acc = VaryingAcceleration(alim_grid)
     instance = algo.TOPPRA([pc_vel, pc_acc], path, gridpoints=grid,  # type: ignore[attr-defined]
                            parametrizer="ParametrizeConstAccel")
     traj = instance.compute_trajectory(0.0, 0.0)
@@ -219,61 +221,3 @@ def _limit_ratio(piece: TimedPiece, robot: Robot, seg_scales: np.ndarray) -> flo
     v = np.max(np.abs(piece.qd) / (robot.velocity_limits[None, :] * scale))
     a = np.max(np.abs(piece.qdd) / (robot.acceleration_limits[None, :] * scale))
     return float(max(v, a))
-
-
-class _VaryingVelocity:
-    """Joint velocity limits that vary along the path, as bounds on the path speed."""
-
-    def __new__(cls, vlim_grid: np.ndarray) -> object:
-        import toppra.constraint as constraint
-
-        class VaryingVelocity(constraint.LinearConstraint):  # type: ignore[misc]
-            def __init__(self, vlim: np.ndarray) -> None:
-                super().__init__()
-                self.vlim = vlim
-                self.dof = vlim.shape[1]
-
-            def compute_constraint_params(self, path: object, gridpoints: np.ndarray,
-                                          *args: object, **kwargs: object) -> tuple:
-                qs = np.abs(path(gridpoints, 1))  # type: ignore[operator]
-                with np.errstate(divide="ignore"):
-                    sd = np.where(qs > 1e-12, self.vlim / np.maximum(qs, 1e-300), np.inf)
-                xmax = np.min(sd, axis=1) ** 2
-                xbound = np.stack([np.zeros_like(xmax), np.minimum(xmax, 1e12)], axis=1)
-                return None, None, None, None, None, None, xbound
-
-        return VaryingVelocity(vlim_grid)
-
-
-class _VaryingAcceleration:
-    """Joint acceleration limits that vary along the path (collocation form)."""
-
-    def __new__(cls, alim_grid: np.ndarray) -> object:
-        import toppra.constraint as constraint
-        from toppra.constraint import DiscretizationType
-        from toppra.constraint.linear_constraint import canlinear_colloc_to_interpolate
-
-        class VaryingAcceleration(constraint.LinearConstraint):  # type: ignore[misc]
-            def __init__(self, alim: np.ndarray) -> None:
-                super().__init__()
-                self.alim = alim
-                self.dof = alim.shape[1]
-                self.identical = False
-                self.set_discretization_type(DiscretizationType.Interpolation)
-
-            def compute_constraint_params(self, path: object, gridpoints: np.ndarray,
-                                          *args: object, **kwargs: object) -> tuple:
-                ps = path(gridpoints, 1)  # type: ignore[operator]
-                pss = path(gridpoints, 2)  # type: ignore[operator]
-                dof = self.dof
-                N = len(gridpoints)
-                F = np.zeros((N, 2 * dof, dof))
-                g = np.zeros((N, 2 * dof))
-                F[:, :dof, :] = np.eye(dof)
-                F[:, dof:, :] = -np.eye(dof)
-                g[:, :dof] = self.alim
-                g[:, dof:] = self.alim
-                return canlinear_colloc_to_interpolate(ps, pss, np.zeros_like(ps), F, g, None,
-                                                       None, gridpoints, identical=False)
-
-        return VaryingAcceleration(alim_grid)

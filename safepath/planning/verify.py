@@ -107,13 +107,14 @@ class FclVerifier:
         self._env: list[tuple[str, object]] = []
         if scene is not None:
             for obj in scene.objects.values():
-                T = obj.T_world_object
+                placed: np.ndarray | None = obj.T_world_object
                 if obj.movable:
                     if obj.name == held:
                         continue
-                    T = (resting or {}).get(obj.name, obj.T_world_object)
-                    if T is None:
-                        continue
+                    placed = (resting or {}).get(obj.name, obj.T_world_object)
+                if placed is None:
+                    continue
+                T = np.asarray(placed)
                 shape = _fcl_shape(obj.shape.to_coal())
                 self._env.append((obj.name, fcl.CollisionObject(
                     shape, fcl.Transform(np.asarray(T)[:3, :3], np.asarray(T)[:3, 3]))))
