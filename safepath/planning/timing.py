@@ -202,10 +202,20 @@ def _toppra(ta: object, algo: object, constraint: object, path: object, grid: np
     duration = float(traj.duration)
     n = max(2, int(np.ceil(duration / options.knot_period)) + 1)
     t = np.linspace(0.0, duration, n)
-    q, qd, qdd = traj(t), traj(t, 1), traj(t, 2)
+    evaluate = getattr(traj, "_eval_params", None)
+    if evaluate is not None:
+        # One evaluation of s(t), s'(t), s''(t) for all knots (toppra's public calls
+        # would repeat it for q, qd and qdd).
+        s, sd, sdd = evaluate(t)
+        ps, pss = path(s, 1), path(s, 2)  # type: ignore[operator]
+        q = path(s)  # type: ignore[operator]
+        qd = ps * sd[:, None]
+        qdd = pss * (sd ** 2)[:, None] + ps * sdd[:, None]
+    else:  # pragma: no cover - other toppra versions
+        q, qd, qdd = traj(t), traj(t, 1), traj(t, 2)
+        s = _path_parameter(traj, t, grid)
     qd[0] = qd[-1] = 0.0
-    s = _path_parameter(traj, t, grid)
-    return TimedPiece(t, np.asarray(q), np.asarray(qd), np.asarray(qdd), s,
+    return TimedPiece(t, np.asarray(q), np.asarray(qd), np.asarray(qdd), np.asarray(s),
                       np.zeros(n, dtype=int))
 
 

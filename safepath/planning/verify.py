@@ -230,10 +230,12 @@ class FclVerifier:
                steps: Sequence[str] | None = None) -> VerifyResult:
         """Check a timed trajectory; raise on the first collision.
 
-        Each pair is re-checked only when the accumulated motion bound since its last
-        check reaches its distance (minus the required margin) then; until then no
-        point can have closed that distance, so the pair is certified in between.
-        Pairs allowed to touch up to a depth are checked at every sample.
+        The knots are first cut into a grid on which no point moves more than the
+        resolution between samples. A pair is checked again only when the motion it can
+        have made since its last check (a bound from the joints that move its bodies)
+        reaches its distance then (minus its margin): until that sample it cannot have
+        closed the distance, so it is certified in between. Pairs allowed to touch up
+        to a depth are re-checked when they may have moved deeper than allowed.
 
         Args:
             t: Knot times [s].
@@ -244,78 +246,109 @@ class FclVerifier:
         Raises:
             VerificationError: A sample collides or comes closer than a margin.
         """
+        import heapq
+
         import fcl
 
         weights = _weights(self.robot, self._movers, self._radius)
+        per_mover = _mover_weights(self.robot, self._movers, self._radius)
         pairs = self._pairs
-        n_pairs = len(pairs)
-        due = np.zeros(n_pairs)  # accumulated motion at which each pair is due [m]
-        mover_sets = [{i} | (set() if env else {j}) for i, j, env, _ in pairs]
-        required = np.array([self._margin[self._env[j][0]] if env and self.enforce_margin
-                             and d == 0.0 else 0.0 for _, j, env, d in pairs])
-        objects = [self._objects(i, j, env) for i, j, env, _ in pairs]
-        names = [self._pair_names(i, j, env) for i, j, env, _ in pairs]
-        is_env = np.array([env for _, _, env, _ in pairs], dtype=bool)
-        # The resolution grid: every knot interval cut so that no point moves more
-        # than the resolution between samples; `travel` is the motion bound so far.
-        bounds = np.abs(np.diff(q, axis=0)) @ weights
+        # The resolution grid.
+        dq = np.abs(np.diff(q, axis=0))
+        bounds = dq @ weights
         cuts = np.maximum(1, np.ceil(bounds / self.resolution)).astype(int)
         knot_of = np.concatenate([[0], np.repeat(np.arange(1, len(t)), cuts)])
         frac = np.concatenate([[1.0]] + [np.arange(1, c + 1) / c for c in cuts])
-        travel = np.concatenate([[0.0], np.repeat(bounds / cuts, cuts)]).cumsum()
-        samples, checked = len(travel), 0
+        # Motion bound of every mover, accumulated along the grid [m].
+        step_motion = np.repeat(dq @ per_mover.T / cuts[:, None], cuts, axis=0)
+        travel = np.vstack([np.zeros(len(self._movers)), step_motion]).cumsum(axis=0)
+        samples = len(travel)
+        required = [self._margin[self._env[j][0]] if env and self.enforce_margin and d == 0.0
+                    else 0.0 for _, j, env, d in pairs]
+        objects = [self._objects(i, j, env) for i, j, env, _ in pairs]
+        names = [self._pair_names(i, j, env) for i, j, env, _ in pairs]
+
+        def pair_travel(p: int, index: int) -> float:
+            i, j, env, _ = pairs[p]
+            return float(travel[index, i] + (0.0 if env else travel[index, j]))
+
+        def due_index(p: int, index: int, budget: float) -> int:
+            i, j, env, _ = pairs[p]
+            column = travel[:, i] if env else travel[:, i] + travel[:, j]
+            target = column[index] + budget
+            return max(index + 1, int(np.searchsorted(column, target, side="left")))
+
+        queue = [(0, p) for p in range(len(pairs))]
+        heapq.heapify(queue)
+        checked = 0
         min_clear, closest = float("inf"), None
         dist_req = fcl.DistanceRequest()
-        index = 0
-        while index < samples:
-            travelled = float(travel[index])
+        while queue and queue[0][0] < samples:
+            index = queue[0][0]
+            todo = []
+            while queue and queue[0][0] == index:
+                todo.append(heapq.heappop(queue)[1])
             k = int(knot_of[index])
             qs = q[0] if index == 0 else q[k - 1] + frac[index] * (q[k] - q[k - 1])
-            todo = np.flatnonzero(due <= travelled + 1e-15)
-            if todo.size:
-                checked += 1
-                self._place(qs, set().union(*(mover_sets[p] for p in todo)))
-                bad: list[Pair] = []
-                for p in todo:
-                    o1, o2 = objects[p]
-                    max_depth = pairs[p][3]
-                    if max_depth > 0.0:
-                        # Allowed to touch up to max_depth: check the depth, and wait
-                        # until the pair may have moved deeper by what is left.
-                        req = fcl.CollisionRequest(enable_contact=True, num_max_contacts=4)
-                        res = fcl.CollisionResult()
-                        depth = 0.0
-                        if fcl.collide(o1, o2, req, res):
-                            depth = max(c.penetration_depth for c in res.contacts)
-                            if depth > max_depth:
-                                bad.append(names[p])
-                                continue
-                            gap = 0.0
-                        else:
-                            gap = max(fcl.distance(o1, o2, dist_req, fcl.DistanceResult()), 0.0)
-                        due[p] = travelled + max(gap + max_depth - depth, self.resolution / 2)
-                        continue
-                    d = fcl.distance(o1, o2, dist_req, fcl.DistanceResult())
-                    if d <= 0.0 and fcl.collide(o1, o2, fcl.CollisionRequest(),
-                                                fcl.CollisionResult()):
-                        bad.append(names[p])
-                        continue
-                    if d < required[p]:
-                        bad.append(names[p])
-                        continue
-                    due[p] = travelled + max(d - required[p], 0.0)
-                    if is_env[p] and d < min_clear:
-                        min_clear, closest = d, names[p]
-                if bad:
-                    step = steps[k] if steps is not None else None
-                    raise VerificationError(
-                        "timed sample in collision or inside a margin: "
-                        + ", ".join(f"{a} / {b}" for a, b in bad),
-                        time=float(t[k]), q=qs, pairs=bad, step=step)
-            # Jump to the next sample at which some pair is due.
-            nxt = int(np.searchsorted(travel, float(due.min()) - 1e-15, side="left"))
-            index = max(index + 1, nxt)
+            checked += 1
+            movers = {pairs[p][0] for p in todo} | {pairs[p][1] for p in todo if not pairs[p][2]}
+            self._place(qs, movers)
+            bad: list[Pair] = []
+            for p in todo:
+                o1, o2 = objects[p]
+                max_depth = pairs[p][3]
+                if max_depth > 0.0:
+                    req = fcl.CollisionRequest(enable_contact=True, num_max_contacts=4)
+                    res = fcl.CollisionResult()
+                    depth = 0.0
+                    if fcl.collide(o1, o2, req, res):
+                        depth = max(c.penetration_depth for c in res.contacts)
+                        if depth > max_depth:
+                            bad.append(names[p])
+                            continue
+                        gap = 0.0
+                    else:
+                        gap = max(fcl.distance(o1, o2, dist_req, fcl.DistanceResult()), 0.0)
+                    budget = max(gap + max_depth - depth, self.resolution / 2)
+                    heapq.heappush(queue, (due_index(p, index, budget), p))
+                    continue
+                d = fcl.distance(o1, o2, dist_req, fcl.DistanceResult())
+                if d <= 0.0 and fcl.collide(o1, o2, fcl.CollisionRequest(),
+                                            fcl.CollisionResult()):
+                    bad.append(names[p])
+                    continue
+                if d < required[p]:
+                    bad.append(names[p])
+                    continue
+                if pairs[p][2] and d < min_clear:
+                    min_clear, closest = d, names[p]
+                heapq.heappush(queue, (due_index(p, index, d - required[p]), p))
+            if bad:
+                step = steps[k] if steps is not None else None
+                raise VerificationError(
+                    "timed sample in collision or inside a margin: "
+                    + ", ".join(f"{a} / {b}" for a, b in bad),
+                    time=float(t[k]), q=qs, pairs=bad, step=step)
+        del pair_travel
         return VerifyResult(samples, checked, min_clear, closest)
+
+
+def _mover_weights(robot: Robot, movers: list[tuple[str, int, np.ndarray, object]],
+                   radius: list[float]) -> np.ndarray:
+    """Per mover and joint, a bound on how far the mover's points lie from the joint [m]
+    (zero for joints that do not move it): shape (movers, dof)."""
+    model = robot.model
+    out = np.zeros((len(movers), model.nv))
+    for m, ((_, joint, T_joint_geom, _), r) in enumerate(zip(movers, radius, strict=True)):
+        reach = float(np.linalg.norm(T_joint_geom[:3, 3])) + r
+        j = joint
+        while j > 0:
+            prismatic = model.joints[j].shortname().startswith(("JointModelP",
+                                                                 "JointModelPrismatic"))
+            out[m, model.joints[j].idx_v] = 1.0 if prismatic else reach
+            reach += float(np.linalg.norm(model.jointPlacements[j].translation))
+            j = model.parents[j]
+    return out
 
 
 def _weights(robot: Robot, movers: list[tuple[str, int, np.ndarray, object]],
@@ -332,7 +365,8 @@ def _weights(robot: Robot, movers: list[tuple[str, int, np.ndarray, object]],
         if parent > 0:
             reach[parent] = max(reach[parent], float(np.linalg.norm(
                 model.jointPlacements[j].translation)) + reach[j])
-    return np.array([reach[j] for j in range(1, model.njoints)])
+    return np.array([1.0 if model.joints[j].shortname().startswith("JointModelP")
+                     else reach[j] for j in range(1, model.njoints)])
 
 
 def _radius(geometry: object) -> float:
