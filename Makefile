@@ -4,7 +4,7 @@ VENV ?= .venv
 BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed
 
-.PHONY: setup demo test lint bench view clean
+.PHONY: setup browser demo test lint bench bench-peers view clean
 
 $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
@@ -14,19 +14,34 @@ $(STAMP): pyproject.toml
 
 setup: $(STAMP)
 
+## Debian's Chromium for the browser test of the review session (needs root).
+browser:
+	@command -v chromium >/dev/null 2>&1 || { \
+	  echo "installing Debian's chromium for the browser test"; \
+	  apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq chromium >/dev/null; }
+
 ## The main job on the bundled cell: check the taught poses, plan every route.
 demo: $(STAMP)
 	$(BIN)/safepath check scenes/quality_check_cell
 	$(BIN)/safepath plan scenes/quality_check_cell --out out/quality_check_cell
 
-## Lint, type-check and run the whole test suite.
-test: $(STAMP)
+lint: $(STAMP)
 	$(BIN)/ruff check safepath tests benchmarks examples
 	$(BIN)/mypy safepath
+
+## Lint, type-check and run the whole test suite.
+test: $(STAMP) browser lint
 	$(BIN)/pytest -q
 
+## Speed figures (each script prints its own).
 bench: $(STAMP)
 	$(BIN)/python benchmarks/collision_checks.py
+	$(BIN)/python benchmarks/plan_cycle.py
+	$(BIN)/python benchmarks/runtime_heartbeat.py
+
+## Side-by-side run against mplib, pyroboplan, roboplan (creates their own venvs).
+bench-peers: $(STAMP)
+	$(BIN)/python benchmarks/peers/run.py
 
 view: $(STAMP)
 	$(BIN)/safepath view scenes/quality_check_cell
