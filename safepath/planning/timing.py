@@ -46,7 +46,7 @@ class TimingOptions:
     spacing: float = 0.06
     grid_step: float = 0.015
     tolerance: float = 0.001
-    blend_radii: tuple[float, ...] = (0.3, 0.1, 0.0)
+    blend_radii: tuple[float, ...] = (0.6, 0.3, 0.1, 0.0)
 
     def __post_init__(self) -> None:
         from ..errors import ConfigError
