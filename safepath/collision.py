@@ -327,15 +327,22 @@ class CollisionChecker:
         """Every colliding pair at ``q`` (limits ignored)."""
         pin.computeCollisions(self.robot.model, self._data, self.geometry_model, self._gdata,
                               q, False)
-        return [self._pair_names[k] for k, res in enumerate(self._gdata.collisionResults)
+        hits = [self._pair_names[k] for k, res in enumerate(self._gdata.collisionResults)
                 if res.isCollision()]
+        return list(dict.fromkeys(hits))  # a link may have several shapes
 
     def distances(self, q: np.ndarray) -> list[tuple[Pair, float]]:
-        """Distance [m] of every robot-environment pair at ``q`` (allowed ones excluded)."""
+        """Distance [m] of every robot-environment pair of names at ``q`` (the smallest
+        over the shapes of a link; allowed contacts excluded)."""
         pin.computeDistances(self.robot.model, self._data, self.geometry_model,
                              self._dist_gdata, q)
         results = self._dist_gdata.distanceResults
-        return [(self._pair_names[k], float(results[k].min_distance)) for k in self._dist_pairs]
+        best: dict[Pair, float] = {}
+        for k in self._dist_pairs:
+            name, d = self._pair_names[k], float(results[k].min_distance)
+            if d < best.get(name, float("inf")):
+                best[name] = d
+        return list(best.items())
 
     def clearance(self, q: np.ndarray) -> tuple[float, Pair | None]:
         """Smallest robot-environment distance at ``q`` [m], and its pair."""
@@ -357,7 +364,10 @@ class CollisionChecker:
         dists = self.distances(q)
         clearance, closest = float("inf"), None
         margin_bad = []
-        margin_of = {self._pair_names[k]: self._pair_margin[k] for k in self._dist_pairs}
+        margin_of: dict[Pair, float] = {}
+        for k in self._dist_pairs:
+            name = self._pair_names[k]
+            margin_of[name] = max(margin_of.get(name, 0.0), self._pair_margin[k])
         for p, d in dists:
             if d < clearance:
                 clearance, closest = d, p

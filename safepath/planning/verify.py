@@ -231,11 +231,13 @@ class FclVerifier:
         """Check a timed trajectory; raise on the first collision.
 
         The knots are first cut into a grid on which no point moves more than the
-        resolution between samples. A pair is checked again only when the motion it can
-        have made since its last check (a bound from the joints that move its bodies)
-        reaches its distance then (minus its margin): until that sample it cannot have
-        closed the distance, so it is certified in between. Pairs allowed to touch up
-        to a depth are re-checked when they may have moved deeper than allowed.
+        resolution between samples. A check is repeated only when the motion its bodies
+        can have made since the last one (a bound from the joints that move them)
+        reaches the distance found then (minus the margin): until that sample the
+        distance cannot have closed, so the samples in between are certified. Each
+        moving body is checked against all the environment objects it must avoid with
+        one FCL broad-phase distance query; self pairs and pairs allowed to touch up to
+        a depth are checked one by one.
 
         Args:
             t: Knot times [s].
@@ -263,26 +265,62 @@ class FclVerifier:
         step_motion = np.repeat(dq @ per_mover.T / cuts[:, None], cuts, axis=0)
         travel = np.vstack([np.zeros(len(self._movers)), step_motion]).cumsum(axis=0)
         samples = len(travel)
+        # Units of work: ("env", mover) = one body against its environment objects,
+        # ("pair", p) = one self pair or one pair allowed to touch up to a depth.
+        env_of: dict[int, list[int]] = {}
+        units: list[tuple[str, int]] = []
+        for p, (i, _j, env, depth) in enumerate(pairs):
+            if env and depth == 0.0:
+                env_of.setdefault(i, []).append(p)
+            else:
+                units.append(("pair", p))
+        managers = {}
+        for i, plist in env_of.items():
+            manager = fcl.DynamicAABBTreeCollisionManager()
+            manager.registerObjects([self._env[pairs[p][1]][1] for p in plist])
+            manager.setup()
+            managers[i] = manager
+            units.append(("env", i))
         required = [self._margin[self._env[j][0]] if env and self.enforce_margin and d == 0.0
                     else 0.0 for _, j, env, d in pairs]
         objects = [self._objects(i, j, env) for i, j, env, _ in pairs]
         names = [self._pair_names(i, j, env) for i, j, env, _ in pairs]
+        dist_req = fcl.DistanceRequest()
 
-        def pair_travel(p: int, index: int) -> float:
-            i, j, env, _ = pairs[p]
-            return float(travel[index, i] + (0.0 if env else travel[index, j]))
+        def column(unit: tuple[str, int]) -> np.ndarray:
+            kind, x = unit
+            if kind == "env":
+                return travel[:, x]
+            i, j, env, _ = pairs[x]
+            return travel[:, i] if env else travel[:, i] + travel[:, j]
 
-        def due_index(p: int, index: int, budget: float) -> int:
-            i, j, env, _ = pairs[p]
-            column = travel[:, i] if env else travel[:, i] + travel[:, j]
-            target = column[index] + budget
-            return max(index + 1, int(np.searchsorted(column, target, side="left")))
+        columns = [column(u) for u in units]
 
-        queue = [(0, p) for p in range(len(pairs))]
+        def due(u: int, index: int, budget: float) -> int:
+            target = columns[u][index] + budget
+            return max(index + 1, int(np.searchsorted(columns[u], target, side="left")))
+
+        def check_pair(p: int) -> tuple[bool, float]:
+            """(bad, budget) for one pair."""
+            o1, o2 = objects[p]
+            max_depth = pairs[p][3]
+            if max_depth > 0.0:
+                req = fcl.CollisionRequest(enable_contact=True, num_max_contacts=4)
+                res = fcl.CollisionResult()
+                if fcl.collide(o1, o2, req, res):
+                    depth = max(c.penetration_depth for c in res.contacts)
+                    return depth > max_depth, max(max_depth - depth, self.resolution / 2)
+                gap = max(fcl.distance(o1, o2, dist_req, fcl.DistanceResult()), 0.0)
+                return False, gap + max_depth
+            d = fcl.distance(o1, o2, dist_req, fcl.DistanceResult())
+            if d <= 0.0 and fcl.collide(o1, o2, fcl.CollisionRequest(), fcl.CollisionResult()):
+                return True, 0.0
+            return d < required[p], d - required[p]
+
+        queue = [(0, u) for u in range(len(units))]
         heapq.heapify(queue)
         checked = 0
         min_clear, closest = float("inf"), None
-        dist_req = fcl.DistanceRequest()
         while queue and queue[0][0] < samples:
             index = queue[0][0]
             todo = []
@@ -291,45 +329,52 @@ class FclVerifier:
             k = int(knot_of[index])
             qs = q[0] if index == 0 else q[k - 1] + frac[index] * (q[k] - q[k - 1])
             checked += 1
-            movers = {pairs[p][0] for p in todo} | {pairs[p][1] for p in todo if not pairs[p][2]}
+            movers: set[int] = set()
+            for u in todo:
+                kind, x = units[u]
+                if kind == "env":
+                    movers.add(x)
+                else:
+                    movers.add(pairs[x][0])
+                    if not pairs[x][2]:
+                        movers.add(pairs[x][1])
             self._place(qs, movers)
             bad: list[Pair] = []
-            for p in todo:
-                o1, o2 = objects[p]
-                max_depth = pairs[p][3]
-                if max_depth > 0.0:
-                    req = fcl.CollisionRequest(enable_contact=True, num_max_contacts=4)
-                    res = fcl.CollisionResult()
-                    depth = 0.0
-                    if fcl.collide(o1, o2, req, res):
-                        depth = max(c.penetration_depth for c in res.contacts)
-                        if depth > max_depth:
-                            bad.append(names[p])
-                            continue
-                        gap = 0.0
+            for u in todo:
+                kind, x = units[u]
+                if kind == "pair":
+                    is_bad, budget = check_pair(x)
+                    if is_bad:
+                        bad.append(names[x])
                     else:
-                        gap = max(fcl.distance(o1, o2, dist_req, fcl.DistanceResult()), 0.0)
-                    budget = max(gap + max_depth - depth, self.resolution / 2)
-                    heapq.heappush(queue, (due_index(p, index, budget), p))
+                        heapq.heappush(queue, (due(u, index, budget), u))
                     continue
-                d = fcl.distance(o1, o2, dist_req, fcl.DistanceResult())
-                if d <= 0.0 and fcl.collide(o1, o2, fcl.CollisionRequest(),
-                                            fcl.CollisionResult()):
-                    bad.append(names[p])
+                data = fcl.DistanceData()
+                managers[x].distance(self._movers[x][3], data, fcl.defaultDistanceCallback)
+                d = float(data.result.min_distance)
+                worst_margin = max(required[p] for p in env_of[x])
+                if d > worst_margin and d >= min_clear:
+                    heapq.heappush(queue, (due(u, index, d - worst_margin), u))
                     continue
-                if d < required[p]:
-                    bad.append(names[p])
-                    continue
-                if pairs[p][2] and d < min_clear:
-                    min_clear, closest = d, names[p]
-                heapq.heappush(queue, (due_index(p, index, d - required[p]), p))
+                # Close to something (or a new closest): find the exact pairs.
+                budget = float("inf")
+                for p in env_of[x]:
+                    is_bad, b = check_pair(p)
+                    if is_bad:
+                        bad.append(names[p])
+                    budget = min(budget, b)
+                    dp = b + required[p]
+                    if dp < min_clear:
+                        min_clear, closest = dp, names[p]
+                if not bad:
+                    heapq.heappush(queue, (due(u, index, budget), u))
             if bad:
+                bad = list(dict.fromkeys(bad))  # a link may have several shapes
                 step = steps[k] if steps is not None else None
                 raise VerificationError(
                     "timed sample in collision or inside a margin: "
                     + ", ".join(f"{a} / {b}" for a, b in bad),
                     time=float(t[k]), q=qs, pairs=bad, step=step)
-        del pair_travel
         return VerifyResult(samples, checked, min_clear, closest)
 
 
