@@ -19,11 +19,39 @@ __all__ = ["read_yaml", "atomic_write", "atomic_write_text", "get_key", "as_floa
            "as_vector", "as_str"]
 
 
+class _DuplicateKey(Exception):
+    def __init__(self, key: str, line: int) -> None:
+        super().__init__(key, line)
+        self.key = key
+        self.line = line
+
+
+class _StrictLoader(yaml.SafeLoader):
+    """A safe loader that refuses a key given twice in one mapping (PyYAML keeps the
+    last one silently, which would lose a recorded pose)."""
+
+    def construct_mapping(self, node: yaml.MappingNode, deep: bool = False) -> dict:
+        seen: set[Any] = set()
+        for key_node, _ in node.value:
+            key = self.construct_object(key_node, deep=deep)
+            try:
+                duplicate = key in seen
+            except TypeError:  # unhashable keys: let PyYAML report them
+                duplicate = False
+            if duplicate:
+                raise _DuplicateKey(str(key), key_node.start_mark.line + 1)
+            try:
+                seen.add(key)
+            except TypeError:
+                pass
+        return super().construct_mapping(node, deep=deep)
+
+
 def read_yaml(path: str | Path, *, error: type[InputError] = ConfigError) -> Any:
-    """Read a YAML file.
+    """Read a YAML file; a key given twice in one mapping is an error.
 
     Raises:
-        InputError: The file is missing, unreadable or not valid YAML.
+        InputError: The file is missing, unreadable, not valid YAML, or repeats a key.
     """
     path = Path(path)
     try:
@@ -33,7 +61,9 @@ def read_yaml(path: str | Path, *, error: type[InputError] = ConfigError) -> Any
     except (OSError, UnicodeDecodeError) as exc:
         raise error(f"cannot read file ({exc})", path=path) from None
     try:
-        return yaml.safe_load(text)
+        return yaml.load(text, Loader=_StrictLoader)  # noqa: S506 - a SafeLoader subclass
+    except _DuplicateKey as exc:
+        raise error(f"defined twice (line {exc.line})", path=path, key=exc.key) from None
     except yaml.YAMLError as exc:
         mark = getattr(exc, "problem_mark", None)
         where = f" at line {mark.line + 1}, column {mark.column + 1}" if mark else ""
@@ -116,10 +146,18 @@ def atomic_write(path: str | Path, *, mode: str = "w", backup: bool = False) -> 
         raise
 
 
-def atomic_write_text(path: str | Path, text: str, *, backup: bool = False) -> None:
-    """Atomically replace ``path`` with ``text`` (see :func:`atomic_write`)."""
-    with atomic_write(path, backup=backup) as handle:
-        handle.write(text)
+def atomic_write_text(path: str | Path, text: str, *, backup: bool = False,
+                      error: type[InputError] = InputError) -> None:
+    """Atomically replace ``path`` with ``text`` (see :func:`atomic_write`).
+
+    Raises:
+        InputError: The file cannot be written (``path`` is left as it was).
+    """
+    try:
+        with atomic_write(path, backup=backup) as handle:
+            handle.write(text)
+    except OSError as exc:
+        raise error(f"cannot write file ({exc.strerror or exc})", path=path) from None
 
 
 def check_names(names: Sequence[str], known: Sequence[str], *, path: Path | None, key: str,

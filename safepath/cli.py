@@ -53,6 +53,9 @@ def cmd_check(args: argparse.Namespace) -> int:
               f" {rep.clearance * 1000:>13.1f} {margin:<7} {_fmt_pair(pair)}")
         if rep.limit_violation:
             print(f"{'':<10} {rep.limit_violation}")
+        if len(rep.collisions) > 1:
+            print(f"{'':<10} also colliding: "
+                  + ", ".join(_fmt_pair(p) for p in rep.collisions[1:]))
     low = sum(1 for r in rows if r.report.valid and not r.report.margin_ok)
     print(f"{len(rows) - unsafe}/{len(rows)} states valid, {low} below margin")
     if unsafe or (low and args.strict):

@@ -390,7 +390,7 @@ class CollisionChecker:
         return self.check_segment(q0, q1, check_ends=check_ends, details=False).valid
 
     def check_segment(self, q0: Any, q1: Any, *, check_ends: bool = True,
-                      details: bool = True) -> SegmentReport:
+                      check_start: bool | None = None, details: bool = True) -> SegmentReport:
         """Check the straight joint segment ``q0 -> q1``.
 
         States are checked in bisection order (ends, middle, quarters, ...) so that a
@@ -398,6 +398,14 @@ class CollisionChecker:
         moves more than ``options.resolution`` between neighbours. Joint limits are
         checked at the ends (the joint-limit box is convex, so the segment is inside
         it when both ends are, even with ``check_ends=False``).
+
+        Args:
+            q0: Start [rad].
+            q1: End [rad].
+            check_ends: Check the end states for collision too.
+            check_start: Override for the start state alone (e.g. False along a
+                polyline whose previous segment checked it).
+            details: Collect the colliding pairs of a failure.
         """
         q0 = np.asarray(q0, dtype=float)
         q1 = np.asarray(q1, dtype=float)
@@ -408,14 +416,18 @@ class CollisionChecker:
                 return SegmentReport(False, 0, s, end.copy(), (), robot.limit_violation(end))
         n = self.segment_states(q0, q1)
         order = _bisection_order(n, check_ends)
+        if check_start is False:
+            order = [i for i in order if i != 0]
+        elif check_start and not check_ends:
+            order = [0, *order]
         dq = q1 - q0
-        for i in order:
+        for count, i in enumerate(order, start=1):
             s = i / n
             q = q0 + s * dq
             if not self._free(q):
                 if not details:
-                    return SegmentReport(False, 0, s, q)
-                return SegmentReport(False, len(order), s, q, tuple(self.collisions(q)),
+                    return SegmentReport(False, count, s, q)
+                return SegmentReport(False, count, s, q, tuple(self.collisions(q)),
                                      self.robot.limit_violation(q))
         return SegmentReport(True, len(order))
 
@@ -423,7 +435,10 @@ class CollisionChecker:
         """Check a joint-space polyline segment by segment."""
         total = 0
         for k in range(len(path) - 1):
-            rep = self.check_segment(path[k], path[k + 1], check_ends=(k == 0))
+            # Each waypoint is checked once: the first segment checks both ends, the
+            # others their end only.
+            rep = self.check_segment(path[k], path[k + 1], check_ends=True,
+                                     check_start=(k == 0))
             total += rep.checked
             if not rep.valid:
                 frac = (k + (rep.fraction or 0.0)) / max(1, len(path) - 1)

@@ -118,4 +118,4 @@ def save_poses(path: str | Path, poses: Mapping[str, Sequence[float] | np.ndarra
         if not _NAME.match(str(name)):
             raise PoseError(f"'{name}' is not a valid pose name", path=path, key=str(name))
         checked[str(name)] = robot.as_joint_vector(q, name=f"poses.{name}", path=path)
-    atomic_write_text(path, dump_poses(checked), backup=backup)
+    atomic_write_text(path, dump_poses(checked), backup=backup, error=PoseError)

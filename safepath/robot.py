@@ -224,7 +224,12 @@ def load_robot(name_or_path: str | Path, *, acceleration_limits: Sequence[float]
     else:
         raise RobotNotFound(text, robot_names())
     if acceleration_limits is not None:
-        robot.acceleration_limits = np.asarray(acceleration_limits, dtype=float)
+        acc = np.asarray(acceleration_limits, dtype=float)
+        if acc.shape != (robot.dof,) or not np.all(np.isfinite(acc)) or np.any(acc <= 0):
+            raise ConfigError(f"need {robot.dof} finite positive values, got "
+                              f"{np.asarray(acceleration_limits).tolist()}",
+                              key="acceleration_limits")
+        robot.acceleration_limits = acc
     return robot
 
 

@@ -1,0 +1,137 @@
+"""The ``safepath check`` command, run as a user runs it (a subprocess of the venv)."""
+
+from __future__ import annotations
+
+import re
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pinocchio as pin
+import pytest
+
+from safepath import Cell, dump_poses
+from safepath.planning import solve_ik
+
+ENTRY = Path(sys.executable).with_name("safepath")
+ROW = re.compile(r"^(\w+)\s+(empty|vial)\s+(ok|OUT)\s+(yes|NO)\s+(-?\d+\.\d)\s+(ok|LOW)\s+(.*)$")
+
+
+def run(*args: str, cwd: Path) -> subprocess.CompletedProcess[str]:
+    """Run ``safepath ARGS`` with the venv's entry point (or ``python -m safepath.cli``)."""
+    cmd = [str(ENTRY)] if ENTRY.exists() else [sys.executable, "-m", "safepath.cli"]
+    return subprocess.run([*cmd, *args], cwd=cwd, capture_output=True, text=True, timeout=120,
+                          check=False)
+
+
+def _rows(stdout: str) -> list[re.Match[str]]:
+    return [m for m in (ROW.match(line) for line in stdout.splitlines()) if m]
+
+
+def test_check_bundled_cell(repo_root: Path, cell: Cell) -> None:
+    result = run("check", "scenes/quality_check_cell", cwd=repo_root)
+    assert result.returncode == 0, result.stderr
+    assert result.stderr == ""
+    rows = _rows(result.stdout)
+    assert [(m[1], m[2]) for m in rows] == [
+        (name, state) for name in cell.poses for state in ("empty", "vial")]
+    for m in rows:
+        assert m[3] == "ok" and m[4] == "yes" and m[6] == "ok", m[0]
+        assert float(m[5]) >= 10.0  # clearance [mm] above the 10 mm margin
+        assert " / " in m[7]  # the closest pair
+    assert "12/12 states valid, 0 below margin" in result.stdout
+    assert "margin 10 mm" in result.stdout
+
+
+def test_clearance_column_matches_the_library(repo_root: Path, cell: Cell) -> None:
+    from safepath import check_poses
+
+    result = run("check", "scenes/quality_check_cell", cwd=repo_root)
+    rows = _rows(result.stdout)
+    for m, row in zip(rows, check_poses(cell), strict=True):
+        assert float(m[5]) == pytest.approx(row.report.clearance * 1000, abs=0.051)
+
+
+def test_margin_option_and_strict(repo_root: Path) -> None:
+    # low1 keeps 38 mm from the camera: a 50 mm margin is not kept there.
+    result = run("check", "scenes/quality_check_cell", "--margin", "0.05", cwd=repo_root)
+    assert result.returncode == 0, result.stderr
+    assert "margin 50 mm" in result.stdout
+    low = [m for m in _rows(result.stdout) if m[6] == "LOW"]
+    assert ("low1", "empty") in {(m[1], m[2]) for m in low}
+    strict = run("check", "scenes/quality_check_cell", "--margin", "0.05", "--strict",
+                 cwd=repo_root)
+    assert strict.returncode == 1
+
+
+def test_pose_in_collision_exits_1_and_names_the_pair(cell_copy: Path, cell: Cell) -> None:
+    robot = cell.robot
+    q_grip = cell.pose("grip")
+    T = robot.frame_pose(q_grip)
+    # 15 cm further along the belt than grip (clear of the vial) and 7 cm lower.
+    crash = solve_ik(robot, pin.SE3(T.rotation, T.translation + [0.15, 0.0, -0.07]), q_grip)
+    assert crash is not None
+    poses = {**cell.poses, "crash": crash}
+    (cell_copy / "poses.yaml").write_text(dump_poses(poses))
+    result = run("check", str(cell_copy), cwd=cell_copy)
+    assert result.returncode == 1, result.stdout + result.stderr
+    rows = {(m[1], m[2]): m for m in _rows(result.stdout)}
+    bad = rows[("crash", "empty")]
+    assert bad[4] == "NO" and float(bad[5]) < 0
+    first, second = bad[7].split(" / ")
+    assert first in {"mors_1", "mors_2", "base_gripper_1", "hand_link"}
+    assert second == "qc_conveyor"
+    assert rows[("grip", "empty")][4] == "yes"
+    assert "12/13 states valid" in result.stdout
+
+
+def test_pose_outside_the_limits_is_an_input_error(cell_copy: Path, cell: Cell) -> None:
+    q = cell.pose("grip").copy()
+    q[1] = 1.0  # joint_2 beyond 0.44 rad
+    (cell_copy / "poses.yaml").write_text(dump_poses({**cell.poses, "wild": q}))
+    result = run("check", str(cell_copy), cwd=cell_copy)
+    assert result.returncode == 2
+    assert result.stdout == ""
+    lines = result.stderr.splitlines()
+    assert len(lines) == 1 and "joint_2" in lines[0] and "wild" in lines[0]
+
+
+@pytest.mark.parametrize(
+    ("file", "text", "needle"),
+    [
+        ("poses.yaml", "poses:\n  grip: [0.0, 0.0\n", "malformed YAML"),
+        ("poses.yaml", "poses:\n  grip: [0.0, 0.0, 0.0, 0.0, 0.0]\n", "expected 6"),
+        ("scene.yaml", "name: x\nrobot: ned3pro\nobjects: {a: {shape: cone, xyz: [0,0,0]}}\n",
+         "unknown shape 'cone'"),
+        ("scene.yaml", "name: x\nrobot: [ned3pro\n", "malformed YAML"),
+    ],
+)
+def test_malformed_file_exits_2_with_one_line(cell_copy: Path, file: str, text: str,
+                                              needle: str) -> None:
+    (cell_copy / file).write_text(text)
+    result = run("check", str(cell_copy), cwd=cell_copy)
+    assert result.returncode == 2
+    assert "Traceback" not in result.stderr
+    lines = result.stderr.splitlines()
+    assert len(lines) == 1, result.stderr
+    assert lines[0].startswith("safepath check: error:")
+    assert str(cell_copy / file) in lines[0] and needle in lines[0]
+
+
+def test_missing_scene_folder_exits_2(tmp_path: Path) -> None:
+    result = run("check", str(tmp_path / "nowhere"), cwd=tmp_path)
+    assert result.returncode == 2
+    assert len(result.stderr.splitlines()) == 1 and "not found" in result.stderr
+    assert "Traceback" not in result.stderr
+
+
+def test_in_process_main_matches(repo_root: Path, capsys: pytest.CaptureFixture[str],
+                                 monkeypatch: pytest.MonkeyPatch) -> None:
+    from safepath.cli import main
+
+    monkeypatch.chdir(repo_root)
+    assert main(["check", "scenes/quality_check_cell"]) == 0
+    out = capsys.readouterr().out
+    assert len(_rows(out)) == 12
+    assert np.isfinite([float(m[5]) for m in _rows(out)]).all()
