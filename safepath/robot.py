@@ -11,6 +11,7 @@ from __future__ import annotations
 import logging
 import math
 import os
+import threading
 from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -102,7 +103,7 @@ class Robot:
         self.tcp_frame_id = model.getFrameId(tcp_frame)
         self.tool = tool
         self.allowed_self_pairs = frozenset(tuple(sorted(p)) for p in allowed_self_pairs)
-        self._data = model.createData()
+        self._local = threading.local()  # one pinocchio Data per thread
 
     # -- basic facts -------------------------------------------------------------------
     @property
@@ -166,8 +167,11 @@ class Robot:
     def frame_pose(self, q: np.ndarray, frame: str | None = None) -> pin.SE3:
         """Pose of ``frame`` (default: the TCP) in the world frame at ``q``."""
         fid = self.tcp_frame_id if frame is None else self._frame_id(frame)
-        pin.forwardKinematics(self.model, self._data, q)
-        return pin.updateFramePlacement(self.model, self._data, fid).copy()
+        data = getattr(self._local, "data", None)
+        if data is None:
+            data = self._local.data = self.model.createData()
+        pin.forwardKinematics(self.model, data, q)
+        return pin.updateFramePlacement(self.model, data, fid).copy()
 
     def tcp_position(self, q: np.ndarray) -> np.ndarray:
         """TCP position in the world frame [m]."""

@@ -44,7 +44,7 @@ class GripperEvent:
     object: str | None = None
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)
 class Trajectory:
     """A timed, verified joint trajectory.
 
@@ -102,6 +102,17 @@ class Trajectory:
             raise TrajectoryError("step index out of range", key="step_index")
         object.__setattr__(self, "step_index", idx)
         object.__setattr__(self, "joint_names", tuple(self.joint_names))
+
+    def __eq__(self, other: object) -> bool:
+        """Equal when every field is equal (arrays element by element, exactly)."""
+        if not isinstance(other, Trajectory):
+            return NotImplemented
+        arrays = ("t", "q", "qd", "qdd", "step_index")
+        return (all(np.array_equal(getattr(self, a), getattr(other, a)) for a in arrays)
+                and (self.joint_names, self.steps, self.events, self.robot, self.route)
+                == (other.joint_names, other.steps, other.events, other.robot, other.route))
+
+    __hash__ = None  # type: ignore[assignment]  # mutable arrays inside
 
     # -- facts -----------------------------------------------------------------------------
     @property

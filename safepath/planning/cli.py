@@ -78,9 +78,11 @@ def cmd_plan(args: argparse.Namespace) -> int:
     print("-" * len(header))
     for name, row in summary.items():
         pair = " / ".join(row["closest_pair"] or [])
+        base = row["baseline_time"]
+        base_text = f"{base:>11.3f}" if base else f"{'-':>11}"
+        ratio = f"{row['motion_time'] / base:>6.2f}" if base else f"{'-':>6}"
         print(f"{name:<15} {row['steps']:>5} {row['planning_time'] * 1000:>9.0f} "
-              f"{row['motion_time']:>10.3f} {row['baseline_time']:>11.3f} "
-              f"{row['motion_time'] / row['baseline_time']:>6.2f} "
+              f"{row['motion_time']:>10.3f} {base_text} {ratio} "
               f"{row['min_clearance'] * 1000:>14.1f}  {pair}")
     print(f"wrote {len(trajectories)} trajectories (JSON, CSV) and summary.json to {out}")
     return 0

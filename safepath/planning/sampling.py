@@ -88,8 +88,10 @@ def _solve(checker: CollisionChecker, q_start: np.ndarray, q_goal: np.ndarray,
     from ompl import geometric as og
     from ompl import util as ou
 
-    ou.setLogLevel(ou.LOG_ERROR)
+    # Reseeding after the first time makes OMPL log an error it does not act on.
+    ou.setLogLevel(ou.LOG_NONE)
     ou.RNG.setSeed(int(options.seed) % (2**31 - 1) + 1)  # before any planner exists
+    ou.setLogLevel(ou.LOG_ERROR)
     robot = checker.robot
     n = robot.dof
     space = ob.RealVectorStateSpace(n)

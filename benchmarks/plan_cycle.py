@@ -1,0 +1,212 @@
+"""Wall time to plan, time and verify the quality-check cycle, and the motion time won.
+
+The cycle has two outcomes: ``phase1`` followed by ``phase2_safe`` (a safe vial goes to
+the packaging line) or by ``phase2_unsafe`` (into the reject bin). For each outcome this
+measures, after one warm-up run, ``--runs`` times:
+
+* the wall time of :func:`safepath.plan_cell` on the two routes (paths, TOPPRA timing
+  and the FCL re-check, all included), median and 95th percentile, and the planner's
+  own split (``info["planning_time"]``: paths; the rest of ``info["total_time"]``:
+  timing and verification), all with ``time.perf_counter``;
+* once, with ``PlanOptions(baseline=True)``: the motion time of every route against
+  its stop-and-go baseline (every motion step rest to rest along the same path, same
+  limits), per route and for the whole cycle;
+* once, instrumented (not part of the timed runs): how the wall time splits between
+  TOPPRA timing and FCL verification.
+
+Aims, stated with the results: median wall time < 100 ms per outcome, and blended
+motion time <= 0.7 of the stop-and-go baseline.
+
+Run: ``.venv/bin/python benchmarks/plan_cycle.py [--runs 20] [--seed 0]``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import platform
+import statistics
+import time
+from collections.abc import Iterator, Mapping, Sequence
+from contextlib import contextmanager
+from dataclasses import dataclass
+from pathlib import Path
+from unittest import mock
+
+import numpy as np
+
+from safepath import Cell, PlannerOptions, PlanOptions, Route, load_cell, load_routes, plan_cell
+from safepath.trajectory import Trajectory
+
+CELL_DIR = Path(__file__).resolve().parents[1] / "scenes" / "quality_check_cell"
+OUTCOMES = {"safe": ("phase1", "phase2_safe"), "unsafe": ("phase1", "phase2_unsafe")}
+#: Aim for the median wall time of one outcome's planning [s].
+AIM_WALL = 0.100
+#: Aim for blended motion time over stop-and-go motion time.
+AIM_RATIO = 0.7
+
+
+@dataclass(frozen=True)
+class Timing:
+    """Wall times of repeated plans of one outcome.
+
+    Attributes:
+        wall: Wall time of each run [s].
+        paths: Path planning time of each run, summed over routes [s].
+        total: Planner-reported total time of each run, summed over routes [s].
+    """
+
+    wall: list[float]
+    paths: list[float]
+    total: list[float]
+
+
+def percentile(values: Sequence[float], q: float) -> float:
+    """The ``q``-th percentile [same unit as ``values``] (linear interpolation)."""
+    return float(np.percentile(np.asarray(values, dtype=float), q))
+
+
+def plan_outcome(cell: Cell, routes: Mapping[str, Route], names: Sequence[str],
+                 options: PlanOptions) -> tuple[float, dict[str, Trajectory]]:
+    """Plan the named routes once; return the wall time [s] and the trajectories."""
+    subset = {name: routes[name] for name in names}
+    t0 = time.perf_counter()
+    trajectories = plan_cell(cell, options, routes=subset)
+    return time.perf_counter() - t0, trajectories
+
+
+def measure(cell: Cell, routes: Mapping[str, Route], names: Sequence[str],
+            options: PlanOptions, runs: int) -> Timing:
+    """One warm-up run, then ``runs`` timed runs of one outcome."""
+    plan_outcome(cell, routes, names, options)
+    wall, paths, total = [], [], []
+    for _ in range(runs):
+        seconds, trajectories = plan_outcome(cell, routes, names, options)
+        wall.append(seconds)
+        paths.append(sum(t.info["planning_time"] for t in trajectories.values()))
+        total.append(sum(t.info["total_time"] for t in trajectories.values()))
+    return Timing(wall, paths, total)
+
+
+@contextmanager
+def stage_clock() -> Iterator[dict[str, float]]:
+    """Accumulate the time spent in TOPPRA timing and in FCL verification [s].
+
+    Wraps the two functions for the duration of the ``with`` block only (the planner
+    calls them through these module attributes); the originals run unchanged.
+    """
+    from safepath.planning import planner, verify
+
+    spent = {"timing": 0.0, "verification": 0.0}
+
+    def clocked(key: str, fn: object) -> object:
+        def call(*args: object, **kwargs: object) -> object:
+            t0 = time.perf_counter()
+            try:
+                return fn(*args, **kwargs)  # type: ignore[operator]
+            finally:
+                spent[key] += time.perf_counter() - t0
+        return call
+
+    with mock.patch.object(planner, "time_path", clocked("timing", planner.time_path)), \
+            mock.patch.object(verify.FclVerifier, "verify",
+                              clocked("verification", verify.FclVerifier.verify)):
+        yield spent
+
+
+def ms(seconds: float) -> str:
+    """Seconds as milliseconds, for the tables."""
+    return f"{seconds * 1000:8.1f}"
+
+
+def met(ok: bool) -> str:
+    """``met`` or ``NOT met``."""
+    return "met" if ok else "NOT met"
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """Run the benchmark and print the report; returns the exit status (0)."""
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--runs", type=int, default=20, help="timed runs per outcome")
+    parser.add_argument("--seed", type=int, default=0, help="planner seed")
+    args = parser.parse_args(argv)
+    if args.runs < 1:
+        parser.error("--runs must be at least 1")
+
+    cell = load_cell(CELL_DIR)
+    routes = load_routes(cell.folder, poses=list(cell.poses), objects=list(cell.scene.objects))
+    options = PlanOptions(planner=PlannerOptions(seed=args.seed))
+    load = f", load average {os.getloadavg()[0]:.1f}" if hasattr(os, "getloadavg") else ""
+    print(f"plan_cycle: cell {cell.scene.name}, robot {cell.robot.name}, seed {args.seed}, "
+          f"{args.runs} runs per outcome after 1 warm-up")
+    print(f"python {platform.python_version()} on {platform.machine()}, "
+          f"{os.cpu_count()} cores{load}")
+
+    # -- wall time ----------------------------------------------------------------------------
+    print()
+    print("wall time of plan_cell (paths + TOPPRA + FCL verification) [ms]")
+    header = (f"{'outcome':<28} {'median':>8} {'p95':>8} {'min':>8} {'max':>8}   "
+              f"{'paths':>8} {'time+verify':>11}")
+    print(header)
+    print("-" * len(header))
+    medians = {}
+    for outcome, names in OUTCOMES.items():
+        timing = measure(cell, routes, names, options, args.runs)
+        medians[outcome] = statistics.median(timing.wall)
+        paths = statistics.median(timing.paths)
+        rest = statistics.median(t - p for t, p in zip(timing.total, timing.paths,
+                                                       strict=True))
+        print(f"{' + '.join(names):<28} {ms(medians[outcome])} "
+              f"{ms(percentile(timing.wall, 95))} {ms(min(timing.wall))} "
+              f"{ms(max(timing.wall))}   {ms(paths)} {ms(rest):>11}")
+    print("(paths, time+verify: medians of the planner's own info['planning_time'] and "
+          "info['total_time'] - info['planning_time'], summed over the two routes)")
+
+    # -- stage split (one instrumented run) --------------------------------------------------
+    print()
+    print("stage split, one instrumented run per outcome [ms]")
+    header = f"{'outcome':<28} {'wall':>8} {'paths':>8} {'TOPPRA':>8} {'FCL':>8} {'other':>8}"
+    print(header)
+    print("-" * len(header))
+    for names in OUTCOMES.values():
+        with stage_clock() as spent:
+            wall, trajectories = plan_outcome(cell, routes, names, options)
+        paths = sum(t.info["planning_time"] for t in trajectories.values())
+        other = wall - paths - spent["timing"] - spent["verification"]
+        print(f"{' + '.join(names):<28} {ms(wall)} {ms(paths)} {ms(spent['timing'])} "
+              f"{ms(spent['verification'])} {ms(other)}")
+    print("(TOPPRA includes the failed blend attempts; other: spline collision checks, "
+          "assembly, checker construction)")
+
+    # -- motion time against stop-and-go -----------------------------------------------------
+    print()
+    print("motion time against the stop-and-go baseline (PlanOptions(baseline=True)) [s]")
+    header = f"{'route':<28} {'blended':>8} {'stop&go':>8} {'ratio':>6}"
+    print(header)
+    print("-" * len(header))
+    baseline_options = PlanOptions(planner=PlannerOptions(seed=args.seed), baseline=True)
+    _, all_trajectories = plan_outcome(cell, routes, list(routes), baseline_options)
+    for name, traj in all_trajectories.items():
+        base = traj.info["baseline_duration"]
+        print(f"{name:<28} {traj.duration:8.3f} {base:8.3f} {traj.duration / base:6.2f}")
+    ratios = {}
+    for outcome, names in OUTCOMES.items():
+        blended = sum(all_trajectories[n].duration for n in names)
+        base = sum(all_trajectories[n].info["baseline_duration"] for n in names)
+        ratios[outcome] = blended / base
+        print(f"{'cycle ' + ' + '.join(names):<28} {blended:8.3f} {base:8.3f} "
+              f"{ratios[outcome]:6.2f}")
+
+    # -- aims ----------------------------------------------------------------------------
+    print()
+    for outcome in OUTCOMES:
+        print(f"aim: median wall time < {AIM_WALL * 1000:.0f} ms ({outcome} outcome): "
+              f"{medians[outcome] * 1000:.1f} ms, {met(medians[outcome] < AIM_WALL)}")
+    for outcome in OUTCOMES:
+        print(f"aim: cycle motion time <= {AIM_RATIO:.1f} x stop-and-go ({outcome} outcome): "
+              f"{ratios[outcome]:.2f}, {met(ratios[outcome] <= AIM_RATIO)}")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

@@ -1,0 +1,72 @@
+"""``safepath plan``: writes loadable trajectories and a table; bad input is one line."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+from safepath import load_trajectory
+from safepath.cli import main
+
+from .conftest import BUNDLED, ROOT
+
+ROUTES = ("phase1", "phase2_safe", "phase2_unsafe")
+
+
+def _safepath() -> list[str]:
+    """The installed console script next to this interpreter, else ``-m safepath.cli``."""
+    script = Path(sys.executable).with_name("safepath")
+    return [str(script)] if script.exists() else [sys.executable, "-m", "safepath.cli"]
+
+
+def test_plan_writes_every_route_and_prints_the_table(tmp_path: Path,
+                                                      capsys: pytest.CaptureFixture[str]
+                                                      ) -> None:
+    out = tmp_path / "out"
+    assert main(["plan", str(BUNDLED), "--out", str(out)]) == 0
+    printed = capsys.readouterr().out
+    lines = printed.splitlines()
+    header = next(line for line in lines if line.startswith("route"))
+    for column in ("steps", "plan[ms]", "motion[s]", "stop&go[s]", "ratio", "clearance[mm]"):
+        assert column in header
+    summary = json.loads((out / "summary.json").read_text())
+    assert set(summary) == set(ROUTES)
+    for name in ROUTES:
+        traj = load_trajectory(out / f"{name}.json")
+        assert traj.route == name and traj.duration > 0
+        assert (out / f"{name}.csv").read_text().count("\n") == traj.t.size + 1
+        row = next(line for line in lines if line.startswith(name + " "))
+        fields = row.split()
+        motion, baseline, ratio = float(fields[3]), float(fields[4]), float(fields[5])
+        assert motion == pytest.approx(traj.duration, abs=1e-3)
+        assert baseline == pytest.approx(summary[name]["baseline_time"], abs=1e-3)
+        assert ratio == pytest.approx(motion / baseline, abs=0.01)
+        assert ratio < 1.0
+        assert float(fields[6]) >= 10.0  # clearance [mm], at least the margin
+    assert "summary.json" in printed and str(out) in printed
+
+
+def test_unknown_route_is_one_line_and_exit_2(tmp_path: Path) -> None:
+    proc = subprocess.run(_safepath() + ["plan", str(BUNDLED), "--out", str(tmp_path),
+                                         "--route", "nope"],
+                          cwd=ROOT, capture_output=True, text=True, timeout=120)
+    assert proc.returncode == 2
+    assert proc.stdout == ""
+    lines = proc.stderr.splitlines()
+    assert len(lines) == 1, proc.stderr
+    assert lines[0].startswith("safepath plan: error:")
+    assert "nope" in lines[0] and "phase1" in lines[0]
+    assert not list(tmp_path.iterdir())  # nothing written
+
+
+def test_route_option_plans_the_route_and_what_it_follows(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    out = tmp_path / "one"
+    assert main(["plan", str(BUNDLED), "--out", str(out), "--route", "phase2_unsafe"]) == 0
+    written = sorted(p.name for p in out.glob("*.json"))
+    assert written == ["phase1.json", "phase2_unsafe.json", "summary.json"]
+    assert "phase2_safe" not in capsys.readouterr().out

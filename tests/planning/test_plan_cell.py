@@ -1,0 +1,173 @@
+"""Every route of the bundled cell plans, times and verifies, and the result is sound.
+
+The trajectories are planned once per session (``bundled`` fixture); each test checks
+one property on every route, and the last ones re-check the timed result at 1 ms with
+the planner's own collision checker built independently from the route description.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from safepath import CheckOptions, CollisionChecker
+from safepath.planning import initial_world
+
+from .conftest import LIMIT_TOL, Plans, dense_times, object_released_at, step_worlds
+
+ROUTES = ("phase1", "phase2_safe", "phase2_unsafe")
+
+
+def test_every_route_is_planned(bundled: Plans) -> None:
+    assert set(bundled.trajectories) == set(ROUTES) == set(bundled.routes)
+    for name, traj in bundled.trajectories.items():
+        assert traj.route == name
+        assert traj.robot == bundled.cell.robot.name
+        assert traj.joint_names == bundled.cell.robot.joint_names
+        assert traj.duration > 1.0
+
+
+@pytest.mark.parametrize("name", ROUTES)
+def test_knots_within_limits(bundled: Plans, name: str) -> None:
+    traj, robot = bundled.trajectories[name], bundled.cell.robot
+    assert np.all(traj.q >= robot.lower - 1e-9) and np.all(traj.q <= robot.upper + 1e-9)
+    v = np.abs(traj.qd) / robot.velocity_limits
+    a = np.abs(traj.qdd) / robot.acceleration_limits
+    assert v.max() <= 1 + LIMIT_TOL, f"velocity {v.max():.4f} of the limit"
+    assert a.max() <= 1 + LIMIT_TOL, f"acceleration {a.max():.4f} of the limit"
+    # Each knot also respects the speed fraction of the step it belongs to.
+    route = bundled.routes[name]
+    speed = np.array([route.steps[k].speed for k in traj.step_index])[:, None]
+    assert (v / speed).max() <= 1 + LIMIT_TOL
+    assert (a / speed).max() <= 1 + LIMIT_TOL
+    # The limits are used, not just respected: the fastest knot is near one.
+    assert max(v.max(), a.max()) > 0.9
+
+
+@pytest.mark.parametrize("name", ROUTES)
+def test_verified_clearance_keeps_the_margin(bundled: Plans, name: str) -> None:
+    traj = bundled.trajectories[name]
+    assert traj.info["min_clearance"] >= bundled.cell.scene.margin
+    assert traj.info["closest_pair"] is not None and len(traj.info["closest_pair"]) == 2
+    assert 0 < traj.info["planning_time"] <= traj.info["total_time"]
+
+
+@pytest.mark.parametrize("name", ROUTES)
+def test_starts_and_ends_at_taught_poses_at_rest(bundled: Plans, name: str) -> None:
+    cell, route, traj = bundled.cell, bundled.routes[name], bundled.trajectories[name]
+    np.testing.assert_allclose(traj.q[0], cell.pose(route.start), atol=1e-9)
+    last = [s for s in route.steps if s.is_motion][-1]
+    assert last.target is not None and last.target.exact_pose is not None
+    np.testing.assert_allclose(traj.q[-1], cell.pose(last.target.exact_pose), atol=1e-6)
+    assert traj.t[0] == 0.0
+    assert not np.any(traj.qd[0]) and not np.any(traj.qd[-1])
+
+
+@pytest.mark.parametrize("name", ROUTES)
+def test_steps_and_events_follow_the_route(bundled: Plans, name: str) -> None:
+    cell, route, traj = bundled.cell, bundled.routes[name], bundled.trajectories[name]
+    labels = route.labels()
+    assert traj.steps == tuple(labels)
+    grasped = cell.scene.grasp.object if cell.scene.grasp else None
+    expected = [(s.kind, labels[i], s.object or grasped) for i, s in enumerate(route.steps)
+                if not s.is_motion]
+    assert [(e.action, e.step, e.object) for e in traj.events] == expected
+    times = [e.time for e in traj.events]
+    assert times == sorted(times)
+    # Every motion step owns knots, in route order; gripper steps own none.
+    motion = [i for i, s in enumerate(route.steps) if s.is_motion]
+    assert sorted(set(traj.step_index.tolist())) == motion
+    assert np.all(np.diff(traj.step_index) >= 0)
+
+
+@pytest.mark.parametrize("name", ROUTES)
+def test_gripper_events_happen_at_rest_at_their_pose(bundled: Plans, name: str) -> None:
+    cell, route, traj = bundled.cell, bundled.routes[name], bundled.trajectories[name]
+    labels = route.labels()
+    for event in traj.events:
+        k = int(np.argmin(np.abs(traj.t - event.time)))
+        assert abs(traj.t[k] - event.time) < 1e-9, "an event falls between knots"
+        assert not np.any(traj.qd[k]), f"{event.step}: moving at the event"
+        _, qd, _ = traj.sample([event.time])
+        assert np.max(np.abs(qd)) < 1e-9
+        # The pose of the motion step just before the gripper step.
+        i = labels.index(event.step)
+        before = [s for s in route.steps[:i] if s.is_motion]
+        pose = before[-1].target.exact_pose if before else route.start  # type: ignore[union-attr]
+        if pose is not None:
+            np.testing.assert_allclose(traj.q[k], cell.pose(pose), atol=1e-6)
+
+
+@pytest.mark.parametrize("name", ROUTES)
+def test_step_durations_sum_to_duration(bundled: Plans, name: str) -> None:
+    route, traj = bundled.routes[name], bundled.trajectories[name]
+    durations = traj.step_durations()
+    assert list(durations) == list(traj.steps)
+    assert sum(durations.values()) == pytest.approx(traj.duration, abs=1e-9)
+    for step, label in zip(route.steps, traj.steps, strict=True):
+        if step.is_motion:
+            assert durations[label] > 0.05, label
+        else:
+            assert durations[label] == 0.0
+
+
+@pytest.mark.parametrize("name", ROUTES)
+def test_blending_beats_stop_and_go(bundled: Plans, name: str) -> None:
+    traj = bundled.trajectories[name]
+    baseline = traj.info["baseline_duration"]
+    assert 0 < traj.duration < baseline
+
+
+def _worlds(bundled: Plans) -> dict[str, dict[str, np.ndarray]]:
+    """Where the movable object rests at the start of each route (independently)."""
+    cell = bundled.cell
+    start = {k: v for k, v in initial_world(cell).resting.items()}
+    released = object_released_at(cell, bundled.trajectories["phase1"])
+    return {"phase1": start, "phase2_safe": {"vial": released},
+            "phase2_unsafe": {"vial": released}}
+
+
+@pytest.mark.parametrize("name", ROUTES)
+def test_independent_recheck_at_1ms(bundled: Plans, name: str) -> None:
+    """Re-sample at 1 ms and check every sample with a checker built from the route:
+    the right object held, the right contacts allowed, margins enforced."""
+    cell, route, traj = bundled.cell, bundled.routes[name], bundled.trajectories[name]
+    grasp = cell.scene.grasp
+    assert grasp is not None
+    worlds = step_worlds(cell, route)
+    resting = dict(_worlds(bundled)[name])
+    times = dense_times(traj, 0.001)
+    q, qd, _ = traj.sample(times)
+    step_of = traj.step_index[np.clip(np.searchsorted(traj.t, times, side="right") - 1, 0,
+                                      traj.t.size - 1)]
+    # The resting object moves when released: split the samples at the open events.
+    opens = [e.time for e in traj.events if e.action == "open"]
+    checkers: dict[tuple, CollisionChecker] = {}
+    checked_moves = 0
+    for n in range(times.size):
+        world = worlds[int(step_of[n])]
+        released = [t for t in opens if t <= times[n]]
+        rest = dict(resting)
+        if released and not world.held:
+            rest[grasp.object] = object_released_at(cell, traj)
+        key = (world.held, world.allowed, len(released))
+        if key not in checkers:
+            checkers[key] = CollisionChecker(
+                cell.robot, cell.scene, held=grasp.object if world.held else None,
+                resting=None if world.held else rest, allowed=world.allowed,
+                options=CheckOptions(enforce_margin=True))
+        if not checkers[key].is_valid(q[n]):
+            report = checkers[key].check(q[n])
+            pytest.fail(f"{name}: t={times[n]:.3f} s in step '{traj.steps[step_of[n]]}': "
+                        f"{report.collisions or report.margin_violations}")
+        checked_moves += world.kind == "move"
+    assert checked_moves > 500  # every route has moves; they were checked
+
+
+@pytest.mark.parametrize("name", ROUTES)
+def test_dense_samples_stay_within_limits(bundled: Plans, name: str) -> None:
+    """Between knots the cubic Hermite interpolation stays within the limits too."""
+    traj, robot = bundled.trajectories[name], bundled.cell.robot
+    q, qd, _ = traj.sample(dense_times(traj, 0.001))
+    assert np.all(q >= robot.lower - 1e-9) and np.all(q <= robot.upper + 1e-9)
+    assert (np.abs(qd) / robot.velocity_limits).max() <= 1 + 2 * LIMIT_TOL
