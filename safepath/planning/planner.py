@@ -20,14 +20,14 @@ import numpy as np
 
 from ..cell import Cell
 from ..collision import CheckOptions, CollisionChecker
-from ..errors import IKError, PlanningError, TimingError
+from ..errors import IKError, PlanningError, TimingError, VerificationError
 from ..scene import AllowedContact
 from ..trajectory import GripperEvent, Trajectory
 from .cartesian import LineOptions, cartesian_line
 from .routes import Route, Step, load_routes
 from .sampling import PlannerOptions, plan_joint_path
 from .timing import TimedPiece, TimingOptions, spline_path, time_path
-from .verify import FclVerifier
+from .verify import FclVerifier, VerifyResult
 
 __all__ = ["PlanOptions", "WorldState", "plan_route", "plan_cell", "route_order",
            "initial_world", "rest_to_rest_time"]
@@ -232,17 +232,10 @@ def _plan(cell: Cell, route: Route, world: WorldState, options: PlanOptions,
     pieces: list[tuple[TimedPiece, list[int]]] = []
     min_clear, closest = float("inf"), None
     for segments, chunk_world in chunks:
-        for piece, seg_steps in _time_chunk(cell, segments, chunk_world, options, cache):
-            steps_of_knots = [seg_steps[k] for k in piece.segment]
-            for sidx in sorted(set(steps_of_knots)):
-                seg = next(s for s in segments if s.step_index == sidx)
-                verifier = cache.verifier(chunk_world, seg.allowed)
-                sel = np.flatnonzero(np.asarray(steps_of_knots) == sidx)
-                lo, hi = max(sel[0] - 1, 0), sel[-1] + 1
-                result = verifier.verify(piece.t[lo:hi], piece.q[lo:hi], piece.qd[lo:hi],
-                                         steps=[labels[sidx]] * (hi - lo))
-                if result.min_clearance < min_clear:
-                    min_clear, closest = result.min_clearance, result.closest_pair
+        for piece, steps_of_knots, result in _time_chunk(cell, segments, chunk_world, options,
+                                                         cache, labels):
+            if result.min_clearance < min_clear:
+                min_clear, closest = result.min_clearance, result.closest_pair
             pieces.append((piece, steps_of_knots))
     traj = _assemble(cell, route, labels, pieces, chunks, actions)
     _check_position_limits(cell, traj)
@@ -332,27 +325,60 @@ def _gripper(cell: Cell, world: WorldState, step: Step, q: np.ndarray, label: st
 
 
 def _time_chunk(cell: Cell, segments: list[_Segment], world: WorldState, options: PlanOptions,
-                cache: _Checkers) -> list[tuple[TimedPiece, list[int]]]:
-    """Time a chunk blended through its via points (large blends first, then smaller,
-    then passing exactly); fall back to stops at step boundaries, then at corners."""
+                cache: _Checkers, labels: list[str]
+                ) -> list[tuple[TimedPiece, list[int], VerifyResult]]:
+    """Time and verify a chunk: blended through its via points (large blends first, then
+    smaller, then passing exactly); if no blend is collision-free or passes the
+    independent re-check, stop at the step boundaries, then at every corner."""
     if len(segments) > 1 or len(segments[0].waypoints) > 2:
         for blend in options.timing.blend_radii:
             try:
-                return [_time_segments(cell, segments, world, options, cache, blend=blend)]
+                piece, seg_steps = _time_segments(cell, segments, world, options, cache,
+                                                  blend=blend)
+                return [_verified(piece, seg_steps, segments, world, cache, labels)]
             except _NotFree:
                 log.debug("blend %.3f rad not collision-free", blend)
+            except VerificationError as exc:
+                log.debug("blend %.3f rad failed the re-check: %s", blend, exc)
     out = []
     for seg in segments:
         try:
-            out.append(_time_segments(cell, [seg], world, options, cache, blend=0.0))
-        except _NotFree:
+            piece, seg_steps = _time_segments(cell, [seg], world, options, cache, blend=0.0)
+            out.append(_verified(piece, seg_steps, [seg], world, cache, labels))
+            continue
+        except (_NotFree, VerificationError) as exc:
             if seg.step.kind == "line":
+                if isinstance(exc, VerificationError):
+                    raise
                 raise PlanningError("the smoothed line is not collision-free",
                                     step=seg.step.label(seg.step_index)) from None
-            for a, b in zip(seg.waypoints[:-1], seg.waypoints[1:], strict=True):
-                part = _Segment(seg.step_index, seg.step, [a, b], seg.allowed)
-                out.append(_time_segments(cell, [part], world, options, cache, check=False))
+        # Stop at every corner: each straight segment was checked by the planner.
+        for a, b in zip(seg.waypoints[:-1], seg.waypoints[1:], strict=True):
+            part = _Segment(seg.step_index, seg.step, [a, b], seg.allowed)
+            piece, seg_steps = _time_segments(cell, [part], world, options, cache, check=False)
+            out.append(_verified(piece, seg_steps, [part], world, cache, labels))
     return out
+
+
+def _verified(piece: TimedPiece, seg_steps: list[int], segments: list[_Segment],
+              world: WorldState, cache: _Checkers, labels: list[str]
+              ) -> tuple[TimedPiece, list[int], VerifyResult]:
+    """Re-check a timed piece with the independent verifier, step by step (each step
+    with its own allowed contacts); raise VerificationError on failure."""
+    steps_of_knots = [seg_steps[k] for k in piece.segment]
+    worst: VerifyResult | None = None
+    index = np.asarray(steps_of_knots)
+    for sidx in sorted(set(steps_of_knots)):
+        seg = next(s for s in segments if s.step_index == sidx)
+        verifier = cache.verifier(world, seg.allowed)
+        sel = np.flatnonzero(index == sidx)
+        lo, hi = max(sel[0] - 1, 0), sel[-1] + 1
+        result = verifier.verify(piece.t[lo:hi], piece.q[lo:hi], piece.qd[lo:hi],
+                                 steps=[labels[sidx]] * (hi - lo))
+        if worst is None or result.min_clearance < worst.min_clearance:
+            worst = result
+    assert worst is not None
+    return piece, steps_of_knots, worst
 
 
 class _NotFree(Exception):
