@@ -31,7 +31,22 @@ __all__ = [
 
 
 class SafepathError(Exception):
-    """Base class of every error raised by safepath."""
+    """Base class of every error raised by safepath.
+
+    Errors pickle with all their evidence (they cross process boundaries in the runtime
+    planner): they are rebuilt from their message and attributes, not re-constructed.
+    """
+
+    def __reduce__(self) -> tuple[Any, ...]:
+        return (_rebuild_error, (type(self), self.args, self.__dict__.copy()))
+
+
+def _rebuild_error(cls: type[SafepathError], args: tuple[Any, ...],
+                   state: dict[str, Any]) -> SafepathError:
+    error = cls.__new__(cls)
+    Exception.__init__(error, *args)
+    error.__dict__.update(state)
+    return error
 
 
 class InputError(SafepathError, ValueError):

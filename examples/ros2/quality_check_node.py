@@ -23,7 +23,7 @@ import json
 import threading
 import time
 from collections.abc import Callable
-from concurrent.futures import Future
+from concurrent.futures import CancelledError, Future
 from typing import Any
 
 import rclpy
@@ -70,6 +70,7 @@ class Cell:
         self._lock = threading.RLock()  # re-entrant: a done callback may fire inline
         self.robot: RobotNode
         self.conveyor: ConveyorNode
+        self.planner: runtime.RuntimePlanner | None = None
 
     def dispatch(self, event: Callable[[float], list[Command]]) -> None:
         handlers: dict[type, Callable[[Any], None]] = {
@@ -84,15 +85,15 @@ class Cell:
         self.dispatch(lambda now: self.ctrl.on_goal_result(goal_id, success, message, now))
 
     def plan(self, scene: str) -> None:
-        planner = runtime.RuntimePlanner(scene)
+        self.planner = runtime.RuntimePlanner(scene)
         for name in self.ctrl.options.routes:
-            future = planner.plan_route(name)
+            future = self.planner.plan_route(name)
             future.add_done_callback(lambda f, name=name: self._planned(name, f))
 
     def _planned(self, name: str, future: Future[Trajectory]) -> None:
         try:
             traj = future.result()
-        except SafepathError as exc:
+        except (SafepathError, CancelledError) as exc:
             reason = str(exc)
             self.dispatch(lambda now: self.ctrl.on_route_failed(name, reason, now))
             return
@@ -254,6 +255,8 @@ def main() -> None:
         pass
     finally:
         executor.shutdown()
+        if cell.planner is not None:
+            cell.planner.close()
         cell.robot.destroy_node()
         cell.conveyor.destroy_node()
         rclpy.try_shutdown()

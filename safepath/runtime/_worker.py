@@ -1,0 +1,214 @@
+"""The planner worker: a child process that keeps one cell loaded and plans on request.
+
+Protocol (pickled tuples over one duplex :class:`multiprocessing.connection.Connection`):
+
+caller -> worker
+    ``("poses", version, overlay)``: plan with these poses from now on (no reply);
+    ``("job", job_id, kind, payload)``: ``kind`` is ``route``, ``cell`` or ``validate``;
+    ``("stop",)``: exit.
+
+worker -> caller
+    ``("ready", 0, info)`` or ``("error", 0, ErrorRecord)`` once, after loading;
+    ``("ok", job_id, value)`` or ``("error", job_id, ErrorRecord)`` per job;
+    ``("log", 0, LogRecord)`` any time (records of the ``safepath`` loggers).
+
+The worker answers jobs one at a time, in order. It exits on ``stop``, when the caller
+closes the pipe, or when the caller terminates it (a cancelled or timed-out job).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import importlib
+import logging
+import os
+import signal
+from collections import OrderedDict
+from collections.abc import Mapping
+from multiprocessing.connection import Connection
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from ..errors import ConfigError, PoseError
+from ..planning import PlanOptions, Route, WorldState, load_routes, plan_cell, plan_route
+from ..planning.planner import route_order
+from ..trajectory import Trajectory
+from ._transport import encode_error, picklable_record
+
+__all__ = ["serve"]
+
+#: Modules the planner imports lazily on its first plan; the worker imports them while
+#: loading, so that the first plan runs as fast as the next ones.
+WARM_MODULES = ("ompl.base", "ompl.geometric", "ompl.util", "toppra", "toppra.algorithm",
+                "toppra.constraint", "fcl", "coal", "scipy.spatial")
+
+#: Planned results kept per poses version (route or cell plans).
+CACHE_SIZE = 32
+
+
+class _PipeHandler(logging.Handler):
+    """Sends log records to the caller, which re-emits them through its own loggers."""
+
+    def __init__(self, conn: Connection, level: int) -> None:
+        super().__init__(level)
+        self._conn = conn
+
+    def emit(self, record: logging.LogRecord) -> None:
+        try:
+            self._conn.send(("log", 0, picklable_record(record)))
+        except Exception:  # noqa: BLE001 - a log record is never worth a failed plan
+            pass
+
+
+class _Worker:
+    """The loaded cell, its routes and the results planned so far."""
+
+    def __init__(self, scene: Path, options: PlanOptions) -> None:
+        from ..cell import load_cell
+
+        self.cell = load_cell(scene)
+        self.base_poses = dict(self.cell.poses)
+        self.routes_path = self.cell.folder / "routes.yaml"
+        self.routes: dict[str, Route] = load_routes(
+            self.cell.folder, poses=list(self.cell.poses), objects=list(self.cell.scene.objects))
+        self.options = options
+        self.version = 0
+        self._cache: OrderedDict[tuple[Any, ...], Trajectory] = OrderedDict()
+        for name in WARM_MODULES:
+            try:
+                importlib.import_module(name)
+            except ImportError:
+                pass
+
+    # -- poses -----------------------------------------------------------------------------
+    def set_poses(self, version: int, overlay: Mapping[str, np.ndarray]) -> None:
+        """Plan with the loaded poses replaced by ``overlay`` (already validated)."""
+        if version != self.version:
+            self.cell.poses = {**self.base_poses, **overlay}
+            self.version = version
+            self._cache.clear()
+
+    def validate(self, poses: Mapping[str, Any]) -> dict[str, np.ndarray]:
+        """The poses as joint vectors [rad], each checked like a taught pose."""
+        out: dict[str, np.ndarray] = {}
+        for name, q in poses.items():
+            if name not in self.base_poses:
+                raise PoseError(f"unknown pose '{name}' (known: {', '.join(self.base_poses)})",
+                                key=str(name))
+            out[name] = self.cell.robot.as_joint_vector(q, name=name)
+        return out
+
+    # -- planning --------------------------------------------------------------------------
+    def _options(self, seed: int | None) -> PlanOptions:
+        if seed is None:
+            return self.options
+        return dataclasses.replace(
+            self.options, planner=dataclasses.replace(self.options.planner, seed=seed))
+
+    def _route(self, name: str) -> Route:
+        if name not in self.routes:
+            raise ConfigError(f"unknown route '{name}' (known: {', '.join(self.routes)})",
+                              path=self.routes_path, key="routes")
+        return self.routes[name]
+
+    def _chain(self, name: str) -> list[str]:
+        """``name`` and the routes it follows (``after``), first one first."""
+        chain = [name]
+        while (after := self._route(chain[-1]).after) is not None:
+            chain.append(after)
+        return chain[::-1]
+
+    def _remember(self, key: tuple[Any, ...], traj: Trajectory) -> None:
+        self._cache[key] = traj
+        self._cache.move_to_end(key)
+        while len(self._cache) > CACHE_SIZE:
+            self._cache.popitem(last=False)
+
+    def plan_route(self, name: str, seed: int | None, world: WorldState | None) -> Trajectory:
+        """One route, from ``world`` or from the end world of the routes it follows."""
+        options = self._options(seed)
+        seed_used = options.planner.seed
+        world_key = None if world is None else world.key()
+        key = ("route", name, seed_used, world_key)
+        if key in self._cache:
+            return self._cache[key]
+        if world is not None:
+            traj = plan_route(self.cell, self._route(name), options, world=world)
+            self._remember(key, traj)
+            return traj
+        chain = self._chain(name)
+        planned = plan_cell(self.cell, options, routes={n: self.routes[n] for n in chain})
+        for n, t in planned.items():
+            self._remember(("route", n, seed_used, None), t)
+        return planned[name]
+
+    def plan_cell(self, seed: int | None) -> dict[str, Trajectory]:
+        """Every route of the cell, in the order :func:`safepath.plan_cell` gives."""
+        seed_used = self._options(seed).planner.seed
+        keys = {n: ("route", n, seed_used, None) for n in route_order(self.routes)}
+        if all(k in self._cache for k in keys.values()):
+            return {n: self._cache[k] for n, k in keys.items()}
+        planned = plan_cell(self.cell, self._options(seed), routes=self.routes)
+        for n, t in planned.items():
+            self._remember(keys[n], t)
+        return planned
+
+    def run(self, kind: str, payload: dict[str, Any]) -> Any:
+        """Carry out one job."""
+        if kind == "route":
+            return self.plan_route(payload["name"], payload["seed"], payload["world"])
+        if kind == "cell":
+            return self.plan_cell(payload["seed"])
+        if kind == "validate":
+            return self.validate(payload["poses"])
+        raise ValueError(f"unknown job kind '{kind}'")
+
+
+def serve(conn: Connection, scene: Path, options: PlanOptions, log_level: int) -> None:
+    """Entry point of the worker process: load the cell, then answer jobs until told to stop.
+
+    Args:
+        conn: This end of the pipe to the caller.
+        scene: The scene folder.
+        options: Planning options (the seed of a job may override the planner's).
+        log_level: Level of the caller's ``safepath`` logger; records at or above it are
+            forwarded.
+    """
+    # Ctrl-C reaches the whole process group: the caller decides when the worker stops.
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    if hasattr(signal, "pthread_sigmask"):  # blocked by the caller's slot thread
+        signal.pthread_sigmask(signal.SIG_UNBLOCK, {signal.SIGINT})
+    logger = logging.getLogger("safepath")
+    logger.setLevel(log_level)
+    logger.addHandler(_PipeHandler(conn, log_level))
+    logger.propagate = False
+    try:
+        worker = _Worker(scene, options)
+    except Exception as exc:  # noqa: BLE001 - every load failure goes back typed
+        conn.send(("error", 0, encode_error(exc)))
+        return
+    conn.send(("ready", 0, {"pid": os.getpid(), "poses": list(worker.base_poses),
+                            "routes": list(worker.routes)}))
+    while True:
+        try:
+            message = conn.recv()
+        except (EOFError, OSError):  # the caller is gone
+            return
+        if message[0] == "stop":
+            return
+        if message[0] == "poses":
+            worker.set_poses(message[1], message[2])
+            continue
+        _, job_id, kind, payload = message
+        try:
+            reply: tuple[str, int, Any] = ("ok", job_id, worker.run(kind, payload))
+        except Exception as exc:  # noqa: BLE001 - errors are results of the job
+            reply = ("error", job_id, encode_error(exc))
+        try:
+            conn.send(reply)
+        except (EOFError, OSError):
+            return
+        except Exception as exc:  # noqa: BLE001 - e.g. a result that does not pickle
+            conn.send(("error", job_id, encode_error(exc)))

@@ -1,0 +1,171 @@
+"""Planning for the review session, away from the page's process.
+
+Planning holds the GIL for seconds (OMPL callbacks, TOPPRA, the verifier), which
+would freeze the page's websocket and playback threads. The session therefore plans
+through a :class:`PlanBackend`: by default a one-worker process pool started with
+``spawn``; when ``safepath.runtime.RuntimePlanner`` is available, that instead. Both
+answer with a ``Future`` of trajectories by route name.
+"""
+
+from __future__ import annotations
+
+import logging
+import multiprocessing
+import signal
+from collections.abc import Mapping, Sequence
+from concurrent.futures import Future, ProcessPoolExecutor
+from pathlib import Path
+from typing import Any, Literal, Protocol
+
+import numpy as np
+
+from ..errors import SafepathError
+from ..trajectory import Trajectory
+
+__all__ = ["PlanBackend", "ProcessPlanBackend", "RuntimePlanBackend", "make_backend",
+           "plan_in_worker"]
+
+log = logging.getLogger(__name__)
+
+BackendKind = Literal["auto", "process", "runtime"]
+
+
+class PlanBackend(Protocol):
+    """Plans routes of one cell folder with given poses, outside the caller's process."""
+
+    def plan(self, poses: Mapping[str, np.ndarray], routes: Sequence[str] | None = None
+             ) -> Future[dict[str, Trajectory]]:
+        """Plan ``routes`` (None: all) with ``poses``; the future raises a SafepathError."""
+        ...
+
+    def close(self) -> None:
+        """Release the worker."""
+        ...
+
+
+def plan_in_worker(folder: str, poses: dict[str, list[float]], routes: list[str] | None,
+                   seed: int) -> dict[str, Trajectory]:
+    """Load the cell, override its poses, plan ``routes`` and the routes they follow.
+
+    Runs in the worker process. Errors come back as :class:`SafepathError` with the
+    original type in the message (the library's errors take keyword arguments that do
+    not survive pickling).
+    """
+    from ..cell import load_cell
+    from ..planning import PlannerOptions, PlanOptions, load_routes, plan_cell
+
+    try:
+        cell = load_cell(folder)
+        for name, q in poses.items():
+            cell.poses[name] = cell.robot.as_joint_vector(q, name=f"poses.{name}",
+                                                          path=cell.poses_path)
+        all_routes = load_routes(cell.folder, poses=list(cell.poses),
+                                 objects=list(cell.scene.objects))
+        keep = set(all_routes if routes is None else routes)
+        for name in list(keep):
+            if name not in all_routes:
+                raise SafepathError(f"unknown route '{name}'")
+            after = all_routes[name].after
+            while after is not None:
+                keep.add(after)
+                after = all_routes[after].after
+        chosen = {k: v for k, v in all_routes.items() if k in keep}
+        options = PlanOptions(planner=PlannerOptions(seed=seed))
+        return plan_cell(cell, options, routes=chosen)
+    except SafepathError as exc:
+        raise SafepathError(f"{type(exc).__name__}: {exc}") from None
+
+
+def _ignore_sigint() -> None:
+    # Ctrl-C in the terminal reaches the whole process group; the session stops the
+    # worker itself, so the worker must not die with a traceback of its own.
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+
+
+class ProcessPlanBackend:
+    """Plans in one spawned worker process (started on first use, then kept warm).
+
+    Args:
+        folder: The scene folder.
+        seed: Planner seed.
+    """
+
+    def __init__(self, folder: str | Path, *, seed: int = 0) -> None:
+        self.folder = str(Path(folder).resolve())
+        self.seed = seed
+        self._executor: ProcessPoolExecutor | None = None
+
+    def plan(self, poses: Mapping[str, np.ndarray], routes: Sequence[str] | None = None
+             ) -> Future[dict[str, Trajectory]]:
+        """See :class:`PlanBackend`."""
+        if self._executor is None:
+            self._executor = ProcessPoolExecutor(
+                max_workers=1, mp_context=multiprocessing.get_context("spawn"),
+                initializer=_ignore_sigint)
+        payload = {k: [float(v) for v in q] for k, q in poses.items()}
+        # The worker is spawned on submit; it inherits this signal mask, so a Ctrl-C
+        # during its start-up (before its initializer ignores SIGINT) cannot kill it
+        # with a traceback. The parent gets a deferred Ctrl-C as usual.
+        blocked = signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT})
+        try:
+            return self._executor.submit(plan_in_worker, self.folder, payload,
+                                         None if routes is None else list(routes), self.seed)
+        finally:
+            signal.pthread_sigmask(signal.SIG_SETMASK, blocked)
+
+    def close(self) -> None:
+        """Stop the worker (a running job is abandoned)."""
+        if self._executor is not None:
+            self._executor.shutdown(wait=False, cancel_futures=True)
+            self._executor = None
+
+
+class RuntimePlanBackend:
+    """Adapter to ``safepath.runtime.RuntimePlanner`` (which plans in its own worker)."""
+
+    def __init__(self, folder: str | Path, *, seed: int = 0) -> None:
+        from ..runtime import RuntimePlanner
+
+        self.seed = seed
+        self._planner: Any = RuntimePlanner(folder)
+
+    def plan(self, poses: Mapping[str, np.ndarray], routes: Sequence[str] | None = None
+             ) -> Future[dict[str, Trajectory]]:
+        """See :class:`PlanBackend` (it plans every route: the runtime has no subset)."""
+        out: Future[dict[str, Trajectory]] = Future()
+
+        def planned(done: Future) -> None:
+            try:
+                out.set_result(dict(done.result()))
+            except BaseException as exc:  # handed over to the caller's future
+                out.set_exception(exc)
+
+        def updated(done: Future) -> None:
+            try:
+                done.result()
+                self._planner.plan_cell(seed=self.seed).add_done_callback(planned)
+            except BaseException as exc:
+                out.set_exception(exc)
+
+        self._planner.update_poses(dict(poses)).add_done_callback(updated)
+        return out
+
+    def close(self) -> None:
+        """Stop the runtime planner."""
+        close = getattr(self._planner, "close", None)
+        if callable(close):
+            close()
+
+
+def make_backend(folder: str | Path, *, kind: BackendKind = "auto", seed: int = 0
+                 ) -> PlanBackend:
+    """The planning backend: ``runtime`` if asked (or ``auto`` and it exists), else a
+    process pool."""
+    if kind in ("auto", "runtime"):
+        try:
+            return RuntimePlanBackend(folder, seed=seed)
+        except ImportError:
+            if kind == "runtime":
+                raise SafepathError("safepath.runtime is not available") from None
+            log.debug("safepath.runtime not available; planning in a worker process")
+    return ProcessPlanBackend(folder, seed=seed)

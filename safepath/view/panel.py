@@ -1,0 +1,133 @@
+"""The review session's control panel: its layout and handles, no behaviour.
+
+Layout, top to bottom: a header (cell, robot, status line); **Playback** (route
+dropdown, time readout, time slider, Play / Pause, speed, loop); **Safety** (the shown
+state's check, the minimum-clearance plot, the joint-speed plot); **Edit poses** (pose
+dropdown, its live check, one slider per joint, TCP gizmo, reset, re-plan, "I insist",
+save); **Display** (robot style, taught poses, path).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+import viser
+
+from ..robot import Robot
+
+__all__ = ["NO_ROUTE", "NO_POSE", "Panel", "build_panel", "clearance_plot_data",
+           "speed_plot_data"]
+
+#: Dropdown entries meaning "nothing selected".
+NO_ROUTE = "(no plan yet)"
+NO_POSE = "(review routes)"
+
+_JOINT_COLORS = ("#e63946", "#f4a261", "#2a9d8f", "#264653", "#8338ec", "#3a86ff",
+                 "#ff006e", "#8ac926")
+# The x axis is seconds, not a date.
+_SCALES: dict[str, Any] = {"x": {"time": False}}
+
+
+@dataclass
+class Panel:
+    """Handles of the control panel (see the module docstring for the layout)."""
+
+    header: Any
+    status: Any
+    route: Any
+    readout: Any
+    time: Any
+    play: Any
+    pause: Any
+    speed: Any
+    loop: Any
+    state: Any
+    clearance_plot: Any
+    speed_plot: Any
+    pose: Any
+    pose_state: Any
+    joints: list[Any]
+    gizmo_enabled: Any
+    reset: Any
+    replan: Any
+    insist: Any
+    save: Any
+    visual_style: Any
+    show_poses: Any
+    show_path: Any
+
+
+def clearance_plot_data(times: np.ndarray, clearance: np.ndarray, margin: float,
+                        clear_enough: float) -> tuple[np.ndarray, ...]:
+    """Plot arrays: time [s], clearance, margin and "clear enough" lines [mm]."""
+    c = np.where(np.isfinite(clearance), clearance, np.nan) * 1000.0
+    c = np.nan_to_num(c, nan=float(np.nanmax(c)) if np.isfinite(c).any() else 0.0)
+    ones = np.ones_like(times)
+    return (np.asarray(times, float), c, ones * margin * 1000.0, ones * clear_enough * 1000.0)
+
+
+def speed_plot_data(times: np.ndarray, ratio: np.ndarray) -> tuple[np.ndarray, ...]:
+    """Plot arrays: time [s], ``|qd| / limit`` per joint, and the limit (1)."""
+    return (np.asarray(times, float), *(np.asarray(ratio[:, j], float)
+                                        for j in range(ratio.shape[1])),
+            np.ones_like(times, dtype=float))
+
+
+def build_panel(server: viser.ViserServer, robot: Robot, *, title: str, poses: list[str],
+                margin: float, clear_enough: float) -> Panel:
+    """Add the control panel to ``server``."""
+    gui = server.gui
+    header = gui.add_markdown(title)
+    status = gui.add_markdown("")
+    with gui.add_folder("Playback"):
+        route = gui.add_dropdown("Route", [NO_ROUTE], initial_value=NO_ROUTE)
+        readout = gui.add_markdown("")
+        time = gui.add_slider("Time [s]", min=0.0, max=1.0, step=0.01, initial_value=0.0)
+        play = gui.add_button("Play", icon=viser.Icon.PLAYER_PLAY)
+        pause = gui.add_button("Pause", icon=viser.Icon.PLAYER_PAUSE)
+        speed = gui.add_slider("Speed", min=0.1, max=2.0, step=0.1, initial_value=1.0)
+        loop = gui.add_checkbox("Loop", True)
+    with gui.add_folder("Safety"):
+        state = gui.add_markdown("")
+        t0 = np.zeros(2)
+        clearance_plot = gui.add_uplot(
+            clearance_plot_data(t0, np.zeros(2), margin, clear_enough),
+            ({"label": "t [s]"},
+             {"label": "clearance [mm]", "stroke": "#2a9d8f", "width": 2},
+             {"label": "margin", "stroke": "#e63946", "dash": (6.0, 4.0)},
+             {"label": f"{clear_enough * 1000:.0f} mm", "stroke": "#e9c46a", "dash": (6.0, 4.0)}),
+            title="Minimum clearance [mm]", aspect=1.6, scales=_SCALES)
+        joint_series: list[Any] = [{"label": "t [s]"}]
+        for j, name in enumerate(robot.joint_names):
+            joint_series.append({"label": name, "stroke": _JOINT_COLORS[j % len(_JOINT_COLORS)],
+                                 "width": 1.5})
+        joint_series.append({"label": "limit", "stroke": "#e63946", "dash": (6.0, 4.0)})
+        speed_plot = gui.add_uplot(
+            speed_plot_data(t0, np.zeros((2, robot.dof))), tuple(joint_series),
+            title="Joint speed / limit", aspect=1.6, scales=_SCALES)
+    with gui.add_folder("Edit poses", expand_by_default=False):
+        pose = gui.add_dropdown("Pose", [NO_POSE, *poses], initial_value=NO_POSE)
+        pose_state = gui.add_markdown("Pick a pose to edit it.")
+        joints = [gui.add_slider(f"{name} [rad]", min=float(robot.lower[j]),
+                                 max=float(robot.upper[j]), step=0.001,
+                                 initial_value=float(np.clip(0.0, robot.lower[j],
+                                                             robot.upper[j])),
+                                 disabled=True)
+                  for j, name in enumerate(robot.joint_names)]
+        gizmo_enabled = gui.add_checkbox("TCP gizmo", True,
+                                         hint="Drag the TCP; the joints follow by IK")
+        reset = gui.add_button("Reset pose", disabled=True)
+        replan = gui.add_button("Re-plan affected routes")
+        insist = gui.add_checkbox("I insist (save even in collision)", False)
+        save = gui.add_button("Save poses")
+    with gui.add_folder("Display", expand_by_default=False):
+        visual_style = gui.add_checkbox("Visual style", False,
+                                        hint="URDF visual materials instead of per-link "
+                                             "collision colours")
+        show_poses = gui.add_checkbox("Taught poses", True)
+        show_path = gui.add_checkbox("TCP path", True)
+    return Panel(header, status, route, readout, time, play, pause, speed, loop, state,
+                 clearance_plot, speed_plot, pose, pose_state, joints, gizmo_enabled, reset,
+                 replan, insist, save, visual_style, show_poses, show_path)

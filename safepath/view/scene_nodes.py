@@ -1,0 +1,307 @@
+"""Drawing a cell in a viser scene: the robot's geometry, the cell's objects, the
+taught poses as TCP frames, and planned TCP paths coloured by clearance.
+
+One scene node per geometry: each is placed in the world frame from Pinocchio's
+forward kinematics, so a frame of the review costs one position and one orientation
+update per geometry (sent together inside ``server.atomic()`` by the caller).
+"""
+
+from __future__ import annotations
+
+import logging
+from collections.abc import Collection, Iterable, Mapping
+from dataclasses import dataclass
+from typing import Any, Literal
+
+import numpy as np
+import pinocchio as pin
+import viser
+
+from ..robot import Robot
+from ..scene import Scene
+from .analysis import GREEN, RED, YELLOW
+
+__all__ = ["Rgb", "HIGHLIGHT", "LEVEL_COLORS", "ShapeNode", "RobotNodes", "CellNodes",
+           "PoseFrames", "draw_path", "pose_of", "configure_lighting"]
+
+log = logging.getLogger(__name__)
+
+Rgb = tuple[int, int, int]
+RobotStyle = Literal["collision", "visual"]
+
+#: Colour of geometry in collision.
+HIGHLIGHT: Rgb = (235, 20, 20)
+#: Path colours by safety level.
+LEVEL_COLORS: dict[int, Rgb] = {GREEN: (40, 180, 60), YELLOW: (240, 190, 20), RED: (230, 30, 30)}
+# One colour per link in the collision style (cycled); none of them is red.
+_LINK_PALETTE: tuple[Rgb, ...] = (
+    (90, 110, 140), (70, 140, 200), (110, 180, 230), (60, 160, 150), (120, 200, 170),
+    (150, 130, 210), (190, 160, 230), (100, 100, 110), (200, 200, 120), (170, 120, 60),
+)
+
+
+def configure_lighting(server: viser.ViserServer) -> None:
+    """Plain lights instead of viser's HDR environment map.
+
+    Pre-filtering the environment map takes seconds in a browser without a GPU
+    (software WebGL: remote desktops, CI), before the first frame; a hemisphere light
+    lights flat-shaded primitives as well.
+    """
+    server.scene.configure_environment_map(None)
+    server.scene.add_light_hemisphere("/lights/sky", sky_color=(255, 255, 255),
+                                      ground_color=(120, 120, 130), intensity=2.0,
+                                      position=(0.0, 0.0, 1.0))
+
+
+def pose_of(T: Any) -> tuple[np.ndarray, np.ndarray]:
+    """``(wxyz, position)`` of a 4x4 transform or ``pin.SE3`` (viser's convention)."""
+    if isinstance(T, pin.SE3):
+        R, p = T.rotation, T.translation
+    else:
+        T = np.asarray(T, dtype=float)
+        R, p = T[:3, :3], T[:3, 3]
+    x, y, z, w = pin.Quaternion(np.asarray(R)).coeffs()
+    return np.array([w, x, y, z]), np.array(p, dtype=float)
+
+
+def _to_rgb(color: Iterable[float]) -> Rgb:
+    c = [float(v) for v in color][:3]
+    return (int(round(255 * c[0])), int(round(255 * c[1])), int(round(255 * c[2])))
+
+
+@dataclass
+class ShapeNode:
+    """One drawn shape: the node that is placed, and the nodes that are coloured.
+
+    Attributes:
+        name: The thing it draws (link or object name).
+        root: Node whose pose is set.
+        parts: Nodes whose colour is set (the root itself, or a capsule's pieces).
+        color: Normal colour.
+    """
+
+    name: str
+    root: Any
+    parts: list[Any]
+    color: Rgb
+    _shown: Rgb | None = None
+
+    def place(self, T: Any) -> None:
+        """Put the shape at ``T`` (world frame)."""
+        wxyz, position = pose_of(T)
+        self.root.wxyz = wxyz
+        self.root.position = position
+
+    def paint(self, color: Rgb) -> None:
+        """Colour the shape (no message when unchanged)."""
+        if color != self._shown:
+            for part in self.parts:
+                part.color = color
+            self._shown = color
+
+
+def add_shape(server: viser.ViserServer, path: str, name: str, kind: str,
+              size: tuple[float, ...], color: Rgb, *, opacity: float | None = None
+              ) -> ShapeNode | None:
+    """Add a primitive centred on its frame (cylinders and capsules along local z).
+
+    Returns None for a kind it cannot draw.
+    """
+    scene = server.scene
+    node: Any
+    if kind == "box":
+        node = scene.add_box(path, color=color, dimensions=np.asarray(size[:3], dtype=float),
+                             opacity=opacity)
+        return ShapeNode(name, node, [node], color, color)
+    if kind == "cylinder":
+        node = scene.add_cylinder(path, radius=size[0], height=size[1], color=color,
+                                  opacity=opacity)
+        return ShapeNode(name, node, [node], color, color)
+    if kind == "sphere":
+        node = scene.add_icosphere(path, radius=size[0], color=color, opacity=opacity)
+        return ShapeNode(name, node, [node], color, color)
+    if kind == "capsule":
+        group = scene.add_frame(path, show_axes=False)
+        parts: list[Any] = [scene.add_cylinder(f"{path}/body", radius=size[0], height=size[1],
+                                    color=color, opacity=opacity)]
+        for end, z in (("top", size[1] / 2), ("bottom", -size[1] / 2)):
+            parts.append(scene.add_icosphere(f"{path}/{end}", radius=size[0], color=color,
+                                             opacity=opacity, position=(0.0, 0.0, z)))
+        return ShapeNode(name, group, parts, color, color)
+    return None
+
+
+def coal_shape(geometry: Any) -> tuple[str, tuple[float, ...]] | None:
+    """``(kind, size)`` of a coal primitive (see :class:`~safepath.scene.Shape`)."""
+    import coal
+
+    if isinstance(geometry, coal.Box):
+        return "box", tuple(float(2 * v) for v in geometry.halfSide)
+    if isinstance(geometry, coal.Cylinder):
+        return "cylinder", (float(geometry.radius), float(2 * geometry.halfLength))
+    if isinstance(geometry, coal.Capsule):
+        return "capsule", (float(geometry.radius), float(2 * geometry.halfLength))
+    if isinstance(geometry, coal.Sphere):
+        return "sphere", (float(geometry.radius),)
+    return None
+
+
+class RobotNodes:
+    """The robot's geometry, one node per geometry object, in two styles.
+
+    ``collision``: the collision model, one colour per link. ``visual``: the URDF's
+    visual model with its materials. Only the shown style is updated.
+    """
+
+    def __init__(self, server: viser.ViserServer, robot: Robot, *, prefix: str = "/robot",
+                 style: RobotStyle = "collision") -> None:
+        self.robot = robot
+        self._data = robot.model.createData()
+        self._q: np.ndarray | None = None
+        self._visible = True
+        # Per style: the geometry model, its data, the drawn nodes and their indices.
+        self._sets: dict[str, tuple[pin.GeometryModel, pin.GeometryData, list[ShapeNode],
+                                    list[int]]] = {}
+        links = list(robot.link_names)
+        palette = {link: _LINK_PALETTE[i % len(_LINK_PALETTE)] for i, link in enumerate(links)}
+        models: dict[str, pin.GeometryModel | None] = {
+            "collision": robot.collision_model, "visual": robot.visual_model}
+        for which, gmodel in models.items():
+            if gmodel is None:
+                continue
+            nodes: list[ShapeNode] = []
+            indices: list[int] = []
+            for i, geom in enumerate(gmodel.geometryObjects):
+                link = str(robot.model.frames[geom.parentFrame].name)
+                shape = coal_shape(geom.geometry)
+                if shape is None:
+                    log.warning("%s geometry %s: shape %s not drawn", which, geom.name,
+                                type(geom.geometry).__name__)
+                    continue
+                color = (palette.get(link, _LINK_PALETTE[0]) if which == "collision"
+                         else _to_rgb(geom.meshColor))
+                node = add_shape(server, f"{prefix}/{which}/{i:02d}_{geom.name}", link,
+                                 shape[0], shape[1], color)
+                if node is not None:
+                    node.root.visible = which == style
+                    nodes.append(node)
+                    indices.append(i)
+            self._sets[which] = (gmodel, pin.GeometryData(gmodel), nodes, indices)
+        self.style: RobotStyle = style if style in self._sets else "collision"
+        self._highlighted: frozenset[str] = frozenset()
+
+    @property
+    def nodes(self) -> list[ShapeNode]:
+        """Nodes of the shown style."""
+        return self._sets[self.style][2]
+
+    def update(self, q: np.ndarray) -> None:
+        """Place the shown style's geometry at joint vector ``q`` [rad]."""
+        self._q = np.array(q, dtype=float)
+        gmodel, gdata, nodes, indices = self._sets[self.style]
+        pin.forwardKinematics(self.robot.model, self._data, self._q)
+        pin.updateGeometryPlacements(self.robot.model, self._data, gmodel, gdata)
+        for node, i in zip(nodes, indices, strict=True):
+            node.place(gdata.oMg[i])
+
+    def highlight(self, links: Collection[str]) -> None:
+        """Colour the geometry of ``links`` red, the rest in its own colour."""
+        self._highlighted = frozenset(links)
+        for node in self.nodes:
+            node.paint(HIGHLIGHT if node.name in self._highlighted else node.color)
+
+    def set_style(self, style: RobotStyle) -> None:
+        """Show the ``collision`` or ``visual`` geometry."""
+        if style not in self._sets or style == self.style:
+            return
+        for node in self.nodes:
+            node.root.visible = False
+        self.style = style
+        for node in self.nodes:
+            node.root.visible = self._visible
+        if self._q is not None:
+            self.update(self._q)
+        self.highlight(self._highlighted)
+
+    def set_visible(self, visible: bool) -> None:
+        """Show or hide the robot."""
+        self._visible = visible
+        for node in self.nodes:
+            node.root.visible = visible
+
+
+class CellNodes:
+    """The cell's objects; movable ones are placed by :meth:`place`."""
+
+    def __init__(self, server: viser.ViserServer, scene: Scene, *, prefix: str = "/cell"
+                 ) -> None:
+        self.nodes: dict[str, ShapeNode] = {}
+        for obj in scene.objects.values():
+            node = add_shape(server, f"{prefix}/{obj.name}", obj.name, obj.shape.kind,
+                             obj.shape.size, _to_rgb(obj.color))
+            if node is None:  # pragma: no cover - the scene only has drawable kinds
+                continue
+            node.place(obj.T_world_object)
+            self.nodes[obj.name] = node
+
+    def place(self, name: str, T_world_object: np.ndarray | None) -> None:
+        """Put a movable object at ``T_world_object``; None hides it."""
+        node = self.nodes[name]
+        node.root.visible = T_world_object is not None
+        if T_world_object is not None:
+            node.place(T_world_object)
+
+    def highlight(self, names: Collection[str]) -> None:
+        """Colour the objects ``names`` red, the rest in their own colour."""
+        for name, node in self.nodes.items():
+            node.paint(HIGHLIGHT if name in names else node.color)
+
+
+class PoseFrames:
+    """Every taught pose as a labelled TCP frame."""
+
+    def __init__(self, server: viser.ViserServer, robot: Robot,
+                 poses: Mapping[str, np.ndarray], *, prefix: str = "/poses") -> None:
+        self._server = server
+        self._robot = robot
+        self._prefix = prefix
+        self.frames: dict[str, Any] = {}
+        self._visible = True
+        for name, q in poses.items():
+            self.set(name, q)
+
+    def set(self, name: str, q: np.ndarray) -> None:
+        """Show pose ``name`` at joint vector ``q`` [rad]."""
+        wxyz, position = pose_of(self._robot.frame_pose(np.asarray(q, dtype=float)))
+        frame = self.frames.get(name)
+        if frame is None:
+            frame = self._server.scene.add_frame(
+                f"{self._prefix}/{name}", axes_length=0.04, axes_radius=0.002,
+                origin_radius=0.005, wxyz=wxyz, position=position, visible=self._visible)
+            self._server.scene.add_label(f"{self._prefix}/{name}/label", name,
+                                         position=(0.0, 0.0, 0.0), anchor="bottom-left")
+            self.frames[name] = frame
+        else:
+            frame.wxyz = wxyz
+            frame.position = position
+
+    def set_visible(self, visible: bool) -> None:
+        """Show or hide the frames."""
+        self._visible = visible
+        for frame in self.frames.values():
+            frame.visible = visible
+
+
+def draw_path(server: viser.ViserServer, path: str, tcp: np.ndarray, level: np.ndarray, *,
+              visible: bool = True) -> Any:
+    """Draw a TCP polyline, each segment coloured by the worse level of its ends."""
+    tcp = np.asarray(tcp, dtype=float)
+    if tcp.shape[0] < 2:
+        tcp = np.vstack([tcp, tcp])
+        level = np.concatenate([level, level])
+    points = np.stack([tcp[:-1], tcp[1:]], axis=1)
+    seg_level = np.maximum(level[:-1], level[1:])
+    table = np.array([LEVEL_COLORS[k] for k in (GREEN, YELLOW, RED)], dtype=np.uint8)
+    colors = np.repeat(table[seg_level][:, None, :], 2, axis=1)
+    return server.scene.add_line_segments(path, points, colors, thickness=3.0,
+                                          thickness_units="screen", visible=visible)

@@ -1,0 +1,382 @@
+"""RuntimePlanner: real worker processes planning the bundled quality-check cell.
+
+Every result is compared array for array with planning in this process; errors must
+come back with their safepath type and evidence; cancelling, time-outs and a killed
+worker must leave the planner usable; and planning must not stall this process.
+"""
+
+from __future__ import annotations
+
+import gc
+import logging
+import multiprocessing
+import os
+import pickle
+import shutil
+import signal
+import threading
+import time
+from collections.abc import Callable, Iterator
+from concurrent.futures import CancelledError, Future, wait
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from safepath import (
+    Cell,
+    ConfigError,
+    FrameNotFound,
+    IKError,
+    PlannerOptions,
+    PlannerTimeout,
+    PlanningError,
+    PlanOptions,
+    PoseError,
+    RobotNotFound,
+    SafepathError,
+    Trajectory,
+    VerificationError,
+    load_cell,
+    load_routes,
+    plan_cell,
+)
+from safepath.runtime import RuntimePlanner, WorkerError
+from safepath.runtime._transport import decode_error, encode_error
+
+#: The bundled cell (as in conftest.py).
+CELL_DIR = Path(__file__).resolve().parents[2] / "scenes" / "quality_check_cell"
+
+#: Generous bound on how long anything here may take [s] (a worker starts in ~1-3 s).
+LONG = 60.0
+
+
+def assert_same(a: Trajectory, b: Trajectory) -> None:
+    """Bit-for-bit equal trajectories (``info`` holds timings and is not compared)."""
+    for name in ("t", "q", "qd", "qdd", "step_index"):
+        assert np.array_equal(getattr(a, name), getattr(b, name)), name
+    assert (a.joint_names, a.steps, a.events, a.robot, a.route) == \
+        (b.joint_names, b.steps, b.events, b.robot, b.route)
+
+
+def in_process(cell: Cell, routes: list[str], seed: int) -> dict[str, Trajectory]:
+    """Plan ``routes`` (a chain, first one first) in this process."""
+    table = load_routes(cell.folder, poses=list(cell.poses), objects=list(cell.scene.objects))
+    options = PlanOptions(planner=PlannerOptions(seed=seed))
+    return plan_cell(cell, options, routes={n: table[n] for n in routes})
+
+
+def wait_for(condition: Callable[[], bool], what: str, timeout: float = LONG) -> None:
+    deadline = time.monotonic() + timeout
+    while not condition():
+        if time.monotonic() > deadline:
+            raise AssertionError(f"timed out waiting for {what}")
+        time.sleep(0.005)
+
+
+@pytest.fixture(scope="module")
+def reference() -> dict[str, Trajectory]:
+    """The cell planned in this process with the default seed."""
+    return plan_cell(load_cell(CELL_DIR))
+
+
+@pytest.fixture(scope="module")
+def blocked_cell(tmp_path_factory: pytest.TempPathFactory) -> Cell:
+    """The bundled cell with a pillar where the TCP passes on the direct high1 -> high2
+    move, so that OMPL has to plan a detour (and the seed changes the result)."""
+    folder = tmp_path_factory.mktemp("blocked") / "cell"
+    shutil.copytree(CELL_DIR, folder)
+    cell = load_cell(CELL_DIR)
+    x, y, z = cell.robot.tcp_position(0.5 * (cell.pose("high1") + cell.pose("high2")))
+    scene = folder / "scene.yaml"
+    scene.write_text(scene.read_text().replace("objects:\n", (
+        "objects:\n  pillar:\n    shape: box\n    size: [0.05, 0.05, 0.06]\n"
+        f"    xyz: [{x:.4f}, {y:.4f}, {z:.4f}]\n"), 1))
+    return load_cell(folder)
+
+
+@pytest.fixture(scope="module")
+def blocked(blocked_cell: Cell) -> Iterator[RuntimePlanner]:
+    """Two workers planning the blocked cell."""
+    with RuntimePlanner(blocked_cell.folder, workers=2) as p:
+        yield p
+
+
+@pytest.fixture(scope="module")
+def planner() -> Iterator[RuntimePlanner]:
+    with RuntimePlanner(CELL_DIR) as p:
+        p.ready().result(timeout=LONG)
+        yield p
+
+
+# -- results ---------------------------------------------------------------------------------
+def test_plan_route_equals_in_process_planning(planner: RuntimePlanner,
+                                               reference: dict[str, Trajectory]) -> None:
+    futures = {name: planner.plan_route(name) for name in reference}
+    for name, future in futures.items():
+        assert isinstance(future, Future)
+        assert_same(future.result(timeout=LONG), reference[name])
+    cell = planner.plan_cell().result(timeout=LONG)
+    assert list(cell) == list(reference)
+    for name, traj in cell.items():
+        assert_same(traj, reference[name])
+
+
+def test_seeds_reach_the_workers_when_ompl_plans(blocked: RuntimePlanner,
+                                                blocked_cell: Cell) -> None:
+    # The pillar blocks the direct high1 -> high2 move: OMPL plans, and the seed matters.
+    one = blocked.plan_route("phase1", seed=1)
+    two = blocked.plan_route("phase1", seed=2)
+    assert_same(one.result(timeout=LONG), in_process(blocked_cell, ["phase1"], 1)["phase1"])
+    assert_same(two.result(timeout=LONG), in_process(blocked_cell, ["phase1"], 2)["phase1"])
+    assert one.result().t.shape != two.result().t.shape or \
+        not np.array_equal(one.result().q, two.result().q)
+
+
+# -- typed errors ----------------------------------------------------------------------------
+def test_unknown_route_comes_back_as_config_error(planner: RuntimePlanner) -> None:
+    with pytest.raises(ConfigError, match="unknown route 'nope'") as info:
+        planner.plan_route("nope").result(timeout=LONG)
+    assert info.value.key == "routes"
+    assert info.value.path == CELL_DIR / "routes.yaml"
+    assert "phase1" in str(info.value)
+
+
+def test_colliding_pose_update_fails_the_plan_with_the_pair(
+        planner: RuntimePlanner, cell: Cell, reference: dict[str, Trajectory]) -> None:
+    bad = cell.pose("high2").copy()
+    bad[1] -= 1.0  # shoulder forward: the forearm hits the camera post
+    update = planner.update_poses({"high2": bad})
+    plan = planner.plan_route("phase1")  # asked after the update: must see it
+    update.result(timeout=LONG)
+    with pytest.raises(PlanningError) as info:
+        plan.result(timeout=LONG)
+    assert info.value.step == "2 move high2"
+    assert "forearm_link / camera_post" in str(info.value)
+
+    with pytest.raises(PoseError, match="joint_1") as pose_info:
+        planner.update_poses({"high2": [10.0, 0, 0, 0, 0, 0]}).result(timeout=LONG)
+    assert pose_info.value.key == "high2"
+    with pytest.raises(PoseError, match="unknown pose 'nope'"):
+        planner.update_poses({"nope": cell.pose("high2")}).result(timeout=LONG)
+    # Failed updates change nothing: the colliding pose is still in use.
+    with pytest.raises(PlanningError, match="camera_post"):
+        planner.plan_route("phase1").result(timeout=LONG)
+
+    planner.update_poses({"high2": cell.pose("high2")}).result(timeout=LONG)
+    assert_same(planner.plan_route("phase1").result(timeout=LONG), reference["phase1"])
+
+
+def test_errors_cross_the_process_boundary_with_their_evidence() -> None:
+    errors: list[SafepathError] = [
+        VerificationError("collision", time=1.5, q=np.arange(6.0),
+                          pairs=[("forearm_link", "table")], step="2 move high2"),
+        RobotNotFound("r2d2", ["ned3pro", "ur5"]),
+        FrameNotFound("tcp2", ["tcp", "base"], key="tcp_frame"),
+        IKError("no solution", step="1 line high1", fraction=0.25, position=np.ones(3)),
+        PlannerTimeout("too slow", step="3 move low1", status="timeout"),
+        WorkerError("gone", pid=12, exitcode=-9),
+    ]
+    for err in errors:
+        try:
+            raise err
+        except SafepathError as caught:
+            record = encode_error(caught)
+        back = decode_error(pickle.loads(pickle.dumps(record)))
+        assert type(back) is type(err)
+        assert str(back) == str(err)
+        assert back.__dict__.keys() == err.__dict__.keys()
+        for key, value in err.__dict__.items():
+            np.testing.assert_equal(getattr(back, key), value)
+        assert "Traceback" in str(back.__cause__)
+
+
+def test_a_scene_that_does_not_load_fails_ready_and_requests(cell_copy: Path) -> None:
+    (cell_copy / "routes.yaml").write_text("routes:\n  broken:\n    start: nowhere\n")
+    with RuntimePlanner(cell_copy) as broken:
+        with pytest.raises(ConfigError) as info:
+            broken.ready().result(timeout=LONG)
+        assert info.value.path is not None and info.value.path.name == "routes.yaml"
+        with pytest.raises(ConfigError):
+            broken.plan_route("broken").result(timeout=LONG)
+    with pytest.raises(ConfigError, match="scene folder not found"):
+        RuntimePlanner(cell_copy / "missing")
+
+
+# -- cancelling, time-outs, crashes ----------------------------------------------------------
+def test_cancel_before_start_skips_the_work(planner: RuntimePlanner) -> None:
+    before = planner.stats()
+    first = planner.plan_cell(seed=11)
+    second = planner.plan_route("phase1", seed=12)
+    assert second.cancel()
+    done, _ = wait([second], timeout=1.0)
+    assert second in done and second.cancelled()
+    first.result(timeout=LONG)
+    # The worker thread drops the cancelled request when it gets to it.
+    wait_for(lambda: planner.stats().skipped == before.skipped + 1, "the skip")
+    after = planner.stats()
+    assert after.sent == before.sent + 1
+    assert after.pids == before.pids  # nothing was killed
+
+
+def test_cancel_while_planning_restarts_the_worker(
+        planner: RuntimePlanner, reference: dict[str, Trajectory]) -> None:
+    before = planner.stats()
+    future = planner.plan_cell(seed=21)
+    wait_for(lambda: planner.stats().busy == 1, "the worker to take the request")
+    assert future.cancel()
+    with pytest.raises(CancelledError):
+        future.result(timeout=1.0)
+    assert_same(planner.plan_route("phase1").result(timeout=LONG), reference["phase1"])
+    after = planner.stats()
+    assert after.killed == before.killed + 1
+    assert after.started == before.started + 1
+    assert after.pids != before.pids
+
+
+def test_timeout_is_typed_and_the_planner_recovers(
+        planner: RuntimePlanner, reference: dict[str, Trajectory]) -> None:
+    with pytest.raises(PlannerTimeout, match="0.01 s timeout") as info:
+        planner.plan_cell(seed=31, timeout=0.01).result(timeout=LONG)
+    assert info.value.status == "timeout"
+    assert_same(planner.plan_route("phase2_safe").result(timeout=LONG),
+                reference["phase2_safe"])
+
+
+def test_a_killed_worker_is_a_typed_error_then_replaced(
+        planner: RuntimePlanner, reference: dict[str, Trajectory]) -> None:
+    future = planner.plan_cell(seed=41)
+    wait_for(lambda: planner.stats().busy == 1, "the worker to take the request")
+    pid = planner.stats().pids[0]
+    assert pid is not None
+    os.kill(pid, signal.SIGKILL)
+    with pytest.raises(WorkerError, match="killed by SIGKILL") as info:
+        future.result(timeout=LONG)
+    assert info.value.pid == pid and info.value.exitcode == -signal.SIGKILL
+    assert_same(planner.plan_route("phase1").result(timeout=LONG), reference["phase1"])
+    assert planner.stats().crashed >= 1
+
+
+# -- threads ---------------------------------------------------------------------------------
+def test_four_threads_get_the_serial_results(blocked: RuntimePlanner,
+                                             blocked_cell: Cell) -> None:
+    jobs = [("phase1", 50), ("phase2_safe", 50), ("phase1", 51), ("phase2_safe", 51)]
+    results: dict[int, dict[tuple[str, int], Trajectory]] = {}
+    start = threading.Barrier(4)
+
+    def client(k: int) -> None:
+        start.wait()
+        order = jobs[k:] + jobs[:k]  # every thread asks in a different order
+        futures = {job: blocked.plan_route(job[0], seed=job[1]) for job in order}
+        results[k] = {job: f.result(timeout=LONG) for job, f in futures.items()}
+
+    threads = [threading.Thread(target=client, args=(k,)) for k in range(4)]
+    for t in threads:
+        t.start()
+    for t in threads:
+        t.join(LONG)
+    serial = {seed: in_process(blocked_cell, ["phase1", "phase2_safe"], seed)
+              for seed in (50, 51)}
+    assert sorted(results) == [0, 1, 2, 3]
+    for trajs in results.values():
+        assert sorted(trajs) == sorted(jobs)
+        for (name, seed), traj in trajs.items():
+            assert_same(traj, serial[seed][name])
+
+    # A pose update reaches both workers before the requests made after it.
+    high2 = blocked_cell.pose("high2")
+    bad = high2.copy()
+    bad[1] -= 1.0
+    blocked.update_poses({"high2": bad})
+    later = [blocked.plan_route("phase1", seed=seed) for seed in (50, 51)]
+    blocked.update_poses({"high2": high2})
+    again = blocked.plan_route("phase1", seed=50)
+    for future in later:
+        with pytest.raises(PlanningError, match="camera_post"):
+            future.result(timeout=LONG)
+    assert_same(again.result(timeout=LONG), serial[50]["phase1"])
+
+
+def test_planning_does_not_stall_this_process(blocked: RuntimePlanner) -> None:
+    # The blocked cell makes OMPL plan: in-process, that holds the interpreter lock for
+    # most of 100 ms at a time (see benchmarks/runtime_heartbeat.py --detour high1 high2).
+    gaps: list[float] = []
+    stop = threading.Event()
+
+    def heartbeat() -> None:  # 100 Hz
+        last = time.perf_counter()
+        while not stop.is_set():
+            time.sleep(0.01)
+            now = time.perf_counter()
+            gaps.append(now - last)
+            last = now
+
+    beat = threading.Thread(target=heartbeat)
+    beat.start()
+    try:
+        for k in range(4):  # the cycle, new seeds: nothing comes from the workers' caches
+            blocked.plan_cell(seed=100 + k).result(timeout=LONG)
+    finally:
+        stop.set()
+        beat.join()
+    assert len(gaps) > 100
+    assert max(gaps) < 0.1, f"heartbeat gap {max(gaps) * 1000:.1f} ms"
+    assert np.percentile(gaps, 99) < 0.05, f"p99 gap {np.percentile(gaps, 99) * 1000:.1f} ms"
+
+
+# -- life cycle ------------------------------------------------------------------------------
+def _workers() -> set[int]:
+    return {p.pid for p in multiprocessing.active_children()
+            if p.name.startswith("safepath-runtime-worker") and p.pid is not None}
+
+
+def test_close_reaps_the_workers_and_is_idempotent() -> None:
+    p = RuntimePlanner(CELL_DIR)
+    p.ready().result(timeout=LONG)
+    pid = p.stats().pids[0]
+    assert pid in _workers()
+    queued = [p.plan_cell(seed=60), p.plan_route("phase1", seed=61)]
+    p.close()
+    p.close()
+    assert p.closed and p.stats().pids == (None,)
+    assert pid not in _workers()
+    assert all(f.cancelled() for f in queued)
+    with pytest.raises(WorkerError, match="closed"):
+        p.plan_route("phase1").result(timeout=1.0)
+
+
+def test_a_dropped_planner_finishes_its_requests_then_stops(
+        reference: dict[str, Trajectory]) -> None:
+    # What the ROS node does: plan, keep only the futures.
+    before = _workers()
+    p = RuntimePlanner(CELL_DIR)
+    futures = [p.plan_route(name) for name in ("phase1", "phase2_safe")]
+    del p
+    gc.collect()
+    assert_same(futures[0].result(timeout=LONG), reference["phase1"])
+    assert_same(futures[1].result(timeout=LONG), reference["phase2_safe"])
+    wait_for(lambda: not (_workers() - before), "the dropped planner's worker to exit")
+
+
+def test_worker_log_records_reach_the_callers_loggers(caplog: pytest.LogCaptureFixture
+                                                      ) -> None:
+    caplog.set_level(logging.DEBUG, logger="safepath")
+    with RuntimePlanner(CELL_DIR) as p:
+        p.plan_cell(seed=3).result(timeout=LONG)
+    remote = [r for r in caplog.records if r.processName.startswith("safepath-runtime-worker")]
+    assert any(r.name.startswith("safepath.planning.") for r in remote)
+    assert any("ready in" in r.getMessage() for r in caplog.records
+               if r.name == "safepath.runtime._slot")
+
+
+def test_invalid_arguments_raise_at_once(planner: RuntimePlanner) -> None:
+    with pytest.raises(SafepathError, match="timeout"):
+        planner.plan_route("phase1", timeout=0)
+    with pytest.raises(SafepathError, match="seed"):
+        planner.plan_route("phase1", seed=1.5)  # type: ignore[arg-type]
+    with pytest.raises(PoseError):
+        planner.update_poses([1, 2, 3])  # type: ignore[arg-type]
+    with pytest.raises(SafepathError, match="workers"):
+        RuntimePlanner(CELL_DIR, workers=0)
+    with pytest.raises(SafepathError, match="start_method"):
+        RuntimePlanner(CELL_DIR, start_method="fork")  # type: ignore[arg-type]
