@@ -187,9 +187,11 @@ def time_path(robot: Robot, path: object, s_way: np.ndarray, *, scales: Sequence
         piece = TimedPiece(piece.t, piece.q, piece.qd, piece.qdd, piece.s, seg_index)
         v_ratio, a_ratio = _knot_ratios(piece, robot, seg_scales)
         per_knot = np.maximum(v_ratio, a_ratio)
-        ratio = float(per_knot.max())
+        previous, ratio = ratio, float(per_knot.max())
         if ratio <= 1.0 + options.tolerance:
             return piece
+        if ratio >= previous - 1e-6:
+            break  # tightening no longer helps: stretch time below
         log.debug("timing attempt %d exceeds limits by %.3f %%; tightening locally", attempt,
                   (ratio - 1) * 100)
         over = per_knot > 1.0 + options.tolerance / 2
@@ -201,8 +203,7 @@ def time_path(robot: Robot, path: object, s_way: np.ndarray, *, scales: Sequence
         raise TimingError("no timing attempt was made (retries must be >= 1)")
     v_ratio, a_ratio = _knot_ratios(piece, robot, seg_scales)
     k = max(1.0, float(v_ratio.max()), float(np.sqrt(a_ratio.max()))) * (1.0 + 1e-9)
-    log.debug("timing still %.3f %% over after %d attempts; stretching time by %.4f",
-              (ratio - 1) * 100, options.retries, k)
+    log.debug("timing still %.3f %% over; stretching time by %.4f", (ratio - 1) * 100, k)
     return TimedPiece(piece.t * k, piece.q, piece.qd / k, piece.qdd / (k * k), piece.s,
                       piece.segment)
 
