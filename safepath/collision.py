@@ -159,7 +159,6 @@ class CollisionChecker:
         gmodel.removeAllCollisionPairs()  # loaders may have added their own
         n_robot = gmodel.ngeoms
         self._names: list[str] = [robot.geometry_link(i) for i in range(n_robot)]
-        self._margins: list[float] = [0.0] * n_robot
         env: list[int] = []
         if scene is not None:
             for obj in scene.objects.values():
@@ -254,7 +253,6 @@ class CollisionChecker:
                                   obj.shape.to_coal())
         idx = gmodel.addGeometryObject(geom)
         self._names.append(name)
-        self._margins.append(obj.margin or 0.0)
         return int(idx)
 
     def _expand_allowed(self, contact_links: set[str]) -> dict[Pair, float | None]:

@@ -458,8 +458,6 @@ def _assemble(cell: Cell, route: Route, labels: list[str],
     t_all: list[np.ndarray] = []
     q_all, qd_all, qdd_all, idx_all = [], [], [], []
     offset = 0.0
-    chunk_end_times: list[float] = []
-    # Pieces come in chunk order; record when each chunk ends by counting pieces.
     for piece, steps_of_knots in pieces:
         start = 0 if not t_all else 1  # the first knot repeats the previous rest state
         t_all.append(piece.t[start:] + offset)
@@ -468,7 +466,6 @@ def _assemble(cell: Cell, route: Route, labels: list[str],
         qdd_all.append(piece.qdd[start:])
         idx_all.append(np.asarray(steps_of_knots[start:]))
         offset += float(piece.t[-1])
-        chunk_end_times.append(offset)
     t = np.concatenate(t_all)
     events = []
     # Gripper events happen at the end of the chunk before them (or at t = 0).

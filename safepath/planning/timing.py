@@ -146,10 +146,6 @@ def time_path(robot: Robot, path: object, s_way: np.ndarray, *, scales: Sequence
     Raises:
         TimingError: TOPPRA found no feasible timing.
     """
-    import toppra as ta
-    import toppra.algorithm as algo
-    import toppra.constraint as constraint
-
     length = float(s_way[-1])
     n_grid = max(20, int(np.ceil(length / options.grid_step)) + 1)
     grid = np.union1d(np.linspace(0.0, length, n_grid), s_way)
@@ -180,7 +176,7 @@ def time_path(robot: Robot, path: object, s_way: np.ndarray, *, scales: Sequence
     ratio = float("inf")
     piece: TimedPiece | None = None
     for attempt in range(options.retries):
-        piece = _toppra(ta, algo, constraint, path, grid, vlim_grid * factor[:, None],
+        piece = _toppra(path, grid, vlim_grid * factor[:, None],
                         scale_grid[:, None] * amax[None, :] * factor[:, None], options, step)
         seg_index = np.clip(np.searchsorted(s_way, piece.s, side="right") - 1, 0,
                             len(scales) - 1)
@@ -217,14 +213,15 @@ def _knot_ratios(piece: TimedPiece, robot: Robot, seg_scales: np.ndarray
     return v, a
 
 
-def _toppra(ta: object, algo: object, constraint: object, path: object, grid: np.ndarray,
-            vlim_grid: np.ndarray, alim_grid: np.ndarray, options: TimingOptions,
-            step: str | None) -> TimedPiece:
+def _toppra(path: object, grid: np.ndarray, vlim_grid: np.ndarray, alim_grid: np.ndarray,
+            options: TimingOptions, step: str | None) -> TimedPiece:
+    import toppra.algorithm as algo
+
     from ._constraints import VaryingAcceleration, VaryingVelocity
 
     pc_vel = VaryingVelocity(vlim_grid)
     pc_acc = VaryingAcceleration(alim_grid)
-    instance = algo.TOPPRA([pc_vel, pc_acc], path, gridpoints=grid,  # type: ignore[attr-defined]
+    instance = algo.TOPPRA([pc_vel, pc_acc], path, gridpoints=grid,
                            parametrizer="ParametrizeConstAccel")
     traj = instance.compute_trajectory(0.0, 0.0)
     if traj is None:

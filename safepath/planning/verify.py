@@ -183,49 +183,6 @@ class FclVerifier:
     def _objects(self, i: int, j: int, env: bool) -> tuple[object, object]:
         return self._movers[i][3], (self._env[j][1] if env else self._movers[j][3])
 
-    def evaluate(self, q: np.ndarray, *, full: bool = True
-                 ) -> tuple[list[Pair], float, Pair | None, float]:
-        """Collisions (and margin violations when enforced), clearance to the environment,
-        its pair, and the smallest distance left over all distance-checked pairs (self
-        included, minus the required margin) at ``q``.
-
-        With ``full`` False only the depth-limited pairs are checked.
-        """
-        import fcl
-
-        self._place(q)
-        collisions: list[Pair] = []
-        clearance, closest, min_any = float("inf"), None, float("inf")
-        for i, j, env, max_depth in self._pairs:
-            if not full and max_depth == 0.0:
-                continue
-            o1, o2 = self._objects(i, j, env)
-            if max_depth > 0.0:
-                req = fcl.CollisionRequest(enable_contact=True, num_max_contacts=4)
-                res = fcl.CollisionResult()
-                if fcl.collide(o1, o2, req, res) and max(
-                        c.penetration_depth for c in res.contacts) > max_depth:
-                    collisions.append(self._pair_names(i, j, env))
-                continue
-            dres = fcl.DistanceResult()
-            d = fcl.distance(o1, o2, fcl.DistanceRequest(), dres)
-            if d <= 0.0:
-                # Distance is 0 or negative when touching or overlapping: confirm.
-                if fcl.collide(o1, o2, fcl.CollisionRequest(), fcl.CollisionResult()):
-                    collisions.append(self._pair_names(i, j, env))
-                d = min(d, 0.0)
-            required = self._margin[self._env[j][0]] if env and self.enforce_margin else 0.0
-            if 0.0 < d < required:
-                collisions.append(self._pair_names(i, j, env))
-            min_any = min(min_any, d - required)
-            if env and d < clearance:
-                clearance, closest = d, self._pair_names(i, j, env)
-        return collisions, clearance, closest, min_any
-
-    def margin_of(self, env_name: str) -> float:
-        """Safety margin required from environment object ``env_name`` [m]."""
-        return self._margin.get(env_name, 0.0)
-
     def verify(self, t: np.ndarray, q: np.ndarray, qd: np.ndarray, *,
                steps: Sequence[str] | None = None) -> VerifyResult:
         """Check a timed trajectory; raise on the first collision.
