@@ -2,8 +2,10 @@
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+import threading
+from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -33,6 +35,16 @@ class Cell:
     poses: dict[str, np.ndarray]
     folder: Path
     poses_path: Path
+    _local: threading.local = field(default_factory=threading.local, repr=False,
+                                    compare=False)
+
+    def cache(self, key: Any) -> dict[Any, Any]:
+        """A per-thread dictionary for objects built from this cell (collision checkers
+        are not thread-safe, so each thread gets its own), one per ``key``."""
+        caches: dict[Any, dict[Any, Any]] | None = getattr(self._local, "caches", None)
+        if caches is None:
+            caches = self._local.caches = {}
+        return caches.setdefault(key, {})
 
     def pose(self, name: str) -> np.ndarray:
         """The taught pose ``name``.

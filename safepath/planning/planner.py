@@ -93,8 +93,11 @@ class _Checkers:
     def __init__(self, cell: Cell, options: PlanOptions) -> None:
         self.cell = cell
         self.options = options
-        self._checkers: dict[tuple, CollisionChecker] = {}
-        self._verifiers: dict[tuple, FclVerifier] = {}
+        # Kept on the cell (per thread) so that planning again, as a node or a review
+        # session does, does not rebuild them; they depend on the world state and the
+        # allowed contacts (the keys), never on the taught poses.
+        self._checkers: dict[tuple, CollisionChecker] = cell.cache(("checkers", options.check))
+        self._verifiers: dict[tuple, FclVerifier] = cell.cache(("verifiers", options.check))
 
     def checker(self, world: WorldState, allowed: tuple[AllowedContact, ...]) -> CollisionChecker:
         key = (world.key(), allowed)
