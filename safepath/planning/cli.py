@@ -20,6 +20,9 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--time-limit", type=float, default=2.0, help="planning budget per move [s]")
     p.add_argument("--speed", type=float, default=1.0, help="global speed scale in (0, 1]")
     p.add_argument("--route", action="append", default=None, help="plan only this route")
+    p.add_argument("--bag", default=None,
+                   help="also write a ROS 2 bag (MCAP) of the cycle: every chain of routes "
+                        "(route, the routes that follow it, ...) back to back")
     p.set_defaults(func=cmd_plan)
 
 
@@ -32,6 +35,8 @@ def cmd_plan(args: argparse.Namespace) -> int:
     from .sampling import PlannerOptions
     from .timing import TimingOptions
 
+    if args.bag and Path(args.bag).exists():
+        raise ConfigError(f"{args.bag} exists already; choose a new bag path", key="--bag")
     cell = load_cell(args.scene)
     routes = load_routes(cell.folder, poses=list(cell.poses), objects=list(cell.scene.objects))
     if args.route:
@@ -85,4 +90,25 @@ def cmd_plan(args: argparse.Namespace) -> int:
               f"{row['motion_time']:>10.3f} {base_text} {ratio} "
               f"{row['min_clearance'] * 1000:>14.1f}  {pair}")
     print(f"wrote {len(trajectories)} trajectories (JSON, CSV) and summary.json to {out}")
+    if args.bag:
+        from ..ros.bag import write_bag
+
+        cycle = [trajectories[name] for name in cycle_order(routes)]
+        bag = write_bag(args.bag, cycle)
+        print(f"wrote a ROS 2 bag of the cycle ({' -> '.join(t.route for t in cycle)}) to {bag}")
     return 0
+
+
+def cycle_order(routes: dict) -> list[str]:
+    """Every chain of routes from a first route to a last one, back to back: for the
+    quality-check cell, phase1, phase2_safe, phase1, phase2_unsafe."""
+    followed = {r.after for r in routes.values() if r.after is not None}
+    order: list[str] = []
+    for name in routes:
+        if name in followed:
+            continue  # not a last route
+        chain = [name]
+        while routes[chain[0]].after is not None:
+            chain.insert(0, routes[chain[0]].after)
+        order += chain
+    return order

@@ -70,3 +70,20 @@ def test_route_option_plans_the_route_and_what_it_follows(
     written = sorted(p.name for p in out.glob("*.json"))
     assert written == ["phase1.json", "phase2_unsafe.json", "summary.json"]
     assert "phase2_safe" not in capsys.readouterr().out
+
+
+def test_bag_of_the_cycle_holds_both_outcomes_back_to_back(tmp_path: Path) -> None:
+    from safepath.ros import read_bag
+
+    bag = tmp_path / "cycle"
+    assert main(["plan", str(BUNDLED), "--out", str(tmp_path / "out"), "--bag", str(bag)]) == 0
+    contents = read_bag(bag)
+    routes = [json.loads(m.msg.data)["route"] for m in contents.on("/safepath/route")]
+    assert routes == ["phase1", "phase2_safe", "phase1", "phase2_unsafe"]
+    assert len(contents.on("/safepath/trajectory")) == 4
+    # Gripper events: close + open per route.
+    assert len(contents.on("/safepath/gripper")) == 8
+    # An existing bag is refused before anything is planned.
+    assert main(["plan", str(BUNDLED), "--out", str(tmp_path / "again"), "--bag",
+                 str(bag)]) == 2
+    assert not (tmp_path / "again").exists()
