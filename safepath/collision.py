@@ -246,6 +246,12 @@ class CollisionChecker:
         # same per-pair margins, and answers like the pair-by-pair loop (tested).
         self._broad = pin.BroadPhaseManager_DynamicAABBTreeCollisionManager(
             model, gmodel, self._gdata)
+        # The same, for batches of states evaluated in one C++ call (segments).
+        self._pool = pin.BroadPhaseManagerPool_DynamicAABBTreeCollisionManager(model, gmodel, 1)
+        pool_data = self._pool.getGeometryData(0)
+        for k in range(len(self._pairs)):
+            pool_data.collisionRequests[k].security_margin = \
+                self._gdata.collisionRequests[k].security_margin
 
     def _add(self, gmodel: pin.GeometryModel, name: str, joint: int, frame: int,
              T: np.ndarray, obj: SceneObject) -> int:
@@ -418,16 +424,22 @@ class CollisionChecker:
             order = [i for i in order if i != 0]
         elif check_start and not check_ends:
             order = [0, *order]
-        dq = q1 - q0
-        for count, i in enumerate(order, start=1):
-            s = i / n
-            q = q0 + s * dq
-            if not self._free(q):
-                if not details:
-                    return SegmentReport(False, count, s, q)
-                return SegmentReport(False, count, s, q, tuple(self.collisions(q)),
-                                     self.robot.limit_violation(q))
-        return SegmentReport(True, len(order))
+        if not order:
+            return SegmentReport(True, 0)
+        fractions = np.asarray(order, dtype=float) / n
+        states = q0[None, :] + fractions[:, None] * (q1 - q0)[None, :]
+        # One C++ call for the whole segment, in bisection order, stopping at the first
+        # collision (the remaining states are then not evaluated).
+        hits = np.asarray(pin.computeCollisionsInParallel(
+            1, self._pool, np.asfortranarray(states.T), True, True), dtype=bool)
+        if not hits.any():
+            return SegmentReport(True, len(order))
+        first = int(np.argmax(hits))
+        q, s = states[first], float(fractions[first])
+        if not details:
+            return SegmentReport(False, first + 1, s, q)
+        return SegmentReport(False, first + 1, s, q, tuple(self.collisions(q)),
+                             self.robot.limit_violation(q))
 
     def check_path(self, path: Sequence[np.ndarray]) -> SegmentReport:
         """Check a joint-space polyline segment by segment."""
