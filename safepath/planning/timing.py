@@ -47,7 +47,7 @@ class TimingOptions:
     spacing: float = 0.06
     grid_step: float = 0.015
     tolerance: float = 0.001
-    retries: int = 6
+    retries: int = 2
     blend_radii: tuple[float, ...] = (0.6, 0.3, 0.1, 0.0)
 
     def __post_init__(self) -> None:
