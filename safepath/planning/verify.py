@@ -166,6 +166,37 @@ class FclVerifier:
         self._margin = {name: (margin if margin is not None else
                                (scene.margin_for(name) if scene else default_margin))
                         for name, _ in self._env}
+        self._prepare()
+
+    def _prepare(self) -> None:
+        """What every verification of this world state uses: the motion bounds, and the
+        units of work: ("env", body) = one body against all the environment objects it
+        must avoid (one FCL broad-phase query), ("pair", p) = one self pair or one pair
+        allowed to touch up to a depth."""
+        import fcl
+
+        pairs = self._pairs
+        self._weights = _weights(self.robot, self._movers, self._radius)
+        self._per_mover = _mover_weights(self.robot, self._movers, self._radius)
+        self._env_of: dict[int, list[int]] = {}
+        self._units: list[tuple[str, int]] = []
+        for p, (i, _j, env, depth) in enumerate(pairs):
+            if env and depth == 0.0:
+                self._env_of.setdefault(i, []).append(p)
+            else:
+                self._units.append(("pair", p))
+        self._managers = {}
+        for i, plist in self._env_of.items():
+            manager = fcl.DynamicAABBTreeCollisionManager()
+            manager.registerObjects([self._env[pairs[p][1]][1] for p in plist])
+            manager.setup()
+            self._managers[i] = manager
+            self._units.append(("env", i))
+        self._required = [self._margin[self._env[j][0]]
+                          if env and self.enforce_margin and d == 0.0 else 0.0
+                          for _, j, env, d in pairs]
+        self._objects_of = [self._objects(i, j, env) for i, j, env, _ in pairs]
+        self._names_of = [self._pair_names(i, j, env) for i, j, env, _ in pairs]
 
     def _place(self, q: np.ndarray, movers: Iterable[int] | None = None) -> None:
         import fcl
@@ -209,9 +240,10 @@ class FclVerifier:
 
         import fcl
 
-        weights = _weights(self.robot, self._movers, self._radius)
-        per_mover = _mover_weights(self.robot, self._movers, self._radius)
+        weights, per_mover = self._weights, self._per_mover
         pairs = self._pairs
+        units, env_of, managers = self._units, self._env_of, self._managers
+        required, objects, names = self._required, self._objects_of, self._names_of
         # The resolution grid.
         dq = np.abs(np.diff(q, axis=0))
         bounds = dq @ weights
@@ -222,26 +254,6 @@ class FclVerifier:
         step_motion = np.repeat(dq @ per_mover.T / cuts[:, None], cuts, axis=0)
         travel = np.vstack([np.zeros(len(self._movers)), step_motion]).cumsum(axis=0)
         samples = len(travel)
-        # Units of work: ("env", mover) = one body against its environment objects,
-        # ("pair", p) = one self pair or one pair allowed to touch up to a depth.
-        env_of: dict[int, list[int]] = {}
-        units: list[tuple[str, int]] = []
-        for p, (i, _j, env, depth) in enumerate(pairs):
-            if env and depth == 0.0:
-                env_of.setdefault(i, []).append(p)
-            else:
-                units.append(("pair", p))
-        managers = {}
-        for i, plist in env_of.items():
-            manager = fcl.DynamicAABBTreeCollisionManager()
-            manager.registerObjects([self._env[pairs[p][1]][1] for p in plist])
-            manager.setup()
-            managers[i] = manager
-            units.append(("env", i))
-        required = [self._margin[self._env[j][0]] if env and self.enforce_margin and d == 0.0
-                    else 0.0 for _, j, env, d in pairs]
-        objects = [self._objects(i, j, env) for i, j, env, _ in pairs]
-        names = [self._pair_names(i, j, env) for i, j, env, _ in pairs]
         dist_req = fcl.DistanceRequest()
 
         def column(unit: tuple[str, int]) -> np.ndarray:
