@@ -13,21 +13,22 @@ from __future__ import annotations
 
 import logging
 import time
-from collections.abc import Mapping, Sequence
+from collections.abc import Mapping
 from dataclasses import dataclass, field
 
 import numpy as np
 
 from ..cell import Cell
 from ..collision import CheckOptions, CollisionChecker
-from ..errors import IKError, PlanningError, TimingError, VerificationError
+from ..errors import IKError, PlanningError, TimingError
 from ..scene import AllowedContact
-from ..trajectory import GripperEvent, Trajectory
+from ..trajectory import Trajectory
+from ._chunks import Segment, assemble, time_chunk, time_segments
 from .cartesian import LineOptions, cartesian_line
 from .routes import Route, Step, load_routes
 from .sampling import PlannerOptions, plan_joint_path
-from .timing import TimedPiece, TimingOptions, spline_path, time_path
-from .verify import FclVerifier, VerifyResult
+from .timing import TimedPiece, TimingOptions
+from .verify import FclVerifier
 
 __all__ = ["PlanOptions", "WorldState", "plan_route", "plan_cell", "route_order",
            "initial_world", "rest_to_rest_time"]
@@ -79,15 +80,7 @@ class WorldState:
                                         for k, v in self.resting.items())))
 
 
-@dataclass
-class _Segment:
-    step_index: int
-    step: Step
-    waypoints: list[np.ndarray]
-    allowed: tuple[AllowedContact, ...]
-
-
-class _Checkers:
+class CheckerCache:
     """Checkers and verifiers, built once per world state and allowed-contact set."""
 
     def __init__(self, cell: Cell, options: PlanOptions) -> None:
@@ -148,7 +141,7 @@ def plan_cell(cell: Cell, options: PlanOptions | None = None, *,
     if routes is None:
         routes = load_routes(cell.folder, poses=list(cell.poses),
                              objects=list(cell.scene.objects))
-    cache = _Checkers(cell, options)
+    cache = CheckerCache(cell, options)
     worlds: dict[str, WorldState] = {}
     out: dict[str, Trajectory] = {}
     for name in route_order(routes):
@@ -177,20 +170,20 @@ def plan_route(cell: Cell, route: Route, options: PlanOptions | None = None, *,
     """
     options = options or PlanOptions()
     traj, _ = _plan(cell, route, world.copy() if world else initial_world(cell), options,
-                    _Checkers(cell, options))
+                    CheckerCache(cell, options))
     return traj
 
 
 def _plan(cell: Cell, route: Route, world: WorldState, options: PlanOptions,
-          cache: _Checkers) -> tuple[Trajectory, WorldState]:
+          cache: CheckerCache) -> tuple[Trajectory, WorldState]:
     t_start = time.perf_counter()
     robot, scene = cell.robot, cell.scene
     labels = route.labels()
     q = cell.pose(route.start)
     pose_name: str | None = route.start
-    chunks: list[tuple[list[_Segment], WorldState]] = []
+    chunks: list[tuple[list[Segment], WorldState]] = []
     actions: list[tuple[int, int, Step]] = []  # (after chunk, step index, step)
-    current: list[_Segment] = []
+    current: list[Segment] = []
     planner_opts = options.planner
     for i, step in enumerate(route.steps):
         label = labels[i]
@@ -216,7 +209,7 @@ def _plan(cell: Cell, route: Route, world: WorldState, options: PlanOptions,
                                         planner_opts.seed + i, planner_opts.range,
                                         planner_opts.shortcut_iterations)
                 waypoints = plan_joint_path(checker, q, goal, options=seeded, step=label)
-            current.append(_Segment(i, step, waypoints, allowed))
+            current.append(Segment(i, step, waypoints, allowed))
             q, pose_name = goal, goal_name
             if step.stop:
                 chunks.append((current, world.copy()))
@@ -235,12 +228,12 @@ def _plan(cell: Cell, route: Route, world: WorldState, options: PlanOptions,
     pieces: list[tuple[TimedPiece, list[int]]] = []
     min_clear, closest = float("inf"), None
     for segments, chunk_world in chunks:
-        for piece, steps_of_knots, result in _time_chunk(cell, segments, chunk_world, options,
-                                                         cache, labels):
+        for piece, steps_of_knots, result in time_chunk(cell, segments, chunk_world, options,
+                                                        cache, labels):
             if result.min_clearance < min_clear:
                 min_clear, closest = result.min_clearance, result.closest_pair
             pieces.append((piece, steps_of_knots))
-    traj = _assemble(cell, route, labels, pieces, chunks, actions)
+    traj = assemble(cell, route, labels, pieces, chunks, actions)
     _check_position_limits(cell, traj)
     traj.info.update({
         "planning_time": plan_time,
@@ -258,8 +251,8 @@ def _plan(cell: Cell, route: Route, world: WorldState, options: PlanOptions,
         try:
             for segments, chunk_world in chunks:
                 for seg in segments:
-                    piece, _ = _time_segments(cell, [seg], chunk_world, options, cache,
-                                              check=False, blend=0.0)
+                    piece, _ = time_segments(cell, [seg], chunk_world, options, cache,
+                                             check=False, blend=0.0)
                     total = (total or 0.0) + float(piece.t[-1])
         except TimingError as exc:
             log.warning("route %s: no stop-and-go baseline (%s)", route.name, exc)
@@ -325,177 +318,6 @@ def _gripper(cell: Cell, world: WorldState, step: Step, q: np.ndarray, label: st
             world.held = None
             world.resting[obj] = T_world_grasp
     return world
-
-
-def _time_chunk(cell: Cell, segments: list[_Segment], world: WorldState, options: PlanOptions,
-                cache: _Checkers, labels: list[str]
-                ) -> list[tuple[TimedPiece, list[int], VerifyResult]]:
-    """Time and verify a chunk: blended through its via points (large blends first, then
-    smaller, then passing exactly); if no blend is collision-free or passes the
-    independent re-check, stop at the step boundaries, then at every corner."""
-    if len(segments) > 1 or len(segments[0].waypoints) > 2:
-        for blend in options.timing.blend_radii:
-            try:
-                piece, seg_steps = _time_segments(cell, segments, world, options, cache,
-                                                  blend=blend)
-                return [_verified(piece, seg_steps, segments, world, cache, labels)]
-            except _NotFree:
-                log.debug("blend %.3f rad not collision-free", blend)
-            except VerificationError as exc:
-                log.debug("blend %.3f rad failed the re-check: %s", blend, exc)
-    out = []
-    for seg in segments:
-        try:
-            piece, seg_steps = _time_segments(cell, [seg], world, options, cache, blend=0.0)
-            out.append(_verified(piece, seg_steps, [seg], world, cache, labels))
-            continue
-        except (_NotFree, VerificationError) as exc:
-            if seg.step.kind == "line":
-                if isinstance(exc, VerificationError):
-                    raise
-                raise PlanningError("the smoothed line is not collision-free",
-                                    step=seg.step.label(seg.step_index)) from None
-        # Stop at every corner: each straight segment was checked by the planner.
-        for a, b in zip(seg.waypoints[:-1], seg.waypoints[1:], strict=True):
-            part = _Segment(seg.step_index, seg.step, [a, b], seg.allowed)
-            piece, seg_steps = _time_segments(cell, [part], world, options, cache, check=False)
-            out.append(_verified(piece, seg_steps, [part], world, cache, labels))
-    return out
-
-
-def _verified(piece: TimedPiece, seg_steps: list[int], segments: list[_Segment],
-              world: WorldState, cache: _Checkers, labels: list[str]
-              ) -> tuple[TimedPiece, list[int], VerifyResult]:
-    """Re-check a timed piece with the independent verifier, step by step (each step
-    with its own allowed contacts); raise VerificationError on failure."""
-    steps_of_knots = [seg_steps[k] for k in piece.segment]
-    worst: VerifyResult | None = None
-    index = np.asarray(steps_of_knots)
-    for sidx in sorted(set(steps_of_knots)):
-        seg = next(s for s in segments if s.step_index == sidx)
-        verifier = cache.verifier(world, seg.allowed)
-        sel = np.flatnonzero(index == sidx)
-        lo, hi = max(sel[0] - 1, 0), sel[-1] + 1
-        result = verifier.verify(piece.t[lo:hi], piece.q[lo:hi], piece.qd[lo:hi],
-                                 steps=[labels[sidx]] * (hi - lo))
-        if worst is None or result.min_clearance < worst.min_clearance:
-            worst = result
-    assert worst is not None
-    return piece, steps_of_knots, worst
-
-
-class _NotFree(Exception):
-    pass
-
-
-def _time_segments(cell: Cell, segments: list[_Segment], world: WorldState,
-                   options: PlanOptions, cache: _Checkers, *, check: bool = True,
-                   blend: float = 0.0) -> tuple[TimedPiece, list[int]]:
-    waypoints: list[np.ndarray] = []
-    corners: list[tuple[int, float]] = []
-    lengths: list[float] = [
-        float(np.sum(np.linalg.norm(np.diff(np.asarray(s.waypoints), axis=0), axis=1)))
-        for s in segments]
-    seg_steps: list[int] = []
-    scales: list[float] = []
-    tcp: list[float | None] = []
-    seg_of_poly: list[int] = []
-    for n, seg in enumerate(segments):
-        if waypoints and n > 0 and blend > 0:
-            # A via pose between two steps: blend, within 40 % of either step.
-            corners.append((len(waypoints) - 1, float(min(blend, 0.4 * lengths[n - 1],
-                                                          0.4 * lengths[n]))))
-        pts = seg.waypoints if not waypoints else seg.waypoints[1:]
-        for j, p in enumerate(pts):
-            if waypoints and np.max(np.abs(p - waypoints[-1])) < 1e-10:
-                continue
-            if waypoints:
-                seg_of_poly.append(n)
-            waypoints.append(p)
-            inner = seg.step.kind == "move" and 0 < j < len(pts) - 1 and blend > 0
-            if inner:  # a vertex of a planned detour
-                a = float(np.linalg.norm(p - pts[j - 1]))
-                b = float(np.linalg.norm(pts[j + 1] - p))
-                corners.append((len(waypoints) - 1, min(blend, 0.4 * a, 0.4 * b)))
-    for n in seg_of_poly:
-        seg = segments[n]
-        seg_steps.append(seg.step_index)
-        scales.append(seg.step.speed)
-        tcp.append(seg.step.tcp_speed)
-    if len(waypoints) < 2:
-        q = waypoints[0] if waypoints else segments[0].waypoints[0]
-        z = np.zeros((1, q.size))
-        return TimedPiece(np.zeros(1), q[None, :], z, z, np.zeros(1), np.zeros(1, dtype=int)), \
-            [segments[0].step_index]
-    spacing = options.timing.spacing
-    path, s_way, _ = spline_path(waypoints, spacing, corners=corners)
-    if check and len(waypoints) > 2:
-        _check_spline(cell, path, s_way, seg_of_poly, segments, world, options, cache)
-    piece = time_path(cell.robot, path, s_way, scales=scales, tcp_speeds=tcp,
-                      options=options.timing, step=segments[0].step.label(segments[0].step_index))
-    return piece, seg_steps
-
-
-def _check_spline(cell: Cell, path: object, s_way: np.ndarray, seg_of_poly: Sequence[int],
-                  segments: list[_Segment], world: WorldState, options: PlanOptions,
-                  cache: _Checkers) -> None:
-    """Raise _NotFree unless the spline is valid at the checker's resolution."""
-    length = float(s_way[-1])
-    n = max(2, int(np.ceil(length / 0.02)) + 1)
-    s = np.linspace(0.0, length, n)
-    Q = path(s)  # type: ignore[operator]
-    poly = np.clip(np.searchsorted(s_way, s, side="right") - 1, 0, len(seg_of_poly) - 1)
-    step_of = [seg_of_poly[p] for p in poly]
-    # Consecutive chords of the same step share a checker: check them as one polyline.
-    start = 0
-    for k in range(1, n + 1):
-        if k == n or step_of[k] != step_of[start]:
-            checker = cache.checker(world, segments[step_of[start]].allowed)
-            if not checker.check_path(Q[start:min(k + 1, n)], details=False).valid:
-                raise _NotFree()
-            start = k
-    # The chords between samples are checked; the spline between two samples deviates
-    # from its chord by far less than the verifier's resolution, which re-checks the
-    # timed result anyway.
-
-
-def _assemble(cell: Cell, route: Route, labels: list[str],
-              pieces: list[tuple[TimedPiece, list[int]]], chunks: list, actions: list
-              ) -> Trajectory:
-    t_all: list[np.ndarray] = []
-    q_all, qd_all, qdd_all, idx_all = [], [], [], []
-    offset = 0.0
-    for piece, steps_of_knots in pieces:
-        start = 0 if not t_all else 1  # the first knot repeats the previous rest state
-        t_all.append(piece.t[start:] + offset)
-        q_all.append(piece.q[start:])
-        qd_all.append(piece.qd[start:])
-        qdd_all.append(piece.qdd[start:])
-        idx_all.append(np.asarray(steps_of_knots[start:]))
-        offset += float(piece.t[-1])
-    t = np.concatenate(t_all)
-    events = []
-    # Gripper events happen at the end of the chunk before them (or at t = 0).
-    chunk_time = _chunk_end_times(pieces, chunks)
-    for after_chunk, i, step in actions:
-        when = 0.0 if after_chunk == 0 else chunk_time[after_chunk - 1]
-        obj = step.object or (cell.scene.grasp.object if cell.scene.grasp else None)
-        events.append(GripperEvent(when, step.kind, labels[i], obj))  # type: ignore[arg-type]
-    return Trajectory(cell.robot.joint_names, t, np.vstack(q_all), np.vstack(qd_all),
-                      np.vstack(qdd_all), np.concatenate(idx_all), tuple(labels), tuple(events),
-                      cell.robot.name, route.name, {})
-
-
-def _chunk_end_times(pieces: list[tuple[TimedPiece, list[int]]], chunks: list) -> list[float]:
-    """End time of each chunk: pieces are grouped by the steps the chunks contain."""
-    out, offset, p = [], 0.0, 0
-    for segments, _ in chunks:
-        steps = {s.step_index for s in segments}
-        while p < len(pieces) and set(pieces[p][1]) <= steps:
-            offset += float(pieces[p][0].t[-1])
-            p += 1
-        out.append(offset)
-    return out
 
 
 def rest_to_rest_time(delta: np.ndarray, vmax: np.ndarray, amax: np.ndarray) -> float:

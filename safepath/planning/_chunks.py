@@ -1,0 +1,211 @@
+"""Timing and release checks of the chunks of a route (the motion between two stops).
+
+A chunk is first timed blended through its via poses (large blend radii first), and
+each timed piece is re-checked by the independent verifier; a blend that is not
+collision-free, or fails the re-check, is replaced by a smaller one, then by stops at the
+step boundaries, then by stops at every corner of the checked path.
+"""
+
+from __future__ import annotations
+
+import logging
+from collections.abc import Sequence
+from dataclasses import dataclass
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from ..errors import PlanningError, VerificationError
+from ..scene import AllowedContact
+from ..trajectory import GripperEvent, Trajectory
+from .routes import Route, Step
+from .timing import TimedPiece, spline_path, time_path
+from .verify import VerifyResult
+
+if TYPE_CHECKING:
+    from ..cell import Cell
+    from .planner import CheckerCache, PlanOptions, WorldState
+
+__all__ = ["time_chunk", "time_segments", "assemble"]
+
+log = logging.getLogger(__name__)
+
+
+@dataclass
+class Segment:
+    step_index: int
+    step: Step
+    waypoints: list[np.ndarray]
+    allowed: tuple[AllowedContact, ...]
+
+
+
+def time_chunk(cell: Cell, segments: list[Segment], world: WorldState, options: PlanOptions,
+                cache: CheckerCache, labels: list[str]
+                ) -> list[tuple[TimedPiece, list[int], VerifyResult]]:
+    """Time and verify a chunk: blended through its via points (large blends first, then
+    smaller, then passing exactly); if no blend is collision-free or passes the
+    independent re-check, stop at the step boundaries, then at every corner."""
+    if len(segments) > 1 or len(segments[0].waypoints) > 2:
+        for blend in options.timing.blend_radii:
+            try:
+                piece, seg_steps = time_segments(cell, segments, world, options, cache,
+                                                  blend=blend)
+                return [_verified(piece, seg_steps, segments, world, cache, labels)]
+            except _NotFree:
+                log.debug("blend %.3f rad not collision-free", blend)
+            except VerificationError as exc:
+                log.debug("blend %.3f rad failed the re-check: %s", blend, exc)
+    out = []
+    for seg in segments:
+        try:
+            piece, seg_steps = time_segments(cell, [seg], world, options, cache, blend=0.0)
+            out.append(_verified(piece, seg_steps, [seg], world, cache, labels))
+            continue
+        except (_NotFree, VerificationError) as exc:
+            if seg.step.kind == "line":
+                if isinstance(exc, VerificationError):
+                    raise
+                raise PlanningError("the smoothed line is not collision-free",
+                                    step=seg.step.label(seg.step_index)) from None
+        # Stop at every corner: each straight segment was checked by the planner.
+        for a, b in zip(seg.waypoints[:-1], seg.waypoints[1:], strict=True):
+            part = Segment(seg.step_index, seg.step, [a, b], seg.allowed)
+            piece, seg_steps = time_segments(cell, [part], world, options, cache, check=False)
+            out.append(_verified(piece, seg_steps, [part], world, cache, labels))
+    return out
+
+
+def _verified(piece: TimedPiece, seg_steps: list[int], segments: list[Segment],
+              world: WorldState, cache: CheckerCache, labels: list[str]
+              ) -> tuple[TimedPiece, list[int], VerifyResult]:
+    """Re-check a timed piece with the independent verifier, step by step (each step
+    with its own allowed contacts); raise VerificationError on failure."""
+    steps_of_knots = [seg_steps[k] for k in piece.segment]
+    worst: VerifyResult | None = None
+    index = np.asarray(steps_of_knots)
+    for sidx in sorted(set(steps_of_knots)):
+        seg = next(s for s in segments if s.step_index == sidx)
+        verifier = cache.verifier(world, seg.allowed)
+        sel = np.flatnonzero(index == sidx)
+        lo, hi = max(sel[0] - 1, 0), sel[-1] + 1
+        result = verifier.verify(piece.t[lo:hi], piece.q[lo:hi], piece.qd[lo:hi],
+                                 steps=[labels[sidx]] * (hi - lo))
+        if worst is None or result.min_clearance < worst.min_clearance:
+            worst = result
+    assert worst is not None
+    return piece, steps_of_knots, worst
+
+
+class _NotFree(Exception):
+    pass
+
+
+def time_segments(cell: Cell, segments: list[Segment], world: WorldState,
+                   options: PlanOptions, cache: CheckerCache, *, check: bool = True,
+                   blend: float = 0.0) -> tuple[TimedPiece, list[int]]:
+    waypoints: list[np.ndarray] = []
+    corners: list[tuple[int, float]] = []
+    lengths: list[float] = [
+        float(np.sum(np.linalg.norm(np.diff(np.asarray(s.waypoints), axis=0), axis=1)))
+        for s in segments]
+    seg_steps: list[int] = []
+    scales: list[float] = []
+    tcp: list[float | None] = []
+    seg_of_poly: list[int] = []
+    for n, seg in enumerate(segments):
+        if waypoints and n > 0 and blend > 0:
+            # A via pose between two steps: blend, within 40 % of either step.
+            corners.append((len(waypoints) - 1, float(min(blend, 0.4 * lengths[n - 1],
+                                                          0.4 * lengths[n]))))
+        pts = seg.waypoints if not waypoints else seg.waypoints[1:]
+        for j, p in enumerate(pts):
+            if waypoints and np.max(np.abs(p - waypoints[-1])) < 1e-10:
+                continue
+            if waypoints:
+                seg_of_poly.append(n)
+            waypoints.append(p)
+            inner = seg.step.kind == "move" and 0 < j < len(pts) - 1 and blend > 0
+            if inner:  # a vertex of a planned detour
+                a = float(np.linalg.norm(p - pts[j - 1]))
+                b = float(np.linalg.norm(pts[j + 1] - p))
+                corners.append((len(waypoints) - 1, min(blend, 0.4 * a, 0.4 * b)))
+    for n in seg_of_poly:
+        seg = segments[n]
+        seg_steps.append(seg.step_index)
+        scales.append(seg.step.speed)
+        tcp.append(seg.step.tcp_speed)
+    if len(waypoints) < 2:
+        q = waypoints[0] if waypoints else segments[0].waypoints[0]
+        z = np.zeros((1, q.size))
+        return TimedPiece(np.zeros(1), q[None, :], z, z, np.zeros(1), np.zeros(1, dtype=int)), \
+            [segments[0].step_index]
+    spacing = options.timing.spacing
+    path, s_way, _ = spline_path(waypoints, spacing, corners=corners)
+    if check and len(waypoints) > 2:
+        _check_spline(cell, path, s_way, seg_of_poly, segments, world, options, cache)
+    piece = time_path(cell.robot, path, s_way, scales=scales, tcp_speeds=tcp,
+                      options=options.timing, step=segments[0].step.label(segments[0].step_index))
+    return piece, seg_steps
+
+
+def _check_spline(cell: Cell, path: object, s_way: np.ndarray, seg_of_poly: Sequence[int],
+                  segments: list[Segment], world: WorldState, options: PlanOptions,
+                  cache: CheckerCache) -> None:
+    """Raise _NotFree unless the spline is valid at the checker's resolution."""
+    length = float(s_way[-1])
+    n = max(2, int(np.ceil(length / 0.02)) + 1)
+    s = np.linspace(0.0, length, n)
+    Q = path(s)  # type: ignore[operator]
+    poly = np.clip(np.searchsorted(s_way, s, side="right") - 1, 0, len(seg_of_poly) - 1)
+    step_of = [seg_of_poly[p] for p in poly]
+    # Consecutive chords of the same step share a checker: check them as one polyline.
+    start = 0
+    for k in range(1, n + 1):
+        if k == n or step_of[k] != step_of[start]:
+            checker = cache.checker(world, segments[step_of[start]].allowed)
+            if not checker.check_path(Q[start:min(k + 1, n)], details=False).valid:
+                raise _NotFree()
+            start = k
+    # The chords between samples are checked; the spline between two samples deviates
+    # from its chord by far less than the verifier's resolution, which re-checks the
+    # timed result anyway.
+
+
+def assemble(cell: Cell, route: Route, labels: list[str],
+              pieces: list[tuple[TimedPiece, list[int]]], chunks: list, actions: list
+              ) -> Trajectory:
+    t_all: list[np.ndarray] = []
+    q_all, qd_all, qdd_all, idx_all = [], [], [], []
+    offset = 0.0
+    for piece, steps_of_knots in pieces:
+        start = 0 if not t_all else 1  # the first knot repeats the previous rest state
+        t_all.append(piece.t[start:] + offset)
+        q_all.append(piece.q[start:])
+        qd_all.append(piece.qd[start:])
+        qdd_all.append(piece.qdd[start:])
+        idx_all.append(np.asarray(steps_of_knots[start:]))
+        offset += float(piece.t[-1])
+    t = np.concatenate(t_all)
+    events = []
+    # Gripper events happen at the end of the chunk before them (or at t = 0).
+    chunk_time = _chunk_end_times(pieces, chunks)
+    for after_chunk, i, step in actions:
+        when = 0.0 if after_chunk == 0 else chunk_time[after_chunk - 1]
+        obj = step.object or (cell.scene.grasp.object if cell.scene.grasp else None)
+        events.append(GripperEvent(when, step.kind, labels[i], obj))  # type: ignore[arg-type]
+    return Trajectory(cell.robot.joint_names, t, np.vstack(q_all), np.vstack(qd_all),
+                      np.vstack(qdd_all), np.concatenate(idx_all), tuple(labels), tuple(events),
+                      cell.robot.name, route.name, {})
+
+
+def _chunk_end_times(pieces: list[tuple[TimedPiece, list[int]]], chunks: list) -> list[float]:
+    """End time of each chunk: pieces are grouped by the steps the chunks contain."""
+    out, offset, p = [], 0.0, 0
+    for segments, _ in chunks:
+        steps = {s.step_index for s in segments}
+        while p < len(pieces) and set(pieces[p][1]) <= steps:
+            offset += float(pieces[p][0].t[-1])
+            p += 1
+        out.append(offset)
+    return out
