@@ -44,13 +44,16 @@ class LineOptions:
 
 
 def solve_ik(robot: Robot, T_world_tcp: pin.SE3, q_seed: np.ndarray, *,
-             options: LineOptions = LineOptions()) -> np.ndarray | None:
+             options: LineOptions = LineOptions(), data: pin.Data | None = None
+             ) -> np.ndarray | None:
     """Joint vector that puts the TCP at ``T_world_tcp``, near ``q_seed``; None if none.
 
     Damped least squares on the 6-D frame error (LOCAL frame), joint limits enforced by
-    clipping each iterate.
+    clipping each iterate. ``data`` lets a caller reuse its Pinocchio workspace.
     """
-    model, data = robot.model, robot.model.createData()
+    model = robot.model
+    if data is None:
+        data = model.createData()
     fid = robot.tcp_frame_id
     q = q_seed.copy()
     damping = 1e-6
@@ -85,11 +88,15 @@ def cartesian_line(robot: Robot, q_start: np.ndarray, q_goal: np.ndarray, *,
     n = max(1, int(np.ceil(max(length / options.step, angle / 0.05))))
     path = [q_start.copy()]
     q = q_start.copy()
+    data = robot.model.createData()
     for k in range(1, n + 1):
         s = k / n
         rotation = _interp(T0, T1, s).rotation
         T = pin.SE3(rotation, (1 - s) * T0.translation + s * T1.translation)
-        q_next = solve_ik(robot, T, q, options=options)
+        # Seed with the previous step's motion continued (fewer iterations); the jump
+        # bound below is still measured from the previous waypoint.
+        seed = q if len(path) < 2 else np.clip(2 * q - path[-2], robot.lower, robot.upper)
+        q_next = solve_ik(robot, T, seed, options=options, data=data)
         if q_next is None:
             raise IKError("no inverse-kinematics solution (out of reach or at a joint limit)",
                           step=step_name, fraction=s, position=T.translation.copy())
