@@ -95,7 +95,7 @@ def stage_clock() -> Iterator[dict[str, float]]:
     Wraps the two functions for the duration of the ``with`` block only (the planner
     calls them through these module attributes); the originals run unchanged.
     """
-    from safepath.planning import planner, verify
+    from safepath.planning import _chunks, verify
 
     spent = {"timing": 0.0, "verification": 0.0}
 
@@ -108,7 +108,7 @@ def stage_clock() -> Iterator[dict[str, float]]:
                 spent[key] += time.perf_counter() - t0
         return call
 
-    with mock.patch.object(planner, "time_path", clocked("timing", planner.time_path)), \
+    with mock.patch.object(_chunks, "time_path", clocked("timing", _chunks.time_path)), \
             mock.patch.object(verify.FclVerifier, "verify",
                               clocked("verification", verify.FclVerifier.verify)):
         yield spent

@@ -1,0 +1,31 @@
+"""Every benchmark script still runs (tiny settings) and prints its figures.
+
+The figures themselves are not asserted (speed is measured by the scripts, not by
+tests); this only keeps the scripts from rotting when the library changes.
+"""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parents[1]
+
+CASES = [
+    ("collision_checks.py", ["--n", "300"], "state checks/s"),
+    ("plan_cycle.py", ["--runs", "1"], "motion time against the stop-and-go baseline"),
+    ("runtime_heartbeat.py", ["--runs", "1"], "heartbeat gap"),
+    ("view_startup.py", ["--runs", "1"], ""),
+]
+
+
+@pytest.mark.parametrize(("script", "args", "expected"), CASES, ids=[c[0] for c in CASES])
+def test_benchmark_script_runs(script: str, args: list[str], expected: str) -> None:
+    proc = subprocess.run([sys.executable, str(ROOT / "benchmarks" / script), *args],
+                          cwd=ROOT, capture_output=True, text=True, timeout=300)
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    assert proc.stdout.strip(), "the script printed nothing"
+    assert expected in proc.stdout
