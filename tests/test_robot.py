@@ -182,6 +182,24 @@ def test_missing_urdf(tmp_path: Path) -> None:
     assert str(folder / "robot.yaml") in str(info.value)
 
 
+def test_missing_mesh_names_the_urdf_and_the_mesh(tmp_path: Path) -> None:
+    folder = tmp_path / "meshy"
+    folder.mkdir()
+    (folder / "r.urdf").write_text(
+        '<robot name="r"><link name="base"/><link name="l1"><collision><geometry>'
+        '<mesh filename="package://nowhere/missing.stl"/></geometry></collision></link>'
+        '<joint name="j1" type="revolute"><parent link="base"/><child link="l1"/>'
+        '<axis xyz="0 0 1"/><limit lower="-1" upper="1" velocity="1" effort="1"/></joint>'
+        '<link name="tcp"/><joint name="jt" type="fixed"><parent link="l1"/>'
+        '<child link="tcp"/></joint></robot>')
+    (folder / "robot.yaml").write_text(yaml.safe_dump({
+        "name": "meshy", "urdf": "r.urdf", "joints": ["j1"], "velocity_limits": [1.0],
+        "acceleration_limits": [1.0], "tcp_frame": "tcp"}))
+    with pytest.raises(ConfigError, match="missing.stl") as info:
+        load_robot(folder)
+    assert info.value.path == folder / "r.urdf"
+
+
 @pytest.mark.parametrize(
     ("changes", "key", "error"),
     [
