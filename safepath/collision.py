@@ -243,9 +243,6 @@ class CollisionChecker:
             return False
         return not pin.computeCollisions(r.model, self._data, self._broad, q, True)
 
-    def _free(self, q: np.ndarray) -> bool:
-        return not pin.computeCollisions(self.robot.model, self._data, self._broad, q, True)
-
     def collisions(self, q: np.ndarray) -> list[Pair]:
         """Every colliding pair at ``q`` (limits ignored)."""
         pin.computeCollisions(self.robot.model, self._data, self.geometry_model, self._gdata,
@@ -347,18 +344,8 @@ class CollisionChecker:
             return SegmentReport(True, 0)
         fractions = np.asarray(order, dtype=float) / n
         states = q0[None, :] + fractions[:, None] * (q1 - q0)[None, :]
-        # One C++ call for the whole segment, in bisection order, stopping at the first
-        # collision (the remaining states are then not evaluated).
-        hits = np.asarray(pin.computeCollisionsInParallel(
-            1, self._pool, np.asfortranarray(states.T), True, True), dtype=bool)
-        if not hits.any():
-            return SegmentReport(True, len(order))
-        first = int(np.argmax(hits))
-        q, s = states[first], float(fractions[first])
-        if not details:
-            return SegmentReport(False, first + 1, s, q)
-        return SegmentReport(False, first + 1, s, q, tuple(self.collisions(q)),
-                             self.robot.limit_violation(q))
+        # Bisection order: a collision is found early, and the batch stops there.
+        return self._check_states(states, fractions, details)
 
     def check_path(self, path: Sequence[np.ndarray], *, details: bool = True
                    ) -> SegmentReport:
@@ -384,18 +371,24 @@ class CollisionChecker:
             f = np.arange(1, n + 1) / n
             chunks.append(P[k][None, :] + f[:, None] * (P[k + 1] - P[k])[None, :])
             where.append(k + f)
-        states = np.vstack(chunks)
-        position = np.concatenate(where)
+        fractions = np.concatenate(where) / max(1, len(P) - 1)
+        return self._check_states(np.vstack(chunks), fractions, details)
+
+    def _check_states(self, states: np.ndarray, fractions: np.ndarray, details: bool
+                      ) -> SegmentReport:
+        """Collision-check ``states`` (rows, inside the limits) in one C++ batch call,
+        in the given order, stopping at the first collision (later states are then not
+        evaluated); ``fractions`` says where each state lies, for the report."""
         hits = np.asarray(pin.computeCollisionsInParallel(
             1, self._pool, np.asfortranarray(states.T), True, True), dtype=bool)
         if not hits.any():
             return SegmentReport(True, len(states))
         first = int(np.argmax(hits))
-        q, frac = states[first], float(position[first]) / max(1, len(P) - 1)
+        q, fraction = states[first], float(fractions[first])
         if not details:
-            return SegmentReport(False, first + 1, frac, q)
-        return SegmentReport(False, first + 1, frac, q, tuple(self.collisions(q)),
-                             robot.limit_violation(q))
+            return SegmentReport(False, first + 1, fraction, q)
+        return SegmentReport(False, first + 1, fraction, q, tuple(self.collisions(q)),
+                             self.robot.limit_violation(q))
 
 
 def _bisection_order(n: int, check_ends: bool) -> list[int]:
