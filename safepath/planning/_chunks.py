@@ -173,8 +173,10 @@ def _check_spline(cell: Cell, path: object, s_way: np.ndarray, seg_of_poly: Sequ
 
 
 def assemble(cell: Cell, route: Route, labels: list[str],
-              pieces: list[tuple[TimedPiece, list[int]]], chunks: list, actions: list
-              ) -> Trajectory:
+              pieces: list[tuple[TimedPiece, list[int]]], chunk_ends: list[float],
+              actions: list) -> Trajectory:
+    """Join the timed pieces into one trajectory; a gripper action happens when the
+    chunk before it ends (``chunk_ends`` [s]), or at t = 0."""
     t_all: list[np.ndarray] = []
     q_all, qd_all, qdd_all, idx_all = [], [], [], []
     offset = 0.0
@@ -188,24 +190,10 @@ def assemble(cell: Cell, route: Route, labels: list[str],
         offset += float(piece.t[-1])
     t = np.concatenate(t_all)
     events = []
-    # Gripper events happen at the end of the chunk before them (or at t = 0).
-    chunk_time = _chunk_end_times(pieces, chunks)
     for after_chunk, i, step in actions:
-        when = 0.0 if after_chunk == 0 else chunk_time[after_chunk - 1]
+        when = 0.0 if after_chunk == 0 else chunk_ends[after_chunk - 1]
         obj = step.object or (cell.scene.grasp.object if cell.scene.grasp else None)
         events.append(GripperEvent(when, step.kind, labels[i], obj))  # type: ignore[arg-type]
     return Trajectory(cell.robot.joint_names, t, np.vstack(q_all), np.vstack(qd_all),
                       np.vstack(qdd_all), np.concatenate(idx_all), tuple(labels), tuple(events),
                       cell.robot.name, route.name, {})
-
-
-def _chunk_end_times(pieces: list[tuple[TimedPiece, list[int]]], chunks: list) -> list[float]:
-    """End time of each chunk: pieces are grouped by the steps the chunks contain."""
-    out, offset, p = [], 0.0, 0
-    for segments, _ in chunks:
-        steps = {s.step_index for s in segments}
-        while p < len(pieces) and set(pieces[p][1]) <= steps:
-            offset += float(pieces[p][0].t[-1])
-            p += 1
-        out.append(offset)
-    return out

@@ -226,6 +226,8 @@ def _plan(cell: Cell, route: Route, world: WorldState, options: PlanOptions,
 
     # Timing and verification, chunk by chunk.
     pieces: list[tuple[TimedPiece, list[int]]] = []
+    chunk_ends: list[float] = []  # when each chunk ends [s]: gripper events happen there
+    elapsed = 0.0
     min_clear, closest = float("inf"), None
     for segments, chunk_world in chunks:
         for piece, steps_of_knots, result in time_chunk(cell, segments, chunk_world, options,
@@ -233,7 +235,9 @@ def _plan(cell: Cell, route: Route, world: WorldState, options: PlanOptions,
             if result.min_clearance < min_clear:
                 min_clear, closest = result.min_clearance, result.closest_pair
             pieces.append((piece, steps_of_knots))
-    traj = assemble(cell, route, labels, pieces, chunks, actions)
+            elapsed += float(piece.t[-1])
+        chunk_ends.append(elapsed)
+    traj = assemble(cell, route, labels, pieces, chunk_ends, actions)
     _check_position_limits(cell, traj)
     traj.info.update({
         "planning_time": plan_time,
