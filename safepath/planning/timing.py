@@ -230,25 +230,18 @@ def _toppra(path: object, grid: np.ndarray, vlim_grid: np.ndarray, alim_grid: np
     duration = float(traj.duration)
     n = max(2, int(np.ceil(duration / options.knot_period)) + 1)
     t = np.linspace(0.0, duration, n)
+    # One evaluation of s(t), s'(t), s''(t) for all knots (toppra's public calls would
+    # repeat it for q, qd and qdd); s(t) also tells which route step each knot is in.
     evaluate = getattr(traj, "_eval_params", None)
-    if evaluate is not None:
-        # One evaluation of s(t), s'(t), s''(t) for all knots (toppra's public calls
-        # would repeat it for q, qd and qdd).
-        s, sd, sdd = evaluate(t)
-        ps, pss = path(s, 1), path(s, 2)  # type: ignore[operator]
-        q = path(s)  # type: ignore[operator]
-        qd = ps * sd[:, None]
-        qdd = pss * (sd ** 2)[:, None] + ps * sdd[:, None]
-    else:  # pragma: no cover - other toppra versions
-        q, qd, qdd = traj(t), traj(t, 1), traj(t, 2)
-        s = _path_parameter(traj, t, grid)
+    if evaluate is None:  # pragma: no cover - another toppra version
+        raise TimingError("this toppra's ParametrizeConstAccel has no _eval_params; "
+                          "safepath needs toppra 0.6")
+    s, sd, sdd = evaluate(t)
+    ps, pss = path(s, 1), path(s, 2)  # type: ignore[operator]
+    q = path(s)  # type: ignore[operator]
+    qd = ps * sd[:, None]
+    qdd = pss * (sd ** 2)[:, None] + ps * sdd[:, None]
     qd[0] = qd[-1] = 0.0
     return TimedPiece(t, np.asarray(q), np.asarray(qd), np.asarray(qdd), np.asarray(s),
                       np.zeros(n, dtype=int))
 
-
-def _path_parameter(traj: object, t: np.ndarray, grid: np.ndarray) -> np.ndarray:
-    evaluate = getattr(traj, "_eval_params", None)
-    if evaluate is not None:
-        return np.asarray(evaluate(t)[0])
-    return np.interp(t, np.linspace(0, t[-1], len(grid)), grid)  # pragma: no cover
