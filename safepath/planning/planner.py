@@ -31,7 +31,7 @@ from .timing import TimedPiece, TimingOptions
 from .verify import FclVerifier
 
 __all__ = ["PlanOptions", "WorldState", "plan_route", "plan_cell", "route_order",
-           "initial_world", "rest_to_rest_time"]
+           "initial_world"]
 
 log = logging.getLogger(__name__)
 
@@ -322,17 +322,3 @@ def _gripper(cell: Cell, world: WorldState, step: Step, q: np.ndarray, label: st
             world.held = None
             world.resting[obj] = T_world_grasp
     return world
-
-
-def rest_to_rest_time(delta: np.ndarray, vmax: np.ndarray, amax: np.ndarray) -> float:
-    """Time-optimal rest-to-rest duration of a straight joint move [s] (trapezoid)."""
-    d = np.abs(np.asarray(delta, dtype=float))
-    moving = d > 1e-12
-    if not np.any(moving):
-        return 0.0
-    # Along the line, path speed <= min v_i/d_i, path acceleration <= min a_i/d_i (s in [0,1]).
-    v = float(np.min(vmax[moving] / d[moving]))
-    a = float(np.min(amax[moving] / d[moving]))
-    if v * v / a >= 1.0:  # triangle profile
-        return 2.0 * np.sqrt(1.0 / a)
-    return 1.0 / v + v / a

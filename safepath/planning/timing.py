@@ -21,7 +21,7 @@ import numpy as np
 from ..errors import TimingError
 from ..robot import Robot
 
-__all__ = ["TimingOptions", "TimedPiece", "spline_path", "time_path"]
+__all__ = ["TimingOptions", "TimedPiece", "spline_path", "time_path", "rest_to_rest_time"]
 
 log = logging.getLogger(__name__)
 logging.getLogger("toppra").setLevel(logging.WARNING)
@@ -245,3 +245,16 @@ def _toppra(path: object, grid: np.ndarray, vlim_grid: np.ndarray, alim_grid: np
     return TimedPiece(t, np.asarray(q), np.asarray(qd), np.asarray(qdd), np.asarray(s),
                       np.zeros(n, dtype=int))
 
+
+def rest_to_rest_time(delta: np.ndarray, vmax: np.ndarray, amax: np.ndarray) -> float:
+    """Time-optimal rest-to-rest duration of a straight joint move [s] (trapezoid)."""
+    d = np.abs(np.asarray(delta, dtype=float))
+    moving = d > 1e-12
+    if not np.any(moving):
+        return 0.0
+    # Along the line, path speed <= min v_i/d_i, path acceleration <= min a_i/d_i (s in [0,1]).
+    v = float(np.min(vmax[moving] / d[moving]))
+    a = float(np.min(amax[moving] / d[moving]))
+    if v * v / a >= 1.0:  # triangle profile
+        return 2.0 * np.sqrt(1.0 / a)
+    return 1.0 / v + v / a

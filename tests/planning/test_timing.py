@@ -19,8 +19,7 @@ from safepath import (
     plan_route,
 )
 from safepath.cell import Cell
-from safepath.planning.planner import rest_to_rest_time
-from safepath.planning.timing import TimedPiece, spline_path, time_path
+from safepath.planning.timing import TimedPiece, rest_to_rest_time, spline_path, time_path
 from safepath.robot import Robot
 
 from .conftest import LIMIT_TOL, Plans, dense_times
