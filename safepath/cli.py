@@ -65,18 +65,13 @@ def cmd_check(args: argparse.Namespace) -> int:
 
 def cmd_robot_pairs(args: argparse.Namespace) -> int:
     """Regenerate a robot folder's allowed self-collision pairs."""
-    from pathlib import Path
-
     from .robot import load_robot
     from .self_collision import write_allowed_pairs
 
     robot = load_robot(args.robot)
-    if robot.source is None:
+    target = robot.allowed_collisions_path
+    if target is None:
         raise SafepathError(f"'{args.robot}' is not a robot folder; nothing to write")
-    import yaml
-
-    spec = yaml.safe_load(robot.source.read_text())
-    target = Path(robot.source).parent / spec.get("allowed_collisions", "allowed_collisions.yaml")
     stats = write_allowed_pairs(robot, target, samples=args.samples, seed=args.seed)
     counts: dict[str, int] = {}
     for s in stats:

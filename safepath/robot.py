@@ -68,6 +68,7 @@ class Robot:
         allowed_self_pairs: Sequence[tuple[str, str]] = (),
         source: Path | None = None,
         urdf_path: Path | None = None,
+        allowed_collisions_path: Path | None = None,
     ) -> None:
         self.name = name
         self.model = model
@@ -75,6 +76,8 @@ class Robot:
         self.visual_model = visual_model
         self.source = source
         self.urdf_path = urdf_path
+        #: Where the robot folder keeps its allowed self-collision pairs (None: no folder).
+        self.allowed_collisions_path = allowed_collisions_path
         self.joint_names: tuple[str, ...] = tuple(model.names[1:])
         self.lower = np.array(model.lowerPositionLimit, dtype=float)
         self.upper = np.array(model.upperPositionLimit, dtype=float)
@@ -266,6 +269,7 @@ def _load_folder(folder: Path) -> Robot:
     tool = _parse_tool(spec.get("tool"), spec_path, full)
     pairs: list[tuple[str, str]] = []
     pairs_file = spec.get("allowed_collisions")
+    pairs_path = folder / "allowed_collisions.yaml"
     if pairs_file is not None:
         pairs_path = folder / as_str(pairs_file, path=spec_path, key="allowed_collisions")
         if pairs_path.exists():
@@ -276,7 +280,8 @@ def _load_folder(folder: Path) -> Robot:
             pairs = adjacent_link_pairs(full, geom)
     return Robot(name=name, model=full, collision_model=geom, visual_model=visual,
                  velocity_limits=vel, acceleration_limits=acc, tcp_frame=tcp, tool=tool,
-                 allowed_self_pairs=pairs, source=spec_path, urdf_path=urdf)
+                 allowed_self_pairs=pairs, source=spec_path, urdf_path=urdf,
+                 allowed_collisions_path=pairs_path)
 
 
 def _parse_tool(raw: Any, path: Path, model: pin.Model) -> ToolSpec | None:
