@@ -25,11 +25,14 @@ class CheckOptions:
             default and per-object margins.
         enforce_margin: Count a state closer to the environment than the margin as
             invalid (planning does; pose checks only report it).
+        fast: Decide states with the sphere layer first (:mod:`safepath.fastcheck`);
+            answers are the same either way, False checks every state with coal.
     """
 
     resolution: float = 0.002
     margin: float | None = None
     enforce_margin: bool = False
+    fast: bool = True
 
     def __post_init__(self) -> None:
         if not np.isfinite(self.resolution) or self.resolution <= 0:

@@ -19,6 +19,7 @@ from __future__ import annotations
 import logging
 import re
 from collections.abc import Iterable, Mapping, Sequence
+from dataclasses import replace
 from typing import Any
 
 import numpy as np
@@ -26,6 +27,7 @@ import pinocchio as pin
 
 from .checks import CheckOptions, Pair, SegmentReport, StateReport
 from .errors import ConfigError
+from .fastcheck import COLLIDES, FREE, UNSURE, SphereLayer
 from .robot import Robot
 from .scene import GRIPPER, AllowedContact, Scene, SceneObject
 
@@ -147,6 +149,10 @@ class CollisionChecker:
                 self._pair_margin.append(scene.margin_for(env_name))
             else:
                 self._pair_margin.append(margin_default)
+        for k in range(len(pairs)):
+            # Without contacts coal 3.0's boolean GJK path misses some deep box-box
+            # penetrations (seen: two boxes 18 mm into each other reported free).
+            self._gdata.collisionRequests[k].enable_contact = True
         for k, (a, b, depth) in enumerate(pairs):
             if depth:
                 self._gdata.collisionRequests[k].security_margin = -depth
@@ -171,6 +177,10 @@ class CollisionChecker:
         for k in range(len(self._pairs)):
             pool_data.collisionRequests[k].security_margin = \
                 self._gdata.collisionRequests[k].security_margin
+            pool_data.collisionRequests[k].enable_contact = True
+        self._layer: SphereLayer | None = None
+        self._layer_built = False
+        self._classify: Any = None
 
     def _add(self, gmodel: pin.GeometryModel, name: str, joint: int, frame: int,
              T: np.ndarray, obj: SceneObject) -> int:
@@ -235,13 +245,44 @@ class CollisionChecker:
             w[joint.idx_v] = 1.0 if prismatic else reach[j]
         return w
 
+    # -- the fast layer ----------------------------------------------------------------------
+    @property
+    def layer(self) -> SphereLayer | None:
+        """The sphere layer that decides most states before coal (None when disabled by
+        ``CheckOptions(fast=False)`` or when a shape has no sphere fit)."""
+        if not self._layer_built:
+            self._bind_layer()
+        return self._layer
+
+    def _bind_layer(self) -> None:
+        self._layer_built = True
+        if self.options.fast:
+            try:
+                self._layer = SphereLayer(self)
+            except ValueError as exc:
+                log.info("no sphere layer (%s): every check is exact", exc)
+        if self._layer is not None:
+            # Bound once: the single-state query is the planners' innermost call.
+            self._classify = self._layer.kernel("classify")
+            self._F, self._I = self._layer.F, self._layer.I
+
     # -- single states ---------------------------------------------------------------------
     def is_valid(self, q: np.ndarray) -> bool:
         """Inside the limits and collision-free (fast path, no details)."""
+        if not self._layer_built:
+            self._bind_layer()
+        if self._classify is not None:
+            status = self._classify(q, self._F, self._I)
+            if status != UNSURE:
+                return status == FREE
         r = self.robot
         if (q < r.lower).any() or (q > r.upper).any():
             return False
-        return not pin.computeCollisions(r.model, self._data, self._broad, q, True)
+        return not self.exact_collides(q)
+
+    def exact_collides(self, q: np.ndarray) -> bool:
+        """Whether coal finds a collision at ``q`` (limits ignored; no sphere layer)."""
+        return bool(pin.computeCollisions(self.robot.model, self._data, self._broad, q, True))
 
     def collisions(self, q: np.ndarray) -> list[Pair]:
         """Every colliding pair at ``q`` (limits ignored)."""
@@ -335,6 +376,14 @@ class CollisionChecker:
                 s = 0.0 if end is q0 else 1.0
                 return SegmentReport(False, 0, s, end.copy(), (), robot.limit_violation(end))
         n = self.segment_states(q0, q1)
+        lo, hi = (0, n) if check_ends else (1, n - 1)
+        if check_start is False:
+            lo = max(lo, 1)
+        elif check_start and not check_ends:
+            lo = 0
+        if self.layer is not None:
+            return self._certify(np.vstack([q0, q1]), np.array([n]), np.array([lo]),
+                                 np.array([hi]), details)
         order = _bisection_order(n, check_ends)
         if check_start is False:
             order = [i for i in order if i != 0]
@@ -365,14 +414,43 @@ class CollisionChecker:
             k = int(np.argmax(outside))
             return SegmentReport(False, 0, k / max(1, len(P) - 1), P[k].copy(), (),
                                  robot.limit_violation(P[k]))
+        counts = np.array([self.segment_states(P[k], P[k + 1]) for k in range(len(P) - 1)],
+                          dtype=np.int64)
+        if self.layer is not None and len(P) > 1:
+            lo = np.ones(len(counts), dtype=np.int64)
+            lo[0] = 0
+            return self._certify(P, counts, lo, counts, details)
         chunks, where = [P[:1]], [np.zeros(1)]
         for k in range(len(P) - 1):
-            n = self.segment_states(P[k], P[k + 1])
-            f = np.arange(1, n + 1) / n
+            f = np.arange(1, counts[k] + 1) / counts[k]
             chunks.append(P[k][None, :] + f[:, None] * (P[k + 1] - P[k])[None, :])
             where.append(k + f)
         fractions = np.concatenate(where) / max(1, len(P) - 1)
         return self._check_states(np.vstack(chunks), fractions, details)
+
+    def _certify(self, P: np.ndarray, counts: np.ndarray, lo: np.ndarray, hi: np.ndarray,
+                 details: bool) -> SegmentReport:
+        """Grid states ``lo[k]..hi[k]`` of every segment of the polyline ``P`` (segment
+        ``k`` cut into ``counts[k]`` steps): certified by the sphere layer where it can,
+        the rest checked exactly by coal in one batch. ``fraction`` of a failure is
+        measured along the whole polyline."""
+        layer = self.layer
+        assert layer is not None
+        status, k, i, evaluated, useg, uidx = layer.certify(P, counts, lo, hi)
+        span = max(1, len(P) - 1)
+        if status == COLLIDES:
+            q = P[k] + (i / counts[k]) * (P[k + 1] - P[k])
+            fraction = (k + i / counts[k]) / span
+            if not details:
+                return SegmentReport(False, evaluated, fraction, q)
+            return SegmentReport(False, evaluated, fraction, q, tuple(self.collisions(q)),
+                                 self.robot.limit_violation(q))
+        if len(useg) == 0:
+            return SegmentReport(True, evaluated)
+        t = (uidx / counts[useg])[:, None]
+        states = P[useg] + t * (P[useg + 1] - P[useg])
+        report = self._check_states(states, (useg + t[:, 0]) / span, details)
+        return replace(report, checked=evaluated - len(useg) + report.checked)
 
     def _check_states(self, states: np.ndarray, fractions: np.ndarray, details: bool
                       ) -> SegmentReport:

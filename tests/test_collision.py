@@ -319,7 +319,7 @@ def test_segment_sweeps_the_held_vial(cell: Cell, robot: Robot) -> None:
 
 
 def test_segment_states_and_counts(cell: Cell) -> None:
-    checker = cell.checker(held=True)
+    checker = cell.checker(held=True, options=CheckOptions(fast=False))
     q0, q1 = cell.pose("high1"), cell.pose("high2")
     n = checker.segment_states(q0, q1)
     bound = checker.displacement_bound(q0, q1)
@@ -332,6 +332,20 @@ def test_segment_states_and_counts(cell: Cell) -> None:
     assert checker.segment_states(q0, q0) == 1
     path = checker.check_path([q0, q1, q0])
     assert path.valid and path.checked >= 2 * n
+
+
+def test_segment_certified_by_clearance_evaluates_few_states(cell: Cell) -> None:
+    # The same segment with the sphere layer: open space is certified by clearance, so
+    # far fewer states are evaluated than the 2 mm grid has, with the same verdicts.
+    fast = cell.checker(held=True)
+    exact = cell.checker(held=True, options=CheckOptions(fast=False))
+    q0, q1 = cell.pose("high1"), cell.pose("high2")
+    n = fast.segment_states(q0, q1)
+    rep = fast.check_segment(q0, q1)
+    assert rep.valid and 1 <= rep.checked < (n + 1) / 5
+    for a, b in [("high1", "high2"), ("grip", "low1"), ("safe", "unsafe"), ("low1", "safe")]:
+        qa, qb = cell.pose(a), cell.pose(b)
+        assert fast.segment_is_valid(qa, qb) == exact.segment_is_valid(qa, qb), (a, b)
 
 
 def test_segment_with_an_end_outside_the_limits(cell: Cell, robot: Robot) -> None:

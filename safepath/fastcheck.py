@@ -1,0 +1,252 @@
+"""The fast layer of the collision checker: spheres that decide most states, exactly.
+
+A :class:`SphereLayer` is built from a :class:`~safepath.collision.CollisionChecker`
+(same robot, scene, world state, pairs and margins) and answers, for a state:
+
+* ``FREE``: every checked pair is farther apart than its margin. Certain: the robot's
+  and held object's shapes are enclosed by their outer spheres (:mod:`safepath.spheres`)
+  and the scene's primitives are measured exactly, so sphere distances are lower bounds
+  of the true ones;
+* ``COLLIDES``: outside the joint limits, or an inner sphere (inside a shape) is closer
+  to another shape than the margin. Certain too;
+* ``UNSURE``: anything else; the exact coal check decides.
+
+So the checker's answers do not change; only the time to reach them does. For a
+straight joint segment the layer also certifies *intervals*: a state whose clearance
+lower bound exceeds the margin by ``d`` proves every state closer than
+``d / (rate of approach)`` free, the rate being bounded per pair from the per-joint
+reach of each body (Σ_j w_j |Δq_j|). Segments are walked middle first, so open space
+costs a few evaluations and narrow places are cut down to the checker's grid
+(hpp-core's progressive / dichotomy continuous validation works this way).
+
+The kernels are compiled with numba on first use (cached on disk afterwards).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+
+from .spheres import SphereFit, fit_spheres
+
+if TYPE_CHECKING:
+    from .collision import CollisionChecker
+
+__all__ = ["SphereLayer", "FREE", "COLLIDES", "UNSURE", "LayerOptions"]
+
+FREE, COLLIDES, UNSURE = 0, 1, 2
+
+
+@dataclass(frozen=True)
+class LayerOptions:
+    """Options of the sphere layer.
+
+    Attributes:
+        cell: Edge of the grid cells the outer spheres circumscribe [m].
+        refine: A pair whose bounding spheres are farther apart than its margin plus
+            this is not refined with its fine spheres when certifying segments [m].
+        free_eps: A pair counts as certainly free only beyond its margin plus this [m].
+        proof_eps: An inner sphere proves a collision only this far inside [m].
+    """
+
+    cell: float = 0.02
+    refine: float = 0.05
+    free_eps: float = 1e-6
+    proof_eps: float = 1e-5
+
+
+def _kernels() -> Any:
+    from . import _fastkernels
+
+    return _fastkernels
+
+
+class SphereLayer:
+    """Sphere-based certificates for one collision checker (see the module doc).
+
+    Args:
+        checker: The exact checker whose pairs, margins and limits are mirrored.
+        options: Sphere fitting and tolerances.
+
+    Raises:
+        ValueError: A robot or held shape has no sphere fit (the caller stays exact).
+    """
+
+    def __init__(self, checker: CollisionChecker, options: LayerOptions | None = None) -> None:
+        self.options = options or LayerOptions()
+        self.F, self.I, self._fits = pack(checker, self.options)
+
+    # -- queries ------------------------------------------------------------------------
+    @staticmethod
+    def kernel(name: str) -> Any:
+        """A compiled kernel of :mod:`safepath._fastkernels` by name."""
+        return getattr(_kernels(), name)
+
+    def classify(self, q: np.ndarray) -> int:
+        """FREE, COLLIDES (or outside the limits) or UNSURE for one joint vector."""
+        return int(_kernels().classify(q, self.F, self.I))
+
+    def classify_many(self, Q: np.ndarray) -> np.ndarray:  # noqa: N803
+        """The status of every row of ``Q``."""
+        out = np.empty(len(Q), dtype=np.int64)
+        _kernels().classify_many(np.ascontiguousarray(Q, dtype=float), self.F, self.I, out)
+        return out
+
+    def certify(self, P: np.ndarray, n: np.ndarray, lo: np.ndarray, hi: np.ndarray  # noqa: N803
+                ) -> tuple[int, int, int, int, np.ndarray, np.ndarray]:
+        """Certify grid states of a polyline (see ``certify_polyline`` in the kernels).
+
+        Returns:
+            (status, segment, index, evaluated, unsure segments, unsure indices).
+        """
+        total = int(np.sum(np.maximum(hi - lo + 1, 0)))
+        seg = np.empty(max(total, 1), dtype=np.int64)
+        idx = np.empty(max(total, 1), dtype=np.int64)
+        status, k, i, evaluated, m = _kernels().certify_polyline(
+            np.ascontiguousarray(P, dtype=float), n.astype(np.int64), lo.astype(np.int64),
+            hi.astype(np.int64), self.F, self.I, seg, idx)
+        return int(status), int(k), int(i), int(evaluated), seg[:m], idx[:m]
+
+    @property
+    def fits(self) -> list[SphereFit]:
+        """The sphere fit of every moving body (the robot's geometries in model order, then
+        the held object), in the frame of the joint that carries it."""
+        return list(self._fits)
+
+
+def pack(checker: CollisionChecker, options: LayerOptions
+         ) -> tuple[np.ndarray, np.ndarray, list[SphereFit]]:
+    """The flat buffers the kernels read (layout in :mod:`safepath._fastkernels`)."""
+
+    from . import _fastkernels as K  # noqa: N812  (constants only; compiles nothing)
+
+    robot = checker.robot
+    model, gmodel = robot.model, checker.geometry_model
+    dof, nj = model.nq, model.njoints
+    data = model.createData()
+    import pinocchio as pin
+
+    pin.forwardKinematics(model, data, pin.neutral(model))
+    # Joints: placement (9 + 3), axis (3); parent, kind, q index.
+    J = np.zeros((nj, 15))
+    Ji = np.zeros((nj, 3), dtype=np.int64)
+    for j in range(1, nj):
+        M = model.jointPlacements[j]
+        J[j, :9] = np.asarray(M.rotation).ravel()
+        J[j, 9:12] = M.translation
+        S = np.asarray(data.joints[j].S).ravel()
+        angular = np.linalg.norm(S[3:]) > 0.5
+        J[j, 12:15] = S[3:] if angular else S[:3]
+        Ji[j] = (model.parents[j], K.JOINT_REVOLUTE if angular else K.JOINT_PRISMATIC,
+                 model.joints[j].idx_q)
+    env_set = set(checker._env)
+    movers = [i for i in range(gmodel.ngeoms) if i not in env_set]
+    mover_of = {g: m for m, g in enumerate(movers)}
+    env_of = {g: e for e, g in enumerate(checker._env)}
+    # Movers: bounding sphere (joint frame) and fine / inner sphere ranges.
+    fits: list[SphereFit] = []
+    G = np.zeros((len(movers), K.GW))
+    Gi = np.zeros((len(movers), K.GIW), dtype=np.int64)
+    spheres: list[np.ndarray] = []
+    count = 0
+    for m, g in enumerate(movers):
+        geom = gmodel.geometryObjects[g]
+        fit = fit_spheres(geom.geometry, cell=options.cell).transformed(
+            geom.placement.homogeneous)
+        fits.append(fit)
+        c, r = fit.bounding
+        kind, dims = _primitive(geom.geometry)
+        T = geom.placement.homogeneous
+        G[m] = (*c, r, *T[:3, :3].ravel(), *T[:3, 3], *dims)
+        outer = np.column_stack([fit.outer_centers, fit.outer_radii])
+        inner = np.column_stack([fit.inner_centers, fit.inner_radii])
+        Gi[m] = (geom.parentJoint, count, count + len(outer), count + len(outer),
+                 count + len(outer) + len(inner), kind)
+        spheres += [outer, inner]
+        count += len(outer) + len(inner)
+    S_ = np.vstack(spheres) if spheres else np.zeros((0, 4))
+    # Environment: world placement, dimensions, kind.
+    E = np.zeros((len(checker._env), 15))
+    Ei = np.zeros(len(checker._env), dtype=np.int64)
+    for e, g in enumerate(checker._env):
+        geom = gmodel.geometryObjects[g]
+        shape = geom.geometry
+        T = geom.placement.homogeneous.copy()
+        kind, dims = _primitive(shape)
+        if kind == K.SPHERES_ONLY:  # any other shape: its local bounding box (no proofs)
+            shape.computeLocalAABB()
+            lo, hi = np.asarray(shape.aabb_local.min_), np.asarray(shape.aabb_local.max_)
+            kind, dims = K.ENV_BOX_ONLY_OUTER, (hi - lo) / 2
+            T[:3, 3] = T[:3, :3] @ ((hi + lo) / 2) + T[:3, 3]
+        E[e, :9] = T[:3, :3].ravel()
+        E[e, 9:12] = T[:3, 3]
+        E[e, 12:15] = dims
+        Ei[e] = kind
+    # Pairs: as the exact checker's, with its security margins.
+    requests = checker._gdata.collisionRequests
+    P = np.zeros(len(checker._pairs))
+    Pi = np.zeros((len(checker._pairs), 4), dtype=np.int64)
+    for k, (a, b) in enumerate(checker._pairs):
+        sm = float(requests[k].security_margin)
+        if b in env_of:
+            Pi[k] = (mover_of[a], env_of[b], 1, 1 if sm >= 0 else 0)
+        elif a in env_of:
+            Pi[k] = (mover_of[b], env_of[a], 1, 1 if sm >= 0 else 0)
+        else:
+            Pi[k] = (mover_of[a], mover_of[b], 0, 1 if sm >= 0 else 0)
+        P[k] = sm
+    W = _mover_weights(model, G, Gi, robot.lower, robot.upper)
+    L = np.concatenate([robot.lower, robot.upper])
+    C = np.array([options.refine, options.free_eps, options.proof_eps])
+    blocks_f = [J.ravel(), G.ravel(), S_.ravel(), E.ravel(), P, W.ravel(), L, C]
+    blocks_i = [Ji.ravel(), Gi.ravel(), Ei, Pi.ravel()]
+    f_off = np.cumsum([0] + [len(b) for b in blocks_f])
+    i_off = K.HEADER + np.cumsum([0] + [len(b) for b in blocks_i])
+    header = np.zeros(K.HEADER, dtype=np.int64)
+    header[[K.H_NJ, K.H_NG, K.H_NS, K.H_NE, K.H_NP, K.H_DOF]] = (
+        nj, len(movers), len(S_), len(checker._env), len(checker._pairs), dof)
+    header[[K.H_J, K.H_G, K.H_S, K.H_E, K.H_P, K.H_W, K.H_L, K.H_C]] = f_off[:8]
+    header[[K.H_JI, K.H_GI, K.H_EI, K.H_PI]] = i_off[:4]
+    F = np.concatenate(blocks_f).astype(np.float64)
+    I_ = np.concatenate([header, *blocks_i]).astype(np.int64)
+    return F, I_, fits
+
+
+def _primitive(shape: Any) -> tuple[int, np.ndarray]:
+    """Kind code and dimensions [m] of a primitive the kernels measure exactly."""
+    import coal
+
+    from . import _fastkernels as K  # noqa: N812
+
+    if isinstance(shape, coal.Box):
+        return K.ENV_BOX, np.asarray(shape.halfSide, dtype=float)
+    if isinstance(shape, coal.Cylinder):
+        return K.ENV_CYLINDER, np.array([shape.radius, shape.halfLength, 0.0])
+    if isinstance(shape, coal.Sphere):
+        return K.ENV_SPHERE, np.array([shape.radius, 0.0, 0.0])
+    if isinstance(shape, coal.Capsule):
+        return K.ENV_CAPSULE, np.array([shape.radius, shape.halfLength, 0.0])
+    return K.SPHERES_ONLY, np.zeros(3)
+
+
+def _mover_weights(model: Any, G: np.ndarray, Gi: np.ndarray, lower: np.ndarray,
+                   upper: np.ndarray) -> np.ndarray:
+    """Per mover and joint, how far [m] the mover's points can lie from the joint's axis
+    (1 for a prismatic joint; 0 for joints that do not move it): a point moves at most
+    Σ_j w_j |Δq_j| along a straight joint segment."""
+    W = np.zeros((len(G), model.nv))
+    for m in range(len(G)):
+        reach = float(np.linalg.norm(G[m, :3])) + float(G[m, 3])
+        j = int(Gi[m, 0])
+        while j > 0:
+            prismatic = model.joints[j].shortname().startswith(("JointModelP",
+                                                                "JointModelPrismatic"))
+            iv = model.joints[j].idx_v
+            W[m, iv] = 1.0 if prismatic else reach
+            reach += float(np.linalg.norm(model.jointPlacements[j].translation))
+            if prismatic:  # the slide moves the points away from the joints above it
+                reach += max(abs(float(lower[iv])), abs(float(upper[iv])))
+            j = model.parents[j]
+    return W

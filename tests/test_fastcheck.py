@@ -1,0 +1,164 @@
+"""The sphere layer: its spheres enclose the real shapes, and it never contradicts coal.
+
+Enclosure is checked on sampled surface points of every collision shape of the Ned3 Pro,
+the Panda and the UR5 (example-robot-data convex hulls included) and of the held vial.
+Agreement is checked on random states (uniform in the limits, and close around the
+taught poses where the robot is near the cell): a state the layer calls free is free for
+coal, and a state it calls colliding collides for coal, with and without margins.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pinocchio as pin
+import pytest
+
+from safepath import CheckOptions, CollisionChecker, load_cell, load_robot
+from safepath.cell import Cell
+from safepath.fastcheck import COLLIDES, FREE, UNSURE
+from safepath.robot import Robot
+from safepath.spheres import fit_spheres, surface_points
+
+ROBOTS = ["ned3pro", "panda", "ur5"]
+
+
+@pytest.fixture(scope="module")
+def cell() -> Cell:
+    return load_cell("scenes/quality_check_cell")
+
+
+def _inside_any(points: np.ndarray, centers: np.ndarray, radii: np.ndarray) -> np.ndarray:
+    d = np.linalg.norm(points[:, None, :] - centers[None, :, :], axis=2)
+    return np.any(d <= radii[None, :], axis=1)
+
+
+@pytest.mark.parametrize("name", ROBOTS)
+def test_outer_spheres_enclose_every_shape(name: str) -> None:
+    robot = load_robot(name)
+    rng = np.random.default_rng(7)
+    for geom in robot.collision_model.geometryObjects:
+        fit = fit_spheres(geom.geometry)
+        pts = surface_points(geom.geometry, 4000, rng)
+        inside = _inside_any(pts, fit.outer_centers, fit.outer_radii)
+        assert inside.all(), f"{name}/{geom.name}: {np.sum(~inside)} surface points outside"
+        # Points inside the shape too (toward the centroid of a convex body).
+        c = pts.mean(axis=0)
+        inner = c + (pts - c) * rng.random((len(pts), 1))
+        assert _inside_any(inner, fit.outer_centers, fit.outer_radii).all(), geom.name
+
+
+def test_held_vial_is_enclosed(cell: Cell) -> None:
+    vial = cell.scene.objects["vial"].shape.to_coal()
+    fit = fit_spheres(vial)
+    pts = surface_points(vial, 4000, np.random.default_rng(3))
+    assert _inside_any(pts, fit.outer_centers, fit.outer_radii).all()
+
+
+@pytest.mark.parametrize("name", ROBOTS)
+def test_inner_spheres_lie_inside_their_shape(name: str) -> None:
+    import coal
+
+    robot = load_robot(name)
+    rng = np.random.default_rng(11)
+    for geom in robot.collision_model.geometryObjects:
+        fit = fit_spheres(geom.geometry)
+        if not len(fit.inner_radii):
+            continue
+        v = rng.normal(size=(500, 3))
+        v /= np.linalg.norm(v, axis=1, keepdims=True)
+        which = rng.integers(len(fit.inner_radii), size=500)
+        pts = fit.inner_centers[which] + v * fit.inner_radii[which, None]
+        probe = coal.Sphere(1e-9)
+        for p in pts[:200]:
+            req, res = coal.DistanceRequest(), coal.DistanceResult()
+            d = coal.distance(geom.geometry, coal.Transform3s(), probe,
+                              coal.Transform3s(np.eye(3), p), req, res)
+            assert d <= 1e-6, f"{name}/{geom.name}: inner sphere point {d * 1000:.3f} mm outside"
+
+
+def test_kernel_kinematics_match_pinocchio(cell: Cell) -> None:
+    from safepath import _fastkernels as K
+
+    for robot in (cell.robot, load_robot("panda")):
+        checker = CollisionChecker(robot)
+        layer = checker.layer
+        assert layer is not None
+        ws = K._workspace(int(layer.I[K.H_NJ]), int(layer.I[K.H_NG]))
+        data = robot.model.createData()
+        for q in np.random.default_rng(0).uniform(robot.lower, robot.upper, (50, robot.dof)):
+            K._fk(q, layer.F, layer.I, ws.Rw, ws.pw)
+            pin.forwardKinematics(robot.model, data, q)
+            for j in range(1, robot.model.njoints):
+                np.testing.assert_allclose(ws.Rw[j], data.oMi[j].rotation, atol=1e-12)
+                np.testing.assert_allclose(ws.pw[j], data.oMi[j].translation, atol=1e-12)
+
+
+def _states(robot: Robot, poses: list[np.ndarray], n: int, rng: np.random.Generator
+            ) -> np.ndarray:
+    """Half uniform in the limits, half close around the given poses (near the cell)."""
+    uniform = rng.uniform(robot.lower, robot.upper, size=(n // 2, robot.dof))
+    base = np.asarray(poses)[rng.integers(len(poses), size=n - n // 2)]
+    near = np.clip(base + rng.normal(0.0, 0.15, size=base.shape), robot.lower, robot.upper)
+    return np.vstack([uniform, near])
+
+
+def _disagreements(fast: CollisionChecker, exact: CollisionChecker, Q: np.ndarray  # noqa: N803
+                   ) -> tuple[int, int, np.ndarray]:
+    layer = fast.layer
+    assert layer is not None
+    status = layer.classify_many(Q)
+    truth = np.array([exact.is_valid(q) for q in Q])
+    false_free = int(np.sum((status == FREE) & ~truth))
+    false_collide = int(np.sum((status == COLLIDES) & truth))
+    return false_free, false_collide, status
+
+
+@pytest.mark.parametrize(("held", "margin", "n"), [(False, True, 60_000), (True, True, 30_000),
+                                                    (True, False, 10_000)])
+def test_layer_never_contradicts_coal_in_the_cell(cell: Cell, held: bool, margin: bool,
+                                                  n: int) -> None:
+    options = CheckOptions(enforce_margin=margin)
+    fast = cell.checker(held=held, options=options)
+    exact = cell.checker(held=held, options=CheckOptions(enforce_margin=margin, fast=False))
+    Q = _states(cell.robot, list(cell.poses.values()), n, np.random.default_rng(n))  # noqa: N806
+    false_free, false_collide, status = _disagreements(fast, exact, Q)
+    assert false_free == 0 and false_collide == 0
+    # And it is worth having: most states are decided without coal.
+    assert np.mean(status == UNSURE) < 0.2
+    # is_valid (layer, then coal for the unsure) answers exactly as coal alone.
+    sample = Q[:2000]
+    assert [fast.is_valid(q) for q in sample] == [exact.is_valid(q) for q in sample]
+
+
+@pytest.mark.parametrize("name", ["panda", "ur5"])
+def test_layer_never_contradicts_coal_for_other_robots(cell: Cell, name: str) -> None:
+    # The cell's objects around another arm: convex-hull links (example-robot-data).
+    robot = load_robot(name)
+    options = CheckOptions(enforce_margin=True)
+    fast = CollisionChecker(robot, cell.scene, options=options)
+    exact = CollisionChecker(robot, cell.scene,
+                             options=CheckOptions(enforce_margin=True, fast=False))
+    rng = np.random.default_rng(5)
+    Q = rng.uniform(robot.lower, robot.upper, size=(10_000, robot.dof))  # noqa: N806
+    false_free, false_collide, _ = _disagreements(fast, exact, Q)
+    assert false_free == 0 and false_collide == 0
+
+
+def test_segments_answer_as_the_exact_grid(cell: Cell) -> None:
+    # Every grid state of a segment is either certified free or checked by coal, so a
+    # segment is valid for the layer exactly when all its 2 mm grid states are.
+    options = CheckOptions(enforce_margin=True)
+    fast = cell.checker(held=True, options=options)
+    exact = cell.checker(held=True, options=CheckOptions(enforce_margin=True, fast=False))
+    rng = np.random.default_rng(2)
+    Q = _states(cell.robot, list(cell.poses.values()), 600, rng)  # noqa: N806
+    agree = valid = 0
+    for q0, q1 in zip(Q[::2], Q[1::2], strict=True):
+        a = fast.check_segment(q0, q1)
+        b = exact.check_segment(q0, q1)
+        assert a.valid == b.valid
+        agree += 1
+        valid += a.valid
+        if a.valid:
+            assert a.checked <= b.checked
+    assert agree == 300 and 0 < valid < 300
