@@ -1,4 +1,4 @@
-"""Straight TCP lines followed by inverse kinematics (Pinocchio, damped least squares).
+"""Straight TCP lines followed by inverse kinematics (damped least squares).
 
 The TCP moves on the segment between two positions while its orientation turns at
 constant rate from the start orientation to the goal's (geodesic); for the taught
@@ -6,19 +6,31 @@ vertical moves of the cell the two orientations agree within a few degrees, so t
 line "keeps orientation". Each TCP step is at most ``step`` long and no joint may
 move more than ``max_joint_step`` for it: a branch switch (a joint jump) is a failure,
 reported with the fraction of the line where it happened.
+
+:func:`solve_ik` works on Pinocchio from Python. A line runs the same algorithm in
+one numba call (:mod:`._ik_kernel`, imported on the first line): a few hundred
+solves per cell, most of them accepted after one step because each waypoint is
+seeded with the previous waypoints' motion continued.
 """
 
 from __future__ import annotations
 
+import logging
+import weakref
 from dataclasses import dataclass
 
 import numpy as np
 import pinocchio as pin
 
-from ..errors import IKError
+from ..errors import ConfigError, IKError
 from ..robot import Robot
 
 __all__ = ["LineOptions", "solve_ik", "cartesian_line"]
+
+log = logging.getLogger(__name__)
+
+#: Damping of the least-squares step (added to the diagonal of J J^T).
+_DAMPING = 1e-6
 
 
 @dataclass(frozen=True)
@@ -56,19 +68,17 @@ def solve_ik(robot: Robot, T_world_tcp: pin.SE3, q_seed: np.ndarray, *,
         data = model.createData()
     fid = robot.tcp_frame_id
     q = q_seed.copy()
-    damping = 1e-6
+    damping = _DAMPING * np.eye(6)
     for _ in range(options.max_iterations):
         pin.forwardKinematics(model, data, q)
         T = pin.updateFramePlacement(model, data, fid)
-        err = pin.log6(T.actInv(T_world_tcp)).vector
+        M = T.actInv(T_world_tcp)
+        err = pin.log6(M).vector
         if (np.linalg.norm(T_world_tcp.translation - T.translation) < options.position_tolerance
                 and np.linalg.norm(err[3:]) < options.orientation_tolerance):
             return q
-        J = pin.computeFrameJacobian(model, data, q, fid, pin.LOCAL)
-        Jlog = pin.Jlog6(T.actInv(T_world_tcp))
-        Jt = Jlog @ J
-        dq = Jt.T @ np.linalg.solve(Jt @ Jt.T + damping * np.eye(6), err)
-        q = np.clip(q + dq, robot.lower, robot.upper)
+        J = pin.Jlog6(M) @ pin.computeFrameJacobian(model, data, q, fid, pin.LOCAL)
+        q = np.clip(q + J.T @ np.linalg.solve(J @ J.T + damping, err), robot.lower, robot.upper)
     return None
 
 
@@ -78,42 +88,98 @@ def cartesian_line(robot: Robot, q_start: np.ndarray, q_goal: np.ndarray, *,
     """Joint waypoints that move the TCP in a straight line from its pose at
     ``q_start`` to its pose at ``q_goal``; the last waypoint is ``q_goal`` itself.
 
+    Every waypoint before the last puts the TCP on the line within the IK tolerances.
+
     Raises:
         IKError: No continuous IK solution; says where along the line and why.
     """
+    from . import _ik_kernel as kernel
+
+    chain = _line_chain(robot)
     T0 = robot.frame_pose(q_start)
     T1 = robot.frame_pose(q_goal)
-    length = float(np.linalg.norm(T1.translation - T0.translation))
-    angle = float(np.linalg.norm(pin.log3(T0.rotation.T @ T1.rotation)))
+    p0, p1 = T0.translation, T1.translation
+    length = float(np.linalg.norm(p1 - p0))
+    w_line = pin.log3(T0.rotation.T @ T1.rotation)
+    angle = float(np.linalg.norm(w_line))
     n = max(1, int(np.ceil(max(length / options.step, angle / 0.05))))
-    path = [q_start.copy()]
-    q = q_start.copy()
-    data = robot.model.createData()
-    for k in range(1, n + 1):
+    path = np.empty((n + 1, robot.dof))
+    path[0] = q_start
+    params = np.array([options.position_tolerance, options.orientation_tolerance,
+                       options.max_joint_step, _DAMPING])
+    status, k, iterations, jump = kernel.line_path(
+        chain.joint_f, chain.joint_i, chain.frame_f, np.ascontiguousarray(T0.rotation),
+        np.ascontiguousarray(w_line, dtype=float), np.ascontiguousarray(p0),
+        np.ascontiguousarray(p1), np.ascontiguousarray(robot.lower, dtype=float),
+        np.ascontiguousarray(robot.upper, dtype=float), params,
+        int(options.max_iterations), path)
+    log.debug("line %s: %d waypoints, %d IK steps", step_name, n, iterations)
+    if status != kernel.OK:
         s = k / n
-        rotation = _interp(T0, T1, s).rotation
-        T = pin.SE3(rotation, (1 - s) * T0.translation + s * T1.translation)
-        # Seed with the previous step's motion continued (fewer iterations); the jump
-        # bound below is still measured from the previous waypoint.
-        seed = q if len(path) < 2 else np.clip(2 * q - path[-2], robot.lower, robot.upper)
-        q_next = solve_ik(robot, T, seed, options=options, data=data)
-        if q_next is None:
+        position = (1 - s) * p0 + s * p1
+        if status == kernel.NO_SOLUTION:
             raise IKError("no inverse-kinematics solution (out of reach or at a joint limit)",
-                          step=step_name, fraction=s, position=T.translation.copy())
-        jump = float(np.max(np.abs(q_next - q)))
-        if jump > options.max_joint_step:
-            raise IKError(f"joint jump of {jump:.3f} rad for a {length / n * 1000:.1f} mm TCP "
-                          "step (singularity or branch switch)", step=step_name, fraction=s,
-                          position=T.translation.copy())
-        path.append(q_next)
-        q = q_next
+                          step=step_name, fraction=s, position=position)
+        raise IKError(f"joint jump of {jump:.3f} rad for a {length / n * 1000:.1f} mm TCP "
+                      "step (singularity or branch switch)", step=step_name, fraction=s,
+                      position=position)
     gap = float(np.max(np.abs(path[-1] - q_goal)))
     if gap > options.goal_tolerance:
         raise IKError(f"the line ends {gap:.3f} rad away from the taught pose (another IK "
-                      "branch)", step=step_name, fraction=1.0, position=T1.translation.copy())
-    path[-1] = q_goal.copy()
-    return path
+                      "branch)", step=step_name, fraction=1.0, position=p1.copy())
+    path[-1] = q_goal
+    return list(path)
 
 
-def _interp(T0: pin.SE3, T1: pin.SE3, s: float) -> pin.SE3:
-    return T0 * pin.exp6(s * pin.log6(T0.actInv(T1)))
+@dataclass(frozen=True)
+class _Chain:
+    """The kinematic chain from the root to the TCP as flat arrays for the kernel
+    (layout in :mod:`._ik_kernel`)."""
+
+    joint_f: np.ndarray
+    joint_i: np.ndarray
+    frame_f: np.ndarray
+
+
+_CHAINS: weakref.WeakKeyDictionary[Robot, tuple[pin.Model, _Chain]] = \
+    weakref.WeakKeyDictionary()
+
+
+def _line_chain(robot: Robot) -> _Chain:
+    """The robot's chain to its TCP, built once per robot (and model).
+
+    Raises:
+        ConfigError: A joint on the chain does not move as a screw of constant axis
+            (revolute, prismatic or helical), which the kernel assumes.
+    """
+    cached = _CHAINS.get(robot)
+    if cached is not None and cached[0] is robot.model:
+        return cached[1]
+    model = robot.model
+    data = model.createData()
+    frame = model.frames[robot.tcp_frame_id]
+    joints = [j for j in model.supports[frame.parentJoint] if j != 0]
+    q_test = np.clip(np.full(model.nq, 0.7), robot.lower, robot.upper)
+    pin.forwardKinematics(model, data, q_test)
+    joint_f = np.zeros((len(joints), 18))
+    joint_i = np.zeros(len(joints), dtype=np.int64)
+    for row, j in enumerate(joints):
+        placement = model.jointPlacements[j]
+        S = np.asarray(data.joints[j].S, dtype=float).reshape(6)
+        x = float(q_test[model.idx_qs[j]])
+        moved = pin.exp6(pin.Motion(S * x))
+        angular = float(np.linalg.norm(S[3:]))
+        if (not (abs(angular - 1.0) < 1e-12 or angular == 0.0)
+                or np.linalg.norm(np.cross(S[:3], S[3:])) > 1e-12
+                or not data.joints[j].M.isApprox(moved, 1e-12)):
+            raise ConfigError(f"joint '{model.names[j]}' ({model.joints[j].shortname()}) is "
+                              "not a revolute, prismatic or helical joint; Cartesian lines "
+                              "cannot follow it", path=robot.source, key="urdf")
+        joint_f[row, :9] = placement.rotation.reshape(9)
+        joint_f[row, 9:12] = placement.translation
+        joint_f[row, 12:] = S
+        joint_i[row] = model.idx_qs[j]
+    frame_f = np.concatenate([frame.placement.rotation.reshape(9), frame.placement.translation])
+    chain = _Chain(joint_f, joint_i, frame_f)
+    _CHAINS[robot] = (model, chain)
+    return chain
