@@ -1,13 +1,20 @@
-"""Time-optimal timing of a joint path with TOPPRA, under the robot's limits.
+"""Time-optimal timing of a joint path with TOPP-RA, under the robot's limits, strictly.
 
 The path (a polyline of joint waypoints) is interpolated by a cubic spline through
 evenly spaced points, which rounds the corners a little (the caller re-checks the
-spline for collisions and falls back to stopping at corners). TOPPRA then finds the
-fastest timing under joint velocity and acceleration limits that vary along the path
-(each route step has its own speed scale and an optional TCP speed limit), with the
-``ParametrizeConstAccel`` parametrizer, which respects the limits. The output is
-sampled and checked: no sample may exceed a limit by more than ``tolerance``; if one
-does, the limits are tightened by the excess and the timing is redone.
+spline for collisions and falls back to stopping at corners). TOPP-RA (our numba kernel
+in :mod:`._topp`) then finds the fastest timing under joint velocity and acceleration
+limits that vary along the path (each route step has its own speed scale and an optional
+TCP speed limit), with a constant path acceleration between gridpoints.
+
+TOPP-RA enforces the limits at its gridpoints (which follow the spline's pieces, see
+:mod:`._path_limits`) and at the middle of each grid interval; the output knots between
+them may still exceed a limit a little. Knots over a limit by more than
+:data:`RETIME_ABOVE` get the limits tightened around them and the path is timed again
+(``retries`` runs in all); what is left is removed by stretching time uniformly, which
+divides velocities by ``k`` and accelerations by ``k^2``. No released knot exceeds a
+limit: the ratios of the released knots are checked, and a
+:class:`~safepath.errors.TimingError` is raised rather than release one over 1.0.
 """
 
 from __future__ import annotations
@@ -20,11 +27,21 @@ import numpy as np
 
 from ..errors import TimingError
 from ..robot import Robot
+from . import _topp
+from ._path_limits import PathLimits, PathSpline, path_limits, row_max
 
-__all__ = ["TimingOptions", "TimedPiece", "spline_path", "time_path", "rest_to_rest_time"]
+__all__ = ["TimingOptions", "TimedPiece", "PathSpline", "spline_path", "time_path",
+           "rest_to_rest_time", "RETIME_ABOVE"]
 
 log = logging.getLogger(__name__)
-logging.getLogger("toppra").setLevel(logging.WARNING)
+
+#: Relative excess of a limit on a knot above which the path is re-timed with locally
+#: tightened limits; a smaller excess is removed by the uniform time stretch, which costs
+#: at most that fraction of the motion time.
+RETIME_ABOVE = 1e-3
+#: Margin the final stretch leaves below every limit (relative), so that the released
+#: ratios stay <= 1.0 however they are rounded.
+_SLACK = 1e-9
 
 
 @dataclass(frozen=True)
@@ -33,11 +50,11 @@ class TimingOptions:
 
     Attributes:
         speed_scale: Global fraction of the velocity and acceleration limits, in (0, 1].
-        knot_period: Period of the output knots [s].
+        knot_period: Period of the output knots [s] (longer by the final stretch, if any).
         spacing: Spacing of the spline's interpolation points along the path [rad].
-        grid_step: Spacing of TOPPRA's grid along the path [rad].
-        tolerance: Allowed relative excess of a limit on a sample (0.001 = 0.1 %).
-        retries: TOPPRA runs with locally tightened limits before time is stretched.
+        grid_step: Spacing of TOPP-RA's grid along the path [rad].
+        retries: TOPP-RA runs (the first included) with locally tightened limits before
+            the remaining excess is removed by stretching time.
         blend_radii: Blend radii tried at via points, largest first [rad]; 0 passes
             through the via pose exactly.
     """
@@ -46,7 +63,6 @@ class TimingOptions:
     knot_period: float = 0.004
     spacing: float = 0.06
     grid_step: float = 0.015
-    tolerance: float = 0.001
     retries: int = 2
     blend_radii: tuple[float, ...] = (0.6, 0.3, 0.1, 0.0)
 
@@ -59,6 +75,10 @@ class TimingOptions:
         if not self.knot_period > 0:
             raise ConfigError(f"knot_period must be > 0, got {self.knot_period}",
                               key="knot_period")
+        if not self.grid_step > 0:
+            raise ConfigError(f"grid_step must be > 0, got {self.grid_step}", key="grid_step")
+        if self.retries < 1:
+            raise ConfigError(f"retries must be >= 1, got {self.retries}", key="retries")
 
 
 @dataclass(frozen=True)
@@ -84,7 +104,7 @@ class TimedPiece:
 
 def spline_path(waypoints: Sequence[np.ndarray], spacing: float, *,
                 corners: Sequence[tuple[int, float]] = ()
-                ) -> tuple[object, np.ndarray, np.ndarray]:
+                ) -> tuple[PathSpline, np.ndarray, np.ndarray]:
     """A cubic spline through a polyline resampled every ``spacing`` [rad].
 
     Args:
@@ -96,10 +116,11 @@ def spline_path(waypoints: Sequence[np.ndarray], spacing: float, *,
             instead of passing through it.
 
     Returns:
-        The toppra spline, the path parameter of each input waypoint (its closest
-        point for cut corners), and the spline's interpolation parameters.
+        The spline (scipy's not-a-knot ``CubicSpline``), the path parameter of each input
+        waypoint (its closest point for cut corners), and the spline's interpolation
+        parameters.
     """
-    import toppra as ta
+    from scipy.interpolate import CubicSpline
 
     W = np.asarray(waypoints, dtype=float)
     seg = np.linalg.norm(np.diff(W, axis=0), axis=1)
@@ -125,14 +146,43 @@ def spline_path(waypoints: Sequence[np.ndarray], spacing: float, *,
     if len(P) == 2:  # a straight line: a linear "spline"
         P = np.vstack([P[0], 0.5 * (P[0] + P[1]), P[1]])
         S = np.array([0.0, S[-1] / 2, S[-1]])
-    path = ta.SplineInterpolator(S, P, bc_type="not-a-knot")
+    path: PathSpline = CubicSpline(S, P, bc_type="not-a-knot")
     return path, s_way, S
 
 
-def time_path(robot: Robot, path: object, s_way: np.ndarray, *, scales: Sequence[float],
+@dataclass(frozen=True)
+class _Run:
+    """One TOPP-RA run sampled at the knots (positions left out until released).
+
+    Attributes:
+        t: Knot times [s].
+        s: Path parameter of each knot.
+        qd: Velocities [rad/s].
+        qdd: Accelerations [rad/s^2].
+        segment: Input segment of each knot.
+        v_ratio: Per knot, the largest |qd| / vmax (of its segment).
+        a_ratio: Per knot, the largest |qdd| / amax.
+    """
+
+    t: np.ndarray
+    s: np.ndarray
+    qd: np.ndarray
+    qdd: np.ndarray
+    segment: np.ndarray
+    v_ratio: np.ndarray
+    a_ratio: np.ndarray
+
+    @property
+    def stretched(self) -> float:
+        """Its duration once stretched to meet every limit [s]."""
+        return float(self.t[-1]) * _stretch(float(self.v_ratio.max()),
+                                            float(self.a_ratio.max()))
+
+
+def time_path(robot: Robot, path: PathSpline, s_way: np.ndarray, *, scales: Sequence[float],
               tcp_speeds: Sequence[float | None], options: TimingOptions = TimingOptions(),
               step: str | None = None) -> TimedPiece:
-    """Time a spline path rest to rest.
+    """Time a spline path rest to rest, every knot within the limits.
 
     Args:
         robot: Limits and kinematics.
@@ -144,106 +194,88 @@ def time_path(robot: Robot, path: object, s_way: np.ndarray, *, scales: Sequence
         step: Step name for errors.
 
     Raises:
-        TimingError: TOPPRA found no feasible timing.
+        TimingError: TOPP-RA found no feasible timing, or a knot would break a limit.
     """
-    length = float(s_way[-1])
-    n_grid = max(20, int(np.ceil(length / options.grid_step)) + 1)
-    grid = np.union1d(np.linspace(0.0, length, n_grid), s_way)
-    seg_of_grid = np.clip(np.searchsorted(s_way, grid, side="right") - 1, 0, len(scales) - 1)
-    scale_grid = np.asarray(scales, dtype=float)[seg_of_grid] * options.speed_scale
-    vmax = robot.velocity_limits
-    amax = robot.acceleration_limits
-    # TCP speed: sdot <= v_tcp / |dp/ds|, expressed as per-joint velocity bounds.
-    dq = path(grid, 1)  # type: ignore[operator]
-    vlim_grid = scale_grid[:, None] * vmax[None, :]
-    if any(v is not None for v in tcp_speeds):
-        q_grid = path(grid)  # type: ignore[operator]
-        p = np.array([robot.tcp_position(q) for q in q_grid])
-        dp = np.gradient(p, grid, axis=0)
-        speed = np.linalg.norm(dp, axis=1)
-        for g, seg in enumerate(seg_of_grid):
-            v = tcp_speeds[seg]
-            if v is None or speed[g] < 1e-9:
-                continue
-            sd_max = v / speed[g]
-            vlim_grid[g] = np.minimum(vlim_grid[g], np.maximum(np.abs(dq[g]) * sd_max, 1e-9))
-    # TOPPRA enforces the limits at grid points; between them, and where the spline
-    # bends sharply, a sample may exceed a limit a little. Tighten the limits only around
-    # the offending samples and time again; as a last resort stretch time uniformly,
-    # which scales velocities by 1/k and accelerations by 1/k^2 and so meets the limits.
-    seg_scales = np.asarray(scales, dtype=float) * options.speed_scale
-    factor = np.ones(len(grid))
-    ratio = float("inf")
-    piece: TimedPiece | None = None
+    where = f" (step '{step}')" if step else ""
+    limits = path_limits(robot, path, s_way, scales, tcp_speeds,
+                         speed_scale=options.speed_scale, grid_step=options.grid_step)
+    # Knots between gridpoints may still exceed a limit a little: tighten the limits only
+    # around those knots and time again, and keep the run that is fastest once stretched
+    # to meet every limit.
+    factor = np.ones(limits.grid.size)
+    best: _Run | None = None
     for attempt in range(options.retries):
-        piece = _toppra(path, grid, vlim_grid * factor[:, None],
-                        scale_grid[:, None] * amax[None, :] * factor[:, None], options, step)
-        seg_index = np.clip(np.searchsorted(s_way, piece.s, side="right") - 1, 0,
-                            len(scales) - 1)
-        piece = TimedPiece(piece.t, piece.q, piece.qd, piece.qdd, piece.s, seg_index)
-        v_ratio, a_ratio = _knot_ratios(piece, robot, seg_scales)
-        per_knot = np.maximum(v_ratio, a_ratio)
-        previous, ratio = ratio, float(per_knot.max())
-        if ratio <= 1.0 + options.tolerance:
-            return piece
-        if ratio >= previous - 1e-6:
-            break  # tightening no longer helps: stretch time below
+        run = _time_once(path, limits, factor, options.knot_period, where)
+        if best is None or run.stretched < best.stretched:
+            best = run
+        per_knot = np.maximum(run.v_ratio, run.a_ratio)
+        ratio = float(per_knot.max())
+        if ratio <= 1.0 + RETIME_ABOVE or attempt + 1 == options.retries:
+            break
         log.debug("timing attempt %d exceeds limits by %.3f %%; tightening locally", attempt,
                   (ratio - 1) * 100)
-        over = per_knot > 1.0 + options.tolerance / 2
-        g_of_knot = np.clip(np.searchsorted(grid, piece.s[over]), 0, len(grid) - 1)
-        for g, r in zip(g_of_knot, per_knot[over], strict=True):
-            lo, hi = max(g - 2, 0), min(g + 3, len(grid))
-            factor[lo:hi] = np.minimum(factor[lo:hi], 1.0 / (r * (1 + options.tolerance / 4)))
-    if piece is None:
-        raise TimingError("no timing attempt was made (retries must be >= 1)")
-    v_ratio, a_ratio = _knot_ratios(piece, robot, seg_scales)
-    k = max(1.0, float(v_ratio.max()), float(np.sqrt(a_ratio.max()))) * (1.0 + 1e-9)
-    log.debug("timing still %.3f %% over; stretching time by %.4f", (ratio - 1) * 100, k)
-    return TimedPiece(piece.t * k, piece.q, piece.qd / k, piece.qdd / (k * k), piece.s,
-                      piece.segment)
+        _tighten(factor, limits.grid, run.s, per_knot)
+    assert best is not None  # options.retries >= 1
+    return _release(best, path, limits, where)
 
 
-def _knot_ratios(piece: TimedPiece, robot: Robot, seg_scales: np.ndarray
-                 ) -> tuple[np.ndarray, np.ndarray]:
-    """Per knot, the largest |qd|/vmax and the largest |qdd|/amax (scaled limits)."""
-    scale = seg_scales[piece.segment][:, None]
-    v = np.max(np.abs(piece.qd) / (robot.velocity_limits[None, :] * scale), axis=1)
-    a = np.max(np.abs(piece.qdd) / (robot.acceleration_limits[None, :] * scale), axis=1)
-    return v, a
-
-
-def _toppra(path: object, grid: np.ndarray, vlim_grid: np.ndarray, alim_grid: np.ndarray,
-            options: TimingOptions, step: str | None) -> TimedPiece:
-    import toppra.algorithm as algo
-
-    from ._constraints import VaryingAcceleration, VaryingVelocity
-
-    pc_vel = VaryingVelocity(vlim_grid)
-    pc_acc = VaryingAcceleration(alim_grid)
-    instance = algo.TOPPRA([pc_vel, pc_acc], path, gridpoints=grid,
-                           parametrizer="ParametrizeConstAccel")
-    traj = instance.compute_trajectory(0.0, 0.0)
-    if traj is None:
-        raise TimingError("TOPPRA found no feasible timing" + (f" (step '{step}')" if step
-                                                                 else ""))
-    duration = float(traj.duration)
-    n = max(2, int(np.ceil(duration / options.knot_period)) + 1)
+def _time_once(path: PathSpline, limits: PathLimits, factor: np.ndarray, knot_period: float,
+               where: str) -> _Run:
+    """One TOPP-RA run with the limits scaled by ``factor`` per gridpoint, sampled at knots."""
+    x = _topp.solve(limits.grid, limits.at_grid.xmax * factor ** 2, *limits.rows(factor))
+    if x is None:
+        raise TimingError("TOPP-RA found no feasible timing" + where)
+    profile = _topp.parametrize(limits.grid, x)
+    duration = profile.duration
+    if not (np.isfinite(duration) and duration > 0):
+        raise TimingError(f"TOPP-RA gave a duration of {duration} s" + where)
+    n = max(2, int(np.ceil(duration / knot_period)) + 1)
     t = np.linspace(0.0, duration, n)
-    # One evaluation of s(t), s'(t), s''(t) for all knots (toppra's public calls would
-    # repeat it for q, qd and qdd); s(t) also tells which route step each knot is in.
-    evaluate = getattr(traj, "_eval_params", None)
-    if evaluate is None:  # pragma: no cover - another toppra version
-        raise TimingError("this toppra's ParametrizeConstAccel has no _eval_params; "
-                          "safepath needs toppra 0.6")
-    s, sd, sdd = evaluate(t)
-    ps, pss = path(s, 1), path(s, 2)  # type: ignore[operator]
-    q = path(s)  # type: ignore[operator]
+    s, sd, sdd = _topp.evaluate(profile, t)
+    ps, pss = path(s, 1), path(s, 2)
     qd = ps * sd[:, None]
     qdd = pss * (sd ** 2)[:, None] + ps * sdd[:, None]
-    qd[0] = qd[-1] = 0.0
-    return TimedPiece(t, np.asarray(q), np.asarray(qd), np.asarray(qdd), np.asarray(s),
-                      np.zeros(n, dtype=int))
+    qd[0] = qd[-1] = 0.0  # at rest (not -0.0)
+    segment = np.clip(np.searchsorted(limits.s_way, s, side="right") - 1, 0,
+                      limits.vmax_seg.shape[0] - 1)
+    return _Run(t, s, qd, qdd, segment, *_knot_ratios(qd, qdd, segment, limits))
+
+
+def _knot_ratios(qd: np.ndarray, qdd: np.ndarray, segment: np.ndarray, limits: PathLimits
+                 ) -> tuple[np.ndarray, np.ndarray]:
+    """Per knot, the largest |qd|/vmax and the largest |qdd|/amax (of its segment)."""
+    return (row_max(np.abs(qd) / limits.vmax_seg[segment]),
+            row_max(np.abs(qdd) / limits.amax_seg[segment]))
+
+
+def _tighten(factor: np.ndarray, grid: np.ndarray, s: np.ndarray, per_knot: np.ndarray
+             ) -> None:
+    """Scale the limits down around every knot over a limit (in place), by its excess."""
+    over = per_knot > 1.0
+    g = np.searchsorted(grid, s[over])
+    target = 1.0 / (per_knot[over] * (1.0 + RETIME_ABOVE / 4))
+    for offset in range(-2, 3):
+        np.minimum.at(factor, np.clip(g + offset, 0, grid.size - 1), target)
+
+
+def _stretch(v_peak: float, a_peak: float) -> float:
+    """The time stretch that brings the peak ratios to just below 1 (at least 1)."""
+    return max(1.0, v_peak / (1.0 - _SLACK), float(np.sqrt(a_peak / (1.0 - _SLACK))))
+
+
+def _release(run: _Run, path: PathSpline, limits: PathLimits, where: str) -> TimedPiece:
+    """The run stretched in time just enough that every knot is within its limits, checked."""
+    k = _stretch(float(run.v_ratio.max()), float(run.a_ratio.max()))
+    t, qd, qdd = run.t, run.qd, run.qdd
+    v_ratio, a_ratio = run.v_ratio, run.a_ratio
+    if k > 1.0:
+        log.debug("timing %.4f %% over a limit; stretching time by %.6f", (k * k - 1) * 100, k)
+        t, qd, qdd = t * k, qd / k, qdd / (k * k)
+        v_ratio, a_ratio = _knot_ratios(qd, qdd, run.segment, limits)
+    worst = max(float(v_ratio.max()), float(a_ratio.max()))
+    if not worst <= 1.0:  # also NaN
+        raise TimingError(f"a timed knot is at {worst!r} of its limit" + where)
+    return TimedPiece(t, path(run.s), qd, qdd, run.s, run.segment)
 
 
 def rest_to_rest_time(delta: np.ndarray, vmax: np.ndarray, amax: np.ndarray) -> float:

@@ -13,7 +13,14 @@ import pytest
 from safepath import CheckOptions, CollisionChecker
 from safepath.planning import initial_world
 
-from .conftest import LIMIT_TOL, Plans, dense_times, object_released_at, step_worlds
+from .conftest import (
+    INTERPOLATION_TOL,
+    LIMIT_TOL,
+    Plans,
+    dense_times,
+    object_released_at,
+    step_worlds,
+)
 
 ROUTES = ("phase1", "phase2_safe", "phase2_unsafe")
 
@@ -170,4 +177,4 @@ def test_dense_samples_stay_within_limits(bundled: Plans, name: str) -> None:
     traj, robot = bundled.trajectories[name], bundled.cell.robot
     q, qd, _ = traj.sample(dense_times(traj, 0.001))
     assert np.all(q >= robot.lower - 1e-9) and np.all(q <= robot.upper + 1e-9)
-    assert (np.abs(qd) / robot.velocity_limits).max() <= 1 + 2 * LIMIT_TOL
+    assert (np.abs(qd) / robot.velocity_limits).max() <= 1 + INTERPOLATION_TOL
