@@ -19,6 +19,7 @@ CASES = [
     ("plan_cycle.py", ["--runs", "1"], "motion time against the stop-and-go baseline"),
     ("runtime_heartbeat.py", ["--runs", "1"], "heartbeat gap"),
     ("view_startup.py", ["--runs", "1"], ""),
+    ("cold_start.py", ["--runs", "1", "--warmup", "0"], "first / second plan_cell"),
 ]
 
 

@@ -1,0 +1,162 @@
+"""Cold start: what a new process pays before its first trajectory.
+
+Every figure is measured in new Python processes (this interpreter, ``subprocess``),
+``--runs`` times, and printed as median, min and max [s]:
+
+* ``import safepath``: ``time.perf_counter`` around the import, inside the child;
+* ``safepath plan scenes/quality_check_cell --out <new temporary folder>``: the wall
+  time of the whole process (interpreter start to exit), measured by the parent;
+* the first and the second :func:`safepath.plan_cell` of the bundled cell in one new
+  process (after ``import safepath`` and ``load_cell``), and their ratio;
+* for reference, ``import numba`` plus the first call of one cached safepath kernel
+  in a new process (after ``import safepath``): the fixed price of numba that the
+  first plan pays.
+
+Nothing is a cache hit of results: every process plans from scratch, every ``plan``
+writes to a new folder, and safepath keeps no planning results on disk. The on-disk
+caches in use are those of compiled code: Python bytecode (``__pycache__/*.pyc``) and
+numba's compiled kernels (``*.nbi``/``*.nbc`` in ``__pycache__`` or ``NUMBA_CACHE_DIR``),
+plus the operating system's file cache. ``--warmup`` runs (default 1, not counted)
+fill them first, so the figures are those of an installed copy, not of the first run
+after an install (which also compiles the numba kernels, several seconds).
+
+Targets, printed with the results: ``import safepath`` <= 0.3 s, the ``plan`` process
+<= 1.0 s, first ``plan_cell`` <= 2 x the second.
+
+Run: ``.venv/bin/python benchmarks/cold_start.py [--runs 7] [--warmup 1]``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import platform
+import statistics
+import subprocess
+import sys
+import tempfile
+import time
+from collections.abc import Sequence
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+CELL_DIR = ROOT / "scenes" / "quality_check_cell"
+#: Targets [s] (the plan ratio is first / second plan_cell).
+AIM_IMPORT, AIM_PLAN, AIM_RATIO = 0.3, 1.0, 2.0
+
+_IMPORT = """
+import time
+t0 = time.perf_counter()
+import safepath
+print(time.perf_counter() - t0)
+"""
+
+_FIRST_SECOND = """
+import json, sys, time
+import safepath
+cell = safepath.load_cell(sys.argv[1])
+t0 = time.perf_counter()
+safepath.plan_cell(cell)
+t1 = time.perf_counter()
+safepath.plan_cell(cell)
+t2 = time.perf_counter()
+print(json.dumps([t1 - t0, t2 - t1]))
+"""
+
+_NUMBA = """
+import time
+import numpy as np
+import safepath
+t0 = time.perf_counter()
+from safepath.planning import _ik_kernel
+_ik_kernel.log6(np.eye(3), np.zeros(3), np.empty(6))
+print(time.perf_counter() - t0)
+"""
+
+
+def child(code: str, *args: str) -> str:
+    """Run ``code`` in a new interpreter; return its standard output."""
+    proc = subprocess.run([sys.executable, "-c", code, *args], cwd=ROOT, capture_output=True,
+                          text=True, check=False)
+    if proc.returncode != 0:
+        raise RuntimeError(f"child failed:\n{proc.stderr[-2000:]}")
+    return proc.stdout
+
+
+def plan_command() -> list[str]:
+    """The ``safepath`` console script next to this interpreter, else ``-m safepath.cli``."""
+    script = Path(sys.executable).with_name("safepath")
+    return [str(script)] if script.exists() else [sys.executable, "-m", "safepath.cli"]
+
+
+def plan_process(command: list[str]) -> float:
+    """Wall time of one ``safepath plan`` process [s], writing to a new folder."""
+    with tempfile.TemporaryDirectory() as tmp:
+        t0 = time.perf_counter()
+        proc = subprocess.run([*command, "plan", str(CELL_DIR), "--out", tmp], cwd=ROOT,
+                              capture_output=True, text=True, check=False)
+        wall = time.perf_counter() - t0
+    if proc.returncode != 0:
+        raise RuntimeError(f"safepath plan failed:\n{proc.stderr[-2000:]}")
+    return wall
+
+
+def load() -> str:
+    """The 1-minute load average, or 'n/a'."""
+    return f"{os.getloadavg()[0]:.2f}" if hasattr(os, "getloadavg") else "n/a"
+
+
+def row(name: str, values: Sequence[float], aim: float | None = None) -> str:
+    """One table row: median, min, max and the target."""
+    med = statistics.median(values)
+    target = "" if aim is None else f"<= {aim:.1f}  {'met' if med <= aim else 'NOT met'}"
+    return f"{name:<40} {med:8.3f} {min(values):8.3f} {max(values):8.3f}   {target}"
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """Measure and print the cold-start figures; returns the exit status (0)."""
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--runs", type=int, default=7, help="new processes per figure")
+    parser.add_argument("--warmup", type=int, default=1,
+                        help="uncounted runs first (fill the compiled-code caches)")
+    args = parser.parse_args(argv)
+    if args.runs < 1 or args.warmup < 0:
+        parser.error("--runs must be at least 1 and --warmup at least 0")
+
+    command = plan_command()
+    print(f"cold_start: python {platform.python_version()} on {platform.machine()}, "
+          f"{os.cpu_count()} cores, load average {load()} (before)")
+    print(f"{args.runs} new processes per figure after {args.warmup} uncounted warm-up "
+          f"run(s); plan command: {' '.join(Path(c).name for c in command)} plan "
+          f"{CELL_DIR.relative_to(ROOT)} --out <new temporary folder>")
+    for _ in range(args.warmup):
+        plan_process(command)
+        child(_FIRST_SECOND, str(CELL_DIR))
+
+    imports, plans, first, second, numba = [], [], [], [], []
+    for _ in range(args.runs):  # interleaved, so that load changes hit every figure alike
+        imports.append(float(child(_IMPORT)))
+        plans.append(plan_process(command))
+        a, b = json.loads(child(_FIRST_SECOND, str(CELL_DIR)))
+        first.append(a)
+        second.append(b)
+        numba.append(float(child(_NUMBA)))
+    ratios = [a / b for a, b in zip(first, second, strict=True)]
+
+    print()
+    header = f"{'[s]':<40} {'median':>8} {'min':>8} {'max':>8}   target"
+    print(header)
+    print("-" * len(header))
+    print(row("import safepath", imports, AIM_IMPORT))
+    print(row("safepath plan (process wall)", plans, AIM_PLAN))
+    print(row("first plan_cell in a new process", first))
+    print(row("second plan_cell (same process)", second))
+    print(row("first / second plan_cell [ratio]", ratios, AIM_RATIO))
+    print(row("numba import + first cached kernel", numba))
+    print(f"load average {load()} (after)")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
