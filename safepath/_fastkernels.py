@@ -38,14 +38,15 @@ JOINT_FIXED, JOINT_REVOLUTE, JOINT_PRISMATIC = 0, 1, 2
 
 #: Scratch arrays of one evaluation (allocated once per kernel call).
 Workspace = namedtuple("Workspace", ["Rw", "pw", "tmp", "tmp2", "Ra", "pa", "da", "Rb", "pb",
-                                     "db", "axes", "Cw"])
+                                     "db", "axes", "Cw", "bufa", "bufb"])
 
 
 @njit(cache=True, nogil=True)
-def _workspace(nj, ng):
+def _workspace(nj, ng, ns):
     return Workspace(np.empty((nj, 3, 3)), np.empty((nj, 3)), np.empty(3), np.empty(3),
                      np.empty((3, 3)), np.empty(3), np.empty(3), np.empty((3, 3)),
-                     np.empty(3), np.empty(3), np.empty((24, 3)), np.empty((ng, 3)))
+                     np.empty(3), np.empty(3), np.empty((24, 3)), np.empty((ng, 3)),
+                     np.empty((ns, 5)), np.empty((ns, 5)))
 
 
 @njit(cache=True, nogil=True)
@@ -280,22 +281,55 @@ def _pair_bound(k, fb, ib, refine, ws):  # noqa: N803
             ws.db[r] = fb[og + GW * b + 16 + r]
         sat = _sat_gap(ka, ws.Ra, ws.pa, ws.da, kb, ws.Rb, ws.pb, ws.db, ws.axes)
         return max(coarse, sat)
-    best = 1e300
-    for s in range(ib[ogi + GIW * a + 1], ib[ogi + GIW * a + 2]):
-        _world(fb, oS + 4 * s, Rw[ja], pw[ja], tmp)
-        rs = fb[oS + 4 * s + 3]
-        d0 = math.sqrt((tmp[0] - cbx) ** 2 + (tmp[1] - cby) ** 2 + (tmp[2] - cbz) ** 2) - rs - rb
-        if d0 >= best:
+    # Two sphere sets: place each once, bound each sphere against the other body's
+    # bounding sphere, take one real pair distance as an upper bound, and compare only
+    # the spheres whose bound beats it.
+    ca0, ca1, ca2 = tmp[0], tmp[1], tmp[2]
+    A, B = ws.bufa, ws.bufb
+    na = _place_spheres(fb, ib, a, Rw, pw, cbx, cby, cbz, rb, A)
+    nb = _place_spheres(fb, ib, b, Rw, pw, ca0, ca1, ca2, ra, B)
+    sa = 0
+    for i in range(1, na):
+        if A[i, 4] < A[sa, 4]:
+            sa = i
+    sb = 0
+    for i in range(1, nb):
+        if B[i, 4] < B[sb, 4]:
+            sb = i
+    best = (math.sqrt((A[sa, 0] - B[sb, 0]) ** 2 + (A[sa, 1] - B[sb, 1]) ** 2
+                      + (A[sa, 2] - B[sb, 2]) ** 2) - A[sa, 3] - B[sb, 3])
+    for i in range(na):
+        if A[i, 4] >= best:
             continue
-        for t in range(ib[ogi + GIW * b + 1], ib[ogi + GIW * b + 2]):
-            _world(fb, oS + 4 * t, Rw[jb], pw[jb], tmp2)
-            d = math.sqrt((tmp[0] - tmp2[0]) ** 2 + (tmp[1] - tmp2[1]) ** 2
-                          + (tmp[2] - tmp2[2]) ** 2) - rs - fb[oS + 4 * t + 3]
+        for j in range(nb):
+            if B[j, 4] >= best:
+                continue
+            d = (math.sqrt((A[i, 0] - B[j, 0]) ** 2 + (A[i, 1] - B[j, 1]) ** 2
+                           + (A[i, 2] - B[j, 2]) ** 2) - A[i, 3] - B[j, 3])
             if d < best:
                 best = d
                 if best - sm <= 0.0:
                     return best
     return best
+
+
+@njit(cache=True, nogil=True)
+def _place_spheres(fb, ib, m, Rw, pw, ox, oy, oz, orad, out):  # noqa: N803
+    """World centres and radii of mover ``m``'s outer spheres into ``out`` rows (x, y, z,
+    r, lower bound of the distance to the sphere (ox, oy, oz, orad)); returns the count."""
+    oS, ogi = ib[H_S], ib[H_GI]
+    j = ib[ogi + GIW * m]
+    n = 0
+    for s in range(ib[ogi + GIW * m + 1], ib[ogi + GIW * m + 2]):
+        x, y, z = fb[oS + 4 * s], fb[oS + 4 * s + 1], fb[oS + 4 * s + 2]
+        wx = Rw[j, 0, 0] * x + Rw[j, 0, 1] * y + Rw[j, 0, 2] * z + pw[j, 0]
+        wy = Rw[j, 1, 0] * x + Rw[j, 1, 1] * y + Rw[j, 1, 2] * z + pw[j, 1]
+        wz = Rw[j, 2, 0] * x + Rw[j, 2, 1] * y + Rw[j, 2, 2] * z + pw[j, 2]
+        r = fb[oS + 4 * s + 3]
+        out[n, 0], out[n, 1], out[n, 2], out[n, 3] = wx, wy, wz, r
+        out[n, 4] = math.sqrt((wx - ox) ** 2 + (wy - oy) ** 2 + (wz - oz) ** 2) - r - orad
+        n += 1
+    return n
 
 
 @njit(cache=True, nogil=True)
@@ -411,7 +445,7 @@ def classify(q, fb, ib):  # noqa: N803
     """Status of one state: FREE, COLLIDES (or outside the limits) or UNSURE."""
     if not _within_limits(q, fb, ib):
         return COLLIDES
-    ws = _workspace(ib[H_NJ], ib[H_NG])
+    ws = _workspace(ib[H_NJ], ib[H_NG], ib[H_NS])
     status, _ = _evaluate(q, fb, ib, ws, ws.tmp, False)
     return status
 
@@ -419,7 +453,7 @@ def classify(q, fb, ib):  # noqa: N803
 @njit(cache=True, nogil=True)
 def classify_many(Q, fb, ib, out):  # noqa: N803
     """Status of every row of ``Q`` into ``out``."""
-    ws = _workspace(ib[H_NJ], ib[H_NG])
+    ws = _workspace(ib[H_NJ], ib[H_NG], ib[H_NS])
     for i in range(Q.shape[0]):
         if not _within_limits(Q[i], fb, ib):
             out[i] = COLLIDES
@@ -460,7 +494,7 @@ def certify_polyline(P, n, lo, hi, fb, ib, unsure_seg, unsure_idx):  # noqa: N80
         state, else FREE (no state left but the unsure ones).
     """
     npairs, dof = ib[H_NP], ib[H_DOF]
-    ws = _workspace(ib[H_NJ], ib[H_NG])
+    ws = _workspace(ib[H_NJ], ib[H_NG], ib[H_NS])
     rates = np.empty(npairs)
     u = np.empty(dof)
     qs = np.empty(dof)

@@ -51,7 +51,7 @@ class LayerOptions:
         proof_eps: An inner sphere proves a collision only this far inside [m].
     """
 
-    cell: float = 0.02
+    cell: float = 0.04
     refine: float = 0.05
     free_eps: float = 1e-6
     proof_eps: float = 1e-5

@@ -29,6 +29,8 @@ __all__ = ["SphereFit", "fit_spheres", "surface_points"]
 
 #: Radii are grown (outer) or shrunk (inner) by this much [m]: floating-point slack.
 SLACK = 1e-6
+#: Inner spheres kept for a convex hull (the deepest ones).
+MAX_INNER = 8
 
 
 @dataclass(frozen=True)
@@ -179,9 +181,11 @@ def _fit_points(points: np.ndarray, cell: float) -> SphereFit:
     keep = np.all(signed <= rho, axis=1)
     outer = centers[keep]
     depth = -signed.max(axis=1)  # distance to the nearest facet plane, inside > 0
-    inside = depth > 0.5 * max(float(depth.max()), 0.0)
-    return _fit(outer, np.full(len(outer), rho + SLACK), centers[inside],
-                depth[inside] - SLACK)
+    # Inner: the deepest cell centres, each the ball to its nearest facet (a few suffice).
+    deepest = np.argsort(-depth, kind="stable")[:MAX_INNER]
+    deepest = deepest[depth[deepest] > 0]
+    return _fit(outer, np.full(len(outer), rho + SLACK), centers[deepest],
+                depth[deepest] - SLACK)
 
 
 def surface_points(geometry: Any, n: int, rng: np.random.Generator) -> np.ndarray:
