@@ -2,8 +2,9 @@
 
 The paths are every :func:`safepath.planning.timing.time_path` call of one warm plan of the
 bundled cell (captured while planning), plus random polylines of the Ned3 Pro. On each
-path's grid, with the robot's limits (constant along the path, so that toppra's own
-constraint classes apply), it measures ``--runs`` times and keeps the fastest:
+path, on the grid safepath gave toppra (0.015 rad steps), with the robot's limits
+(constant along the path, so that toppra's own constraint classes apply), it measures
+``--runs`` times and keeps the fastest:
 
 * ``toppra``: ``TOPPRA([JointVelocityConstraint, JointAccelerationConstraint
   (interpolation)], ParametrizeConstAccel).compute_trajectory`` and the evaluation of the
@@ -49,6 +50,9 @@ from safepath.robot import Robot
 ROOT = Path(__file__).resolve().parents[1]
 CELL_DIR = ROOT / "scenes" / "quality_check_cell"
 OUTCOMES = {"safe": ("phase1", "phase2_safe"), "unsafe": ("phase1", "phase2_unsafe")}
+#: Grid step safepath used with toppra [rad] (time_path now cuts each spline piece into
+#: steps of at most TimingOptions.grid_step, 0.005 rad).
+OLD_GRID_STEP = 0.015
 
 
 @dataclass(frozen=True)
@@ -107,9 +111,9 @@ def random_cases(robot: Robot, count: int, seed: int) -> list[Case]:
     return out
 
 
-def grid_of(length: float, options: TimingOptions) -> np.ndarray:
-    """TOPP-RA's grid as time_path lays it (without the segment boundaries)."""
-    return np.linspace(0.0, length, max(20, int(np.ceil(length / options.grid_step)) + 1))
+def grid_of(length: float) -> np.ndarray:
+    """The grid safepath gave toppra: evenly spaced, :data:`OLD_GRID_STEP` apart."""
+    return np.linspace(0.0, length, max(20, int(np.ceil(length / OLD_GRID_STEP)) + 1))
 
 
 def toppra_run(path: PathSpline, grid: np.ndarray, vmax: np.ndarray, amax: np.ndarray,
@@ -150,14 +154,13 @@ def our_run(path: PathSpline, grid: np.ndarray, vmax: np.ndarray, amax: np.ndarr
 
 def compare_runs(robot: Robot, cases: Sequence[Case], runs: int) -> None:
     """The per-run table."""
-    options = TimingOptions()
+    period = TimingOptions().knot_period
     vmax, amax = robot.velocity_limits, robot.acceleration_limits
     print(f"{'path':<34} {'grid':>5} {'toppra':>9} {'ours':>8} {'x':>6}   "
           f"{'duration':>9} {'rel. diff':>9}")
     ratios = []
-    period = options.knot_period
     for case in cases:
-        grid = grid_of(case.length, options)
+        grid = grid_of(case.length)
         reference = partial(toppra_run, case.path, grid, vmax, amax, period)
         ours = partial(our_run, case.path, grid, vmax, amax, period)
         d_ref, d_ours = reference(), ours()
@@ -221,28 +224,31 @@ def plan_split(cell: Cell) -> None:
 COLD = textwrap.dedent("""
     import time
     t0 = time.perf_counter()
-    import numba  # noqa: F401
+    import numba
     t1 = time.perf_counter()
+    numba.njit(lambda x: x + 1.0)(1.0)  # numba's own start-up, shared by every kernel
+    t2 = time.perf_counter()
     import numpy as np
     from safepath.planning import _topp
-    _topp._kernels()
+    t3 = time.perf_counter()
     grid = np.linspace(0.0, 1.0, 50)
     ones = np.ones((49, 2))
-    x = _topp.solve(grid, np.ones(50), ones, ones, ones)
-    t2 = time.perf_counter()
-    print(f"{t1 - t0:.3f} {t2 - t1:.3f}")
+    _topp.solve(grid, np.ones(50), ones, ones, ones)
+    t4 = time.perf_counter()
+    print(f"{t1 - t0:.4f} {t2 - t1:.4f} {t4 - t3:.4f}")
 """)
 
 
 def compile_times() -> None:
-    """numba's first compile and its cached load, each in a fresh process."""
+    """numba's first compile of our kernels and their cached load, in fresh processes."""
     with tempfile.TemporaryDirectory() as cache:
         env = {**os.environ, "NUMBA_CACHE_DIR": cache}
-        for label in ("first compile", "cached load"):
+        for label in ("first compile", "cached load", "cached load"):
             out = subprocess.run([sys.executable, "-c", COLD], cwd=ROOT, env=env, check=True,
                                  capture_output=True, text=True).stdout.split()
-            print(f"numba {label:<14}: import numba {float(out[0]) * 1e3:6.0f} ms, kernels "
-                  f"ready and first solve {float(out[1]) * 1e3:6.0f} ms")
+            ms_ = [float(v) * 1e3 for v in out]
+            print(f"fresh process, {label:<13}: import numba {ms_[0]:5.0f} ms, numba start-up "
+                  f"(a trivial kernel) {ms_[1]:5.0f} ms, TOPP-RA kernels ready {ms_[2]:6.1f} ms")
 
 
 def main(argv: Sequence[str] | None = None) -> int:

@@ -4,12 +4,12 @@ Each route step (input segment) has its own speed scale and optional TCP speed l
 the limits vary along the path. The grid follows the spline: each spline piece is cut
 evenly (the path's curvature is linear on a piece; across a spline knot it bends, which is
 where knots between gridpoints would otherwise exceed a limit), plus the segment
-boundaries, where the smaller limits of the two segments hold. The limits are also imposed
-at :data:`INTERIOR` points of each grid interval.
+boundaries, where the smaller limits of the two segments hold.
 """
 
 from __future__ import annotations
 
+import dataclasses
 from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Protocol
@@ -19,10 +19,10 @@ import numpy as np
 from ..robot import Robot
 from . import _topp
 
-__all__ = ["INTERIOR", "PathSpline", "PathLimits", "Points", "path_limits", "row_max"]
+__all__ = ["TCP_STEP", "PathSpline", "PathLimits", "Points", "path_limits", "row_max"]
 
-#: Where inside each grid interval the limits are imposed too (fractions of the interval).
-INTERIOR: tuple[float, ...] = (0.5,)
+#: Spacing of the points where the TCP's speed per path speed is computed [rad].
+TCP_STEP = 0.015
 
 
 class PathSpline(Protocol):
@@ -63,7 +63,6 @@ class PathLimits:
     Attributes:
         grid: Gridpoints along the path (N+1,).
         at_grid: The path and limits at the gridpoints.
-        inside: The same at :data:`INTERIOR` points of each grid interval.
         s_way: Path parameter of the segment boundaries.
         vmax_seg: Velocity limits of each segment (segments, dof) [rad/s].
         amax_seg: Acceleration limits of each segment (segments, dof) [rad/s^2].
@@ -71,23 +70,15 @@ class PathLimits:
 
     grid: np.ndarray
     at_grid: Points
-    inside: tuple[Points, ...]
     s_way: np.ndarray
     vmax_seg: np.ndarray
     amax_seg: np.ndarray
 
     def rows(self, factor: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """TOPP-RA's rows ``|a u + b x| <= c`` of each interval, with the limits at each
-        gridpoint scaled by ``factor`` (inside an interval: the smaller of its ends')."""
-        grid, at = self.grid, self.at_grid
-        rows = [_topp.acceleration_rows(grid, at.dq, at.ddq, at.alim * factor[:, None])]
-        f_in = np.minimum(factor[:-1], factor[1:])
-        for theta, inside in zip(INTERIOR, self.inside, strict=True):
-            rows.append(_topp.interior_rows(grid, theta, inside.dq, inside.ddq,
-                                            inside.alim * f_in[:, None],
-                                            inside.xmax * f_in ** 2))
-        a, b, c = (np.hstack(part) for part in zip(*rows, strict=True))
-        return a, b, c
+        """TOPP-RA's rows ``|a u + b x| <= c`` of each interval, with the acceleration
+        limits at each gridpoint scaled by ``factor``."""
+        at = self.at_grid
+        return _topp.acceleration_rows(self.grid, at.dq, at.ddq, at.alim * factor[:, None])
 
 
 def path_limits(robot: Robot, path: PathSpline, s_way: np.ndarray, scales: Sequence[float],
@@ -113,29 +104,30 @@ def path_limits(robot: Robot, path: PathSpline, s_way: np.ndarray, scales: Seque
     seg_before = np.clip(np.searchsorted(s_way, grid, side="left") - 1, 0, last)
     scale_grid = np.minimum(seg_scales[seg_of_grid], seg_scales[seg_before])
     at_grid = _points(robot, path, grid, scale_grid)
-    delta = np.diff(grid)
-    inside = tuple(_points(robot, path, grid[:-1] + theta * delta, seg_scales[seg_of_grid[:-1]])
-                   for theta in INTERIOR)
     if any(v is not None for v in tcp_speeds):
-        # TCP speed: sdot <= v_tcp / |dp/ds|, |dp/ds| by finite differences on the grid
-        # (linear between gridpoints).
-        p = np.array([robot.tcp_position(q) for q in path(grid)])
-        tcp_rate = np.linalg.norm(np.gradient(p, grid, axis=0), axis=1)
         v_seg = np.array([np.inf if v is None else v for v in tcp_speeds])
         v_grid = np.minimum(v_seg[seg_of_grid], v_seg[seg_before])
-        _limit_tcp(at_grid.xmax, v_grid, tcp_rate)
-        for theta, points in zip(INTERIOR, inside, strict=True):
-            _limit_tcp(points.xmax, v_seg[seg_of_grid[:-1]],
-                       (1 - theta) * tcp_rate[:-1] + theta * tcp_rate[1:])
-    return PathLimits(grid, at_grid, inside, s_way,
-                      seg_scales[:, None] * robot.velocity_limits,
+        at_grid = dataclasses.replace(at_grid, xmax=np.minimum(
+            at_grid.xmax, _tcp_xmax(robot, path, s_way, grid, v_grid)))
+    return PathLimits(grid, at_grid, s_way, seg_scales[:, None] * robot.velocity_limits,
                       seg_scales[:, None] * robot.acceleration_limits)
 
 
-def _limit_tcp(xmax: np.ndarray, v_tcp: np.ndarray, tcp_rate: np.ndarray) -> None:
-    """Lower ``xmax`` (in place) to keep the TCP at most ``v_tcp`` [m/s] fast."""
-    limited = np.isfinite(v_tcp) & (tcp_rate >= 1e-9)
-    xmax[limited] = np.minimum(xmax[limited], (v_tcp[limited] / tcp_rate[limited]) ** 2)
+def _tcp_xmax(robot: Robot, path: PathSpline, s_way: np.ndarray, grid: np.ndarray,
+              v_tcp: np.ndarray) -> np.ndarray:
+    """Bound on ``x`` at ``grid`` that keeps the TCP at most ``v_tcp`` [m/s] fast (inf
+    where there is no limit): ``sdot <= v_tcp / |dp/ds|``.
+
+    ``|dp/ds|`` comes from finite differences of the TCP position on a grid of its own,
+    :data:`TCP_STEP` apart (forward kinematics is the costly part; the rate varies
+    slowly), linear in between.
+    """
+    samples = _grid(path.x, s_way, TCP_STEP)
+    p = np.array([robot.tcp_position(q) for q in path(samples)])
+    rate = np.interp(grid, samples, np.linalg.norm(np.gradient(p, samples, axis=0), axis=1))
+    with np.errstate(divide="ignore"):
+        return np.where(np.isfinite(v_tcp) & (rate >= 1e-9),
+                        (v_tcp / np.maximum(rate, 1e-9)) ** 2, np.inf)
 
 
 def _grid(breaks: np.ndarray, s_way: np.ndarray, step: float) -> np.ndarray:
@@ -158,7 +150,9 @@ def _grid(breaks: np.ndarray, s_way: np.ndarray, step: float) -> np.ndarray:
     nearest = np.where(grid[after] - s_way < s_way - grid[after - 1], after, after - 1)
     on = np.abs(grid[nearest] - s_way) <= near
     grid[nearest[on]] = s_way[on]
-    return np.union1d(grid, s_way[~on])
+    if on.all():
+        return grid
+    return np.insert(grid, np.searchsorted(grid, s_way[~on]), s_way[~on])
 
 
 def _points(robot: Robot, path: PathSpline, s: np.ndarray, scale: np.ndarray) -> Points:

@@ -30,7 +30,7 @@ from typing import Any
 
 import numpy as np
 
-__all__ = ["Profile", "acceleration_rows", "interior_rows", "solve", "parametrize", "evaluate"]
+__all__ = ["Profile", "acceleration_rows", "solve", "parametrize", "evaluate"]
 
 #: Largest squared path speed [1/s^2] where no joint limits it (a joint path at rest).
 X_CAP = 1e12
@@ -79,33 +79,6 @@ def acceleration_rows(grid: np.ndarray, dq: np.ndarray, ddq: np.ndarray, alim: n
     a = np.hstack([dq[:-1], dq[1:] + 2.0 * delta * ddq[1:]])
     b = np.hstack([ddq[:-1], ddq[1:]])
     c = np.hstack([alim[:-1], alim[1:]])
-    return a, b, c
-
-
-def interior_rows(grid: np.ndarray, theta: float, dq: np.ndarray, ddq: np.ndarray,
-                  alim: np.ndarray, xmax: np.ndarray
-                  ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """The limits at a point inside each grid interval, ``s_i + theta (s_{i+1} - s_i)``.
-
-    With ``u_i`` constant, ``x`` is linear in ``s`` on the interval, ``x_i + 2 theta delta_i
-    u_i`` there, so the joint limits at the point are rows in ``(u_i, x_i)`` too. toppra
-    checks the gridpoints only; these rows keep the knots between them within limits.
-
-    Args:
-        grid: Gridpoints (N+1,).
-        theta: Where in each interval, in (0, 1).
-        dq: Path tangent at the points (N, dof).
-        ddq: Path curvature at the points (N, dof).
-        alim: Acceleration limits at the points (N, dof) [rad/s^2].
-        xmax: Bound on ``x`` at the points (N,) (velocity limits).
-
-    Returns:
-        ``a, b, c`` of shape (N, dof + 1): the accelerations, then the path speed.
-    """
-    step = 2.0 * theta * np.diff(grid)
-    a = np.hstack([dq + step[:, None] * ddq, step[:, None]])
-    b = np.hstack([ddq, np.ones((ddq.shape[0], 1))])
-    c = np.hstack([alim, xmax[:, None]])
     return a, b, c
 
 

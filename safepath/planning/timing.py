@@ -8,13 +8,12 @@ limits that vary along the path (each route step has its own speed scale and an 
 TCP speed limit), with a constant path acceleration between gridpoints.
 
 TOPP-RA enforces the limits at its gridpoints (which follow the spline's pieces, see
-:mod:`._path_limits`) and at the middle of each grid interval; the output knots between
-them may still exceed a limit a little. Knots over a limit by more than
-:data:`RETIME_ABOVE` get the limits tightened around them and the path is timed again
-(``retries`` runs in all); what is left is removed by stretching time uniformly, which
-divides velocities by ``k`` and accelerations by ``k^2``. No released knot exceeds a
-limit: the ratios of the released knots are checked, and a
-:class:`~safepath.errors.TimingError` is raised rather than release one over 1.0.
+:mod:`._path_limits`); the output knots between them may still exceed a limit a little.
+Knots over a limit by more than :data:`RETIME_ABOVE` get the limits tightened around them
+and the path is timed again (``retries`` runs in all); what is left is removed by
+stretching time uniformly, which divides velocities by ``k`` and accelerations by
+``k^2``. No released knot exceeds a limit: the ratios of the released knots are checked,
+and a :class:`~safepath.errors.TimingError` is raised rather than release one over 1.0.
 """
 
 from __future__ import annotations
@@ -52,7 +51,9 @@ class TimingOptions:
         speed_scale: Global fraction of the velocity and acceleration limits, in (0, 1].
         knot_period: Period of the output knots [s] (longer by the final stretch, if any).
         spacing: Spacing of the spline's interpolation points along the path [rad].
-        grid_step: Spacing of TOPP-RA's grid along the path [rad].
+        grid_step: Largest spacing of TOPP-RA's gridpoints along the path [rad] (each
+            spline piece is cut evenly). A finer grid gives faster motions (the path
+            acceleration is constant between gridpoints) at a little more computation.
         retries: TOPP-RA runs (the first included) with locally tightened limits before
             the remaining excess is removed by stretching time.
         blend_radii: Blend radii tried at via points, largest first [rad]; 0 passes
@@ -62,7 +63,7 @@ class TimingOptions:
     speed_scale: float = 1.0
     knot_period: float = 0.004
     spacing: float = 0.06
-    grid_step: float = 0.015
+    grid_step: float = 0.005
     retries: int = 2
     blend_radii: tuple[float, ...] = (0.6, 0.3, 0.1, 0.0)
 
@@ -269,7 +270,8 @@ def _release(run: _Run, path: PathSpline, limits: PathLimits, where: str) -> Tim
     t, qd, qdd = run.t, run.qd, run.qdd
     v_ratio, a_ratio = run.v_ratio, run.a_ratio
     if k > 1.0:
-        log.debug("timing %.4f %% over a limit; stretching time by %.6f", (k * k - 1) * 100, k)
+        log.debug("timing up to %.4f %% over a limit; stretching time by %.6f",
+                  (max(float(v_ratio.max()), float(a_ratio.max())) - 1) * 100, k)
         t, qd, qdd = t * k, qd / k, qdd / (k * k)
         v_ratio, a_ratio = _knot_ratios(qd, qdd, run.segment, limits)
     worst = max(float(v_ratio.max()), float(a_ratio.max()))

@@ -209,7 +209,6 @@ def test_a_knot_over_a_limit_is_never_released(bundled_cell: Cell,
     waypoints = _random_polyline(robot, np.random.default_rng(7), 3)
     path, s_way, _ = spline_path(waypoints, 0.06, corners=[(1, 0.3), (2, 0.3)])
     coarse = TimingOptions(grid_step=0.1, retries=1)
-    monkeypatch.setattr(_path_limits, "INTERIOR", ())
     time_path(robot, path, s_way, scales=[1.0] * 3, tcp_speeds=[None] * 3, options=coarse)
     monkeypatch.setattr(timing, "_stretch", lambda v_peak, a_peak: 1.0)
     with pytest.raises(TimingError, match=r"of its limit \(step 'corner'\)"):
@@ -234,6 +233,24 @@ def test_timing_is_deterministic(bundled_cell: Cell) -> None:
                               tcp_speeds=[None, 0.2, None]))
     for name in ("t", "q", "qd", "qdd", "s", "segment"):
         assert getattr(runs[0], name).tobytes() == getattr(runs[1], name).tobytes(), name
+
+
+def test_the_grid_follows_the_spline_pieces() -> None:
+    """Gridpoints: strictly increasing, at most ``step`` apart, on every spline knot and
+    exactly on every segment boundary (so each knot knows its segment's limits)."""
+    rng = np.random.default_rng(5)
+    for _ in range(300):
+        breaks = np.concatenate([[0.0], np.cumsum(rng.uniform(0.001, 0.2, rng.integers(2, 30)))])
+        s_way = np.unique(np.concatenate([
+            [0.0, breaks[-1]], rng.choice(breaks, rng.integers(0, breaks.size)),
+            rng.uniform(0.0, breaks[-1], rng.integers(0, 4))]))
+        step = float(rng.choice([0.005, 0.015, 0.05]))
+        grid = _path_limits._grid(breaks, s_way, step)
+        assert grid[0] == 0.0 and grid[-1] == breaks[-1]
+        assert np.all(np.diff(grid) > 0)
+        assert np.diff(grid).max() <= step * (1 + 1e-9)
+        assert np.all(np.isin(s_way, grid))
+        assert np.abs(grid[:, None] - breaks[None, :]).min(axis=0).max() <= 1e-9
 
 
 # -- our TOPP-RA against the toppra library ---------------------------------------------------
