@@ -1,0 +1,52 @@
+"""Heavy or optional dependencies load only where they are used (STYLE.md, point 8).
+
+Each check runs in a new interpreter, so that modules imported by other tests do not
+hide an eager import. The cold-start figures themselves are printed by
+``benchmarks/cold_start.py``.
+"""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+CELL = ROOT / "scenes" / "quality_check_cell"
+#: Packages that cost tenths of a second to import, or are optional.
+HEAVY = ("viser", "rosbags", "matplotlib", "scipy", "toppra", "ompl", "numba", "fcl")
+
+
+def _loaded_after(code: str) -> list[set[str]]:
+    """Top-level packages of ``sys.modules`` wherever ``code`` calls ``mark()``."""
+    script = ("import sys\n"
+              "def mark():\n"
+              "    print(' '.join(sorted({m.split('.')[0] for m in sys.modules})))\n" + code)
+    out = subprocess.run([sys.executable, "-c", script], cwd=ROOT, capture_output=True,
+                         text=True, check=True, timeout=300).stdout
+    return [set(line.split()) for line in out.splitlines()]
+
+
+def test_import_safepath_and_its_command_line_load_no_heavy_package() -> None:
+    (after_import, after_parser) = _loaded_after(
+        "import safepath\n"
+        "mark()\n"
+        "from safepath.cli import _load_extra, build_parser\n"
+        "_load_extra()\n"
+        "build_parser().parse_args(['plan', 'scenes/quality_check_cell'])\n"
+        "mark()\n")
+    assert "safepath" in after_import and "pinocchio" in after_import
+    assert after_import.isdisjoint(HEAVY), sorted(after_import & set(HEAVY))
+    assert after_parser.isdisjoint(HEAVY), sorted(after_parser & set(HEAVY))
+
+
+def test_numba_loads_with_the_first_cartesian_line() -> None:
+    before, after = _loaded_after(
+        "import safepath\n"
+        f"cell = safepath.load_cell({str(CELL)!r})\n"
+        "mark()\n"
+        "safepath.planning.cartesian_line(cell.robot, cell.pose('high2'), cell.pose('low1'))\n"
+        "mark()\n")
+    assert "numba" not in before
+    assert "numba" in after
+    assert after.isdisjoint({"viser", "rosbags", "matplotlib", "toppra", "ompl"})
