@@ -479,7 +479,7 @@ def _pair_rates(u, fb, ib, rates):  # noqa: N803
 
 
 @njit(cache=True, nogil=True)
-def certify_polyline(P, n, lo, hi, fb, ib, unsure_seg, unsure_idx):  # noqa: N803
+def certify_polyline(P, n, lo, hi, fb, ib, unsure_seg, unsure_idx, max_unsure):  # noqa: N803
     """Certify the grid states of a joint polyline.
 
     Segment ``k`` of ``P`` (rows) is cut into ``n[k]`` equal steps; its grid states
@@ -491,7 +491,9 @@ def certify_polyline(P, n, lo, hi, fb, ib, unsure_seg, unsure_idx):  # noqa: N80
 
     Returns:
         (status, segment, index, evaluated, unsure): COLLIDES with the colliding grid
-        state, else FREE (no state left but the unsure ones).
+        state; UNSURE when ``max_unsure`` undecided states were found (the walk stopped:
+        the exact checker should look at those first, a collision is often among them);
+        else FREE (no state left but the unsure ones).
     """
     npairs, dof = ib[H_NP], ib[H_DOF]
     ws = _workspace(ib[H_NJ], ib[H_NG], ib[H_NS])
@@ -533,6 +535,8 @@ def certify_polyline(P, n, lo, hi, fb, ib, unsure_seg, unsure_idx):  # noqa: N80
                 unsure_seg[n_unsure] = k
                 unsure_idx[n_unsure] = mid
                 n_unsure += 1
+                if n_unsure >= max_unsure:
+                    return UNSURE, k, mid, evaluated, n_unsure
             if tail + 2 > size:
                 live = tail - head
                 qlo[:live] = qlo[head:tail].copy()

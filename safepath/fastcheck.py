@@ -94,9 +94,11 @@ class SphereLayer:
         _kernels().classify_many(np.ascontiguousarray(Q, dtype=float), self.F, self.I, out)
         return out
 
-    def certify(self, P: np.ndarray, n: np.ndarray, lo: np.ndarray, hi: np.ndarray  # noqa: N803
+    def certify(self, P: np.ndarray, n: np.ndarray, lo: np.ndarray, hi: np.ndarray,  # noqa: N803
+                max_unsure: int | None = None
                 ) -> tuple[int, int, int, int, np.ndarray, np.ndarray]:
-        """Certify grid states of a polyline (see ``certify_polyline`` in the kernels).
+        """Certify grid states of a polyline (see ``certify_polyline`` in the kernels);
+        with ``max_unsure``, stop once that many states are left undecided.
 
         Returns:
             (status, segment, index, evaluated, unsure segments, unsure indices).
@@ -106,7 +108,8 @@ class SphereLayer:
         idx = np.empty(max(total, 1), dtype=np.int64)
         status, k, i, evaluated, m = _kernels().certify_polyline(
             np.ascontiguousarray(P, dtype=float), n.astype(np.int64), lo.astype(np.int64),
-            hi.astype(np.int64), self.F, self.I, seg, idx)
+            hi.astype(np.int64), self.F, self.I, seg, idx,
+            total + 1 if max_unsure is None else max_unsure)
         return int(status), int(k), int(i), int(evaluated), seg[:m], idx[:m]
 
     @property
