@@ -126,13 +126,12 @@ def spline_path(waypoints: Sequence[np.ndarray], spacing: float, *,
     W = np.asarray(waypoints, dtype=float)
     seg = np.linalg.norm(np.diff(W, axis=0), axis=1)
     s_way = np.concatenate([[0.0], np.cumsum(seg)])
-    pts, ss = [W[0]], [0.0]
-    for k in range(len(W) - 1):
-        m = max(1, int(np.ceil(seg[k] / spacing)))
-        for j in range(1, m + 1):
-            pts.append(W[k] + (j / m) * (W[k + 1] - W[k]))
-            ss.append(s_way[k] + (j / m) * seg[k])
-    P, S = np.asarray(pts), np.asarray(ss)
+    # Segment k gets m_k points, at fractions j / m_k (j = 1..m_k) of it.
+    m = np.maximum(1, np.ceil(seg / spacing).astype(int))
+    k = np.repeat(np.arange(seg.size), m)
+    frac = (np.arange(k.size) - np.repeat(np.cumsum(m) - m, m) + 1) / m[k]
+    P = np.vstack([W[:1], W[k] + frac[:, None] * (W[k + 1] - W[k])])
+    S = np.concatenate([[0.0], s_way[k] + frac * seg[k]])
     if any(r > 0 for _, r in corners):
         keep = np.ones(len(S), dtype=bool)
         for c, r in corners:
