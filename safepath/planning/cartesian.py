@@ -8,9 +8,11 @@ move more than ``max_joint_step`` for it: a branch switch (a joint jump) is a fa
 reported with the fraction of the line where it happened.
 
 :func:`solve_ik` works on Pinocchio from Python. A line runs the same algorithm in
-one numba call (:mod:`._ik_kernel`, imported on the first line): a few hundred
-solves per cell, most of them accepted after one step because each waypoint is
-seeded with the previous waypoints' motion continued.
+one numba call (:mod:`._ik_kernel`, imported on the first line; the first call after
+an install compiles it, a few seconds, later processes load it from numba's cache).
+Each waypoint is seeded with the previous waypoints' motion continued quadratically,
+so most are accepted at the seed or after one step (0.65 steps per waypoint on the
+bundled cell's lines).
 """
 
 from __future__ import annotations
