@@ -41,8 +41,9 @@ __all__ = ["serve"]
 
 #: Modules the planner imports lazily on its first plan; the worker imports them while
 #: loading, so that the first plan runs as fast as the next ones.
-WARM_MODULES = ("ompl.base", "ompl.geometric", "ompl.util", "toppra", "toppra.algorithm",
-                "toppra.constraint", "fcl", "coal", "scipy.spatial")
+WARM_MODULES = ("ompl.base", "ompl.geometric", "ompl.util", "numba", "scipy.interpolate",
+                "safepath._fastkernels", "safepath.planning._topp", "fcl", "coal",
+                "scipy.spatial")
 
 #: Planned results kept per poses version (route or cell plans).
 CACHE_SIZE = 32
