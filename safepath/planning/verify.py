@@ -3,13 +3,17 @@
 The verifier shares nothing with the planner's checker but the *data*: it builds its
 own FCL shapes from the robot's collision geometry and the scene, derives its own list
 of pairs from the robot's allowed self-collision pairs, the tool's contact links and the
-allowed contacts, and checks the timed samples with FCL (not coal).
+allowed contacts, computes its own kinematics and its own conservative bounds
+(``_verify_bounds``, ``_verify_kernel``), and lets FCL (not coal)
+judge every sample those bounds cannot clear.
 
-Resolution guarantee: the timed trajectory is sampled so densely that no point of the
-robot (or the held object) moves more than ``resolution`` between two samples; between
-full checks, samples are skipped only while the accumulated motion bound stays below
-the clearance measured at the last full check, which certifies the skipped samples
-(and the motion between them) collision-free.
+Resolution guarantee: the timed trajectory is cut into a grid on which no point of the
+robot (or the held object) moves more than ``resolution`` between two samples. For
+every pair and every grid sample, either FCL judges the pair there, or the sample is
+certified: at an earlier (or the same) sample, the conservative layer bounded the
+pair's distance from below, and that bound minus how much the pair's bodies can have
+moved it since still exceeds what the pair must keep (its margin, zero, or, for a pair
+allowed to touch, zero: in contact, FCL's penetration depth decides).
 """
 
 from __future__ import annotations
@@ -19,15 +23,27 @@ from collections.abc import Iterable, Sequence
 from dataclasses import dataclass
 
 import numpy as np
-import pinocchio as pin
 
 from ..errors import VerificationError
 from ..robot import Robot
 from ..scene import GRIPPER, AllowedContact, Scene
+from ._verify_bounds import (
+    Grid,
+    Layer,
+    PoseCache,
+    ShapeSpec,
+    WalkMemory,
+    motion_weights,
+    pair_weights,
+    shape_spec,
+)
 
 __all__ = ["FclVerifier", "VerifyResult"]
 
 Pair = tuple[str, str]
+#: Margin kept between the clearance walk's threshold and the tolerance [m], so that
+#: FCL and GJK may disagree that little about the same closest points.
+_SLACK = 1e-5
 
 
 @dataclass(frozen=True)
@@ -36,15 +52,23 @@ class VerifyResult:
 
     Attributes:
         samples: Samples on the resolution grid.
-        checked: Samples fully checked (the others were certified by clearance).
-        min_clearance: Smallest robot-environment distance seen [m].
+        checked: Samples at which FCL judged or measured at least one pair (every other
+            pair there, and every pair at the other samples, was certified).
+        min_clearance: Smallest robot-environment distance over the grid samples [m]:
+            FCL's distance at one of them, every other sample being certified, or
+            measured by FCL, no closer than that minus half the resolution (inf
+            without environment pairs).
         closest_pair: Its pair.
+        pair_checks: Pair checks made with FCL.
+        bound_checks: Pair bounds evaluated by the conservative layer.
     """
 
     samples: int
     checked: int
     min_clearance: float
     closest_pair: Pair | None
+    pair_checks: int = 0
+    bound_checks: int = 0
 
 
 def _fcl_shape(geometry: object) -> object:
@@ -70,6 +94,25 @@ def _fcl_shape(geometry: object) -> object:
                             q=None, pairs=[])
 
 
+@dataclass(frozen=True)
+class _Body:
+    """A moving body (robot geometry or held object) or an environment object."""
+
+    name: str
+    joint: int  # 0 for the environment and bodies fixed to the base
+    T: np.ndarray  # in its joint frame (movers) or in the world (environment), 4 x 4
+    fcl: object
+    spec: ShapeSpec
+
+
+def _body(name: str, joint: int, T: np.ndarray, geometry: object) -> _Body:
+    import fcl
+
+    T = np.asarray(T, dtype=float)
+    obj = fcl.CollisionObject(_fcl_shape(geometry), fcl.Transform(T[:3, :3], T[:3, 3]))
+    return _Body(name, joint, T, obj, shape_spec(geometry))
+
+
 class FclVerifier:
     """Re-checks timed samples with FCL for one world state.
 
@@ -88,23 +131,13 @@ class FclVerifier:
                  resting: dict[str, np.ndarray | None] | None = None,
                  allowed: Iterable[AllowedContact] = (), resolution: float = 0.002,
                  margin: float | None = None, enforce_margin: bool = True) -> None:
-        import fcl
-
         self.robot = robot
         self.resolution = resolution
         self.enforce_margin = enforce_margin
-        self._data = robot.model.createData()
-        gm = robot.collision_model
-        # Moving bodies: (name, joint id, placement in the joint frame, fcl object).
-        self._movers: list[tuple[str, int, np.ndarray, object]] = []
-        self._radius: list[float] = []
-        for g in gm.geometryObjects:
-            name = robot.model.frames[g.parentFrame].name
-            self._movers.append((name, int(g.parentJoint), g.placement.homogeneous.copy(),
-                                 fcl.CollisionObject(_fcl_shape(g.geometry), fcl.Transform())))
-            self._radius.append(_radius(g.geometry))
-        self._joint_of = [int(g.parentJoint) for g in gm.geometryObjects]
-        self._env: list[tuple[str, object]] = []
+        self._movers = [_body(robot.model.frames[g.parentFrame].name, int(g.parentJoint),
+                              g.placement.homogeneous, g.geometry)
+                        for g in robot.collision_model.geometryObjects]
+        self._env: list[_Body] = []
         if scene is not None:
             for obj in scene.objects.values():
                 placed: np.ndarray | None = obj.T_world_object
@@ -112,21 +145,44 @@ class FclVerifier:
                     if obj.name == held:
                         continue
                     placed = (resting or {}).get(obj.name, obj.T_world_object)
-                if placed is None:
-                    continue
-                T = np.asarray(placed)
-                shape = _fcl_shape(obj.shape.to_coal())
-                self._env.append((obj.name, fcl.CollisionObject(
-                    shape, fcl.Transform(np.asarray(T)[:3, :3], np.asarray(T)[:3, 3]))))
+                if placed is not None:
+                    self._env.append(_body(obj.name, 0, placed, obj.shape.to_coal()))
         if held is not None and scene is not None and scene.grasp is not None:
-            obj = scene.objects[held]
             tcp = robot.model.frames[robot.tcp_frame_id]
             T_joint_obj = tcp.placement.homogeneous @ scene.grasp.T_tcp_object
-            self._movers.append((held, int(tcp.parentJoint), T_joint_obj, fcl.CollisionObject(
-                _fcl_shape(obj.shape.to_coal()), fcl.Transform())))
-            self._radius.append(obj.shape.bounding_radius())
-            self._joint_of.append(int(tcp.parentJoint))
-        # Allowed contacts -> max depth (None: any).
+            self._movers.append(_body(held, int(tcp.parentJoint), T_joint_obj,
+                                      scene.objects[held].shape.to_coal()))
+        self._pairs = self._pair_list(robot, held, allowed)
+        margin_of = {b.name: (margin if margin is not None else
+                              (scene.margin_for(b.name) if scene else 0.0))
+                     for b in self._env}
+        # What each pair must keep: its signed distance must not fall below this [m].
+        self._theta = np.array([
+            -depth if depth > 0.0 else
+            (margin_of[self._env[j].name] if env and enforce_margin else 0.0)
+            for _, j, env, depth in self._pairs], dtype=float)
+        # The layer certifies a pair allowed to touch only where it is apart: in
+        # contact, FCL's penetration depth decides.
+        self._bound_theta = np.where([d > 0.0 for *_, d in self._pairs], 0.0, self._theta)
+        self._tracked = np.array([env and depth == 0.0 for _, _, env, depth in self._pairs],
+                                 dtype=np.bool_).reshape(-1)
+        self._clearance_pairs = np.flatnonzero(self._tracked)
+        self._weights = motion_weights(robot.model, [b.joint for b in self._movers],
+                                       [b.T for b in self._movers],
+                                       [b.spec for b in self._movers])
+        pairs = [(i, j, env) for i, j, env, _ in self._pairs]
+        self._layer = Layer(robot.model, [b.joint for b in self._movers],
+                            [b.T for b in self._movers], [b.spec for b in self._movers],
+                            [b.T for b in self._env], [b.spec for b in self._env], pairs,
+                            pair_weights(robot.model, [b.joint for b in self._movers],
+                                         self._weights, pairs),
+                            self._tracked)
+
+    def _pair_list(self, robot: Robot, held: str | None, allowed: Iterable[AllowedContact]
+                   ) -> list[tuple[int, int, bool, float]]:
+        """(mover, mover or environment object, is environment, allowed depth [m]) of
+        every pair to check: not on the same joint, not an allowed self pair, not the
+        held object against the jaws, not allowed to touch at any depth."""
         contact_links = set(robot.tool.contact_links) if robot.tool else set()
         depth: dict[Pair, float | None] = {}
         for c in allowed:
@@ -137,11 +193,11 @@ class FclVerifier:
                 old = depth.get(key, 0.0)
                 depth[key] = None if (old is None or c.max_depth is None) else max(old,
                                                                                     c.max_depth)
-        self._pairs: list[tuple[int, int, bool, float]] = []  # (i, j, j_is_env, depth)
-        n = len(self._movers)
-        for i, j in itertools.combinations(range(n), 2):
-            a, b = self._movers[i][0], self._movers[j][0]
-            if a == b or self._joint_of[i] == self._joint_of[j]:
+        pairs: list[tuple[int, int, bool, float]] = []
+        movers = self._movers
+        for i, j in itertools.combinations(range(len(movers)), 2):
+            a, b = movers[i].name, movers[j].name
+            if a == b or movers[i].joint == movers[j].joint:
                 continue
             is_held = held is not None and held in (a, b)
             if is_held and (a in contact_links or b in contact_links):
@@ -149,83 +205,37 @@ class FclVerifier:
             if not is_held and (min(a, b), max(a, b)) in robot.allowed_self_pairs:
                 continue
             d = depth.get((min(a, b), max(a, b)), 0.0)
-            if d is None:
+            if d is not None:
+                pairs.append((i, j, False, d))
+        for i in range(len(movers)):
+            if movers[i].joint == 0:
                 continue
-            self._pairs.append((i, j, False, d))
-        for i in range(n):
-            if self._joint_of[i] == 0:
-                continue
-            for j, (env_name, _) in enumerate(self._env):
-                a = self._movers[i][0]
-                d = depth.get((min(a, env_name), max(a, env_name)), 0.0)
-                if d is None:
-                    continue
-                self._pairs.append((i, j, True, d))
-        self._placements = [pin.SE3(T) for _, _, T, _ in self._movers]
-        default_margin = margin if margin is not None else (scene.margin if scene else 0.0)
-        self._margin = {name: (margin if margin is not None else
-                               (scene.margin_for(name) if scene else default_margin))
-                        for name, _ in self._env}
-        self._prepare()
+            for j, env in enumerate(self._env):
+                a = movers[i].name
+                d = depth.get((min(a, env.name), max(a, env.name)), 0.0)
+                if d is not None:
+                    pairs.append((i, j, True, d))
+        return pairs
 
-    def _prepare(self) -> None:
-        """What every verification of this world state uses: the motion bounds, and the
-        units of work: ("env", body) = one body against all the environment objects it
-        must avoid (one FCL broad-phase query), ("pair", p) = one self pair or one pair
-        allowed to touch up to a depth."""
-        import fcl
+    def _grid(self, q: np.ndarray) -> Grid:
+        """The resolution grid of knots ``q`` (also used by the tests' dense check)."""
+        return Grid.cut(np.asarray(q, dtype=float), self._weights, self.resolution)
 
-        pairs = self._pairs
-        self._weights = _weights(self.robot, self._movers, self._radius)
-        self._per_mover = _mover_weights(self.robot, self._movers, self._radius)
-        self._env_of: dict[int, list[int]] = {}
-        self._units: list[tuple[str, int]] = []
-        for p, (i, _j, env, depth) in enumerate(pairs):
-            if env and depth == 0.0:
-                self._env_of.setdefault(i, []).append(p)
-            else:
-                self._units.append(("pair", p))
-        self._managers = {}
-        for i, plist in self._env_of.items():
-            manager = fcl.DynamicAABBTreeCollisionManager()
-            manager.registerObjects([self._env[pairs[p][1]][1] for p in plist])
-            manager.setup()
-            self._managers[i] = manager
-            self._units.append(("env", i))
-        self._required = [self._margin[self._env[j][0]]
-                          if env and self.enforce_margin and d == 0.0 else 0.0
-                          for _, j, env, d in pairs]
-        self._objects_of = [self._objects(i, j, env) for i, j, env, _ in pairs]
-        self._names_of = [self._pair_names(i, j, env) for i, j, env, _ in pairs]
-
-    def _place(self, q: np.ndarray, movers: Iterable[int] | None = None) -> None:
-        import fcl
-
-        model, data = self.robot.model, self._data
-        pin.forwardKinematics(model, data, q)
-        for m in range(len(self._movers)) if movers is None else movers:
-            _, joint, _, obj = self._movers[m]
-            M = data.oMi[joint] * self._placements[m]
-            obj.setTransform(fcl.Transform(M.rotation, M.translation))  # type: ignore[attr-defined]
-
-    def _pair_names(self, i: int, j: int, env: bool) -> Pair:
-        return (self._movers[i][0], self._env[j][0] if env else self._movers[j][0])
-
-    def _objects(self, i: int, j: int, env: bool) -> tuple[object, object]:
-        return self._movers[i][3], (self._env[j][1] if env else self._movers[j][3])
+    def _names(self, p: int) -> Pair:
+        i, j, env, _ = self._pairs[p]
+        return (self._movers[i].name, self._env[j].name if env else self._movers[j].name)
 
     def verify(self, t: np.ndarray, q: np.ndarray, qd: np.ndarray, *,
                steps: Sequence[str] | None = None) -> VerifyResult:
-        """Check a timed trajectory; raise on the first collision.
+        """Check a timed trajectory; raise on the first failing sample.
 
         The knots are first cut into a grid on which no point moves more than the
-        resolution between samples. A check is repeated only when the motion its bodies
-        can have made since the last one (a bound from the joints that move them)
-        reaches the distance found then (minus the margin): until that sample the
-        distance cannot have closed, so the samples in between are certified. Each
-        moving body is checked against all the environment objects it must avoid with
-        one FCL broad-phase distance query; self pairs and pairs allowed to touch up to
-        a depth are checked one by one.
+        resolution between samples. The conservative layer then walks every pair along
+        the grid with its lower bound on the distance, certifying the samples until
+        the pair's bodies can have moved that bound down to what the pair must keep;
+        FCL judges the pair at every sample left, in time order. The clearance pairs
+        are walked against the smallest clearance found so far instead (if higher than
+        their margin), so that it comes out to within half the resolution.
 
         Args:
             t: Knot times [s].
@@ -234,167 +244,140 @@ class FclVerifier:
             steps: Step name of each knot (for the error).
 
         Raises:
-            VerificationError: A sample collides or comes closer than a margin.
+            VerificationError: A sample collides, comes closer than a margin, or
+                penetrates deeper than an allowed contact's depth.
         """
-        import heapq
+        q = np.asarray(q, dtype=float)
+        grid = self._grid(q)
+        run = _Run(self, q, grid, self._layer.cache(grid.samples))
+        left = run.walk(np.arange(len(self._pairs)), self._bound_theta,
+                        drop=self.resolution / 2 - _SLACK)
+        fail_at, bad = run.safety(*left)
+        if bad:
+            k = int(grid.knot_of[fail_at])
+            names = list(dict.fromkeys(self._names(p) for p in bad))  # a link: many shapes
+            raise VerificationError(
+                "timed sample in collision or inside a margin: "
+                + ", ".join(f"{a} / {b}" for a, b in names),
+                time=float(t[k]), q=grid.state(q, fail_at), pairs=names,
+                step=steps[k] if steps is not None else None)
+        run.clearance(*left)
+        closest = self._names(run.closest) if run.closest >= 0 else None
+        return VerifyResult(grid.samples, len(run.checked), run.min_clear, closest,
+                            run.pair_checks, int(run.memory.stats[0]))
 
+
+class _Run:
+    """The FCL side of one verification: places the bodies from the layer's pose cache
+    and judges the pairs the layer could not certify."""
+
+    def __init__(self, verifier: FclVerifier, q: np.ndarray, grid: Grid,
+                 cache: PoseCache) -> None:
         import fcl
 
-        weights, per_mover = self._weights, self._per_mover
-        pairs = self._pairs
-        units, env_of, managers = self._units, self._env_of, self._managers
-        required, objects, names = self._required, self._objects_of, self._names_of
-        # The resolution grid.
-        dq = np.abs(np.diff(q, axis=0))
-        bounds = dq @ weights
-        cuts = np.maximum(1, np.ceil(bounds / self.resolution)).astype(int)
-        knot_of = np.concatenate([[0], np.repeat(np.arange(1, len(t)), cuts)])
-        frac = np.concatenate([[1.0]] + [np.arange(1, c + 1) / c for c in cuts])
-        # Motion bound of every mover, accumulated along the grid [m].
-        step_motion = np.repeat(dq @ per_mover.T / cuts[:, None], cuts, axis=0)
-        travel = np.vstack([np.zeros(len(self._movers)), step_motion]).cumsum(axis=0)
-        samples = len(travel)
-        dist_req = fcl.DistanceRequest()
+        self.v = verifier
+        self.q = q
+        self.grid = grid
+        self.cache = cache
+        self.memory = WalkMemory.empty(len(verifier._pairs))
+        self.checked: set[int] = set()
+        self.pair_checks = 0
+        self.min_clear, self.closest = float("inf"), -1
+        self._placed = [-1] * len(verifier._movers)
+        self._dist_req = fcl.DistanceRequest()
 
-        def column(unit: tuple[str, int]) -> np.ndarray:
-            kind, x = unit
-            if kind == "env":
-                return travel[:, x]
-            i, j, env, _ = pairs[x]
-            return travel[:, i] if env else travel[:, i] + travel[:, j]
+    def walk(self, todo: np.ndarray, theta: np.ndarray, drop: float = -1.0
+             ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """The layer's walk of pairs ``todo`` against thresholds ``theta`` [m]."""
+        return self.v._layer.walk(todo, theta, self.q, self.grid, self.cache, self.memory,
+                                  drop)
 
-        columns = [column(u) for u in units]
+    def _place(self, m: int, s: int) -> object:
+        import fcl
 
-        def due(u: int, index: int, budget: float) -> int:
-            target = columns[u][index] + budget
-            return max(index + 1, int(np.searchsorted(columns[u], target, side="left")))
+        body = self.v._movers[m]
+        if self._placed[m] != s:
+            T = self.v._layer.pose(self.q, self.grid, self.cache, s, m)
+            body.fcl.setTransform(fcl.Transform(T[:, :3], T[:, 3]))  # type: ignore[attr-defined]
+            self._placed[m] = s
+        return body.fcl
 
-        def check_pair(p: int) -> tuple[bool, float]:
-            """(bad, budget) for one pair."""
-            o1, o2 = objects[p]
-            max_depth = pairs[p][3]
-            if max_depth > 0.0:
-                req = fcl.CollisionRequest(enable_contact=True, num_max_contacts=4)
-                res = fcl.CollisionResult()
-                if fcl.collide(o1, o2, req, res):
-                    depth = max(c.penetration_depth for c in res.contacts)
-                    return depth > max_depth, max(max_depth - depth, self.resolution / 2)
-                gap = max(fcl.distance(o1, o2, dist_req, fcl.DistanceResult()), 0.0)
-                return False, gap + max_depth
-            d = fcl.distance(o1, o2, dist_req, fcl.DistanceResult())
-            if d <= 0.0 and fcl.collide(o1, o2, fcl.CollisionRequest(), fcl.CollisionResult()):
-                return True, 0.0
-            return d < required[p], d - required[p]
+    def _objects(self, p: int, s: int) -> tuple[object, object]:
+        i, j, env, _ = self.v._pairs[p]
+        self.checked.add(s)
+        self.pair_checks += 1
+        return self._place(i, s), (self.v._env[j].fcl if env else self._place(j, s))
 
-        queue = [(0, u) for u in range(len(units))]
-        heapq.heapify(queue)
-        checked = 0
-        min_clear, closest = float("inf"), None
-        while queue and queue[0][0] < samples:
-            index = queue[0][0]
-            todo = []
-            while queue and queue[0][0] == index:
-                todo.append(heapq.heappop(queue)[1])
-            k = int(knot_of[index])
-            qs = q[0] if index == 0 else q[k - 1] + frac[index] * (q[k] - q[k - 1])
-            checked += 1
-            movers: set[int] = set()
-            for u in todo:
-                kind, x = units[u]
-                if kind == "env":
-                    movers.add(x)
-                else:
-                    movers.add(pairs[x][0])
-                    if not pairs[x][2]:
-                        movers.add(pairs[x][1])
-            self._place(qs, movers)
-            bad: list[Pair] = []
-            for u in todo:
-                kind, x = units[u]
-                if kind == "pair":
-                    is_bad, budget = check_pair(x)
-                    if is_bad:
-                        bad.append(names[x])
-                    else:
-                        heapq.heappush(queue, (due(u, index, budget), u))
-                    continue
-                data = fcl.DistanceData()
-                managers[x].distance(self._movers[x][3], data, fcl.defaultDistanceCallback)
-                d = float(data.result.min_distance)
-                worst_margin = max(required[p] for p in env_of[x])
-                if d > worst_margin and d >= min_clear:
-                    heapq.heappush(queue, (due(u, index, d - worst_margin), u))
-                    continue
-                # Close to something (or a new closest): find the exact pairs.
-                budget = float("inf")
-                for p in env_of[x]:
-                    is_bad, b = check_pair(p)
-                    if is_bad:
-                        bad.append(names[p])
-                    budget = min(budget, b)
-                    dp = b + required[p]
-                    if dp < min_clear:
-                        min_clear, closest = dp, names[p]
-                if not bad:
-                    heapq.heappush(queue, (due(u, index, budget), u))
-            if bad:
-                bad = list(dict.fromkeys(bad))  # a link may have several shapes
-                step = steps[k] if steps is not None else None
-                raise VerificationError(
-                    "timed sample in collision or inside a margin: "
-                    + ", ".join(f"{a} / {b}" for a, b in bad),
-                    time=float(t[k]), q=qs, pairs=bad, step=step)
-        return VerifyResult(samples, checked, min_clear, closest)
+    def _measure(self, p: int, s: int) -> float:
+        """FCL distance of pair p at sample s [m] (negative: in collision); keeps the
+        smallest one of the clearance pairs."""
+        import fcl
 
+        o1, o2 = self._objects(p, s)
+        d = float(fcl.distance(o1, o2, self._dist_req, fcl.DistanceResult()))
+        _, _, env, depth = self.v._pairs[p]
+        if env and depth == 0.0 and d < self.min_clear:
+            self.min_clear, self.closest = d, p
+        return d
 
-def _mover_weights(robot: Robot, movers: list[tuple[str, int, np.ndarray, object]],
-                   radius: list[float]) -> np.ndarray:
-    """Per mover and joint, a bound on how far the mover's points lie from the joint [m]
-    (zero for joints that do not move it): shape (movers, dof)."""
-    model = robot.model
-    out = np.zeros((len(movers), model.nv))
-    for m, ((_, joint, T_joint_geom, _), r) in enumerate(zip(movers, radius, strict=True)):
-        reach = float(np.linalg.norm(T_joint_geom[:3, 3])) + r
-        j = joint
-        while j > 0:
-            prismatic = model.joints[j].shortname().startswith(("JointModelP",
-                                                                 "JointModelPrismatic"))
-            out[m, model.joints[j].idx_v] = 1.0 if prismatic else reach
-            reach += float(np.linalg.norm(model.jointPlacements[j].translation))
-            j = model.parents[j]
-    return out
+    def _fails(self, p: int, s: int) -> bool:
+        """FCL's judgement of pair p at sample s: in collision, inside its margin, or
+        deeper than its allowed depth."""
+        import fcl
 
+        max_depth = self.v._pairs[p][3]
+        if max_depth > 0.0:
+            req = fcl.CollisionRequest(enable_contact=True, num_max_contacts=4)
+            res = fcl.CollisionResult()
+            if not fcl.collide(*self._objects(p, s), req, res):
+                return False
+            return max(c.penetration_depth for c in res.contacts) > max_depth
+        d = self._measure(p, s)
+        if d <= 0.0 and fcl.collide(*self._objects(p, s), fcl.CollisionRequest(),
+                                    fcl.CollisionResult()):
+            return True
+        return d < float(self.v._theta[p])
 
-def _weights(robot: Robot, movers: list[tuple[str, int, np.ndarray, object]],
-             radius: list[float]) -> np.ndarray:
-    """Per joint, a bound on how far any moving point lies from the joint [m]."""
-    model = robot.model
-    reach = np.zeros(model.njoints)
-    for (_, joint, T_joint_geom, _), r in zip(movers, radius, strict=True):
-        if joint == 0:
-            continue
-        reach[joint] = max(reach[joint], float(np.linalg.norm(T_joint_geom[:3, 3])) + r)
-    for j in range(model.njoints - 1, 0, -1):
-        parent = model.parents[j]
-        if parent > 0:
-            reach[parent] = max(reach[parent], float(np.linalg.norm(
-                model.jointPlacements[j].translation)) + reach[j])
-    return np.array([1.0 if model.joints[j].shortname().startswith("JointModelP")
-                     else reach[j] for j in range(1, model.njoints)])
+    def safety(self, pairs: np.ndarray, samples: np.ndarray, bounds: np.ndarray
+               ) -> tuple[int, list[int]]:
+        """Judge with FCL every couple the walk left whose bound does not clear its
+        pair's threshold, in sample order; return the first failing sample and the
+        pairs failing there (none: the number of samples)."""
+        fail_at, bad = self.grid.samples, []
+        judge = np.flatnonzero(bounds <= self.v._bound_theta[pairs])
+        for k in judge[np.lexsort((pairs[judge], samples[judge]))]:
+            s, p = int(samples[k]), int(pairs[k])
+            if s > fail_at:
+                break
+            if self._fails(p, s):
+                fail_at = s
+                bad.append(p)
+        return fail_at, bad
 
+    def clearance(self, pairs: np.ndarray, samples: np.ndarray, bounds: np.ndarray
+                  ) -> None:
+        """Find the smallest clearance to within half the resolution.
 
-def _radius(geometry: object) -> float:
-    """Radius of a sphere about the geometry's origin that holds it [m] (own code, not the
-    planner checker's)."""
-    import coal
-
-    if isinstance(geometry, coal.Box):
-        return float(np.linalg.norm(geometry.halfSide))
-    if isinstance(geometry, coal.Sphere):
-        return float(geometry.radius)
-    if isinstance(geometry, (coal.Cylinder, coal.Capsule)):
-        return float(geometry.radius + geometry.halfLength)
-    if isinstance(geometry, coal.ConvexBase):
-        return float(np.max(np.linalg.norm(np.asarray(geometry.points()), axis=1)))
-    raise VerificationError(f"unsupported geometry {type(geometry).__name__}", time=0.0,
-                            q=None, pairs=[])
+        The walk held every clearance pair to the closest distance GJK had found so far
+        (the ceiling) minus that; FCL measures where GJK found it and every couple the
+        walk left, the closest first, until their bounds clear FCL's minimum minus
+        that. Should FCL read more than GJK's points there, the walk is done again
+        against FCL's minimum.
+        """
+        v, tol, ceiling = self.v, self.v.resolution / 2, self.memory.ceiling
+        if v._clearance_pairs.size == 0:
+            return
+        if ceiling[1] >= 0:
+            self._measure(int(ceiling[1]), int(ceiling[2]))
+        for k in np.argsort(bounds, kind="stable"):  # the closest first: fewer checks
+            if bounds[k] > self.min_clear - tol:
+                break
+            if v._tracked[pairs[k]]:
+                self._measure(int(pairs[k]), int(samples[k]))
+        if ceiling[0] >= self.min_clear - _SLACK:
+            return
+        todo = v._clearance_pairs
+        theta = np.maximum(v._theta, self.min_clear - tol)
+        again = self.walk(todo[v._theta[todo] < self.min_clear - tol], theta)
+        for p, s in zip(*again[:2], strict=True):
+            self._measure(int(p), int(s))

@@ -3,20 +3,32 @@
 A timed trajectory that goes straight through the detour cell's post (timed with the
 library's own spline and TOPPRA, but never collision-checked) must be rejected with
 the pair, the time and the step; a safe trajectory checked against a margin larger
-than its clearance must be rejected only when margins are enforced.
+than its clearance must be rejected only when margins are enforced. The verifier
+clears most samples with its own conservative bounds: it must find exactly what a
+dense FCL check of every grid sample finds, and its bounds must be lower bounds.
 """
 
 from __future__ import annotations
 
+import dataclasses
+import itertools
+
+import coal
+import fcl
 import numpy as np
+import pinocchio as pin
 import pytest
 
 from safepath import CheckOptions, VerificationError
 from safepath.cell import Cell
-from safepath.planning import FclVerifier, initial_world
+from safepath.planning import FclVerifier, VerifyResult, initial_world
+from safepath.planning._verify_bounds import bound_between, shape_spec
 from safepath.planning.timing import TimedPiece, spline_path, time_path
+from safepath.planning.verify import _fcl_shape
+from safepath.robot import Robot
+from safepath.scene import AllowedContact, Scene, SceneObject, Shape
 
-from .conftest import Plans
+from .conftest import Plans, object_released_at
 
 STEP = "2 move high2"
 
@@ -91,3 +103,296 @@ def test_verifier_and_checker_agree_on_clearance(bundled: Plans) -> None:
     checker = cell.checker(held=True)
     coal_min = min(checker.clearance(qk)[0] for qk in q[::5])
     assert result.min_clearance == pytest.approx(coal_min, abs=1e-3)
+
+
+# --- The conservative layer against FCL ------------------------------------------------
+#
+# The verifier clears most samples with its own lower bounds on the distance and lets FCL
+# judge the rest. The tests below hold it to a dense check written here: every grid
+# sample placed with pinocchio and judged with FCL, pair by pair.
+
+
+def _judge(verifier: FclVerifier, p: int, margin_of: dict[str, float]) -> tuple[bool, float]:
+    """FCL's judgement of pair p as placed now: (fails, distance [m])."""
+    i, j, env, depth = verifier._pairs[p]
+    o1 = verifier._movers[i].fcl
+    o2 = verifier._env[j].fcl if env else verifier._movers[j].fcl
+    if depth > 0.0:  # allowed to touch, up to a depth
+        res = fcl.CollisionResult()
+        if fcl.collide(o1, o2, fcl.CollisionRequest(enable_contact=True, num_max_contacts=4),
+                       res):
+            return max(c.penetration_depth for c in res.contacts) > depth, 0.0
+        return False, np.inf
+    d = fcl.distance(o1, o2, fcl.DistanceRequest(), fcl.DistanceResult())
+    keep = margin_of[verifier._env[j].name] if env else 0.0
+    hit = d <= 0.0 and fcl.collide(o1, o2, fcl.CollisionRequest(), fcl.CollisionResult())
+    return hit or d < keep, d
+
+
+def _dense(verifier: FclVerifier, q: np.ndarray, margin_of: dict[str, float]
+           ) -> tuple[int | None, set[tuple[str, str]], float]:
+    """(first failing sample or None, the pairs failing there, smallest clearance [m])."""
+    grid = verifier._grid(q)
+    model = verifier.robot.model
+    data = model.createData()
+    clearance = np.inf
+    for s in range(grid.samples):
+        pin.forwardKinematics(model, data, grid.state(q, s))
+        for body in verifier._movers:
+            T = data.oMi[body.joint].homogeneous @ body.T
+            body.fcl.setTransform(fcl.Transform(T[:3, :3], T[:3, 3]))
+        bad = set()
+        for p, (_, _, env, depth) in enumerate(verifier._pairs):
+            fails, d = _judge(verifier, p, margin_of)
+            if fails:
+                bad.add(verifier._names(p))
+            elif env and depth == 0.0:
+                clearance = min(clearance, d)
+        if bad:
+            return s, bad, clearance
+    return None, set(), clearance
+
+
+def _margins(cell: Cell, margin: float | None, enforce: bool) -> dict[str, float]:
+    return {name: (0.0 if not enforce else margin if margin is not None
+                   else cell.scene.margin_for(name)) for name in cell.scene.objects}
+
+
+def _step(bundled: Plans, label: str) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    traj = bundled.trajectories["phase1"]
+    sel = traj.step_index == traj.steps.index(label)
+    return traj.t[sel], traj.q[sel], traj.qd[sel]
+
+
+def _assert_same_as_dense(verifier: FclVerifier, t: np.ndarray, q: np.ndarray,
+                          margin_of: dict[str, float]) -> VerifyResult | VerificationError:
+    first, bad, clearance = _dense(verifier, q, margin_of)
+    grid = verifier._grid(q)
+    try:
+        result = verifier.verify(t, q, np.zeros_like(q), steps=["step"] * len(t))
+    except VerificationError as err:
+        assert first is not None, f"the verifier rejects what the dense check accepts: {err}"
+        assert err.time == float(t[grid.knot_of[first]])
+        np.testing.assert_array_equal(err.q, grid.state(q, first))
+        assert set(err.pairs) == bad
+        return err
+    assert first is None, f"the verifier accepts sample {first} ({bad})"
+    # Its clearance is FCL's at one sample (placed by its own kinematics: to rounding),
+    # and no sample is closer by more than half a resolution.
+    assert clearance - 1e-9 <= result.min_clearance <= clearance + verifier.resolution / 2
+    assert result.checked <= result.samples
+    return result
+
+
+def test_the_post_is_found_where_a_dense_check_finds_it(detour_cell: Cell) -> None:
+    piece = _straight(detour_cell, "high1", "high2")
+    verifier = _verifier(detour_cell, resolution=0.004)
+    err = _assert_same_as_dense(verifier, piece.t, piece.q, _margins(detour_cell, None, True))
+    assert isinstance(err, VerificationError)
+
+
+@pytest.mark.parametrize("excess", [0.0003, -0.0003], ids=["just-inside", "just-outside"])
+def test_a_margin_is_judged_as_a_dense_check_judges_it(bundled: Plans, excess: float) -> None:
+    """A margin a fraction of a millimetre above (then below) the move's clearance."""
+    cell = bundled.cell
+    t, q, _ = _step(bundled, STEP)
+    clearance = _dense(_verifier(cell), q, _margins(cell, None, False))[2]
+    margin = clearance + excess
+    out = _assert_same_as_dense(_verifier(cell, margin=margin), t, q,
+                                _margins(cell, margin, True))
+    assert isinstance(out, VerificationError) == (excess > 0)
+
+
+def _raised(cell: Cell, name: str, dz: float) -> Scene:
+    """The cell's scene with object ``name`` raised by dz [m]."""
+    obj = cell.scene.objects[name]
+    T = obj.T_world_object.copy()
+    T[2, 3] += dz
+    return dataclasses.replace(cell.scene, objects={**cell.scene.objects,
+                                                    name: obj.placed(T)})
+
+
+@pytest.mark.parametrize(("dz", "max_depth", "fails"), [
+    (0.0, 0.001, False),      # the planned put-down: touches within the allowed depth
+    (0.003, 0.001, True),     # the plate 3 mm higher: the vial presses into it
+    (0.003, 0.005, False),    # ... which a deeper allowed contact accepts
+], ids=["planned", "pressed-in", "pressed-in-allowed"])
+def test_an_allowed_contact_is_judged_as_a_dense_check_judges_it(
+        bundled: Plans, dz: float, max_depth: float, fails: bool) -> None:
+    """The held vial put down on the test plate: in contact, FCL's depth decides."""
+    cell = bundled.cell
+    t, q, _ = _step(bundled, "3 line low1")
+    scene = _raised(cell, "test_plate", dz)
+    allowed = (AllowedContact(("vial", "test_plate"), ("low1",), max_depth),
+               *cell.scene.contacts_at("high2"))
+    verifier = FclVerifier(cell.robot, scene, held="vial",
+                           resting=dict(initial_world(cell).resting), allowed=allowed)
+    out = _assert_same_as_dense(verifier, t, q, _margins(cell, None, True))
+    assert isinstance(out, VerificationError) == fails
+    if fails:
+        assert isinstance(out, VerificationError) and out.pairs == [("vial", "test_plate")]
+        assert 0 < int(np.searchsorted(t, out.time))  # not at the start of the line
+
+
+@pytest.mark.parametrize("excess", [None, 0.0003], ids=["scene-margins", "just-inside"])
+def test_the_open_jaws_leaving_the_vial_are_judged_as_a_dense_check_judges_them(
+        bundled: Plans, excess: float | None) -> None:
+    """Nothing held, the vial resting on the plate between the open jaws (allowed to
+    touch them): the line back up to high2, with the scene's margins, then with a margin
+    a fraction of a millimetre above its clearance."""
+    cell = bundled.cell
+    t, q, _ = _step(bundled, "5 line high2")
+    resting = {"vial": object_released_at(cell, bundled.trajectories["phase1"])}
+
+    def verifier(margin: float | None) -> FclVerifier:
+        return FclVerifier(cell.robot, cell.scene, held=None, resting=resting,
+                           allowed=cell.scene.contacts_at("low1"), margin=margin)
+
+    margin = None
+    if excess is not None:
+        margin = _dense(verifier(None), q, _margins(cell, None, False))[2] + excess
+    out = _assert_same_as_dense(verifier(margin), t, q, _margins(cell, margin, True))
+    assert isinstance(out, VerificationError) == (excess is not None)
+
+
+def test_the_layer_bounds_are_below_fcl_distances(bundled_cell: Cell) -> None:
+    """At sampled states, the layer's kinematics are pinocchio's and its bound on every
+    pair (held vial; resting vial with the jaws allowed around it) is at most FCL's
+    distance (at most zero in collision), and tight where the shapes are apart."""
+    cell = bundled_cell
+    rng = np.random.default_rng(7)
+    model = cell.robot.model
+    data = model.createData()
+    lo, hi = model.lowerPositionLimit, model.upperPositionLimit
+    states = [rng.uniform(lo, hi) for _ in range(40)]
+    states += [cell.pose(name) + rng.normal(0.0, 0.05, model.nq)
+               for name in cell.poses for _ in range(3)]
+    verifiers = [_verifier(cell),
+                 FclVerifier(cell.robot, cell.scene,
+                             resting=dict(initial_world(cell).resting),
+                             allowed=cell.scene.contacts_at("grip"))]
+    slack = []
+    for verifier in verifiers:
+        for q in states:
+            bounds, poses = verifier._layer.bounds_at(q)
+            pin.forwardKinematics(model, data, q)
+            for m, body in enumerate(verifier._movers):
+                T = data.oMi[body.joint].homogeneous @ body.T
+                np.testing.assert_allclose(poses[m], T[:3], atol=1e-12)
+                body.fcl.setTransform(fcl.Transform(T[:3, :3], T[:3, 3]))
+            for p in range(len(verifier._pairs)):
+                i, j, env, _ = verifier._pairs[p]
+                o1 = verifier._movers[i].fcl
+                o2 = verifier._env[j].fcl if env else verifier._movers[j].fcl
+                d = fcl.distance(o1, o2, fcl.DistanceRequest(), fcl.DistanceResult())
+                if fcl.collide(o1, o2, fcl.CollisionRequest(), fcl.CollisionResult()):
+                    assert bounds[p] <= 0.0, (verifier._names(p), q, bounds[p])
+                else:
+                    assert bounds[p] <= d + 1e-9, (verifier._names(p), q, bounds[p], d)
+                    slack.append(d - bounds[p])
+    assert np.quantile(slack, 0.95) < 1e-4  # not a vacuous bound
+
+
+def _shape(kind: str, rng: np.random.Generator) -> object:
+    size = rng.uniform(0.01, 0.1, 3)
+    if kind == "box":
+        return coal.Box(*size)
+    if kind == "sphere":
+        return coal.Sphere(size[0])
+    if kind == "cylinder":
+        return coal.Cylinder(size[0], size[1])
+    if kind == "capsule":
+        return coal.Capsule(size[0], size[1])
+    points = coal.StdVec_Vec3s()
+    for point in rng.normal(0.0, 0.04, (20, 3)) + rng.normal(0.0, 0.02, 3):
+        points.append(point)
+    return coal.Convex.convexHull(points, False, "")
+
+
+KINDS = ["box", "sphere", "cylinder", "capsule", "convex"]
+
+
+@pytest.mark.parametrize("kinds", list(itertools.combinations_with_replacement(KINDS, 2)),
+                         ids="-".join)
+def test_the_shape_bound_is_below_fcl_distance(kinds: tuple[str, str]) -> None:
+    """Every pair of shape kinds, at random poses: the bound never exceeds FCL's distance
+    (nor zero in collision)."""
+    rng = np.random.default_rng(sum(map(ord, "".join(kinds))))
+    for _ in range(40):
+        shapes = [_shape(kind, rng) for kind in kinds]
+        poses = []
+        for shift in (0.0, rng.uniform(0.0, 0.25)):
+            T = np.eye(4)
+            T[:3, :3] = pin.exp3(rng.normal(0.0, 2.0, 3))
+            T[:3, 3] = rng.normal(0.0, 0.02, 3) + [shift, 0.0, 0.0]
+            poses.append(T)
+        objects = [fcl.CollisionObject(_fcl_shape(g), fcl.Transform(T[:3, :3], T[:3, 3]))
+                   for g, T in zip(shapes, poses, strict=True)]
+        bound = bound_between(shape_spec(shapes[0]), poses[0], shape_spec(shapes[1]), poses[1])
+        if fcl.collide(*objects, fcl.CollisionRequest(), fcl.CollisionResult()):
+            assert bound <= 0.0
+        else:
+            assert bound <= fcl.distance(*objects, fcl.DistanceRequest(),
+                                         fcl.DistanceResult()) + 1e-9
+
+
+def test_the_same_input_gives_the_same_result(bundled: Plans) -> None:
+    t, q, qd = _step(bundled, STEP)
+    cell = bundled.cell
+    first = _verifier(cell).verify(t, q, qd)
+    assert _verifier(cell).verify(t, q, qd) == first
+
+
+def _toy_arm(rng: np.random.Generator) -> Robot:
+    """A random three-joint arm (turn, tilt, spin), with a box off the spin axis and a
+    capsule along the tilted link."""
+    model = pin.Model()
+    geometry = pin.GeometryModel()
+    parent, placement = 0, pin.SE3.Identity()
+    spin = rng.normal(size=3)
+    for k, joint in enumerate([pin.JointModelRZ(), pin.JointModelRX(),
+                               pin.JointModelRevoluteUnaligned(spin / np.linalg.norm(spin))]):
+        parent = model.addJoint(parent, joint, placement, f"j{k}")
+        model.lowerPositionLimit[k], model.upperPositionLimit[k] = -np.pi, np.pi
+        frame = model.addFrame(pin.Frame(f"link{k}", parent, pin.SE3.Identity(),
+                                         pin.FrameType.BODY))
+        shape = coal.Capsule(0.02, 0.2) if k < 2 else coal.Box(0.08, 0.03, 0.05)
+        where = pin.SE3(pin.exp3(rng.normal(0.0, 1.0, 3)), rng.uniform(-0.1, 0.1, 3))
+        geometry.addGeometryObject(pin.GeometryObject(f"link{k}_0", parent, frame, where,
+                                                      shape))
+        placement = pin.SE3(pin.exp3(rng.normal(0.0, 0.5, 3)), np.array([0.0, 0.0, 0.25]))
+    return Robot(name="toy", model=model, collision_model=geometry, visual_model=None,
+                 velocity_limits=np.ones(3), acceleration_limits=np.ones(3),
+                 tcp_frame="link2")
+
+
+def _toy_scene(rng: np.random.Generator) -> Scene:
+    objects = {}
+    for name, shape in (("wall", Shape("box", (0.05, 0.6, 0.6))),
+                        ("post", Shape("cylinder", (0.03, 0.8)))):
+        T = np.eye(4)
+        T[:3, :3] = pin.exp3(rng.normal(0.0, 0.3, 3))
+        T[:3, 3] = rng.uniform(-0.4, 0.4, 3) + [0.0, 0.0, 0.3]
+        objects[name] = SceneObject(name, shape, T)
+    return Scene("toy", "toy", objects, margin=0.0)
+
+
+@pytest.mark.parametrize("seed", range(16))
+def test_random_arms_are_judged_as_a_dense_check_judges_them(seed: int) -> None:
+    """Random arms, obstacles and joint paths: collisions found alike, and, for a path
+    free of them, margins a tenth of a millimetre on either side of its dense clearance
+    judged alike. The bounds, the kinematics and the steps they allow must never skip a
+    failing sample."""
+    rng = np.random.default_rng(seed)
+    robot, scene = _toy_arm(rng), _toy_scene(rng)
+    q = np.cumsum(rng.normal(0.0, 0.6, (6, 3)), axis=0)
+    t = np.arange(len(q), dtype=float)
+    zero = dict.fromkeys(scene.objects, 0.0)
+    first, _, clearance = _dense(FclVerifier(robot, scene, margin=0.0), q, zero)
+    _assert_same_as_dense(FclVerifier(robot, scene, margin=0.0), t, q, zero)
+    if first is None:
+        for excess in (1e-4, -1e-4):
+            margin = clearance + excess
+            out = _assert_same_as_dense(FclVerifier(robot, scene, margin=margin), t, q,
+                                        dict.fromkeys(scene.objects, margin))
+            assert isinstance(out, VerificationError) == (excess > 0)

@@ -1,0 +1,410 @@
+"""The verifier's conservative layer: its own kinematics, shape bounds and motion bounds.
+
+Everything here is the verifier's own code, written from the robot's and the scene's
+data (joint placements and axes, collision geometry), never the planner's checker:
+
+* :func:`motion_weights` and :func:`pair_weights` bound how far a unit of each joint's
+  motion moves a body's points, and so how much it can change a pair's distance;
+* :class:`Grid` cuts the knots so that no robot point moves more than the resolution
+  between two samples, and accumulates the joints' motion along it;
+* :class:`Layer` walks every pair along that grid with lower bounds on the distance
+  (the numba kernel in ``_verify_kernel``), certifying what the bounds prove and
+  handing the rest to FCL.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from ..errors import VerificationError
+
+if TYPE_CHECKING:
+    import pinocchio as pin
+
+__all__ = ["Grid", "Layer", "PoseCache", "ShapeSpec", "WalkMemory", "bound_between",
+           "motion_weights", "pair_weights", "shape_spec"]
+
+_BOX, _SPHERE, _CYLINDER, _CAPSULE = 0, 1, 2, 3
+_REVOLUTE, _PRISMATIC = 1, 2
+_AXES = {"X": (1.0, 0.0, 0.0), "Y": (0.0, 1.0, 0.0), "Z": (0.0, 0.0, 1.0)}
+#: Above this excess over its threshold [m], a pair's bounding-sphere bound is used
+#: alone: the step it allows is long enough that the finer bounds would not pay.
+_COARSE = 0.05
+#: Below this excess [m], the axis bound is refined with GJK's directions.
+_FINE = 0.02
+#: A pair's last separating axis is trusted while its gap keeps this share of the last
+#: full bound's excess over the threshold.
+_KEEP = 0.5
+
+
+@dataclass(frozen=True)
+class ShapeSpec:
+    """A convex primitive as the conservative layer sees it.
+
+    Attributes:
+        kind: 0 box, 1 sphere, 2 cylinder, 3 capsule (cylinders and capsules along z).
+        par: Box half extents; (radius,) for spheres; (radius, half length) otherwise [m].
+        centre: Its centre in the geometry frame [m] (not the origin for a mesh's box).
+        radius: Radius of a sphere about the centre that holds it [m].
+    """
+
+    kind: int
+    par: tuple[float, float, float]
+    centre: tuple[float, float, float]
+    radius: float
+
+
+def shape_spec(geometry: object) -> ShapeSpec:
+    """The primitive that is, or encloses, a coal geometry (a convex mesh: its box)."""
+    import coal
+
+    origin = (0.0, 0.0, 0.0)
+    if isinstance(geometry, coal.Box):
+        hx, hy, hz = (float(x) for x in geometry.halfSide)
+        return ShapeSpec(_BOX, (hx, hy, hz), origin, float(np.linalg.norm([hx, hy, hz])))
+    if isinstance(geometry, coal.Sphere):
+        radius = float(geometry.radius)
+        return ShapeSpec(_SPHERE, (radius, 0.0, 0.0), origin, radius)
+    if isinstance(geometry, (coal.Capsule, coal.Cylinder)):
+        radius, half = float(geometry.radius), float(geometry.halfLength)
+        if isinstance(geometry, coal.Capsule):
+            return ShapeSpec(_CAPSULE, (radius, half, 0.0), origin, radius + half)
+        return ShapeSpec(_CYLINDER, (radius, half, 0.0), origin, float(np.hypot(radius, half)))
+    if isinstance(geometry, coal.ConvexBase):
+        pts = np.asarray(geometry.points(), dtype=float)
+        lo, hi = pts.min(axis=0), pts.max(axis=0)
+        c, half = (lo + hi) / 2, (hi - lo) / 2
+        return ShapeSpec(_BOX, (float(half[0]), float(half[1]), float(half[2])),
+                         (float(c[0]), float(c[1]), float(c[2])), float(np.linalg.norm(half)))
+    raise VerificationError(f"unsupported geometry {type(geometry).__name__}", time=0.0,
+                            q=None, pairs=[])
+
+
+def bound_between(a: ShapeSpec, T_world_a: np.ndarray, b: ShapeSpec,
+                  T_world_b: np.ndarray) -> float:
+    """The layer's finest lower bound on the signed distance between two shapes whose
+    geometry frames are at ``T_world_a`` and ``T_world_b`` (4 x 4) [m] (the axis gaps,
+    raised by GJK's directions): for tests and diagnostics."""
+    from . import _verify_kernel as shapes
+
+    def placed(spec: ShapeSpec, T: np.ndarray) -> tuple[float, ...]:
+        T = np.asarray(T, dtype=float)
+        centre = T[:3, :3] @ np.asarray(spec.centre) + T[:3, 3]
+        return (float(spec.kind), *spec.par, spec.radius, *centre, *T[:3, :3].ravel())
+
+    Sa, Sb = placed(a, T_world_a), placed(b, T_world_b)
+    bound, n0, n1, n2 = shapes.axis_bound(Sa, Sb)
+    return float(shapes.gjk_bound(Sa, Sb, bound, n0, n1, n2, False)[0])
+
+
+def _joint_kind(model: pin.Model, j: int) -> tuple[int, tuple[float, float, float]]:
+    joint = model.joints[j]
+    name = joint.shortname()
+    if joint.nq == 1 and joint.nv == 1:
+        for prefix, kind in (("JointModelR", _REVOLUTE), ("JointModelP", _PRISMATIC)):
+            if name[:-1] == prefix and name[-1] in _AXES:
+                return kind, _AXES[name[-1]]
+        if name in ("JointModelRevoluteUnaligned", "JointModelPrismaticUnaligned"):
+            axis = np.asarray(joint.extract().axis, dtype=float)
+            if abs(float(np.linalg.norm(axis)) - 1.0) > 1e-9:
+                raise VerificationError(f"joint {model.names[j]}: axis {axis.tolist()} is "
+                                        "not a unit vector", time=0.0, q=None, pairs=[])
+            kind = _REVOLUTE if "Revolute" in name else _PRISMATIC
+            return kind, (float(axis[0]), float(axis[1]), float(axis[2]))
+    raise VerificationError(f"unsupported joint {model.names[j]} ({name}): the verifier "
+                            "handles 1-dof revolute and prismatic joints", time=0.0,
+                            q=None, pairs=[])
+
+
+def motion_weights(model: pin.Model, joints: list[int], T_joint_geom: list[np.ndarray],
+                   shapes: list[ShapeSpec]) -> np.ndarray:
+    """Per body and joint, a bound on how far a unit of that joint's motion moves the
+    body's points [m/rad] or [m/m] (zero for joints that do not move it): (bodies, dof).
+
+    A revolute joint moves a point by at most its distance to the joint's axis times the
+    angle. For the body's own joint, that distance is at most the shape centre's distance
+    to the axis plus the shape's radius; for a joint upstream, its distance to the
+    joint's origin: the centre's distance to its own joint's origin plus the radius,
+    plus the offsets of the frames in between (a prismatic joint's offset up to its
+    position limits). A prismatic joint moves every point by its own motion.
+    """
+    out = np.zeros((len(joints), model.nv))
+    for m, (joint, T, shape) in enumerate(zip(joints, T_joint_geom, shapes, strict=True)):
+        centre = np.asarray(T)[:3, :3] @ np.asarray(shape.centre) + np.asarray(T)[:3, 3]
+        dist = float(np.linalg.norm(centre)) + shape.radius
+        j = joint
+        while j > 0:
+            kind, axis = _joint_kind(model, j)
+            v = model.joints[j].idx_v
+            if kind == _PRISMATIC:
+                out[m, v] = 1.0
+                stroke = max(abs(model.lowerPositionLimit[v]), abs(model.upperPositionLimit[v]))
+                if not np.isfinite(stroke):
+                    raise VerificationError(f"prismatic joint {model.names[j]} has no "
+                                            "position limits", time=0.0, q=None, pairs=[])
+                dist += stroke
+            elif j == joint:
+                across = centre - np.dot(centre, axis) * np.asarray(axis)
+                out[m, v] = float(np.linalg.norm(across)) + shape.radius
+            else:
+                out[m, v] = dist
+            dist += float(np.linalg.norm(model.jointPlacements[j].translation))
+            j = model.parents[j]
+    return out
+
+
+def pair_weights(model: pin.Model, joints: list[int], weights: np.ndarray,
+                 pairs: list[tuple[int, int, bool]]) -> np.ndarray:
+    """Per pair and joint, a bound on how much a unit of that joint's motion changes the
+    pair's distance [m/rad] or [m/m]: (pairs, dof).
+
+    Against the environment, that is the body's own weight. Between two bodies, a joint
+    that moves both (a common ancestor) moves them as one rigid piece and leaves their
+    distance alone; every other joint moves one of them relative to the other.
+    """
+    def movers_of(joint: int) -> set[int]:
+        out = set()
+        while joint > 0:
+            out.add(model.joints[joint].idx_v)
+            joint = model.parents[joint]
+        return out
+
+    out = np.zeros((len(pairs), weights.shape[1]))
+    for p, (a, b, env) in enumerate(pairs):
+        if env:
+            out[p] = weights[a]
+            continue
+        common = sorted(movers_of(joints[a]) & movers_of(joints[b]))
+        out[p] = weights[a] + weights[b]
+        out[p, common] = 0.0
+    return out
+
+
+@dataclass(frozen=True)
+class Grid:
+    """The resolution grid of a timed trajectory.
+
+    Sample ``s`` lies on knot interval ``knot_of[s]`` (0: the first knot itself), at
+    fraction ``frac[s]`` of it (linear in joint space, as the knots are dense).
+
+    Attributes:
+        knot_of: Knot each sample ends its interval at.
+        frac: Fraction of that interval.
+        step: |dq| of every joint into every knot (0 at the first) [rad] or [m]:
+            (knots, dof). Weighted by a pair's weights, the joints' motion since an
+            earlier sample bounds how much the pair's distance can have changed.
+        cum: Its accumulated sum at every knot.
+    """
+
+    knot_of: np.ndarray
+    frac: np.ndarray
+    step: np.ndarray
+    cum: np.ndarray
+
+    @staticmethod
+    def cut(q: np.ndarray, weights: np.ndarray, resolution: float) -> Grid:
+        """Cut the knots so that no body moves more than ``resolution`` [m] per sample.
+
+        Args:
+            q: Knot positions [rad]: (knots, dof).
+            weights: Motion weights of the bodies (:func:`motion_weights`).
+            resolution: Largest motion between samples [m].
+        """
+        step = np.zeros_like(q)
+        step[1:] = np.abs(np.diff(q, axis=0))
+        cuts = np.ceil((step[1:] @ weights.T).max(axis=1, initial=0.0) / resolution)
+        cuts = np.maximum(cuts, 1).astype(np.int64)
+        knot_of = np.repeat(np.arange(len(q)), np.concatenate([[1], cuts]))
+        per_sample = np.repeat(cuts, cuts)
+        index = np.arange(1, per_sample.size + 1) - np.repeat(np.cumsum(cuts) - cuts, cuts)
+        frac = np.concatenate([[1.0], index / per_sample])
+        return Grid(knot_of, frac, step, np.cumsum(step, axis=0))
+
+    @property
+    def samples(self) -> int:
+        """Number of samples."""
+        return len(self.knot_of)
+
+    def state(self, q: np.ndarray, s: int) -> np.ndarray:
+        """Joint positions of sample ``s`` [rad]."""
+        k = int(self.knot_of[s])
+        return q[0].copy() if k == 0 else q[k - 1] + self.frac[s] * (q[k] - q[k - 1])
+
+
+@dataclass
+class PoseCache:
+    """Joint poses computed so far on one grid, by sample (filled by the kernel):
+    whether each is done, and each (samples x joints x 3 x 4)."""
+
+    jdone: np.ndarray
+    jpose: np.ndarray
+
+    def arrays(self) -> tuple[np.ndarray, np.ndarray]:
+        """The arrays, as the kernel takes them."""
+        return self.jdone, self.jpose
+
+
+@dataclass
+class WalkMemory:
+    """What the walks along one grid learn.
+
+    Attributes:
+        axes: Per pair, the axis that separated it best at its last full evaluation,
+            and 1 if there is one: (pairs, 4).
+        last: Per pair, its last full bound [m].
+        stats: Bounds evaluated: all, with the axes, with GJK.
+        ceiling: Smallest GJK upper bound of a clearance pair [m] (the distance between
+            two points of the shapes), its pair and its sample.
+    """
+
+    axes: np.ndarray
+    last: np.ndarray
+    stats: np.ndarray
+    ceiling: np.ndarray
+
+    @staticmethod
+    def empty(pairs: int) -> WalkMemory:
+        """Nothing learnt yet, for ``pairs`` pairs."""
+        return WalkMemory(np.zeros((pairs, 4)), np.full(pairs, np.inf),
+                          np.zeros(3, dtype=np.int64), np.array([np.inf, -1.0, -1.0]))
+
+    def arrays(self) -> tuple[np.ndarray, ...]:
+        """The arrays, as the kernel takes them."""
+        return self.axes, self.last, self.stats, self.ceiling
+
+
+class Layer:
+    """Lower bounds on the distance of every checked pair, on a whole grid at once.
+
+    Args:
+        model: The robot's kinematic model (joint placements and axes are read once).
+        joints: Joint of each moving body.
+        T_joint_geom: Geometry frame of each moving body in its joint frame (4 x 4).
+        movers: Shape of each moving body.
+        T_world_env: World placement of each environment object (4 x 4).
+        env: Shape of each environment object.
+        pairs: (mover, mover or environment object, is environment) of each pair.
+        weights: Motion weights of each pair (:func:`pair_weights`).
+        clearance: Whether each pair counts for the clearance.
+    """
+
+    def __init__(self, model: pin.Model, joints: list[int], T_joint_geom: list[np.ndarray],
+                 movers: list[ShapeSpec], T_world_env: list[np.ndarray],
+                 env: list[ShapeSpec], pairs: list[tuple[int, int, bool]],
+                 weights: np.ndarray, clearance: np.ndarray) -> None:
+        self._model = model
+        nj = model.njoints
+        place = np.zeros((nj, 3, 4))
+        kind = np.zeros(nj, dtype=np.int64)
+        axis = np.zeros((nj, 3))
+        iq = np.zeros(nj, dtype=np.int64)
+        for j in range(1, nj):
+            place[j] = model.jointPlacements[j].homogeneous[:3]
+            kind[j], axis[j] = _joint_kind(model, j)
+            iq[j] = model.joints[j].idx_q
+        joint_of = np.zeros(model.nv, dtype=np.int64)
+        upstream = np.zeros((model.nv, model.nv))
+        for j in range(1, nj):
+            v = model.joints[j].idx_v
+            joint_of[v] = j
+            k = model.parents[j]
+            while k > 0:
+                if kind[k] == _REVOLUTE:
+                    upstream[v, model.joints[k].idx_v] = 1.0
+                k = model.parents[k]
+        self._kin = (np.array(model.parents, dtype=np.int64), place, kind, axis, iq,
+                     np.array(joints, dtype=np.int64),
+                     np.array([np.asarray(T)[:3] for T in T_joint_geom]).reshape(-1, 3, 4),
+                     joint_of)
+        self._upstream = upstream
+        self._env_pose = np.array([np.asarray(T)[:3] for T in T_world_env]).reshape(-1, 3, 4)
+        # The kernels' shape table: kind, parameters, centre, radius; bodies first.
+        self._shapes = np.array([(s.kind, *s.par, *s.centre, s.radius)
+                                 for s in movers + env], dtype=float).reshape(-1, 8)
+        self._pairs = (np.array([a for a, _, _ in pairs], dtype=np.int64),
+                       np.array([b for _, b, _ in pairs], dtype=np.int64),
+                       np.array([e for _, _, e in pairs], dtype=np.bool_),
+                       np.ascontiguousarray(weights, dtype=float),
+                       np.asarray(clearance, dtype=np.bool_))
+
+    def cache(self, samples: int) -> PoseCache:
+        """An empty pose cache for a grid of ``samples`` samples."""
+        nj = self._kin[0].size
+        return PoseCache(np.zeros((samples, nj), dtype=np.bool_),
+                         np.empty((samples, nj, 3, 4)))
+
+    def walk(self, todo: np.ndarray, theta: np.ndarray, q: np.ndarray, grid: Grid,
+             cache: PoseCache, memory: WalkMemory, drop: float = -1.0
+             ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Certify what the bounds prove along the grid, for the pairs ``todo``.
+
+        A sample of pair ``p`` is certified when the bound at an earlier (or the same)
+        sample, minus the pair's motion bound since, exceeds ``theta[p]``.
+
+        Args:
+            todo: Pair indices, walked in this order.
+            theta: Threshold of every pair: the signed distance must exceed it [m].
+            q: Knot positions [rad].
+            grid: The grid.
+            cache: Its pose cache (filled here, read by the FCL checks).
+            memory: What the walks of this grid learnt so far (updated).
+            drop: If not negative, a clearance pair's threshold is the memory's ceiling
+                (falling as GJK finds closer points) minus ``drop`` [m], where that is
+                higher than ``theta``.
+
+        Returns:
+            (pairs, samples, bounds [m]) not certified, pair by pair, samples ascending.
+        """
+        return self._certify(todo, theta, q, grid, cache, memory,
+                             (_COARSE, _FINE, _KEEP, float(drop)))
+
+    def _certify(self, todo: np.ndarray, theta: np.ndarray, q: np.ndarray, grid: Grid,
+                 cache: PoseCache, memory: WalkMemory, params: tuple[float, ...]
+                 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        from . import _verify_kernel as kernel
+
+        return kernel.certify(  # type: ignore[no-any-return]
+            np.ascontiguousarray(todo, dtype=np.int64), theta,
+            (grid.cum, grid.step, grid.cum @ self._upstream.T, grid.step @ self._upstream.T,
+             np.ascontiguousarray(q, dtype=float), grid.knot_of, grid.frac),
+            self._kin, cache.arrays(), self._pairs, (self._shapes, self._env_pose),
+            memory.arrays(), params)
+
+    def pose(self, q: np.ndarray, grid: Grid, cache: PoseCache, s: int, m: int
+             ) -> np.ndarray:
+        """World pose (3 x 4) of moving body ``m``'s geometry frame at sample ``s``: from
+        the layer's joint poses, or pinocchio's where the layer never looked."""
+        joint = int(self._kin[5][m])
+        T_joint_geom = np.vstack([self._kin[6][m], [0.0, 0.0, 0.0, 1.0]])
+        if joint == 0:
+            return T_joint_geom[:3]
+        if cache.jdone[s, joint]:
+            T_world_joint = cache.jpose[s, joint]
+        else:
+            import pinocchio as pin
+
+            data = self._model.createData()
+            pin.forwardKinematics(self._model, data, grid.state(q, s))
+            T_world_joint = data.oMi[joint].homogeneous[:3]
+        return np.asarray(T_world_joint @ T_joint_geom)
+
+    def bounds_at(self, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Every pair's lower bound at one state [m] (the finest the layer computes), and
+        the moving bodies' geometry frames in the world (bodies x 3 x 4), from the
+        layer's own kinematics for every body in a pair."""
+        q = np.asarray(q, dtype=float).reshape(1, -1)
+        zero = np.zeros((1, q.shape[1]))
+        grid = Grid(np.zeros(1, dtype=np.int64), np.ones(1), zero, zero)
+        cache = self.cache(1)
+        memory = WalkMemory.empty(len(self._pairs[0]))
+        theta = np.full(len(self._pairs[0]), np.inf)
+        pairs, _, bounds = self._certify(np.arange(theta.size), theta, q, grid, cache,
+                                         memory, (np.inf, np.inf, 0.0, -1.0))
+        out = np.full(theta.size, np.nan)
+        out[pairs] = bounds
+        poses = np.array([self.pose(q, grid, cache, 0, m)
+                          for m in range(self._kin[5].size)]).reshape(-1, 3, 4)
+        return out, poses

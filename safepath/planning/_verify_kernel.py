@@ -1,0 +1,560 @@
+"""The verifier's numba kernel: a lower bound on the distance between two placed convex
+shapes, its own forward kinematics, and the walk along the grid.
+
+Imported lazily by ``_verify_bounds`` (numba takes a while to import); compiled once and
+cached on disk. One module on purpose: numba's disk cache tracks only the file of the
+function it compiles, so a walk compiled here never runs with stale geometry helpers
+from another file. Plain loops, no ``np.dot`` or ``@``. The geometric helpers take floats
+and tuples of floats only, and the array work of the walk sits in closures inside
+:func:`certify`: a numba helper that takes arrays pays their reference counting on every
+call, which costs more than most of these helpers' work.
+
+Shapes are convex primitives: boxes, spheres, cylinders and capsules (cylinders and
+capsules along their local z). The bound is the largest gap between the two shapes'
+projections on a few unit axes: the line between the centres, each shape's own axes,
+their cross products, the axis that worked at the pair's last evaluation, and GJK's
+search directions when those are not enough. Projecting is 1-Lipschitz, so every gap is
+at most the distance; when the shapes overlap, a gap is minus their overlap along that
+axis, and moving one shape by that overlap separates them, so the gap is also at most
+minus the penetration depth. Either way a gap is below the signed distance, whatever the
+state of GJK: its directions are only candidates, the gaps use the exact widths
+(:func:`support`), never GJK's points.
+
+The shape table has one row per shape (the bodies', then the environment objects'):
+kind (0 box, 1 sphere, 2 cylinder, 3 capsule), three parameters (box half extents;
+radius; radius and half length), the centre in the geometry frame, and the radius of a
+sphere about the centre that holds the shape.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numba as nb
+import numpy as np
+
+BOX, SPHERE, CYLINDER, CAPSULE = 0, 1, 2, 3
+REVOLUTE, PRISMATIC = 1, 2
+#: Columns of the shape table.
+KIND, PAR, CENTRE, RADIUS = 0, 1, 4, 7
+
+# A placed shape is a tuple of 17 floats: kind, three parameters (box half extents;
+# radius; radius and half length), the radius of a sphere about the centre that holds
+# it, its centre in the world (3), its rotation in the world (9, row-major; column j is
+# the shape's axis j).
+
+
+@nb.njit(cache=True)
+def _dots(S: tuple, n0: float, n1: float, n2: float) -> tuple[float, float, float]:
+    """n along each of the shape's axes."""
+    return (n0 * S[8] + n1 * S[11] + n2 * S[14], n0 * S[9] + n1 * S[12] + n2 * S[15],
+            n0 * S[10] + n1 * S[13] + n2 * S[16])
+
+
+@nb.njit(cache=True)
+def _axis(S: tuple, j: int) -> tuple[float, float, float]:
+    """The shape's axis j in the world."""
+    if j == 0:
+        return S[8], S[11], S[14]
+    if j == 1:
+        return S[9], S[12], S[15]
+    return S[10], S[13], S[16]
+
+
+@nb.njit(cache=True)
+def support(S: tuple, n0: float, n1: float, n2: float) -> float:
+    """Half-width of the shape's projection on the unit axis n, about its centre [m]."""
+    a0, a1, a2 = _dots(S, n0, n1, n2)
+    kind = int(S[0])
+    if kind == BOX:
+        return S[1] * abs(a0) + S[2] * abs(a1) + S[3] * abs(a2)  # type: ignore[no-any-return]
+    if kind == SPHERE:
+        return S[1]  # type: ignore[no-any-return]
+    u = abs(a2)
+    if kind == CYLINDER:
+        return S[2] * u + S[1] * math.sqrt(max(0.0, 1.0 - u * u))  # type: ignore[no-any-return]
+    return S[2] * u + S[1]  # type: ignore[no-any-return]
+
+
+@nb.njit(cache=True)
+def _support_point(S: tuple, n0: float, n1: float, n2: float
+                   ) -> tuple[float, float, float]:
+    """A point of the shape furthest along n: GJK's search only, the bounds use
+    :func:`support`."""
+    x0, x1, x2 = S[5], S[6], S[7]
+    a0, a1, a2 = _dots(S, n0, n1, n2)
+    kind = int(S[0])
+    if kind == BOX:
+        for j, a in ((0, a0), (1, a1), (2, a2)):
+            h = S[1 + j] if a >= 0.0 else -S[1 + j]
+            c0, c1, c2 = _axis(S, j)
+            x0, x1, x2 = x0 + h * c0, x1 + h * c1, x2 + h * c2
+        return x0, x1, x2
+    norm = math.sqrt(n0 * n0 + n1 * n1 + n2 * n2)
+    if kind == SPHERE:
+        r = S[1] / norm
+        return x0 + r * n0, x1 + r * n1, x2 + r * n2
+    c0, c1, c2 = _axis(S, 2)
+    h = S[2] if a2 >= 0.0 else -S[2]
+    x0, x1, x2 = x0 + h * c0, x1 + h * c1, x2 + h * c2
+    if kind == CAPSULE:
+        r = S[1] / norm
+        return x0 + r * n0, x1 + r * n1, x2 + r * n2
+    r0, r1, r2 = n0 - a2 * c0, n1 - a2 * c1, n2 - a2 * c2
+    radial = math.sqrt(r0 * r0 + r1 * r1 + r2 * r2)
+    if radial > 1e-12 * norm:
+        r = S[1] / radial
+        x0, x1, x2 = x0 + r * r0, x1 + r * r1, x2 + r * r2
+    return x0, x1, x2
+
+
+@nb.njit(cache=True)
+def gap(Sa: tuple, Sb: tuple, n0: float, n1: float, n2: float) -> float:
+    """Gap between the shapes' projections on the unit axis n [m]."""
+    d0, d1, d2 = Sb[5] - Sa[5], Sb[6] - Sa[6], Sb[7] - Sa[7]
+    return (abs(n0 * d0 + n1 * d1 + n2 * d2) - support(Sa, n0, n1, n2)  # type: ignore[no-any-return]
+            - support(Sb, n0, n1, n2))
+
+
+@nb.njit(cache=True)
+def sphere_bound(Sa: tuple, Sb: tuple) -> tuple[float, float, float, float]:
+    """Distance between the bounding spheres [m] (never above the gap along the line
+    between the centres), and that line's direction."""
+    d0, d1, d2 = Sb[5] - Sa[5], Sb[6] - Sa[6], Sb[7] - Sa[7]
+    dist = math.sqrt(d0 * d0 + d1 * d1 + d2 * d2)
+    if dist < 1e-12:
+        return dist - Sa[4] - Sb[4], 0.0, 0.0, 1.0
+    return dist - Sa[4] - Sb[4], d0 / dist, d1 / dist, d2 / dist
+
+
+@nb.njit(cache=True)
+def _own_axes(S: tuple) -> tuple[int, int]:
+    """The shape's axes worth trying: (first, count)."""
+    kind = int(S[0])
+    if kind == BOX:
+        return 0, 3
+    if kind == SPHERE:
+        return 0, 0
+    return 2, 1
+
+
+@nb.njit(cache=True)
+def axis_bound(Sa: tuple, Sb: tuple) -> tuple[float, float, float, float]:
+    """The largest gap along the line between the centres, the shapes' own axes and
+    their cross products [m] (never below the bounding spheres' distance), and its
+    axis."""
+    best, b0, b1, b2 = sphere_bound(Sa, Sb)
+    g = gap(Sa, Sb, b0, b1, b2)  # the line between the centres
+    if g > best:
+        best = g
+    a_first, a_count = _own_axes(Sa)
+    b_first, b_count = _own_axes(Sb)
+    for i in range(a_first, a_first + a_count):
+        n0, n1, n2 = _axis(Sa, i)
+        g = gap(Sa, Sb, n0, n1, n2)
+        if g > best:
+            best, b0, b1, b2 = g, n0, n1, n2
+    for j in range(b_first, b_first + b_count):
+        n0, n1, n2 = _axis(Sb, j)
+        g = gap(Sa, Sb, n0, n1, n2)
+        if g > best:
+            best, b0, b1, b2 = g, n0, n1, n2
+    for i in range(a_first, a_first + a_count):
+        u0, u1, u2 = _axis(Sa, i)
+        for j in range(b_first, b_first + b_count):
+            v0, v1, v2 = _axis(Sb, j)
+            c0, c1, c2 = u1 * v2 - u2 * v1, u2 * v0 - u0 * v2, u0 * v1 - u1 * v0
+            norm = math.sqrt(c0 * c0 + c1 * c1 + c2 * c2)
+            if norm > 1e-6:
+                n0, n1, n2 = c0 / norm, c1 / norm, c2 / norm
+                g = gap(Sa, Sb, n0, n1, n2)
+                if g > best:
+                    best, b0, b1, b2 = g, n0, n1, n2
+    return best, b0, b1, b2
+
+
+@nb.njit(cache=True)
+def _solve(k: int, g00: float, g01: float, g02: float, g11: float, g12: float,
+           g22: float, r0: float, r1: float, r2: float
+           ) -> tuple[bool, float, float, float]:
+    """Solve the symmetric k x k system (k <= 3) G x = r by Cramer's rule; False if it
+    is (nearly) singular."""
+    if k == 1:
+        if g00 <= 1e-30:
+            return False, 0.0, 0.0, 0.0
+        return True, r0 / g00, 0.0, 0.0
+    if k == 2:
+        det = g00 * g11 - g01 * g01
+        if det <= 1e-14 * g00 * g11:
+            return False, 0.0, 0.0, 0.0
+        return True, (r0 * g11 - r1 * g01) / det, (g00 * r1 - g01 * r0) / det, 0.0
+    c00 = g11 * g22 - g12 * g12
+    c01 = g02 * g12 - g01 * g22
+    c02 = g01 * g12 - g02 * g11
+    det = g00 * c00 + g01 * c01 + g02 * c02
+    if det <= 1e-14 * g00 * g11 * g22:
+        return False, 0.0, 0.0, 0.0
+    c11 = g00 * g22 - g02 * g02
+    c12 = g01 * g02 - g00 * g12
+    c22 = g00 * g11 - g01 * g01
+    return (True, (c00 * r0 + c01 * r1 + c02 * r2) / det,
+            (c01 * r0 + c11 * r1 + c12 * r2) / det, (c02 * r0 + c12 * r1 + c22 * r2) / det)
+
+
+@nb.njit(cache=True)
+def gjk_bound(Sa: tuple, Sb: tuple, best: float, w0: float, w1: float, w2: float,
+              warm: bool) -> tuple[float, float, float, float, float]:
+    """Raise the lower bound ``best`` [m] with the gaps along GJK's search directions.
+
+    GJK walks the Minkowski difference B - A towards the origin, from its point
+    furthest along the axis w if ``warm`` (else from the centres' difference). It stops
+    when the bound is within a micrometre of its upper bound (the distance to the
+    closest point of its simplex, itself the distance between two points of the
+    shapes), when it meets the origin, or after 32 steps. The closest point of the
+    simplex is the smallest of its faces' projections that fall inside their face.
+
+    Returns:
+        The bound [m], the upper bound [m], and the axis of the bound if GJK raised
+        it (else w).
+    """
+    W = np.empty((4, 3))
+    e = np.empty((3, 3))
+    idx = np.empty(4, dtype=np.int64)
+    d0, d1, d2 = Sb[5] - Sa[5], Sb[6] - Sa[6], Sb[7] - Sa[7]
+    v0, v1, v2 = d0, d1, d2
+    b0, b1, b2 = w0, w1, w2
+    count = 0
+    if warm:
+        a0, a1, a2 = _support_point(Sa, w0, w1, w2)
+        c0, c1, c2 = _support_point(Sb, -w0, -w1, -w2)
+        v0, v1, v2 = c0 - a0, c1 - a1, c2 - a2
+        W[0, 0], W[0, 1], W[0, 2] = v0, v1, v2
+        count = 1
+    upper = np.inf
+    for _ in range(32):
+        norm = math.sqrt(v0 * v0 + v1 * v1 + v2 * v2)
+        upper = min(upper, norm)
+        if norm < 1e-10:
+            break  # touching or overlapping: the axis bounds are all there is
+        n0, n1, n2 = v0 / norm, v1 / norm, v2 / norm
+        g = n0 * d0 + n1 * d1 + n2 * d2 - support(Sa, n0, n1, n2) - support(Sb, n0, n1, n2)
+        if g > best:
+            best, b0, b1, b2 = g, n0, n1, n2
+        if norm - best < 1e-6:
+            break
+        a0, a1, a2 = _support_point(Sa, n0, n1, n2)
+        c0, c1, c2 = _support_point(Sb, -n0, -n1, -n2)
+        W[count, 0], W[count, 1], W[count, 2] = c0 - a0, c1 - a1, c2 - a2
+        count += 1
+        # The closest point of the simplex to the origin, and the face it lies on.
+        closest, keep_mask = np.inf, 0
+        for mask in range(1, 1 << count):
+            k = -1
+            for i in range(count):
+                if mask >> i & 1:
+                    k += 1
+                    idx[k] = i
+            i0 = idx[0]
+            e[:] = 0.0
+            for a in range(k):
+                for c in range(3):
+                    e[a, c] = W[idx[a + 1], c] - W[i0, c]
+            x0, x1, x2 = W[i0, 0], W[i0, 1], W[i0, 2]
+            if k > 0:
+                ok, l1, l2, l3 = _solve(
+                    k, e[0, 0] * e[0, 0] + e[0, 1] * e[0, 1] + e[0, 2] * e[0, 2],
+                    e[0, 0] * e[1, 0] + e[0, 1] * e[1, 1] + e[0, 2] * e[1, 2],
+                    e[0, 0] * e[2, 0] + e[0, 1] * e[2, 1] + e[0, 2] * e[2, 2],
+                    e[1, 0] * e[1, 0] + e[1, 1] * e[1, 1] + e[1, 2] * e[1, 2],
+                    e[1, 0] * e[2, 0] + e[1, 1] * e[2, 1] + e[1, 2] * e[2, 2],
+                    e[2, 0] * e[2, 0] + e[2, 1] * e[2, 1] + e[2, 2] * e[2, 2],
+                    -(e[0, 0] * x0 + e[0, 1] * x1 + e[0, 2] * x2),
+                    -(e[1, 0] * x0 + e[1, 1] * x1 + e[1, 2] * x2),
+                    -(e[2, 0] * x0 + e[2, 1] * x1 + e[2, 2] * x2))
+                if not ok or min(l1, l2, l3) < -1e-12 or l1 + l2 + l3 > 1.0 + 1e-12:
+                    continue
+                x0 += l1 * e[0, 0] + l2 * e[1, 0] + l3 * e[2, 0]
+                x1 += l1 * e[0, 1] + l2 * e[1, 1] + l3 * e[2, 1]
+                x2 += l1 * e[0, 2] + l2 * e[1, 2] + l3 * e[2, 2]
+            norm2 = x0 * x0 + x1 * x1 + x2 * x2
+            if norm2 < closest:
+                closest, keep_mask = norm2, mask
+                v0, v1, v2 = x0, x1, x2
+        kept = 0
+        for i in range(count):
+            if keep_mask >> i & 1:
+                for c in range(3):
+                    W[kept, c] = W[i, c]
+                kept += 1
+        count = kept
+        if count == 4:
+            break  # the origin is inside: overlapping
+    return best, upper, b0, b1, b2
+
+
+@nb.njit(cache=True)
+def certify(todo: np.ndarray, theta: np.ndarray, grid: tuple, kin: tuple, cache: tuple,
+            pairs: tuple, world: tuple, memory: tuple, params: tuple
+            ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Walk every pair in ``todo`` along the grid with the lower bound.
+
+    At a sample whose bound exceeds the pair's threshold, the samples until the bound
+    on how much the pair's gap (along the bound's axis) can have changed reaches the
+    excess are certified; a sample whose bound does not exceed it is returned, for FCL,
+    and the walk goes on at the next sample.
+
+    Args:
+        todo: Pairs to walk, in this order.
+        theta: Threshold of every pair [m].
+        grid: (accumulated joint motion |dq| at every knot (knots x dof), its step
+            into every knot, the same for the turning of the revolute joints upstream
+            of each joint, knot positions [rad], knot of every sample, fraction of its
+            interval). Samples move linearly between knots.
+        kin: (parent, placement (3 x 4), kind, axis, q index) of every joint; (joint,
+            placement in it (3 x 4)) of every body; the joint of every velocity index.
+        cache: (joint done, joint pose) by sample.
+        pairs: (body a, body or environment object b, b is environment, motion weights,
+            counts for the clearance) of every pair.
+        world: (shape table: the bodies' rows, then the environment objects'; world
+            pose of every environment object (3 x 4)).
+        memory: Per pair, the axis that separated it best at its last full evaluation
+            and 1 if there is one, and its last full bound [m]; the bounds evaluated
+            (all, with the axes, with GJK); the ceiling (smallest GJK upper bound of a
+            clearance pair [m], its pair, its sample). Updated.
+        params: (coarse: use the bounding spheres alone above theta + coarse [m];
+            fine: refine with GJK below theta + fine [m]; keep: trust a kept axis while
+            its gap keeps this share of the last full bound's excess; drop: if not
+            negative, a clearance pair's threshold is the ceiling minus drop [m], if
+            higher than its own).
+
+    Returns:
+        The uncertified (pair, sample) couples, pair by pair, samples ascending, and
+        their bounds [m].
+    """
+    cum, step, cum_turn, step_turn, qk, knot_of, frac = grid
+    parent, place, kind, axis, iq, m_joint, m_place, joint_of = kin
+    jdone, jpose = cache
+    pair_a, pair_b, pair_env, weights, tracked = pairs
+    shp, env_pose = world
+    axes, last, stats, ceiling = memory
+    coarse, fine, keep, drop = params
+    movers = m_joint.size
+    n, nv = knot_of.size, qk.shape[1]
+    chain = np.empty(parent.size, dtype=np.int64)
+    share, base, base_turn = np.ones(nv), np.zeros(nv), np.zeros(nv)
+    M, T = np.empty((3, 4)), np.empty((3, 4))
+
+    def joint_pose(s: int, j: int) -> None:
+        """jpose[s, j] (and its missing ancestors) = parent's pose * placement * the
+        joint's own motion (a rotation about its axis or a shift along it)."""
+        count, k = 0, j
+        while k > 0 and not jdone[s, k]:
+            chain[count] = k
+            count += 1
+            k = parent[k]
+        knot = knot_of[s]
+        for c in range(count - 1, -1, -1):
+            k = chain[c]
+            col = iq[k]
+            value = qk[0, col] if knot == 0 else (
+                qk[knot - 1, col] + frac[s] * (qk[knot, col] - qk[knot - 1, col]))
+            x, y, z = axis[k, 0], axis[k, 1], axis[k, 2]
+            if kind[k] == PRISMATIC:
+                m00, m01, m02, m10, m11, m12, m20, m21, m22 = 1., 0., 0., 0., 1., 0., 0., 0., 1.
+                t0, t1, t2 = x * value, y * value, z * value
+            else:
+                co, si = math.cos(value), math.sin(value)
+                t = 1.0 - co
+                m00, m01, m02 = co + t * x * x, t * x * y - si * z, t * x * z + si * y
+                m10, m11, m12 = t * x * y + si * z, co + t * y * y, t * y * z - si * x
+                m20, m21, m22 = t * x * z - si * y, t * y * z + si * x, co + t * z * z
+                t0 = t1 = t2 = 0.0
+            for i in range(3):
+                M[i, 0] = place[k, i, 0] * m00 + place[k, i, 1] * m10 + place[k, i, 2] * m20
+                M[i, 1] = place[k, i, 0] * m01 + place[k, i, 1] * m11 + place[k, i, 2] * m21
+                M[i, 2] = place[k, i, 0] * m02 + place[k, i, 1] * m12 + place[k, i, 2] * m22
+                M[i, 3] = (place[k, i, 0] * t0 + place[k, i, 1] * t1 + place[k, i, 2] * t2
+                           + place[k, i, 3])
+            p = parent[k]
+            for i in range(3):
+                for c2 in range(4):
+                    if p == 0:
+                        jpose[s, k, i, c2] = M[i, c2]
+                    else:
+                        jpose[s, k, i, c2] = (jpose[s, p, i, 0] * M[0, c2]
+                                              + jpose[s, p, i, 1] * M[1, c2]
+                                              + jpose[s, p, i, 2] * M[2, c2]
+                                              + (jpose[s, p, i, 3] if c2 == 3 else 0.0))
+            jdone[s, k] = True
+
+    def placed_body(k: int, s: int, m: int) -> tuple:
+        """Shape k placed as body m at sample s: its geometry frame is its joint's pose
+        times its placement in the joint frame."""
+        j = m_joint[m]
+        if j > 0 and not jdone[s, j]:
+            joint_pose(s, j)
+        for i in range(3):
+            for c in range(4):
+                if j == 0:
+                    T[i, c] = m_place[m, i, c]
+                else:
+                    T[i, c] = (jpose[s, j, i, 0] * m_place[m, 0, c]
+                               + jpose[s, j, i, 1] * m_place[m, 1, c]
+                               + jpose[s, j, i, 2] * m_place[m, 2, c]
+                               + (jpose[s, j, i, 3] if c == 3 else 0.0))
+        c0, c1, c2 = shp[k, CENTRE], shp[k, CENTRE + 1], shp[k, CENTRE + 2]
+        return (shp[k, KIND], shp[k, PAR], shp[k, PAR + 1], shp[k, PAR + 2], shp[k, RADIUS],
+                T[0, 3] + T[0, 0] * c0 + T[0, 1] * c1 + T[0, 2] * c2,
+                T[1, 3] + T[1, 0] * c0 + T[1, 1] * c1 + T[1, 2] * c2,
+                T[2, 3] + T[2, 0] * c0 + T[2, 1] * c1 + T[2, 2] * c2,
+                T[0, 0], T[0, 1], T[0, 2], T[1, 0], T[1, 1], T[1, 2],
+                T[2, 0], T[2, 1], T[2, 2])
+
+    def placed_env(k: int, b: int) -> tuple:
+        """Shape k placed as environment object b."""
+        c0, c1, c2 = shp[k, CENTRE], shp[k, CENTRE + 1], shp[k, CENTRE + 2]
+        return (shp[k, KIND], shp[k, PAR], shp[k, PAR + 1], shp[k, PAR + 2], shp[k, RADIUS],
+                env_pose[b, 0, 3] + env_pose[b, 0, 0] * c0 + env_pose[b, 0, 1] * c1
+                + env_pose[b, 0, 2] * c2,
+                env_pose[b, 1, 3] + env_pose[b, 1, 0] * c0 + env_pose[b, 1, 1] * c1
+                + env_pose[b, 1, 2] * c2,
+                env_pose[b, 2, 3] + env_pose[b, 2, 0] * c0 + env_pose[b, 2, 1] * c1
+                + env_pose[b, 2, 2] * c2,
+                env_pose[b, 0, 0], env_pose[b, 0, 1], env_pose[b, 0, 2],
+                env_pose[b, 1, 0], env_pose[b, 1, 1], env_pose[b, 1, 2],
+                env_pose[b, 2, 0], env_pose[b, 2, 1], env_pose[b, 2, 2])
+
+    def shapes(p: int, s: int) -> tuple:
+        """Pair p's two shapes at sample s."""
+        a, b = pair_a[p], pair_b[p]
+        if pair_env[p]:
+            return placed_body(a, s, a), placed_env(movers + b, b)
+        return placed_body(a, s, a), placed_body(b, s, b)
+
+    def set_shares(p: int, s: int, n0: float, n1: float, n2: float) -> None:
+        """|n x u| (revolute) or |n . u| (prismatic) at sample s for every joint that
+        moves pair p, u being the joint's axis in the world (see ``motion``)."""
+        for v in range(nv):
+            if weights[p, v] == 0.0:
+                continue
+            j = joint_of[v]
+            u0 = (jpose[s, j, 0, 0] * axis[j, 0] + jpose[s, j, 0, 1] * axis[j, 1]
+                  + jpose[s, j, 0, 2] * axis[j, 2])
+            u1 = (jpose[s, j, 1, 0] * axis[j, 0] + jpose[s, j, 1, 1] * axis[j, 1]
+                  + jpose[s, j, 1, 2] * axis[j, 2])
+            u2 = (jpose[s, j, 2, 0] * axis[j, 0] + jpose[s, j, 2, 1] * axis[j, 1]
+                  + jpose[s, j, 2, 2] * axis[j, 2])
+            if kind[j] == PRISMATIC:
+                share[v] = abs(n0 * u0 + n1 * u1 + n2 * u2)
+            else:
+                c0, c1, c2 = n1 * u2 - n2 * u1, n2 * u0 - n0 * u2, n0 * u1 - n1 * u0
+                share[v] = math.sqrt(c0 * c0 + c1 * c1 + c2 * c2)
+
+    def along(s: int) -> None:
+        """base, base_turn: the joints' accumulated motion and upstream turning at s."""
+        k = knot_of[s]
+        for v in range(nv):
+            base[v] = 0.0 if k == 0 else cum[k - 1, v] + frac[s] * step[k, v]
+            base_turn[v] = 0.0 if k == 0 else cum_turn[k - 1, v] + frac[s] * step_turn[k, v]
+
+    def motion(p: int, i: int) -> float:
+        """Bound on how much pair p's gap along its axis n can change from sample s
+        (``along(s)``) to i [m]. A revolute joint turning by dq moves a point at r from
+        its axis by at most r dq, perpendicular to the axis u, so along n by at most
+        r dq |n x u|; while the joints upstream turn by a, u turns by at most a, so
+        |n x u| stays below its value at s plus a (and below 1). A prismatic joint
+        moves points along u: |n . u| instead. Between two bodies, joints that move
+        both leave their distance alone (their weight is zero; taking n in the frame
+        they move keeps the argument, and the turning counted is only more)."""
+        k, f = knot_of[i], frac[i]
+        acc = 0.0
+        for v in range(nv):
+            if weights[p, v] != 0.0 and k > 0:
+                moved = cum[k - 1, v] + f * step[k, v] - base[v]
+                turned = cum_turn[k - 1, v] + f * step_turn[k, v] - base_turn[v]
+                acc += weights[p, v] * min(1.0, share[v] + turned) * moved
+        return acc
+
+    def reach(p: int, s: int, target: float) -> int:
+        """First sample after s at which pair p's gap can have changed by target [m];
+        the number of samples if none. The bound never decreases along the grid and
+        grows about linearly: each probe is interpolated from what the last ones found
+        (extrapolated, overshooting a little, until the target is bracketed), every
+        third one halves the bracket. Invariant: motion(lo) < target; motion(hi) >=
+        target, or hi is the number of samples and its motion unknown (inf)."""
+        along(s)
+        lo, hi, m_lo, m_hi, probe, count = s, n, 0.0, np.inf, s + 1, 0
+        while hi - lo > 1:
+            m = motion(p, probe)
+            if m >= target:
+                hi, m_hi = probe, m
+            else:
+                lo, m_lo = probe, m
+            count += 1
+            if hi - lo <= 1:
+                break
+            if m_hi == np.inf:
+                rate = m_lo / (lo - s)
+                ahead = 2 * (lo - s) if rate <= 0.0 else int(1.1 * (target - m_lo) / rate) + 1
+                probe = min(lo + max(ahead, 1), hi - 1)
+            elif count % 3 == 0:
+                probe = (lo + hi) // 2
+            else:
+                share_ = (target - m_lo) / (m_hi - m_lo)
+                probe = min(max(lo + int(share_ * (hi - lo)), lo + 1), hi - 1)
+        return hi
+
+    cap = 256
+    out_p = np.empty(cap, dtype=np.int64)
+    out_s = np.empty(cap, dtype=np.int64)
+    out_b = np.empty(cap)
+    count = 0
+    for t in range(todo.size):
+        p = todo[t]
+        s = 0
+        while s < n:
+            th = max(theta[p], ceiling[0] - drop) if tracked[p] and drop >= 0.0 else theta[p]
+            Sa, Sb = shapes(p, s)
+            # The cheap bounds first, the finer ones only where those are not enough.
+            # Each is a gap along an axis n, kept for the step.
+            bound, n0, n1, n2 = sphere_bound(Sa, Sb)
+            stats[0] += 1
+            if bound <= th + coarse:
+                if axes[p, 3] != 0.0:
+                    warm = gap(Sa, Sb, axes[p, 0], axes[p, 1], axes[p, 2])
+                    if warm > bound:
+                        bound, n0, n1, n2 = warm, axes[p, 0], axes[p, 1], axes[p, 2]
+                # The kept axis is trusted while its gap has not fallen far below the
+                # last full bound; else (or without one) the full bound is computed.
+                if bound - th < keep * (last[p] - th) or axes[p, 3] == 0.0:
+                    full, f0, f1, f2 = axis_bound(Sa, Sb)
+                    stats[1] += 1
+                    if full <= th + fine:
+                        full, upper, f0, f1, f2 = gjk_bound(Sa, Sb, full, f0, f1, f2,
+                                                            axes[p, 3] != 0.0)
+                        stats[2] += 1
+                        if tracked[p] and upper < ceiling[0]:
+                            ceiling[0], ceiling[1], ceiling[2] = upper, p, s
+                    if full >= bound:
+                        bound, n0, n1, n2 = full, f0, f1, f2
+                    axes[p, 0], axes[p, 1], axes[p, 2], axes[p, 3] = n0, n1, n2, 1.0
+                    last[p] = bound
+            if bound > th:
+                set_shares(p, s, n0, n1, n2)
+                s = reach(p, s, bound - th)
+                continue
+            if count == cap:
+                cap *= 2
+                grown_p = np.empty(cap, dtype=np.int64)
+                grown_s = np.empty(cap, dtype=np.int64)
+                grown_b = np.empty(cap)
+                grown_p[:count] = out_p
+                grown_s[:count] = out_s
+                grown_b[:count] = out_b
+                out_p, out_s, out_b = grown_p, grown_s, grown_b
+            out_p[count] = p
+            out_s[count] = s
+            out_b[count] = bound
+            count += 1
+            s += 1
+    return out_p[:count], out_s[:count], out_b[:count]
