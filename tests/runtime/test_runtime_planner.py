@@ -314,8 +314,12 @@ def test_planning_does_not_stall_this_process(blocked: RuntimePlanner) -> None:
     beat = threading.Thread(target=heartbeat)
     beat.start()
     try:
-        for k in range(4):  # the cycle, new seeds: nothing comes from the workers' caches
+        # The cycle, new seeds (nothing comes from the workers' caches), for at least 1.5 s
+        # of planning whatever the planner's speed.
+        t0, k = time.perf_counter(), 0
+        while k < 4 or time.perf_counter() - t0 < 1.5:
             blocked.plan_cell(seed=100 + k).result(timeout=LONG)
+            k += 1
     finally:
         stop.set()
         beat.join()
