@@ -158,27 +158,27 @@ def _support(kind, R, d0, d1, d2, nx, ny, nz):  # noqa: N803
 
 
 @njit(cache=True, nogil=True)
+def _primitive_axes(kind, R, axes, n):  # noqa: N803
+    """Append a primitive's own axes (box: its three face normals; cylinder, capsule: its
+    z axis) to ``axes`` from row ``n``; returns the new row count."""
+    if kind == ENV_BOX or kind == ENV_BOX_ONLY_OUTER:
+        for c in range(3):
+            axes[n, 0], axes[n, 1], axes[n, 2] = R[0, c], R[1, c], R[2, c]
+            n += 1
+    elif kind == ENV_CYLINDER or kind == ENV_CAPSULE:
+        axes[n, 0], axes[n, 1], axes[n, 2] = R[0, 2], R[1, 2], R[2, 2]
+        n += 1
+    return n
+
+
+@njit(cache=True, nogil=True)
 def _sat_gap(ka, Ra, pa, da, kb, Rb, pb, db, axes):  # noqa: N803
     """Lower bound [m] on the distance of two convex primitives: the largest gap between
     their projections over a set of separating-axis candidates (face normals, primitive
     axes, their cross products, the centre line). For two boxes the 15 axes are complete:
     a bound < 0 then means they intersect."""
-    na = 0
-    if ka == ENV_BOX or ka == ENV_BOX_ONLY_OUTER:
-        for c in range(3):
-            axes[na, 0], axes[na, 1], axes[na, 2] = Ra[0, c], Ra[1, c], Ra[2, c]
-            na += 1
-    elif ka == ENV_CYLINDER or ka == ENV_CAPSULE:
-        axes[na, 0], axes[na, 1], axes[na, 2] = Ra[0, 2], Ra[1, 2], Ra[2, 2]
-        na += 1
-    nb = na
-    if kb == ENV_BOX or kb == ENV_BOX_ONLY_OUTER:
-        for c in range(3):
-            axes[nb, 0], axes[nb, 1], axes[nb, 2] = Rb[0, c], Rb[1, c], Rb[2, c]
-            nb += 1
-    elif kb == ENV_CYLINDER or kb == ENV_CAPSULE:
-        axes[nb, 0], axes[nb, 1], axes[nb, 2] = Rb[0, 2], Rb[1, 2], Rb[2, 2]
-        nb += 1
+    na = _primitive_axes(ka, Ra, axes, 0)
+    nb = _primitive_axes(kb, Rb, axes, na)
     n = nb
     for i in range(na):
         for j in range(na, nb):
@@ -231,33 +231,46 @@ def _mover_frame(fb, ib, m, Rw, pw, R, p):  # noqa: N803
 
 
 @njit(cache=True, nogil=True)
-def _pair_bound(k, fb, ib, refine, ws):  # noqa: N803
-    """Lower bound [m] on the distance of pair ``k``: its bounding spheres, and when
-    those are within its margin plus ``refine``, the separating-axis bound of the two
-    primitives, or the fine spheres for a body that is no primitive."""
-    Rw, pw, tmp, tmp2 = ws.Rw, ws.pw, ws.tmp, ws.tmp2
+def _sat_pair(fb, ib, a, b, is_env, ws):  # noqa: N803
+    """Separating-axis bound [m] between mover ``a``'s primitive and environment object
+    (``is_env``) or mover ``b``'s primitive, at the state placed in ``ws``."""
+    og = ib[H_G]
+    ka = ib[ib[H_GI] + GIW * a + 5]
+    _mover_frame(fb, ib, a, ws.Rw, ws.pw, ws.Ra, ws.pa)
+    for r in range(3):
+        ws.da[r] = fb[og + GW * a + 16 + r]
+    if is_env == 1:
+        oe = ib[H_E] + 15 * b
+        kb = ib[ib[H_EI] + b]
+        for r in range(3):
+            ws.pb[r] = fb[oe + 9 + r]
+            ws.db[r] = fb[oe + 12 + r]
+            for c in range(3):
+                ws.Rb[r, c] = fb[oe + 3 * r + c]
+    else:
+        kb = ib[ib[H_GI] + GIW * b + 5]
+        _mover_frame(fb, ib, b, ws.Rw, ws.pw, ws.Rb, ws.pb)
+        for r in range(3):
+            ws.db[r] = fb[og + GW * b + 16 + r]
+    return _sat_gap(ka, ws.Ra, ws.pa, ws.da, kb, ws.Rb, ws.pb, ws.db, ws.axes)
+
+
+@njit(cache=True, nogil=True)
+def _pair_bound(k, fb, ib, ws):  # noqa: N803
+    """Lower bound [m] on the distance of pair ``k`` finer than its bounding spheres
+    (placed in ``ws.Cw`` by the caller): the separating-axis bound of two primitives, or
+    the fine spheres of a body that is no primitive."""
+    Rw, pw, tmp, Cw = ws.Rw, ws.pw, ws.tmp, ws.Cw
     op, of = ib[H_PI] + 4 * k, ib[H_P] + k
     a, b, is_env = ib[op], ib[op + 1], ib[op + 2]
     sm = max(fb[of], 0.0)
     og, oS, ogi = ib[H_G], ib[H_S], ib[H_GI]
-    ja = ib[ogi + GIW * a]
-    _world(fb, og + GW * a, Rw[ja], pw[ja], tmp)
-    ra = fb[og + GW * a + 3]
     ka = ib[ogi + GIW * a + 5]
+    kb = ENV_BOX if is_env == 1 else ib[ogi + GIW * b + 5]
+    if ka != SPHERES_ONLY and kb != SPHERES_ONLY:
+        return _sat_pair(fb, ib, a, b, is_env, ws)
+    ja = ib[ogi + GIW * a]
     if is_env == 1:
-        coarse = _env_sdist(fb, ib, b, tmp) - ra
-        if ka != SPHERES_ONLY:
-            _mover_frame(fb, ib, a, Rw, pw, ws.Ra, ws.pa)
-            oe = ib[H_E] + 15 * b
-            for r in range(3):
-                ws.pb[r] = fb[oe + 9 + r]
-                ws.db[r] = fb[oe + 12 + r]
-                for c in range(3):
-                    ws.Rb[r, c] = fb[oe + 3 * r + c]
-                ws.da[r] = fb[og + GW * a + 16 + r]
-            sat = _sat_gap(ka, ws.Ra, ws.pa, ws.da, ib[ib[H_EI] + b], ws.Rb, ws.pb, ws.db,
-                           ws.axes)
-            return max(coarse, sat)
         best = 1e300
         for s in range(ib[ogi + GIW * a + 1], ib[ogi + GIW * a + 2]):
             _world(fb, oS + 4 * s, Rw[ja], pw[ja], tmp)
@@ -267,24 +280,12 @@ def _pair_bound(k, fb, ib, refine, ws):  # noqa: N803
                 if best - sm <= 0.0:
                     return best
         return best
-    jb = ib[ogi + GIW * b]
-    _world(fb, og + GW * b, Rw[jb], pw[jb], tmp2)
-    rb = fb[og + GW * b + 3]
-    kb = ib[ogi + GIW * b + 5]
-    cbx, cby, cbz = tmp2[0], tmp2[1], tmp2[2]
-    coarse = math.sqrt((tmp[0] - cbx) ** 2 + (tmp[1] - cby) ** 2 + (tmp[2] - cbz) ** 2) - ra - rb
-    if ka != SPHERES_ONLY and kb != SPHERES_ONLY:
-        _mover_frame(fb, ib, a, Rw, pw, ws.Ra, ws.pa)
-        _mover_frame(fb, ib, b, Rw, pw, ws.Rb, ws.pb)
-        for r in range(3):
-            ws.da[r] = fb[og + GW * a + 16 + r]
-            ws.db[r] = fb[og + GW * b + 16 + r]
-        sat = _sat_gap(ka, ws.Ra, ws.pa, ws.da, kb, ws.Rb, ws.pb, ws.db, ws.axes)
-        return max(coarse, sat)
+    ra, rb = fb[og + GW * a + 3], fb[og + GW * b + 3]
+    cbx, cby, cbz = Cw[b, 0], Cw[b, 1], Cw[b, 2]
+    ca0, ca1, ca2 = Cw[a, 0], Cw[a, 1], Cw[a, 2]
     # Two sphere sets: place each once, bound each sphere against the other body's
     # bounding sphere, take one real pair distance as an upper bound, and compare only
     # the spheres whose bound beats it.
-    ca0, ca1, ca2 = tmp[0], tmp[1], tmp[2]
     A, B = ws.bufa, ws.bufb
     na = _place_spheres(fb, ib, a, Rw, pw, cbx, cby, cbz, rb, A)
     nb = _place_spheres(fb, ib, b, Rw, pw, ca0, ca1, ca2, ra, B)
@@ -342,22 +343,13 @@ def _pair_collides(k, fb, ib, eps, ws):  # noqa: N803
     if proof == 0:
         return False
     sm = fb[of]
-    og, oS, ogi = ib[H_G], ib[H_S], ib[H_GI]
+    oS, ogi = ib[H_S], ib[H_GI]
     ja = ib[ogi + GIW * a]
     ka = ib[ogi + GIW * a + 5]
     if is_env == 1:
-        if sm == 0.0 and ka == ENV_BOX and ib[ib[H_EI] + b] == ENV_BOX:
-            _mover_frame(fb, ib, a, Rw, pw, ws.Ra, ws.pa)
-            oe = ib[H_E] + 15 * b
-            for r in range(3):
-                ws.pb[r] = fb[oe + 9 + r]
-                ws.db[r] = fb[oe + 12 + r]
-                ws.da[r] = fb[og + GW * a + 16 + r]
-                for c in range(3):
-                    ws.Rb[r, c] = fb[oe + 3 * r + c]
-            if _sat_gap(ka, ws.Ra, ws.pa, ws.da, ENV_BOX, ws.Rb, ws.pb, ws.db,
-                        ws.axes) < -eps:
-                return True
+        if (sm == 0.0 and ka == ENV_BOX and ib[ib[H_EI] + b] == ENV_BOX
+                and _sat_pair(fb, ib, a, b, 1, ws) < -eps):
+            return True
         for s in range(ib[ogi + GIW * a + 3], ib[ogi + GIW * a + 4]):
             _world(fb, oS + 4 * s, Rw[ja], pw[ja], tmp)
             if _env_sdist(fb, ib, b, tmp) - fb[oS + 4 * s + 3] < sm - eps:
@@ -365,14 +357,8 @@ def _pair_collides(k, fb, ib, eps, ws):  # noqa: N803
         return False
     jb = ib[ogi + GIW * b]
     kb = ib[ogi + GIW * b + 5]
-    if sm == 0.0 and ka == ENV_BOX and kb == ENV_BOX:
-        _mover_frame(fb, ib, a, Rw, pw, ws.Ra, ws.pa)
-        _mover_frame(fb, ib, b, Rw, pw, ws.Rb, ws.pb)
-        for r in range(3):
-            ws.da[r] = fb[og + GW * a + 16 + r]
-            ws.db[r] = fb[og + GW * b + 16 + r]
-        if _sat_gap(ka, ws.Ra, ws.pa, ws.da, kb, ws.Rb, ws.pb, ws.db, ws.axes) < -eps:
-            return True
+    if sm == 0.0 and ka == ENV_BOX and kb == ENV_BOX and _sat_pair(fb, ib, a, b, 0, ws) < -eps:
+        return True
     for s in range(ib[ogi + GIW * a + 3], ib[ogi + GIW * a + 4]):
         _world(fb, oS + 4 * s, Rw[ja], pw[ja], tmp)
         rs = fb[oS + 4 * s + 3]
@@ -416,7 +402,7 @@ def _evaluate(q, fb, ib, ws, rates, want_radius):  # noqa: N803
                       - fb[og + GW * a + 3] - fb[og + GW * b + 3])
         budget = coarse - sm - free_eps
         if budget <= refine:
-            budget = max(coarse, _pair_bound(k, fb, ib, refine, ws)) - sm - free_eps
+            budget = max(coarse, _pair_bound(k, fb, ib, ws)) - sm - free_eps
         if budget <= 0.0:
             if _pair_collides(k, fb, ib, proof_eps, ws):
                 return COLLIDES, 0.0

@@ -275,9 +275,11 @@ class CollisionChecker:
         if not self._layer_built:
             self._bind_layer()
         if self._classify is not None:
+            # The layer has checked the limits: UNSURE states are inside them.
             status = self._classify(q, self._F, self._I)
-            if status != UNSURE:
-                return status == FREE
+            if status == UNSURE:
+                return not self.exact_collides(q)
+            return status == FREE
         r = self.robot
         if (q < r.lower).any() or (q > r.upper).any():
             return False
@@ -443,12 +445,13 @@ class CollisionChecker:
         # A blocked segment usually shows its first undecided states near the obstacle:
         # check a few exactly before certifying the rest.
         status, k, i, evaluated, useg, uidx = layer.certify(P, counts, lo, hi, _EARLY_UNSURE)
+        done = 0  # undecided states already checked by coal
         if status == UNSURE:
-            t = (uidx / counts[useg])[:, None]
-            early = self._check_states(P[useg] + t * (P[useg + 1] - P[useg]),
-                                       (useg + t[:, 0]) / span, details)
+            early = self._exact_grid(P, counts, useg, uidx, details, evaluated)
             if not early.valid:
-                return replace(early, checked=evaluated - len(useg) + early.checked)
+                return early
+            done = len(useg)
+            # The walk is deterministic: it finds the same undecided states first again.
             status, k, i, again, useg, uidx = layer.certify(P, counts, lo, hi)
             evaluated += again
         if status == COLLIDES:
@@ -458,12 +461,19 @@ class CollisionChecker:
                 return SegmentReport(False, evaluated, fraction, q)
             return SegmentReport(False, evaluated, fraction, q, tuple(self.collisions(q)),
                                  self.robot.limit_violation(q))
-        if len(useg) == 0:
+        if len(useg) == done:
             return SegmentReport(True, evaluated)
-        t = (uidx / counts[useg])[:, None]
-        states = P[useg] + t * (P[useg + 1] - P[useg])
-        report = self._check_states(states, (useg + t[:, 0]) / span, details)
-        return replace(report, checked=evaluated - len(useg) + report.checked)
+        return self._exact_grid(P, counts, useg[done:], uidx[done:], details, evaluated)
+
+    def _exact_grid(self, P: np.ndarray, counts: np.ndarray, seg: np.ndarray,
+                    idx: np.ndarray, details: bool, evaluated: int) -> SegmentReport:
+        """Check grid states ``idx`` of segments ``seg`` of the polyline ``P`` with coal
+        (one batch); ``evaluated`` states were already evaluated by the sphere layer,
+        these among them."""
+        t = (idx / counts[seg])[:, None]
+        states = P[seg] + t * (P[seg + 1] - P[seg])
+        report = self._check_states(states, (seg + t[:, 0]) / max(1, len(P) - 1), details)
+        return replace(report, checked=evaluated - len(seg) + report.checked)
 
     def _check_states(self, states: np.ndarray, fractions: np.ndarray, details: bool
                       ) -> SegmentReport:

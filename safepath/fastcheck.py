@@ -28,6 +28,7 @@ from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
+import pinocchio as pin
 
 from .spheres import SphereFit, fit_spheres
 
@@ -129,8 +130,6 @@ def pack(checker: CollisionChecker, options: LayerOptions
     model, gmodel = robot.model, checker.geometry_model
     dof, nj = model.nq, model.njoints
     data = model.createData()
-    import pinocchio as pin
-
     pin.forwardKinematics(model, data, pin.neutral(model))
     # Joints: placement (9 + 3), axis (3); parent, kind, q index.
     J = np.zeros((nj, 15))

@@ -32,26 +32,29 @@ def _inside_any(points: np.ndarray, centers: np.ndarray, radii: np.ndarray) -> n
     return np.any(d <= radii[None, :], axis=1)
 
 
+def _assert_enclosed(geometry: object, rng: np.random.Generator, label: str) -> None:
+    """Sampled surface points of a shape, and points between them and its centroid (inside
+    a convex body), all lie in its outer spheres."""
+    fit = fit_spheres(geometry)
+    pts = surface_points(geometry, 4000, rng)
+    inside = _inside_any(pts, fit.outer_centers, fit.outer_radii)
+    assert inside.all(), f"{label}: {np.sum(~inside)} surface points outside"
+    c = pts.mean(axis=0)
+    inner = c + (pts - c) * rng.random((len(pts), 1))
+    assert _inside_any(inner, fit.outer_centers, fit.outer_radii).all(), label
+
+
 @pytest.mark.parametrize("name", ROBOTS)
 def test_outer_spheres_enclose_every_shape(name: str) -> None:
     robot = load_robot(name)
     rng = np.random.default_rng(7)
     for geom in robot.collision_model.geometryObjects:
-        fit = fit_spheres(geom.geometry)
-        pts = surface_points(geom.geometry, 4000, rng)
-        inside = _inside_any(pts, fit.outer_centers, fit.outer_radii)
-        assert inside.all(), f"{name}/{geom.name}: {np.sum(~inside)} surface points outside"
-        # Points inside the shape too (toward the centroid of a convex body).
-        c = pts.mean(axis=0)
-        inner = c + (pts - c) * rng.random((len(pts), 1))
-        assert _inside_any(inner, fit.outer_centers, fit.outer_radii).all(), geom.name
+        _assert_enclosed(geom.geometry, rng, f"{name}/{geom.name}")
 
 
 def test_held_vial_is_enclosed(cell: Cell) -> None:
-    vial = cell.scene.objects["vial"].shape.to_coal()
-    fit = fit_spheres(vial)
-    pts = surface_points(vial, 4000, np.random.default_rng(3))
-    assert _inside_any(pts, fit.outer_centers, fit.outer_radii).all()
+    _assert_enclosed(cell.scene.objects["vial"].shape.to_coal(), np.random.default_rng(3),
+                     "vial")
 
 
 @pytest.mark.parametrize("name", ROBOTS)
