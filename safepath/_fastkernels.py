@@ -17,36 +17,44 @@ from collections import namedtuple
 import numpy as np
 from numba import njit
 
+from ._gjk import HULL, distance_lower_bound
+
 FREE, COLLIDES, UNSURE = 0, 1, 2
 
 # Int header (positions in ib).
 H_NJ, H_NG, H_NS, H_NE, H_NP, H_DOF = 0, 1, 2, 3, 4, 5
 H_J, H_G, H_S, H_E, H_P, H_W, H_L, H_C = 6, 7, 8, 9, 10, 11, 12, 13
 H_JI, H_GI, H_EI, H_PI = 14, 15, 16, 17
-HEADER = 18
+H_V = 18  # vertices of hull movers (x, y, z rows, each in its shape's frame)
+HEADER = 19
 # Constants (fb[ib[H_C] + k]).
 C_REFINE, C_FREE_EPS, C_PROOF_EPS = 0, 1, 2
 
 ENV_BOX, ENV_CYLINDER, ENV_SPHERE, ENV_CAPSULE, ENV_BOX_ONLY_OUTER = 0, 1, 2, 3, 4
-#: Shape kinds of movers (same codes; SPHERES_ONLY: no primitive, spheres decide).
+#: Shape kinds of movers (same codes; HULL: a convex hull, measured by GJK on its
+#: vertices; SPHERES_ONLY: no primitive, spheres decide).
 SPHERES_ONLY = -1
 #: Widths of a mover's rows: floats (bounding centre 3, radius 1, rotation 9, position 3
 #: in the joint frame, dimensions 3) and ints (joint, outer start/end, inner start/end,
-#: kind).
-GW, GIW = 19, 6
+#: kind, hull vertex start/end).
+GW, GIW = 19, 8
 JOINT_FIXED, JOINT_REVOLUTE, JOINT_PRISMATIC = 0, 1, 2
 
 #: Scratch arrays of one evaluation (allocated once per kernel call).
+#: ``warm`` holds, per pair, the last direction GJK found (the next state's first guess).
 Workspace = namedtuple("Workspace", ["Rw", "pw", "tmp", "tmp2", "Ra", "pa", "da", "Rb", "pb",
-                                     "db", "axes", "Cw", "bufa", "bufb"])
+                                     "db", "axes", "Cw", "bufa", "bufb", "simplex", "sa", "sb",
+                                     "gv", "warm"])
 
 
 @njit(cache=True, nogil=True)
-def _workspace(nj, ng, ns):
+def _workspace(ib):
+    nj, ng, ns, npairs = ib[H_NJ], ib[H_NG], ib[H_NS], ib[H_NP]
     return Workspace(np.empty((nj, 3, 3)), np.empty((nj, 3)), np.empty(3), np.empty(3),
                      np.empty((3, 3)), np.empty(3), np.empty(3), np.empty((3, 3)),
                      np.empty(3), np.empty(3), np.empty((24, 3)), np.empty((ng, 3)),
-                     np.empty((ns, 5)), np.empty((ns, 5)))
+                     np.empty((ns, 5)), np.empty((ns, 5)), np.empty((4, 3)), np.empty(3),
+                     np.empty(3), np.empty(3), np.zeros((npairs, 3)))
 
 
 @njit(cache=True, nogil=True)
@@ -231,11 +239,11 @@ def _mover_frame(fb, ib, m, Rw, pw, R, p):  # noqa: N803
 
 
 @njit(cache=True, nogil=True)
-def _sat_pair(fb, ib, a, b, is_env, ws):  # noqa: N803
-    """Separating-axis bound [m] between mover ``a``'s primitive and environment object
-    (``is_env``) or mover ``b``'s primitive, at the state placed in ``ws``."""
-    og = ib[H_G]
-    ka = ib[ib[H_GI] + GIW * a + 5]
+def _place_pair(fb, ib, a, b, is_env, ws):  # noqa: N803
+    """Place mover ``a``'s shape (ws.Ra, pa, da) and environment object (``is_env``) or
+    mover ``b``'s shape (ws.Rb, pb, db) at the state in ``ws``; returns their kinds."""
+    og, ogi = ib[H_G], ib[H_GI]
+    ka = ib[ogi + GIW * a + 5]
     _mover_frame(fb, ib, a, ws.Rw, ws.pw, ws.Ra, ws.pa)
     for r in range(3):
         ws.da[r] = fb[og + GW * a + 16 + r]
@@ -248,18 +256,43 @@ def _sat_pair(fb, ib, a, b, is_env, ws):  # noqa: N803
             for c in range(3):
                 ws.Rb[r, c] = fb[oe + 3 * r + c]
     else:
-        kb = ib[ib[H_GI] + GIW * b + 5]
+        kb = ib[ogi + GIW * b + 5]
         _mover_frame(fb, ib, b, ws.Rw, ws.pw, ws.Rb, ws.pb)
         for r in range(3):
             ws.db[r] = fb[og + GW * b + 16 + r]
+    return ka, kb
+
+
+@njit(cache=True, nogil=True)
+def _sat_pair(fb, ib, a, b, is_env, ws):  # noqa: N803
+    """Separating-axis bound [m] between mover ``a``'s primitive and environment object
+    (``is_env``) or mover ``b``'s primitive, at the state placed in ``ws``."""
+    ka, kb = _place_pair(fb, ib, a, b, is_env, ws)
     return _sat_gap(ka, ws.Ra, ws.pa, ws.da, kb, ws.Rb, ws.pb, ws.db, ws.axes)
 
 
 @njit(cache=True, nogil=True)
-def _pair_bound(k, fb, ib, ws):  # noqa: N803
+def _gjk_pair(fb, ib, k, a, b, is_env, ws, low, high):  # noqa: N803
+    """GJK's distance lower bound [m] between mover ``a``'s shape and environment object
+    or mover ``b``'s (pair ``k``; its last direction warm-starts the search), searched
+    until it reaches ``high`` or the distance is known to be at most ``low``."""
+    ogi = ib[H_GI]
+    ka, kb = _place_pair(fb, ib, a, b, is_env, ws)
+    va0, va1 = ib[ogi + GIW * a + 6], ib[ogi + GIW * a + 7]
+    vb0 = vb1 = 0
+    if is_env == 0:
+        vb0, vb1 = ib[ogi + GIW * b + 6], ib[ogi + GIW * b + 7]
+    return distance_lower_bound(ka, ws.Ra, ws.pa, ws.da, va0, va1, kb, ws.Rb, ws.pb, ws.db,
+                                vb0, vb1, fb, ib[H_V], ws.warm[k], ws.simplex, ws.sa, ws.sb,
+                                ws.gv, ws.tmp, low, high)
+
+
+@njit(cache=True, nogil=True)
+def _pair_bound(k, fb, ib, ws, enough):  # noqa: N803
     """Lower bound [m] on the distance of pair ``k`` finer than its bounding spheres
-    (placed in ``ws.Cw`` by the caller): the separating-axis bound of two primitives, or
-    the fine spheres of a body that is no primitive."""
+    (placed in ``ws.Cw`` by the caller): the separating-axis bound of two primitives,
+    GJK's when one is a hull, or the fine spheres of a body that is no primitive. A bound
+    of ``enough`` (beyond the pair's margin) is sufficient for the caller."""
     Rw, pw, tmp, Cw = ws.Rw, ws.pw, ws.tmp, ws.Cw
     op, of = ib[H_PI] + 4 * k, ib[H_P] + k
     a, b, is_env = ib[op], ib[op + 1], ib[op + 2]
@@ -268,6 +301,8 @@ def _pair_bound(k, fb, ib, ws):  # noqa: N803
     ka = ib[ogi + GIW * a + 5]
     kb = ENV_BOX if is_env == 1 else ib[ogi + GIW * b + 5]
     if ka != SPHERES_ONLY and kb != SPHERES_ONLY:
+        if ka == HULL or kb == HULL:
+            return _gjk_pair(fb, ib, k, a, b, is_env, ws, sm, sm + enough)
         return _sat_pair(fb, ib, a, b, is_env, ws)
     ja = ib[ogi + GIW * a]
     if is_env == 1:
@@ -402,7 +437,7 @@ def _evaluate(q, fb, ib, ws, rates, want_radius):  # noqa: N803
                       - fb[og + GW * a + 3] - fb[og + GW * b + 3])
         budget = coarse - sm - free_eps
         if budget <= refine:
-            budget = max(coarse, _pair_bound(k, fb, ib, ws)) - sm - free_eps
+            budget = max(coarse, _pair_bound(k, fb, ib, ws, refine + free_eps)) - sm - free_eps
         if budget <= 0.0:
             if _pair_collides(k, fb, ib, proof_eps, ws):
                 return COLLIDES, 0.0
@@ -431,7 +466,7 @@ def classify(q, fb, ib):  # noqa: N803
     """Status of one state: FREE, COLLIDES (or outside the limits) or UNSURE."""
     if not _within_limits(q, fb, ib):
         return COLLIDES
-    ws = _workspace(ib[H_NJ], ib[H_NG], ib[H_NS])
+    ws = _workspace(ib)
     status, _ = _evaluate(q, fb, ib, ws, ws.tmp, False)
     return status
 
@@ -439,7 +474,7 @@ def classify(q, fb, ib):  # noqa: N803
 @njit(cache=True, nogil=True)
 def classify_many(Q, fb, ib, out):  # noqa: N803
     """Status of every row of ``Q`` into ``out``."""
-    ws = _workspace(ib[H_NJ], ib[H_NG], ib[H_NS])
+    ws = _workspace(ib)
     for i in range(Q.shape[0]):
         if not _within_limits(Q[i], fb, ib):
             out[i] = COLLIDES
@@ -482,7 +517,7 @@ def certify_polyline(P, n, lo, hi, fb, ib, unsure_seg, unsure_idx, max_unsure): 
         else FREE (no state left but the unsure ones).
     """
     npairs, dof = ib[H_NP], ib[H_DOF]
-    ws = _workspace(ib[H_NJ], ib[H_NG], ib[H_NS])
+    ws = _workspace(ib)
     rates = np.empty(npairs)
     u = np.empty(dof)
     qs = np.empty(dof)

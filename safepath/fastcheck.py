@@ -124,7 +124,10 @@ def pack(checker: CollisionChecker, options: LayerOptions
          ) -> tuple[np.ndarray, np.ndarray, list[SphereFit]]:
     """The flat buffers the kernels read (layout in :mod:`safepath._fastkernels`)."""
 
+    import coal
+
     from . import _fastkernels as K  # noqa: N812  (constants only; compiles nothing)
+    from ._gjk import vertices_of
 
     robot = checker.robot
     model, gmodel = robot.model, checker.geometry_model
@@ -152,7 +155,8 @@ def pack(checker: CollisionChecker, options: LayerOptions
     G = np.zeros((len(movers), K.GW))
     Gi = np.zeros((len(movers), K.GIW), dtype=np.int64)
     spheres: list[np.ndarray] = []
-    count = 0
+    vertices: list[np.ndarray] = []
+    count = n_vertices = 0
     for m, g in enumerate(movers):
         geom = gmodel.geometryObjects[g]
         fit = fit_spheres(geom.geometry, cell=options.cell).transformed(
@@ -160,14 +164,19 @@ def pack(checker: CollisionChecker, options: LayerOptions
         fits.append(fit)
         c, r = fit.bounding
         kind, dims = _primitive(geom.geometry)
+        hull = np.zeros((0, 3))
+        if kind == K.SPHERES_ONLY and isinstance(geom.geometry, coal.ConvexBase):
+            kind, hull = K.HULL, vertices_of(np.asarray(geom.geometry.points()))
         T = geom.placement.homogeneous
         G[m] = (*c, r, *T[:3, :3].ravel(), *T[:3, 3], *dims)
         outer = np.column_stack([fit.outer_centers, fit.outer_radii])
         inner = np.column_stack([fit.inner_centers, fit.inner_radii])
         Gi[m] = (geom.parentJoint, count, count + len(outer), count + len(outer),
-                 count + len(outer) + len(inner), kind)
+                 count + len(outer) + len(inner), kind, n_vertices, n_vertices + len(hull))
         spheres += [outer, inner]
+        vertices.append(hull)
         count += len(outer) + len(inner)
+        n_vertices += len(hull)
     S_ = np.vstack(spheres) if spheres else np.zeros((0, 4))
     # Environment: world placement, dimensions, kind.
     E = np.zeros((len(checker._env), 15))
@@ -202,14 +211,15 @@ def pack(checker: CollisionChecker, options: LayerOptions
     W = _mover_weights(model, G, Gi, robot.lower, robot.upper)
     L = np.concatenate([robot.lower, robot.upper])
     C = np.array([options.refine, options.free_eps, options.proof_eps])
-    blocks_f = [J.ravel(), G.ravel(), S_.ravel(), E.ravel(), P, W.ravel(), L, C]
+    V = np.vstack(vertices) if vertices else np.zeros((0, 3))
+    blocks_f = [J.ravel(), G.ravel(), S_.ravel(), E.ravel(), P, W.ravel(), L, C, V.ravel()]
     blocks_i = [Ji.ravel(), Gi.ravel(), Ei, Pi.ravel()]
     f_off = np.cumsum([0] + [len(b) for b in blocks_f])
     i_off = K.HEADER + np.cumsum([0] + [len(b) for b in blocks_i])
     header = np.zeros(K.HEADER, dtype=np.int64)
     header[[K.H_NJ, K.H_NG, K.H_NS, K.H_NE, K.H_NP, K.H_DOF]] = (
         nj, len(movers), len(S_), len(checker._env), len(checker._pairs), dof)
-    header[[K.H_J, K.H_G, K.H_S, K.H_E, K.H_P, K.H_W, K.H_L, K.H_C]] = f_off[:8]
+    header[[K.H_J, K.H_G, K.H_S, K.H_E, K.H_P, K.H_W, K.H_L, K.H_C, K.H_V]] = f_off[:9]
     header[[K.H_JI, K.H_GI, K.H_EI, K.H_PI]] = i_off[:4]
     F = np.concatenate(blocks_f).astype(np.float64)
     I_ = np.concatenate([header, *blocks_i]).astype(np.int64)

@@ -86,7 +86,7 @@ def test_kernel_kinematics_match_pinocchio(cell: Cell) -> None:
         checker = CollisionChecker(robot)
         layer = checker.layer
         assert layer is not None
-        ws = K._workspace(int(layer.I[K.H_NJ]), int(layer.I[K.H_NG]), int(layer.I[K.H_NS]))
+        ws = K._workspace(layer.I)
         data = robot.model.createData()
         for q in np.random.default_rng(0).uniform(robot.lower, robot.upper, (50, robot.dof)):
             K._fk(q, layer.F, layer.I, ws.Rw, ws.pw)

@@ -1,0 +1,236 @@
+"""Distance lower bounds between two placed convex shapes (numba; GJK's iteration).
+
+The sphere layer (:mod:`safepath._fastkernels`) uses this for convex hulls (the links of
+robots with mesh geometry, e.g. example-robot-data's Panda), where a sphere covering
+overestimates the link by up to the covering's cell and leaves every state near an
+obstacle undecided.
+
+Soundness does not rest on GJK converging: every value returned is the gap of the two
+shapes' projections on one unit direction ``n``, ``min_{a,b} n·(a − b)``, computed from
+the exact support functions (a hull's support is the maximum over its vertices, the very
+points coal's hull is made of). Such a gap is a lower bound on the distance for *any*
+``n``; GJK's simplex only steers ``n`` towards the one that makes the bound tight. A
+degenerate simplex can only stop the search early, giving a looser bound.
+
+Shape kinds are those of :mod:`safepath._fastkernels` (box, cylinder, sphere, capsule,
+hull); a shape is (kind, world rotation ``R``, world position ``p``, dimensions ``d``,
+vertex rows ``v0:v1`` of the flat vertex block of ``fb`` starting at ``ov``, in the
+shape's own frame).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit
+
+# Same codes as safepath._fastkernels (kept here so that this module imports alone).
+BOX, CYLINDER, SPHERE, CAPSULE, BOX_ONLY_OUTER, HULL = 0, 1, 2, 3, 4, 5
+
+#: Absolute tolerance [m]: the search stops once the bound is this close to the distance
+#: of the current simplex (an upper bound).
+TOL = 2e-4
+MAX_ITER = 32
+
+
+@njit(cache=True, nogil=True)
+def support(kind, R, p, d, fb, ov, v0, v1, nx, ny, nz, out):  # noqa: N803
+    """World point of a shape farthest along (nx, ny, nz) (not necessarily unit) into
+    ``out``."""
+    # Direction in the shape's frame: R^T n.
+    lx = R[0, 0] * nx + R[1, 0] * ny + R[2, 0] * nz
+    ly = R[0, 1] * nx + R[1, 1] * ny + R[2, 1] * nz
+    lz = R[0, 2] * nx + R[1, 2] * ny + R[2, 2] * nz
+    x = y = z = 0.0
+    if kind == HULL:
+        best = -1e300
+        for v in range(v0, v1):
+            b = ov + 3 * v
+            s = fb[b] * lx + fb[b + 1] * ly + fb[b + 2] * lz
+            if s > best:
+                best = s
+                x, y, z = fb[b], fb[b + 1], fb[b + 2]
+    elif kind == BOX or kind == BOX_ONLY_OUTER:
+        x = d[0] if lx >= 0.0 else -d[0]
+        y = d[1] if ly >= 0.0 else -d[1]
+        z = d[2] if lz >= 0.0 else -d[2]
+    else:
+        norm = math.sqrt(lx * lx + ly * ly + lz * lz)
+        if kind == SPHERE:
+            if norm > 0.0:
+                x, y, z = d[0] * lx / norm, d[0] * ly / norm, d[0] * lz / norm
+        elif kind == CAPSULE:
+            z = d[1] if lz >= 0.0 else -d[1]
+            if norm > 0.0:
+                x, y, z = d[0] * lx / norm, d[0] * ly / norm, z + d[0] * lz / norm
+        else:  # cylinder along z: radius d[0], half length d[1]
+            z = d[1] if lz >= 0.0 else -d[1]
+            rho = math.sqrt(lx * lx + ly * ly)
+            if rho > 0.0:
+                x, y = d[0] * lx / rho, d[0] * ly / rho
+    for r in range(3):
+        out[r] = R[r, 0] * x + R[r, 1] * y + R[r, 2] * z + p[r]
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _dot(a, b):
+    return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
+
+
+@njit(cache=True, nogil=True)
+def _triangle(S, i, j, k, v):  # noqa: N803
+    """Closest point to the origin of triangle S[i], S[j], S[k] into ``v``; returns a
+    bit mask (1 << i ...) of the vertices that span it (Ericson, Real-Time Collision
+    Detection 5.1.5, with p = 0)."""
+    a0, a1, a2 = S[i, 0], S[i, 1], S[i, 2]
+    ab0, ab1, ab2 = S[j, 0] - a0, S[j, 1] - a1, S[j, 2] - a2
+    ac0, ac1, ac2 = S[k, 0] - a0, S[k, 1] - a1, S[k, 2] - a2
+    d1 = -(ab0 * a0 + ab1 * a1 + ab2 * a2)
+    d2 = -(ac0 * a0 + ac1 * a1 + ac2 * a2)
+    if d1 <= 0.0 and d2 <= 0.0:
+        v[0], v[1], v[2] = a0, a1, a2
+        return 1 << i
+    d3 = -(ab0 * S[j, 0] + ab1 * S[j, 1] + ab2 * S[j, 2])
+    d4 = -(ac0 * S[j, 0] + ac1 * S[j, 1] + ac2 * S[j, 2])
+    if d3 >= 0.0 and d4 <= d3:
+        v[0], v[1], v[2] = S[j, 0], S[j, 1], S[j, 2]
+        return 1 << j
+    vc = d1 * d4 - d3 * d2
+    if vc <= 0.0 and d1 >= 0.0 and d3 <= 0.0:
+        t = d1 / (d1 - d3)
+        v[0], v[1], v[2] = a0 + t * ab0, a1 + t * ab1, a2 + t * ab2
+        return (1 << i) | (1 << j)
+    d5 = -(ab0 * S[k, 0] + ab1 * S[k, 1] + ab2 * S[k, 2])
+    d6 = -(ac0 * S[k, 0] + ac1 * S[k, 1] + ac2 * S[k, 2])
+    if d6 >= 0.0 and d5 <= d6:
+        v[0], v[1], v[2] = S[k, 0], S[k, 1], S[k, 2]
+        return 1 << k
+    vb = d5 * d2 - d1 * d6
+    if vb <= 0.0 and d2 >= 0.0 and d6 <= 0.0:
+        t = d2 / (d2 - d6)
+        v[0], v[1], v[2] = a0 + t * ac0, a1 + t * ac1, a2 + t * ac2
+        return (1 << i) | (1 << k)
+    va = d3 * d6 - d5 * d4
+    if va <= 0.0 and d4 - d3 >= 0.0 and d5 - d6 >= 0.0:
+        t = (d4 - d3) / ((d4 - d3) + (d5 - d6))
+        for r in range(3):
+            v[r] = S[j, r] + t * (S[k, r] - S[j, r])
+        return (1 << j) | (1 << k)
+    den = va + vb + vc
+    if den <= 0.0:  # degenerate triangle: keep its first edge's answer
+        v[0], v[1], v[2] = a0, a1, a2
+        return 1 << i
+    sv, sw = vb / den, vc / den
+    v[0], v[1], v[2] = a0 + ab0 * sv + ac0 * sw, a1 + ab1 * sv + ac1 * sw, a2 + ab2 * sv + ac2 * sw
+    return (1 << i) | (1 << j) | (1 << k)
+
+
+@njit(cache=True, nogil=True)
+def _origin_outside(S, i, j, k, o):  # noqa: N803
+    """Whether the origin and S[o] lie strictly on opposite sides of plane (i, j, k)."""
+    ab0, ab1, ab2 = S[j, 0] - S[i, 0], S[j, 1] - S[i, 1], S[j, 2] - S[i, 2]
+    ac0, ac1, ac2 = S[k, 0] - S[i, 0], S[k, 1] - S[i, 1], S[k, 2] - S[i, 2]
+    n0, n1, n2 = ab1 * ac2 - ab2 * ac1, ab2 * ac0 - ab0 * ac2, ab0 * ac1 - ab1 * ac0
+    s_origin = -(S[i, 0] * n0 + S[i, 1] * n1 + S[i, 2] * n2)
+    s_other = (S[o, 0] - S[i, 0]) * n0 + (S[o, 1] - S[i, 1]) * n1 + (S[o, 2] - S[i, 2]) * n2
+    return s_origin * s_other < 0.0
+
+
+@njit(cache=True, nogil=True)
+def _closest(S, n, v, tmp):  # noqa: N803
+    """Closest point ``v`` of the simplex S[:n] to the origin; S is reduced in place to
+    the vertices that span it. Returns the new count (4: the origin is inside)."""
+    if n == 1:
+        v[0], v[1], v[2] = S[0, 0], S[0, 1], S[0, 2]
+        return 1
+    if n == 2:
+        e0, e1, e2 = S[1, 0] - S[0, 0], S[1, 1] - S[0, 1], S[1, 2] - S[0, 2]
+        ee = e0 * e0 + e1 * e1 + e2 * e2
+        t = -(S[0, 0] * e0 + S[0, 1] * e1 + S[0, 2] * e2) / ee if ee > 0.0 else 0.0
+        if t <= 0.0:
+            v[0], v[1], v[2] = S[0, 0], S[0, 1], S[0, 2]
+            return 1
+        if t >= 1.0:
+            S[0, :] = S[1, :]
+            v[0], v[1], v[2] = S[0, 0], S[0, 1], S[0, 2]
+            return 1
+        v[0], v[1], v[2] = S[0, 0] + t * e0, S[0, 1] + t * e1, S[0, 2] + t * e2
+        return 2
+    if n == 3:
+        mask = _triangle(S, 0, 1, 2, v)
+    else:
+        mask = 0
+        best = 1e300
+        faces = ((0, 1, 2, 3), (0, 2, 3, 1), (0, 3, 1, 2), (1, 3, 2, 0))
+        for f in faces:
+            if _origin_outside(S, f[0], f[1], f[2], f[3]):
+                m = _triangle(S, f[0], f[1], f[2], tmp)
+                dd = _dot(tmp, tmp)
+                if dd < best:
+                    best = dd
+                    mask = m
+                    v[0], v[1], v[2] = tmp[0], tmp[1], tmp[2]
+        if mask == 0:
+            v[:] = 0.0
+            return 4
+    out = 0
+    for r in range(n):
+        if mask & (1 << r):
+            if out != r:
+                S[out, :] = S[r, :]
+            out += 1
+    return out
+
+
+@njit(cache=True, nogil=True)
+def distance_lower_bound(ka, Ra, pa, da, va0, va1, kb, Rb, pb, db, vb0, vb1,  # noqa: N803
+                         fb, ov, warm, S, sa, sb, v, tmp, low, high):
+    """A lower bound [m] on the distance between shapes A and B (negative or zero when they
+    may touch), within :data:`TOL` of the true distance when GJK converges.
+
+    The search also stops once the bound reaches ``high`` (enough for the caller) or the
+    distance is known to be at most ``low`` (no bound above ``low`` exists).
+
+    ``warm`` (3,) is a first search direction (e.g. the last one of the same pair; all
+    zero: the centre line), overwritten with the direction that gave the bound. S (4,3),
+    sa, sb, v, tmp (3,) are scratch.
+    """
+    v[0], v[1], v[2] = warm[0], warm[1], warm[2]
+    if _dot(v, v) < 1e-18:
+        v[0], v[1], v[2] = pa[0] - pb[0], pa[1] - pb[1], pa[2] - pb[2]
+        if _dot(v, v) < 1e-18:
+            v[0] = 1.0
+    lb = -1e300
+    ub = 1e300
+    n = 0
+    for _ in range(MAX_ITER):
+        vn = math.sqrt(_dot(v, v))
+        if vn < 1e-12:
+            break
+        # Support of A - B towards -v.
+        support(ka, Ra, pa, da, fb, ov, va0, va1, -v[0], -v[1], -v[2], sa)
+        support(kb, Rb, pb, db, fb, ov, vb0, vb1, v[0], v[1], v[2], sb)
+        w0, w1, w2 = sa[0] - sb[0], sa[1] - sb[1], sa[2] - sb[2]
+        gap = (v[0] * w0 + v[1] * w1 + v[2] * w2) / vn
+        if gap > lb:
+            lb = gap
+            warm[0], warm[1], warm[2] = v[0] / vn, v[1] / vn, v[2] / vn
+        if ub - lb <= TOL or lb >= high:
+            break
+        S[n, 0], S[n, 1], S[n, 2] = w0, w1, w2
+        n = _closest(S, n + 1, v, tmp)
+        if n == 4:
+            break
+        ub = min(ub, math.sqrt(_dot(v, v)))
+        if ub <= low:
+            break
+    return lb
+
+
+def vertices_of(points: np.ndarray) -> np.ndarray:
+    """The extreme points of a convex shape's points (its hull's vertices), rows [m]."""
+    from scipy.spatial import ConvexHull
+
+    points = np.asarray(points, dtype=float)
+    return np.ascontiguousarray(points[ConvexHull(points).vertices])
