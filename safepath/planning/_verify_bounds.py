@@ -14,7 +14,7 @@ data (joint placements and axes, collision geometry), never the planner's checke
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -27,7 +27,7 @@ if TYPE_CHECKING:
 __all__ = ["Grid", "Layer", "PoseCache", "ShapeSpec", "WalkMemory", "bound_between",
            "motion_weights", "pair_weights", "shape_spec"]
 
-_BOX, _SPHERE, _CYLINDER, _CAPSULE = 0, 1, 2, 3
+_BOX, _SPHERE, _CYLINDER, _CAPSULE, _HULL = 0, 1, 2, 3, 4
 _REVOLUTE, _PRISMATIC = 1, 2
 _AXES = {"X": (1.0, 0.0, 0.0), "Y": (0.0, 1.0, 0.0), "Z": (0.0, 0.0, 1.0)}
 #: Above this excess over its threshold [m], a pair's bounding-sphere bound is used
@@ -42,23 +42,28 @@ _KEEP = 0.5
 
 @dataclass(frozen=True)
 class ShapeSpec:
-    """A convex primitive as the conservative layer sees it.
+    """A convex shape as the conservative layer sees it.
 
     Attributes:
-        kind: 0 box, 1 sphere, 2 cylinder, 3 capsule (cylinders and capsules along z).
-        par: Box half extents; (radius,) for spheres; (radius, half length) otherwise [m].
-        centre: Its centre in the geometry frame [m] (not the origin for a mesh's box).
+        kind: 0 box, 1 sphere, 2 cylinder, 3 capsule (cylinders and capsules along z),
+            4 convex hull.
+        par: Box half extents; (radius,) for spheres; (radius, half length) for
+            cylinders and capsules [m]; unused for hulls.
+        centre: Its centre in the geometry frame [m] (a hull's: its bounding box's).
         radius: Radius of a sphere about the centre that holds it [m].
+        vertices: A hull's vertices about its centre, in the geometry frame (rows) [m].
     """
 
     kind: int
     par: tuple[float, float, float]
     centre: tuple[float, float, float]
     radius: float
+    vertices: np.ndarray = field(default_factory=lambda: np.zeros((0, 3)), compare=False)
 
 
 def shape_spec(geometry: object) -> ShapeSpec:
-    """The primitive that is, or encloses, a coal geometry (a convex mesh: its box)."""
+    """The conservative layer's view of a coal geometry (a convex mesh: its hull's
+    vertices, the points FCL's convex is made of)."""
     import coal
 
     origin = (0.0, 0.0, 0.0)
@@ -74,11 +79,14 @@ def shape_spec(geometry: object) -> ShapeSpec:
             return ShapeSpec(_CAPSULE, (radius, half, 0.0), origin, radius + half)
         return ShapeSpec(_CYLINDER, (radius, half, 0.0), origin, float(np.hypot(radius, half)))
     if isinstance(geometry, coal.ConvexBase):
+        from scipy.spatial import ConvexHull
+
         pts = np.asarray(geometry.points(), dtype=float)
-        lo, hi = pts.min(axis=0), pts.max(axis=0)
-        c, half = (lo + hi) / 2, (hi - lo) / 2
-        return ShapeSpec(_BOX, (float(half[0]), float(half[1]), float(half[2])),
-                         (float(c[0]), float(c[1]), float(c[2])), float(np.linalg.norm(half)))
+        pts = pts[ConvexHull(pts).vertices]
+        c = (pts.min(axis=0) + pts.max(axis=0)) / 2
+        rel = np.ascontiguousarray(pts - c)
+        return ShapeSpec(_HULL, (0.0, 0.0, 0.0), (float(c[0]), float(c[1]), float(c[2])),
+                         float(np.linalg.norm(rel, axis=1).max()), rel)
     raise VerificationError(f"unsupported geometry {type(geometry).__name__}", time=0.0,
                             q=None, pairs=[])
 
@@ -90,14 +98,31 @@ def bound_between(a: ShapeSpec, T_world_a: np.ndarray, b: ShapeSpec,
     raised by GJK's directions): for tests and diagnostics."""
     from . import _verify_kernel as shapes
 
-    def placed(spec: ShapeSpec, T: np.ndarray) -> tuple[float, ...]:
-        T = np.asarray(T, dtype=float)
-        centre = T[:3, :3] @ np.asarray(spec.centre) + T[:3, 3]
-        return (float(spec.kind), *spec.par, spec.radius, *centre, *T[:3, :3].ravel())
+    table, verts = _shape_table([a, b])
 
-    Sa, Sb = placed(a, T_world_a), placed(b, T_world_b)
-    bound, n0, n1, n2 = shapes.axis_bound(Sa, Sb)
-    return float(shapes.gjk_bound(Sa, Sb, bound, n0, n1, n2, False)[0])
+    def placed(k: int, T: np.ndarray) -> tuple[float, ...]:
+        T = np.asarray(T, dtype=float)
+        centre = T[:3, :3] @ table[k, 4:7] + T[:3, 3]
+        return (*table[k, :4], table[k, 7], *centre, *T[:3, :3].ravel())
+
+    Sa, Sb = placed(0, T_world_a), placed(1, T_world_b)
+    bound, n0, n1, n2 = shapes.axis_bound(Sa, Sb, verts)
+    return float(shapes.gjk_bound(Sa, Sb, verts, bound, n0, n1, n2, False)[0])
+
+
+def _shape_table(specs: list[ShapeSpec]) -> tuple[np.ndarray, np.ndarray]:
+    """The kernels' shape table (kind, parameters, centre, radius; a hull's parameters:
+    its first row in the vertex table and its count) and the vertex table."""
+    rows, verts, count = [], [], 0
+    for spec in specs:
+        par = spec.par
+        if spec.kind == _HULL:
+            par = (float(count), float(len(spec.vertices)), 0.0)
+            verts.append(spec.vertices)
+            count += len(spec.vertices)
+        rows.append((spec.kind, *par, *spec.centre, spec.radius))
+    table = np.array(rows, dtype=float).reshape(-1, 8)
+    return table, np.ascontiguousarray(np.vstack(verts) if verts else np.zeros((0, 3)))
 
 
 def _joint_kind(model: pin.Model, j: int) -> tuple[int, tuple[float, float, float]]:
@@ -321,9 +346,8 @@ class Layer:
                      joint_of)
         self._upstream = upstream
         self._env_pose = np.array([np.asarray(T)[:3] for T in T_world_env]).reshape(-1, 3, 4)
-        # The kernels' shape table: kind, parameters, centre, radius; bodies first.
-        self._shapes = np.array([(s.kind, *s.par, *s.centre, s.radius)
-                                 for s in movers + env], dtype=float).reshape(-1, 8)
+        # The kernels' shape and vertex tables; bodies first.
+        self._shapes, self._verts = _shape_table(movers + env)
         self._pairs = (np.array([a for a, _, _ in pairs], dtype=np.int64),
                        np.array([b for _, b, _ in pairs], dtype=np.int64),
                        np.array([e for _, _, e in pairs], dtype=np.bool_),
@@ -370,7 +394,7 @@ class Layer:
             np.ascontiguousarray(todo, dtype=np.int64), theta,
             (grid.cum, grid.step, grid.cum @ self._upstream.T, grid.step @ self._upstream.T,
              np.ascontiguousarray(q, dtype=float), grid.knot_of, grid.frac),
-            self._kin, cache.arrays(), self._pairs, (self._shapes, self._env_pose),
+            self._kin, cache.arrays(), self._pairs, (self._shapes, self._env_pose, self._verts),
             memory.arrays(), params)
 
     def pose(self, q: np.ndarray, grid: Grid, cache: PoseCache, s: int, m: int

@@ -9,8 +9,9 @@ and tuples of floats only, and the array work of the walk sits in closures insid
 :func:`certify`: a numba helper that takes arrays pays their reference counting on every
 call, which costs more than most of these helpers' work.
 
-Shapes are convex primitives: boxes, spheres, cylinders and capsules (cylinders and
-capsules along their local z). The bound is the largest gap between the two shapes'
+Shapes are convex: boxes, spheres, cylinders and capsules (cylinders and capsules along
+their local z), and convex hulls given by their vertices (a mesh link's own hull, as FCL
+checks it). The bound is the largest gap between the two shapes'
 projections on a few unit axes: the line between the centres, each shape's own axes,
 their cross products, the axis that worked at the pair's last evaluation, and GJK's
 search directions when those are not enough. Projecting is 1-Lipschitz, so every gap is
@@ -21,9 +22,11 @@ state of GJK: its directions are only candidates, the gaps use the exact widths
 (:func:`support`), never GJK's points.
 
 The shape table has one row per shape (the bodies', then the environment objects'):
-kind (0 box, 1 sphere, 2 cylinder, 3 capsule), three parameters (box half extents;
-radius; radius and half length), the centre in the geometry frame, and the radius of a
-sphere about the centre that holds the shape.
+kind (0 box, 1 sphere, 2 cylinder, 3 capsule, 4 hull), three parameters (box half
+extents; radius; radius and half length; a hull's first row in the vertex table and its
+count), the centre in the geometry frame, and the radius of a sphere about the centre
+that holds the shape. The vertex table holds the hulls' vertices about their centres,
+in their geometry frames.
 """
 
 from __future__ import annotations
@@ -33,7 +36,7 @@ import math
 import numba as nb
 import numpy as np
 
-BOX, SPHERE, CYLINDER, CAPSULE = 0, 1, 2, 3
+BOX, SPHERE, CYLINDER, CAPSULE, HULL = 0, 1, 2, 3, 4
 REVOLUTE, PRISMATIC = 1, 2
 #: Columns of the shape table.
 KIND, PAR, CENTRE, RADIUS = 0, 1, 4, 7
@@ -62,10 +65,19 @@ def _axis(S: tuple, j: int) -> tuple[float, float, float]:
 
 
 @nb.njit(cache=True)
-def support(S: tuple, n0: float, n1: float, n2: float) -> float:
-    """Half-width of the shape's projection on the unit axis n, about its centre [m]."""
+def support(S: tuple, V: np.ndarray, n0: float, n1: float, n2: float) -> float:
+    """How far the shape's projection on the unit axis n reaches beyond its centre along
+    n [m] (half its width, but for a hull, whose rows of ``V`` are its vertices about
+    its centre in its own frame)."""
     a0, a1, a2 = _dots(S, n0, n1, n2)
     kind = int(S[0])
+    if kind == HULL:
+        best = -np.inf
+        for i in range(int(S[1]), int(S[1]) + int(S[2])):
+            x = V[i, 0] * a0 + V[i, 1] * a1 + V[i, 2] * a2
+            if x > best:
+                best = x
+        return best  # type: ignore[no-any-return]
     if kind == BOX:
         return S[1] * abs(a0) + S[2] * abs(a1) + S[3] * abs(a2)  # type: ignore[no-any-return]
     if kind == SPHERE:
@@ -77,13 +89,23 @@ def support(S: tuple, n0: float, n1: float, n2: float) -> float:
 
 
 @nb.njit(cache=True)
-def _support_point(S: tuple, n0: float, n1: float, n2: float
+def _support_point(S: tuple, V: np.ndarray, n0: float, n1: float, n2: float
                    ) -> tuple[float, float, float]:
     """A point of the shape furthest along n: GJK's search only, the bounds use
     :func:`support`."""
     x0, x1, x2 = S[5], S[6], S[7]
     a0, a1, a2 = _dots(S, n0, n1, n2)
     kind = int(S[0])
+    if kind == HULL:
+        best, k = -np.inf, int(S[1])
+        for i in range(int(S[1]), int(S[1]) + int(S[2])):
+            x = V[i, 0] * a0 + V[i, 1] * a1 + V[i, 2] * a2
+            if x > best:
+                best, k = x, i
+        for j in range(3):
+            c0, c1, c2 = _axis(S, j)
+            x0, x1, x2 = x0 + V[k, j] * c0, x1 + V[k, j] * c1, x2 + V[k, j] * c2
+        return x0, x1, x2
     if kind == BOX:
         for j, a in ((0, a0), (1, a1), (2, a2)):
             h = S[1 + j] if a >= 0.0 else -S[1 + j]
@@ -109,11 +131,14 @@ def _support_point(S: tuple, n0: float, n1: float, n2: float
 
 
 @nb.njit(cache=True)
-def gap(Sa: tuple, Sb: tuple, n0: float, n1: float, n2: float) -> float:
+def gap(Sa: tuple, Sb: tuple, V: np.ndarray, n0: float, n1: float, n2: float) -> float:
     """Gap between the shapes' projections on the unit axis n [m]."""
     d0, d1, d2 = Sb[5] - Sa[5], Sb[6] - Sa[6], Sb[7] - Sa[7]
-    return (abs(n0 * d0 + n1 * d1 + n2 * d2) - support(Sa, n0, n1, n2)  # type: ignore[no-any-return]
-            - support(Sb, n0, n1, n2))
+    along = n0 * d0 + n1 * d1 + n2 * d2
+    if along < 0.0:  # B lies behind A along n: measure along -n
+        n0, n1, n2, along = -n0, -n1, -n2, -along
+    return (along - support(Sa, V, n0, n1, n2)  # type: ignore[no-any-return]
+            - support(Sb, V, -n0, -n1, -n2))
 
 
 @nb.njit(cache=True)
@@ -133,30 +158,30 @@ def _own_axes(S: tuple) -> tuple[int, int]:
     kind = int(S[0])
     if kind == BOX:
         return 0, 3
-    if kind == SPHERE:
+    if kind == SPHERE or kind == HULL:  # a hull's frame axes are nothing special
         return 0, 0
     return 2, 1
 
 
 @nb.njit(cache=True)
-def axis_bound(Sa: tuple, Sb: tuple) -> tuple[float, float, float, float]:
+def axis_bound(Sa: tuple, Sb: tuple, V: np.ndarray) -> tuple[float, float, float, float]:
     """The largest gap along the line between the centres, the shapes' own axes and
     their cross products [m] (never below the bounding spheres' distance), and its
     axis."""
     best, b0, b1, b2 = sphere_bound(Sa, Sb)
-    g = gap(Sa, Sb, b0, b1, b2)  # the line between the centres
+    g = gap(Sa, Sb, V, b0, b1, b2)  # the line between the centres
     if g > best:
         best = g
     a_first, a_count = _own_axes(Sa)
     b_first, b_count = _own_axes(Sb)
     for i in range(a_first, a_first + a_count):
         n0, n1, n2 = _axis(Sa, i)
-        g = gap(Sa, Sb, n0, n1, n2)
+        g = gap(Sa, Sb, V, n0, n1, n2)
         if g > best:
             best, b0, b1, b2 = g, n0, n1, n2
     for j in range(b_first, b_first + b_count):
         n0, n1, n2 = _axis(Sb, j)
-        g = gap(Sa, Sb, n0, n1, n2)
+        g = gap(Sa, Sb, V, n0, n1, n2)
         if g > best:
             best, b0, b1, b2 = g, n0, n1, n2
     for i in range(a_first, a_first + a_count):
@@ -167,7 +192,7 @@ def axis_bound(Sa: tuple, Sb: tuple) -> tuple[float, float, float, float]:
             norm = math.sqrt(c0 * c0 + c1 * c1 + c2 * c2)
             if norm > 1e-6:
                 n0, n1, n2 = c0 / norm, c1 / norm, c2 / norm
-                g = gap(Sa, Sb, n0, n1, n2)
+                g = gap(Sa, Sb, V, n0, n1, n2)
                 if g > best:
                     best, b0, b1, b2 = g, n0, n1, n2
     return best, b0, b1, b2
@@ -202,8 +227,8 @@ def _solve(k: int, g00: float, g01: float, g02: float, g11: float, g12: float,
 
 
 @nb.njit(cache=True)
-def gjk_bound(Sa: tuple, Sb: tuple, best: float, w0: float, w1: float, w2: float,
-              warm: bool) -> tuple[float, float, float, float, float]:
+def gjk_bound(Sa: tuple, Sb: tuple, V: np.ndarray, best: float, w0: float, w1: float,
+              w2: float, warm: bool) -> tuple[float, float, float, float, float]:
     """Raise the lower bound ``best`` [m] with the gaps along GJK's search directions.
 
     GJK walks the Minkowski difference B - A towards the origin, from its point
@@ -225,8 +250,8 @@ def gjk_bound(Sa: tuple, Sb: tuple, best: float, w0: float, w1: float, w2: float
     b0, b1, b2 = w0, w1, w2
     count = 0
     if warm:
-        a0, a1, a2 = _support_point(Sa, w0, w1, w2)
-        c0, c1, c2 = _support_point(Sb, -w0, -w1, -w2)
+        a0, a1, a2 = _support_point(Sa, V, w0, w1, w2)
+        c0, c1, c2 = _support_point(Sb, V, -w0, -w1, -w2)
         v0, v1, v2 = c0 - a0, c1 - a1, c2 - a2
         W[0, 0], W[0, 1], W[0, 2] = v0, v1, v2
         count = 1
@@ -237,13 +262,14 @@ def gjk_bound(Sa: tuple, Sb: tuple, best: float, w0: float, w1: float, w2: float
         if norm < 1e-10:
             break  # touching or overlapping: the axis bounds are all there is
         n0, n1, n2 = v0 / norm, v1 / norm, v2 / norm
-        g = n0 * d0 + n1 * d1 + n2 * d2 - support(Sa, n0, n1, n2) - support(Sb, n0, n1, n2)
+        g = (n0 * d0 + n1 * d1 + n2 * d2 - support(Sa, V, n0, n1, n2)
+             - support(Sb, V, -n0, -n1, -n2))
         if g > best:
             best, b0, b1, b2 = g, n0, n1, n2
         if norm - best < 1e-6:
             break
-        a0, a1, a2 = _support_point(Sa, n0, n1, n2)
-        c0, c1, c2 = _support_point(Sb, -n0, -n1, -n2)
+        a0, a1, a2 = _support_point(Sa, V, n0, n1, n2)
+        c0, c1, c2 = _support_point(Sb, V, -n0, -n1, -n2)
         W[count, 0], W[count, 1], W[count, 2] = c0 - a0, c1 - a1, c2 - a2
         count += 1
         # The closest point of the simplex to the origin, and the face it lies on.
@@ -335,7 +361,7 @@ def certify(todo: np.ndarray, theta: np.ndarray, grid: tuple, kin: tuple, cache:
     parent, place, kind, axis, iq, m_joint, m_place, joint_of = kin
     jdone, jpose = cache
     pair_a, pair_b, pair_env, weights, tracked = pairs
-    shp, env_pose = world
+    shp, env_pose, verts = world
     axes, last, stats, ceiling = memory
     coarse, fine, keep, drop = params
     movers = m_joint.size
@@ -521,17 +547,17 @@ def certify(todo: np.ndarray, theta: np.ndarray, grid: tuple, kin: tuple, cache:
             stats[0] += 1
             if bound <= th + coarse:
                 if axes[p, 3] != 0.0:
-                    warm = gap(Sa, Sb, axes[p, 0], axes[p, 1], axes[p, 2])
+                    warm = gap(Sa, Sb, verts, axes[p, 0], axes[p, 1], axes[p, 2])
                     if warm > bound:
                         bound, n0, n1, n2 = warm, axes[p, 0], axes[p, 1], axes[p, 2]
                 # The kept axis is trusted while its gap has not fallen far below the
                 # last full bound; else (or without one) the full bound is computed.
                 if bound - th < keep * (last[p] - th) or axes[p, 3] == 0.0:
-                    full, f0, f1, f2 = axis_bound(Sa, Sb)
+                    full, f0, f1, f2 = axis_bound(Sa, Sb, verts)
                     stats[1] += 1
                     if full <= th + fine:
-                        full, upper, f0, f1, f2 = gjk_bound(Sa, Sb, full, f0, f1, f2,
-                                                            axes[p, 3] != 0.0)
+                        full, upper, f0, f1, f2 = gjk_bound(Sa, Sb, verts, full, f0, f1,
+                                                            f2, axes[p, 3] != 0.0)
                         stats[2] += 1
                         if tracked[p] and upper < ceiling[0]:
                             ceiling[0], ceiling[1], ceiling[2] = upper, p, s
