@@ -76,10 +76,6 @@ class RouteReview:
         k = int(np.clip(np.searchsorted(traj.t, time, side="right") - 1, 0, traj.t.size - 1))
         return int(traj.step_index[k])
 
-    def world_at(self, time: float) -> WorldState:
-        """World state at ``time`` [s]."""
-        return self.worlds[self.step_index_at(time)]
-
 
 def check_plan(cell: Cell, traj: Trajectory, *, path: Path | None = None) -> None:
     """Refuse a trajectory that was not made for the cell's robot.

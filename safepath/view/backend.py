@@ -2,14 +2,14 @@
 
 Planning holds the GIL for seconds (OMPL callbacks, TOPPRA, the verifier), which
 would freeze the page's websocket and playback threads. The session therefore plans
-through a :class:`PlanBackend`: by default a one-worker process pool started with
-``spawn``; when ``safepath.runtime.RuntimePlanner`` is available, that instead. Both
-answer with a ``Future`` of trajectories by route name.
+through a :class:`PlanBackend`: by default ``safepath.runtime.RuntimePlanner`` (its
+workers keep the cell loaded), or a one-worker process pool started with ``spawn``.
+Both answer with a ``Future`` of trajectories by route name, or of the typed
+``safepath`` error the planner raised (errors pickle with their evidence).
 """
 
 from __future__ import annotations
 
-import logging
 import multiprocessing
 import signal
 from collections.abc import Mapping, Sequence
@@ -19,13 +19,13 @@ from typing import Any, Literal, Protocol
 
 import numpy as np
 
-from ..errors import SafepathError
+from ..errors import InputError
 from ..trajectory import Trajectory
 
 __all__ = ["PlanBackend", "ProcessPlanBackend", "RuntimePlanBackend", "make_backend",
            "plan_in_worker"]
 
-log = logging.getLogger(__name__)
+
 
 BackendKind = Literal["auto", "process", "runtime"]
 
@@ -47,33 +47,34 @@ def plan_in_worker(folder: str, poses: dict[str, list[float]], routes: list[str]
                    seed: int) -> dict[str, Trajectory]:
     """Load the cell, override its poses, plan ``routes`` and the routes they follow.
 
-    Runs in the worker process. Errors come back as :class:`SafepathError` with the
-    original type in the message (the library's errors take keyword arguments that do
-    not survive pickling).
+    Runs in the worker process; its errors reach the caller's future as they were
+    raised (typed, with their evidence).
+
+    Raises:
+        InputError: An unknown route (lists the known ones).
+        SafepathError: Whatever loading or planning raised.
     """
     from ..cell import load_cell
     from ..planning import PlannerOptions, PlanOptions, load_routes, plan_cell
 
-    try:
-        cell = load_cell(folder)
-        for name, q in poses.items():
-            cell.poses[name] = cell.robot.as_joint_vector(q, name=f"poses.{name}",
-                                                          path=cell.poses_path)
-        all_routes = load_routes(cell.folder, poses=list(cell.poses),
-                                 objects=list(cell.scene.objects))
-        keep = set(all_routes if routes is None else routes)
-        for name in list(keep):
-            if name not in all_routes:
-                raise SafepathError(f"unknown route '{name}'")
-            after = all_routes[name].after
-            while after is not None:
-                keep.add(after)
-                after = all_routes[after].after
-        chosen = {k: v for k, v in all_routes.items() if k in keep}
-        options = PlanOptions(planner=PlannerOptions(seed=seed))
-        return plan_cell(cell, options, routes=chosen)
-    except SafepathError as exc:
-        raise SafepathError(f"{type(exc).__name__}: {exc}") from None
+    cell = load_cell(folder)
+    for name, q in poses.items():
+        cell.poses[name] = cell.robot.as_joint_vector(q, name=f"poses.{name}",
+                                                      path=cell.poses_path)
+    all_routes = load_routes(cell.folder, poses=list(cell.poses),
+                             objects=list(cell.scene.objects))
+    keep = set(all_routes if routes is None else routes)
+    for name in list(keep):
+        if name not in all_routes:
+            raise InputError(f"unknown route '{name}' (known: {', '.join(all_routes)})",
+                             key="route")
+        after = all_routes[name].after
+        while after is not None:
+            keep.add(after)
+            after = all_routes[after].after
+    chosen = {k: v for k, v in all_routes.items() if k in keep}
+    options = PlanOptions(planner=PlannerOptions(seed=seed))
+    return plan_cell(cell, options, routes=chosen)
 
 
 def _ignore_sigint() -> None:
@@ -159,13 +160,8 @@ class RuntimePlanBackend:
 
 def make_backend(folder: str | Path, *, kind: BackendKind = "auto", seed: int = 0
                  ) -> PlanBackend:
-    """The planning backend: ``runtime`` if asked (or ``auto`` and it exists), else a
-    process pool."""
-    if kind in ("auto", "runtime"):
-        try:
-            return RuntimePlanBackend(folder, seed=seed)
-        except ImportError:
-            if kind == "runtime":
-                raise SafepathError("safepath.runtime is not available") from None
-            log.debug("safepath.runtime not available; planning in a worker process")
-    return ProcessPlanBackend(folder, seed=seed)
+    """The planning backend: the runtime planner (``auto``, ``runtime``) or a process
+    pool (``process``)."""
+    if kind == "process":
+        return ProcessPlanBackend(folder, seed=seed)
+    return RuntimePlanBackend(folder, seed=seed)

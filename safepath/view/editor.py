@@ -1,183 +1,156 @@
-"""Editing taught poses: live checks, inverse kinematics for TCP drags, saving.
+"""One editor of taught poses in the review session: pick a pose, move it with joint
+sliders or the TCP gizmo (inverse kinematics), see its live check, save it.
 
-No GUI here: the review session drives a :class:`PoseEditor` from its sliders and its
-TCP gizmo, and shows the :class:`PoseStatus` it returns. A pose is checked as
-``safepath check`` does: with the gripper empty and, where the scene's grasp allows
-it, holding the object, each with the contacts allowed at that pose.
+A :class:`PoseEditor` holds its own :class:`~safepath.view.edits.PoseEdits` and draws
+the pose being edited on a :class:`~safepath.view.stage.Stage`, moves a TCP gizmo and
+fills an :class:`~safepath.view.panel.EditPanel` (all optional: the editor of the
+Python API has no widgets). It does no locking: the session calls it under its lock.
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
-from pathlib import Path
+from collections.abc import Callable
+from typing import Any
 
 import numpy as np
 import pinocchio as pin
 
 from ..cell import Cell
-from ..collision import CollisionChecker, StateReport
-from ..errors import CollisionError, IKError
-from ..planning import solve_ik
-from ..poses import save_poses
+from ..errors import SafepathError
+from ..planning import initial_world
+from .edits import PoseEdits, PoseStatus
+from .panel import NO_POSE, EditPanel
+from .scene_nodes import PoseFrames, pose_of
+from .stage import Stage
 
-__all__ = ["PoseStatus", "PoseEditor"]
-
-
-@dataclass(frozen=True)
-class PoseStatus:
-    """The live check of one (edited) pose.
-
-    Attributes:
-        pose: Pose name.
-        q: The joint vector [rad].
-        reports: ``(held, report)`` for every gripper state the pose is used in.
-    """
-
-    pose: str
-    q: np.ndarray = field(repr=False)
-    reports: tuple[tuple[bool, StateReport], ...]
-
-    @property
-    def valid(self) -> bool:
-        """Inside the limits and collision-free in every gripper state."""
-        return all(r.valid for _, r in self.reports)
-
-    @property
-    def margin_ok(self) -> bool:
-        """Valid and every safety margin kept."""
-        return all(r.margin_ok for _, r in self.reports)
-
-    @property
-    def collisions(self) -> tuple[tuple[str, str], ...]:
-        """Colliding pairs, over every gripper state."""
-        out: dict[tuple[str, str], None] = {}
-        for _, r in self.reports:
-            out.update(dict.fromkeys(r.collisions))
-        return tuple(out)
-
-    @property
-    def clearance(self) -> float:
-        """Smallest clearance over every gripper state [m]."""
-        return min(r.clearance for _, r in self.reports)
-
-    @property
-    def worst(self) -> tuple[bool, StateReport]:
-        """The gripper state that looks worst (invalid first, then least clearance)."""
-        return min(self.reports, key=lambda hr: (hr[1].valid, hr[1].margin_ok,
-                                                 hr[1].clearance))
-
-    def summary(self) -> str:
-        """Markdown lines for the GUI."""
-        lines = []
-        for held, r in self.reports:
-            state = "holding" if held else "empty"
-            if not r.within_limits:
-                lines.append(f"- {state}: **outside limits**: {r.limit_violation}")
-            elif r.collisions:
-                pairs = ", ".join(f"{a} / {b}" for a, b in r.collisions)
-                lines.append(f"- {state}: **COLLISION** {pairs}")
-            else:
-                pair = " / ".join(r.closest_pair) if r.closest_pair else "-"
-                low = "" if r.margin_ok else " (**below margin**)"
-                lines.append(f"- {state}: valid, clearance {r.clearance * 1000:.1f} mm "
-                             f"({pair}){low}")
-        return "\n".join(lines)
+__all__ = ["PoseEditor"]
 
 
 class PoseEditor:
-    """Edits of a cell's taught poses, kept apart from the cell until saved.
+    """Edit controls of one editor (see the module docstring).
 
     Args:
-        cell: The cell; its ``poses`` are updated when the edits are saved.
+        cell: The cell.
+        edits: The edit buffer.
+        stage: Where the edited pose is drawn: called when editing starts, so that a
+            page's own stage is built only when it edits.
+        frames: The taught-pose frames the edited pose moves.
+        widgets: The "Edit poses" folder, if any.
+        gizmo: The TCP transform control, if any.
     """
 
-    def __init__(self, cell: Cell) -> None:
+    def __init__(self, cell: Cell, edits: PoseEdits, *, stage: Callable[[], Stage],
+                 frames: PoseFrames, widgets: EditPanel | None = None,
+                 gizmo: Any = None) -> None:
         self.cell = cell
-        self.edits: dict[str, np.ndarray] = {}
-        self._checkers: dict[tuple[str, bool], CollisionChecker] = {}
+        self.edits = edits
+        self.widgets = widgets
+        self.gizmo = gizmo
+        self.frames = frames
+        self._stage = stage
+        self.pose: str | None = None
 
-    def q(self, name: str) -> np.ndarray:
-        """The pose ``name`` as edited [rad] (a copy)."""
-        if name in self.edits:
-            return self.edits[name].copy()
-        return self.cell.pose(name).copy()
+    @property
+    def editing(self) -> bool:
+        """Whether a pose is being edited."""
+        return self.pose is not None
 
-    def poses(self) -> dict[str, np.ndarray]:
-        """Every taught pose, edits applied."""
-        return {name: self.q(name) for name in self.cell.poses}
+    def edit_pose(self, name: str) -> PoseStatus:
+        """Show pose ``name`` (as edited) for editing.
 
-    def held_states(self, name: str) -> tuple[bool, ...]:
-        """Gripper states pose ``name`` is used in (held only where the grasp allows)."""
+        Raises:
+            PoseError: Unknown pose.
+        """
+        status = self.edits.status(name)
+        self.pose = name
+        if self.widgets is not None:
+            self.widgets.pose.value = name
+            self.widgets.enable(True)
+        self.show(status, move_gizmo=True)
+        return status
+
+    def set_joints(self, q: np.ndarray) -> PoseStatus:
+        """Edit the selected pose to ``q`` [rad] and check it live."""
+        status = self.edits.set(self.selected(), q)
+        self.show(status, move_gizmo=True)
+        return status
+
+    def set_joint(self, j: int, value: float) -> PoseStatus:
+        """Edit joint ``j`` of the selected pose to ``value`` [rad]."""
+        q = self.edits.q(self.selected())
+        q[j] = value
+        return self.set_joints(q)
+
+    def move_tcp(self, T_world_tcp: pin.SE3) -> PoseStatus:
+        """Edit the selected pose so that its TCP is at ``T_world_tcp`` (IK).
+
+        Raises:
+            IKError: No solution near the pose (it is left as it was).
+        """
+        status = self.edits.solve_tcp(self.selected(), T_world_tcp)
+        self.show(status, move_gizmo=False)
+        return status
+
+    def drag_tcp(self, wxyz: np.ndarray, position: np.ndarray) -> PoseStatus:
+        """:meth:`move_tcp` from the gizmo's orientation (w, x, y, z) and position [m]."""
+        w, x, y, z = (float(v) for v in wxyz)
+        rotation = pin.Quaternion(w, x, y, z).normalized().toRotationMatrix()
+        return self.move_tcp(pin.SE3(rotation, np.asarray(position, dtype=float)))
+
+    def reset_pose(self) -> PoseStatus:
+        """Drop the edit of the selected pose."""
+        status = self.edits.reset(self.selected())
+        self.show(status, move_gizmo=True)
+        return status
+
+    def leave(self) -> None:
+        """Stop editing (the edits are kept)."""
+        self.pose = None
+        if self.widgets is not None:
+            self.widgets.pose.value = NO_POSE
+            self.widgets.enable(False)
+        if self.gizmo is not None:
+            self.gizmo.visible = False
+
+    def set_gizmo_visible(self, visible: bool) -> None:
+        """Show the TCP gizmo (only while a pose is edited)."""
+        if self.gizmo is not None:
+            self.gizmo.visible = visible and self.editing
+
+    def selected(self) -> str:
+        """The pose being edited.
+
+        Raises:
+            SafepathError: No pose is being edited.
+        """
+        if self.pose is None:
+            raise SafepathError("pick a pose to edit first")
+        return self.pose
+
+    def refresh(self) -> None:
+        """Show the edited pose again (after a save or a change of the base poses)."""
+        if self.pose is not None:
+            self.show(self.edits.status(self.pose), move_gizmo=True)
+
+    def show(self, status: PoseStatus, *, move_gizmo: bool) -> None:
+        """Draw ``status``'s pose in the gripper state that looks worst, and its check."""
+        held, _ = status.worst
         grasp = self.cell.scene.grasp
-        return (False, True) if grasp is not None and name in grasp.poses else (False,)
-
-    def checker(self, name: str, held: bool) -> CollisionChecker:
-        """The checker of pose ``name`` in one gripper state (not thread-safe)."""
-        key = (name, held)
-        if key not in self._checkers:
-            self._checkers[key] = self.cell.checker(held=held, at=name)
-        return self._checkers[key]
-
-    def status(self, name: str) -> PoseStatus:
-        """Check pose ``name`` as edited."""
-        q = self.q(name)
-        reports = tuple((held, self.checker(name, held).check(q))
-                        for held in self.held_states(name))
-        return PoseStatus(name, q, reports)
-
-    def set(self, name: str, q: np.ndarray) -> PoseStatus:
-        """Edit pose ``name`` to ``q`` [rad] and check it.
-
-        Raises:
-            PoseError: Unknown pose, or not a finite vector of the right length.
-        """
-        self.cell.pose(name)
-        self.edits[name] = self.cell.robot.as_joint_vector(q, name=name, check_limits=False)
-        return self.status(name)
-
-    def reset(self, name: str) -> PoseStatus:
-        """Drop the edit of pose ``name``."""
-        self.edits.pop(name, None)
-        return self.status(name)
-
-    def solve_tcp(self, name: str, T_world_tcp: pin.SE3) -> PoseStatus:
-        """Edit pose ``name`` so that the TCP is at ``T_world_tcp``, by inverse
-        kinematics seeded from the pose as edited.
-
-        Raises:
-            IKError: No solution near the current pose (the pose is left as it was).
-        """
-        q = solve_ik(self.cell.robot, T_world_tcp, self.q(name))
-        if q is None:
-            raise IKError("no inverse-kinematics solution for the dragged TCP", step=name,
-                          fraction=1.0, position=np.array(T_world_tcp.translation))
-        return self.set(name, q)
-
-    def invalid(self) -> list[PoseStatus]:
-        """Edited poses that are outside the limits or in collision."""
-        return [s for s in (self.status(n) for n in self.edits) if not s.valid]
-
-    def save(self, *, insist: bool = False, backup: bool = True) -> Path:
-        """Write every pose (edits applied) to the cell's poses file, atomically.
-
-        Args:
-            insist: Save even when an edited pose is in collision.
-            backup: Keep the previous file as ``poses.yaml~``.
-
-        Raises:
-            CollisionError: An edited pose is in collision and ``insist`` is false
-                (nothing is written).
-            PoseError: A pose outside the joint limits (nothing is written).
-        """
-        bad = [s for s in self.invalid() if s.collisions]
-        if bad and not insist:
-            pairs = [p for s in bad for p in s.collisions]
-            names = ", ".join(s.pose for s in bad)
-            raise CollisionError(f"not saved: pose {names} in collision "
-                                 f"({', '.join(f'{a} / {b}' for a, b in pairs)})",
-                                 q=bad[0].q, pairs=pairs)
-        merged = self.poses()
-        save_poses(self.cell.poses_path, merged, self.cell.robot, backup=backup)
-        self.cell.poses.update(merged)
-        self.edits.clear()
-        return self.cell.poses_path
+        world = initial_world(self.cell)
+        if held and grasp is not None:
+            world.held = grasp.object
+            world.resting.pop(grasp.object, None)
+        self._stage().show(status.q, world, self.edits.checker(status.pose, held))
+        self.frames.set(status.pose, status.q)
+        if self.gizmo is not None:
+            if move_gizmo:
+                wxyz, position = pose_of(self.cell.robot.frame_pose(status.q))
+                self.gizmo.wxyz, self.gizmo.position = wxyz, position
+            enabled = self.widgets is None or bool(self.widgets.gizmo_enabled.value)
+            self.gizmo.visible = enabled
+        if self.widgets is not None:
+            for slider, v in zip(self.widgets.joints, status.q, strict=True):
+                slider.value = float(v)
+            mark = "" if status.pose not in self.edits.edits else " (edited, not saved)"
+            self.widgets.pose_state.content = (f"**{status.pose}**{mark}\n\n"
+                                               f"{status.summary()}")

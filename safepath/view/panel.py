@@ -17,8 +17,8 @@ import viser
 
 from ..robot import Robot
 
-__all__ = ["NO_ROUTE", "NO_POSE", "Panel", "build_panel", "clearance_plot_data",
-           "speed_plot_data"]
+__all__ = ["NO_ROUTE", "NO_POSE", "Panel", "EditPanel", "build_panel", "build_edit_panel",
+           "clearance_plot_data", "speed_plot_data"]
 
 #: Dropdown entries meaning "nothing selected".
 NO_ROUTE = "(no plan yet)"
@@ -46,6 +46,16 @@ class Panel:
     state: Any
     clearance_plot: Any
     speed_plot: Any
+    edit: EditPanel
+    visual_style: Any
+    show_poses: Any
+    show_path: Any
+
+
+@dataclass
+class EditPanel:
+    """Handles of the "Edit poses" folder (one per editor)."""
+
     pose: Any
     pose_state: Any
     joints: list[Any]
@@ -54,9 +64,11 @@ class Panel:
     replan: Any
     insist: Any
     save: Any
-    visual_style: Any
-    show_poses: Any
-    show_path: Any
+
+    def enable(self, editing: bool) -> None:
+        """Enable the joint sliders and the reset button while a pose is edited."""
+        for handle in (*self.joints, self.reset):
+            handle.disabled = not editing
 
 
 def clearance_plot_data(times: np.ndarray, clearance: np.ndarray, margin: float,
@@ -107,6 +119,19 @@ def build_panel(server: viser.ViserServer, robot: Robot, *, title: str, poses: l
         speed_plot = gui.add_uplot(
             speed_plot_data(t0, np.zeros((2, robot.dof))), tuple(joint_series),
             title="Joint speed / limit", aspect=1.6, scales=_SCALES)
+    edit = build_edit_panel(gui, robot, poses)
+    with gui.add_folder("Display", expand_by_default=False):
+        visual_style = gui.add_checkbox("Visual style", False,
+                                        hint="URDF visual materials instead of per-link "
+                                             "collision colours")
+        show_poses = gui.add_checkbox("Taught poses", True)
+        show_path = gui.add_checkbox("TCP path", True)
+    return Panel(header, status, route, readout, time, play, pause, speed, loop, state,
+                 clearance_plot, speed_plot, edit, visual_style, show_poses, show_path)
+
+
+def build_edit_panel(gui: Any, robot: Robot, poses: list[str]) -> EditPanel:
+    """Add the "Edit poses" folder to ``gui`` (the server's or one client's)."""
     with gui.add_folder("Edit poses", expand_by_default=False):
         pose = gui.add_dropdown("Pose", [NO_POSE, *poses], initial_value=NO_POSE)
         pose_state = gui.add_markdown("Pick a pose to edit it.")
@@ -122,12 +147,4 @@ def build_panel(server: viser.ViserServer, robot: Robot, *, title: str, poses: l
         replan = gui.add_button("Re-plan affected routes")
         insist = gui.add_checkbox("I insist (save even in collision)", False)
         save = gui.add_button("Save poses")
-    with gui.add_folder("Display", expand_by_default=False):
-        visual_style = gui.add_checkbox("Visual style", False,
-                                        hint="URDF visual materials instead of per-link "
-                                             "collision colours")
-        show_poses = gui.add_checkbox("Taught poses", True)
-        show_path = gui.add_checkbox("TCP path", True)
-    return Panel(header, status, route, readout, time, play, pause, speed, loop, state,
-                 clearance_plot, speed_plot, pose, pose_state, joints, gizmo_enabled, reset,
-                 replan, insist, save, visual_style, show_poses, show_path)
+    return EditPanel(pose, pose_state, joints, gizmo_enabled, reset, replan, insist, save)

@@ -21,12 +21,16 @@ from ..robot import Robot
 from ..scene import Scene
 from .analysis import GREEN, RED, YELLOW
 
-__all__ = ["Rgb", "HIGHLIGHT", "LEVEL_COLORS", "ShapeNode", "RobotNodes", "CellNodes",
-           "PoseFrames", "draw_path", "pose_of", "configure_lighting"]
+__all__ = ["Rgb", "Scope", "RobotStyle", "HIGHLIGHT", "LEVEL_COLORS", "ShapeNode",
+           "RobotNodes", "CellNodes", "PoseFrames", "draw_path", "pose_of",
+           "configure_lighting"]
 
 log = logging.getLogger(__name__)
 
 Rgb = tuple[int, int, int]
+#: Where nodes are added: the server (every page) or one client (that page only; a
+#: client's node shadows the server's node of the same name).
+Scope = viser.ViserServer | viser.ClientHandle
 RobotStyle = Literal["collision", "visual"]
 
 #: Colour of geometry in collision.
@@ -100,7 +104,7 @@ class ShapeNode:
             self._shown = color
 
 
-def add_shape(server: viser.ViserServer, path: str, name: str, kind: str,
+def add_shape(server: Scope, path: str, name: str, kind: str,
               size: tuple[float, ...], color: Rgb, *, opacity: float | None = None
               ) -> ShapeNode | None:
     """Add a primitive centred on its frame (cylinders and capsules along local z).
@@ -153,7 +157,7 @@ class RobotNodes:
     visual model with its materials. Only the shown style is updated.
     """
 
-    def __init__(self, server: viser.ViserServer, robot: Robot, *, prefix: str = "/robot",
+    def __init__(self, server: Scope, robot: Robot, *, prefix: str = "/robot",
                  style: RobotStyle = "collision") -> None:
         self.robot = robot
         self._data = robot.model.createData()
@@ -195,6 +199,10 @@ class RobotNodes:
         """Nodes of the shown style."""
         return self._sets[self.style][2]
 
+    def all_nodes(self) -> list[ShapeNode]:
+        """Nodes of every style."""
+        return [node for _, _, nodes, _ in self._sets.values() for node in nodes]
+
     def update(self, q: np.ndarray) -> None:
         """Place the shown style's geometry at joint vector ``q`` [rad]."""
         self._q = np.array(q, dtype=float)
@@ -233,7 +241,7 @@ class RobotNodes:
 class CellNodes:
     """The cell's objects; movable ones are placed by :meth:`place`."""
 
-    def __init__(self, server: viser.ViserServer, scene: Scene, *, prefix: str = "/cell"
+    def __init__(self, server: Scope, scene: Scene, *, prefix: str = "/cell"
                  ) -> None:
         self.nodes: dict[str, ShapeNode] = {}
         for obj in scene.objects.values():
@@ -260,7 +268,7 @@ class CellNodes:
 class PoseFrames:
     """Every taught pose as a labelled TCP frame."""
 
-    def __init__(self, server: viser.ViserServer, robot: Robot,
+    def __init__(self, server: Scope, robot: Robot,
                  poses: Mapping[str, np.ndarray], *, prefix: str = "/poses") -> None:
         self._server = server
         self._robot = robot

@@ -1,12 +1,17 @@
 """The browser review session: play, check and fix a cell's motions (viser).
 
-A :class:`ReviewSession` serves one cell on a local viser server: the robot's
-geometry, the cell's objects, the taught poses as TCP frames and, per planned route,
-the TCP path coloured by clearance, with a timeline driven by a 30 Hz server thread
-that samples the real trajectory timing. Poses can be edited (joint sliders or a TCP
-gizmo, checked live), routes re-planned in a worker process (the page never freezes),
-and the poses saved back atomically. Every GUI callback is guarded: a failure shows
-as one line in the panel, never as a traceback.
+A :class:`ReviewSession` serves one cell on a viser server: the robot's geometry, the
+cell's objects, the taught poses as TCP frames and, per planned route, the TCP path
+coloured by clearance, with a timeline driven by a 30 Hz server thread that samples the
+real trajectory timing. Poses can be edited (joint sliders or a TCP gizmo, checked
+live), routes re-planned in a worker process (the page never freezes), and the poses
+saved back atomically. Every GUI callback is guarded: a failure shows as one line in
+the panel, never as a traceback.
+
+The session composes small parts, each with explicit inputs: a
+:class:`~safepath.view.stage.Stage` (what is drawn), a
+:class:`~safepath.view.timeline.Timeline` (playback), a
+:class:`~safepath.view.editor.PoseEditor` (pose edits); one lock guards them all.
 """
 
 from __future__ import annotations
@@ -17,59 +22,43 @@ import threading
 import time
 from collections.abc import Callable, Mapping
 from concurrent.futures import CancelledError, Future
-from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, Literal
+from typing import Any
 
 import numpy as np
+import pinocchio as pin
 import viser
 
 from ..cell import load_cell
-from ..collision import CollisionChecker
 from ..errors import SafepathError
-from ..planning import WorldState, initial_world
 from ..trajectory import Trajectory
 from ._ports import choose_port
 from .analysis import (
     CLEAR_ENOUGH,
     RouteReview,
-    StepCheckers,
     affected_routes,
     analyse_routes,
     load_plans,
     routes_of,
 )
 from .backend import PlanBackend, make_backend
-from .editing import PoseEditing
 from .editor import PoseEditor
+from .edits import PoseEdits, PoseStatus
 from .options import ViewOptions
-from .panel import build_panel
+from .panel import NO_POSE, NO_ROUTE, Panel, build_panel
 from .scene_nodes import CellNodes, PoseFrames, RobotNodes, configure_lighting
+from .stage import ShownState, Stage
 from .timeline import Timeline
 
 __all__ = ["ViewOptions", "ShownState", "ReviewSession"]
 
 log = logging.getLogger(__name__)
 
-
-@dataclass(frozen=True)
-class ShownState:
-    """The state the page shows.
-
-    Attributes:
-        q: Joint vector [rad].
-        valid: Inside the limits and collision-free.
-        collisions: Colliding pairs (drawn red).
-        held: Object in the gripper, if any.
-    """
-
-    q: np.ndarray
-    valid: bool
-    collisions: tuple[tuple[str, str], ...]
-    held: str | None
+#: Readout refresh period [s]; the robot itself moves at the playback rate.
+_TEXT_PERIOD = 0.1
 
 
-class ReviewSession(Timeline, PoseEditing):
+class ReviewSession:
     """A browser session to review, edit and re-plan one cell.
 
     Args:
@@ -88,19 +77,9 @@ class ReviewSession(Timeline, PoseEditing):
         self.cell = load_cell(scene)
         self.routes = routes_of(self.cell)
         self._given = load_plans(self.cell, plans) if plans is not None else None
-        self.editor = PoseEditor(self.cell)
+        self.edits = PoseEdits(self.cell)
         self._plan_poses = {k: q.copy() for k, q in self.cell.poses.items()}
         self._lock = threading.RLock()
-        self._reviews: dict[str, RouteReview] = {}
-        self._checkers: dict[str, StepCheckers] = {}
-        self._route: str | None = None
-        self._t = 0.0
-        self._playing = False
-        self._speed = 1.0
-        self._mode: Literal["review", "edit"] = "review"
-        self._pose: str | None = None
-        self._shown: ShownState | None = None
-        self._shown_checker: CollisionChecker | None = None
         self._job: Future[dict[str, Trajectory]] | None = None
         self._backend: PlanBackend | None = None
         self._plans_ready = threading.Event()
@@ -138,26 +117,29 @@ class ReviewSession(Timeline, PoseEditing):
         return self
 
     def _build(self, server: viser.ViserServer) -> None:
-        opts, cell = self.options, self.cell
+        cell = self.cell
         server.initial_camera.position = (0.46, -0.54, 0.65)
         server.initial_camera.look_at = (-0.02, 0.2, 0.05)
+        idle = next(iter(self.routes.values())).start if self.routes else next(iter(cell.poses))
         with self._lock, server.atomic():
             configure_lighting(server)
-            self.robot_nodes = RobotNodes(server, cell.robot)
-            self.cell_nodes = CellNodes(server, cell.scene)
+            self.stage = Stage(server, cell)
             self.pose_frames = PoseFrames(server, cell.robot, cell.poses)
-            self._gizmo = server.scene.add_transform_controls(
+            gizmo = server.scene.add_transform_controls(
                 "/edit/tcp", scale=0.12, depth_test=False, visible=False)
-            self._path: Any = None
-            self.panel = build_panel(server, cell.robot, title=self._title(),
-                                     poses=list(cell.poses), margin=cell.scene.margin,
-                                     clear_enough=CLEAR_ENOUGH)
-            self._wire()
-            self._show_idle()
+            self.panel: Panel = build_panel(server, cell.robot, title=self._title(),
+                                            poses=list(cell.poses), margin=cell.scene.margin,
+                                            clear_enough=CLEAR_ENOUGH)
+            self.timeline = Timeline(cell, server, self.stage, self.panel, idle_pose=idle)
+            self.editor = PoseEditor(cell, self.edits, stage=lambda: self.stage,
+                                     frames=self.pose_frames, widgets=self.panel.edit,
+                                     gizmo=gizmo)
+            self._wire(gizmo)
+            self.timeline.draw()
         if self._given is not None:
             self.set_trajectories(self._given)
             self._plans_ready.set()
-        elif opts.plan_on_start:
+        elif self.options.plan_on_start:
             self.replan(everything=True)
         self._thread = threading.Thread(target=self._run, name="safepath-view-playback",
                                         daemon=True)
@@ -205,14 +187,155 @@ class ReviewSession(Timeline, PoseEditing):
         return f"http://[{host}]:{self._port}" if ":" in host else f"http://{host}:{self._port}"
 
     @property
+    def robot_nodes(self) -> RobotNodes:
+        """The shared robot's nodes."""
+        return self.stage.robot_nodes
+
+    @property
+    def cell_nodes(self) -> CellNodes:
+        """The shared cell objects' nodes."""
+        return self.stage.cell_nodes
+
+    @property
     def shown(self) -> ShownState | None:
-        """The state the page shows."""
-        return self._shown
+        """The state every page shows (the playback, or the pose edited from Python)."""
+        return self.stage.shown
 
     @property
     def mode(self) -> str:
-        """``review`` (routes) or ``edit`` (a pose)."""
-        return self._mode
+        """``review`` (routes) or ``edit`` (a pose, edited from Python)."""
+        return "edit" if self.editor.editing else "review"
+
+    # -- playback ---------------------------------------------------------------------------
+    @property
+    def route_names(self) -> list[str]:
+        """Routes that can be played."""
+        return list(self.timeline.reviews)
+
+    @property
+    def route(self) -> str | None:
+        """The selected route."""
+        return self.timeline.route
+
+    @property
+    def review_data(self) -> RouteReview | None:
+        """What the review shows about the selected route."""
+        return self.timeline.data
+
+    @property
+    def time(self) -> float:
+        """Time within the selected route [s]."""
+        return self.timeline.t
+
+    @property
+    def duration(self) -> float:
+        """Duration of the selected route [s] (0 when none)."""
+        return self.timeline.duration
+
+    @property
+    def playing(self) -> bool:
+        """Whether playback runs."""
+        return self.timeline.playing
+
+    @property
+    def speed(self) -> float:
+        """Playback speed (1 = real time)."""
+        return self.timeline.speed
+
+    def select_route(self, name: str) -> None:
+        """Show route ``name`` from its start (ends a pose edit from Python).
+
+        Raises:
+            InputError: No such planned route (lists them).
+        """
+        with self._lock:
+            self._end_edit()
+            self.timeline.select(name, restart=name != self.timeline.route)
+
+    def play(self) -> None:
+        """Play the selected route from the current time (from the start at the end).
+
+        Raises:
+            SafepathError: No route is planned yet.
+        """
+        with self._lock:
+            self._end_edit()
+            self.timeline.play()
+
+    def pause(self) -> None:
+        """Stop playback where it is."""
+        with self._lock:
+            self.timeline.playing = False
+
+    def seek(self, t: float) -> None:
+        """Show the selected route at time ``t`` [s] (clamped to its duration)."""
+        with self._lock:
+            self._end_edit()
+            self.timeline.seek(t)
+
+    def set_speed(self, speed: float) -> None:
+        """Playback speed, 1 = real time.
+
+        Raises:
+            InputError: Not in (0, 10].
+        """
+        with self._lock:
+            self.timeline.set_speed(speed)
+
+    # -- pose editing (from Python, on the shared view) -------------------------------------
+    def edit_pose(self, name: str) -> PoseStatus:
+        """Show pose ``name`` (as edited) for editing; playback pauses.
+
+        Raises:
+            PoseError: Unknown pose.
+        """
+        with self._lock:
+            self.edits.status(name)  # an unknown pose changes nothing
+            self.timeline.playing = False
+            self.timeline.active = False
+            return self.editor.edit_pose(name)
+
+    def set_joints(self, q: np.ndarray) -> PoseStatus:
+        """Edit the selected pose to ``q`` [rad] and check it live."""
+        with self._lock:
+            return self.editor.set_joints(q)
+
+    def move_tcp(self, T_world_tcp: pin.SE3) -> PoseStatus:
+        """Edit the selected pose so that its TCP is at ``T_world_tcp`` (IK).
+
+        Raises:
+            IKError: No solution near the pose (it is left as it was).
+        """
+        with self._lock:
+            return self.editor.move_tcp(T_world_tcp)
+
+    def reset_pose(self) -> PoseStatus:
+        """Drop the edit of the selected pose."""
+        with self._lock:
+            return self.editor.reset_pose()
+
+    def save_poses(self, *, insist: bool = False) -> Path:
+        """Save the poses (edits applied) to ``poses.yaml``, atomically, with a backup.
+
+        Raises:
+            CollisionError: An edited pose collides and ``insist`` is false.
+        """
+        with self._lock:
+            path = self.edits.save(insist=insist)
+            self._say(f"saved {path.name} (previous version: {path.name}~)")
+            self.editor.refresh()
+            return path
+
+    def review(self) -> None:
+        """Leave pose editing; show the selected route."""
+        with self._lock:
+            self._end_edit()
+
+    def _end_edit(self) -> None:
+        if self.editor.editing:
+            self.editor.leave()
+            self.timeline.active = True
+            self.timeline.draw()
 
     # -- plans ------------------------------------------------------------------------------
     def load_plans(self, source: str | Path) -> list[str]:
@@ -235,25 +358,19 @@ class ReviewSession(Timeline, PoseEditing):
             TrajectoryError: A trajectory made for another robot.
         """
         with self._lock:
-            merged = {} if replace else {k: r.trajectory for k, r in self._reviews.items()}
+            merged = {} if replace else {k: r.trajectory
+                                         for k, r in self.timeline.reviews.items()}
         merged.update(trajectories)
         reviews = analyse_routes(self.cell, merged, poses=poses, routes=self.routes,
                                  period=self.options.sample_period)
-        if not reviews:
-            return
-        with self._lock:
-            self._reviews = reviews
-            self._checkers = {k: StepCheckers(self.cell, r.worlds, r.allowed)
-                              for k, r in reviews.items()}
-            keep = self._route in reviews
-            route = self._route if keep and self._route else next(iter(reviews))
-            self.panel.route.options = list(reviews)
-            self._select(route, restart=not keep)
+        if reviews:
+            with self._lock:
+                self.timeline.set_reviews(reviews)
 
     def wait_for_plans(self, timeout: float | None = None) -> bool:
         """Wait for start-up planning or a re-plan; whether routes are shown."""
         self._plans_ready.wait(timeout)
-        return bool(self._reviews)
+        return bool(self.timeline.reviews)
 
     def replan(self, *, everything: bool = False) -> Future[dict[str, Trajectory]]:
         """Re-plan the routes that use edited poses (all with ``everything``), in the
@@ -261,8 +378,8 @@ class ReviewSession(Timeline, PoseEditing):
         with self._lock:
             if self._job is not None and not self._job.done():
                 raise SafepathError("planning is already running")
-            poses = self.editor.poses()
-            planned = {k: r.trajectory for k, r in self._reviews.items()}
+            poses = self.edits.poses()
+            planned = bool(self.timeline.reviews)
             # Poses that differ from those the shown plans were made with.
             changed = [n for n, q in poses.items() if n not in self._plan_poses
                        or not np.array_equal(q, self._plan_poses[n])]
@@ -275,12 +392,12 @@ class ReviewSession(Timeline, PoseEditing):
                                              seed=self.options.seed)
             what = "every route" if routes is None else ", ".join(routes)
             self._say(f"planning {what}...")
-            self.panel.replan.disabled = True
+            self.panel.edit.replan.disabled = True
             self._plans_ready.clear()
             try:
                 job = self._backend.plan(poses, routes)
             except BaseException:
-                self.panel.replan.disabled = False
+                self.panel.edit.replan.disabled = False
                 self._plans_ready.set()
                 raise
             self._job = job
@@ -300,43 +417,74 @@ class ReviewSession(Timeline, PoseEditing):
             if not self._stop.is_set():
                 self._say("planning cancelled")
         except SafepathError as exc:
-            self._say(f"planning failed: {exc}", error=True)
+            self._say(f"planning failed: {type(exc).__name__}: {exc}", error=True)
         except Exception as exc:  # the page must not die with the worker
             log.debug("planning job failed", exc_info=True)
             self._say(f"planning failed: {type(exc).__name__}: {exc}", error=True)
         finally:
             with self._lock:
                 if self._server is not None:
-                    self.panel.replan.disabled = False
+                    self.panel.edit.replan.disabled = False
             self._plans_ready.set()
 
-    # -- drawing ----------------------------------------------------------------------------
-    def _show(self, q: np.ndarray, world: WorldState, checker: CollisionChecker) -> None:
-        """Draw the robot at ``q`` in ``world``; colliding geometry red (holds the lock)."""
-        cell = self.cell
-        grasp = cell.scene.grasp
-        with self.server.atomic():
-            self.robot_nodes.update(q)
-            for name, obj in cell.scene.objects.items():
-                if not obj.movable:
-                    continue
-                if world.held == name and grasp is not None:
-                    T = cell.robot.frame_pose(q).homogeneous @ grasp.T_tcp_object
-                else:
-                    T = world.resting.get(name)
-                self.cell_nodes.place(name, T)
-            valid = checker.is_valid(q)
-            pairs = () if valid else tuple(checker.collisions(q))
-            names = {n for pair in pairs for n in pair}
-            self.robot_nodes.highlight(names)
-            self.cell_nodes.highlight(names)
-        self._shown = ShownState(np.array(q), valid, pairs, world.held)
-        self._shown_checker = checker
+    # -- the playback thread ----------------------------------------------------------------
+    def _run(self) -> None:
+        period = 1.0 / self.options.rate
+        last = time.monotonic()
+        next_text = 0.0
+        shown_text: tuple[str, str] = ("", "")
+        while not self._stop.wait(period):
+            now = time.monotonic()
+            dt, last = now - last, now
+            try:
+                with self._lock:
+                    self.timeline.advance(dt)
+                    if now >= next_text:
+                        next_text = now + _TEXT_PERIOD
+                        text = self.timeline.readouts(self.editor.pose)
+                        if text != shown_text:
+                            self.panel.readout.content, self.panel.state.content = text
+                            shown_text = text
+            except Exception:  # keep playing; say it once in the log
+                log.debug("playback tick failed", exc_info=True)
 
-    def _show_idle(self) -> None:
-        cell = self.cell
-        first = next(iter(self.routes.values())).start if self.routes else next(iter(cell.poses))
-        self._show(cell.pose(first), initial_world(cell), self.editor.checker(first, False))
+    # -- wiring -----------------------------------------------------------------------------
+    def _wire(self, gizmo: Any) -> None:
+        """Connect the panel's callbacks, each guarded (errors show in the page)."""
+        p, e, g = self.panel, self.panel.edit, self._guard
+        editor, timeline = self.editor, self.timeline
+
+        def on(handle: Any, fn: Callable[[Any], object]) -> None:
+            handle.on_update(g(fn))
+
+        on(p.route, lambda ev: self.select_route(ev.target.value)
+           if ev.target.value != NO_ROUTE else None)
+        on(p.time, lambda ev: self.seek(float(ev.target.value)))
+        p.play.on_click(g(lambda ev: self.play()))
+        p.pause.on_click(g(lambda ev: self.pause()))
+        on(p.speed, lambda ev: self.set_speed(float(ev.target.value)))
+        on(p.visual_style, lambda ev: self._locked(
+            self.stage.robot_nodes.set_style, "visual" if ev.target.value else "collision"))
+        on(p.show_poses, lambda ev: self._locked(self.pose_frames.set_visible,
+                                                 bool(ev.target.value)))
+        on(p.show_path, lambda ev: self._locked(timeline.set_path_visible,
+                                                bool(ev.target.value)))
+        on(e.pose, lambda ev: self.review() if ev.target.value == NO_POSE
+           else self.edit_pose(ev.target.value))
+        for j, slider in enumerate(e.joints):
+            on(slider, functools.partial(
+                lambda j, ev: self._locked(editor.set_joint, j, float(ev.target.value)), j))
+        on(e.gizmo_enabled, lambda ev: self._locked(editor.set_gizmo_visible,
+                                                    bool(ev.target.value)))
+        e.reset.on_click(g(lambda ev: self.reset_pose()))
+        e.replan.on_click(g(lambda ev: self.replan()))
+        e.save.on_click(g(lambda ev: self.save_poses(insist=bool(e.insist.value))))
+        gizmo.on_update(g(lambda ev: self._locked(editor.drag_tcp, ev.target.wxyz,
+                                                  ev.target.position)))
+
+    def _locked(self, fn: Callable[..., object], *args: Any) -> None:
+        with self._lock:
+            fn(*args)
 
     def _title(self) -> str:
         c = self.cell

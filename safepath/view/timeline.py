@@ -1,152 +1,118 @@
-"""Playback of the review session: route choice, time, play / pause / speed / scrub,
-the 30 Hz playback thread, the readouts, and the wiring of the panel's callbacks.
+"""Playback of the review session: the shown routes, route choice, time, play / pause /
+speed / scrub, and the readouts.
 
-A mixin of :class:`~safepath.view.session.ReviewSession`, kept apart so that each
-file stays about one thing; it uses the session's state under the session's lock.
+A :class:`Timeline` draws the selected route at the current time on the shared
+:class:`~safepath.view.stage.Stage` (every page sees it) while it is ``active``; the
+session makes it inactive while its own pose editor uses that stage. It does no
+locking: the session calls it under its lock (the playback thread too).
 """
 
 from __future__ import annotations
 
-import functools
-import logging
-import threading
-import time
-from collections.abc import Callable
-from typing import TYPE_CHECKING, Any, cast
+from typing import Any
 
 import numpy as np
-import pinocchio as pin
 
+from ..cell import Cell
 from ..errors import InputError, SafepathError
+from ..planning import initial_world
 from .analysis import CLEAR_ENOUGH, RouteReview, StepCheckers
-from .panel import NO_POSE, NO_ROUTE, clearance_plot_data, speed_plot_data
+from .panel import Panel, clearance_plot_data, speed_plot_data
 from .scene_nodes import draw_path
-
-if TYPE_CHECKING:
-    from .session import ReviewSession
+from .stage import Stage
 
 __all__ = ["Timeline"]
 
-log = logging.getLogger(__name__)
-
-#: Readout refresh period [s]; the robot itself moves at the playback rate.
-_TEXT_PERIOD = 0.1
-
 
 class Timeline:
-    """Playback state and controls (see the module docstring)."""
+    """Playback state and drawing (see the module docstring).
 
-    _lock: threading.RLock
-    _reviews: dict[str, RouteReview]
-    _checkers: dict[str, StepCheckers]
-    _route: str | None
-    _t: float
-    _playing: bool
-    _speed: float
-    _stop: threading.Event
-    panel: Any
-    _path: Any
+    Args:
+        cell: The cell.
+        server: The viser server (the TCP path is drawn for every page).
+        stage: The shared stage.
+        panel: The shared panel (route dropdown, time slider, plots, loop).
+        idle_pose: Pose shown while no route is planned.
+    """
 
-    # -- public controls --------------------------------------------------------------------
+    def __init__(self, cell: Cell, server: Any, stage: Stage, panel: Panel, *,
+                 idle_pose: str) -> None:
+        self.cell = cell
+        self.server = server
+        self.stage = stage
+        self.panel = panel
+        self.idle_pose = idle_pose
+        self.reviews: dict[str, RouteReview] = {}
+        self.checkers: dict[str, StepCheckers] = {}
+        self.route: str | None = None
+        self.t = 0.0
+        self.playing = False
+        self.speed = 1.0
+        self.active = True
+        self.path: Any = None
+        self._idle_checker = cell.checker(held=False, at=idle_pose)
+
     @property
-    def route_names(self) -> list[str]:
-        """Routes that can be played."""
-        return list(self._reviews)
-
-    @property
-    def route(self) -> str | None:
-        """The selected route."""
-        return self._route
-
-    @property
-    def review_data(self) -> RouteReview | None:
+    def data(self) -> RouteReview | None:
         """What the review shows about the selected route."""
-        return self._reviews.get(self._route) if self._route else None
-
-    @property
-    def time(self) -> float:
-        """Time within the selected route [s]."""
-        return self._t
+        return self.reviews.get(self.route) if self.route else None
 
     @property
     def duration(self) -> float:
         """Duration of the selected route [s] (0 when none)."""
-        data = self.review_data
+        data = self.data
         return data.duration if data else 0.0
 
-    @property
-    def playing(self) -> bool:
-        """Whether playback runs."""
-        return self._playing
+    def set_reviews(self, reviews: dict[str, RouteReview]) -> None:
+        """Show ``reviews`` instead of the routes shown so far; keep the selected route
+        (and its time) when it is still there."""
+        self.reviews = reviews
+        self.checkers = {k: StepCheckers(self.cell, r.worlds, r.allowed)
+                         for k, r in reviews.items()}
+        keep = self.route in reviews
+        route = self.route if keep and self.route else next(iter(reviews))
+        self.panel.route.options = list(reviews)
+        self.select(route, restart=not keep)
 
-    @property
-    def speed(self) -> float:
-        """Playback speed (1 = real time)."""
-        return self._speed
-
-    def select_route(self, name: str) -> None:
-        """Show route ``name`` from its start.
+    def select(self, name: str, *, restart: bool) -> None:
+        """Make ``name`` the selected route: path, plots, time.
 
         Raises:
             InputError: No such planned route (lists them).
         """
-        self = cast("ReviewSession", self)  # the mixin's host
-        with self._lock:
-            if name not in self._reviews:
-                known = ", ".join(self._reviews) or "none planned yet"
-                raise InputError(f"unknown route '{name}' (routes: {known})", key="route")
-            if self._mode == "edit":
-                self.review()
-            self._select(name, restart=name != self._route)
-
-    def _select(self, name: str, *, restart: bool) -> None:
-        """Make ``name`` the selected route: path, plots, time (holds the lock); the
-        robot shows it unless a pose is being edited."""
-        self = cast("ReviewSession", self)  # the mixin's host
-        self._route, data = name, self._reviews[name]
+        if name not in self.reviews:
+            known = ", ".join(self.reviews) or "none planned yet"
+            raise InputError(f"unknown route '{name}' (routes: {known})", key="route")
+        self.route, data = name, self.reviews[name]
         panel = self.panel
         panel.route.value = name
         panel.time.max = max(round(data.duration, 2), 0.01)
         panel.clearance_plot.data = clearance_plot_data(data.times, data.clearance,
                                                         self.cell.scene.margin, CLEAR_ENOUGH)
         panel.speed_plot.data = speed_plot_data(data.times, data.velocity_ratio)
-        self._path = draw_path(self.server, "/path", data.tcp, data.level,
-                               visible=bool(panel.show_path.value))
-        self._t = 0.0 if restart else min(self._t, data.duration)
-        if self._mode == "review":
-            self._show_time()
+        self.path = draw_path(self.server, "/path", data.tcp, data.level,
+                              visible=bool(panel.show_path.value))
+        self.t = 0.0 if restart else min(self.t, data.duration)
+        self.draw()
 
     def play(self) -> None:
-        """Play the selected route from the current time (from the start at the end).
+        """Play from the current time (from the start at the end).
 
         Raises:
             SafepathError: No route is planned yet.
         """
-        self = cast("ReviewSession", self)  # the mixin's host
-        with self._lock:
-            if self._route is None:
-                raise SafepathError("nothing to play yet: no route is planned")
-            if self._mode == "edit":
-                self.review()
-            if self._t >= self.duration - 1e-9:
-                self._t = 0.0
-            self._playing = True
-
-    def pause(self) -> None:
-        """Stop playback where it is."""
-        with self._lock:
-            self._playing = False
+        if self.route is None:
+            raise SafepathError("nothing to play yet: no route is planned")
+        if self.t >= self.duration - 1e-9:
+            self.t = 0.0
+        self.playing = True
 
     def seek(self, t: float) -> None:
         """Show the selected route at time ``t`` [s] (clamped to its duration)."""
-        self = cast("ReviewSession", self)  # the mixin's host
-        with self._lock:
-            if self._route is None:
-                raise SafepathError("nothing to show yet: no route is planned")
-            if self._mode == "edit":
-                self.review()
-            self._t = float(np.clip(t, 0.0, self.duration))
-            self._show_time()
+        if self.route is None:
+            raise SafepathError("nothing to show yet: no route is planned")
+        self.t = float(np.clip(t, 0.0, self.duration))
+        self.draw()
 
     def set_speed(self, speed: float) -> None:
         """Playback speed, 1 = real time.
@@ -156,35 +122,58 @@ class Timeline:
         """
         if not (np.isfinite(speed) and 0 < speed <= 10):
             raise InputError(f"speed must be in (0, 10], got {speed}", key="speed")
-        with self._lock:
-            self._speed = float(speed)
+        self.speed = float(speed)
 
-    # -- drawing ----------------------------------------------------------------------------
-    def _show_time(self) -> None:
-        """Draw the selected route at the current time (holds the lock)."""
-        self = cast("ReviewSession", self)  # the mixin's host
-        data = self._reviews[self._route or ""]
+    def advance(self, dt: float) -> None:
+        """Move the time on by ``dt`` [s] of wall time (at the playback speed)."""
+        if not self.playing or self.route is None:
+            return
+        duration = self.duration
+        t = self.t + dt * self.speed
+        if t >= duration:
+            if self.panel.loop.value and duration > 0:
+                t = t % duration
+            else:
+                t, self.playing = duration, False
+        self.t = t
+        self.draw()
+
+    def draw(self) -> None:
+        """Draw the selected route at the current time (the idle pose when none), if
+        the timeline is active."""
+        if not self.active:
+            return
+        data = self.data
+        if data is None:
+            self.stage.show(self.cell.pose(self.idle_pose), initial_world(self.cell),
+                            self._idle_checker)
+            return
         traj = data.trajectory
-        t = traj.t[0] + self._t
+        t = traj.t[0] + self.t
         q = traj.sample([t])[0][0]
         step = data.step_index_at(t)
-        self._show(q, data.worlds[step], self._checkers[data.name](step))
-        self.panel.time.value = float(round(self._t, 2))
+        self.stage.show(q, data.worlds[step], self.checkers[data.name](step))
+        self.panel.time.value = float(round(self.t, 2))
 
-    def _readouts(self) -> tuple[str, str]:
-        """The time readout and the safety readout (holds the lock)."""
-        self = cast("ReviewSession", self)  # the mixin's host
-        shown, checker = self._shown, self._shown_checker
-        if self._mode == "edit":
-            head = f"editing pose **{self._pose}**"
-        elif self._route is None:
+    def set_path_visible(self, visible: bool) -> None:
+        """Show or hide the TCP path."""
+        if self.path is not None:
+            self.path.visible = visible
+
+    def readouts(self, editing: str | None) -> tuple[str, str]:
+        """The time readout and the safety readout of the shared stage; ``editing``
+        names the pose shown instead of the route, if any."""
+        if editing is not None:
+            head = f"editing pose **{editing}**"
+        elif self.route is None:
             head = "no route planned yet"
         else:
-            data = self._reviews[self._route]
-            step = data.trajectory.steps[data.step_index_at(data.trajectory.t[0] + self._t)]
-            state = "playing" if self._playing else "paused"
-            head = (f"**{self._route}** · t = {self._t:.2f} / {data.duration:.2f} s · "
+            data = self.reviews[self.route]
+            step = data.trajectory.steps[data.step_index_at(data.trajectory.t[0] + self.t)]
+            state = "playing" if self.playing else "paused"
+            head = (f"**{self.route}** · t = {self.t:.2f} / {data.duration:.2f} s · "
                     f"{state}\n\nstep `{step}`")
+        shown, checker = self.stage.shown, self.stage.checker
         if shown is None or checker is None:
             return head, ""
         if not shown.valid:
@@ -195,100 +184,10 @@ class Timeline:
             clearance, pair = checker.clearance(shown.q)
             where = " / ".join(pair) if pair else "-"
             state = f"valid · clearance **{clearance * 1000:.1f} mm** ({where})"
-        data_sel = self.review_data
-        if data_sel is not None and self._mode == "review":
+        data_sel = self.data
+        if data_sel is not None and editing is None:
             i = int(np.argmin(data_sel.clearance))
             pair = data_sel.closest[i]
             state += (f"\n\nroute minimum {data_sel.clearance[i] * 1000:.1f} mm at "
                       f"t = {data_sel.times[i]:.2f} s ({' / '.join(pair) if pair else '-'})")
         return head, state
-
-    # -- the playback thread ----------------------------------------------------------------
-    def _run(self) -> None:
-        self = cast("ReviewSession", self)  # the mixin's host
-        period = 1.0 / self.options.rate
-        last = time.monotonic()
-        next_text = 0.0
-        shown_text: tuple[str, str] = ("", "")
-        while not self._stop.wait(period):
-            now = time.monotonic()
-            dt, last = now - last, now
-            try:
-                with self._lock:
-                    if self._playing and self._route is not None:
-                        self._advance(dt)
-                    if now >= next_text:
-                        next_text = now + _TEXT_PERIOD
-                        text = self._readouts()
-                        if text != shown_text:
-                            self.panel.readout.content, self.panel.state.content = text
-                            shown_text = text
-            except Exception:  # keep playing; say it once in the log
-                log.debug("playback tick failed", exc_info=True)
-
-    def _advance(self, dt: float) -> None:
-        self = cast("ReviewSession", self)  # the mixin's host
-        duration = self.duration
-        t = self._t + dt * self._speed
-        if t >= duration:
-            if self.panel.loop.value and duration > 0:
-                t = t % duration
-            else:
-                t, self._playing = duration, False
-        self._t = t
-        self._show_time()
-
-    # -- wiring -----------------------------------------------------------------------------
-    def _wire(self) -> None:
-        """Connect the panel's callbacks, each guarded (errors show in the page)."""
-        self = cast("ReviewSession", self)  # the mixin's host
-        p, g = self.panel, self._guard
-
-        def on(handle: Any, fn: Callable[[Any], object]) -> None:
-            handle.on_update(g(fn))
-
-        on(p.route, lambda e: self.select_route(e.target.value)
-           if e.target.value != NO_ROUTE else None)
-        on(p.time, lambda e: self.seek(float(e.target.value)))
-        p.play.on_click(g(lambda e: self.play()))
-        p.pause.on_click(g(lambda e: self.pause()))
-        on(p.speed, lambda e: self.set_speed(float(e.target.value)))
-        on(p.pose, lambda e: self.review() if e.target.value == NO_POSE
-           else self.edit_pose(e.target.value))
-        for j, slider in enumerate(p.joints):
-            on(slider, functools.partial(self._joint_moved, j))
-        on(p.gizmo_enabled, lambda e: setattr(
-            self._gizmo, "visible", bool(e.target.value) and self._mode == "edit"))
-        p.reset.on_click(g(lambda e: self.reset_pose()))
-        p.replan.on_click(g(lambda e: self.replan()))
-        p.save.on_click(g(lambda e: self.save_poses(insist=bool(p.insist.value))))
-        on(p.visual_style, lambda e: self._locked(
-            self.robot_nodes.set_style, "visual" if e.target.value else "collision"))
-        on(p.show_poses, lambda e: self._locked(self.pose_frames.set_visible,
-                                                bool(e.target.value)))
-        on(p.show_path, lambda e: self._locked(self._set_path_visible, bool(e.target.value)))
-        self._gizmo.on_update(g(lambda e: self._drag_tcp(e.target.wxyz, e.target.position)))
-
-    def _locked(self, fn: Callable[..., object], *args: Any) -> None:
-        with self._lock:
-            fn(*args)
-
-    def _set_path_visible(self, visible: bool) -> None:
-        if self._path is not None:
-            self._path.visible = visible
-
-    def _joint_moved(self, j: int, event: Any) -> None:
-        self._set_joint(j, float(event.target.value))
-
-    def _set_joint(self, j: int, value: float) -> None:
-        self = cast("ReviewSession", self)  # the mixin's host
-        with self._lock:
-            q = self.editor.q(self._editing())
-            q[j] = value
-            self.set_joints(q)
-
-    def _drag_tcp(self, wxyz: np.ndarray, position: np.ndarray) -> None:
-        self = cast("ReviewSession", self)  # the mixin's host
-        w, x, y, z = (float(v) for v in wxyz)
-        rotation = pin.Quaternion(w, x, y, z).normalized().toRotationMatrix()
-        self.move_tcp(pin.SE3(rotation, np.asarray(position, dtype=float)))

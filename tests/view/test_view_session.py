@@ -88,7 +88,7 @@ def test_the_scene_shows_robot_cell_poses_and_routes(session: ReviewSession) -> 
     data = session.review_data
     assert data is not None
     # The path and the plots hold one value per sample.
-    assert session._path is not None and len(session._path.points) == data.times.size - 1
+    assert session.timeline.path is not None and len(session.timeline.path.points) == data.times.size - 1
     assert session.panel.clearance_plot.data[1].shape == data.times.shape
     # The verified plan keeps its margins: no red sample, and the same minimum
     # clearance as the planner's verifier within a sample's worth.
@@ -196,7 +196,7 @@ def test_a_colliding_edit_is_flagged_and_not_saved(open_session: Callable[..., R
     assert ("vial", "test_plate") in status.collisions
     assert session.shown is not None and not session.shown.valid
     assert session.cell_nodes.nodes["test_plate"]._shown == HIGHLIGHT
-    assert "COLLISION" in session.panel.pose_state.content
+    assert "COLLISION" in session.panel.edit.pose_state.content
     with pytest.raises(CollisionError, match="low1"):
         session.save_poses()
     assert poses_file.read_bytes() == original
@@ -216,7 +216,7 @@ def test_saving_writes_poses_atomically_with_a_backup(
     q[0] += 0.05
     status = session.set_joints(q)
     assert status.valid
-    assert session.panel.joints[0].value == pytest.approx(q[0])
+    assert session.panel.edit.joints[0].value == pytest.approx(q[0])
     path = session.save_poses()
     assert path == cell_copy / "poses.yaml"
     assert (cell_copy / "poses.yaml~").read_bytes() == original
@@ -250,7 +250,7 @@ def test_startup_planning_runs_in_the_background(open_session: Callable[..., Rev
     assert session.time > t0 + 0.1, "playback froze while planning"
     assert session.wait_for_plans(timeout=60.0) and job.exception() is None
     assert set(job.result()) == {"phase1", "phase2_unsafe"}
-    new = session._reviews["phase2_unsafe"].trajectory
+    new = session.timeline.reviews["phase2_unsafe"].trajectory
     assert np.min(np.max(np.abs(new.q - status.q), axis=1)) < 1e-9
 
 
@@ -318,7 +318,7 @@ def test_gui_callbacks_show_errors_instead_of_raising(session: ReviewSession) ->
     session._guard(bug)(event)
     assert session.messages[-1] == "internal error: ZeroDivisionError: boom"
     # A pose edit without a selected pose is a message too, not a traceback.
-    session._guard(lambda e: session._set_joint(0, 0.1))(event)
+    session._guard(lambda e: session.editor.set_joint(0, 0.1))(event)
     assert session.messages[-1] == "pick a pose to edit first"
 
 
@@ -341,3 +341,21 @@ def test_the_command_serves_until_interrupted(cell_dir: Path, plans_dir: Path) -
     finally:
         if proc.poll() is None:
             proc.kill()
+
+
+def test_planning_errors_keep_their_type_across_the_worker(cell_dir: Path) -> None:
+    from safepath import PoseError
+    from safepath.view.backend import ProcessPlanBackend
+
+    backend = ProcessPlanBackend(cell_dir)
+    try:
+        poses = load_cell(cell_dir).poses
+        with pytest.raises(InputError, match="unknown route 'nope'") as info:
+            backend.plan(poses, ["nope"]).result(timeout=120)
+        assert type(info.value) is InputError and info.value.key == "route"
+        bad = {**poses, "safe": np.full(6, 9.0)}
+        with pytest.raises(PoseError, match="poses.safe") as pose_info:
+            backend.plan(bad, ["phase2_safe"]).result(timeout=120)
+        assert pose_info.value.path == cell_dir / "poses.yaml"
+    finally:
+        backend.close()
