@@ -88,7 +88,8 @@ def test_the_scene_shows_robot_cell_poses_and_routes(session: ReviewSession) -> 
     data = session.review_data
     assert data is not None
     # The path and the plots hold one value per sample.
-    assert session.timeline.path is not None and len(session.timeline.path.points) == data.times.size - 1
+    path = session.timeline.path
+    assert path is not None and len(path.points) == data.times.size - 1
     assert session.panel.clearance_plot.data[1].shape == data.times.shape
     # The verified plan keeps its margins: no red sample, and the same minimum
     # clearance as the planner's verifier within a sample's worth.
