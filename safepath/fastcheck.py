@@ -53,7 +53,7 @@ class LayerOptions:
     """
 
     cell: float = 0.04
-    refine: float = 0.05
+    refine: float = 0.02
     free_eps: float = 1e-6
     proof_eps: float = 1e-5
 
