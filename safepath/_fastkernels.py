@@ -26,7 +26,10 @@ H_NJ, H_NG, H_NS, H_NE, H_NP, H_DOF = 0, 1, 2, 3, 4, 5
 H_J, H_G, H_S, H_E, H_P, H_W, H_L, H_C = 6, 7, 8, 9, 10, 11, 12, 13
 H_JI, H_GI, H_EI, H_PI = 14, 15, 16, 17
 H_V = 18  # vertices of hull movers (x, y, z rows, each in its shape's frame)
-HEADER = 19
+#: Per pair and joint (ints): bit 1 if the joint moves body a relative to body b (or
+#: to the world), bit 2 if it moves b relative to a (joints that carry both: 0).
+H_PM = 19
+HEADER = 20
 # Constants (fb[ib[H_C] + k]).
 C_REFINE, C_FREE_EPS, C_PROOF_EPS = 0, 1, 2
 
@@ -44,7 +47,7 @@ JOINT_FIXED, JOINT_REVOLUTE, JOINT_PRISMATIC = 0, 1, 2
 #: ``warm`` holds, per pair, the last direction GJK found (the next state's first guess).
 Workspace = namedtuple("Workspace", ["Rw", "pw", "tmp", "tmp2", "Ra", "pa", "da", "Rb", "pb",
                                      "db", "axes", "Cw", "bufa", "bufb", "simplex", "sa", "sb",
-                                     "gv", "warm"])
+                                     "gv", "warm", "absu", "DL", "CC"])
 
 
 @njit(cache=True, nogil=True)
@@ -54,7 +57,8 @@ def _workspace(ib):
                      np.empty((3, 3)), np.empty(3), np.empty(3), np.empty((3, 3)),
                      np.empty(3), np.empty(3), np.empty((24, 3)), np.empty((ng, 3)),
                      np.empty((ns, 5)), np.empty((ns, 5)), np.empty((4, 3)), np.empty(3),
-                     np.empty(3), np.empty(3), np.zeros((npairs, 3)))
+                     np.empty(3), np.empty(3), np.zeros((npairs, 3)), np.zeros(ib[H_DOF]),
+                     np.zeros((ng, ib[H_DOF])), np.zeros((ng, ib[H_DOF])))
 
 
 @njit(cache=True, nogil=True)
@@ -424,6 +428,9 @@ def _evaluate(q, fb, ib, ws, rates, want_radius):  # noqa: N803
         x, y, z = fb[og + GW * m], fb[og + GW * m + 1], fb[og + GW * m + 2]
         for r in range(3):
             Cw[m, r] = Rw[j, r, 0] * x + Rw[j, r, 1] * y + Rw[j, r, 2] * z + pw[j, r]
+    if want_radius:
+        for m in range(ib[H_NG]):
+            _axis_distances(m, fb, ib, Rw, pw, Cw, ws.DL)
     unsure = False
     radius = 1e300
     for k in range(ib[H_NP]):
@@ -444,12 +451,63 @@ def _evaluate(q, fb, ib, ws, rates, want_radius):  # noqa: N803
             unsure = True
             continue
         if want_radius and rates[k] > 0.0:
-            h = budget / rates[k]
+            h = max(budget / rates[k], _local_radius(k, a, b, budget, ib, ws.DL, ws.CC, ws.absu))
             if h < radius:
                 radius = h
     if unsure:
         return UNSURE, 0.0
     return FREE, radius
+
+
+@njit(cache=True, nogil=True)
+def _axis_distances(m, fb, ib, Rw, pw, Cw, DL):  # noqa: N803
+    """DL[m, v]: how fast [m per unit of joint v] mover ``m``'s points move when joint
+    ``v`` alone moves, at the state placed in Rw, pw, Cw: the distance of its bounding
+    sphere from the joint's axis plus its radius (revolute), 1 (prismatic)."""
+    oj, oji, og, ogi = ib[H_J], ib[H_JI], ib[H_G], ib[H_GI]
+    r_m = fb[og + GW * m + 3]
+    j = ib[ogi + GIW * m]
+    while j > 0:
+        v = ib[oji + 3 * j + 2]
+        if ib[oji + 3 * j + 1] == JOINT_PRISMATIC:
+            DL[m, v] = 1.0
+        else:
+            base = oj + 15 * j
+            ax, ay, az = fb[base + 12], fb[base + 13], fb[base + 14]
+            ux = Rw[j, 0, 0] * ax + Rw[j, 0, 1] * ay + Rw[j, 0, 2] * az
+            uy = Rw[j, 1, 0] * ax + Rw[j, 1, 1] * ay + Rw[j, 1, 2] * az
+            uz = Rw[j, 2, 0] * ax + Rw[j, 2, 1] * ay + Rw[j, 2, 2] * az
+            dx, dy, dz = Cw[m, 0] - pw[j, 0], Cw[m, 1] - pw[j, 1], Cw[m, 2] - pw[j, 2]
+            cx, cy, cz = dy * uz - dz * uy, dz * ux - dx * uz, dx * uy - dy * ux
+            DL[m, v] = math.sqrt(cx * cx + cy * cy + cz * cz) + r_m
+        j = ib[oji + 3 * j]
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _local_radius(k, a, b, budget, ib, DL, CC, absu):  # noqa: N803
+    """A radius (in units of ``t``) within which pair ``k`` cannot close by ``budget`` [m],
+    from the bodies' distances to the joint axes at this state (``DL``, see
+    ``_axis_distances``), which grow along the segment by at most ``CC`` per unit of
+    ``t``: the closing speed is at most A + B |t|, so the radius solves
+    A h + B h^2 / 2 = budget. (Passed arrays, not the workspace: a numba call that
+    takes the workspace pays the reference counts of all its arrays.)"""
+    dof, opm = ib[H_DOF], ib[H_PM] + k * ib[H_DOF]
+    A = B = 0.0
+    for v in range(dof):
+        if absu[v] == 0.0:
+            continue
+        mask = ib[opm + v]
+        if mask & 1:
+            A += absu[v] * DL[a, v]
+            B += absu[v] * CC[a, v]
+        if mask & 2:
+            A += absu[v] * DL[b, v]
+            B += absu[v] * CC[b, v]
+    if A <= 0.0:
+        return 0.0
+    if B <= 1e-12 * A:
+        return budget / A
+    return (math.sqrt(A * A + 2.0 * B * budget) - A) / B
 
 
 @njit(cache=True, nogil=True)
@@ -483,20 +541,37 @@ def classify_many(Q, fb, ib, out):  # noqa: N803
 
 
 @njit(cache=True, nogil=True)
-def _pair_rates(u, fb, ib, rates):  # noqa: N803
+def _pair_rates(u, fb, ib, ws, rates):  # noqa: N803
     """Per pair, a bound on how fast its two bodies approach per unit of ``t`` along
-    the joint-space direction ``u`` [m]."""
-    dof, ow = ib[H_DOF], ib[H_W]
+    the joint-space direction ``u`` [m] (joints that carry both bodies leave their
+    distance alone). Also ws.absu = |u| and, per mover and joint, ws.CC: how fast its
+    distance to that joint's axis can grow per unit of ``t`` (the joints between the
+    two move it, at most by their weights)."""
+    dof, ow, oji, ogi = ib[H_DOF], ib[H_W], ib[H_JI], ib[H_GI]
+    for v in range(dof):
+        ws.absu[v] = abs(u[v])
     for k in range(ib[H_NP]):
         op = ib[H_PI] + 4 * k
-        a, b, is_env = ib[op], ib[op + 1], ib[op + 2]
+        opm = ib[H_PM] + k * dof
+        a, b = ib[op], ib[op + 1]
         r = 0.0
-        for j in range(dof):
-            w = fb[ow + a * dof + j]
-            if is_env == 0:
-                w += fb[ow + b * dof + j]
-            r += w * abs(u[j])
+        for v in range(dof):
+            mask = ib[opm + v]
+            w = 0.0
+            if mask & 1:
+                w += fb[ow + a * dof + v]
+            if mask & 2:
+                w += fb[ow + b * dof + v]
+            r += w * ws.absu[v]
         rates[k] = r
+    for m in range(ib[H_NG]):
+        acc = 0.0
+        j = ib[ogi + GIW * m]
+        while j > 0:
+            v = ib[oji + 3 * j + 2]
+            ws.CC[m, v] = 0.0 if ib[oji + 3 * j + 1] == JOINT_PRISMATIC else acc
+            acc += fb[ow + m * dof + v] * ws.absu[v]
+            j = ib[oji + 3 * j]
 
 
 @njit(cache=True, nogil=True)
@@ -528,7 +603,7 @@ def certify_polyline(P, n, lo, hi, fb, ib, unsure_seg, unsure_idx, max_unsure): 
             continue
         for j in range(dof):
             u[j] = P[k + 1, j] - P[k, j]
-        _pair_rates(u, fb, ib, rates)
+        _pair_rates(u, fb, ib, ws, rates)
         nk = n[k]
         size = hi[k] - lo[k] + 3
         # FIFO of disjoint, non-empty index ranges still to cover (coarse to fine).

@@ -53,7 +53,7 @@ class LayerOptions:
     """
 
     cell: float = 0.04
-    refine: float = 0.02
+    refine: float = 0.01
     free_eps: float = 1e-6
     proof_eps: float = 1e-5
 
@@ -209,18 +209,19 @@ def pack(checker: CollisionChecker, options: LayerOptions
             Pi[k] = (mover_of[a], mover_of[b], 0, 1 if sm >= 0 else 0)
         P[k] = sm
     W = _mover_weights(model, G, Gi, robot.lower, robot.upper)
+    PM = _pair_masks(model, Gi, Pi)
     L = np.concatenate([robot.lower, robot.upper])
     C = np.array([options.refine, options.free_eps, options.proof_eps])
     V = np.vstack(vertices) if vertices else np.zeros((0, 3))
     blocks_f = [J.ravel(), G.ravel(), S_.ravel(), E.ravel(), P, W.ravel(), L, C, V.ravel()]
-    blocks_i = [Ji.ravel(), Gi.ravel(), Ei, Pi.ravel()]
+    blocks_i = [Ji.ravel(), Gi.ravel(), Ei, Pi.ravel(), PM.ravel()]
     f_off = np.cumsum([0] + [len(b) for b in blocks_f])
     i_off = K.HEADER + np.cumsum([0] + [len(b) for b in blocks_i])
     header = np.zeros(K.HEADER, dtype=np.int64)
     header[[K.H_NJ, K.H_NG, K.H_NS, K.H_NE, K.H_NP, K.H_DOF]] = (
         nj, len(movers), len(S_), len(checker._env), len(checker._pairs), dof)
     header[[K.H_J, K.H_G, K.H_S, K.H_E, K.H_P, K.H_W, K.H_L, K.H_C, K.H_V]] = f_off[:9]
-    header[[K.H_JI, K.H_GI, K.H_EI, K.H_PI]] = i_off[:4]
+    header[[K.H_JI, K.H_GI, K.H_EI, K.H_PI, K.H_PM]] = i_off[:5]
     F = np.concatenate(blocks_f).astype(np.float64)
     I_ = np.concatenate([header, *blocks_i]).astype(np.int64)
     return F, I_, fits
@@ -241,6 +242,28 @@ def _primitive(shape: Any) -> tuple[int, np.ndarray]:
     if isinstance(shape, coal.Capsule):
         return K.ENV_CAPSULE, np.array([shape.radius, shape.halfLength, 0.0])
     return K.SPHERES_ONLY, np.zeros(3)
+
+
+def _pair_masks(model: Any, Gi: np.ndarray, Pi: np.ndarray) -> np.ndarray:
+    """Per pair and velocity index: bit 1 if the joint moves body a relative to body b
+    (or the world), bit 2 if it moves b relative to a; 0 for joints that carry both
+    (they move the pair as one rigid piece) and joints that carry neither."""
+    def chain(joint: int) -> set[int]:
+        out = set()
+        while joint > 0:
+            out.add(int(model.joints[joint].idx_v))
+            joint = model.parents[joint]
+        return out
+
+    PM = np.zeros((len(Pi), model.nv), dtype=np.int64)
+    for k, (a, b, is_env, _) in enumerate(Pi):
+        ca = chain(int(Gi[a, 0]))
+        cb = set() if is_env else chain(int(Gi[b, 0]))
+        for v in ca - cb:
+            PM[k, v] |= 1
+        for v in cb - ca:
+            PM[k, v] |= 2
+    return PM
 
 
 def _mover_weights(model: Any, G: np.ndarray, Gi: np.ndarray, lower: np.ndarray,

@@ -165,3 +165,40 @@ def test_segments_answer_as_the_exact_grid(cell: Cell) -> None:
         if a.valid:
             assert a.checked <= b.checked
     assert agree == 300 and 0 < valid < 300
+
+
+@pytest.fixture(scope="module")
+def panda_cell(tmp_path_factory: pytest.TempPathFactory) -> Cell:
+    """The Panda problem set's table scene (benchmarks/peers), written as a cell."""
+    import importlib.util
+    import json
+    import sys
+    from pathlib import Path
+
+    peers = Path(__file__).resolve().parents[1] / "benchmarks" / "peers"
+    spec = importlib.util.spec_from_file_location("peer_problems", peers / "problems.py")
+    assert spec is not None and spec.loader is not None
+    module = importlib.util.module_from_spec(spec)
+    sys.modules[spec.name] = module  # its dataclasses look their module up
+    spec.loader.exec_module(module)
+    problems = json.loads((peers / "panda_problems.json").read_text())
+    return load_cell(module.write_panda_cell(problems, tmp_path_factory.mktemp("panda")))
+
+
+def test_panda_segments_answer_as_the_exact_grid(panda_cell: Cell) -> None:
+    """Hull links (GJK bounds) and the per-state axis-distance radii: a Panda segment
+    among obstacles is certified exactly when coal finds all its grid states free."""
+    fast = CollisionChecker(panda_cell.robot, panda_cell.scene)
+    exact = CollisionChecker(panda_cell.robot, panda_cell.scene,
+                             options=CheckOptions(fast=False))
+    poses = np.array(list(panda_cell.poses.values()))
+    rng = np.random.default_rng(4)
+    valid = 0
+    for _ in range(150):
+        q0, q1 = poses[rng.integers(len(poses), size=2)]
+        q1 = q0 + rng.uniform(0.1, 0.9) * (q1 - q0) + rng.normal(0.0, 0.05, len(q0))
+        q1 = np.clip(q1, panda_cell.robot.lower, panda_cell.robot.upper)
+        a = fast.check_segment(q0, q1, details=False)
+        assert a.valid == exact.check_segment(q0, q1, details=False).valid
+        valid += a.valid
+    assert 10 < valid < 140
