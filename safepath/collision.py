@@ -419,8 +419,9 @@ class CollisionChecker:
             k = int(np.argmax(outside))
             return SegmentReport(False, 0, k / max(1, len(P) - 1), P[k].copy(), (),
                                  robot.limit_violation(P[k]))
-        counts = np.array([self.segment_states(P[k], P[k + 1]) for k in range(len(P) - 1)],
-                          dtype=np.int64)
+        # segment_states of every segment at once.
+        counts = np.maximum(1, np.ceil(np.abs(np.diff(P, axis=0)) @ self._weights
+                                       / self.options.resolution)).astype(np.int64)
         if self.layer is not None and len(P) > 1:
             lo = np.ones(len(counts), dtype=np.int64)
             lo[0] = 0

@@ -185,6 +185,7 @@ def _plan(cell: Cell, route: Route, world: WorldState, options: PlanOptions,
     actions: list[tuple[int, int, Step]] = []  # (after chunk, step index, step)
     current: list[Segment] = []
     planner_opts = options.planner
+    times: dict[str, float] = {}
     for i, step in enumerate(route.steps):
         label = labels[i]
         if step.is_motion:
@@ -208,7 +209,8 @@ def _plan(cell: Cell, route: Route, world: WorldState, options: PlanOptions,
                 seeded = PlannerOptions(planner_opts.planner, planner_opts.time_limit,
                                         planner_opts.seed + i, planner_opts.range,
                                         planner_opts.shortcut_iterations)
-                waypoints = plan_joint_path(checker, q, goal, options=seeded, step=label)
+                waypoints = plan_joint_path(checker, q, goal, options=seeded, step=label,
+                                            times=times)
             current.append(Segment(i, step, waypoints, allowed))
             q, pose_name = goal, goal_name
             if step.stop:
@@ -241,6 +243,7 @@ def _plan(cell: Cell, route: Route, world: WorldState, options: PlanOptions,
     _check_position_limits(cell, traj)
     traj.info.update({
         "planning_time": plan_time,
+        "shortcut_time": times.get("shortcut", 0.0),
         "total_time": time.perf_counter() - t_start,
         "min_clearance": min_clear,
         "closest_pair": list(closest) if closest else None,

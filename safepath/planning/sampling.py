@@ -60,9 +60,12 @@ class PlannerOptions:
 
 
 def plan_joint_path(checker: CollisionChecker, q_start: np.ndarray, q_goal: np.ndarray, *,
-                    options: PlannerOptions = PlannerOptions(), step: str | None = None
-                    ) -> list[np.ndarray]:
+                    options: PlannerOptions = PlannerOptions(), step: str | None = None,
+                    times: dict[str, float] | None = None) -> list[np.ndarray]:
     """A collision-free joint path from ``q_start`` to ``q_goal`` (a polyline).
+
+    ``times``, if given, accumulates the seconds spent shortcutting under ``"shortcut"``
+    (the rest is finding the path).
 
     Raises:
         PlanningError: Start or goal invalid (names the pair), or no path found.
@@ -79,7 +82,11 @@ def plan_joint_path(checker: CollisionChecker, q_start: np.ndarray, q_goal: np.n
     with _OMPL_LOCK:
         raw = _solve(checker, q_start, q_goal, options, step)
     rng = np.random.default_rng(options.seed)
-    return shortcut(checker, raw, rng, iterations=options.shortcut_iterations)
+    t0 = time.perf_counter()
+    path = shortcut(checker, raw, rng, iterations=options.shortcut_iterations)
+    if times is not None:
+        times["shortcut"] = times.get("shortcut", 0.0) + time.perf_counter() - t0
+    return path
 
 
 def _solve(checker: CollisionChecker, q_start: np.ndarray, q_goal: np.ndarray,
