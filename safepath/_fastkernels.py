@@ -29,7 +29,10 @@ H_V = 18  # vertices of hull movers (x, y, z rows, each in its shape's frame)
 #: Per pair and joint (ints): bit 1 if the joint moves body a relative to body b (or
 #: to the world), bit 2 if it moves b relative to a (joints that carry both: 0).
 H_PM = 19
-HEADER = 20
+#: Hull edges (ints): per vertex row, where its neighbours start in the H_AI block
+#: (rows + 1 entries), and the neighbours' rows.
+H_AP, H_AI = 20, 21
+HEADER = 22
 # Constants (fb[ib[H_C] + k]).
 C_REFINE, C_FREE_EPS, C_PROOF_EPS = 0, 1, 2
 
@@ -47,7 +50,7 @@ JOINT_FIXED, JOINT_REVOLUTE, JOINT_PRISMATIC = 0, 1, 2
 #: ``warm`` holds, per pair, the last direction GJK found (the next state's first guess).
 Workspace = namedtuple("Workspace", ["Rw", "pw", "tmp", "tmp2", "Ra", "pa", "da", "Rb", "pb",
                                      "db", "axes", "Cw", "bufa", "bufb", "simplex", "sa", "sb",
-                                     "gv", "warm", "absu", "DL", "CC"])
+                                     "gv", "warm", "absu", "DL", "CC", "hint"])
 
 
 @njit(cache=True, nogil=True)
@@ -58,7 +61,8 @@ def _workspace(ib):
                      np.empty(3), np.empty(3), np.empty((24, 3)), np.empty((ng, 3)),
                      np.empty((ns, 5)), np.empty((ns, 5)), np.empty((4, 3)), np.empty(3),
                      np.empty(3), np.empty(3), np.zeros((npairs, 3)), np.zeros(ib[H_DOF]),
-                     np.zeros((ng, ib[H_DOF])), np.zeros((ng, ib[H_DOF])))
+                     np.zeros((ng, ib[H_DOF])), np.zeros((ng, ib[H_DOF])),
+                     np.full((npairs, 2), -1, dtype=np.int64))
 
 
 @njit(cache=True, nogil=True)
@@ -287,7 +291,8 @@ def _gjk_pair(fb, ib, k, a, b, is_env, ws, low, high):  # noqa: N803
     if is_env == 0:
         vb0, vb1 = ib[ogi + GIW * b + 6], ib[ogi + GIW * b + 7]
     return distance_lower_bound(ka, ws.Ra, ws.pa, ws.da, va0, va1, kb, ws.Rb, ws.pb, ws.db,
-                                vb0, vb1, fb, ib[H_V], ws.warm[k], ws.simplex, ws.sa, ws.sb,
+                                vb0, vb1, fb, ib[H_V], ib, ib[H_AP], ib[H_AI], ws.hint[k],
+                                ws.warm[k], ws.simplex, ws.sa, ws.sb,
                                 ws.gv, ws.tmp, low, high)
 
 

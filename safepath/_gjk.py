@@ -35,22 +35,45 @@ MAX_ITER = 32
 
 
 @njit(cache=True, nogil=True)
-def support(kind, R, p, d, fb, ov, v0, v1, nx, ny, nz, out):  # noqa: N803
+def _climb(fb, ov, ib, oap, oai, v0, v1, start, lx, ly, lz):  # noqa: N803
+    """The hull vertex (row) farthest along (lx, ly, lz): steepest ascent over the
+    hull's edges from ``start``. Exact on a convex polytope: a vertex that is not
+    farthest has an edge along which the direction strictly increases."""
+    g = start if v0 <= start < v1 else v0
+    b = ov + 3 * g
+    best = fb[b] * lx + fb[b + 1] * ly + fb[b + 2] * lz
+    while True:
+        nxt = g
+        for e in range(ib[oap + g], ib[oap + g + 1]):
+            h = ib[oai + e]
+            b = ov + 3 * h
+            s = fb[b] * lx + fb[b + 1] * ly + fb[b + 2] * lz
+            if s > best:
+                best, nxt = s, h
+        if nxt == g:
+            return g
+        g = nxt
+
+
+@njit(cache=True, nogil=True)
+def support(kind, R, p, d, fb, ov, v0, v1, ib, oap, oai, start, nx, ny, nz,  # noqa: N803
+            out):
     """World point of a shape farthest along (nx, ny, nz) (not necessarily unit) into
-    ``out``."""
+    ``out``; for a hull, returns the vertex row (the next search's ``start``), else -1.
+
+    A hull is rows ``v0:v1`` of the vertex block of ``fb`` at ``ov``, with its edges as
+    neighbour lists in ``ib`` (row g's neighbours: ``ib[oai + ib[oap + g] : oai +
+    ib[oap + g + 1]]``)."""
     # Direction in the shape's frame: R^T n.
     lx = R[0, 0] * nx + R[1, 0] * ny + R[2, 0] * nz
     ly = R[0, 1] * nx + R[1, 1] * ny + R[2, 1] * nz
     lz = R[0, 2] * nx + R[1, 2] * ny + R[2, 2] * nz
     x = y = z = 0.0
+    found = -1
     if kind == HULL:
-        best = -1e300
-        for v in range(v0, v1):
-            b = ov + 3 * v
-            s = fb[b] * lx + fb[b + 1] * ly + fb[b + 2] * lz
-            if s > best:
-                best = s
-                x, y, z = fb[b], fb[b + 1], fb[b + 2]
+        found = _climb(fb, ov, ib, oap, oai, v0, v1, start, lx, ly, lz)
+        b = ov + 3 * found
+        x, y, z = fb[b], fb[b + 1], fb[b + 2]
     elif kind == BOX or kind == BOX_ONLY_OUTER:
         x = d[0] if lx >= 0.0 else -d[0]
         y = d[1] if ly >= 0.0 else -d[1]
@@ -71,6 +94,7 @@ def support(kind, R, p, d, fb, ov, v0, v1, nx, ny, nz, out):  # noqa: N803
                 x, y = d[0] * lx / rho, d[0] * ly / rho
     for r in range(3):
         out[r] = R[r, 0] * x + R[r, 1] * y + R[r, 2] * z + p[r]
+    return found
 
 
 @njit(cache=True, nogil=True, inline="always")
@@ -185,7 +209,7 @@ def _closest(S, n, v, tmp):  # noqa: N803
 
 @njit(cache=True, nogil=True)
 def distance_lower_bound(ka, Ra, pa, da, va0, va1, kb, Rb, pb, db, vb0, vb1,  # noqa: N803
-                         fb, ov, warm, S, sa, sb, v, tmp, low, high):
+                         fb, ov, ib, oap, oai, hint, warm, S, sa, sb, v, tmp, low, high):
     """A lower bound [m] on the distance between shapes A and B (negative or zero when they
     may touch), within :data:`TOL` of the true distance when GJK converges.
 
@@ -193,8 +217,9 @@ def distance_lower_bound(ka, Ra, pa, da, va0, va1, kb, Rb, pb, db, vb0, vb1,  # 
     distance is known to be at most ``low`` (no bound above ``low`` exists).
 
     ``warm`` (3,) is a first search direction (e.g. the last one of the same pair; all
-    zero: the centre line), overwritten with the direction that gave the bound. S (4,3),
-    sa, sb, v, tmp (3,) are scratch.
+    zero: the centre line), overwritten with the direction that gave the bound; ``hint``
+    (2,) the hull vertices where the support searches of A and B start (updated). Hulls
+    are given as in :func:`support`. S (4,3), sa, sb, v, tmp (3,) are scratch.
     """
     v[0], v[1], v[2] = warm[0], warm[1], warm[2]
     if _dot(v, v) < 1e-18:
@@ -209,8 +234,10 @@ def distance_lower_bound(ka, Ra, pa, da, va0, va1, kb, Rb, pb, db, vb0, vb1,  # 
         if vn < 1e-12:
             break
         # Support of A - B towards -v.
-        support(ka, Ra, pa, da, fb, ov, va0, va1, -v[0], -v[1], -v[2], sa)
-        support(kb, Rb, pb, db, fb, ov, vb0, vb1, v[0], v[1], v[2], sb)
+        hint[0] = support(ka, Ra, pa, da, fb, ov, va0, va1, ib, oap, oai, hint[0],
+                          -v[0], -v[1], -v[2], sa)
+        hint[1] = support(kb, Rb, pb, db, fb, ov, vb0, vb1, ib, oap, oai, hint[1],
+                          v[0], v[1], v[2], sb)
         w0, w1, w2 = sa[0] - sb[0], sa[1] - sb[1], sa[2] - sb[2]
         gap = (v[0] * w0 + v[1] * w1 + v[2] * w2) / vn
         if gap > lb:
@@ -228,9 +255,22 @@ def distance_lower_bound(ka, Ra, pa, da, va0, va1, kb, Rb, pb, db, vb0, vb1,  # 
     return lb
 
 
-def vertices_of(points: np.ndarray) -> np.ndarray:
-    """The extreme points of a convex shape's points (its hull's vertices), rows [m]."""
+def hull_tables(points: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """A convex shape's hull as :func:`support` reads it: its vertices (the extreme
+    points, rows [m]), and its edges as neighbour lists (``ptr`` (vertices + 1), ``idx``:
+    row g's neighbours are ``idx[ptr[g]:ptr[g + 1]]``, rows of the vertex array)."""
     from scipy.spatial import ConvexHull
 
     points = np.asarray(points, dtype=float)
-    return np.ascontiguousarray(points[ConvexHull(points).vertices])
+    hull = ConvexHull(points)
+    row = {int(i): r for r, i in enumerate(hull.vertices)}
+    neighbours: list[set[int]] = [set() for _ in hull.vertices]
+    for tri in hull.simplices:
+        a, b, c = (row[int(i)] for i in tri)
+        neighbours[a] |= {b, c}
+        neighbours[b] |= {a, c}
+        neighbours[c] |= {a, b}
+    ptr = np.zeros(len(neighbours) + 1, dtype=np.int64)
+    ptr[1:] = np.cumsum([len(n) for n in neighbours])
+    idx = np.array([j for n in neighbours for j in sorted(n)], dtype=np.int64)
+    return np.ascontiguousarray(points[hull.vertices]), ptr, idx

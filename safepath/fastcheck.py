@@ -127,7 +127,7 @@ def pack(checker: CollisionChecker, options: LayerOptions
     import coal
 
     from . import _fastkernels as K  # noqa: N812  (constants only; compiles nothing)
-    from ._gjk import vertices_of
+    from ._gjk import hull_tables
 
     robot = checker.robot
     model, gmodel = robot.model, checker.geometry_model
@@ -156,7 +156,9 @@ def pack(checker: CollisionChecker, options: LayerOptions
     Gi = np.zeros((len(movers), K.GIW), dtype=np.int64)
     spheres: list[np.ndarray] = []
     vertices: list[np.ndarray] = []
-    count = n_vertices = 0
+    edge_ptr: list[np.ndarray] = [np.zeros(1, dtype=np.int64)]
+    edges: list[np.ndarray] = []
+    count = n_vertices = n_edges = 0
     for m, g in enumerate(movers):
         geom = gmodel.geometryObjects[g]
         fit = fit_spheres(geom.geometry, cell=options.cell).transformed(
@@ -166,7 +168,11 @@ def pack(checker: CollisionChecker, options: LayerOptions
         kind, dims = _primitive(geom.geometry)
         hull = np.zeros((0, 3))
         if kind == K.SPHERES_ONLY and isinstance(geom.geometry, coal.ConvexBase):
-            kind, hull = K.HULL, vertices_of(np.asarray(geom.geometry.points()))
+            hull, ptr, idx = hull_tables(np.asarray(geom.geometry.points()))
+            kind = K.HULL
+            edge_ptr.append(ptr[1:] + n_edges)
+            edges.append(idx + n_vertices)
+            n_edges += len(idx)
         T = geom.placement.homogeneous
         G[m] = (*c, r, *T[:3, :3].ravel(), *T[:3, 3], *dims)
         outer = np.column_stack([fit.outer_centers, fit.outer_radii])
@@ -214,14 +220,16 @@ def pack(checker: CollisionChecker, options: LayerOptions
     C = np.array([options.refine, options.free_eps, options.proof_eps])
     V = np.vstack(vertices) if vertices else np.zeros((0, 3))
     blocks_f = [J.ravel(), G.ravel(), S_.ravel(), E.ravel(), P, W.ravel(), L, C, V.ravel()]
-    blocks_i = [Ji.ravel(), Gi.ravel(), Ei, Pi.ravel(), PM.ravel()]
+    AP = np.concatenate(edge_ptr)
+    AI = np.concatenate(edges) if edges else np.zeros(0, dtype=np.int64)
+    blocks_i = [Ji.ravel(), Gi.ravel(), Ei, Pi.ravel(), PM.ravel(), AP, AI]
     f_off = np.cumsum([0] + [len(b) for b in blocks_f])
     i_off = K.HEADER + np.cumsum([0] + [len(b) for b in blocks_i])
     header = np.zeros(K.HEADER, dtype=np.int64)
     header[[K.H_NJ, K.H_NG, K.H_NS, K.H_NE, K.H_NP, K.H_DOF]] = (
         nj, len(movers), len(S_), len(checker._env), len(checker._pairs), dof)
     header[[K.H_J, K.H_G, K.H_S, K.H_E, K.H_P, K.H_W, K.H_L, K.H_C, K.H_V]] = f_off[:9]
-    header[[K.H_JI, K.H_GI, K.H_EI, K.H_PI, K.H_PM]] = i_off[:5]
+    header[[K.H_JI, K.H_GI, K.H_EI, K.H_PI, K.H_PM, K.H_AP, K.H_AI]] = i_off[:7]
     F = np.concatenate(blocks_f).astype(np.float64)
     I_ = np.concatenate([header, *blocks_i]).astype(np.int64)
     return F, I_, fits

@@ -22,7 +22,7 @@ from safepath._gjk import (
     SPHERE,
     TOL,
     distance_lower_bound,
-    vertices_of,
+    hull_tables,
 )
 
 
@@ -57,28 +57,51 @@ def _primitive(kind: int, rng: np.random.Generator) -> tuple[object, np.ndarray]
     return coal.Sphere(a), np.array([a, 0.0, 0.0])
 
 
+def _tables(*shapes: object) -> tuple[np.ndarray, np.ndarray, list[tuple[int, int]]]:
+    """Vertex block (flat) and the ints block (edge pointers at 0, neighbours after) of
+    the given hulls, and each one's vertex rows."""
+    verts, ptrs, idxs, rows = [], [np.zeros(1, dtype=np.int64)], [], []
+    nv = ne = 0
+    for shape in shapes:
+        v, ptr, idx = hull_tables(np.asarray(shape.points()))  # type: ignore[attr-defined]
+        verts.append(v)
+        ptrs.append(ptr[1:] + ne)
+        idxs.append(idx + nv)
+        rows.append((nv, nv + len(v)))
+        nv, ne = nv + len(v), ne + len(idx)
+    ptr = np.concatenate(ptrs)
+    ib = np.concatenate([ptr, *idxs])
+    return np.concatenate([v.ravel() for v in verts]), ib, rows
+
+
+def _bound(ka: int, Ra: np.ndarray, pa: np.ndarray, da: np.ndarray, kb: int,
+           Rb: np.ndarray, pb: np.ndarray, db: np.ndarray, hulls: list,
+           low: float = -1e300, high: float = 1e300) -> float:
+    fb, ib, rows = _tables(*hulls)
+    (va0, va1), (vb0, vb1) = (rows + [(0, 0), (0, 0)])[:2]
+    scratch = [np.empty((4, 3)), np.empty(3), np.empty(3), np.empty(3), np.empty(3)]
+    n_ptr = rows[-1][1] + 1
+    return distance_lower_bound(ka, Ra, pa, da, va0, va1, kb, Rb, pb, db, vb0, vb1, fb, 0,
+                                ib, 0, n_ptr, np.full(2, -1, dtype=np.int64), np.zeros(3),
+                                *scratch, low, high)
+
+
 @pytest.mark.parametrize("other", [BOX, CYLINDER, SPHERE, CAPSULE, HULL])
 def test_bound_is_below_coal_and_tight_when_apart(hulls: list, other: int) -> None:
     rng = np.random.default_rng(11 + other)
-    scratch = [np.empty((4, 3)), np.empty(3), np.empty(3), np.empty(3), np.empty(3)]
     apart = tight = 0
     for trial in range(400):
         ha = hulls[trial % len(hulls)]
-        va = vertices_of(np.asarray(ha.points()))
         if other == HULL:
             hb = hulls[(trial * 7 + 3) % len(hulls)]
-            vb = vertices_of(np.asarray(hb.points()))
-            shape_b, db = hb, np.zeros(3)
+            shape_b, db, both = hb, np.zeros(3), [ha, hb]
         else:
             shape_b, db = _primitive(other, rng)
-            vb = np.zeros((0, 3))
-        fb = np.concatenate([va.ravel(), vb.ravel()])
+            both = [ha]
         Ra, Rb = _random_rotation(rng), _random_rotation(rng)
         pa, pb = rng.uniform(-0.25, 0.25, 3), rng.uniform(-0.25, 0.25, 3)
         true = _coal_distance(ha, coal.Transform3s(Ra, pa), shape_b, coal.Transform3s(Rb, pb))
-        lb = distance_lower_bound(HULL, Ra, pa, np.zeros(3), 0, len(va), other, Rb, pb, db,
-                                  len(va), len(va) + len(vb), fb, 0, np.zeros(3), *scratch,
-                                  -1e300, 1e300)
+        lb = _bound(HULL, Ra, pa, np.zeros(3), other, Rb, pb, db, both)
         assert lb <= true + 1e-9, (trial, lb, true)
         if true > 1e-3:
             apart += 1
@@ -90,16 +113,30 @@ def test_bound_is_below_coal_and_tight_when_apart(hulls: list, other: int) -> No
 def test_search_stops_at_the_callers_thresholds(hulls: list) -> None:
     """``high``: stop once the bound suffices (still a lower bound); ``low``: stop once
     the distance is known to be below it."""
-    va = vertices_of(np.asarray(hulls[2].points()))
     box, db = coal.Box(0.2, 0.2, 0.2), np.array([0.1, 0.1, 0.1])
     R = np.eye(3)
     pa, pb = np.zeros(3), np.array([0.6, 0.0, 0.0])
     true = _coal_distance(hulls[2], coal.Transform3s(R, pa), box, coal.Transform3s(R, pb))
-    scratch = [np.empty((4, 3)), np.empty(3), np.empty(3), np.empty(3), np.empty(3)]
-    args = (HULL, R, pa, np.zeros(3), 0, len(va), BOX, R, pb, db, 0, 0, va.ravel(), 0)
-    full = distance_lower_bound(*args, np.zeros(3), *scratch, -1e300, 1e300)
+    args = (HULL, R, pa, np.zeros(3), BOX, R, pb, db, [hulls[2]])
+    full = _bound(*args)
     assert true - TOL <= full <= true + 1e-9
-    enough = distance_lower_bound(*args, np.zeros(3), *scratch, -1e300, 0.05)
+    enough = _bound(*args, high=0.05)
     assert 0.05 <= enough <= true + 1e-9
-    hopeless = distance_lower_bound(*args, np.zeros(3), *scratch, true + 0.1, 1e300)
+    hopeless = _bound(*args, low=true + 0.1)
     assert hopeless <= true + 1e-9
+
+
+def test_edge_climbing_finds_the_farthest_vertex(hulls: list) -> None:
+    """The support search climbs the hull's edges from any start: it must find the same
+    farthest vertex as scanning them all."""
+    from safepath._gjk import _climb
+
+    rng = np.random.default_rng(3)
+    for shape in hulls:
+        fb, ib, rows = _tables(shape)
+        v = fb.reshape(-1, 3)
+        for _ in range(200):
+            n = rng.normal(size=3)
+            start = int(rng.integers(len(v)))
+            found = _climb(fb, 0, ib, 0, rows[0][1] + 1, 0, len(v), start, *n)
+            assert v[found] @ n == pytest.approx(np.max(v @ n), abs=1e-12)
