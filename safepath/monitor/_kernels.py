@@ -1,0 +1,265 @@
+"""Numba kernels of the monitor: separation lower bounds and path-velocity profiles.
+
+Imported lazily (the first import compiles, or loads numba's on-disk cache).
+
+Separation
+    Observed elements are spheres (a point is a sphere of radius 0). They are bucketed
+    into cubic cells and cells into blocks of 4x4x4 cells, each with a sphere that holds
+    its contents. The robot at every sampled path state is a set of spheres that enclose
+    its links (grouped per body, each group with a bounding sphere). For a run of states
+    the kernel returns the running minimum ("prefix minimum") of the lower bound
+    ``|p - c| - r_p - r_s`` over every element and every robot sphere: a state is only
+    refined where it could lower the minimum found so far, so open space costs one
+    comparison per block and body.
+
+Profiles
+    A path is the knots of a verified trajectory, parametrised by its own time ``tau``
+    (``Q'(tau)`` its velocities, ``Q''(tau)`` its accelerations). A new timing
+    ``tau(t)`` with speed ``r = dtau/dt`` in [0, 1] gives joint velocities ``Q' r`` and
+    accelerations ``Q'' r^2 + Q' dr/dt``. With ``x = r^2`` and ``u = dr/dt`` constant
+    between knots (``x_{i+1} = x_i + 2 (tau_{i+1} - tau_i) u_i``, TOPP-RA's discretisation),
+    the limits at knot ``i`` are ``|Q'_i u_i + Q''_i x_i| <= a_max`` and
+    ``|Q'_i| sqrt(x_i) <= v_max``. Because the verified timing (``x = 1``, ``u = 0``)
+    keeps every limit, any ``x <= 1`` with ``u = 0`` does too: a greedy forward pass never
+    gets stuck, and needs no backward pass.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit
+
+#: Cells per block edge.
+BLOCK = 4
+_OFF = 1 << 20
+
+
+@njit(cache=True, nogil=True)
+def bucket(E, h):  # noqa: N803
+    """Sort elements ``E`` (n, 4: x, y, z, radius) into cells of edge ``h`` [m] and blocks.
+
+    Returns:
+        (sorted elements, cell spheres (nc, 4), cell starts (nc + 1), block spheres
+        (nb, 4), block starts into cells (nb + 1)).
+    """
+    n = E.shape[0]
+    keys = np.empty(n, dtype=np.int64)
+    for i in range(n):
+        ix = int(math.floor(E[i, 0] / h)) + _OFF
+        iy = int(math.floor(E[i, 1] / h)) + _OFF
+        iz = int(math.floor(E[i, 2] / h)) + _OFF
+        bkey = ((ix // BLOCK) * (1 << 20) + (iy // BLOCK)) * (1 << 20) + (iz // BLOCK)
+        keys[i] = bkey * 64 + ((ix % BLOCK) * 16 + (iy % BLOCK) * 4 + iz % BLOCK)
+    order = np.argsort(keys)
+    S = E[order]
+    ks = keys[order]
+    # Cells: runs of equal keys; blocks: runs of equal key // 64.
+    cstart = np.empty(n + 1, dtype=np.int64)
+    bstart = np.empty(n + 1, dtype=np.int64)
+    nc = 0
+    nb = 0
+    for i in range(n):
+        if i == 0 or ks[i] != ks[i - 1]:
+            if i == 0 or ks[i] // 64 != ks[i - 1] // 64:
+                bstart[nb] = nc
+                nb += 1
+            cstart[nc] = i
+            nc += 1
+    cstart[nc] = n
+    bstart[nb] = nc
+    cells = np.empty((nc, 4))
+    for c in range(nc):
+        a, b = cstart[c], cstart[c + 1]
+        lo = np.full(3, np.inf)
+        hi = np.full(3, -np.inf)
+        for i in range(a, b):
+            for d in range(3):
+                lo[d] = min(lo[d], S[i, d])
+                hi[d] = max(hi[d], S[i, d])
+        r = 0.0
+        for d in range(3):
+            cells[c, d] = 0.5 * (lo[d] + hi[d])
+        for i in range(a, b):
+            dx = S[i, 0] - cells[c, 0]
+            dy = S[i, 1] - cells[c, 1]
+            dz = S[i, 2] - cells[c, 2]
+            r = max(r, math.sqrt(dx * dx + dy * dy + dz * dz) + S[i, 3])
+        cells[c, 3] = r * (1.0 + 1e-12) + 1e-12
+    blocks = np.empty((nb, 4))
+    for k in range(nb):
+        a, b = bstart[k], bstart[k + 1]
+        lo = np.full(3, np.inf)
+        hi = np.full(3, -np.inf)
+        for c in range(a, b):
+            for d in range(3):
+                lo[d] = min(lo[d], cells[c, d] - cells[c, 3])
+                hi[d] = max(hi[d], cells[c, d] + cells[c, 3])
+        r = 0.0
+        for d in range(3):
+            blocks[k, d] = 0.5 * (lo[d] + hi[d])
+        for c in range(a, b):
+            dx = cells[c, 0] - blocks[k, 0]
+            dy = cells[c, 1] - blocks[k, 1]
+            dz = cells[c, 2] - blocks[k, 2]
+            r = max(r, math.sqrt(dx * dx + dy * dy + dz * dz) + cells[c, 3])
+        blocks[k, 3] = r * (1.0 + 1e-12) + 1e-12
+    return S, cells, cstart[:nc + 1].copy(), blocks, bstart[:nb + 1].copy()
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _gap(ax, ay, az, ar, B, k):  # noqa: N803
+    dx = ax - B[k, 0]
+    dy = ay - B[k, 1]
+    dz = az - B[k, 2]
+    return math.sqrt(dx * dx + dy * dy + dz * dz) - ar - B[k, 3]
+
+
+@njit(cache=True, nogil=True)
+def prefix_separation(C, R, body_start, Bd, s0, s1, S, cells, cstart, blocks, bstart,  # noqa: N803
+                      cap, out, arg):
+    """Running minimum over states ``s0..s1-1`` of the separation lower bound [m].
+
+    Args:
+        C: Robot sphere centres per state (n_states, K, 3).
+        R: Robot sphere radii (K,); a negative radius disables a sphere.
+        body_start: Sphere range of each body (n_bodies + 1,).
+        Bd: Bounding sphere of each body per state (n_states, n_bodies, 4).
+        S, cells, cstart, blocks, bstart: Elements as :func:`bucket` returns them.
+        cap: Distances at or beyond this are not refined (reported as ``cap``) [m].
+        out: Receives the running minimum for each state of the range (s1 - s0,).
+        arg: Receives the element that gives it (-1 if none closer than ``cap``).
+    """
+    best = cap
+    who = -1
+    nbodies = body_start.size - 1
+    for s in range(s0, s1):
+        for m in range(nbodies):
+            bx, by, bz, br = Bd[s, m, 0], Bd[s, m, 1], Bd[s, m, 2], Bd[s, m, 3]
+            if br < 0.0:
+                continue
+            for k in range(blocks.shape[0]):
+                if _gap(bx, by, bz, br, blocks, k) >= best:
+                    continue
+                for c in range(bstart[k], bstart[k + 1]):
+                    if _gap(bx, by, bz, br, cells, c) >= best:
+                        continue
+                    for sp in range(body_start[m], body_start[m + 1]):
+                        r = R[sp]
+                        if r < 0.0:
+                            continue
+                        cx, cy, cz = C[s, sp, 0], C[s, sp, 1], C[s, sp, 2]
+                        if _gap(cx, cy, cz, r, cells, c) >= best:
+                            continue
+                        for e in range(cstart[c], cstart[c + 1]):
+                            d = _gap(cx, cy, cz, r, S, e)
+                            if d < best:
+                                best = d
+                                who = e
+        out[s - s0] = best
+        arg[s - s0] = who
+
+
+@njit(cache=True, nogil=True)
+def scene_distance(P, kind, T, dims, out):  # noqa: N803
+    """Smallest signed distance [m] from each point of ``P`` (n, 3) to the scene's
+    primitives (kind 0 box, 1 cylinder, 2 sphere, 3 capsule; ``T`` (k, 4, 4) their
+    placements, ``dims`` (k, 3) half sizes / radius, half length) into ``out``."""
+    for i in range(P.shape[0]):
+        best = np.inf
+        for o in range(kind.size):
+            dx = P[i, 0] - T[o, 0, 3]
+            dy = P[i, 1] - T[o, 1, 3]
+            dz = P[i, 2] - T[o, 2, 3]
+            x = T[o, 0, 0] * dx + T[o, 1, 0] * dy + T[o, 2, 0] * dz
+            y = T[o, 0, 1] * dx + T[o, 1, 1] * dy + T[o, 2, 1] * dz
+            z = T[o, 0, 2] * dx + T[o, 1, 2] * dy + T[o, 2, 2] * dz
+            a, b, c = dims[o, 0], dims[o, 1], dims[o, 2]
+            k = kind[o]
+            if k == 0:
+                qx, qy, qz = abs(x) - a, abs(y) - b, abs(z) - c
+                ox, oy, oz = max(qx, 0.0), max(qy, 0.0), max(qz, 0.0)
+                d = math.sqrt(ox * ox + oy * oy + oz * oz) + min(max(qx, max(qy, qz)), 0.0)
+            elif k == 1:
+                dr = math.sqrt(x * x + y * y) - a
+                dzz = abs(z) - b
+                o1, o2 = max(dr, 0.0), max(dzz, 0.0)
+                d = math.sqrt(o1 * o1 + o2 * o2) + min(max(dr, dzz), 0.0)
+            elif k == 2:
+                d = math.sqrt(x * x + y * y + z * z) - a
+            else:
+                zz = min(max(z, -b), b)
+                d = math.sqrt(x * x + y * y + (z - zz) * (z - zz)) - a
+            best = min(best, d)
+        out[i] = best
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _u_range(qd, qdd, x, amax, i):
+    """Feasible path accelerations ``u`` at knot ``i`` with squared speed ``x``."""
+    lo = -np.inf
+    hi = np.inf
+    for j in range(amax.size):
+        a = qd[i, j]
+        b = qdd[i, j] * x
+        c = amax[j]
+        if abs(a) > 1e-12:
+            u1 = (-c - b) / a
+            u2 = (c - b) / a
+            if a < 0.0:
+                u1, u2 = u2, u1
+            lo = max(lo, u1)
+            hi = min(hi, u2)
+    # x <= 1 keeps u = 0 feasible; rounding must not exclude it.
+    return min(lo, 0.0), max(hi, 0.0)
+
+
+@njit(cache=True, nogil=True)
+def march(tau, qd, qdd, amax, x0, x_target, t_stop, out_x, out_u, out_t):  # noqa: N803
+    """A greedy path-velocity profile over knots ``tau`` (n,) from squared speed ``x0``.
+
+    Goes toward ``x_target`` (in [0, 1]) as fast as the acceleration limits allow, and
+    from time ``t_stop`` [s] on brakes as hard as they allow, until at rest (at a knot)
+    or at the last knot.
+
+    Returns:
+        (knots used m, index of the knot where braking began or -1, at rest at the end).
+        ``out_x[:m]``, ``out_u[:m]``, ``out_t[:m]`` hold x, u (on the interval after the
+        knot; 0 for the last) and time from the start [s].
+    """
+    n = tau.size
+    x = min(max(x0, 0.0), 1.0)
+    t = 0.0
+    braking = -1
+    for i in range(n):
+        out_x[i] = x
+        out_t[i] = t
+        if i == n - 1:
+            out_u[i] = 0.0
+            return n, braking, True
+        if braking < 0 and t >= t_stop:
+            braking = i
+        if braking >= 0 and x <= 0.0:
+            out_u[i] = 0.0
+            return i + 1, braking, True
+        d2 = 2.0 * (tau[i + 1] - tau[i])
+        lo, hi = _u_range(qd, qdd, x, amax, i)
+        if braking >= 0:
+            u = lo
+        else:
+            u = min(max((x_target - x) / d2, lo), hi)
+        nxt = x + d2 * u
+        if nxt <= 0.0:  # comes to rest at the next knot (a milder u, still feasible)
+            nxt = 0.0
+            u = -x / d2
+        elif nxt > 1.0:  # rounding: never faster than the verified timing
+            nxt = 1.0
+            u = (nxt - x) / d2
+        if x + nxt <= 0.0:  # at rest and staying there
+            out_u[i] = 0.0
+            return i + 1, braking, True
+        out_u[i] = u
+        t += d2 / (math.sqrt(x) + math.sqrt(nxt))
+        x = nxt
+    return n, braking, True

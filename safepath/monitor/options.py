@@ -1,0 +1,117 @@
+"""Options of the separation monitor (the protective-distance parameters among them)."""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from ..errors import ConfigError
+
+__all__ = ["MonitorOptions"]
+
+
+def _positive(name: str, value: float, *, zero: bool = False) -> None:
+    ok = math.isfinite(value) and (value >= 0 if zero else value > 0)
+    if not ok:
+        raise ConfigError(f"must be {'>= 0' if zero else '> 0'} and finite, got {value}",
+                          key=name)
+
+
+@dataclass(frozen=True, kw_only=True)
+class MonitorOptions:
+    """How the monitor measures, decides and re-times.
+
+    Protective separation distance (ISO/TS 15066 speed and separation monitoring,
+    section 5.5.4)::
+
+        S_p = v_h * (T_age + T_cmd + T_next + T_s) + C + Z_d + Z_r
+
+    compared with the separation between the observed elements and every state the
+    robot can occupy until it is at rest (see :mod:`safepath.monitor.monitor`).
+
+    Attributes:
+        sensors: World pose (4x4) of every sensor frame, by ``frame_id``; each one must
+            keep reporting (silence for ``stale_after`` stops the robot).
+        approach_speed: ``v_h``, how fast a person approaches [m/s] (ISO 13855: 1.6 for
+            the body, 2.0 for a hand reaching).
+        min_separation: ``C``, the separation never to be crossed [m] (ISO's intrusion
+            distance belongs here for sensors that cannot see a reaching hand).
+        sensor_uncertainty: ``Z_d``, position uncertainty of observed points [m].
+        robot_uncertainty: ``Z_r``, position uncertainty of the robot [m].
+        stale_after: ``T_next``: an observation older than this is stale; without a
+            fresh one from every sensor the robot stops [s]. The next decision comes at
+            most this late, so the robot may keep its timing this long.
+        command_latency: ``T_cmd``, from a decision to the controller acting on it [s].
+        hold_time: The area must stay clear this long before the robot speeds up [s].
+        replan_after: Stopped by an obstacle this long: ask for a re-plan [s].
+        min_scale: Below this speed scale the robot stops instead of crawling.
+        scale_step: Speed scales are multiples of this (fewer replacement goals).
+        horizon: Look-ahead of the reported path separation [s of motion].
+        sweep_spacing: Largest robot motion between sampled path states [m].
+        sphere_cell: Cell of the robot's enclosing spheres [m].
+        cell_size: Cell of the observed elements' buckets [m].
+        range_cap: Separations beyond this are not refined (reported as inf) [m].
+        scene_filter: Elements within this of a static scene object belong to the
+            scene and are ignored [m]; None keeps them all.
+        workspace: Axis-aligned box (xmin, ymin, zmin, xmax, ymax, zmax) [m] outside
+            which elements are ignored; None keeps them all.
+        future_tolerance: Stamps later than now by more than this are refused [s].
+        replan_cluster: Elements within this of the closest one form the obstacle of
+            a re-plan request [m].
+    """
+
+    sensors: Mapping[str, Any] = field(default_factory=dict)
+    approach_speed: float = 1.6
+    min_separation: float = 0.05
+    sensor_uncertainty: float = 0.02
+    robot_uncertainty: float = 0.005
+    stale_after: float = 0.15
+    command_latency: float = 0.02
+    hold_time: float = 1.0
+    replan_after: float = 2.0
+    min_scale: float = 0.1
+    scale_step: float = 0.05
+    horizon: float = 1.0
+    sweep_spacing: float = 0.01
+    sphere_cell: float = 0.04
+    cell_size: float = 0.05
+    range_cap: float = 3.0
+    scene_filter: float | None = 0.02
+    workspace: tuple[float, float, float, float, float, float] | None = None
+    future_tolerance: float = 0.05
+    replan_cluster: float = 0.3
+
+    def __post_init__(self) -> None:
+        sensors = {}
+        for name, T in dict(self.sensors).items():
+            M = np.asarray(T, dtype=float)
+            if M.shape != (4, 4) or not np.all(np.isfinite(M)) or \
+                    not np.allclose(M[:3, :3] @ M[:3, :3].T, np.eye(3), atol=1e-6):
+                raise ConfigError("a sensor pose must be a finite 4x4 rigid transform",
+                                  key=f"sensors.{name}")
+            sensors[str(name)] = M
+        object.__setattr__(self, "sensors", sensors)
+        for name in ("approach_speed", "stale_after", "horizon", "sweep_spacing",
+                     "sphere_cell", "cell_size", "range_cap", "scale_step", "replan_cluster"):
+            _positive(name, float(getattr(self, name)))
+        for name in ("min_separation", "sensor_uncertainty", "robot_uncertainty",
+                     "command_latency", "hold_time", "replan_after", "future_tolerance"):
+            _positive(name, float(getattr(self, name)), zero=True)
+        if not 0 < self.min_scale <= 1:
+            raise ConfigError(f"must lie in (0, 1], got {self.min_scale}", key="min_scale")
+        if self.scene_filter is not None:
+            _positive("scene_filter", float(self.scene_filter), zero=True)
+        if self.workspace is not None:
+            w = np.asarray(self.workspace, dtype=float)
+            if w.shape != (6,) or not np.all(np.isfinite(w)) or np.any(w[:3] >= w[3:]):
+                raise ConfigError("workspace is (xmin, ymin, zmin, xmax, ymax, zmax) with "
+                                  "min < max", key="workspace")
+
+    @property
+    def constant_terms(self) -> float:
+        """``C + Z_d + Z_r`` [m]."""
+        return self.min_separation + self.sensor_uncertainty + self.robot_uncertainty

@@ -1,0 +1,193 @@
+"""The monitor's core: odd readings, silence, kill switch, re-timing within the limits."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from safepath import Cell
+from safepath.errors import ConfigError, InputError
+from safepath.monitor import Cloud, MonitorOptions, ObservationError, Obstacles, Scan
+from safepath.monitor.sweep import PathSweep, RobotSpheres
+from safepath.spheres import surface_points
+
+from .conftest import CAMERA, Phase1, make_monitor
+
+
+def _scan(stamp: float, ranges: np.ndarray) -> Scan:
+    n = ranges.size
+    return Scan(stamp, "cam", ranges, -np.pi, 2 * np.pi / n, 0.05, 8.0)
+
+
+def _world_to_cam(points: np.ndarray) -> np.ndarray:
+    return (points - CAMERA[:3, 3]) @ CAMERA[:3, :3]
+
+
+def test_all_inf_scan_continues_and_nan_is_counted(cell: Cell, phase1: Phase1) -> None:
+    m = make_monitor(cell)
+    traj, held = phase1.motions[0]
+    m.follow(traj, start=0.0, held=held)
+    d = m.observe(_scan(0.0, np.full(360, np.inf)), 0.01)
+    assert d.kind == "continue" and d.scale == 1.0 and d.replacement is None
+    assert d.counts.no_return == 360 and d.counts.used == 0
+    assert d.separation_now == np.inf
+    ranges = np.full(360, np.inf)
+    ranges[:40] = np.nan
+    d = m.observe(_scan(0.03, ranges), 0.04)
+    assert d.kind == "continue" and d.counts.nan == 40 and d.counts.used == 0
+
+
+def test_close_reading_stops_and_neg_inf_counts_as_too_close(cell: Cell, phase1: Phase1
+                                                             ) -> None:
+    m = make_monitor(cell)
+    traj, held = phase1.motions[0]
+    m.follow(traj, start=0.0, held=held)
+    m.observe(_scan(0.0, np.full(360, np.inf)), 0.0)
+    ranges = np.full(360, np.inf)
+    ranges[180] = -np.inf  # beam along +x of the camera: something at range_min
+    d = m.observe(_scan(0.5, ranges), 0.5)
+    assert d.counts.too_close == 1 and d.counts.used == 1
+    # A point 0.05 m from a camera 1.2 m from the robot: far, the robot continues.
+    assert d.kind == "continue"
+    # The same reading taken right beside the arm: it stops, along its path.
+    q_now = traj.sample([0.55])[0][0]
+    tcp = cell.robot.tcp_position(q_now)
+    near = Cloud(0.55, "cam", _world_to_cam(tcp[None, :] + [0.12, 0.0, 0.0]))
+    d = m.observe(near, 0.55)
+    assert d.kind == "stop" and d.scale == 0.0
+    assert d.separation_now < d.protective_distance
+    stop = d.replacement
+    assert stop is not None and d.replacement_start == pytest.approx(0.57)
+    assert np.all(stop.qd[-1] == 0.0)
+    _assert_on_path_within_limits(cell, traj, stop)
+
+
+def test_sensor_silence_stops(cell: Cell, phase1: Phase1) -> None:
+    m = make_monitor(cell)
+    traj, held = phase1.motions[0]
+    m.follow(traj, start=0.0, held=held)
+    assert m.observe(_scan(0.0, np.full(360, np.inf)), 0.0).kind == "continue"
+    assert m.tick(0.05).kind == "continue"
+    d = m.tick(0.07)  # 70 ms of silence > stale_after (60 ms)
+    assert d.kind == "stop" and "silence" in d.reason and d.replacement is not None
+    # A stale observation does not count as the sensor speaking.
+    d = m.observe(_scan(0.0, np.full(360, np.inf)), 0.2)
+    assert d.kind == "stop" and m.stats["stale"] == 1
+
+
+def test_malformed_message_keeps_the_last_decision(cell: Cell, phase1: Phase1) -> None:
+    m = make_monitor(cell)
+    traj, held = phase1.motions[0]
+    m.follow(traj, start=0.0, held=held)
+    first = m.observe(_scan(0.0, np.full(360, np.inf)), 0.0)
+    with pytest.raises(ObservationError, match="range_max"):
+        m.observe(Scan(0.01, "cam", np.ones(360), -np.pi, 0.01, 1.0, 0.5), 0.01)
+    with pytest.raises(ObservationError, match="unknown frame 'lidar'"):
+        m.observe(Cloud(0.02, "lidar", np.zeros((1, 3))), 0.02)
+    with pytest.raises(ObservationError, match="future"):
+        m.observe(Cloud(1.0, "cam", np.zeros((1, 3))), 0.02)
+    with pytest.raises(ObservationError, match="shape"):
+        Cloud(0.02, "cam", np.zeros((4, 2)))
+    assert m.last is first and m.stats["malformed"] == 2
+    # Out of order: ignored, counted, decided on what it had.
+    m.observe(_scan(0.03, np.full(360, np.inf)), 0.03)
+    m.observe(_scan(0.02, np.zeros(360)), 0.035)
+    assert m.stats["out_of_order"] == 1 and m.last.kind == "continue"
+
+
+def test_kill_switch_latches_until_reset(cell: Cell, phase1: Phase1) -> None:
+    m = make_monitor(cell, hold_time=0.1)
+    traj, held = phase1.motions[0]
+    m.follow(traj, start=0.0, held=held)
+    m.observe(_scan(0.0, np.full(360, np.inf)), 0.0)
+    d = m.kill(0.8)
+    assert d.kind == "stop" and d.latched and d.replacement is not None
+    _assert_on_path_within_limits(cell, traj, d.replacement)
+    t = 0.8
+    for _ in range(10):  # clear for longer than the hold time: still latched
+        t += 0.03
+        d = m.observe(_scan(t, np.full(360, np.inf)), t)
+        assert d.kind == "stop" and d.latched and d.replacement is None
+    m.reset()
+    kinds = []
+    for _ in range(8):
+        t += 0.03
+        kinds.append(m.observe(_scan(t, np.full(360, np.inf)), t).kind)
+    assert kinds[0] == "stop" and "resume" in kinds
+    resume = m.last if m.last.kind == "resume" else None
+    assert not m.last.latched and (resume is None or resume.replacement is not None)
+
+
+def test_user_obstacles_box_and_sphere(cell: Cell, phase1: Phase1) -> None:
+    m = make_monitor(cell, sensors={})
+    traj, held = phase1.motions[0]
+    m.follow(traj, start=0.0, held=held)
+    T = np.eye(4)
+    T[:3, 3] = [0.9, 0.0, 0.2]
+    d = m.observe(Obstacles(0.0, spheres=[[1.5, 0.0, 0.2, 0.05]], boxes=((T, [0.1, 0.1, 0.1]),)),
+                  0.0)
+    assert d.kind == "continue" and d.counts.used > 1 and d.separation_now < 1.0
+    with pytest.raises(ObservationError, match="boxes"):
+        Obstacles(0.0, boxes=((T, [0.1, -1.0, 0.1]),))
+
+
+def test_scene_points_are_filtered(cell: Cell, phase1: Phase1) -> None:
+    m = make_monitor(cell)
+    traj, held = phase1.motions[0]
+    m.follow(traj, start=0.0, held=held)
+    # Points on the table top and the conveyor: the static scene, ignored.
+    rng = np.random.default_rng(1)
+    table = np.column_stack([rng.uniform(0.0, 0.8, 200), rng.uniform(-0.2, 0.8, 200),
+                             np.zeros(200)])
+    d = m.observe(Cloud(0.0, "cam", _world_to_cam(table)), 0.0)
+    assert d.counts.scene == 200 and d.counts.used == 0 and d.kind == "continue"
+
+
+def test_options_are_validated() -> None:
+    with pytest.raises(ConfigError, match="approach_speed"):
+        MonitorOptions(approach_speed=0.0)
+    with pytest.raises(ConfigError, match="sensors.cam"):
+        MonitorOptions(sensors={"cam": np.zeros((4, 4))})
+    with pytest.raises(ConfigError, match="workspace"):
+        MonitorOptions(workspace=(0, 0, 0, -1, 1, 1))
+
+
+def test_follow_refuses_events_inside(cell: Cell, phase1: Phase1) -> None:
+    m = make_monitor(cell)
+    with pytest.raises(InputError, match="gripper event"):
+        m.follow(phase1.trajectory, start=0.0)
+
+
+def test_spheres_enclose_the_links_and_bound_the_separation(cell: Cell, phase1: Phase1
+                                                            ) -> None:
+    """Sample points on every moving link's surface at sampled path states: each lies
+    inside a placed sphere, so sphere distances are lower bounds."""
+    traj, held = phase1.motions[0]
+    spheres = RobotSpheres.build(cell.robot, cell.scene, held, cell=0.04)
+    sweep = PathSweep.build(cell.robot, spheres, traj.t, traj.q, spacing=0.01)
+    assert sweep.spacing <= 0.0101
+    rng = np.random.default_rng(0)
+    import pinocchio as pin
+
+    data = cell.robot.model.createData()
+    geoms = [g for g in cell.robot.collision_model.geometryObjects if g.parentJoint != 0]
+    for s in rng.choice(sweep.tau.size, 6, replace=False):
+        q = traj.q[sweep.knot[s]]
+        pin.forwardKinematics(cell.robot.model, data, q)
+        C, R = sweep.centers[s], spheres.radii
+        for g in geoms:
+            local = surface_points(g.geometry, 200, rng)
+            M = data.oMi[g.parentJoint].homogeneous @ g.placement.homogeneous
+            world = local @ M[:3, :3].T + M[:3, 3]
+            inside = np.linalg.norm(world[:, None, :] - C[None], axis=2) <= R[None] + 1e-9
+            assert inside.any(axis=1).all(), g.name
+
+
+def _assert_on_path_within_limits(cell: Cell, traj, rep) -> None:  # noqa: ANN001
+    """Every knot of a replacement is a state of the path, within the limits."""
+    robot = cell.robot
+    assert np.all(np.abs(rep.qd) <= robot.velocity_limits)
+    assert np.all(np.abs(rep.qdd) <= robot.acceleration_limits)
+    # Knots after the first are knots of the verified path, bit for bit.
+    rows = {r.tobytes() for r in traj.q}
+    assert all(r.tobytes() in rows for r in rep.q[1:])
