@@ -32,7 +32,9 @@ H_PM = 19
 #: Hull edges (ints): per vertex row, where its neighbours start in the H_AI block
 #: (rows + 1 entries), and the neighbours' rows.
 H_AP, H_AI = 20, 21
-HEADER = 22
+#: Radius of a sphere about each environment object's centre that holds it (floats).
+H_ER = 22
+HEADER = 23
 # Constants (fb[ib[H_C] + k]).
 C_REFINE, C_FREE_EPS, C_PROOF_EPS = 0, 1, 2
 
@@ -438,15 +440,28 @@ def _evaluate(q, fb, ib, ws, rates, want_radius):  # noqa: N803
             _axis_distances(m, fb, ib, Rw, pw, Cw, ws.DL)
     unsure = False
     radius = 1e300
+    oe, oer = ib[H_E], ib[H_ER]
     for k in range(ib[H_NP]):
         a, b, is_env = ib[op_ + 4 * k], ib[op_ + 4 * k + 1], ib[op_ + 4 * k + 2]
         sm = max(fb[of_ + k], 0.0)
         if is_env == 1:
+            if not want_radius:
+                # Broad phase: bounding spheres apart by more than the margin decide the
+                # pair (free) without measuring the object.
+                dx = Cw[a, 0] - fb[oe + 15 * b + 9]
+                dy = Cw[a, 1] - fb[oe + 15 * b + 10]
+                dz = Cw[a, 2] - fb[oe + 15 * b + 11]
+                reach = fb[og + GW * a + 3] + fb[oer + b] + sm + free_eps
+                if dx * dx + dy * dy + dz * dz > reach * reach:
+                    continue
             coarse = _env_sdist3(fb, ib, b, Cw[a, 0], Cw[a, 1], Cw[a, 2]) - fb[og + GW * a + 3]
         else:
-            coarse = (math.sqrt((Cw[a, 0] - Cw[b, 0]) ** 2 + (Cw[a, 1] - Cw[b, 1]) ** 2
-                                + (Cw[a, 2] - Cw[b, 2]) ** 2)
-                      - fb[og + GW * a + 3] - fb[og + GW * b + 3])
+            dd = ((Cw[a, 0] - Cw[b, 0]) ** 2 + (Cw[a, 1] - Cw[b, 1]) ** 2
+                  + (Cw[a, 2] - Cw[b, 2]) ** 2)
+            rr = fb[og + GW * a + 3] + fb[og + GW * b + 3]
+            if not want_radius and dd > (rr + sm + free_eps) ** 2:
+                continue
+            coarse = math.sqrt(dd) - rr
         budget = coarse - sm - free_eps
         if budget <= refine:
             budget = max(coarse, _pair_bound(k, fb, ib, ws, refine + free_eps)) - sm - free_eps

@@ -187,6 +187,7 @@ def pack(checker: CollisionChecker, options: LayerOptions
     # Environment: world placement, dimensions, kind.
     E = np.zeros((len(checker._env), 15))
     Ei = np.zeros(len(checker._env), dtype=np.int64)
+    ER = np.zeros(len(checker._env))
     for e, g in enumerate(checker._env):
         geom = gmodel.geometryObjects[g]
         shape = geom.geometry
@@ -201,6 +202,7 @@ def pack(checker: CollisionChecker, options: LayerOptions
         E[e, 9:12] = T[:3, 3]
         E[e, 12:15] = dims
         Ei[e] = kind
+        ER[e] = _holding_radius(kind, dims)
     # Pairs: as the exact checker's, with its security margins.
     requests = checker._gdata.collisionRequests
     P = np.zeros(len(checker._pairs))
@@ -219,7 +221,7 @@ def pack(checker: CollisionChecker, options: LayerOptions
     L = np.concatenate([robot.lower, robot.upper])
     C = np.array([options.refine, options.free_eps, options.proof_eps])
     V = np.vstack(vertices) if vertices else np.zeros((0, 3))
-    blocks_f = [J.ravel(), G.ravel(), S_.ravel(), E.ravel(), P, W.ravel(), L, C, V.ravel()]
+    blocks_f = [J.ravel(), G.ravel(), S_.ravel(), E.ravel(), P, W.ravel(), L, C, V.ravel(), ER]
     AP = np.concatenate(edge_ptr)
     AI = np.concatenate(edges) if edges else np.zeros(0, dtype=np.int64)
     blocks_i = [Ji.ravel(), Gi.ravel(), Ei, Pi.ravel(), PM.ravel(), AP, AI]
@@ -228,11 +230,24 @@ def pack(checker: CollisionChecker, options: LayerOptions
     header = np.zeros(K.HEADER, dtype=np.int64)
     header[[K.H_NJ, K.H_NG, K.H_NS, K.H_NE, K.H_NP, K.H_DOF]] = (
         nj, len(movers), len(S_), len(checker._env), len(checker._pairs), dof)
-    header[[K.H_J, K.H_G, K.H_S, K.H_E, K.H_P, K.H_W, K.H_L, K.H_C, K.H_V]] = f_off[:9]
+    header[[K.H_J, K.H_G, K.H_S, K.H_E, K.H_P, K.H_W, K.H_L, K.H_C, K.H_V, K.H_ER]] = f_off[:10]
     header[[K.H_JI, K.H_GI, K.H_EI, K.H_PI, K.H_PM, K.H_AP, K.H_AI]] = i_off[:7]
     F = np.concatenate(blocks_f).astype(np.float64)
     I_ = np.concatenate([header, *blocks_i]).astype(np.int64)
     return F, I_, fits
+
+
+def _holding_radius(kind: int, dims: np.ndarray) -> float:
+    """Radius [m] of a sphere about a primitive's centre that holds it."""
+    from . import _fastkernels as K  # noqa: N812
+
+    if kind in (K.ENV_BOX, K.ENV_BOX_ONLY_OUTER):
+        return float(np.linalg.norm(dims))
+    if kind == K.ENV_CYLINDER:
+        return float(np.hypot(dims[0], dims[1]))
+    if kind == K.ENV_CAPSULE:
+        return float(dims[0] + dims[1])
+    return float(dims[0])  # sphere
 
 
 def _primitive(shape: Any) -> tuple[int, np.ndarray]:
