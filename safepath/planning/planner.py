@@ -14,7 +14,7 @@ from __future__ import annotations
 import logging
 import time
 from collections.abc import Mapping
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
@@ -206,9 +206,7 @@ def _plan(cell: Cell, route: Route, world: WorldState, options: PlanOptions,
             else:
                 allowed = ()
                 checker = cache.checker(world, allowed)
-                seeded = PlannerOptions(planner_opts.planner, planner_opts.time_limit,
-                                        planner_opts.seed + i, planner_opts.range,
-                                        planner_opts.shortcut_iterations)
+                seeded = replace(planner_opts, seed=planner_opts.seed + i)
                 waypoints = plan_joint_path(checker, q, goal, options=seeded, step=label,
                                             times=times)
             current.append(Segment(i, step, waypoints, allowed))

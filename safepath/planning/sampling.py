@@ -43,13 +43,17 @@ class PlannerOptions:
         seed: Seed of OMPL's generator and of the shortcutter.
         range: Planner extension range [rad]; 0 lets OMPL choose.
         shortcut_iterations: Random shortcut attempts after planning.
+        shortcut_min_gain: A shortcut is checked only if it would shorten the path by at
+            least this share of its length (checking is what a shortcut costs; the many
+            that would gain little are not worth it).
     """
 
     planner: str = "RRTConnect"
     time_limit: float = 2.0
     seed: int = 0
     range: float = 0.0
-    shortcut_iterations: int = 60
+    shortcut_iterations: int = 100
+    shortcut_min_gain: float = 0.01
 
     def __post_init__(self) -> None:
         if self.planner not in PLANNERS:
@@ -57,6 +61,9 @@ class PlannerOptions:
                               key="planner")
         if not self.time_limit > 0:
             raise ConfigError(f"time_limit must be > 0, got {self.time_limit}", key="time_limit")
+        if not 0.0 <= self.shortcut_min_gain < 1.0:
+            raise ConfigError(f"shortcut_min_gain must be in [0, 1), got "
+                              f"{self.shortcut_min_gain}", key="shortcut_min_gain")
 
 
 def plan_joint_path(checker: CollisionChecker, q_start: np.ndarray, q_goal: np.ndarray, *,
@@ -83,7 +90,8 @@ def plan_joint_path(checker: CollisionChecker, q_start: np.ndarray, q_goal: np.n
         raw = _solve(checker, q_start, q_goal, options, step)
     rng = np.random.default_rng(options.seed)
     t0 = time.perf_counter()
-    path = shortcut(checker, raw, rng, iterations=options.shortcut_iterations)
+    path = shortcut(checker, raw, rng, iterations=options.shortcut_iterations,
+                    min_gain=options.shortcut_min_gain)
     if times is not None:
         times["shortcut"] = times.get("shortcut", 0.0) + time.perf_counter() - t0
     return path
@@ -147,11 +155,13 @@ def _solve(checker: CollisionChecker, q_start: np.ndarray, q_goal: np.ndarray,
 
 
 def shortcut(checker: CollisionChecker, path: list[np.ndarray], rng: np.random.Generator, *,
-             iterations: int = 60) -> list[np.ndarray]:
+             iterations: int = 100, min_gain: float = 0.01) -> list[np.ndarray]:
     """Shorten a valid polyline by random shortcuts, each checked at full resolution.
 
     First removes every vertex whose neighbours see each other (greedy, from the start),
-    then tries ``iterations`` random shortcuts between points on two segments.
+    then tries ``iterations`` random shortcuts between points on two segments, checking
+    only those that would shorten the path by at least ``min_gain`` of its length
+    (joint-space Euclidean length).
     """
     pts = [p.copy() for p in path]
     # Greedy vertex removal.
@@ -170,6 +180,12 @@ def shortcut(checker: CollisionChecker, path: list[np.ndarray], rng: np.random.G
         ta, tb = rng.random(), rng.random()
         qa = pts[a] + ta * (pts[a + 1] - pts[a])
         qb = pts[b] + tb * (pts[b + 1] - pts[b])
+        if min_gain > 0.0:
+            lengths = np.linalg.norm(np.diff(np.asarray(pts), axis=0), axis=1)
+            replaced = ((1.0 - ta) * lengths[a] + float(np.sum(lengths[a + 1:b]))
+                        + tb * lengths[b])
+            if replaced - float(np.linalg.norm(qb - qa)) < min_gain * float(np.sum(lengths)):
+                continue
         if checker.segment_is_valid(qa, qb, check_ends=True):
             pts = pts[: a + 1] + [qa, qb] + pts[b + 1:]
             pts = [p for k, p in enumerate(pts)

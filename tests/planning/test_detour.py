@@ -99,3 +99,55 @@ def test_phase1_with_baseline_plans_with_seed_8(detour_cell: Cell) -> None:
     traj = plan_cell(detour_cell, options, routes={"phase1": routes["phase1"]})["phase1"]
     assert traj.info["baseline_duration"] > 0
     assert traj.info["min_clearance"] >= detour_cell.scene.margin
+
+
+def test_shortcut_options_reach_the_shortcutter(detour_cell: Cell) -> None:
+    """The shortcutter's options are kept when the planner seeds each step (they were
+    once rebuilt positionally), and a shortcut that gains under ``shortcut_min_gain`` is
+    not taken: with a gain threshold of 99 % only the greedy vertex removal shortens."""
+    import pytest
+
+    from safepath.errors import ConfigError
+
+    q1, q2 = detour_cell.pose("high1"), detour_cell.pose("high2")
+    checker = _held_checker(detour_cell)
+
+    def length(path: list) -> float:
+        return float(np.sum(np.linalg.norm(np.diff(np.asarray(path), axis=0), axis=1)))
+
+    lazy = PlannerOptions(seed=3, shortcut_min_gain=0.99)
+    keen = PlannerOptions(seed=3, shortcut_min_gain=0.0)
+    greedy_only = PlannerOptions(seed=3, shortcut_iterations=0)
+    paths = {name: plan_joint_path(checker, q1, q2, options=o)
+             for name, o in (("lazy", lazy), ("keen", keen), ("greedy", greedy_only))}
+    assert length(paths["lazy"]) == pytest.approx(length(paths["greedy"]))
+    assert length(paths["keen"]) < length(paths["greedy"])
+    for path in paths.values():
+        assert checker.check_path(path).valid
+    with pytest.raises(ConfigError, match="shortcut_min_gain"):
+        PlannerOptions(shortcut_min_gain=1.0)
+
+
+def test_the_planner_passes_every_planner_option_on(detour_cell: Cell,
+                                                    monkeypatch: object) -> None:
+    """Each move is planned with the caller's options, only the seed advanced per step."""
+    import dataclasses
+
+    from safepath.planning import planner
+
+    seen: list[PlannerOptions] = []
+    real = planner.plan_joint_path
+
+    def spy(*args: object, options: PlannerOptions, **kwargs: object) -> object:
+        seen.append(options)
+        return real(*args, options=options, **kwargs)  # type: ignore[arg-type]
+
+    monkeypatch.setattr(planner, "plan_joint_path", spy)  # type: ignore[attr-defined]
+    mine = PlannerOptions(seed=7, time_limit=3.5, shortcut_iterations=17,
+                          shortcut_min_gain=0.2)
+    phase1 = route_routes(DETOUR, detour_cell)["phase1"]
+    plan_cell(detour_cell, PlanOptions(planner=mine), routes={"phase1": phase1})
+    assert seen
+    for options in seen:
+        assert options.seed >= mine.seed
+        assert dataclasses.replace(options, seed=mine.seed) == mine
