@@ -20,6 +20,7 @@ CASES = [
     ("runtime_heartbeat.py", ["--runs", "1"], "heartbeat gap"),
     ("view_startup.py", ["--runs", "1"], ""),
     ("cold_start.py", ["--runs", "1", "--warmup", "0"], "first / second plan_cell"),
+    ("monitor.py", ["--decisions", "20", "--speeds", "1.6"], "decision latency"),
 ]
 
 

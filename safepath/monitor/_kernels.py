@@ -117,9 +117,31 @@ def _gap(ax, ay, az, ar, B, k):  # noqa: N803
 
 
 @njit(cache=True, nogil=True)
+def _refine(C, R, s, a, b, S, cells, cstart, c, best, who):  # noqa: N803
+    """Exact element-sphere bounds of cell ``c`` against spheres ``a..b-1`` at state ``s``."""
+    for sp in range(a, b):
+        r = R[sp]
+        if r < 0.0:
+            continue
+        cx, cy, cz = C[s, sp, 0], C[s, sp, 1], C[s, sp, 2]
+        if _gap(cx, cy, cz, r, cells, c) >= best:
+            continue
+        for e in range(cstart[c], cstart[c + 1]):
+            d = _gap(cx, cy, cz, r, S, e)
+            if d < best:
+                best = d
+                who = e
+    return best, who
+
+
+@njit(cache=True, nogil=True)
 def prefix_separation(C, R, body_start, Bd, s0, s1, S, cells, cstart, blocks, bstart,  # noqa: N803
                       cap, out, arg):
     """Running minimum over states ``s0..s1-1`` of the separation lower bound [m].
+
+    Per state, the (body, cell) pair with the smallest lower bound is refined first, so
+    that the minimum found prunes the ordered pass over blocks, cells and spheres that
+    follows.
 
     Args:
         C: Robot sphere centres per state (n_states, K, 3).
@@ -135,6 +157,29 @@ def prefix_separation(C, R, body_start, Bd, s0, s1, S, cells, cstart, blocks, bs
     who = -1
     nbodies = body_start.size - 1
     for s in range(s0, s1):
+        # Seed: the most promising pair.
+        g_min = best
+        m_min = -1
+        c_min = -1
+        for m in range(nbodies):
+            bx, by, bz, br = Bd[s, m, 0], Bd[s, m, 1], Bd[s, m, 2], Bd[s, m, 3]
+            if br < 0.0:
+                continue
+            for k in range(blocks.shape[0]):
+                if _gap(bx, by, bz, br, blocks, k) >= g_min:
+                    continue
+                for c in range(bstart[k], bstart[k + 1]):
+                    g = _gap(bx, by, bz, br, cells, c)
+                    if g < g_min:
+                        g_min = g
+                        m_min = m
+                        c_min = c
+        if m_min < 0:  # nothing can beat the minimum at this state
+            out[s - s0] = best
+            arg[s - s0] = who
+            continue
+        best, who = _refine(C, R, s, body_start[m_min], body_start[m_min + 1], S, cells,
+                            cstart, c_min, best, who)
         for m in range(nbodies):
             bx, by, bz, br = Bd[s, m, 0], Bd[s, m, 1], Bd[s, m, 2], Bd[s, m, 3]
             if br < 0.0:
@@ -143,35 +188,30 @@ def prefix_separation(C, R, body_start, Bd, s0, s1, S, cells, cstart, blocks, bs
                 if _gap(bx, by, bz, br, blocks, k) >= best:
                     continue
                 for c in range(bstart[k], bstart[k + 1]):
-                    if _gap(bx, by, bz, br, cells, c) >= best:
-                        continue
-                    for sp in range(body_start[m], body_start[m + 1]):
-                        r = R[sp]
-                        if r < 0.0:
-                            continue
-                        cx, cy, cz = C[s, sp, 0], C[s, sp, 1], C[s, sp, 2]
-                        if _gap(cx, cy, cz, r, cells, c) >= best:
-                            continue
-                        for e in range(cstart[c], cstart[c + 1]):
-                            d = _gap(cx, cy, cz, r, S, e)
-                            if d < best:
-                                best = d
-                                who = e
+                    if _gap(bx, by, bz, br, cells, c) < best:
+                        best, who = _refine(C, R, s, body_start[m], body_start[m + 1], S,
+                                            cells, cstart, c, best, who)
         out[s - s0] = best
         arg[s - s0] = who
 
 
 @njit(cache=True, nogil=True)
-def scene_distance(P, kind, T, dims, out):  # noqa: N803
+def scene_distance(P, kind, T, dims, reach, within, out):  # noqa: N803
     """Smallest signed distance [m] from each point of ``P`` (n, 3) to the scene's
     primitives (kind 0 box, 1 cylinder, 2 sphere, 3 capsule; ``T`` (k, 4, 4) their
-    placements, ``dims`` (k, 3) half sizes / radius, half length) into ``out``."""
+    placements, ``dims`` (k, 3) half sizes / radius, half length, ``reach`` (k,) the
+    radius of a sphere about each that holds it) into ``out``; objects farther than
+    ``within`` are not measured exactly (their bounding-sphere distance is used)."""
     for i in range(P.shape[0]):
         best = np.inf
         for o in range(kind.size):
             dx = P[i, 0] - T[o, 0, 3]
             dy = P[i, 1] - T[o, 1, 3]
             dz = P[i, 2] - T[o, 2, 3]
+            far = math.sqrt(dx * dx + dy * dy + dz * dz) - reach[o]
+            if far > within:
+                best = min(best, far)
+                continue
             x = T[o, 0, 0] * dx + T[o, 1, 0] * dy + T[o, 2, 0] * dz
             y = T[o, 0, 1] * dx + T[o, 1, 1] * dy + T[o, 2, 1] * dz
             z = T[o, 0, 2] * dx + T[o, 1, 2] * dy + T[o, 2, 2] * dz

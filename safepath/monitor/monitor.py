@@ -291,7 +291,11 @@ class Monitor:
             from . import _kernels
 
             d = np.empty(len(E))
-            _kernels.scene_distance(np.ascontiguousarray(E[:, :3]), *self._scene, d)
+            kinds, Ts, dims = self._scene
+            reach = dims.sum(axis=1) + 1e-9  # holds a box, cylinder, capsule, sphere
+            within = o.scene_filter + float(E[:, 3].max())
+            _kernels.scene_distance(np.ascontiguousarray(E[:, :3]), kinds, Ts, dims, reach,
+                                    within, d)
             near = d - E[:, 3] <= o.scene_filter
             scene = int(near.sum())
             E = E[~near]

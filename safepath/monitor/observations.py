@@ -263,6 +263,8 @@ class Cloud:
     def valid_points(self) -> tuple[np.ndarray, Counts]:
         """Finite points and what became of the others."""
         P = self.points
+        if np.isfinite(P).all():  # the common case, one pass
+            return P, Counts(used=len(P))
         nan = np.isnan(P).any(axis=1)
         finite = np.isfinite(P).all(axis=1)
         return P[finite], Counts(used=int(finite.sum()), nan=int(nan.sum()),

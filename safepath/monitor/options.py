@@ -76,7 +76,7 @@ class MonitorOptions:
     min_scale: float = 0.1
     scale_step: float = 0.05
     horizon: float = 1.0
-    sweep_spacing: float = 0.01
+    sweep_spacing: float = 0.02
     sphere_cell: float = 0.04
     cell_size: float = 0.05
     range_cap: float = 3.0

@@ -87,12 +87,33 @@ class MonitoredPath:
         """Path parameter of the last knot [s]."""
         return float(self.traj.t[-1])
 
+    def sample(self, tau: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Position, velocity and acceleration of the verified trajectory at ``tau``
+        (its own cubic Hermite interpolation, as :meth:`Trajectory.sample`)."""
+        tr = self.traj
+        t = tr.t
+        if t.size == 1 or tau <= t[0]:
+            return tr.q[0].copy(), tr.qd[0].copy(), tr.qdd[0].copy()
+        if tau >= t[-1]:
+            return tr.q[-1].copy(), tr.qd[-1].copy(), tr.qdd[-1].copy()
+        k = min(int(np.searchsorted(t, tau, side="right")) - 1, t.size - 2)
+        h = t[k + 1] - t[k]
+        s = (tau - t[k]) / h
+        s2, s3 = s * s, s * s * s
+        p0, p1, m0, m1 = tr.q[k], tr.q[k + 1], tr.qd[k] * h, tr.qd[k + 1] * h
+        q = ((2 * s3 - 3 * s2 + 1) * p0 + (s3 - 2 * s2 + s) * m0
+             + (-2 * s3 + 3 * s2) * p1 + (s3 - s2) * m1)
+        dq = ((6 * s2 - 6 * s) * p0 + (3 * s2 - 4 * s + 1) * m0
+              + (-6 * s2 + 6 * s) * p1 + (3 * s2 - 2 * s) * m1) / h
+        ddq = tr.qdd[k] + s * (tr.qdd[k + 1] - tr.qdd[k])
+        return q, dq, ddq
+
     def grid(self, tau0: float) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         """Knots from ``tau0`` on: (tau, q, Q', Q''); the first is the state at ``tau0``."""
         tr = self.traj
-        tau0 = float(np.clip(tau0, tr.t[0], tr.t[-1]))
+        tau0 = min(max(float(tau0), float(tr.t[0])), float(tr.t[-1]))
         k = int(np.searchsorted(tr.t, tau0 + 1e-9, side="right"))
-        q0, qd0, qdd0 = tr.sample([tau0])
+        q0, qd0, qdd0 = self.sample(tau0)
         tau = np.concatenate([[tau0], tr.t[k:]])
         return (tau, np.vstack([q0, tr.q[k:]]), np.vstack([qd0, tr.qd[k:]]),
                 np.vstack([qdd0, tr.qdd[k:]]))

@@ -89,7 +89,7 @@ class _Prefix:
         s = self.sweep.index_at(tau)
         if self.sweep.tau[s] < tau - 1e-12:
             s += 1
-        k = int(np.clip(s - self.s0, 0, self.out.size - 1))
+        k = min(max(s - self.s0, 0), self.out.size - 1)
         v = float(self.out[k])
         return float("inf") if v >= self.cap else v - self.sweep.spacing / 2
 
@@ -160,18 +160,6 @@ def assess(path: MonitoredPath, sweep: PathSweep, elements: tuple[np.ndarray, ..
     if chosen == 0.0:
         kept, needed = prefix.until(where0), (
             o.approach_speed * (age + o.command_latency + t_stop) + o.constant_terms)
-    travel = _travel(path, sweep, tau_l, where0)
+    travel = sweep.travel_between(tau_l, where0)
     return Assessment(chosen, prefix.until(tau_c), prefix.until(horizon), kept, needed,
                       t_stop, travel, prefix.closest())
-
-
-def _travel(path: MonitoredPath, sweep: PathSweep, tau_a: float, tau_b: float) -> float:
-    """Upper bound on how far any robot point moves along the path from ``tau_a`` to
-    ``tau_b`` [m] (sum of the knot steps' travel bounds)."""
-    tr = path.traj
-    a = int(np.searchsorted(tr.t, tau_a, side="left"))
-    b = int(np.searchsorted(tr.t, tau_b, side="right"))
-    if b - a < 1:
-        return 0.0
-    q = np.vstack([tr.sample([tau_a])[0], tr.q[a:b]])
-    return float(np.sum(sweep.spheres.travel(np.diff(q, axis=0))))

@@ -13,6 +13,7 @@ from __future__ import annotations
 
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 
@@ -161,8 +162,8 @@ def simulate(monitor: Monitor, motions: Sequence[tuple[Trajectory, str | None]],
              kind: str = "cloud", period: float = 1 / 30, latency: float = 0.01,
              points: int = 300, dt: float = 0.004, until: float = 20.0, seed: int = 0,
              on_replan: Callable[[Decision, float],
-                                 list[tuple[Trajectory, str | None]] | None] | None = None
-             ) -> SimResult:
+                                 list[tuple[Trajectory, str | None]] | None] | None = None,
+             recorder: Any = None) -> SimResult:
     """Run motions one after the other under the monitor.
 
     Args:
@@ -181,6 +182,8 @@ def simulate(monitor: Monitor, motions: Sequence[tuple[Trajectory, str | None]],
         on_replan: Called on a ``replan`` decision with the time; returns the motions
             (with their held objects) that replace the rest (the first followed at once),
             or None.
+        recorder: A :class:`~safepath.monitor.ros.MonitorRecorder` that receives the
+            observations, decisions, the robot's state (50 Hz) and the true obstacle.
     """
     rng = np.random.default_rng(seed)
     queue = list(motions)
@@ -209,6 +212,9 @@ def simulate(monitor: Monitor, motions: Sequence[tuple[Trajectory, str | None]],
                          -np.pi, 2 * np.pi / 360, 0.05, 8.0)
             d = monitor.observe(o, t)
             res.decisions.append(d)
+            if recorder is not None:
+                recorder.observation(t, o)
+                recorder.decision(d)
             if d.replacement is not None and d.replacement_start is not None:
                 pending.append((d.replacement_start, d.replacement))
                 res.replacements.append((d.replacement_start, d.replacement))
@@ -230,6 +236,9 @@ def simulate(monitor: Monitor, motions: Sequence[tuple[Trajectory, str | None]],
         obs.append(obstacle.at(t))
         mot.append(motion)
         res.held.append(held)
+        if recorder is not None and len(ts) % 5 == 1:
+            recorder.joint_state(t, q[0], qd[0])
+            recorder.truth(t, obs[-1], obstacle.radius)
         at_end = t - cmd_start >= cmd.duration - 1e-9 and not pending
         if at_end and cmd.info.get("monitor") != "stop" and monitor.last.scale > 0 and queue:
             nxt, held = queue.pop(0)

@@ -146,6 +146,9 @@ class PathSweep:
         bounding: World body bounding spheres per sample (n, bodies, 4) [m].
         spheres: The robot's spheres.
         spacing: Largest motion of any robot point between two samples [m].
+        path_t: Path parameter of every knot of the path [s].
+        travel: Per knot, a bound on how far any robot point has moved along the path
+            since its start [m] (running sum of the knot steps' bounds).
     """
 
     tau: np.ndarray
@@ -154,6 +157,8 @@ class PathSweep:
     bounding: np.ndarray
     spheres: RobotSpheres
     spacing: float
+    path_t: np.ndarray
+    travel: np.ndarray
 
     @classmethod
     def build(cls, robot: Robot, spheres: RobotSpheres, tau: np.ndarray, q: np.ndarray, *,
@@ -175,9 +180,18 @@ class PathSweep:
         csum = np.concatenate([[0.0], np.cumsum(step)])
         real = float(np.max(np.diff(csum[idx]))) if idx.size > 1 else 0.0
         C, Bd = spheres.place(robot, q[idx])
-        return cls(np.asarray(tau, dtype=float)[idx], idx, C, Bd, spheres, max(real, 0.0))
+        tau = np.asarray(tau, dtype=float)
+        return cls(tau[idx], idx, C, Bd, spheres, max(real, 0.0), tau, csum)
+
+    def travel_between(self, tau_a: float, tau_b: float) -> float:
+        """Bound on how far any robot point moves along the path from ``tau_a`` to
+        ``tau_b`` [m] (whole knot steps around them counted)."""
+        last = self.travel.size - 1
+        a = min(max(int(np.searchsorted(self.path_t, tau_a, side="right")) - 1, 0), last)
+        b = min(max(int(np.searchsorted(self.path_t, tau_b, side="left")), 0), last)
+        return float(max(self.travel[b] - self.travel[a], 0.0))
 
     def index_at(self, tau: float) -> int:
         """The last sample at or before path parameter ``tau``."""
-        return int(np.clip(np.searchsorted(self.tau, tau, side="right") - 1, 0,
-                           self.tau.size - 1))
+        k = int(np.searchsorted(self.tau, tau, side="right")) - 1
+        return min(max(k, 0), self.tau.size - 1)
