@@ -8,11 +8,23 @@ checks here first and hands viser a port that was free a moment ago.
 from __future__ import annotations
 
 import errno
+import ipaddress
 import socket
 
 from ..errors import InputError
 
-__all__ = ["choose_port", "port_is_free"]
+__all__ = ["choose_port", "is_loopback", "port_is_free"]
+
+
+def is_loopback(host: str) -> bool:
+    """Whether ``host`` is a loopback address (only this machine can connect); a name
+    other than ``localhost`` counts as reachable from elsewhere."""
+    if host == "localhost":
+        return True
+    try:
+        return ipaddress.ip_address(host).is_loopback
+    except ValueError:
+        return False
 
 
 def _family(host: str) -> socket.AddressFamily:

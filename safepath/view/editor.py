@@ -65,7 +65,6 @@ class PoseEditor:
         self.pose = name
         if self.widgets is not None:
             self.widgets.pose.value = name
-            self.widgets.enable(True)
         self.show(status, move_gizmo=True)
         return status
 
@@ -108,7 +107,6 @@ class PoseEditor:
         self.pose = None
         if self.widgets is not None:
             self.widgets.pose.value = NO_POSE
-            self.widgets.enable(False)
         if self.gizmo is not None:
             self.gizmo.visible = False
 

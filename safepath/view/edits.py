@@ -1,7 +1,9 @@
 """Edits of taught poses: live checks, inverse kinematics for TCP drags, saving.
 
-No GUI here: a :class:`~safepath.view.editor.PoseEditor` drives :class:`PoseEdits` from
-its sliders and its TCP gizmo, and shows the :class:`PoseStatus` it returns. A pose is checked as
+No GUI and no file here: a :class:`~safepath.view.editor.PoseEditor` drives
+:class:`PoseEdits` from its sliders and its TCP gizmo and shows the :class:`PoseStatus`
+it returns; the session writes what :meth:`PoseEdits.to_save` gives through a
+:class:`~safepath.view.store.PosesStore`. A pose is checked as
 ``safepath check`` does: with the gripper empty and, where the scene's grasp allows
 it, holding the object, each with the contacts allowed at that pose.
 """
@@ -9,16 +11,16 @@ it, holding the object, each with the contacts allowed at that pose.
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pinocchio as pin
 
 from ..cell import Cell
 from ..collision import CollisionChecker, StateReport
-from ..errors import CollisionError, IKError
+from ..errors import CollisionError, IKError, PoseError, SafepathError
 from ..planning import solve_ik
-from ..poses import save_poses
+from .store import PoseChange, PosesChanged, PosesSnapshot
 
 __all__ = ["PoseStatus", "PoseEdits"]
 
@@ -66,6 +68,13 @@ class PoseStatus:
         return min(self.reports, key=lambda hr: (hr[1].valid, hr[1].margin_ok,
                                                  hr[1].clearance))
 
+    def to_json(self) -> dict[str, Any]:
+        """The check as the save log records it (clearance in [mm])."""
+        clearance = self.clearance
+        return {"valid": self.valid, "margin_ok": self.margin_ok,
+                "clearance_mm": round(clearance * 1000, 2) if np.isfinite(clearance) else None,
+                "collisions": [list(p) for p in self.collisions]}
+
     def summary(self) -> str:
         """Markdown lines for the GUI."""
         lines = []
@@ -85,26 +94,46 @@ class PoseStatus:
 
 
 class PoseEdits:
-    """Edits of a cell's taught poses, kept apart from the cell until saved.
+    """One editor's edits of a cell's taught poses, over a base version of the poses file.
+
+    Every edit remembers the saved value it started from (its origin). When the base
+    moves on (another editor saved, or the file was reloaded), an edit whose pose was
+    changed there becomes a *conflict*: it cannot be saved until the editor takes the
+    saved value (:meth:`take_saved`) or keeps its own over it (:meth:`keep_mine`). Edits
+    of other poses carry over.
 
     Args:
-        cell: The cell; its ``poses`` are updated when the edits are saved.
+        cell: The cell (robot, scene, grasp).
+        base: The version of the poses file the edits start from.
+        checkers: Collision checkers by (pose, held), shared between editors that are
+            used under one lock.
     """
 
-    def __init__(self, cell: Cell) -> None:
+    def __init__(self, cell: Cell, base: PosesSnapshot, *,
+                 checkers: dict[tuple[str, bool], CollisionChecker] | None = None) -> None:
         self.cell = cell
+        self.base = base
         self.edits: dict[str, np.ndarray] = {}
-        self._checkers: dict[tuple[str, bool], CollisionChecker] = {}
+        self.origins: dict[str, np.ndarray] = {}
+        self.conflicts: dict[str, PoseChange] = {}
+        self._checkers = {} if checkers is None else checkers
 
     def q(self, name: str) -> np.ndarray:
-        """The pose ``name`` as edited [rad] (a copy)."""
+        """The pose ``name`` as edited [rad] (a copy).
+
+        Raises:
+            PoseError: No pose of that name.
+        """
         if name in self.edits:
             return self.edits[name].copy()
-        return self.cell.pose(name).copy()
+        if name not in self.base.poses:
+            raise PoseError(f"unknown pose '{name}' (known: {', '.join(self.base.poses)})",
+                            path=self.cell.poses_path, key=name)
+        return self.base.poses[name].copy()
 
     def poses(self) -> dict[str, np.ndarray]:
         """Every taught pose, edits applied."""
-        return {name: self.q(name) for name in self.cell.poses}
+        return {name: self.q(name) for name in self.base.poses}
 
     def held_states(self, name: str) -> tuple[bool, ...]:
         """Gripper states pose ``name`` is used in (held only where the grasp allows)."""
@@ -131,13 +160,15 @@ class PoseEdits:
         Raises:
             PoseError: Unknown pose, or not a finite vector of the right length.
         """
-        self.cell.pose(name)
+        origin = self.q(name) if name not in self.edits else None
         self.edits[name] = self.cell.robot.as_joint_vector(q, name=name, check_limits=False)
+        if origin is not None:
+            self.origins[name] = origin
         return self.status(name)
 
     def reset(self, name: str) -> PoseStatus:
         """Drop the edit of pose ``name``."""
-        self.edits.pop(name, None)
+        self._drop(name)
         return self.status(name)
 
     def solve_tcp(self, name: str, T_world_tcp: pin.SE3) -> PoseStatus:
@@ -157,27 +188,74 @@ class PoseEdits:
         """Edited poses that are outside the limits or in collision."""
         return [s for s in (self.status(n) for n in self.edits) if not s.valid]
 
-    def save(self, *, insist: bool = False, backup: bool = True) -> Path:
-        """Write every pose (edits applied) to the cell's poses file, atomically.
+    def rebase(self, base: PosesSnapshot) -> list[str]:
+        """Move onto a newer version of the poses file; returns the poses that became
+        conflicts (edited here, changed there)."""
+        new = []
+        for name in list(self.edits):
+            saved = base.poses.get(name)
+            if saved is None or np.array_equal(saved, self.edits[name]):
+                self._drop(name)  # the pose is gone, or saved as edited here: nothing lost
+            elif not np.array_equal(saved, self.origins[name]):
+                if name not in self.conflicts:
+                    new.append(name)
+                self.conflicts[name] = PoseChange(name, self.origins[name], saved.copy())
+        self.base = base
+        return new
 
-        Args:
-            insist: Save even when an edited pose is in collision.
-            backup: Keep the previous file as ``poses.yaml~``.
+    def take_saved(self, name: str) -> PoseStatus:
+        """Resolve a conflict by dropping this edit: the saved value wins."""
+        self._conflict(name)
+        return self.reset(name)
+
+    def keep_mine(self, name: str) -> PoseStatus:
+        """Resolve a conflict by keeping this edit over the saved value."""
+        self._conflict(name)
+        self.origins[name] = self.base.poses[name].copy()
+        del self.conflicts[name]
+        return self.status(name)
+
+    def to_save(self, *, insist: bool = False) -> tuple[dict[str, np.ndarray],
+                                                        dict[str, dict[str, Any]]]:
+        """Every pose to write (edits applied) and the check of each edited one.
 
         Raises:
-            CollisionError: An edited pose is in collision and ``insist`` is false
-                (nothing is written).
-            PoseError: A pose outside the joint limits (nothing is written).
+            SafepathError: Nothing is edited.
+            PosesChanged: An edit is in conflict (names the poses and what changed).
+            CollisionError: An edited pose is in collision and ``insist`` is false.
         """
-        bad = [s for s in self.invalid() if s.collisions]
+        if not self.edits:
+            raise SafepathError("nothing to save: no pose is edited")
+        if self.conflicts:
+            names = self.cell.robot.joint_names
+            changes = list(self.conflicts.values())
+            what = "; ".join(c.describe(names) for c in changes)
+            raise PosesChanged(f"not saved: {', '.join(self.conflicts)} changed in another "
+                               f"save while you edited ({what}); take the saved version or "
+                               f"keep yours, pose by pose", path=self.cell.poses_path,
+                               changes=changes, conflicts=list(self.conflicts))
+        statuses = [self.status(n) for n in self.edits]
+        bad = [s for s in statuses if s.collisions]
         if bad and not insist:
             pairs = [p for s in bad for p in s.collisions]
-            names = ", ".join(s.pose for s in bad)
-            raise CollisionError(f"not saved: pose {names} in collision "
+            names_ = ", ".join(s.pose for s in bad)
+            raise CollisionError(f"not saved: pose {names_} in collision "
                                  f"({', '.join(f'{a} / {b}' for a, b in pairs)})",
                                  q=bad[0].q, pairs=pairs)
-        merged = self.poses()
-        save_poses(self.cell.poses_path, merged, self.cell.robot, backup=backup)
-        self.cell.poses.update(merged)
+        return self.poses(), {s.pose: s.to_json() for s in statuses}
+
+    def saved(self, base: PosesSnapshot) -> None:
+        """The edits were written as ``base``: they are the base now."""
         self.edits.clear()
-        return self.cell.poses_path
+        self.origins.clear()
+        self.conflicts.clear()
+        self.base = base
+
+    def _drop(self, name: str) -> None:
+        self.edits.pop(name, None)
+        self.origins.pop(name, None)
+        self.conflicts.pop(name, None)
+
+    def _conflict(self, name: str) -> None:
+        if name not in self.conflicts:
+            raise SafepathError(f"pose '{name}' is not in conflict")

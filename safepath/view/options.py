@@ -7,6 +7,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..errors import InputError
+from .access import check_token
 from .backend import BackendKind
 
 __all__ = ["ViewOptions"]
@@ -17,7 +18,8 @@ class ViewOptions:
     """Options of a review session.
 
     Attributes:
-        host: Address to listen on (local only by default).
+        host: Address to listen on (local only by default). Beyond loopback, pages are
+            read-only until unlocked with the token.
         port: Port to listen on; 0 lets the system pick one.
         strict_port: Fail when ``port`` is taken instead of using the next free one.
         rate: Playback updates per second [Hz].
@@ -26,6 +28,12 @@ class ViewOptions:
         backend: Where planning runs (``auto``: the runtime planner if available,
             else a worker process).
         plan_on_start: Plan the cell at start-up when no plans are given.
+        token: The token that unlocks editing (at least 8 characters); None: one is
+            made up when the host is not loopback. Given, it is needed on loopback too.
+        allow_anonymous_edit: Every page may edit and save without a token, whatever
+            the host (for a trusted lab network).
+        token_attempts: Wrong tokens allowed per client host and minute.
+        replan_on_save: Re-plan the routes a save affects (else they are marked stale).
     """
 
     host: str = "127.0.0.1"
@@ -36,6 +44,10 @@ class ViewOptions:
     seed: int = 0
     backend: BackendKind = "auto"
     plan_on_start: bool = True
+    token: str | None = None
+    allow_anonymous_edit: bool = False
+    token_attempts: int = 5
+    replan_on_save: bool = True
 
     def __post_init__(self) -> None:
         if not 0 <= self.port <= 65535:
@@ -45,6 +57,14 @@ class ViewOptions:
         if not (np.isfinite(self.sample_period) and 0.0 < self.sample_period <= 1.0):
             raise InputError(f"sample_period must be in (0, 1] s, got {self.sample_period}",
                              key="sample_period")
+        if self.token is not None:
+            check_token(self.token)
+            if self.allow_anonymous_edit:
+                raise InputError("a token and allow_anonymous_edit exclude each other",
+                                 key="allow_anonymous_edit")
+        if not 1 <= self.token_attempts <= 100:
+            raise InputError(f"token_attempts must be in [1, 100], got {self.token_attempts}",
+                             key="token_attempts")
         if self.backend not in ("auto", "process", "runtime"):
             raise InputError(f"backend must be 'auto', 'process' or 'runtime', got "
                              f"{self.backend!r}", key="backend")

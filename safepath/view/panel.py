@@ -1,10 +1,13 @@
 """The review session's control panel: its layout and handles, no behaviour.
 
-Layout, top to bottom: a header (cell, robot, status line); **Playback** (route
-dropdown, time readout, time slider, Play / Pause, speed, loop); **Safety** (the shown
-state's check, the minimum-clearance plot, the joint-speed plot); **Edit poses** (pose
-dropdown, its live check, one slider per joint, TCP gizmo, reset, re-plan, "I insist",
-save); **Display** (robot style, taught poses, path).
+Shared by every page (server-scoped), top to bottom: a header (cell, robot, status line,
+notice); **Playback** (route dropdown, time readout, time slider, Play / Pause, speed,
+loop); **Safety** (the shown state's check, the minimum-clearance plot, the joint-speed
+plot); **Display** (robot style, taught poses, path), kept last. Each page gets its own
+(client-scoped) **Edit poses** folder: an access note with the token field and Unlock
+(when editing needs the token), pose dropdown, its live check, one slider per joint,
+TCP gizmo, reset, take the saved version / keep mine (conflicts), re-plan, "I insist",
+save, reload.
 """
 
 from __future__ import annotations
@@ -26,6 +29,8 @@ NO_POSE = "(review routes)"
 
 _JOINT_COLORS = ("#e63946", "#f4a261", "#2a9d8f", "#264653", "#8338ec", "#3a86ff",
                  "#ff006e", "#8ac926")
+# Order of the folders kept at the end (pages add their edit folder later).
+_LAST = 1e9
 # The x axis is seconds, not a date.
 _SCALES: dict[str, Any] = {"x": {"time": False}}
 
@@ -36,6 +41,7 @@ class Panel:
 
     header: Any
     status: Any
+    notice: Any
     route: Any
     readout: Any
     time: Any
@@ -46,7 +52,6 @@ class Panel:
     state: Any
     clearance_plot: Any
     speed_plot: Any
-    edit: EditPanel
     visual_style: Any
     show_poses: Any
     show_path: Any
@@ -54,21 +59,33 @@ class Panel:
 
 @dataclass
 class EditPanel:
-    """Handles of the "Edit poses" folder (one per editor)."""
+    """Handles of one page's "Edit poses" folder (see the module docstring)."""
 
+    access_note: Any
+    token: Any
+    unlock: Any
     pose: Any
     pose_state: Any
     joints: list[Any]
     gizmo_enabled: Any
     reset: Any
+    take_saved: Any
+    keep_mine: Any
     replan: Any
     insist: Any
     save: Any
+    reload: Any
 
-    def enable(self, editing: bool) -> None:
-        """Enable the joint sliders and the reset button while a pose is edited."""
+    def enable(self, *, may_edit: bool, editing: bool, conflict: bool) -> None:
+        """Enable what the page may use now."""
         for handle in (*self.joints, self.reset):
-            handle.disabled = not editing
+            handle.disabled = not (may_edit and editing)
+        for handle in (self.take_saved, self.keep_mine):
+            handle.disabled = not (may_edit and conflict)
+        for handle in (self.replan, self.save, self.reload, self.insist):
+            handle.disabled = not may_edit
+        if self.token is not None:
+            self.token.visible = self.unlock.visible = not may_edit
 
 
 def clearance_plot_data(times: np.ndarray, clearance: np.ndarray, margin: float,
@@ -93,6 +110,7 @@ def build_panel(server: viser.ViserServer, robot: Robot, *, title: str, poses: l
     gui = server.gui
     header = gui.add_markdown(title)
     status = gui.add_markdown("")
+    notice = gui.add_markdown("")
     with gui.add_folder("Playback"):
         route = gui.add_dropdown("Route", [NO_ROUTE], initial_value=NO_ROUTE)
         readout = gui.add_markdown("")
@@ -119,20 +137,24 @@ def build_panel(server: viser.ViserServer, robot: Robot, *, title: str, poses: l
         speed_plot = gui.add_uplot(
             speed_plot_data(t0, np.zeros((2, robot.dof))), tuple(joint_series),
             title="Joint speed / limit", aspect=1.6, scales=_SCALES)
-    edit = build_edit_panel(gui, robot, poses)
-    with gui.add_folder("Display", expand_by_default=False):
+    with gui.add_folder("Display", expand_by_default=False, order=_LAST):
         visual_style = gui.add_checkbox("Visual style", False,
                                         hint="URDF visual materials instead of per-link "
                                              "collision colours")
         show_poses = gui.add_checkbox("Taught poses", True)
         show_path = gui.add_checkbox("TCP path", True)
-    return Panel(header, status, route, readout, time, play, pause, speed, loop, state,
-                 clearance_plot, speed_plot, edit, visual_style, show_poses, show_path)
+    return Panel(header, status, notice, route, readout, time, play, pause, speed, loop,
+                 state, clearance_plot, speed_plot, visual_style, show_poses, show_path)
 
 
-def build_edit_panel(gui: Any, robot: Robot, poses: list[str]) -> EditPanel:
-    """Add the "Edit poses" folder to ``gui`` (the server's or one client's)."""
-    with gui.add_folder("Edit poses", expand_by_default=False):
+def build_edit_panel(gui: Any, robot: Robot, poses: list[str], *, token: bool
+                     ) -> EditPanel:
+    """Add an "Edit poses" folder to ``gui`` (one client's); with ``token``, a field to
+    enter the edit token and an Unlock button."""
+    with gui.add_folder("Edit poses", order=_LAST - 1):
+        access_note = gui.add_markdown("")
+        token_field = gui.add_text("Edit token", "") if token else None
+        unlock = gui.add_button("Unlock editing") if token else None
         pose = gui.add_dropdown("Pose", [NO_POSE, *poses], initial_value=NO_POSE)
         pose_state = gui.add_markdown("Pick a pose to edit it.")
         joints = [gui.add_slider(f"{name} [rad]", min=float(robot.lower[j]),
@@ -144,7 +166,14 @@ def build_edit_panel(gui: Any, robot: Robot, poses: list[str]) -> EditPanel:
         gizmo_enabled = gui.add_checkbox("TCP gizmo", True,
                                          hint="Drag the TCP; the joints follow by IK")
         reset = gui.add_button("Reset pose", disabled=True)
+        take_saved = gui.add_button("Take the saved version", disabled=True,
+                                    hint="Conflict: drop your edit of this pose")
+        keep_mine = gui.add_button("Keep my edit", disabled=True,
+                                   hint="Conflict: save your edit over the saved version")
         replan = gui.add_button("Re-plan affected routes")
         insist = gui.add_checkbox("I insist (save even in collision)", False)
         save = gui.add_button("Save poses")
-    return EditPanel(pose, pose_state, joints, gizmo_enabled, reset, replan, insist, save)
+        reload = gui.add_button("Reload poses.yaml",
+                                hint="Read the file again; your edits of other poses stay")
+    return EditPanel(access_note, token_field, unlock, pose, pose_state, joints, gizmo_enabled,
+                     reset, take_saved, keep_mine, replan, insist, save, reload)

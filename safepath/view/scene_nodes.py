@@ -293,6 +293,12 @@ class PoseFrames:
             frame.wxyz = wxyz
             frame.position = position
 
+    def remove(self, name: str) -> None:
+        """Remove the frame of pose ``name`` (a page's own: the shared one shows again)."""
+        frame = self.frames.pop(name, None)
+        if frame is not None:
+            frame.remove()
+
     def set_visible(self, visible: bool) -> None:
         """Show or hide the frames."""
         self._visible = visible

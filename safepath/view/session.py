@@ -3,25 +3,31 @@
 A :class:`ReviewSession` serves one cell on a viser server: the robot's geometry, the
 cell's objects, the taught poses as TCP frames and, per planned route, the TCP path
 coloured by clearance, with a timeline driven by a 30 Hz server thread that samples the
-real trajectory timing. Poses can be edited (joint sliders or a TCP gizmo, checked
-live), routes re-planned in a worker process (the page never freezes), and the poses
-saved back atomically. Every GUI callback is guarded: a failure shows as one line in
-the panel, never as a traceback.
+real trajectory timing. Every page watches the same playback; each page edits on its
+own (joint sliders or a TCP gizmo, checked live), re-plans in a worker process (the
+page never freezes), and saves back atomically. Every GUI callback is guarded: a
+failure shows as one line in the page, never as a traceback.
 
-The session composes small parts, each with explicit inputs: a
-:class:`~safepath.view.stage.Stage` (what is drawn), a
-:class:`~safepath.view.timeline.Timeline` (playback), a
-:class:`~safepath.view.editor.PoseEditor` (pose edits); one lock guards them all.
+Who may edit: see :mod:`safepath.view.access` (a session bound beyond loopback is
+read-only until a page is unlocked with the token). No edit is lost: see
+:mod:`safepath.view.sync` and :mod:`safepath.view.store` (saves over the version
+loaded only, conflicts named pose by pose, every save logged in ``poses.log``).
+
+The session composes small parts with explicit inputs: a
+:class:`~safepath.view.stage.Stage` (what every page sees), a
+:class:`~safepath.view.timeline.Timeline` (playback), :class:`~safepath.view.plans.Plans`
+(routes), :class:`~safepath.view.sync.SharedPoses` (the saved poses), a
+:class:`~safepath.view.editor.PoseEditor` for edits from Python and a
+:class:`~safepath.view.clients.ClientEditor` per page; one lock guards them all.
 """
 
 from __future__ import annotations
 
-import functools
 import logging
 import threading
 import time
 from collections.abc import Callable, Mapping
-from concurrent.futures import CancelledError, Future
+from concurrent.futures import Future
 from pathlib import Path
 from typing import Any
 
@@ -32,22 +38,20 @@ import viser
 from ..cell import load_cell
 from ..errors import SafepathError
 from ..trajectory import Trajectory
-from ._ports import choose_port
-from .analysis import (
-    CLEAR_ENOUGH,
-    RouteReview,
-    affected_routes,
-    analyse_routes,
-    load_plans,
-    routes_of,
-)
-from .backend import PlanBackend, make_backend
+from ._ports import choose_port, is_loopback
+from .access import Access, new_token
+from .analysis import CLEAR_ENOUGH, RouteReview, load_plans, routes_of
+from .clients import ClientEditor, guard
 from .editor import PoseEditor
 from .edits import PoseEdits, PoseStatus
 from .options import ViewOptions
-from .panel import NO_POSE, NO_ROUTE, Panel, build_panel
+from .pages import Pages
+from .panel import NO_ROUTE, Panel, build_panel
+from .plans import Plans
 from .scene_nodes import CellNodes, PoseFrames, RobotNodes, configure_lighting
 from .stage import ShownState, Stage
+from .store import PosesStore
+from .sync import SharedPoses
 from .timeline import Timeline
 
 __all__ = ["ViewOptions", "ShownState", "ReviewSession"]
@@ -56,6 +60,10 @@ log = logging.getLogger(__name__)
 
 #: Readout refresh period [s]; the robot itself moves at the playback rate.
 _TEXT_PERIOD = 0.1
+#: How often the poses file is checked for changes made outside the session [s].
+_WATCH_PERIOD = 1.0
+#: Who saves through the Python API (the save log's ``client``).
+PYTHON_CLIENT = "python"
 
 
 class ReviewSession:
@@ -65,7 +73,7 @@ class ReviewSession:
         scene: The scene folder.
         plans: Trajectories written by ``safepath plan`` (folder or file); None plans
             the cell at start-up, in the background.
-        options: Host, port, rate, planning.
+        options: Host, port, access, rate, planning.
 
     Raises:
         SafepathError: Unknown scene, unreadable plan, plan for another robot.
@@ -73,16 +81,18 @@ class ReviewSession:
 
     def __init__(self, scene: str | Path, *, plans: str | Path | None = None,
                  options: ViewOptions | None = None) -> None:
-        self.options = options or ViewOptions()
+        self.options = opts = options or ViewOptions()
         self.cell = load_cell(scene)
         self.routes = routes_of(self.cell)
         self._given = load_plans(self.cell, plans) if plans is not None else None
-        self.edits = PoseEdits(self.cell)
-        self._plan_poses = {k: q.copy() for k, q in self.cell.poses.items()}
+        self.poses = SharedPoses(self.cell, PosesStore(self.cell))
+        self.edits = self.poses.new_editor()
+        needs_token = not opts.allow_anonymous_edit and (
+            opts.token is not None or not is_loopback(opts.host))
+        #: The token that unlocks editing (None: editing is open to every page).
+        self.token = (opts.token or new_token()) if needs_token else None
+        self.access = Access(self.token, attempts=opts.token_attempts)
         self._lock = threading.RLock()
-        self._job: Future[dict[str, Trajectory]] | None = None
-        self._backend: PlanBackend | None = None
-        self._plans_ready = threading.Event()
         self._stop = threading.Event()
         self._thread: threading.Thread | None = None
         self._server: viser.ViserServer | None = None
@@ -125,20 +135,26 @@ class ReviewSession:
             configure_lighting(server)
             self.stage = Stage(server, cell)
             self.pose_frames = PoseFrames(server, cell.robot, cell.poses)
-            gizmo = server.scene.add_transform_controls(
-                "/edit/tcp", scale=0.12, depth_test=False, visible=False)
             self.panel: Panel = build_panel(server, cell.robot, title=self._title(),
                                             poses=list(cell.poses), margin=cell.scene.margin,
                                             clear_enough=CLEAR_ENOUGH)
             self.timeline = Timeline(cell, server, self.stage, self.panel, idle_pose=idle)
+            self.plans = Plans(cell, self.routes, self.options, self.timeline, self._lock,
+                               say=self._say, changed=lambda: self.pages.plans_changed())
             self.editor = PoseEditor(cell, self.edits, stage=lambda: self.stage,
-                                     frames=self.pose_frames, widgets=self.panel.edit,
-                                     gizmo=gizmo)
-            self._wire(gizmo)
+                                     frames=self.pose_frames)
+            self.pages = Pages(cell, self.poses, self.access, self._lock,
+                               frames=self.pose_frames, local=self.editor, plans=self.plans,
+                               notice=self.panel.notice, say=self._say,
+                               replan=lambda poses: self.replan(poses=poses),
+                               replan_on_save=self.options.replan_on_save)
+            self._wire()
             self.timeline.draw()
+        server.on_client_connect(lambda client: self.pages.connected(server, client))
+        server.on_client_disconnect(self.pages.disconnected)
         if self._given is not None:
-            self.set_trajectories(self._given)
-            self._plans_ready.set()
+            self.plans.show(self._given)
+            self.plans.ready.set()
         elif self.options.plan_on_start:
             self.replan(everything=True)
         self._thread = threading.Thread(target=self._run, name="safepath-view-playback",
@@ -150,9 +166,9 @@ class ReviewSession:
         self._stop.set()
         if self._thread is not None:
             self._thread.join(timeout=2.0)
-        if self._backend is not None:
-            self._backend.close()
         if self._server is not None:
+            self.pages.close()
+            self.plans.close()
             self._server.stop()
             self._server = None
 
@@ -282,7 +298,7 @@ class ReviewSession:
         with self._lock:
             self.timeline.set_speed(speed)
 
-    # -- pose editing (from Python, on the shared view) -------------------------------------
+    # -- pose editing from Python (trusted; shown to every page) ----------------------------
     def edit_pose(self, name: str) -> PoseStatus:
         """Show pose ``name`` (as edited) for editing; playback pauses.
 
@@ -315,16 +331,8 @@ class ReviewSession:
             return self.editor.reset_pose()
 
     def save_poses(self, *, insist: bool = False) -> Path:
-        """Save the poses (edits applied) to ``poses.yaml``, atomically, with a backup.
-
-        Raises:
-            CollisionError: An edited pose collides and ``insist`` is false.
-        """
-        with self._lock:
-            path = self.edits.save(insist=insist)
-            self._say(f"saved {path.name} (previous version: {path.name}~)")
-            self.editor.refresh()
-            return path
+        """Save the edits made from Python (see :meth:`save_edits`)."""
+        return self.save_edits(self.edits, PYTHON_CLIENT, insist)
 
     def review(self) -> None:
         """Leave pose editing; show the selected route."""
@@ -337,6 +345,34 @@ class ReviewSession:
             self.timeline.active = True
             self.timeline.draw()
 
+    # -- saved poses ------------------------------------------------------------------------
+    def save_edits(self, edits: PoseEdits, client: str, insist: bool = False) -> Path:
+        """Save one editor's edits to ``poses.yaml`` (atomically, the previous file kept
+        as ``poses.yaml~``, a line added to ``poses.log``); every page then shows the
+        new poses, and the routes are re-planned (``replan_on_save``) or marked stale.
+
+        Raises:
+            SafepathError: Nothing is edited.
+            PosesChanged: The file changed since it was loaded, or another save changed a
+                pose edited here (names the poses; nothing is written).
+            CollisionError: An edited pose collides and ``insist`` is false.
+        """
+        return self.pages.save(edits, client, insist)
+
+    def reload_poses(self, client: str = PYTHON_CLIENT) -> None:
+        """Read ``poses.yaml`` again (after a change outside the session): every page shows
+        it; edits of poses changed there become conflicts, the others are kept.
+
+        Raises:
+            PoseError: The file is malformed (nothing changes).
+        """
+        self.pages.reload(client)
+
+    @property
+    def clients(self) -> dict[int, ClientEditor]:
+        """The connected pages' editors, by viser client id."""
+        return self.pages.clients
+
     # -- plans ------------------------------------------------------------------------------
     def load_plans(self, source: str | Path) -> list[str]:
         """Show the trajectories written by ``safepath plan``; returns the route names.
@@ -344,10 +380,7 @@ class ReviewSession:
         Raises:
             TrajectoryError: Unreadable, or made for another robot.
         """
-        trajectories = load_plans(self.cell, source)
-        self.set_trajectories(trajectories, replace=True)
-        self._plan_poses = {k: q.copy() for k, q in self.cell.poses.items()}
-        return list(trajectories)
+        return self.plans.load(source)
 
     def set_trajectories(self, trajectories: Mapping[str, Trajectory], *,
                          poses: Mapping[str, np.ndarray] | None = None,
@@ -357,81 +390,32 @@ class ReviewSession:
         Raises:
             TrajectoryError: A trajectory made for another robot.
         """
-        with self._lock:
-            merged = {} if replace else {k: r.trajectory
-                                         for k, r in self.timeline.reviews.items()}
-        merged.update(trajectories)
-        reviews = analyse_routes(self.cell, merged, poses=poses, routes=self.routes,
-                                 period=self.options.sample_period)
-        if reviews:
-            with self._lock:
-                self.timeline.set_reviews(reviews)
+        self.plans.show(trajectories, poses=poses, replace=replace)
 
     def wait_for_plans(self, timeout: float | None = None) -> bool:
         """Wait for start-up planning or a re-plan; whether routes are shown."""
-        self._plans_ready.wait(timeout)
+        self.plans.ready.wait(timeout)
         return bool(self.timeline.reviews)
 
-    def replan(self, *, everything: bool = False) -> Future[dict[str, Trajectory]]:
-        """Re-plan the routes that use edited poses (all with ``everything``), in the
-        background; the result is shown when it arrives."""
-        with self._lock:
-            if self._job is not None and not self._job.done():
-                raise SafepathError("planning is already running")
-            poses = self.edits.poses()
-            planned = bool(self.timeline.reviews)
-            # Poses that differ from those the shown plans were made with.
-            changed = [n for n, q in poses.items() if n not in self._plan_poses
-                       or not np.array_equal(q, self._plan_poses[n])]
-            routes = None if everything or not planned or not changed else \
-                affected_routes(self.routes, changed)
-            if routes == []:
-                raise SafepathError(f"no route uses {', '.join(changed)}: nothing to re-plan")
-            if self._backend is None:
-                self._backend = make_backend(self.cell.folder, kind=self.options.backend,
-                                             seed=self.options.seed)
-            what = "every route" if routes is None else ", ".join(routes)
-            self._say(f"planning {what}...")
-            self.panel.edit.replan.disabled = True
-            self._plans_ready.clear()
-            try:
-                job = self._backend.plan(poses, routes)
-            except BaseException:
-                self.panel.edit.replan.disabled = False
-                self._plans_ready.set()
-                raise
-            self._job = job
-        started = time.perf_counter()
-        job.add_done_callback(lambda f: threading.Thread(
-            target=self._planned, args=(f, poses, started), daemon=True).start())
-        return job
+    def replan(self, *, everything: bool = False,
+               poses: Mapping[str, np.ndarray] | None = None
+               ) -> Future[dict[str, Trajectory]]:
+        """Re-plan the routes that use changed poses (all with ``everything``) in the
+        background, with ``poses`` (default: the saved poses with the edits made from
+        Python); every page shows the result when it arrives.
 
-    def _planned(self, job: Future[dict[str, Trajectory]], poses: dict[str, np.ndarray],
-                 started: float) -> None:
-        try:
-            result = job.result()
-            self.set_trajectories(result, poses=poses)
-            self._plan_poses = poses
-            self._say(f"planned {', '.join(result)} in {time.perf_counter() - started:.1f} s")
-        except CancelledError:
-            if not self._stop.is_set():
-                self._say("planning cancelled")
-        except SafepathError as exc:
-            self._say(f"planning failed: {type(exc).__name__}: {exc}", error=True)
-        except Exception as exc:  # the page must not die with the worker
-            log.debug("planning job failed", exc_info=True)
-            self._say(f"planning failed: {type(exc).__name__}: {exc}", error=True)
-        finally:
-            with self._lock:
-                if self._server is not None:
-                    self.panel.edit.replan.disabled = False
-            self._plans_ready.set()
+        Raises:
+            SafepathError: Planning already runs, or no route uses a changed pose.
+        """
+        with self._lock:
+            return self.plans.replan(self.edits.poses() if poses is None else poses,
+                                     everything=everything)
 
     # -- the playback thread ----------------------------------------------------------------
     def _run(self) -> None:
         period = 1.0 / self.options.rate
         last = time.monotonic()
-        next_text = 0.0
+        next_text = next_watch = 0.0
         shown_text: tuple[str, str] = ("", "")
         while not self._stop.wait(period):
             now = time.monotonic()
@@ -445,23 +429,26 @@ class ReviewSession:
                         if text != shown_text:
                             self.panel.readout.content, self.panel.state.content = text
                             shown_text = text
+                    if now >= next_watch:
+                        next_watch = now + _WATCH_PERIOD
+                        if self.poses.watch():
+                            self.pages.update_notice()
             except Exception:  # keep playing; say it once in the log
                 log.debug("playback tick failed", exc_info=True)
 
     # -- wiring -----------------------------------------------------------------------------
-    def _wire(self, gizmo: Any) -> None:
-        """Connect the panel's callbacks, each guarded (errors show in the page)."""
-        p, e, g = self.panel, self.panel.edit, self._guard
-        editor, timeline = self.editor, self.timeline
+    def _wire(self) -> None:
+        """Connect the shared panel's callbacks, each guarded (errors show in the page)."""
+        p, timeline = self.panel, self.timeline
 
         def on(handle: Any, fn: Callable[[Any], object]) -> None:
-            handle.on_update(g(fn))
+            handle.on_update(self._guard(fn))
 
         on(p.route, lambda ev: self.select_route(ev.target.value)
            if ev.target.value != NO_ROUTE else None)
         on(p.time, lambda ev: self.seek(float(ev.target.value)))
-        p.play.on_click(g(lambda ev: self.play()))
-        p.pause.on_click(g(lambda ev: self.pause()))
+        p.play.on_click(self._guard(lambda ev: self.play()))
+        p.pause.on_click(self._guard(lambda ev: self.pause()))
         on(p.speed, lambda ev: self.set_speed(float(ev.target.value)))
         on(p.visual_style, lambda ev: self._locked(
             self.stage.robot_nodes.set_style, "visual" if ev.target.value else "collision"))
@@ -469,18 +456,6 @@ class ReviewSession:
                                                  bool(ev.target.value)))
         on(p.show_path, lambda ev: self._locked(timeline.set_path_visible,
                                                 bool(ev.target.value)))
-        on(e.pose, lambda ev: self.review() if ev.target.value == NO_POSE
-           else self.edit_pose(ev.target.value))
-        for j, slider in enumerate(e.joints):
-            on(slider, functools.partial(
-                lambda j, ev: self._locked(editor.set_joint, j, float(ev.target.value)), j))
-        on(e.gizmo_enabled, lambda ev: self._locked(editor.set_gizmo_visible,
-                                                    bool(ev.target.value)))
-        e.reset.on_click(g(lambda ev: self.reset_pose()))
-        e.replan.on_click(g(lambda ev: self.replan()))
-        e.save.on_click(g(lambda ev: self.save_poses(insist=bool(e.insist.value))))
-        gizmo.on_update(g(lambda ev: self._locked(editor.drag_tcp, ev.target.wxyz,
-                                                  ev.target.position)))
 
     def _locked(self, fn: Callable[..., object], *args: Any) -> None:
         with self._lock:
@@ -491,8 +466,9 @@ class ReviewSession:
         return (f"**{c.scene.name}** · {c.robot.name} · {len(c.poses)} poses · "
                 f"margin {c.scene.margin * 1000:.0f} mm")
 
-    def _say(self, text: str, *, error: bool = False) -> None:
-        """Show a status line (and, for an error, a notification)."""
+    def _say(self, text: str, *, error: bool = False, notify: bool = False) -> None:
+        """Show a status line to every page (and, for an error or with ``notify``, a
+        notification)."""
         self.messages.append(text)
         if error:
             log.warning("%s", text)
@@ -500,21 +476,11 @@ class ReviewSession:
         if server is None:
             return
         self.panel.status.content = f"**error:** {text}" if error else text
-        if error:
+        if error or notify:
             for client in server.get_clients().values():
-                client.add_notification("safepath", text, color="red", auto_close_seconds=10.0)
+                client.add_notification("safepath", text, color="red" if error else "blue",
+                                        auto_close_seconds=10.0)
 
     def _guard(self, fn: Callable[..., object]) -> Callable[[Any], None]:
-        """A GUI callback that shows failures in the page instead of raising."""
-        @functools.wraps(fn)
-        def callback(event: Any) -> None:
-            if getattr(event, "client", None) is None:
-                return  # the server changed the value itself
-            try:
-                fn(event)
-            except SafepathError as exc:
-                self._say(str(exc), error=True)
-            except Exception as exc:
-                log.debug("GUI callback %s failed", fn.__name__, exc_info=True)
-                self._say(f"internal error: {type(exc).__name__}: {exc}", error=True)
-        return callback
+        """A shared-panel callback that shows failures in the page instead of raising."""
+        return guard(fn, lambda text: self._say(text, error=True))

@@ -191,3 +191,154 @@ def test_page_draws_the_robot_and_play_moves_it(browser: Browser, plans_dir: Pat
         Image.fromarray(moved).save(ARTIFACTS / "review_session.png")
     finally:
         session.stop()
+
+
+def type_into(browser: Browser, before_button: str, text: str) -> bool:
+    """Type ``text`` into the text field just above the button ``before_button`` (as a
+    user does: React sees an input event)."""
+    return bool(browser.js(
+        "(() => { const els = [...document.querySelectorAll("
+        "'input:not([type=checkbox]):not([type=hidden]), button')];"
+        f" const k = els.findIndex(e => e.tagName === 'BUTTON' && e.textContent.trim() === "
+        f"{json.dumps(before_button)}); let i = k - 1;"
+        " while (i >= 0 && els[i].tagName !== 'INPUT') i--; if (i < 0) return false;"
+        " const set = Object.getOwnPropertyDescriptor(HTMLInputElement.prototype, 'value').set;"
+        f" set.call(els[i], {json.dumps(text)});"
+        " els[i].dispatchEvent(new Event('input', {bubbles: true})); return true; })()"))
+
+
+def button_disabled(browser: Browser, label: str) -> bool | None:
+    """Whether the page's button ``label`` is disabled (None: no such button)."""
+    value = browser.js(
+        "(() => { const b = [...document.querySelectorAll('button')]"
+        f".find(b => b.textContent.trim() === {json.dumps(label)});"
+        " return b ? b.disabled : null; })()")
+    return None if value is None else bool(value)
+
+
+def page_text(browser: Browser) -> str:
+    """The page's visible text."""
+    return str(browser.js("document.body.innerText") or "")
+
+
+def log_lines(cell: Path) -> list[dict[str, Any]]:
+    """The save log's entries."""
+    path = cell / "poses.log"
+    return [json.loads(line) for line in path.read_text().splitlines()] if path.exists() else []
+
+
+def test_two_pages_need_the_token_and_lose_no_edit(tmp_path: Path, cell_copy: Path,
+                                                   plans_dir: Path) -> None:
+    from safepath import load_poses
+    from safepath.view.access import AccessDenied
+
+    token = "review-token-42"
+    session = ReviewSession(cell_copy, plans=plans_dir,
+                            options=ViewOptions(port=0, token=token, backend="process")).start()
+    browsers: list[Browser] = []
+    try:
+        pages = []
+        for name in ("a", "b"):  # one browser each: a background tab would not render
+            browser = Browser(tmp_path / f"chromium-{name}")
+            browsers.append(browser)
+            browser.call("Page.navigate", url=session.url)
+            wait_for(lambda: len(session.clients) == len(browsers), 30.0,
+                     "a page never connected")
+            wait_for(lambda b=browser: button_disabled(b, "Save poses") is not None, 30.0,
+                     "the page never showed its edit folder")
+            pages.append(max(session.clients.values(), key=lambda p: p.client_id))
+        (a, b), (pa, pb) = browsers, pages
+        assert pa.address != pb.address and pa.address.startswith("127.0.0.1:")
+        poses_file = cell_copy / "poses.yaml"
+        original = poses_file.read_bytes()
+
+        # Read-only without the token: watching works, editing and saving do not.
+        assert button_disabled(a, "Save poses") and button_disabled(b, "Save poses")
+        assert "read-only" in page_text(a)
+        assert a.click_button("Play")
+        wait_for(lambda: session.playing, 10.0, "a read-only page could not play")
+        session.pause()
+        q0 = pa.edit_pose("high1").q.copy()  # looking at a pose is allowed
+        with pytest.raises(AccessDenied, match="read-only"):
+            pa.set_joint(0, float(q0[0]) + 0.05)
+        with pytest.raises(AccessDenied, match="read-only"):
+            pa.save()
+        assert poses_file.read_bytes() == original and log_lines(cell_copy) == []
+
+        # A wrong token is refused; the right one unlocks this page only.
+        assert type_into(a, "Unlock editing", "not-the-token")
+        wait_for(lambda: pa.widgets.token.value == "not-the-token", 10.0, "typing failed")
+        assert a.click_button("Unlock editing")
+        wait_for(lambda: any("wrong token" in m for m in pa.messages), 10.0,
+                 "a wrong token was not refused")
+        assert not pa.may_edit
+        wait_for(lambda: "wrong token" in page_text(a), 10.0, "the page did not say so")
+        assert type_into(a, "Unlock editing", token)
+        wait_for(lambda: pa.widgets.token.value == token, 10.0, "typing failed")
+        assert a.click_button("Unlock editing")
+        wait_for(lambda: pa.may_edit, 10.0, "the right token did not unlock the page")
+        wait_for(lambda: button_disabled(a, "Save poses") is False, 10.0,
+                 "Save stayed disabled after the unlock")
+        assert not pb.may_edit and button_disabled(b, "Save poses")
+        assert type_into(b, "Unlock editing", token) and b.click_button("Unlock editing")
+        wait_for(lambda: pb.may_edit, 10.0, "page b was not unlocked")
+
+        # Different poses edited on two pages: both saves land, each logged.
+        with session._lock:
+            qa = pa.set_joint(0, float(q0[0]) + 0.05).q
+            pb.edit_pose("safe")
+            qb = pb.set_joint(5, float(pb.edits.q("safe")[5]) + 0.05).q
+        assert a.click_button("Save poses")
+        wait_for(lambda: len(log_lines(cell_copy)) == 1, 15.0, "page a's save did not land")
+        # Page b sees the new poses: its base moved on, and the page says who saved.
+        wait_for(lambda: np.array_equal(pb.edits.base.poses["high1"], qa), 10.0,
+                 "page b's poses did not move on")
+        wait_for(lambda: f"saved by {pa.address}" in page_text(b), 10.0,
+                 "page b was not told about page a's save")
+        assert b.click_button("Save poses")
+        wait_for(lambda: len(log_lines(cell_copy)) == 2, 15.0, "page b's save did not land")
+        saved = load_poses(poses_file, session.cell.robot)
+        assert np.array_equal(saved["high1"], qa) and np.array_equal(saved["safe"], qb)
+        first, second = log_lines(cell_copy)
+        assert (first["client"], list(first["changes"])) == (pa.address, ["high1"])
+        assert (second["client"], list(second["changes"])) == (pb.address, ["safe"])
+        assert first["check"]["high1"]["valid"] and first["sha256_after"] == \
+            second["sha256_before"]
+        assert (cell_copy / "poses.yaml~").exists()
+
+        # The same pose on two pages: the second save is refused, never overwrites.
+        with session._lock:
+            pa.edit_pose("low1")
+            q_low = pa.edits.q("low1")
+            qa_low = pa.set_joint(0, float(q_low[0]) + 0.02).q
+            pb.edit_pose("low1")
+            qb_low = pb.set_joint(0, float(q_low[0]) - 0.02).q
+        assert a.click_button("Save poses")
+        wait_for(lambda: len(log_lines(cell_copy)) == 3, 15.0, "page a's save did not land")
+        wait_for(lambda: "low1" in pb.edits.conflicts, 10.0, "no conflict on page b")
+        wait_for(lambda: "conflict" in page_text(b), 10.0, "page b shows no conflict")
+        assert b.click_button("Save poses")
+        wait_for(lambda: any("low1 changed in another save" in m for m in pb.messages), 10.0,
+                 "page b's save of a pose saved meanwhile was not refused")
+        assert len(log_lines(cell_copy)) == 3
+        assert np.array_equal(load_poses(poses_file, session.cell.robot)["low1"], qa_low)
+        # Page b keeps its edit on purpose, pose by pose: now it saves.
+        wait_for(lambda: button_disabled(b, "Keep my edit") is False, 10.0,
+                 "no way to keep the edit")
+        assert b.click_button("Keep my edit")
+        wait_for(lambda: "low1" not in pb.edits.conflicts, 10.0, "keep mine did nothing")
+        assert b.click_button("Save poses")
+        wait_for(lambda: len(log_lines(cell_copy)) == 4, 15.0, "the kept edit was not saved")
+        assert np.array_equal(load_poses(poses_file, session.cell.robot)["low1"], qb_low)
+        # Every page shows the saved poses: the shared pose frame moved to it.
+        target = session.cell.robot.frame_pose(qb_low).translation
+        wait_for(lambda: np.allclose(session.pose_frames.frames["low1"].position, target),
+                 10.0, "the shared frame of low1 did not move")
+        # ... and the routes were re-planned with them (or marked stale meanwhile).
+        assert session.wait_for_plans(timeout=120.0)
+        wait_for(lambda: not session.plans.running and not session.plans.stale(), 120.0,
+                 f"routes not re-planned after the saves: {session.messages[-3:]}")
+    finally:
+        for browser in browsers:
+            browser.close()
+        session.stop()

@@ -53,7 +53,7 @@ def open_session() -> Iterator[Callable[..., ReviewSession]]:
     started: list[ReviewSession] = []
 
     def start(scene: Path, **kwargs: object) -> ReviewSession:
-        options = kwargs.pop("options", ViewOptions(port=0))
+        options = kwargs.pop("options", ViewOptions(port=0, replan_on_save=False))
         session = ReviewSession(scene, options=options, **kwargs).start()  # type: ignore
         started.append(session)
         return session
@@ -197,7 +197,7 @@ def test_a_colliding_edit_is_flagged_and_not_saved(open_session: Callable[..., R
     assert ("vial", "test_plate") in status.collisions
     assert session.shown is not None and not session.shown.valid
     assert session.cell_nodes.nodes["test_plate"]._shown == HIGHLIGHT
-    assert "COLLISION" in session.panel.edit.pose_state.content
+    assert "COLLISION" in status.summary()
     with pytest.raises(CollisionError, match="low1"):
         session.save_poses()
     assert poses_file.read_bytes() == original
@@ -217,7 +217,6 @@ def test_saving_writes_poses_atomically_with_a_backup(
     q[0] += 0.05
     status = session.set_joints(q)
     assert status.valid
-    assert session.panel.edit.joints[0].value == pytest.approx(q[0])
     path = session.save_poses()
     assert path == cell_copy / "poses.yaml"
     assert (cell_copy / "poses.yaml~").read_bytes() == original
@@ -225,7 +224,7 @@ def test_saving_writes_poses_atomically_with_a_backup(
     assert np.array_equal(reloaded.poses["high1"], q)
     assert np.array_equal(reloaded.poses["grip"], session.cell.poses["grip"])
     assert sorted(p.name for p in cell_copy.iterdir()) == [
-        "poses.yaml", "poses.yaml~", "routes.yaml", "scene.yaml"]  # no temporary file left
+        "poses.log", "poses.yaml", "poses.yaml~", "routes.yaml", "scene.yaml"]  # no temp file
 
 
 def test_startup_planning_runs_in_the_background(open_session: Callable[..., ReviewSession],

@@ -1,0 +1,274 @@
+"""One browser page of a review session: its own edit folder, edits, robot and rights.
+
+Every page that connects gets a :class:`ClientEditor`: an "Edit poses" folder only it
+sees, its own :class:`~safepath.view.edits.PoseEdits`, and, while it edits a pose, its
+own robot (client-scoped nodes that shadow the shared robot for that page alone, so
+the other pages keep watching the playback). Whether it may change anything is asked
+of the session's :class:`~safepath.view.access.Access` on every action, server side:
+a disabled button is a courtesy, not the check.
+"""
+
+from __future__ import annotations
+
+import functools
+import logging
+from collections.abc import Callable
+from concurrent.futures import Future
+from pathlib import Path
+from typing import Any
+
+import viser
+
+from ..cell import Cell
+from ..errors import SafepathError
+from .access import Access
+from .editor import PoseEditor
+from .edits import PoseEdits, PoseStatus
+from .panel import NO_POSE, build_edit_panel
+from .scene_nodes import PoseFrames
+from .stage import Stage
+
+__all__ = ["ClientEditor", "client_address", "guard"]
+
+log = logging.getLogger(__name__)
+
+
+def client_address(server: viser.ViserServer, client: viser.ClientHandle) -> tuple[str, str]:
+    """``(host, "host:port")`` of a page's websocket peer.
+
+    viser has no public accessor for it; its websocket server keeps the live
+    connections by client id. Behind a reverse proxy this is the proxy's address.
+    """
+    connections = getattr(getattr(server, "_websock_server", None), "_live_connections", {})
+    peer = getattr(connections.get(client.client_id), "remote_address", None)
+    if not peer:
+        return "unknown", f"unknown (client {client.client_id})"
+    host, port = str(peer[0]), int(peer[1])
+    return host, (f"[{host}]:{port}" if ":" in host else f"{host}:{port}")
+
+
+def guard(fn: Callable[[Any], object], report: Callable[[str], None]) -> Callable[[Any], None]:
+    """A GUI callback that reports failures (one line) instead of raising."""
+    @functools.wraps(fn)
+    def callback(event: Any) -> None:
+        if getattr(event, "client", None) is None:
+            return  # the server changed the value itself
+        try:
+            fn(event)
+        except SafepathError as exc:
+            report(str(exc))
+        except Exception as exc:
+            log.debug("GUI callback %s failed", getattr(fn, "__name__", fn), exc_info=True)
+            report(f"internal error: {type(exc).__name__}: {exc}")
+    return callback
+
+
+class ClientEditor:
+    """One page's editing (see the module docstring). The session calls every method
+    under its lock; the page's callbacks take ``lock`` themselves.
+
+    Args:
+        client: The page.
+        address: Its ``host:port``.
+        host: Its host (the token rate limit counts per host).
+        cell: The cell.
+        edits: This page's edit buffer.
+        access: The session's edit rights.
+        lock: The session's lock.
+        save: Writes an edit buffer for a client: ``save(edits, address, insist)``.
+        replan: Re-plans with given poses.
+        reload: Reads the poses file again for every page.
+    """
+
+    def __init__(self, client: viser.ClientHandle, *, address: str, host: str, cell: Cell,
+                 edits: PoseEdits, access: Access, lock: Any,
+                 save: Callable[[PoseEdits, str, bool], Path],
+                 replan: Callable[[dict[str, Any]], Future[Any]],
+                 reload: Callable[[str], None]) -> None:
+        self.client = client
+        self.address = address
+        self.host = host
+        self.cell = cell
+        self.edits = edits
+        self.access = access
+        self.messages: list[str] = []
+        self._lock = lock
+        self._save, self._replan, self._reload = save, replan, reload
+        self._stage: Stage | None = None
+        self.widgets = build_edit_panel(client.gui, cell.robot, list(edits.base.poses),
+                                        token=access.required)
+        gizmo = client.scene.add_transform_controls("/edit/tcp", scale=0.12,
+                                                    depth_test=False, visible=False)
+        self.frames = PoseFrames(client, cell.robot, {})
+        self.editor = PoseEditor(cell, edits, stage=self._own_stage, frames=self.frames,
+                                 widgets=self.widgets, gizmo=gizmo)
+        self._wire(gizmo)
+        self.update_access()
+
+    @property
+    def client_id(self) -> int:
+        """viser's id of the page."""
+        return int(self.client.client_id)
+
+    @property
+    def may_edit(self) -> bool:
+        """Whether this page may edit and save."""
+        return self.access.may_edit(self.client_id)
+
+    # -- actions (each checks the page's rights) --------------------------------------------
+    def unlock(self, token: str) -> None:
+        """Unlock editing with the session's token.
+
+        Raises:
+            AccessDenied: Wrong token, or too many wrong ones from this host.
+        """
+        try:
+            self.access.unlock(self.client_id, token, host=self.host, address=self.address)
+        finally:
+            if self.widgets.token is not None:
+                self.widgets.token.value = ""
+            self.update_access()
+        self.say(f"editing unlocked for this page ({self.address})")
+
+    def edit_pose(self, name: str) -> PoseStatus:
+        """Show pose ``name`` on this page (watching needs no rights)."""
+        status = self.editor.edit_pose(name)
+        self.update_access()
+        return status
+
+    def set_joint(self, j: int, value: float) -> PoseStatus:
+        """Edit joint ``j`` of the selected pose."""
+        self._check("edit poses")
+        return self.editor.set_joint(j, value)
+
+    def set_joints(self, q: Any) -> PoseStatus:
+        """Edit the selected pose to ``q`` [rad]."""
+        self._check("edit poses")
+        return self.editor.set_joints(q)
+
+    def drag_tcp(self, wxyz: Any, position: Any) -> PoseStatus:
+        """Edit the selected pose from a TCP gizmo drag."""
+        self._check("edit poses")
+        return self.editor.drag_tcp(wxyz, position)
+
+    def reset_pose(self) -> PoseStatus:
+        """Drop the edit of the selected pose."""
+        self._check("edit poses")
+        return self.editor.reset_pose()
+
+    def take_saved(self) -> PoseStatus:
+        """Conflict on the selected pose: drop this page's edit."""
+        self._check("resolve conflicts")
+        status = self.edits.take_saved(self.editor.selected())
+        self.refresh()
+        return status
+
+    def keep_mine(self) -> PoseStatus:
+        """Conflict on the selected pose: keep this page's edit over the saved version."""
+        self._check("resolve conflicts")
+        status = self.edits.keep_mine(self.editor.selected())
+        self.refresh()
+        return status
+
+    def save(self, *, insist: bool = False) -> Path:
+        """Save this page's edits (see :meth:`ReviewSession.save_edits`)."""
+        self._check("save poses")
+        return self._save(self.edits, self.address, insist)
+
+    def replan(self) -> Future[Any]:
+        """Re-plan the routes with this page's poses (edits applied)."""
+        self._check("re-plan")
+        return self._replan(self.edits.poses())
+
+    def reload(self) -> None:
+        """Read the poses file again (every page moves onto it)."""
+        self._check("reload poses.yaml")
+        self._reload(self.address)
+
+    def review(self) -> None:
+        """Stop editing: this page shows the shared playback again."""
+        self.editor.leave()
+        if self._stage is not None:
+            self._stage.remove()
+            self._stage = None
+        self.update_access()
+
+    # -- display ----------------------------------------------------------------------------
+    def refresh(self) -> None:
+        """Show the current edits and conflicts (after a save, a reload, a rebase)."""
+        for name in [n for n in self.frames.frames if n not in self.edits.edits]:
+            self.frames.remove(name)
+        for name in self.edits.edits:
+            self.frames.set(name, self.edits.edits[name])
+        self.editor.refresh()
+        self.update_access()
+
+    def update_access(self) -> None:
+        """Enable the widgets this page may use and say why the others are off."""
+        may_edit = self.may_edit
+        pose = self.editor.pose
+        self.widgets.enable(may_edit=may_edit, editing=pose is not None,
+                            conflict=pose is not None and pose in self.edits.conflicts)
+        lines = []
+        if not may_edit:
+            lines.append("**read-only**: enter the edit token (printed on the server "
+                         "console) to edit and save poses")
+        elif self.access.required:
+            lines.append(f"editing unlocked for this page ({self.address})")
+        if self.edits.conflicts:
+            names = self.cell.robot.joint_names
+            lines.append("**conflict**: changed in another save while you edited: " + "; ".join(
+                c.describe(names) for c in self.edits.conflicts.values()) +
+                " (pick the pose, then take the saved version or keep yours)")
+        self.widgets.access_note.content = "\n\n".join(lines)
+
+    def say(self, text: str, *, error: bool = False) -> None:
+        """Tell this page (a notification; errors in red)."""
+        self.messages.append(text)
+        if error:
+            log.warning("%s: %s", self.address, text)
+        self.client.add_notification("safepath", text, color="red" if error else "blue",
+                                     auto_close_seconds=10.0)
+
+    def close(self) -> None:
+        """The page went away."""
+        self.access.forget(self.client_id)
+
+    # -- internals --------------------------------------------------------------------------
+    def _check(self, what: str) -> None:
+        self.access.check(self.client_id, self.address, what)
+
+    def _own_stage(self) -> Stage:
+        if self._stage is None:
+            self._stage = Stage(self.client, self.cell)
+        return self._stage
+
+    def _wire(self, gizmo: Any) -> None:
+        w = self.widgets
+
+        def on(handle: Any, fn: Callable[[Any], object], *, button: bool = False) -> None:
+            def locked(event: Any) -> None:
+                with self._lock:
+                    try:
+                        fn(event)
+                    except SafepathError:
+                        self.refresh()  # put a refused slider or gizmo back
+                        raise
+            callback = guard(locked, lambda text: self.say(text, error=True))
+            (handle.on_click if button else handle.on_update)(callback)
+
+        if w.unlock is not None:
+            on(w.unlock, lambda e: self.unlock(str(w.token.value)), button=True)
+        on(w.pose, lambda e: self.review() if e.target.value == NO_POSE
+           else self.edit_pose(e.target.value))
+        for j, slider in enumerate(w.joints):
+            on(slider, functools.partial(
+                lambda j, e: self.set_joint(j, float(e.target.value)), j))
+        on(w.gizmo_enabled, lambda e: self.editor.set_gizmo_visible(bool(e.target.value)))
+        on(w.reset, lambda e: self.reset_pose(), button=True)
+        on(w.take_saved, lambda e: self.take_saved(), button=True)
+        on(w.keep_mine, lambda e: self.keep_mine(), button=True)
+        on(w.replan, lambda e: self.replan(), button=True)
+        on(w.save, lambda e: self.save(insist=bool(w.insist.value)), button=True)
+        on(w.reload, lambda e: self.reload(), button=True)
+        on(gizmo, lambda e: self.drag_tcp(e.target.wxyz, e.target.position))

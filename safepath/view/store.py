@@ -1,0 +1,199 @@
+"""The poses file of a review session: read with its content hash, saved only over the
+version the editors loaded, every save recorded in an append-only log.
+
+A save is refused (:class:`PosesChanged`, naming the poses that differ) when
+``poses.yaml`` no longer has the content the session loaded: someone edited it in a
+text editor, or another session saved. Saves of sessions on the same folder are
+serialised by an exclusive ``flock`` on the log file, so two sessions cannot both pass
+the check and overwrite each other. A text editor takes no lock: a write landing in the
+instant between the check and the rename is not detected (the log and the backup
+``poses.yaml~`` keep what was replaced).
+
+The log, ``poses.log`` beside ``poses.yaml``, gets one JSON object per line and save:
+``time`` (UTC, ISO 8601), ``client`` (address of the page, or ``python``), ``file``,
+``sha256_before`` / ``sha256_after`` (of the file's bytes), ``changes`` (pose name ->
+``{"from": [...], "to": [...]}`` in [rad], null for a pose added or removed) and
+``check`` (pose name -> the live check at save time: ``valid``, ``margin_ok``,
+``clearance_mm``, ``collisions``), and ``insist`` (saved in collision on purpose).
+"""
+
+from __future__ import annotations
+
+import fcntl
+import hashlib
+import json
+import logging
+import os
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from datetime import datetime, timezone
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from ..cell import Cell
+from ..errors import PoseError, SafepathError
+from ..poses import load_poses, save_poses
+
+__all__ = ["PoseChange", "PosesChanged", "PosesSnapshot", "PosesStore", "differences"]
+
+log = logging.getLogger(__name__)
+
+#: Name of the save log beside the poses file.
+LOG_NAME = "poses.log"
+
+
+@dataclass(frozen=True)
+class PosesSnapshot:
+    """One version of the poses file.
+
+    Attributes:
+        digest: SHA-256 of the file's bytes (empty when there is no file).
+        poses: Its poses [rad], in file order (do not mutate).
+    """
+
+    digest: str
+    poses: dict[str, np.ndarray] = field(repr=False)
+
+
+@dataclass(frozen=True)
+class PoseChange:
+    """How one pose differs between two versions.
+
+    Attributes:
+        pose: Pose name.
+        before: Joint vector in the first version [rad] (None: not there).
+        after: Joint vector in the second version [rad] (None: not there).
+    """
+
+    pose: str
+    before: np.ndarray | None = field(repr=False)
+    after: np.ndarray | None = field(repr=False)
+
+    def describe(self, joint_names: list[str] | tuple[str, ...]) -> str:
+        """One phrase: which joints moved and by how much."""
+        if self.before is None:
+            return f"{self.pose} added"
+        if self.after is None:
+            return f"{self.pose} removed"
+        delta = self.after - self.before
+        moved = [j for j in np.argsort(-np.abs(delta)) if abs(delta[j]) > 0][:2]
+        parts = [f"{joint_names[j]} {self.before[j]:.4f} -> {self.after[j]:.4f} rad"
+                 for j in moved]
+        return f"{self.pose} ({', '.join(parts)})"
+
+    def to_json(self) -> dict[str, Any]:
+        """``{"from": [...], "to": [...]}`` [rad] (None for a missing side)."""
+        def values(q: np.ndarray | None) -> list[float] | None:
+            return None if q is None else [float(v) for v in q]
+        return {"from": values(self.before), "to": values(self.after)}
+
+
+def differences(before: Mapping[str, np.ndarray], after: Mapping[str, np.ndarray]
+                ) -> list[PoseChange]:
+    """The poses that differ between two versions (order: ``before``'s, then new ones)."""
+    out = []
+    for name in [*before, *(n for n in after if n not in before)]:
+        a, b = before.get(name), after.get(name)
+        if a is None or b is None or not np.array_equal(a, b):
+            out.append(PoseChange(name, a, b))
+    return out
+
+
+class PosesChanged(SafepathError):
+    """A save was refused so that no edit is lost: the file changed since it was loaded,
+    or a pose edited here was saved meanwhile by someone else.
+
+    Attributes:
+        path: The poses file.
+        changes: What differs between the version loaded and the one found.
+        conflicts: Poses edited here that were also changed there.
+    """
+
+    def __init__(self, reason: str, *, path: Path, changes: list[PoseChange],
+                 conflicts: list[str]) -> None:
+        self.path = path
+        self.changes = changes
+        self.conflicts = conflicts
+        self.reason = reason
+        super().__init__(reason)
+
+
+class PosesStore:
+    """Reads and saves one cell's poses file (see the module docstring).
+
+    Args:
+        cell: The cell; its ``poses`` are left to the caller.
+    """
+
+    def __init__(self, cell: Cell) -> None:
+        self.robot = cell.robot
+        self.path = cell.poses_path
+        self.log_path = self.path.with_name(LOG_NAME)
+
+    def read(self) -> PosesSnapshot:
+        """The file as it is now, with its hash.
+
+        Raises:
+            PoseError: The file is malformed (names file and key).
+        """
+        for _ in range(5):
+            raw = self._bytes()
+            poses = load_poses(self.path, self.robot) if raw is not None else {}
+            if self._bytes() == raw:  # not rewritten while it was parsed
+                return PosesSnapshot(_digest(raw), poses)
+        raise PoseError("the file keeps changing while it is read", path=self.path)
+
+    def save(self, base: PosesSnapshot, poses: Mapping[str, np.ndarray], *, client: str,
+             checks: Mapping[str, dict[str, Any]], insist: bool = False) -> PosesSnapshot:
+        """Write ``poses`` if the file is still ``base``; log the save.
+
+        Args:
+            base: The version the poses were edited from.
+            poses: Every pose to write [rad].
+            client: Who saves (page address, or ``python``).
+            checks: The live check of every changed pose (see the module docstring).
+            insist: Whether a pose in collision is saved on purpose.
+
+        Returns:
+            The new version.
+
+        Raises:
+            PosesChanged: The file is not ``base`` any more (nothing is written).
+            PoseError: A pose is malformed or outside the limits (nothing is written).
+        """
+        with open(self.log_path, "a", encoding="utf-8") as log_file:
+            fcntl.flock(log_file, fcntl.LOCK_EX)
+            current = self.read()
+            if current.digest != base.digest:
+                changes = differences(base.poses, current.poses)
+                names = self.robot.joint_names
+                what = "; ".join(c.describe(names) for c in changes) or "formatting only"
+                raise PosesChanged(f"not saved: {self.path.name} changed since it was loaded "
+                                   f"({what}); reload it to merge pose by pose",
+                                   path=self.path, changes=changes, conflicts=[])
+            save_poses(self.path, poses, self.robot, backup=True)
+            new = self.read()
+            entry = {
+                "time": datetime.now(timezone.utc).isoformat(timespec="milliseconds"),
+                "client": client, "file": self.path.name,
+                "sha256_before": base.digest, "sha256_after": new.digest,
+                "changes": {c.pose: c.to_json() for c in differences(base.poses, new.poses)},
+                "check": dict(checks), "insist": insist,
+            }
+            log_file.write(json.dumps(entry) + "\n")
+            log_file.flush()
+            os.fsync(log_file.fileno())
+        log.info("%s saved by %s", self.path, client)
+        return new
+
+    def _bytes(self) -> bytes | None:
+        try:
+            return self.path.read_bytes()
+        except FileNotFoundError:
+            return None
+
+
+def _digest(raw: bytes | None) -> str:
+    return "" if raw is None else hashlib.sha256(raw).hexdigest()
