@@ -1,8 +1,8 @@
 """Browser review of a cell's motions (viser): play, check, edit, re-plan, save.
 
 ``safepath view SCENE`` opens a :class:`ReviewSession`. Importing this package is
-cheap: viser and the session load on first use of :class:`ReviewSession` or
-:class:`ViewOptions` (without viser).
+cheap: viser and the session load on first use of :class:`ReviewSession` (the options
+and the errors load without viser).
 """
 
 from __future__ import annotations
@@ -10,12 +10,15 @@ from __future__ import annotations
 from typing import TYPE_CHECKING, Any
 
 if TYPE_CHECKING:
+    from .access import AccessDenied
     from .options import ViewOptions
     from .session import ReviewSession, ShownState
+    from .store import PosesChanged
 
-__all__ = ["ReviewSession", "ShownState", "ViewOptions"]
+__all__ = ["AccessDenied", "PosesChanged", "ReviewSession", "ShownState", "ViewOptions"]
 
-_MODULES = {"ReviewSession": "session", "ShownState": "session", "ViewOptions": "options"}
+_MODULES = {"ReviewSession": "session", "ShownState": "session", "ViewOptions": "options",
+            "AccessDenied": "access", "PosesChanged": "store"}
 
 
 def __getattr__(name: str) -> Any:

@@ -13,12 +13,9 @@ read-only until a page is unlocked with the token). No edit is lost: see
 :mod:`safepath.view.sync` and :mod:`safepath.view.store` (saves over the version
 loaded only, conflicts named pose by pose, every save logged in ``poses.log``).
 
-The session composes small parts with explicit inputs: a
-:class:`~safepath.view.stage.Stage` (what every page sees), a
-:class:`~safepath.view.timeline.Timeline` (playback), :class:`~safepath.view.plans.Plans`
-(routes), :class:`~safepath.view.sync.SharedPoses` (the saved poses), a
-:class:`~safepath.view.editor.PoseEditor` for edits from Python and a
-:class:`~safepath.view.clients.ClientEditor` per page; one lock guards them all.
+Parts, each with explicit inputs, one lock for all: ``stage`` (what every page sees),
+``timeline`` (playback), ``plans`` (routes), ``poses`` (saved poses), ``pages`` (a
+:class:`~safepath.view.clients.ClientEditor` per page), ``editor`` (edits from Python).
 """
 
 from __future__ import annotations
@@ -58,10 +55,6 @@ __all__ = ["ViewOptions", "ShownState", "ReviewSession"]
 
 log = logging.getLogger(__name__)
 
-#: Readout refresh period [s]; the robot itself moves at the playback rate.
-_TEXT_PERIOD = 0.1
-#: How often the poses file is checked for changes made outside the session [s].
-_WATCH_PERIOD = 1.0
 #: Who saves through the Python API (the save log's ``client``).
 PYTHON_CLIENT = "python"
 
@@ -157,8 +150,11 @@ class ReviewSession:
             self.plans.ready.set()
         elif self.options.plan_on_start:
             self.replan(everything=True)
-        self._thread = threading.Thread(target=self._run, name="safepath-view-playback",
-                                        daemon=True)
+        self._thread = threading.Thread(
+            target=self.timeline.run, name="safepath-view-playback", daemon=True,
+            args=(self._stop, self._lock),
+            kwargs={"rate": self.options.rate, "editing": lambda: self.editor.pose,
+                    "watch": self._watch})
         self._thread.start()
 
     def stop(self) -> None:
@@ -374,24 +370,6 @@ class ReviewSession:
         return self.pages.clients
 
     # -- plans ------------------------------------------------------------------------------
-    def load_plans(self, source: str | Path) -> list[str]:
-        """Show the trajectories written by ``safepath plan``; returns the route names.
-
-        Raises:
-            TrajectoryError: Unreadable, or made for another robot.
-        """
-        return self.plans.load(source)
-
-    def set_trajectories(self, trajectories: Mapping[str, Trajectory], *,
-                         poses: Mapping[str, np.ndarray] | None = None,
-                         replace: bool = False) -> None:
-        """Show ``trajectories`` (added to, or with ``replace`` instead of, the shown ones).
-
-        Raises:
-            TrajectoryError: A trajectory made for another robot.
-        """
-        self.plans.show(trajectories, poses=poses, replace=replace)
-
     def wait_for_plans(self, timeout: float | None = None) -> bool:
         """Wait for start-up planning or a re-plan; whether routes are shown."""
         self.plans.ready.wait(timeout)
@@ -410,31 +388,6 @@ class ReviewSession:
         with self._lock:
             return self.plans.replan(self.edits.poses() if poses is None else poses,
                                      everything=everything)
-
-    # -- the playback thread ----------------------------------------------------------------
-    def _run(self) -> None:
-        period = 1.0 / self.options.rate
-        last = time.monotonic()
-        next_text = next_watch = 0.0
-        shown_text: tuple[str, str] = ("", "")
-        while not self._stop.wait(period):
-            now = time.monotonic()
-            dt, last = now - last, now
-            try:
-                with self._lock:
-                    self.timeline.advance(dt)
-                    if now >= next_text:
-                        next_text = now + _TEXT_PERIOD
-                        text = self.timeline.readouts(self.editor.pose)
-                        if text != shown_text:
-                            self.panel.readout.content, self.panel.state.content = text
-                            shown_text = text
-                    if now >= next_watch:
-                        next_watch = now + _WATCH_PERIOD
-                        if self.poses.watch():
-                            self.pages.update_notice()
-            except Exception:  # keep playing; say it once in the log
-                log.debug("playback tick failed", exc_info=True)
 
     # -- wiring -----------------------------------------------------------------------------
     def _wire(self) -> None:
@@ -456,6 +409,11 @@ class ReviewSession:
                                                  bool(ev.target.value)))
         on(p.show_path, lambda ev: self._locked(timeline.set_path_visible,
                                                 bool(ev.target.value)))
+
+    def _watch(self) -> None:
+        """Once a second: has ``poses.yaml`` changed behind the session? (holds the lock)"""
+        if self.poses.watch():
+            self.pages.update_notice()
 
     def _locked(self, fn: Callable[..., object], *args: Any) -> None:
         with self._lock:

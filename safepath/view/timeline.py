@@ -4,11 +4,16 @@ speed / scrub, and the readouts.
 A :class:`Timeline` draws the selected route at the current time on the shared
 :class:`~safepath.view.stage.Stage` (every page sees it) while it is ``active``; the
 session makes it inactive while its own pose editor uses that stage. It does no
-locking: the session calls it under its lock (the playback thread too).
+locking: the session calls it under its lock; :meth:`Timeline.run`, the playback
+thread, takes that lock for each tick.
 """
 
 from __future__ import annotations
 
+import logging
+import threading
+import time
+from collections.abc import Callable
 from typing import Any
 
 import numpy as np
@@ -22,6 +27,13 @@ from .scene_nodes import draw_path
 from .stage import Stage
 
 __all__ = ["Timeline"]
+
+log = logging.getLogger(__name__)
+
+#: Readout refresh period [s]; the robot itself moves at the playback rate.
+_TEXT_PERIOD = 0.1
+#: Period of the ``watch`` call of the playback thread [s].
+_WATCH_PERIOD = 1.0
 
 
 class Timeline:
@@ -191,3 +203,29 @@ class Timeline:
             state += (f"\n\nroute minimum {data_sel.clearance[i] * 1000:.1f} mm at "
                       f"t = {data_sel.times[i]:.2f} s ({' / '.join(pair) if pair else '-'})")
         return head, state
+
+    def run(self, stop: threading.Event, lock: Any, *, rate: float,
+            editing: Callable[[], str | None], watch: Callable[[], None]) -> None:
+        """The playback thread: advance at ``rate`` [Hz], refresh the readouts (10 Hz),
+        call ``watch`` once a second, each under ``lock``, until ``stop`` is set."""
+        period = 1.0 / rate
+        last = time.monotonic()
+        next_text = next_watch = 0.0
+        shown_text: tuple[str, str] = ("", "")
+        while not stop.wait(period):
+            now = time.monotonic()
+            dt, last = now - last, now
+            try:
+                with lock:
+                    self.advance(dt)
+                    if now >= next_text:
+                        next_text = now + _TEXT_PERIOD
+                        text = self.readouts(editing())
+                        if text != shown_text:
+                            self.panel.readout.content, self.panel.state.content = text
+                            shown_text = text
+                    if now >= next_watch:
+                        next_watch = now + _WATCH_PERIOD
+                        watch()
+            except Exception:  # keep playing; say it in the log
+                log.debug("playback tick failed", exc_info=True)
