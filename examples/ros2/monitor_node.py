@@ -12,7 +12,9 @@ ROS); this file wires it to a lifecycle node, as the fourth seed document recomm
 ``/scan`` comes on the sensor-data QoS (best effort, newest only: a lost scan is covered
 by the silence rule); decisions (``std_msgs/String``, JSON) and goals are reliable. A
 100 Hz timer lets silence stop the robot even when no scan arrives. A kill switch is a
-``std_srvs/Trigger`` service (``~/kill``; ``~/reset`` releases it).
+``std_srvs/Trigger`` service (``~/kill``; ``~/reset`` releases it). An obstacle that
+stays is planned around (:func:`safepath.monitor.replan.replan`) in a separate process,
+so that planning never stalls the callbacks; the new route is verified before it runs.
 
 Needs a sourced ROS 2 workspace with ``control_msgs``::
 
@@ -24,6 +26,8 @@ Needs a sourced ROS 2 workspace with ``control_msgs``::
 from __future__ import annotations
 
 import json
+import multiprocessing
+from concurrent.futures import ProcessPoolExecutor
 
 import rclpy
 from action_msgs.msg import GoalStatus
@@ -43,17 +47,28 @@ from safepath.monitor.node import (
     Gripper,
     MonitorNodeCore,
     Publish,
+    Replan,
     SendGoal,
     parameters_from_mapping,
 )
+from safepath.monitor.replan import replan
 from safepath.monitor.ros import decision_dict
 from safepath.ros import goals
+
+
+def replan_in_process(scene: str, command: Replan):
+    """Runs in the re-planning process (the cell is loaded there)."""
+    from safepath import load_cell
+
+    return replan(load_cell(scene), command.route, command.request, held=command.held,
+                  margin=command.margin)
+
 
 RELIABLE = QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE)
 PARAMETERS = ("scene", "route", "scan_topic", "scan_frame", "scan_xyz", "scan_rpy",
               "decision_topic", "approach_speed", "min_separation", "sensor_uncertainty",
               "robot_uncertainty", "stale_after", "command_latency", "hold_time",
-              "replan_after")
+              "replan_after", "replan_margin")
 
 
 class MonitorNode(LifecycleNode):
@@ -69,6 +84,7 @@ class MonitorNode(LifecycleNode):
                                 goals.FOLLOW_JOINT_TRAJECTORY_ACTION)
         self.tool = ActionClient(self, Tool, goals.TOOL_ACTION)
         self.latest_goal = 0  # only the newest goal's success advances the route
+        self.replanner = ProcessPoolExecutor(1, mp_context=multiprocessing.get_context("spawn"))
         self.scan_sub = None
         self.timer = None
         self.decisions = self.create_publisher(String, "/safepath/monitor/decision", RELIABLE)
@@ -125,14 +141,14 @@ class MonitorNode(LifecycleNode):
 
     def on_kill(self, request: Trigger.Request, response: Trigger.Response) -> Trigger.Response:
         if self.core is not None and self.core.monitor is not None:
-            self.run(MonitorNodeCore._commands(self.core.monitor.kill(self.now())))
+            self.run(self.core.kill(self.now()))
         response.success = True
         response.message = "kill switch latched"
         return response
 
     def on_reset(self, request: Trigger.Request, response: Trigger.Response) -> Trigger.Response:
-        if self.core is not None and self.core.monitor is not None:
-            self.core.monitor.reset()
+        if self.core is not None:
+            self.core.reset()
         response.success = True
         response.message = "kill switch released"
         return response
@@ -147,12 +163,25 @@ class MonitorNode(LifecycleNode):
                 number = self.latest_goal
                 future = self.arm.send_goal_async(goal)  # replaces the running goal
                 future.add_done_callback(lambda f, n=number: self.on_accepted(f, n))
+            elif isinstance(command, Replan):
+                # OMPL holds the interpreter lock while it plans: plan in another process.
+                params = self.core.parameters
+                future = self.replanner.submit(replan_in_process, params.scene, command)
+                future.add_done_callback(lambda f, c=command: self.on_replanned(f, c))
             elif isinstance(command, Gripper):
                 goal = goals.tool_goal(command.event.action, backend="rclpy")
                 future = self.tool.send_goal_async(goal)
                 future.add_done_callback(
                     lambda f: f.result().get_result_async().add_done_callback(
                         lambda _: self.run(self.core.on_gripper_done(self.now()))))
+
+    def on_replanned(self, future, command: Replan) -> None:
+        try:
+            traj = future.result()
+        except SafepathError as exc:  # stays stopped; the next request may succeed
+            self.get_logger().error(f"re-plan failed: {exc}")
+            return
+        self.run(self.core.on_replanned(command.request, traj, self.now()))
 
     def on_accepted(self, future, number: int) -> None:
         handle = future.result()

@@ -23,11 +23,11 @@ import numpy as np
 from ..errors import ConfigError
 from ..scene import placement
 from ..trajectory import GripperEvent, Trajectory
-from .monitor import Decision, Monitor
+from .monitor import Decision, Monitor, ReplanRequest
 from .options import MonitorOptions
 
 __all__ = ["NodeParameters", "load_node_parameters", "MonitorNodeCore", "SendGoal",
-           "Publish", "Gripper", "NODE_NAME"]
+           "Publish", "Gripper", "Replan", "NODE_NAME"]
 
 NODE_NAME = "safepath_monitor"
 _LIFECYCLE = Literal["unconfigured", "inactive", "active"]
@@ -45,6 +45,7 @@ class NodeParameters:
         scan_xyz: Sensor position in the world [m].
         scan_rpy: Sensor orientation (roll, pitch, yaw) [rad].
         decision_topic: Where decisions are published (reliable).
+        replan_margin: Clearance a re-planned path keeps from the obstacle's box [m].
         options: The monitor's options (from the remaining keys).
     """
 
@@ -55,9 +56,11 @@ class NodeParameters:
     scan_xyz: tuple[float, float, float] = (0.0, 0.0, 0.0)
     scan_rpy: tuple[float, float, float] = (0.0, 0.0, 0.0)
     decision_topic: str = "/safepath/monitor/decision"
+    replan_margin: float = 0.03
     options: MonitorOptions = field(default_factory=MonitorOptions)
 
 
+_NODE_NUMBERS = ("replan_margin",)
 _OPTION_KEYS = ("approach_speed", "min_separation", "sensor_uncertainty", "robot_uncertainty",
                 "stale_after", "command_latency", "hold_time", "replan_after", "min_scale",
                 "horizon")
@@ -72,7 +75,7 @@ def parameters_from_mapping(raw: Mapping[str, Any], *, path: Path | None = None
             or range (names the file and the key).
     """
     known = {"scene", "route", "scan_topic", "scan_frame", "scan_xyz", "scan_rpy",
-             "decision_topic", *_OPTION_KEYS}
+             "decision_topic", *_OPTION_KEYS, *_NODE_NUMBERS}
     for key in raw:
         if key not in known:
             raise ConfigError(f"unknown parameter (known: {', '.join(sorted(known))})",
@@ -94,7 +97,7 @@ def parameters_from_mapping(raw: Mapping[str, Any], *, path: Path | None = None
                 raise ConfigError(f"must be 3 finite numbers, got {v!r}", path=path, key=k)
             vectors[k] = (float(v[0]), float(v[1]), float(v[2]))
     numbers: dict[str, float] = {}
-    for k in _OPTION_KEYS:
+    for k in (*_OPTION_KEYS, *_NODE_NUMBERS):
         if k in raw:
             v = raw[k]
             if isinstance(v, bool) or not isinstance(v, (int, float)):
@@ -103,11 +106,15 @@ def parameters_from_mapping(raw: Mapping[str, Any], *, path: Path | None = None
     frame = strings.get("scan_frame", "laser")
     xyz = vectors.get("scan_xyz", (0.0, 0.0, 0.0))
     rpy = vectors.get("scan_rpy", (0.0, 0.0, 0.0))
+    margin = numbers.pop("replan_margin", 0.03)
+    if not (np.isfinite(margin) and margin >= 0):
+        raise ConfigError(f"must be >= 0 [m], got {margin}", path=path, key="replan_margin")
     try:
         options = MonitorOptions(sensors={frame: placement(xyz, rpy)}, **numbers)  # type: ignore[arg-type]
     except ConfigError as exc:
         raise ConfigError(exc.reason, path=path, key=exc.key) from None
-    return NodeParameters(options=options, scan_xyz=xyz, scan_rpy=rpy, **strings)
+    return NodeParameters(options=options, scan_xyz=xyz, scan_rpy=rpy, replan_margin=margin,
+                          **strings)
 
 
 def load_node_parameters(path: str | Path, node: str = NODE_NAME) -> NodeParameters:
@@ -148,7 +155,19 @@ class Gripper:
     event: GripperEvent
 
 
-Command = SendGoal | Publish | Gripper
+@dataclass(frozen=True)
+class Replan:
+    """Plan the rest of the route around an obstacle (off the callback thread: call
+    :func:`safepath.monitor.replan.replan` with these, then
+    :meth:`MonitorNodeCore.on_replanned`)."""
+
+    request: ReplanRequest
+    route: str
+    held: str | None
+    margin: float
+
+
+Command = SendGoal | Publish | Gripper | Replan
 
 
 class MonitorNodeCore:
@@ -221,6 +240,17 @@ class MonitorNodeCore:
         self.state = "inactive"
         return self._commands(self.monitor.kill(now))
 
+    def kill(self, now: float) -> list[Command]:
+        """Kill switch: stop along the path, latched until :meth:`reset`."""
+        if self.monitor is None:
+            return []
+        return self._commands(self.monitor.kill(now))
+
+    def reset(self) -> None:
+        """Release the kill switch (motion resumes by the hold-time rule)."""
+        if self.monitor is not None:
+            self.monitor.reset()
+
     def on_scan(self, msg: Any, now: float) -> list[Command]:
         """A LaserScan arrived (ignored unless active).
 
@@ -248,6 +278,19 @@ class MonitorNodeCore:
         """The gripper action finished: the next motion."""
         return self.on_motion_done(now)
 
+    def on_replanned(self, request: ReplanRequest, traj: Trajectory, now: float
+                     ) -> list[Command]:
+        """A re-plan finished: its box joins the static scene, the new route replaces the
+        rest of the old one, its first part starts."""
+        from ..ros.goals import split_at_gripper_events
+
+        if self.state != "active" or self.monitor is None:
+            return []
+        self.monitor.add_static_box(request.obstacle_center, request.obstacle_size)
+        self.sequence = split_at_gripper_events(traj)
+        self._next = 0
+        return self._advance(now)
+
     def _advance(self, now: float) -> list[Command]:
         assert self.monitor is not None
         if self._next >= len(self.sequence):
@@ -260,9 +303,11 @@ class MonitorNodeCore:
         self.monitor.follow(part, start=now, held=self._held)
         return [SendGoal(part, "next motion")]
 
-    @staticmethod
-    def _commands(decision: Decision) -> list[Command]:
+    def _commands(self, decision: Decision) -> list[Command]:
         out: list[Command] = [Publish(decision)]
         if decision.replacement is not None:
             out.append(SendGoal(decision.replacement, decision.kind))
+        if decision.replan is not None:
+            out.append(Replan(decision.replan, self.parameters.route, self._held,
+                              self.parameters.replan_margin))
         return out

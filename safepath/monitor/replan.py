@@ -27,6 +27,28 @@ __all__ = ["replan", "REST_POSE", "OBSTACLE"]
 REST_POSE = "monitor_rest"
 #: Name of the obstacle added to the scene.
 OBSTACLE = "monitor_obstacle"
+#: Suffix of a re-planned route's name.
+SUFFIX = "_replanned"
+
+
+def _start_pose(route: Route, first: int) -> str | None:
+    """The taught pose step ``first`` starts from (None: not exactly a taught pose)."""
+    pose: str | None = route.start
+    for step in route.steps[:first]:
+        if step.is_motion and step.target is not None:
+            pose = step.target.exact_pose
+    return pose
+
+
+def _step_index(route: Route, label: str) -> int | None:
+    """Index of the step ``label`` names: exactly, or (in a re-planned route, whose steps
+    are numbered from 0 again) by its text after the number, the last such step."""
+    labels = route.labels()
+    if label in labels:
+        return labels.index(label)
+    text = label.split(" ", 1)[-1]
+    matches = [i for i, lab in enumerate(labels) if lab.split(" ", 1)[-1] == text]
+    return matches[-1] if matches else None
 
 
 def replan(cell: Cell, route_name: str, request: ReplanRequest, *, held: str | None,
@@ -49,19 +71,28 @@ def replan(cell: Cell, route_name: str, request: ReplanRequest, *, held: str | N
     """
     routes = load_routes(cell.folder / "routes.yaml", poses=list(cell.poses),
                          objects=list(cell.scene.objects))
-    route = routes.get(route_name)
+    base = route_name
+    while base.endswith(SUFFIX):  # a re-planned route: its steps are the original's tail
+        base = base[:-len(SUFFIX)]
+    route = routes.get(base)
     if route is None:
         raise PlanningError(f"unknown route '{route_name}'")
-    labels = route.labels()
-    if request.step not in labels:
-        raise PlanningError(f"route '{route_name}' has no step '{request.step}'")
-    first = labels.index(request.step)
-    rest = Route(f"{route_name}_replanned", REST_POSE, route.steps[first:])
+    first = _step_index(route, request.step)
+    if first is None:
+        raise PlanningError(f"route '{base}' has no step '{request.step}'")
+    rest = Route(f"{base}{SUFFIX}", REST_POSE, route.steps[first:])
     T = np.eye(4)
     T[:3, 3] = request.obstacle_center
     box = SceneObject(OBSTACLE, Shape("box", tuple(float(v) for v in request.obstacle_size)),
                       T, margin=margin, color=(0.9, 0.2, 0.2))
-    scene = replace(cell.scene, objects={**cell.scene.objects, OBSTACLE: box})
+    # A line leaving a pose keeps that pose's allowed contacts (a vial just lifted off its
+    # support): so does its rest from the rest state, on the same line.
+    start = _start_pose(route, first)
+    contacts = tuple(replace(c, at=(*c.at, REST_POSE))
+                     if route.steps[first].kind == "line" and start in c.at else c
+                     for c in cell.scene.allowed_contacts)
+    scene = replace(cell.scene, objects={**cell.scene.objects, OBSTACLE: box},
+                    allowed_contacts=contacts)
     temp = Cell(robot=cell.robot, scene=scene,
                 poses={**cell.poses, REST_POSE: np.asarray(request.q, dtype=float)},
                 folder=cell.folder, poses_path=cell.poses_path)

@@ -165,3 +165,36 @@ def test_node_core_lifecycle(cell_dir: Path) -> None:
 def test_example_monitor_node_compiles(tmp_path: Path) -> None:
     py_compile.compile(str(EXAMPLES / "monitor_node.py"), cfile=str(tmp_path / "n.pyc"),
                        doraise=True)
+
+
+def test_node_core_replans_around_an_obstacle_that_stays(cell_dir: Path) -> None:
+    from safepath.monitor.node import Replan
+    from safepath.monitor.replan import replan
+    from safepath.monitor.simulation import lidar_scan
+
+    lidar = [0.9, 0.6, 0.30]
+    params = parameters_from_mapping({"scene": str(cell_dir), "scan_frame": "laser",
+                                      "scan_xyz": lidar, "stale_after": 0.15,
+                                      "replan_after": 0.5, "replan_margin": 0.03})
+    core = MonitorNodeCore(params)
+    core.configure()
+    core.activate(0.0)
+    core.on_gripper_done(0.0)
+    pose = np.eye(4)
+    pose[:3, 3] = lidar
+    obstacle = MovingSphere.approach([0.33, 0.30, 0.30], [0.0, 0.0, 0.3], 0.0, 0.0, 1.0)
+    request = None
+    t = 0.0
+    while request is None and t < 8.0:
+        t = round(t + 1 / 30, 6)
+        ranges = lidar_scan(obstacle, t, pose)
+        msg = scan_message(Scan(t, "laser", ranges, -np.pi, 2 * np.pi / 360, 0.05, 8.0))
+        for c in core.on_scan(msg, t):
+            if isinstance(c, Replan):
+                request = c
+    assert request is not None and request.held == "vial" and request.route == "phase1"
+    traj = replan(core.monitor.cell, request.route, request.request,  # type: ignore[union-attr]
+                  held=request.held, margin=request.margin)
+    out = core.on_replanned(request.request, traj, t)
+    assert isinstance(out[0], SendGoal)
+    np.testing.assert_allclose(out[0].trajectory.q[0], request.request.q, atol=1e-9)

@@ -134,3 +134,16 @@ def _scene_with(cell: Cell, center: np.ndarray, size: np.ndarray):  # noqa: ANN2
     # The obstacle alone (and the vial, held): the scene's own contacts are the
     # planner's business, checked when it verified the route.
     return replace(cell.scene, objects={"vial": cell.scene.objects["vial"], "obstacle": box})
+
+
+def test_a_replanned_route_is_found_again(cell: Cell) -> None:
+    from safepath import load_routes
+    from safepath.monitor.replan import _start_pose, _step_index
+
+    route = load_routes(cell.folder / "routes.yaml", poses=list(cell.poses),
+                        objects=list(cell.scene.objects))["phase1"]
+    assert _step_index(route, "2 move high2") == 2
+    assert _step_index(route, "0 move high2") == 2  # numbered from 0 in a re-planned route
+    assert _step_index(route, "0 line high2") == 5  # the last of the same text
+    assert _step_index(route, "0 move nowhere") is None
+    assert _start_pose(route, 1) == "grip" and _start_pose(route, 3) == "high2"
