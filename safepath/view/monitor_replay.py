@@ -62,6 +62,7 @@ class MonitorReplay:
         self.slider = gui.add_slider("Time [s]", min=0.0, max=max(self.t1 - self.t0, 1e-3),
                                      step=0.004, initial_value=0.0)
         self.play = gui.add_button("Play")
+        self.pause_button = gui.add_button("Pause")
         self.plot = gui.add_uplot(
             self._plot_data(),
             ({"label": "t [s]"},
@@ -80,6 +81,7 @@ class MonitorReplay:
                                                 visible=bool(run.truth))
         self.slider.on_update(lambda _: self.show(self.t0 + float(self.slider.value)))
         self.play.on_click(lambda _: self._start_playing())
+        self.pause_button.on_click(lambda _: self.pause())
         self._playing = False
         self.show(self.t0)
 
@@ -136,6 +138,10 @@ class MonitorReplay:
         return (f"t = {t:.3f} s: **{d['kind']}** (scale {d['scale']:.2f}), "
                 f"separation {mm(d['separation_now'])}, protective distance "
                 f"{d['protective_distance'] * 1000:.0f} mm. {d['reason']}")
+
+    def pause(self) -> None:
+        """Stop playing (the slider stays where it is)."""
+        self._playing = False
 
     def _start_playing(self) -> None:
         if self._playing:
