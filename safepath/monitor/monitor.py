@@ -37,7 +37,8 @@ import numpy as np
 from ..cell import Cell
 from ..errors import InputError
 from ..trajectory import Trajectory
-from .observations import Cloud, Counts, ObservationError, Obstacles, Scan
+from .elements import OBSTACLES, scene_arrays, to_elements
+from .observations import Counts, ObservationError
 from .options import MonitorOptions
 from .profile import MonitoredPath, Timing
 from .separation import Assessment, assess
@@ -48,7 +49,6 @@ __all__ = ["Monitor", "Decision", "ReplanRequest"]
 log = logging.getLogger(__name__)
 
 DecisionKind = Literal["continue", "slow", "stop", "resume", "replan"]
-OBSTACLES = "obstacles"
 
 
 @dataclass(frozen=True)
@@ -135,7 +135,7 @@ class Monitor:
         self.options = options or MonitorOptions()
         self._spheres: dict[str | None, RobotSpheres] = {}
         self._sources: dict[str, _Source] = {}
-        self._scene = _scene_arrays(cell)
+        self._scene = scene_arrays(cell)
         self._path: MonitoredPath | None = None
         self._sweep: PathSweep | None = None
         self._timings: list[Timing] = []
@@ -203,7 +203,8 @@ class Monitor:
                 future; nothing changes (the last decision stands).
         """
         try:
-            source, stamp, elements, counts = self._convert(observation, now)
+            source, stamp, elements, counts = to_elements(observation, now, self.options,
+                                                          self._scene)
         except ObservationError:
             self.stats["malformed"] += 1
             raise
@@ -247,60 +248,6 @@ class Monitor:
         """Release the kill switch; motion resumes by the hold-time rule."""
         self._latched = False
         self._clear_since = None
-
-    # -- conversion --------------------------------------------------------------------
-    def _convert(self, obs: Any, now: float) -> tuple[str, float, np.ndarray, Counts]:
-        o = self.options
-        if isinstance(obs, Obstacles):
-            source, stamp, E, counts = OBSTACLES, obs.stamp, obs.elements(), Counts()
-            counts = replace(counts, used=len(E))
-        else:
-            if not isinstance(obs, (Scan, Cloud)):
-                typename = type(obs).__name__
-                if hasattr(obs, "ranges"):
-                    obs = Scan.from_ros(obs)
-                elif hasattr(obs, "fields") and hasattr(obs, "data"):
-                    obs = Cloud.from_ros(obs)
-                else:
-                    raise ObservationError(f"cannot observe a {typename}", key="observation")
-            if obs.frame_id not in o.sensors:
-                raise ObservationError(f"unknown frame '{obs.frame_id}' (sensors: "
-                                       f"{', '.join(o.sensors) or 'none'})",
-                                       key="header.frame_id")
-            P, counts = obs.points() if isinstance(obs, Scan) else obs.valid_points()
-            T = o.sensors[obs.frame_id]
-            W = P @ T[:3, :3].T + T[:3, 3]
-            E = np.column_stack([W, np.zeros(len(W))])
-            source, stamp = obs.frame_id, obs.stamp
-        if stamp > now + o.future_tolerance:
-            raise ObservationError(f"stamp {stamp:.3f} s is {stamp - now:.3f} s in the "
-                                   "future", key="header.stamp")
-        E, counts = self._filter(E, counts)
-        return source, stamp, E, counts
-
-    def _filter(self, E: np.ndarray, counts: Counts) -> tuple[np.ndarray, Counts]:  # noqa: N803
-        o = self.options
-        cropped = 0
-        if o.workspace is not None and len(E):
-            w = np.asarray(o.workspace)
-            inside = np.all((E[:, :3] >= w[:3]) & (E[:, :3] <= w[3:]), axis=1)
-            cropped = int((~inside).sum())
-            E = E[inside]
-        scene = 0
-        if o.scene_filter is not None and len(E) and self._scene[0].size:
-            from . import _kernels
-
-            d = np.empty(len(E))
-            kinds, Ts, dims = self._scene
-            reach = dims.sum(axis=1) + 1e-9  # holds a box, cylinder, capsule, sphere
-            within = o.scene_filter + float(E[:, 3].max())
-            _kernels.scene_distance(np.ascontiguousarray(E[:, :3]), kinds, Ts, dims, reach,
-                                    within, d)
-            near = d - E[:, 3] <= o.scene_filter
-            scene = int(near.sum())
-            E = E[~near]
-        return np.ascontiguousarray(E), replace(counts, used=len(E), scene=scene,
-                                                cropped=cropped)
 
     # -- deciding --------------------------------------------------------------------
     def _decide(self, now: float, counts: Counts) -> Decision:
@@ -408,23 +355,3 @@ class Monitor:
         lo = (near[:, :3] - near[:, 3:]).min(axis=0) - o.min_separation - o.sensor_uncertainty
         hi = (near[:, :3] + near[:, 3:]).max(axis=0) + o.min_separation + o.sensor_uncertainty
         return ReplanRequest(now, q, tau, self._path.traj.step_at(tau), (lo + hi) / 2, hi - lo)
-
-
-def _scene_arrays(cell: Cell) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Static scene primitives for the scene filter: kinds, placements, dimensions."""
-    kinds, Ts, dims = [], [], []
-    code = {"box": 0, "cylinder": 1, "sphere": 2, "capsule": 3}
-    for obj in cell.scene.objects.values():
-        if obj.movable:
-            continue
-        s = obj.shape.size
-        kinds.append(code[obj.shape.kind])
-        Ts.append(obj.T_world_object)
-        if obj.shape.kind == "box":
-            dims.append([s[0] / 2, s[1] / 2, s[2] / 2])
-        elif obj.shape.kind in ("cylinder", "capsule"):
-            dims.append([s[0], s[1] / 2, 0.0])
-        else:
-            dims.append([s[0], 0.0, 0.0])
-    return (np.array(kinds, dtype=np.int64), np.array(Ts, dtype=float).reshape(-1, 4, 4),
-            np.array(dims, dtype=float).reshape(-1, 3))
