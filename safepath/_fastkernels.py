@@ -52,7 +52,7 @@ JOINT_FIXED, JOINT_REVOLUTE, JOINT_PRISMATIC = 0, 1, 2
 #: ``warm`` holds, per pair, the last direction GJK found (the next state's first guess).
 Workspace = namedtuple("Workspace", ["Rw", "pw", "tmp", "tmp2", "Ra", "pa", "da", "Rb", "pb",
                                      "db", "axes", "Cw", "bufa", "bufb", "simplex", "sa", "sb",
-                                     "gv", "warm", "absu", "DL", "CC", "hint"])
+                                     "gv", "warm", "absu", "DL", "CC", "hint", "budget"])
 
 
 @njit(cache=True, nogil=True)
@@ -64,7 +64,7 @@ def _workspace(ib):
                      np.empty((ns, 5)), np.empty((ns, 5)), np.empty((4, 3)), np.empty(3),
                      np.empty(3), np.empty(3), np.zeros((npairs, 3)), np.zeros(ib[H_DOF]),
                      np.zeros((ng, ib[H_DOF])), np.zeros((ng, ib[H_DOF])),
-                     np.full((npairs, 2), -1, dtype=np.int64))
+                     np.full((npairs, 2), -1, dtype=np.int64), np.zeros(npairs))
 
 
 @njit(cache=True, nogil=True)
@@ -470,6 +470,8 @@ def _evaluate(q, fb, ib, ws, rates, want_radius):  # noqa: N803
                 return COLLIDES, 0.0
             unsure = True
             continue
+        if want_radius:
+            ws.budget[k] = budget
         if want_radius and rates[k] > 0.0:
             h = max(budget / rates[k], _local_radius(k, a, b, budget, ib, ws.DL, ws.CC, ws.absu))
             if h < radius:
@@ -618,13 +620,29 @@ def certify_polyline(P, n, lo, hi, fb, ib, unsure_seg, unsure_idx, max_unsure): 
     qs = np.empty(dof)
     n_unsure = 0
     evaluated = 0
+    # Carry: the pair budgets [m] of an evaluated state whose certificate reached the end
+    # of its segment, and how much each pair may have closed since (its rate times the
+    # path walked, segment by segment): later segments within every budget are
+    # certified without an evaluation of their own (short chords of a sampled curve).
+    carry = False
+    carried = np.empty(npairs)
+    spent = np.empty(npairs)
     for k in range(P.shape[0] - 1):
-        if hi[k] < lo[k]:
-            continue
         for j in range(dof):
             u[j] = P[k + 1, j] - P[k, j]
         _pair_rates(u, fb, ib, ws, rates)
+        if carry:
+            for p in range(npairs):
+                spent[p] += rates[p]
+                if spent[p] >= carried[p]:
+                    carry = False
+                    break
+            if carry:
+                continue
+        if hi[k] < lo[k]:
+            continue
         nk = n[k]
+        first = True
         size = hi[k] - lo[k] + 3
         # FIFO of disjoint, non-empty index ranges still to cover (coarse to fine).
         qlo = np.empty(size, dtype=np.int64)
@@ -647,12 +665,18 @@ def certify_polyline(P, n, lo, hi, fb, ib, unsure_seg, unsure_idx, max_unsure): 
                 # Grid states with |i - mid| / nk < radius are certified.
                 reach = radius * nk * (1.0 - 1e-12)
                 m = nk if reach >= nk else max(int(math.ceil(reach)) - 1, 0)
+                if first and mid + m >= hi[k]:
+                    carry = True
+                    for p in range(npairs):
+                        carried[p] = ws.budget[p]
+                        spent[p] = rates[p] * (nk - mid) / nk
             else:
                 unsure_seg[n_unsure] = k
                 unsure_idx[n_unsure] = mid
                 n_unsure += 1
                 if n_unsure >= max_unsure:
                     return UNSURE, k, mid, evaluated, n_unsure
+            first = False
             if tail + 2 > size:
                 live = tail - head
                 qlo[:live] = qlo[head:tail].copy()

@@ -202,3 +202,26 @@ def test_panda_segments_answer_as_the_exact_grid(panda_cell: Cell) -> None:
         assert a.valid == exact.check_segment(q0, q1, details=False).valid
         valid += a.valid
     assert 10 < valid < 140
+
+
+@pytest.mark.parametrize("robot", ["ned3pro", "panda"])
+def test_polylines_of_short_chords_answer_as_the_exact_grid(cell: Cell, panda_cell: Cell,
+                                                             robot: str) -> None:
+    """Sampled curves (many short chords, as the smoothed paths are checked): a state's
+    certificate carried along the following chords never certifies a colliding one."""
+    the_cell = cell if robot == "ned3pro" else panda_cell
+    fast = CollisionChecker(the_cell.robot, the_cell.scene)
+    exact = CollisionChecker(the_cell.robot, the_cell.scene, options=CheckOptions(fast=False))
+    poses = np.array(list(the_cell.poses.values()))
+    rng = np.random.default_rng(8)
+    valid = 0
+    for _ in range(60):
+        a, b, c = poses[rng.integers(len(poses), size=3)]
+        s = np.linspace(0.0, 1.0, int(rng.integers(20, 120)))[:, None]
+        curve = (1 - s) ** 2 * a + 2 * s * (1 - s) * (c + rng.normal(0.0, 0.3, len(a))) \
+            + s ** 2 * b  # a quadratic Bezier curve through the joint space
+        curve = np.clip(curve, the_cell.robot.lower, the_cell.robot.upper)
+        verdict = fast.check_path(curve, details=False).valid
+        assert verdict == exact.check_path(curve, details=False).valid
+        valid += verdict
+    assert 5 < valid < 55
