@@ -54,6 +54,8 @@ class Timing:
 
     Attributes:
         wall: Wall time of each run [s].
+        cpu: CPU time of this process in each run [s] (the wall time grows with the
+            machine's load; this much less).
         paths: Path planning time of each run, summed over routes [s].
         total: Planner-reported total time of each run, summed over routes [s].
     """
@@ -61,6 +63,7 @@ class Timing:
     wall: list[float]
     paths: list[float]
     total: list[float]
+    cpu: list[float]
 
 
 def percentile(values: Sequence[float], q: float) -> float:
@@ -69,25 +72,27 @@ def percentile(values: Sequence[float], q: float) -> float:
 
 
 def plan_outcome(cell: Cell, routes: Mapping[str, Route], names: Sequence[str],
-                 options: PlanOptions) -> tuple[float, dict[str, Trajectory]]:
-    """Plan the named routes once; return the wall time [s] and the trajectories."""
+                 options: PlanOptions) -> tuple[float, float, dict[str, Trajectory]]:
+    """Plan the named routes once; return the wall and CPU times [s] and the
+    trajectories."""
     subset = {name: routes[name] for name in names}
-    t0 = time.perf_counter()
+    t0, c0 = time.perf_counter(), time.process_time()
     trajectories = plan_cell(cell, options, routes=subset)
-    return time.perf_counter() - t0, trajectories
+    return time.perf_counter() - t0, time.process_time() - c0, trajectories
 
 
 def measure(cell: Cell, routes: Mapping[str, Route], names: Sequence[str],
             options: PlanOptions, runs: int) -> Timing:
     """One warm-up run, then ``runs`` timed runs of one outcome."""
     plan_outcome(cell, routes, names, options)
-    wall, paths, total = [], [], []
+    wall, paths, total, cpu = [], [], [], []
     for _ in range(runs):
-        seconds, trajectories = plan_outcome(cell, routes, names, options)
+        seconds, cpu_seconds, trajectories = plan_outcome(cell, routes, names, options)
         wall.append(seconds)
+        cpu.append(cpu_seconds)
         paths.append(sum(t.info["planning_time"] for t in trajectories.values()))
         total.append(sum(t.info["total_time"] for t in trajectories.values()))
-    return Timing(wall, paths, total)
+    return Timing(wall, paths, total, cpu)
 
 
 @contextmanager
@@ -148,7 +153,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     print()
     print("wall time of plan_cell (paths + TOPPRA + FCL verification) [ms]")
     header = (f"{'outcome':<28} {'median':>8} {'p95':>8} {'min':>8} {'max':>8}   "
-              f"{'paths':>8} {'time+verify':>11}")
+              f"{'paths':>8} {'time+verify':>11} {'CPU median':>10}")
     print(header)
     print("-" * len(header))
     medians, p95s = {}, {}
@@ -161,9 +166,11 @@ def main(argv: Sequence[str] | None = None) -> int:
                                                        strict=True))
         print(f"{' + '.join(names):<28} {ms(medians[outcome])} "
               f"{ms(percentile(timing.wall, 95))} {ms(min(timing.wall))} "
-              f"{ms(max(timing.wall))}   {ms(paths)} {ms(rest):>11}")
+              f"{ms(max(timing.wall))}   {ms(paths)} {ms(rest):>11} "
+              f"{ms(statistics.median(timing.cpu)):>10}")
     print("(paths, time+verify: medians of the planner's own info['planning_time'] and "
-          "info['total_time'] - info['planning_time'], summed over the two routes)")
+          "info['total_time'] - info['planning_time'], summed over the two routes; CPU: "
+          "this process's CPU time per run)")
 
     # -- stage split (one instrumented run) --------------------------------------------------
     print()
@@ -173,7 +180,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     print("-" * len(header))
     for names in OUTCOMES.values():
         with stage_clock() as spent:
-            wall, trajectories = plan_outcome(cell, routes, names, options)
+            wall, _, trajectories = plan_outcome(cell, routes, names, options)
         paths = sum(t.info["planning_time"] for t in trajectories.values())
         other = wall - paths - spent["timing"] - spent["verification"]
         print(f"{' + '.join(names):<28} {ms(wall)} {ms(paths)} {ms(spent['timing'])} "
@@ -188,7 +195,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     print(header)
     print("-" * len(header))
     baseline_options = PlanOptions(planner=PlannerOptions(seed=args.seed), baseline=True)
-    _, all_trajectories = plan_outcome(cell, routes, list(routes), baseline_options)
+    _, _, all_trajectories = plan_outcome(cell, routes, list(routes), baseline_options)
     for name, traj in all_trajectories.items():
         base = traj.info["baseline_duration"]
         print(f"{name:<28} {traj.duration:8.3f} {base:8.3f} {traj.duration / base:6.2f}")
