@@ -21,6 +21,7 @@ CASES = [
     ("view_startup.py", ["--runs", "1"], ""),
     ("cold_start.py", ["--runs", "1", "--warmup", "0"], "first / second plan_cell"),
     ("monitor.py", ["--decisions", "20", "--speeds", "1.6"], "decision latency"),
+    ("panda_set.py", ["--limit", "2"], "the same, CPU time"),
 ]
 
 
