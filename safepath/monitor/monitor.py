@@ -282,10 +282,11 @@ class Monitor:
                     protective_distance=a.protective_distance,
                     separation_kept=a.separation_kept, stopping_time=a.stopping_time,
                     stopping_distance=a.stopping_distance, counts=counts, closest=a.closest)
-        if self._latched:
-            return self._stop(now, tau_l, r_l, "kill switch (latched until reset)", base)
-        if silent:
-            return self._stop(now, tau_l, r_l, "sensor silence: " + ", ".join(silent), base)
+        if self._latched or silent:
+            self._blocked_since = None  # only an obstacle's stop counts toward a re-plan
+            why = ("kill switch (latched until reset)" if self._latched
+                   else "sensor silence: " + ", ".join(silent))
+            return self._stop(now, tau_l, r_l, why, base)
         return self._choose(now, a, tau_l, r_l, base, E)
 
     def _choose(self, now: float, a: Assessment, tau_l: float, r_l: float,
@@ -295,6 +296,8 @@ class Monitor:
             why = (f"no speed scale >= {o.min_scale:g} keeps the protective distance; "
                    f"braking needs {a.protective_distance:.3f} m, has "
                    f"{a.separation_kept:.3f} m")
+            if self._blocked_since is None:
+                self._blocked_since = now
             decision = self._stop(now, tau_l, r_l, why, base)
             if (self._blocked_since is not None and not self._replan_sent
                     and now - self._blocked_since >= o.replan_after and r_l == 0.0):
@@ -336,8 +339,6 @@ class Monitor:
     def _stop(self, now: float, tau_l: float, r_l: float, reason: str,
               base: dict[str, Any]) -> Decision:
         self._clear_since = None
-        if self._blocked_since is None:
-            self._blocked_since = now
         if self._scale == 0.0:
             return Decision(now, "stop", reason, 0.0, **base)
         return self._emit(now, tau_l, r_l, 0.0, "stop", reason, base)

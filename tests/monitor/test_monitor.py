@@ -35,6 +35,11 @@ def test_all_inf_scan_continues_and_nan_is_counted(cell: Cell, phase1: Phase1) -
     ranges[:40] = np.nan
     d = m.observe(_scan(0.03, ranges), 0.04)
     assert d.kind == "continue" and d.counts.nan == 40 and d.counts.used == 0
+    # An empty scan and an empty cloud are valid observations that see nothing.
+    empty = Scan(0.05, "cam", np.zeros(0), -np.pi, 0.01, 0.05, 8.0)
+    assert m.observe(empty, 0.05).kind == "continue"
+    d = m.observe(Cloud(0.06, "cam", np.zeros((0, 3))), 0.06)
+    assert d.kind == "continue" and d.counts.used == 0 and d.separation_now == np.inf
 
 
 def test_close_reading_stops_and_neg_inf_counts_as_too_close(cell: Cell, phase1: Phase1

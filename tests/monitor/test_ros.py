@@ -66,6 +66,9 @@ def test_cloud_cdr_round_trip_and_big_endian_float64() -> None:
         row_step=64, data=raw.view(np.uint8).ravel(), is_dense=True)
     np.testing.assert_array_equal(Cloud.from_ros(_round_trip(msg, "sensor_msgs/msg/PointCloud2")
                                                  ).points, Q)
+    empty = Cloud.from_ros(_round_trip(cloud_message(Cloud(1.0, "cam", np.zeros((0, 3)))),
+                                       "sensor_msgs/msg/PointCloud2"))
+    assert empty.points.shape == (0, 3)
     bad = T["sensor_msgs/msg/PointCloud2"](
         header=header, height=2, width=2, fields=fields, is_bigendian=True, point_step=32,
         row_step=64, data=raw.view(np.uint8).ravel()[:-8], is_dense=True)
