@@ -196,3 +196,18 @@ def _assert_on_path_within_limits(cell: Cell, traj, rep) -> None:  # noqa: ANN00
     # Knots after the first are knots of the verified path, bit for bit.
     rows = {r.tobytes() for r in traj.q}
     assert all(r.tobytes() in rows for r in rep.q[1:])
+
+
+def test_silence_does_not_count_toward_a_replan(cell: Cell, phase1: Phase1) -> None:
+    m = make_monitor(cell, replan_after=1.0)
+    traj, held = phase1.motions[0]
+    m.follow(traj, start=0.0, held=held)
+    m.observe(_scan(0.0, np.full(360, np.inf)), 0.0)
+    for k in range(1, 60):  # 2 s of silence: stopped
+        assert m.tick(k / 30).kind in ("continue", "stop")
+    assert m.last.kind == "stop" and "silence" in m.last.reason
+    q_now = traj.sample([0.1])[0][0]
+    near = _world_to_cam(cell.robot.tcp_position(q_now)[None, :] + [0.12, 0.0, 0.0])
+    kinds = [m.observe(Cloud(2.0 + k / 30, "cam", near), 2.0 + k / 30).kind for k in range(45)]
+    assert "replan" not in kinds[:29] and kinds.count("replan") == 1
+    assert m.last.kind == "stop"
