@@ -21,7 +21,8 @@ the obstacle's true position at every 4 ms sample.
 Usage::
 
     .venv/bin/python benchmarks/monitor.py
-    .venv/bin/python benchmarks/monitor.py --decisions 100 --speeds 1.6
+    .venv/bin/python benchmarks/monitor.py --decisions 100 --speeds 1.6 --bag out/monitor_run
+    .venv/bin/python -m safepath.view.monitor_replay out/monitor_run   # http://127.0.0.1:8080
 """
 
 from __future__ import annotations
@@ -154,16 +155,23 @@ def latency(cell: object, motion: Trajectory, kind: str, decisions: int,
     return np.array(out), np.array(cpu)
 
 
-def closed_loop(cell: object, motions: list[tuple[Trajectory, str | None]], speed: float
-                ) -> tuple[float, str, np.ndarray]:
-    """Closest true approach [m], the decision kinds in order, decision times [s]."""
+def closed_loop(cell: object, motions: list[tuple[Trajectory, str | None]], speed: float,
+                bag: Path | None = None) -> tuple[float, str, np.ndarray]:
+    """Closest true approach [m], the decision kinds in order, decision times [s]; the run
+    is written to ``bag`` (MCAP) when given."""
+    from safepath.monitor.ros import MonitorRecorder
+
     monitor = Monitor(cell, MonitorOptions(sensors={"cam": CAMERA}, stale_after=0.06,  # type: ignore[arg-type]
                                            hold_time=0.5))
+    recorder = None if bag is None else MonitorRecorder(
+        monitor.options, cell.robot.joint_names, topics={"cam": "/camera/points"})  # type: ignore[attr-defined]
     t_stop = 0.2 + 1.0 / speed
     obstacle = MovingSphere.approach(TARGET + [1.0, 0, 0], TARGET, speed, 0.2, t_stop,
                                      leave_at=t_stop + 1.0)
     res = simulate(monitor, motions, obstacle, sensor="cam", sensor_pose=CAMERA,
-                   until=t_stop + 1.0 + 1.0 / speed + 6.0)
+                   until=t_stop + 1.0 + 1.0 / speed + 6.0, recorder=recorder)
+    if recorder is not None and bag is not None:
+        recorder.write(bag)
     seps = {h: FclSeparation(cell, h) for h in set(res.held)}  # type: ignore[arg-type]
     d = np.array([seps[h](q, c, obstacle.radius)
                   for q, c, h in zip(res.q, res.obstacle, res.held, strict=True)])
@@ -179,6 +187,9 @@ def main() -> None:
     parser.add_argument("--decisions", type=int, default=600, help="decisions per sensor")
     parser.add_argument("--speeds", type=float, nargs="*", default=[0.25, 0.5, 1.0, 1.6],
                         help="obstacle speeds of the closed-loop runs [m/s]")
+    parser.add_argument("--bag", type=Path, default=None,
+                        help="write the first closed-loop run to this MCAP bag (replay: "
+                             "python -m safepath.view.monitor_replay BAG)")
     args = parser.parse_args()
     cell = load_cell(SCENE)
     routes = load_routes(SCENE / "routes.yaml", poses=list(cell.poses),
@@ -198,8 +209,8 @@ def main() -> None:
             print(f"  {label:26s} {name} n={x.size:4d}  median {np.median(x):6.2f}  p99 "
                   f"{np.percentile(x, 99):6.2f}  max {x.max():6.2f}  (aim 5 / 10: {verdict})")
     print("closed loop, phase 1 (camera 30 Hz, v_h 1.6 m/s, C 0.05 m): closest true approach")
-    for speed in args.speeds:
-        closest, kinds, el = closed_loop(cell, motions, speed)
+    for k, speed in enumerate(args.speeds):
+        closest, kinds, el = closed_loop(cell, motions, speed, args.bag if k == 0 else None)
         print(f"  obstacle at {speed:4.2f} m/s: closest {closest * 1e3:6.1f} mm "
               f"(min separation 50 mm)  decisions median {np.median(el) * 1e3:.2f} ms: {kinds}")
 
