@@ -123,7 +123,7 @@ def toppra_run(path: PathSpline, grid: np.ndarray, vmax: np.ndarray, amax: np.nd
     import toppra.algorithm as algo
     import toppra.constraint as constraint
 
-    spline = path  # a scipy CubicSpline
+    spline = path  # safepath's not-a-knot cubic spline
     S = spline.x  # type: ignore[attr-defined]
     tpath = ta.SplineInterpolator(S, path(S))
     instance = algo.TOPPRA(

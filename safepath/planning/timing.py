@@ -28,6 +28,7 @@ from ..errors import TimingError
 from ..robot import Robot
 from . import _topp
 from ._path_limits import PathLimits, PathSpline, path_limits, row_max
+from ._spline import CubicPath
 
 __all__ = ["TimingOptions", "TimedPiece", "PathSpline", "spline_path", "time_path",
            "rest_to_rest_time", "RETIME_ABOVE"]
@@ -117,12 +118,11 @@ def spline_path(waypoints: Sequence[np.ndarray], spacing: float, *,
             instead of passing through it.
 
     Returns:
-        The spline (scipy's not-a-knot ``CubicSpline``), the path parameter of each input
+        The spline (not-a-knot, :class:`~safepath.planning._spline.CubicPath`, scipy's
+        ``CubicSpline`` without its import cost), the path parameter of each input
         waypoint (its closest point for cut corners), and the spline's interpolation
         parameters.
     """
-    from scipy.interpolate import CubicSpline
-
     W = np.asarray(waypoints, dtype=float)
     seg = np.linalg.norm(np.diff(W, axis=0), axis=1)
     s_way = np.concatenate([[0.0], np.cumsum(seg)])
@@ -146,7 +146,7 @@ def spline_path(waypoints: Sequence[np.ndarray], spacing: float, *,
     if len(P) == 2:  # a straight line: a linear "spline"
         P = np.vstack([P[0], 0.5 * (P[0] + P[1]), P[1]])
         S = np.array([0.0, S[-1] / 2, S[-1]])
-    path: PathSpline = CubicSpline(S, P, bc_type="not-a-knot")
+    path: PathSpline = CubicPath(S, P)
     return path, s_way, S
 
 

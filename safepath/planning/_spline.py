@@ -1,0 +1,89 @@
+"""The not-a-knot cubic spline the timed paths follow (numpy, one banded solve).
+
+The same spline as scipy's ``CubicSpline(x, y, bc_type="not-a-knot")`` (its slopes solve
+the same tridiagonal system), without importing ``scipy.interpolate``, which costs a
+new process several tenths of a second before its first plan. Evaluation follows
+:class:`~safepath.planning._path_limits.PathSpline`: ``path(s)``, ``path(s, 1)``,
+``path(s, 2)``, ``path.x``; outside ``[x[0], x[-1]]`` the end pieces extend.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+__all__ = ["CubicPath"]
+
+
+class CubicPath:
+    """A C2 cubic spline through points ``y`` (rows) at increasing parameters ``x``,
+    with not-a-knot ends (three points: the parabola through them).
+
+    Args:
+        x: Parameters, strictly increasing: (n,), n >= 2.
+        y: Values: (n, d).
+    """
+
+    def __init__(self, x: np.ndarray, y: np.ndarray) -> None:
+        x = np.asarray(x, dtype=float)
+        y = np.asarray(y, dtype=float)
+        if x.ndim != 1 or y.ndim != 2 or len(x) != len(y) or len(x) < 2:
+            raise ValueError(f"need n >= 2 parameters and n rows of values, got x "
+                             f"{x.shape} and y {y.shape}")
+        h = np.diff(x)
+        if not np.all(h > 0):
+            raise ValueError("the parameters must increase strictly")
+        self.x = x
+        delta = np.diff(y, axis=0) / h[:, None]
+        m = self._slopes(x, h, y, delta)
+        # Piece i: y_i + m_i t + c2_i t^2 + c3_i t^3 for t = s - x_i.
+        self._y = y
+        self._m = m
+        self._c2 = (3.0 * delta - 2.0 * m[:-1] - m[1:]) / h[:, None]
+        self._c3 = (m[:-1] + m[1:] - 2.0 * delta) / (h * h)[:, None]
+
+    @staticmethod
+    def _slopes(x: np.ndarray, h: np.ndarray, y: np.ndarray, delta: np.ndarray
+                ) -> np.ndarray:
+        """The slope at every point: continuity of the second derivative inside, and of
+        the third at the second and the second-to-last point (not-a-knot)."""
+        n = len(x)
+        if n == 2:
+            return np.repeat(delta, 2, axis=0)
+        if n == 3:  # both conditions fall on the one inner point: the parabola
+            c = (delta[1] - delta[0]) / (x[2] - x[0])  # its second derivative / 2
+            return np.vstack([delta[0] - c * h[0], delta[0] + c * h[0],
+                              delta[1] + c * h[1]])
+        from scipy.linalg import solve_banded  # imported with numba anyway
+
+        ab = np.zeros((3, n))  # upper, main, lower diagonal (solve_banded's layout)
+        b = np.empty_like(y)
+        ab[1, 1:-1] = 2.0 * (h[:-1] + h[1:])
+        ab[0, 2:] = h[:-1]
+        ab[2, :-2] = h[1:]
+        b[1:-1] = 3.0 * (h[1:, None] * delta[:-1] + h[:-1, None] * delta[1:])
+        d = x[2] - x[0]
+        ab[1, 0], ab[0, 1] = h[1], d
+        b[0] = ((h[0] + 2.0 * d) * h[1] * delta[0] + h[0] ** 2 * delta[1]) / d
+        d = x[-1] - x[-3]
+        ab[1, -1], ab[2, -2] = h[-2], d
+        b[-1] = (h[-1] ** 2 * delta[-2] + (2.0 * d + h[-1]) * h[-2] * delta[-1]) / d
+        return np.asarray(solve_banded((1, 1), ab, b, overwrite_ab=True, overwrite_b=True,
+                                       check_finite=False))
+
+    def __call__(self, s: np.ndarray | float, nu: int = 0) -> np.ndarray:
+        """Values (``nu`` = 0) or their first or second derivative at ``s``: (len(s), d),
+        or (d,) for a scalar ``s``."""
+        s_arr = np.asarray(s, dtype=float)
+        flat = np.atleast_1d(s_arr)
+        i = np.clip(np.searchsorted(self.x, flat, side="right") - 1, 0, len(self.x) - 2)
+        t = (flat - self.x[i])[:, None]
+        m, c2, c3 = self._m[i], self._c2[i], self._c3[i]
+        if nu == 0:
+            out = self._y[i] + t * (m + t * (c2 + t * c3))
+        elif nu == 1:
+            out = m + t * (2.0 * c2 + 3.0 * t * c3)
+        elif nu == 2:
+            out = 2.0 * c2 + 6.0 * t * c3
+        else:
+            raise ValueError(f"nu must be 0, 1 or 2, got {nu}")
+        return out[0] if s_arr.ndim == 0 else out
