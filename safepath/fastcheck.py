@@ -6,7 +6,9 @@ A :class:`SphereLayer` is built from a :class:`~safepath.collision.CollisionChec
 * ``FREE``: every checked pair is farther apart than its margin. Certain: the robot's
   and held object's shapes are enclosed by their outer spheres (:mod:`safepath.spheres`)
   and the scene's primitives are measured exactly, so sphere distances are lower bounds
-  of the true ones;
+  of the true ones; pairs of primitives are refined by separating axes, pairs with a
+  convex hull (mesh links) by GJK on the hull's own vertices (:mod:`safepath._gjk`),
+  both lower bounds too;
 * ``COLLIDES``: outside the joint limits, or an inner sphere (inside a shape) is closer
   to another shape than the margin. Certain too;
 * ``UNSURE``: anything else; the exact coal check decides.
@@ -15,9 +17,12 @@ So the checker's answers do not change; only the time to reach them does. For a
 straight joint segment the layer also certifies *intervals*: a state whose clearance
 lower bound exceeds the margin by ``d`` proves every state closer than
 ``d / (rate of approach)`` free, the rate being bounded per pair from the per-joint
-reach of each body (Σ_j w_j |Δq_j|). Segments are walked middle first, so open space
-costs a few evaluations and narrow places are cut down to the checker's grid
-(hpp-core's progressive / dichotomy continuous validation works this way).
+reach of each body (Σ_j w_j |Δq_j|, joints that carry both bodies of a pair left out),
+or from the bodies' distances to the joint axes at that state, whichever proves more.
+Segments are walked middle first, so open space costs a few evaluations and narrow
+places are cut down to the checker's grid (hpp-core's progressive / dichotomy continuous
+validation works this way); along a polyline, a certificate that reaches a segment's end
+carries on into the next segments while every pair's budget lasts.
 
 The kernels are compiled with numba on first use (cached on disk afterwards).
 """
