@@ -147,3 +147,26 @@ def test_a_replanned_route_is_found_again(cell: Cell) -> None:
     assert _step_index(route, "0 line high2") == 5  # the last of the same text
     assert _step_index(route, "0 move nowhere") is None
     assert _start_pose(route, 1) == "grip" and _start_pose(route, 3) == "high2"
+
+
+def test_same_inputs_same_decisions_in_any_thread(cell: Cell, phase1: Phase1) -> None:
+    import threading
+
+    def run() -> SimResult:
+        obstacle = MovingSphere.approach(TARGET + [0.8, 0, 0], TARGET, 1.6, 0.2, 0.7,
+                                         leave_at=1.2)
+        return simulate(make_monitor(cell, hold_time=0.3), list(phase1.motions), obstacle,
+                        sensor="cam", sensor_pose=CAMERA, until=3.0, seed=7)
+
+    first = run()
+    box: list[SimResult] = []
+    thread = threading.Thread(target=lambda: box.append(run()))
+    thread.start()
+    thread.join()
+    second = box[0]
+    assert [(d.kind, d.scale, d.separation_now) for d in first.decisions] == \
+        [(d.kind, d.scale, d.separation_now) for d in second.decisions]
+    assert len(first.replacements) == len(second.replacements) > 0
+    for (t1, a), (t2, b) in zip(first.replacements, second.replacements, strict=True):
+        assert t1 == t2 and a == b
+    np.testing.assert_array_equal(first.q, second.q)
