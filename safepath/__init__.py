@@ -41,9 +41,11 @@ from .planning import (
     plan_route,
 )
 from .poses import dump_poses, load_poses, save_poses
-from .robot import Robot, ToolSpec, load_robot, robot_names
+from .robot import Robot, ToolSpec
+from .robot_loader import load_robot, robot_names
 from .scene import AllowedContact, Grasp, Scene, SceneObject, Shape, load_scene, placement
 from .trajectory import GripperEvent, Trajectory, load_trajectory
+from .trajectory_controller import TrajectoryController
 
 logging.getLogger(__name__).addHandler(logging.NullHandler())
 
@@ -85,6 +87,7 @@ __all__ = [
     "StateReport",
     "TimingError",
     "ToolSpec",
+    "TrajectoryController",
     "TrajectoryError",
     "VerificationError",
     "check_poses",

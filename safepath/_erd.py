@@ -14,6 +14,7 @@ import pinocchio as pin
 
 from .errors import ConfigError
 from .robot import Robot, adjacent_link_pairs
+from .trajectory_controller import read_controller
 
 __all__ = ["load_erd"]
 
@@ -30,8 +31,14 @@ def _default_acceleration(velocity: np.ndarray) -> np.ndarray:
     return 2.0 * velocity
 
 
-def load_erd(name: str) -> Robot:
-    """Load an example-robot-data robot as a safepath :class:`Robot` (arm joints only)."""
+def load_erd(name: str, *, controller_path: Path | None = None) -> Robot:
+    """Load an example-robot-data robot as a safepath :class:`Robot` (arm joints only).
+
+    Args:
+        name: The example-robot-data name (``ur5``, ``panda``, ...).
+        controller_path: A ``controller.yaml`` with its ROS 2 trajectory controller
+            (None: settings derived from its joint names).
+    """
     import example_robot_data as erd
     from example_robot_data.robots_loader import ROBOTS
 
@@ -54,9 +61,11 @@ def load_erd(name: str) -> Robot:
     acc = np.array(_KNOWN_ACCELERATION.get(name, _default_acceleration(vel)), dtype=float)
     tcp = _guess_tcp(model, name)
     del erd
+    joints = tuple(model.names[1:])
+    controller = read_controller(controller_path, joints) if controller_path else None
     return Robot(name=name, model=model, collision_model=geom, visual_model=visual,
                  velocity_limits=vel, acceleration_limits=acc, tcp_frame=tcp,
-                 allowed_self_pairs=pairs, source=None,
+                 allowed_self_pairs=pairs, source=None, controller=controller,
                  urdf_path=Path(loader.df_path) if getattr(loader, "df_path", None) else None)
 
 

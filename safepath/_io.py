@@ -6,14 +6,14 @@ import math
 import os
 import shutil
 import tempfile
-from collections.abc import Callable, Iterator, Sequence
+from collections.abc import Iterable, Iterator, Mapping
 from contextlib import contextmanager
 from pathlib import Path
 from typing import IO, Any
 
 import yaml
 
-from .errors import ConfigError, InputError
+from .errors import ConfigError, InputError, unknown_name
 
 try:  # libyaml's parser: about 7x faster than PyYAML's own on the cell's files
     from yaml import CSafeLoader as _SafeBase
@@ -21,7 +21,7 @@ except ImportError:  # pragma: no cover - PyYAML built without libyaml
     from yaml import SafeLoader as _SafeBase  # type: ignore[assignment]
 
 __all__ = ["read_yaml", "atomic_write", "atomic_write_text", "get_key", "as_float",
-           "as_vector", "as_str"]
+           "as_vector", "as_str", "check_names", "check_keys"]
 
 
 class _DuplicateKey(Exception):
@@ -165,10 +165,31 @@ def atomic_write_text(path: str | Path, text: str, *, backup: bool = False,
         raise error(f"cannot write file ({exc.strerror or exc})", path=path) from None
 
 
-def check_names(names: Sequence[str], known: Sequence[str], *, path: Path | None, key: str,
-                what: str, error: type[InputError] = ConfigError,
-                transform: Callable[[str], str] = str) -> None:
-    """Raise a typed error for the first name of ``names`` not in ``known``."""
+def check_names(names: Iterable[Any], known: Iterable[str], *, path: Path | None,
+                key: str | None, what: str, error: type[InputError] = ConfigError) -> None:
+    """Raise a typed error for the first of ``names`` not in ``known``.
+
+    The message names the closest known names (see :func:`safepath.errors.unknown_name`).
+    """
+    known = list(known)
     for name in names:
-        if transform(name) not in known:
-            raise error(f"unknown {what} '{name}' (known: {', '.join(known)})", path=path, key=key)
+        if name not in known:
+            raise error(unknown_name(what, str(name), known), path=path, key=key)
+
+
+def check_keys(mapping: Mapping[Any, Any], known: Iterable[str], *, path: Path | None,
+               prefix: str = "", error: type[InputError] = ConfigError) -> None:
+    """Refuse a key of ``mapping`` that is not in ``known``, naming the closest known key.
+
+    Args:
+        mapping: A mapping read from a file (or given as an argument).
+        known: The keys allowed at this level.
+        path: The file, for the message.
+        prefix: Dotted key of ``mapping`` in the file ("" at the top level).
+        error: Error class raised.
+    """
+    known = list(known)
+    for name in mapping:
+        if name not in known:
+            full = f"{prefix}.{name}" if prefix else str(name)
+            raise error(unknown_name("key", str(name), known), path=path, key=full)

@@ -1,42 +1,131 @@
-"""A cell: a robot, its scene and its taught poses, loaded from one scene folder."""
+"""A cell: a robot, its scene, its taught poses and its routes.
+
+Built in Python (``Cell(robot, scene, poses, routes=...)``) or loaded from a scene folder
+(:func:`load_cell`); both are validated the same way when the cell is made.
+"""
 
 from __future__ import annotations
 
 import threading
-from dataclasses import dataclass, field
+from collections.abc import Mapping
+from dataclasses import KW_ONLY, dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from ._io import check_names
+from ._paths import SCENES_DIR
 from .collision import CheckOptions, CollisionChecker, StateReport
-from .errors import ConfigError, PoseError
-from .poses import load_poses
-from .robot import Robot, load_robot
+from .errors import ConfigError, PoseError, unknown_name
+from .poses import POSE_NAME, load_poses
+from .robot import Robot
+from .robot_loader import load_robot
 from .scene import Scene, load_scene
+
+if TYPE_CHECKING:
+    from .planning.routes import Route
 
 __all__ = ["Cell", "PoseCheck", "load_cell", "check_poses"]
 
 
-@dataclass
+@dataclass(eq=False)
 class Cell:
-    """A robot in its scene, with its taught poses.
+    """A robot in its scene, with its taught poses and routes.
+
+    Everything is checked when the cell is made, whether in Python or by
+    :func:`load_cell`: every pose against the robot (joint count, finite, inside the
+    limits), the scene's grasp and allowed contacts against the poses and the tool, the
+    routes against the poses and objects.
 
     Attributes:
         robot: The robot the scene includes.
         scene: The surroundings.
-        poses: Taught poses by name [rad].
-        folder: The scene folder.
-        poses_path: The poses file.
+        poses: Taught poses by name [rad] (any sequences; kept as numpy arrays).
+        routes: Routes by name, or None: ``routes.yaml`` of :attr:`folder`, if any.
+        folder: The scene folder, or None for a cell built in Python.
+        poses_path: The poses file, or None for a cell built in Python.
+
+    Raises:
+        PoseError: A pose with a bad name, the wrong joint count, a non-finite value or a
+            value outside the joint limits.
+        ConfigError: A grasp or contact at an unknown pose, an object the tool cannot
+            hold, a route naming an unknown pose or object.
     """
 
     robot: Robot
     scene: Scene
     poses: dict[str, np.ndarray]
-    folder: Path
-    poses_path: Path
+    _: KW_ONLY
+    routes: Mapping[str, Route] | None = None
+    folder: Path | None = None
+    poses_path: Path | None = None
     _local: threading.local = field(default_factory=threading.local, repr=False,
                                     compare=False)
+
+    def __post_init__(self) -> None:
+        if not isinstance(self.robot, Robot):
+            raise ConfigError(f"expected a safepath.Robot, got {type(self.robot).__name__}",
+                              key="robot")
+        if not isinstance(self.scene, Scene):
+            raise ConfigError(f"expected a safepath.Scene, got {type(self.scene).__name__}",
+                              key="scene")
+        if not isinstance(self.poses, Mapping):
+            raise PoseError(f"expected a mapping of pose names to joint vectors, got "
+                            f"{type(self.poses).__name__}", path=self.poses_path, key="poses")
+        self.folder = None if self.folder is None else Path(self.folder)
+        self.poses_path = None if self.poses_path is None else Path(self.poses_path)
+        poses: dict[str, np.ndarray] = {}
+        for name, q in self.poses.items():
+            if not isinstance(name, str) or not POSE_NAME.match(name):
+                raise PoseError(f"'{name}' is not a valid pose name", path=self.poses_path,
+                                key=str(name))
+            poses[name] = self.robot.as_joint_vector(q, name=name, path=self.poses_path)
+        self.poses = poses
+        _check_scene_against(self.robot, self.scene, poses)
+        if self.routes is not None:
+            from .planning.routes import check_routes
+
+            self.routes = check_routes(self.routes, poses=list(poses),
+                                       objects=list(self.scene.objects))
+
+    def scene_folder(self) -> Path:
+        """The scene folder (for what needs files: re-planning in another process).
+
+        Raises:
+            ConfigError: The cell was built in Python, without a folder.
+        """
+        if self.folder is None:
+            raise ConfigError("the cell was built in Python: it has no scene folder",
+                              key="folder")
+        return self.folder
+
+    def poses_file(self) -> Path:
+        """The poses file (for what reads or saves it: the review session).
+
+        Raises:
+            ConfigError: The cell was built in Python, without a poses file.
+        """
+        if self.poses_path is None:
+            raise ConfigError("the cell was built in Python: it has no poses file",
+                              key="poses_path")
+        return self.poses_path
+
+    def route_table(self) -> dict[str, Route]:
+        """The cell's routes: those it was given, else ``routes.yaml`` of its folder.
+
+        Raises:
+            ConfigError: No routes given and no ``routes.yaml`` (or a malformed one).
+        """
+        if self.routes is not None:
+            return dict(self.routes)
+        if self.folder is None:
+            raise ConfigError("the cell has no routes (give Cell(..., routes=...))",
+                              key="routes")
+        from .planning.routes import load_routes
+
+        return load_routes(self.folder, poses=list(self.poses),
+                           objects=list(self.scene.objects))
 
     def cache(self, key: Any) -> dict[Any, Any]:
         """A per-thread dictionary for objects built from this cell (collision checkers
@@ -53,8 +142,8 @@ class Cell:
             PoseError: No pose of that name (lists the known ones).
         """
         if name not in self.poses:
-            raise PoseError(f"unknown pose '{name}' (known: {', '.join(self.poses)})",
-                            path=self.poses_path, key=name)
+            raise PoseError(unknown_name("pose", name, self.poses), path=self.poses_path,
+                            key=name)
         return self.poses[name]
 
     def checker(self, *, held: bool = False, at: str | None = None,
@@ -94,14 +183,25 @@ class PoseCheck:
 def load_cell(folder: str | Path) -> Cell:
     """Load ``scene.yaml`` and ``poses.yaml`` from a scene folder, and the robot it names.
 
-    The robot is looked up by name, or as a path relative to the scene folder.
+    Args:
+        folder: A scene folder, or the name of a bundled one (``"quality_check_cell"``,
+            found from any working directory, also in an installed library).
+
+    The robot is looked up by name, or as a path relative to the scene folder. Routes
+    (``routes.yaml``) are read when they are needed (:meth:`Cell.route_table`).
 
     Raises:
         SafepathError: Any malformed or inconsistent file (typed, names file and key).
     """
     folder = Path(folder)
     if not folder.exists():
-        raise ConfigError("scene folder not found", path=folder)
+        bundled = SCENES_DIR / str(folder)
+        if len(folder.parts) == 1 and (bundled / "scene.yaml").is_file():
+            folder = bundled
+        else:
+            names = sorted(p.parent.name for p in SCENES_DIR.glob("*/scene.yaml"))
+            hint = unknown_name("scene", str(folder), names).split(" (", 1)[1]
+            raise ConfigError(f"scene folder not found ({hint}", path=folder)
     scene = load_scene(folder)
     if scene.path is not None:
         folder = scene.path.parent
@@ -109,18 +209,17 @@ def load_cell(folder: str | Path) -> Cell:
     robot = load_robot(relative if relative.is_dir() else scene.robot)
     poses_path = folder / "poses.yaml"
     poses = load_poses(poses_path, robot) if poses_path.exists() else {}
+    return Cell(robot, scene, poses, folder=folder, poses_path=poses_path)
+
+
+def _check_scene_against(robot: Robot, scene: Scene, poses: Mapping[str, np.ndarray]) -> None:
+    """The scene's grasp and allowed contacts name known poses; the tool fits the object."""
     if scene.grasp is not None:
-        for name in scene.grasp.poses:
-            if name not in poses:
-                raise ConfigError(f"unknown pose '{name}' (known: {', '.join(poses)})",
-                                  path=scene.path, key="grasp.poses")
+        check_names(scene.grasp.poses, poses, path=scene.path, key="grasp.poses", what="pose")
         _check_fits(robot, scene)
     for i, contact in enumerate(scene.allowed_contacts):
-        for name in contact.at:
-            if name not in poses:
-                raise ConfigError(f"unknown pose '{name}' (known: {', '.join(poses)})",
-                                  path=scene.path, key=f"allowed_contacts[{i}].at")
-    return Cell(robot=robot, scene=scene, poses=poses, folder=folder, poses_path=poses_path)
+        check_names(contact.at, poses, path=scene.path, key=f"allowed_contacts[{i}].at",
+                    what="pose")
 
 
 def _check_fits(robot: Robot, scene: Scene) -> None:

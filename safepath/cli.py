@@ -65,7 +65,7 @@ def cmd_check(args: argparse.Namespace) -> int:
 
 def cmd_robot_pairs(args: argparse.Namespace) -> int:
     """Regenerate a robot folder's allowed self-collision pairs."""
-    from .robot import load_robot
+    from .robot_loader import load_robot
     from .self_collision import write_allowed_pairs
 
     robot = load_robot(args.robot)

@@ -8,7 +8,8 @@ command line can print it as one line.
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+import difflib
+from collections.abc import Iterable, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -27,7 +28,35 @@ __all__ = [
     "VerificationError",
     "TrajectoryError",
     "RosError",
+    "unknown_name",
 ]
+
+#: Up to this many known names are listed in full; beyond, only the closest are named.
+_LIST_AT_MOST = 12
+
+
+def unknown_name(what: str, name: str, known: Iterable[str]) -> str:
+    """The one wording of "unknown X": the closest known names, or all of a short list.
+
+    ``unknown_name("robot", "ur55", names)`` gives ``unknown robot 'ur55' (did you mean
+    'ur5'?)`` rather than the 75 robot names; a short list is given in full.
+
+    Args:
+        what: What the name names (``key``, ``pose``, ``robot``, ...).
+        name: The name that was given.
+        known: The names that would have worked.
+    """
+    names = [str(k) for k in known]
+    close = difflib.get_close_matches(str(name), names, n=3, cutoff=0.6)
+    if close:
+        hint = "did you mean " + " or ".join(f"'{c}'" for c in close) + "?"
+    elif not names:
+        hint = f"there is no {what}"
+    elif len(names) <= _LIST_AT_MOST:
+        hint = "known: " + ", ".join(names)
+    else:
+        hint = f"{len(names)} known, e.g. " + ", ".join(names[:_LIST_AT_MOST]) + ", ..."
+    return f"unknown {what} '{name}' ({hint})"
 
 
 class SafepathError(Exception):
@@ -90,9 +119,7 @@ class RobotNotFound(InputError):
     def __init__(self, name: str, known: Sequence[str], *, path: str | Path | None = None):
         self.name = name
         self.known = list(known)
-        super().__init__(
-            f"unknown robot '{name}' (known: {', '.join(self.known)})", path=path, key="robot"
-        )
+        super().__init__(unknown_name("robot", name, self.known), path=path, key="robot")
 
 
 class FrameNotFound(InputError):
@@ -107,8 +134,7 @@ class FrameNotFound(InputError):
                  key: str | None = None):
         self.name = name
         self.frames = list(frames)
-        super().__init__(f"no frame '{name}' (frames: {', '.join(self.frames)})",
-                         path=path, key=key)
+        super().__init__(unknown_name("frame", name, self.frames), path=path, key=key)
 
 
 class CollisionError(SafepathError):

@@ -23,13 +23,14 @@ from pathlib import Path
 
 import numpy as np
 
-from ._io import atomic_write_text, read_yaml
+from ._io import atomic_write_text, check_names, read_yaml
 from .errors import PoseError
 from .robot import Robot
 
-__all__ = ["load_poses", "save_poses", "dump_poses"]
+__all__ = ["load_poses", "save_poses", "dump_poses", "POSE_NAME"]
 
-_NAME = re.compile(r"^[A-Za-z_][A-Za-z0-9_\-]*$")
+#: What a pose name may be: a letter or underscore, then letters, digits, ``_`` or ``-``.
+POSE_NAME = re.compile(r"^[A-Za-z_][A-Za-z0-9_\-]*$")
 
 
 def load_poses(path: str | Path, robot: Robot, *, names: Sequence[str] | None = None
@@ -66,7 +67,7 @@ def load_poses(path: str | Path, robot: Robot, *, names: Sequence[str] | None = 
             _add(raw, str(key), str(key), value, path)
     poses: dict[str, np.ndarray] = {}
     for name, (key, q) in raw.items():
-        if not _NAME.match(name):
+        if not POSE_NAME.match(name):
             raise PoseError(f"'{name}' is not a valid pose name", path=path, key=key)
         if not isinstance(q, list):
             raise PoseError(f"expected a list of {robot.dof} joint values, got {q!r}",
@@ -78,9 +79,7 @@ def load_poses(path: str | Path, robot: Robot, *, names: Sequence[str] | None = 
     if names is not None:
         known = list(names)
         for name, (key, _) in raw.items():
-            if name not in known:
-                raise PoseError(f"unknown pose name '{name}' (expected: {', '.join(known)})",
-                                path=path, key=key)
+            check_names([name], known, path=path, key=key, what="pose name", error=PoseError)
         missing = [n for n in known if n not in poses]
         if missing:
             raise PoseError(f"missing pose(s): {', '.join(missing)}", path=path)
@@ -115,7 +114,7 @@ def save_poses(path: str | Path, poses: Mapping[str, Sequence[float] | np.ndarra
     path = Path(path)
     checked = {}
     for name, q in poses.items():
-        if not _NAME.match(str(name)):
+        if not POSE_NAME.match(str(name)):
             raise PoseError(f"'{name}' is not a valid pose name", path=path, key=str(name))
         checked[str(name)] = robot.as_joint_vector(q, name=f"poses.{name}", path=path)
     atomic_write_text(path, dump_poses(checked), backup=backup, error=PoseError)

@@ -8,6 +8,7 @@ on its conveyor), each restricted to the taught poses where it happens.
 
 from __future__ import annotations
 
+import dataclasses
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -16,7 +17,7 @@ from typing import Any, Literal
 import numpy as np
 import pinocchio as pin
 
-from ._io import as_float, as_str, as_vector, get_key, read_yaml
+from ._io import as_float, as_str, as_vector, check_keys, check_names, get_key, read_yaml
 from .errors import ConfigError
 
 __all__ = ["Shape", "SceneObject", "AllowedContact", "Grasp", "Scene", "load_scene",
@@ -33,6 +34,38 @@ _SIZE_KEYS: dict[str, tuple[str, ...]] = {
 #: Alias in ``allowed_contacts`` for the tool's contact links (the gripper jaws).
 GRIPPER = "gripper"
 
+_SCENE_KEYS = ("name", "robot", "margin", "objects", "grasp", "allowed_contacts", "note")
+_OBJECT_KEYS = ("shape", "size", "radius", "length", "xyz", "rpy", "margin", "movable",
+                "color", "note")
+_CONTACT_KEYS = ("between", "at", "max_depth", "reason")
+_GRASP_KEYS = ("object", "xyz", "rpy", "poses")
+
+
+def _number(value: Any, key: str, *, positive: bool = False, non_negative: bool = False
+            ) -> float:
+    """A finite float from a constructor argument, or a ConfigError naming ``key``."""
+    return as_float(value.item() if isinstance(value, np.generic) else value, path=None,
+                    key=key, positive=positive, non_negative=non_negative)
+
+
+def _transform(value: Any, key: str) -> np.ndarray:
+    """A finite rigid 4x4 transform (a copy), or a ConfigError naming ``key``."""
+    try:
+        T = np.array(value, dtype=float)
+    except (TypeError, ValueError):
+        raise ConfigError(f"expected a 4x4 transform, got {value!r}", key=key) from None
+    if T.shape != (4, 4):
+        raise ConfigError(f"expected a 4x4 transform, got shape {T.shape}", key=key)
+    if not np.all(np.isfinite(T)):
+        raise ConfigError("the transform has non-finite entries", key=key)
+    R = T[:3, :3]
+    if not (np.allclose(R @ R.T, np.eye(3), atol=1e-6) and np.isclose(np.linalg.det(R), 1.0,
+                                                                       atol=1e-6)
+            and np.allclose(T[3], [0.0, 0.0, 0.0, 1.0])):
+        raise ConfigError("not a rigid transform (rotation not orthonormal, or last row "
+                          "not [0, 0, 0, 1])", key=key)
+    return T
+
 
 @dataclass(frozen=True)
 class Shape:
@@ -46,6 +79,21 @@ class Shape:
 
     kind: ShapeKind
     size: tuple[float, ...]
+
+    def __post_init__(self) -> None:
+        if self.kind not in _SIZE_KEYS:
+            check_names([self.kind], _SIZE_KEYS, path=None, key="kind", what="shape")
+        names = ("x", "y", "z") if self.kind == "box" else _SIZE_KEYS[self.kind]
+        try:
+            size = tuple(self.size)
+        except TypeError:
+            raise ConfigError(f"expected {len(names)} sizes ({', '.join(names)}) [m], got "
+                              f"{self.size!r}", key="size") from None
+        if len(size) != len(names):
+            raise ConfigError(f"a {self.kind} needs {len(names)} sizes ({', '.join(names)}) "
+                              f"[m], got {len(size)}", key="size")
+        object.__setattr__(self, "size", tuple(
+            _number(v, f"size[{i}]", positive=True) for i, v in enumerate(size)))
 
     def bounding_radius(self) -> float:
         """Radius of a sphere about the shape's origin that holds it [m]."""
@@ -90,10 +138,29 @@ class SceneObject:
     movable: bool = False
     color: tuple[float, float, float] = (0.6, 0.6, 0.6)
 
+    def __post_init__(self) -> None:
+        if not isinstance(self.name, str) or not self.name:
+            raise ConfigError(f"expected a non-empty name, got {self.name!r}", key="name")
+        where = f"objects.{self.name}"
+        if not isinstance(self.shape, Shape):
+            raise ConfigError(f"expected a Shape, got {self.shape!r}", key=f"{where}.shape")
+        object.__setattr__(self, "T_world_object",
+                           _transform(self.T_world_object, f"{where}.T_world_object"))
+        if self.margin is not None:
+            object.__setattr__(self, "margin", _number(self.margin, f"{where}.margin",
+                                                       non_negative=True))
+        if not isinstance(self.movable, bool):
+            raise ConfigError(f"expected True or False, got {self.movable!r}",
+                              key=f"{where}.movable")
+        rgb = tuple(_number(c, f"{where}.color") for c in self.color)
+        if len(rgb) != 3 or any(c < 0 or c > 1 for c in rgb):
+            raise ConfigError(f"expected three components in [0, 1], got {self.color!r}",
+                              key=f"{where}.color")
+        object.__setattr__(self, "color", rgb)
+
     def placed(self, T_world_object: np.ndarray) -> SceneObject:
         """The same object at another placement."""
-        return SceneObject(self.name, self.shape, np.array(T_world_object, dtype=float),
-                           self.margin, self.movable, self.color)
+        return dataclasses.replace(self, T_world_object=T_world_object)
 
 
 @dataclass(frozen=True)
@@ -117,6 +184,19 @@ class AllowedContact:
     max_depth: float | None = None
     reason: str = ""
 
+    def __post_init__(self) -> None:
+        between = tuple(self.between) if isinstance(self.between, (list, tuple)) else ()
+        if len(between) != 2 or not all(isinstance(b, str) and b for b in between):
+            raise ConfigError(f"expected two names, got {self.between!r}", key="between")
+        object.__setattr__(self, "between", between)
+        at = (self.at,) if isinstance(self.at, str) else tuple(self.at)
+        if not all(isinstance(a, str) and a for a in at):
+            raise ConfigError(f"expected pose names, got {self.at!r}", key="at")
+        object.__setattr__(self, "at", at)
+        if self.max_depth is not None:
+            object.__setattr__(self, "max_depth", _number(self.max_depth, "max_depth",
+                                                          non_negative=True))
+
 
 @dataclass(frozen=True)
 class Grasp:
@@ -131,6 +211,17 @@ class Grasp:
     object: str
     T_tcp_object: np.ndarray = field(repr=False)
     poses: tuple[str, ...] = ()
+
+    def __post_init__(self) -> None:
+        if not isinstance(self.object, str) or not self.object:
+            raise ConfigError(f"expected an object name, got {self.object!r}",
+                              key="grasp.object")
+        object.__setattr__(self, "T_tcp_object",
+                           _transform(self.T_tcp_object, "grasp.T_tcp_object"))
+        poses = (self.poses,) if isinstance(self.poses, str) else tuple(self.poses)
+        if not all(isinstance(p, str) and p for p in poses):
+            raise ConfigError(f"expected pose names, got {self.poses!r}", key="grasp.poses")
+        object.__setattr__(self, "poses", poses)
 
 
 @dataclass(frozen=True)
@@ -155,6 +246,49 @@ class Scene:
     grasp: Grasp | None = None
     path: Path | None = None
 
+    def __post_init__(self) -> None:
+        where = {"path": self.path}
+        for key in ("name", "robot"):
+            value = getattr(self, key)
+            if not isinstance(value, str) or not value:
+                raise ConfigError(f"expected a non-empty string, got {value!r}", key=key,
+                                  **where)
+        if isinstance(self.objects, Mapping):
+            items = list(self.objects.items())
+        else:  # a sequence of objects: keyed by their names
+            items = [(getattr(o, "name", None), o) for o in self.objects]
+        objects: dict[str, SceneObject] = {}
+        for name, obj in items:
+            if not isinstance(obj, SceneObject):
+                raise ConfigError(f"expected a SceneObject, got {type(obj).__name__}",
+                                  key=f"objects.{name}", **where)
+            if obj.name != name or name in objects:
+                raise ConfigError(f"object '{obj.name}' is listed under '{name}' or twice",
+                                  key=f"objects.{name}", **where)
+            objects[name] = obj
+        object.__setattr__(self, "objects", objects)
+        object.__setattr__(self, "margin", as_float(
+            self.margin.item() if isinstance(self.margin, np.generic) else self.margin,
+            path=self.path, key="margin", non_negative=True))
+        contacts = tuple(self.allowed_contacts)
+        for i, contact in enumerate(contacts):
+            if not isinstance(contact, AllowedContact):
+                raise ConfigError(f"expected an AllowedContact, got {type(contact).__name__}",
+                                  key=f"allowed_contacts[{i}]", **where)
+            if not any(b in objects for b in contact.between):
+                raise ConfigError(f"neither of {list(contact.between)} is a scene object",
+                                  key=f"allowed_contacts[{i}].between", **where)
+        object.__setattr__(self, "allowed_contacts", contacts)
+        if self.grasp is not None:
+            if not isinstance(self.grasp, Grasp):
+                raise ConfigError(f"expected a Grasp, got {type(self.grasp).__name__}",
+                                  key="grasp", **where)
+            check_names([self.grasp.object], objects, path=self.path, key="grasp.object",
+                        what="object")
+            if not objects[self.grasp.object].movable:
+                raise ConfigError(f"object '{self.grasp.object}' is not movable",
+                                  key="grasp.object", **where)
+
     def static_objects(self) -> list[SceneObject]:
         """Objects that never move."""
         return [o for o in self.objects.values() if not o.movable]
@@ -174,10 +308,23 @@ class Scene:
 
 
 def placement(xyz: Any, rpy: Any = (0.0, 0.0, 0.0)) -> np.ndarray:
-    """Homogeneous transform (4x4) from a translation [m] and URDF roll-pitch-yaw [rad]."""
+    """Homogeneous transform (4x4) from a translation [m] and URDF roll-pitch-yaw [rad].
+
+    Raises:
+        ConfigError: ``xyz`` or ``rpy`` is not three finite numbers (key ``xyz``/``rpy``).
+    """
+    values = {}
+    for key, raw in (("xyz", xyz), ("rpy", rpy)):
+        try:
+            v = np.asarray(raw, dtype=float).reshape(-1)
+        except (TypeError, ValueError):
+            raise ConfigError(f"expected three numbers, got {raw!r}", key=key) from None
+        if v.shape != (3,) or not np.all(np.isfinite(v)):
+            raise ConfigError(f"expected three finite numbers, got {raw!r}", key=key)
+        values[key] = v
     T = np.eye(4)
-    T[:3, :3] = pin.rpy.rpyToMatrix(*[float(v) for v in rpy])
-    T[:3, 3] = np.asarray(xyz, dtype=float)
+    T[:3, :3] = pin.rpy.rpyToMatrix(*[float(v) for v in values["rpy"]])
+    T[:3, 3] = values["xyz"]
     return T
 
 
@@ -194,6 +341,7 @@ def load_scene(path: str | Path) -> Scene:
     data = read_yaml(path)
     if not isinstance(data, dict):
         raise ConfigError("expected a mapping at the top level", path=path)
+    check_keys(data, _SCENE_KEYS, path=path)
     name = as_str(get_key(data, "name", path=path), path=path, key="name")
     robot = as_str(get_key(data, "robot", path=path), path=path, key="robot")
     margin = as_float(get_key(data, "margin", path=path, default=0.010), path=path,
@@ -217,10 +365,9 @@ def _parse_object(name: str, raw: Any, path: Path) -> SceneObject:
     key = f"objects.{name}"
     if not isinstance(raw, dict):
         raise ConfigError("expected a mapping", path=path, key=key)
+    check_keys(raw, _OBJECT_KEYS, path=path, prefix=key)
     kind = as_str(get_key(raw, "shape", path=path, prefix=key), path=path, key=f"{key}.shape")
-    if kind not in _SIZE_KEYS:
-        raise ConfigError(f"unknown shape '{kind}' (known: {', '.join(_SIZE_KEYS)})",
-                          path=path, key=f"{key}.shape")
+    check_names([kind], _SIZE_KEYS, path=path, key=f"{key}.shape", what="shape")
     if kind == "box":
         size = as_vector(get_key(raw, "size", path=path, prefix=key), 3, path=path,
                          key=f"{key}.size")
@@ -245,10 +392,10 @@ def _parse_object(name: str, raw: Any, path: Path) -> SceneObject:
     rgb = as_vector(color, 3, path=path, key=f"{key}.color")
     if any(c < 0 or c > 1 for c in rgb):
         raise ConfigError("colour components must lie in [0, 1]", path=path, key=f"{key}.color")
-    unknown = set(raw) - {"shape", "size", "radius", "length", "xyz", "rpy", "margin",
-                          "movable", "color", "note"}
-    if unknown:
-        raise ConfigError(f"unknown key(s) {sorted(unknown)}", path=path, key=key)
+    extra = [k for k in ("size", "radius", "length") if k in raw and k not in _SIZE_KEYS[kind]]
+    if extra:
+        raise ConfigError(f"a {kind} has no '{extra[0]}' (it takes "
+                          f"{', '.join(_SIZE_KEYS[kind])})", path=path, key=f"{key}.{extra[0]}")
     shape = Shape(kind, tuple(size))  # type: ignore[arg-type]  # kind checked above
     return SceneObject(name, shape, placement(xyz, rpy), margin, movable,
                        (rgb[0], rgb[1], rgb[2]))
@@ -259,6 +406,7 @@ def _parse_contact(i: int, raw: Any, path: Path, objects: Mapping[str, SceneObje
     key = f"allowed_contacts[{i}]"
     if not isinstance(raw, dict):
         raise ConfigError("expected a mapping", path=path, key=key)
+    check_keys(raw, _CONTACT_KEYS, path=path, prefix=key)
     between = get_key(raw, "between", path=path, prefix=key)
     if not (isinstance(between, list) and len(between) == 2
             and all(isinstance(b, str) for b in between)):
@@ -276,10 +424,11 @@ def _parse_contact(i: int, raw: Any, path: Path, objects: Mapping[str, SceneObje
 
 
 def _parse_grasp(raw: Any, path: Path, objects: Mapping[str, SceneObject]) -> Grasp:
+    if not isinstance(raw, dict):
+        raise ConfigError("expected a mapping", path=path, key="grasp")
+    check_keys(raw, _GRASP_KEYS, path=path, prefix="grasp")
     obj = as_str(get_key(raw, "object", path=path, prefix="grasp"), path=path, key="grasp.object")
-    if obj not in objects:
-        raise ConfigError(f"unknown object '{obj}' (objects: {', '.join(objects)})", path=path,
-                          key="grasp.object")
+    check_names([obj], objects, path=path, key="grasp.object", what="object")
     if not objects[obj].movable:
         raise ConfigError(f"object '{obj}' is not movable", path=path, key="grasp.object")
     xyz = as_vector(get_key(raw, "xyz", path=path, prefix="grasp"), 3, path=path,

@@ -8,11 +8,15 @@ from pathlib import Path
 import pytest
 import yaml
 
-from safepath import load_cell, load_robot, load_routes
-from safepath.robot import ROBOTS_DIR
+from safepath import load_cell, load_robot, load_routes, robot_names
+from safepath.robot_loader import ROBOTS_DIR
 
 REPO_ROOT = Path(__file__).resolve().parents[1]
-ROBOT_DIRS = sorted(p for p in (REPO_ROOT / "robots").iterdir() if p.is_dir())
+ALL_ROBOT_DIRS = sorted(p for p in (REPO_ROOT / "robots").iterdir() if p.is_dir())
+#: Full robot descriptions (URDF, limits, pairs).
+ROBOT_DIRS = [p for p in ALL_ROBOT_DIRS if (p / "robot.yaml").exists()]
+#: Controller settings for an example-robot-data arm of the folder's name.
+CONTROLLER_ONLY_DIRS = [p for p in ALL_ROBOT_DIRS if not (p / "robot.yaml").exists()]
 SCENE_DIRS = sorted(p for p in (REPO_ROOT / "scenes").iterdir() if p.is_dir())
 REFERENCE = REPO_ROOT.parent / "shared" / "reference"
 
@@ -75,6 +79,27 @@ def test_bundled_cell_routes() -> None:
     routes = load_routes(cell.folder, poses=list(cell.poses), objects=list(cell.scene.objects))
     assert set(routes) == {"phase1", "phase2_safe", "phase2_unsafe"}
     assert routes["phase2_safe"].after == routes["phase2_unsafe"].after == "phase1"
+
+
+@pytest.mark.parametrize("folder", CONTROLLER_ONLY_DIRS, ids=lambda p: p.name)
+def test_controller_only_folder_is_complete_and_loads(folder: Path) -> None:
+    for name in ("controller.yaml", "README.md", "LICENSE", "CHANGELOG.md"):
+        assert (folder / name).is_file(), f"{folder.name}/{name} is missing"
+    assert "Provenance" in (folder / "README.md").read_text()
+    assert folder.name in robot_names()
+    robot = load_robot(folder.name)
+    assert robot.controller.source is not None
+    assert robot.controller.source.resolve() == (folder / "controller.yaml").resolve()
+    assert robot.controller.joint_names == robot.joint_names
+    assert load_robot(folder).controller == robot.controller
+
+
+def test_every_full_robot_with_a_controller_file_loads_it() -> None:
+    for folder in ROBOT_DIRS:
+        robot = load_robot(folder)
+        if (folder / "controller.yaml").exists():
+            assert robot.controller.source == folder / "controller.yaml"
+            assert sorted(robot.controller.joint_names) == sorted(robot.joint_names)
 
 
 def _digests(root: Path) -> dict[str, Path]:

@@ -199,7 +199,7 @@ def _edit(key_path: str, value: Any) -> Any:
          "expected a number"),
         (_edit("objects.camera.color", [2.0, 0.0, 0.0]), "objects.camera.color", "colour"),
         (_edit("objects.camera.movable", "yes"), "objects.camera.movable", "true or false"),
-        (_edit("objects.camera.weight", 1.0), "objects.camera", "unknown key"),
+        (_edit("objects.camera.weight", 1.0), "objects.camera.weight", "unknown key"),
         (_edit("objects.camera.margin", -0.01), "objects.camera.margin", ">= 0"),
         (_edit("margin", -0.01), "margin", ">= 0"),
         (_edit("objects", {}), "objects", "non-empty"),
@@ -209,6 +209,16 @@ def _edit(key_path: str, value: Any) -> Any:
         (_edit("allowed_contacts.0.between", ["flask", "gripper"]),
          "allowed_contacts[0].between", "neither"),
         (_edit("allowed_contacts.0.max_depth", -1.0), "allowed_contacts[0].max_depth", ">= 0"),
+        # Unknown keys at every level, each naming the closest known key.
+        (_edit("margn", 0.05), "margn", "did you mean 'margin'"),
+        (_edit("allowed_contact", []), "allowed_contact", "did you mean 'allowed_contacts'"),
+        (_edit("allowed_contacts.0.depth", 0.001), "allowed_contacts[0].depth",
+         "did you mean 'max_depth'"),
+        (_edit("grasp.pose", ["grip"]), "grasp.pose", "did you mean 'poses'"),
+        (_edit("objects.camera.colour", [1, 0, 0]), "objects.camera.colour",
+         "did you mean 'color'"),
+        (_edit("objects.camera_post.size", [0.1, 0.1, 0.1]), "objects.camera_post.size",
+         "has no 'size'"),
     ],
 )
 def test_bad_scene(tmp_path: Path, cell_dir: Path, edit: Any, key: str, match: str) -> None:

@@ -42,7 +42,7 @@ from sensor_msgs.msg import JointState
 from std_msgs.msg import String
 from std_srvs.srv import Trigger
 
-from safepath import runtime  # RuntimePlanner: plans routes in the background
+from safepath import load_robot, runtime  # RuntimePlanner: plans routes in the background
 from safepath.errors import SafepathError
 from safepath.ros import goals
 from safepath.ros.controller import (
@@ -154,8 +154,10 @@ class RobotNode(Node):
         self._cell = cell
         self._tool_id = self.declare_parameter("tool_id", goals.GRIPPER_1_TOOL_ID).value
         group = ReentrantCallbackGroup()
+        # The robot's trajectory controller: robots/<robot>/controller.yaml.
+        controller = load_robot(self.declare_parameter("robot", "ned3pro").value).controller
         self._arm = ActionClient(self, FollowJointTrajectory,
-                                 goals.FOLLOW_JOINT_TRAJECTORY_ACTION, callback_group=group)
+                                 controller.follow_joint_trajectory_action, callback_group=group)
         self._tool = ActionClient(self, Tool, goals.TOOL_ACTION, callback_group=group)
         self._safety = self.create_client(GetSafety, "/get_safety", callback_group=group)
         self._hmi = self.create_publisher(String, "/quality_check/cycle", 10)

@@ -4,8 +4,10 @@ from __future__ import annotations
 
 import argparse
 import json
+import shutil
 import time
 from pathlib import Path
+from typing import Any
 
 __all__ = ["register"]
 
@@ -27,30 +29,29 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 
 def cmd_plan(args: argparse.Namespace) -> int:
-    """Plan the cell's routes; write JSON and CSV per route and a summary."""
+    """Plan the cell's routes; write JSON and CSV per route and a summary.
+
+    Nothing is written unless everything succeeds: the bag (if asked for) is built and
+    checked before any file is written, every file is written atomically, and the files
+    this command wrote are removed again if a later one cannot be written.
+    """
+    from .._io import check_names
     from ..cell import load_cell
     from ..errors import ConfigError
     from .planner import PlanOptions, plan_cell
-    from .routes import load_routes
+    from .routes import after_chain
     from .sampling import PlannerOptions
     from .timing import TimingOptions
 
     if args.bag and Path(args.bag).exists():
         raise ConfigError(f"{args.bag} exists already; choose a new bag path", key="--bag")
     cell = load_cell(args.scene)
-    routes = load_routes(cell.folder, poses=list(cell.poses), objects=list(cell.scene.objects))
+    routes = cell.route_table()
     if args.route:
+        check_names(args.route, routes, path=None, key="--route", what="route")
+        keep: set[str] = set()
         for name in args.route:
-            if name not in routes:
-                raise ConfigError(f"unknown route '{name}' (routes: {', '.join(routes)})",
-                                  key="--route")
-        keep = set(args.route)
-        # Keep the routes they follow, whose end state they start from.
-        for name in list(keep):
-            after = routes[name].after
-            while after is not None:
-                keep.add(after)
-                after = routes[after].after
+            keep.update(after_chain(routes, name))  # and the routes whose end it starts from
         routes = {k: v for k, v in routes.items() if k in keep}
     options = PlanOptions(planner=PlannerOptions(args.planner, args.time_limit, args.seed),
                           timing=TimingOptions(speed_scale=args.speed), baseline=True)
@@ -58,23 +59,10 @@ def cmd_plan(args: argparse.Namespace) -> int:
     trajectories = plan_cell(cell, options, routes=routes)
     wall = time.perf_counter() - t0
     out = Path(args.out) if args.out else Path("out") / cell.scene.name
-    out.mkdir(parents=True, exist_ok=True)
-    summary = {}
-    for name, traj in trajectories.items():
-        traj.to_json(out / f"{name}.json")
-        traj.to_csv(out / f"{name}.csv")
-        summary[name] = {
-            "steps": len(traj.steps),
-            "motion_time": traj.duration,
-            "baseline_time": traj.info["baseline_duration"],
-            "planning_time": traj.info["total_time"],
-            "min_clearance": traj.info["min_clearance"],
-            "closest_pair": traj.info["closest_pair"],
-            "step_durations": traj.step_durations(),
-        }
-    from .._io import atomic_write_text
-
-    atomic_write_text(out / "summary.json", json.dumps(summary, indent=2) + "\n")
+    summary = {name: _summary_row(traj) for name, traj in trajectories.items()}
+    cycle = [trajectories[name] for name in cycle_order(routes)] if args.bag else []
+    bag = _write_outputs(out, trajectories, summary, Path(args.bag) if args.bag else None,
+                         cycle, cell.robot.controller)
     header = (f"{'route':<15} {'steps':>5} {'plan[ms]':>9} {'motion[s]':>10} "
               f"{'stop&go[s]':>11} {'ratio':>6} {'clearance[mm]':>14}  closest pair")
     print(f"cell {cell.scene.name}: {len(trajectories)} routes planned, timed and verified "
@@ -90,16 +78,66 @@ def cmd_plan(args: argparse.Namespace) -> int:
               f"{row['motion_time']:>10.3f} {base_text} {ratio} "
               f"{row['min_clearance'] * 1000:>14.1f}  {pair}")
     print(f"wrote {len(trajectories)} trajectories (JSON, CSV) and summary.json to {out}")
-    if args.bag:
-        from ..ros.bag import write_bag
-
-        cycle = [trajectories[name] for name in cycle_order(routes)]
-        bag = write_bag(args.bag, cycle)
+    if bag is not None:
         print(f"wrote a ROS 2 bag of the cycle ({' -> '.join(t.route for t in cycle)}) to {bag}")
     return 0
 
 
+def _summary_row(traj: Any) -> dict[str, Any]:
+    return {
+        "steps": len(traj.steps),
+        "motion_time": traj.duration,
+        "baseline_time": traj.info["baseline_duration"],
+        "planning_time": traj.info["total_time"],
+        "min_clearance": traj.info["min_clearance"],
+        "closest_pair": traj.info["closest_pair"],
+        "step_durations": traj.step_durations(),
+    }
+
+
+def _write_outputs(out: Path, trajectories: dict[str, Any], summary: dict[str, Any],
+                   bag: Path | None, cycle: list[Any], controller: Any) -> Path | None:
+    """Write the bag first (it validates every message before touching the disk and
+    appears whole or not at all), then the files; on failure, remove what was written."""
+    from .._io import atomic_write_text
+    from ..errors import InputError, SafepathError
+
+    written: list[Path] = []
+    out_existed = out.exists()
+    try:
+        if bag is not None:
+            from ..ros.bag import write_bag
+
+            written.append(write_bag(bag, cycle, controller=controller))
+        for name, traj in trajectories.items():
+            for path, write in ((out / f"{name}.json", traj.to_json),
+                                (out / f"{name}.csv", traj.to_csv)):
+                existed = path.exists()
+                write(path)
+                if not existed:
+                    written.append(path)
+        path = out / "summary.json"
+        existed = path.exists()
+        atomic_write_text(path, json.dumps(summary, indent=2) + "\n")
+        if not existed:
+            written.append(path)
+    except (OSError, SafepathError) as exc:
+        for path in reversed(written):
+            if path.is_dir():
+                shutil.rmtree(path, ignore_errors=True)
+            else:
+                path.unlink(missing_ok=True)
+        if not out_existed and out.is_dir() and not any(out.iterdir()):
+            out.rmdir()
+        if isinstance(exc, OSError):
+            raise InputError(f"cannot write ({exc.strerror or exc})", path=out) from None
+        raise
+    return bag
+
+
 def cycle_order(routes: dict) -> list[str]:
+    from .routes import after_chain
+
     """Every chain of routes from a first route to a last one, back to back: for the
     quality-check cell, phase1, phase2_safe, phase1, phase2_unsafe."""
     followed = {r.after for r in routes.values() if r.after is not None}
@@ -107,8 +145,5 @@ def cycle_order(routes: dict) -> list[str]:
     for name in routes:
         if name in followed:
             continue  # not a last route
-        chain = [name]
-        while routes[chain[0]].after is not None:
-            chain.insert(0, routes[chain[0]].after)
-        order += chain
+        order += after_chain(routes, name)
     return order

@@ -25,7 +25,7 @@ from ..scene import AllowedContact
 from ..trajectory import Trajectory
 from ._chunks import Segment, assemble, time_chunk, time_segments
 from .cartesian import LineOptions, cartesian_line
-from .routes import Route, Step, load_routes
+from .routes import Route, Step
 from .sampling import PlannerOptions, plan_joint_path
 from .timing import TimedPiece, TimingOptions
 from .verify import FclVerifier
@@ -136,11 +136,11 @@ def route_order(routes: Mapping[str, Route]) -> list[str]:
 
 def plan_cell(cell: Cell, options: PlanOptions | None = None, *,
               routes: Mapping[str, Route] | None = None) -> dict[str, Trajectory]:
-    """Plan, time and verify every route of the cell (``routes.yaml`` of its folder)."""
+    """Plan, time and verify every route of the cell (its routes, or ``routes.yaml`` of
+    its folder: :meth:`Cell.route_table`)."""
     options = options or PlanOptions()
     if routes is None:
-        routes = load_routes(cell.folder, poses=list(cell.poses),
-                             objects=list(cell.scene.objects))
+        routes = cell.route_table()
     cache = CheckerCache(cell, options)
     worlds: dict[str, WorldState] = {}
     out: dict[str, Trajectory] = {}

@@ -27,17 +27,19 @@ the robot blends through them.
 
 from __future__ import annotations
 
-from collections.abc import Mapping, Sequence
+import math
+from collections.abc import Iterator, Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Literal
 
-from .._io import as_float, as_str, as_vector, get_key, read_yaml
+from .._io import as_float, as_str, as_vector, check_keys, check_names, get_key, read_yaml
 from ..errors import ConfigError
 
-__all__ = ["Target", "Step", "Route", "load_routes"]
+__all__ = ["Target", "Step", "Route", "load_routes", "check_routes", "after_chain"]
 
 StepKind = Literal["move", "line", "open", "close"]
+_STEP_KINDS = ("move", "line", "open", "close")
 
 
 @dataclass(frozen=True)
@@ -52,6 +54,22 @@ class Target:
 
     pose: str | None
     offset: tuple[float, float, float] = (0.0, 0.0, 0.0)
+
+    def __post_init__(self) -> None:
+        if self.pose is not None and (not isinstance(self.pose, str) or not self.pose):
+            raise ConfigError(f"expected a pose name or None, got {self.pose!r}", key="pose")
+        try:
+            offset = tuple(float(v) for v in self.offset)
+        except (TypeError, ValueError):
+            raise ConfigError(f"expected three numbers [m], got {self.offset!r}",
+                              key="offset") from None
+        if len(offset) != 3 or not all(math.isfinite(v) for v in offset):
+            raise ConfigError(f"expected three finite numbers [m], got {self.offset!r}",
+                              key="offset")
+        object.__setattr__(self, "offset", offset)
+        if self.pose is None and not any(offset):
+            raise ConfigError("a target relative to the TCP needs a non-zero offset",
+                              key="offset")
 
     @property
     def exact_pose(self) -> str | None:
@@ -85,6 +103,32 @@ class Step:
     tcp_speed: float | None = None
     stop: bool = False
 
+    def __post_init__(self) -> None:
+        if self.kind not in _STEP_KINDS:
+            raise ConfigError(f"unknown step kind {self.kind!r} (known: "
+                              f"{', '.join(_STEP_KINDS)})", key="kind")
+        motion = self.kind in ("move", "line")
+        if motion and not isinstance(self.target, Target):
+            raise ConfigError(f"a {self.kind} step needs a Target, got {self.target!r}",
+                              key="target")
+        if not motion and self.target is not None:
+            raise ConfigError(f"a gripper action has no target, got {self.target!r}",
+                              key="target")
+        if self.object is not None and (not isinstance(self.object, str) or not self.object):
+            raise ConfigError(f"expected an object name or None, got {self.object!r}",
+                              key="object")
+        if isinstance(self.speed, bool) or not isinstance(self.speed, (int, float)) \
+                or not 0.0 < self.speed <= 1.0:
+            raise ConfigError(f"speed is a fraction of the limits in (0, 1], got "
+                              f"{self.speed!r}", key="speed")
+        if self.tcp_speed is not None and (
+                isinstance(self.tcp_speed, bool) or not isinstance(self.tcp_speed, (int, float))
+                or not math.isfinite(self.tcp_speed) or self.tcp_speed <= 0):
+            raise ConfigError(f"tcp_speed must be a number > 0 [m/s] or None, got "
+                              f"{self.tcp_speed!r}", key="tcp_speed")
+        if not isinstance(self.stop, bool):
+            raise ConfigError(f"expected True or False, got {self.stop!r}", key="stop")
+
     @property
     def is_motion(self) -> bool:
         """Whether the step moves the arm."""
@@ -112,6 +156,20 @@ class Route:
     steps: tuple[Step, ...]
     after: str | None = None
 
+    def __post_init__(self) -> None:
+        for key in ("name", "start"):
+            value = getattr(self, key)
+            if not isinstance(value, str) or not value:
+                raise ConfigError(f"expected a non-empty string, got {value!r}", key=key)
+        steps = tuple(self.steps)
+        if not steps or not all(isinstance(s, Step) for s in steps):
+            raise ConfigError(f"expected a non-empty sequence of Step, got {self.steps!r}",
+                              key="steps")
+        object.__setattr__(self, "steps", steps)
+        if self.after is not None and (not isinstance(self.after, str) or not self.after):
+            raise ConfigError(f"expected a route name or None, got {self.after!r}",
+                              key="after")
+
     def labels(self) -> list[str]:
         """Step labels in order."""
         return [s.label(i) for i, s in enumerate(self.steps)]
@@ -134,35 +192,99 @@ def load_routes(path: str | Path, *, poses: Sequence[str], objects: Sequence[str
     if path.is_dir():
         path = path / "routes.yaml"
     data = read_yaml(path)
+    if not isinstance(data, dict):
+        raise ConfigError("expected a mapping at the top level", path=path)
+    check_keys(data, ("routes", "defaults"), path=path)
     raw = get_key(data, "routes", path=path)
     if not isinstance(raw, dict) or not raw:
         raise ConfigError("expected a non-empty mapping of route names", path=path,
                           key="routes")
-    defaults = data.get("defaults", {}) if isinstance(data, dict) else {}
+    defaults = data.get("defaults") or {}
     if not isinstance(defaults, dict):
         raise ConfigError("expected a mapping", path=path, key="defaults")
+    check_keys(defaults, ("speed", "tcp_speed"), path=path, prefix="defaults")
     routes = {str(name): _parse_route(str(name), r, path, poses, objects, defaults)
               for name, r in raw.items()}
-    for route in routes.values():
-        seen = {route.name}
-        after = route.after
-        while after is not None:
-            if after not in routes:
-                raise ConfigError(f"unknown route '{after}' (routes: {', '.join(routes)})",
-                                  path=path, key=f"routes.{route.name}.after")
-            if after in seen:
-                raise ConfigError("routes follow each other in a cycle", path=path,
-                                  key=f"routes.{route.name}.after")
-            seen.add(after)
-            after = routes[after].after
+    _check_chains(routes, path)
     return routes
+
+
+def check_routes(routes: Mapping[str, Route], *, poses: Sequence[str], objects: Sequence[str]
+                 ) -> dict[str, Route]:
+    """Check routes built in Python as :func:`load_routes` checks a file's.
+
+    Args:
+        routes: Routes by name (each :class:`Route`'s name must be its key).
+        poses: Known pose names.
+        objects: Known object names.
+
+    Returns:
+        The routes, as a new dict.
+
+    Raises:
+        ConfigError: A route under another name, an unknown pose, object or route to
+            follow, an ``after`` cycle; the key names the route and step.
+    """
+    if not isinstance(routes, Mapping) or not routes:
+        raise ConfigError("expected a non-empty mapping of route names to Route",
+                          key="routes")
+    out: dict[str, Route] = {}
+    for name, route in routes.items():
+        key = f"routes.{name}"
+        if not isinstance(route, Route):
+            raise ConfigError(f"expected a Route, got {type(route).__name__}", key=key)
+        if route.name != name:
+            raise ConfigError(f"the route is named '{route.name}'", key=key)
+        check_names([route.start], poses, path=None, key=f"{key}.start", what="pose")
+        for i, step in enumerate(route.steps):
+            where = f"{key}.steps[{i}]"
+            if step.target is not None and step.target.pose is not None:
+                check_names([step.target.pose], poses, path=None, key=f"{where}.{step.kind}",
+                            what="pose")
+            if step.object is not None:
+                check_names([step.object], objects, path=None, key=f"{where}.{step.kind}",
+                            what="object")
+        out[name] = route
+    _check_chains(out, None)
+    return out
+
+
+def after_chain(routes: Mapping[str, Route], name: str) -> list[str]:
+    """``name`` and the routes it follows (``after``), the first one first.
+
+    Raises:
+        ConfigError: ``name`` or a route it follows is unknown.
+    """
+    chain = [name]
+    for route in _followed(routes, name, None):
+        chain.insert(0, route)
+    return chain
+
+
+def _followed(routes: Mapping[str, Route], name: str, path: Path | None) -> Iterator[str]:
+    """The routes ``name`` follows, nearest first; refuses unknown names and cycles."""
+    check_names([name], routes, path=path, key="routes", what="route")
+    seen = {name}
+    after = routes[name].after
+    while after is not None:
+        check_names([after], routes, path=path, key=f"routes.{name}.after", what="route")
+        if after in seen:
+            raise ConfigError("routes follow each other in a cycle", path=path,
+                              key=f"routes.{name}.after")
+        seen.add(after)
+        yield after
+        after = routes[after].after
+
+
+def _check_chains(routes: Mapping[str, Route], path: Path | None) -> None:
+    for name in routes:
+        for _ in _followed(routes, name, path):
+            pass
 
 
 def _check_pose(name: Any, poses: Sequence[str], path: Path, key: str) -> str:
     name = as_str(name, path=path, key=key)
-    if name not in poses:
-        raise ConfigError(f"unknown pose '{name}' (known: {', '.join(poses)})", path=path,
-                          key=key)
+    check_names([name], poses, path=path, key=key, what="pose")
     return name
 
 
@@ -174,9 +296,7 @@ def _parse_target(raw: Any, poses: Sequence[str], path: Path, key: str) -> Targe
         if set(raw) == {"up"}:
             dz = as_float(raw["up"], path=path, key=f"{key}.up")
             return Target(None, (0.0, 0.0, dz))
-        unknown = set(raw) - {"pose", "offset"}
-        if unknown:
-            raise ConfigError(f"unknown key(s) {sorted(unknown)}", path=path, key=key)
+        check_keys(raw, ("pose", "offset"), path=path, prefix=key)
         pose = _check_pose(get_key(raw, "pose", path=path, prefix=key), poses, path,
                            f"{key}.pose")
         offset = as_vector(raw.get("offset", [0.0, 0.0, 0.0]), 3, path=path,
@@ -191,6 +311,7 @@ def _parse_route(name: str, raw: Any, path: Path, poses: Sequence[str],
     key = f"routes.{name}"
     if not isinstance(raw, dict):
         raise ConfigError("expected a mapping", path=path, key=key)
+    check_keys(raw, ("start", "steps", "after", "note"), path=path, prefix=key)
     start = _check_pose(get_key(raw, "start", path=path, prefix=key), poses, path,
                         f"{key}.start")
     steps_raw = get_key(raw, "steps", path=path, prefix=key)
@@ -215,9 +336,7 @@ def _parse_step(raw: Any, path: Path, key: str, poses: Sequence[str], objects: S
         raise ConfigError("a step needs exactly one of move, line, via, open, close",
                           path=path, key=key)
     kind = kinds[0]
-    unknown = set(raw) - {kind, "speed", "tcp_speed", "stop"}
-    if unknown:
-        raise ConfigError(f"unknown key(s) {sorted(unknown)}", path=path, key=key)
+    check_keys(raw, (kind, "speed", "tcp_speed", "stop"), path=path, prefix=key)
     speed = as_float(raw.get("speed", defaults.get("speed", 1.0)), path=path,
                      key=f"{key}.speed", positive=True)
     if speed > 1.0:
@@ -233,9 +352,7 @@ def _parse_step(raw: Any, path: Path, key: str, poses: Sequence[str], objects: S
         obj = raw[kind]
         if obj is not None:
             obj = as_str(obj, path=path, key=f"{key}.{kind}")
-            if obj not in objects:
-                raise ConfigError(f"unknown object '{obj}' (objects: {', '.join(objects)})",
-                                  path=path, key=f"{key}.{kind}")
+            check_names([obj], objects, path=path, key=f"{key}.{kind}", what="object")
         return Step(kind, None, obj, speed, tcp_speed, True)  # type: ignore[arg-type]
     target = _parse_target(raw[kind], poses, path, f"{key}.{kind}")
     if kind == "via":

@@ -5,7 +5,9 @@ works without a ROS 2 installation; in a sourced ROS 2 workspace the goal builde
 return the native ``rclpy`` message classes instead (``backend="auto"``).
 
 * :mod:`safepath.ros.goals`: ``JointTrajectory``, ``FollowJointTrajectory``,
-  Niryo ``RobotMove`` and ``Tool`` goals from a :class:`~safepath.trajectory.Trajectory`.
+  Niryo ``RobotMove`` and ``Tool`` goals from a :class:`~safepath.trajectory.Trajectory`;
+  the controller's names, tolerances and timing come from the trajectory's robot
+  (its folder's ``controller.yaml``).
 * :mod:`safepath.ros.bag`: write and read a ROS 2 bag (MCAP) of a cycle.
 * :mod:`safepath.ros.controller`: the quality-check cell's state machine, ROS-free.
 * :mod:`safepath.ros.messages`: the type store and CDR (de)serialisation.
@@ -28,14 +30,10 @@ from .controller import (
     SetConveyor,
 )
 from .goals import (
-    DEFAULT_PERIOD,
-    FOLLOW_JOINT_TRAJECTORY_ACTION,
-    GOAL_TIME_TOLERANCE,
-    GOAL_TOLERANCE,
-    NED_JOINT_NAMES,
     ROBOT_MOVE_ACTION,
     TOOL_ACTION,
     check_start,
+    controller_of,
     follow_joint_trajectory_goal,
     joint_trajectory,
     robot_move_goal,
@@ -54,19 +52,15 @@ __all__ = [
     "Command",
     "ControllerOptions",
     "CycleReport",
-    "DEFAULT_PERIOD",
-    "FOLLOW_JOINT_TRAJECTORY_ACTION",
     "Fault",
-    "GOAL_TIME_TOLERANCE",
-    "GOAL_TOLERANCE",
     "MoveArm",
-    "NED_JOINT_NAMES",
     "QualityCheckController",
     "ROBOT_MOVE_ACTION",
     "RequestVerdict",
     "SetConveyor",
     "TOOL_ACTION",
     "check_start",
+    "controller_of",
     "deserialize",
     "follow_joint_trajectory_goal",
     "joint_trajectory",

@@ -32,7 +32,8 @@ from rosbags.rosbag2 import Reader, ReaderError, StoragePlugin, Writer, WriterEr
 
 from ..errors import RosError, TrajectoryError
 from ..trajectory import Trajectory
-from .goals import DEFAULT_PERIOD, NED_JOINT_NAMES, joint_trajectory
+from ..trajectory_controller import TrajectoryController
+from .goals import controller_of, joint_trajectory
 from .messages import deserialize, serialize, typestore
 
 __all__ = ["BagContents", "BagMessage", "GRIPPER_TOPIC", "JOINT_STATES_TOPIC", "ROUTE_TOPIC",
@@ -131,8 +132,9 @@ def _check_joins(trajs: Sequence[Trajectory], names: tuple[str, ...]) -> None:
 
 
 def write_bag(path: str | Path, trajectories: Iterable[Trajectory], *,
-              joint_state_rate: float = 50.0, period: float = DEFAULT_PERIOD,
-              robot_joint_names: Sequence[str] | None = None, start_time_ns: int = 0) -> Path:
+              joint_state_rate: float | None = None, period: float | None = None,
+              robot_joint_names: Sequence[str] | None = None,
+              controller: TrajectoryController | None = None, start_time_ns: int = 0) -> Path:
     """Write a ROS 2 bag (MCAP) of a cycle; see the module docstring for its layout.
 
     Each trajectory starts where the previous one ends, on one clock from
@@ -144,9 +146,13 @@ def write_bag(path: str | Path, trajectories: Iterable[Trajectory], *,
     Args:
         path: The bag folder to create (must not exist).
         trajectories: The cycle's trajectories, in execution order.
-        joint_state_rate: ``/joint_states`` rate [Hz] (the Ned publishes at 50 Hz).
-        period: Point spacing of the ``JointTrajectory`` messages [s].
-        robot_joint_names: The robot's joint names; default ``joint_1``..``joint_6``.
+        joint_state_rate: ``/joint_states`` rate [Hz]; default: the controller's (the
+            Ned publishes at 50 Hz).
+        period: Point spacing of the ``JointTrajectory`` messages [s]; default: the
+            controller's.
+        robot_joint_names: The controller's joint names; default: the controller's.
+        controller: The robot's trajectory controller; default: the one of the robot
+            the first trajectory names (see :func:`safepath.ros.goals.controller_of`).
         start_time_ns: Clock time of the cycle's start [ns since the epoch].
 
     Returns:
@@ -161,11 +167,15 @@ def write_bag(path: str | Path, trajectories: Iterable[Trajectory], *,
     trajs = list(trajectories)
     if not trajs:
         raise TrajectoryError("no trajectories to write", key="trajectories")
+    spec = controller_of(trajs[0], controller)
+    if joint_state_rate is None:
+        joint_state_rate = spec.joint_state_rate
     if isinstance(joint_state_rate, bool) or not isinstance(joint_state_rate, (int, float)) \
             or not math.isfinite(joint_state_rate) or not 0 < joint_state_rate <= 1e6:
         raise TrajectoryError(f"must be in (0, 1e6] [Hz], got {joint_state_rate!r}",
                               key="joint_state_rate")
-    names = tuple(NED_JOINT_NAMES if robot_joint_names is None else robot_joint_names)
+    names = tuple(spec.joint_names if robot_joint_names is None else robot_joint_names)
+    period = spec.period if period is None else period
 
     # Build (and so validate) every message before touching the file system.
     records: list[tuple[int, int, str, Any]] = []  # (time [ns], order, topic, message)
@@ -195,8 +205,12 @@ def write_bag(path: str | Path, trajectories: Iterable[Trajectory], *,
 
     if path.exists():
         raise RosError(f"{path} exists already, not overwriting")
-    path.parent.mkdir(parents=True, exist_ok=True)
-    tmp_root = Path(tempfile.mkdtemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent))
+    try:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        tmp_root = Path(tempfile.mkdtemp(prefix=f".{path.name}.", suffix=".tmp",
+                                         dir=path.parent))
+    except OSError as exc:
+        raise RosError(f"cannot write bag {path}: {exc}") from None
     try:
         # Inside the temp folder the bag has its final name, so its .mcap file has too.
         tmp_bag = tmp_root / path.name

@@ -1,19 +1,23 @@
 """ROS 2 goals from a timed :class:`~safepath.trajectory.Trajectory`.
 
-Three ways to hand a trajectory to a Ned3 Pro, in order of preference:
+The robot's trajectory controller (action name, joint order, goal tolerances, point
+spacing) comes from the trajectory's own robot: the ``controller.yaml`` of its folder
+(:class:`~safepath.trajectory_controller.TrajectoryController`), looked up by the robot
+name the trajectory records, or given as ``controller=robot.controller``. Robots without
+such a file get settings derived from their joint names.
 
 * :func:`follow_joint_trajectory_goal` for the arm's trajectory controller
-  (``control_msgs/FollowJointTrajectory``). The controller keeps our timing, so the
-  velocity and acceleration limits that safepath verified are the ones executed.
+  (``control_msgs/FollowJointTrajectory``), on any robot. The controller keeps our timing,
+  so the velocity and acceleration limits that safepath verified are the ones executed.
 * :func:`robot_move_goal` for Niryo's arm commander (``RobotMove`` with
   ``EXECUTE_FULL_TRAJ``): the robot keeps the path but re-times it itself.
-* ``EXECUTE_RAW_TRAJ`` is not offered: on the robot it reads a field that
+  ``EXECUTE_RAW_TRAJ`` is not offered: on the robot it reads a field that
   ``JointTrajectory`` does not have and fails.
 
 Gripper events are not part of a trajectory message. :func:`split_at_gripper_events`
 cuts a trajectory at its (resting) gripper events so that a node can run motion,
 gripper, motion, ... each after the previous one has finished, and :func:`tool_goal`
-builds the gripper goals.
+builds Niryo's gripper goals.
 
 Every builder takes ``backend``: ``rosbags`` messages (always available, serialisable
 with :func:`safepath.ros.messages.serialize`), native ``rclpy`` messages, or ``auto``.
@@ -31,21 +35,18 @@ import numpy as np
 
 from ..errors import InputError, TrajectoryError
 from ..trajectory import GripperEvent, Trajectory
+from ..trajectory_controller import TrajectoryController, controller_for
 from .messages import Backend, MessageFactory, message_factory
 
 __all__ = [
     "CLOSE_GRIPPER",
-    "DEFAULT_PERIOD",
     "EXECUTE_FULL_TRAJ",
-    "FOLLOW_JOINT_TRAJECTORY_ACTION",
-    "GOAL_TIME_TOLERANCE",
-    "GOAL_TOLERANCE",
     "GRIPPER_1_TOOL_ID",
-    "NED_JOINT_NAMES",
     "OPEN_GRIPPER",
     "ROBOT_MOVE_ACTION",
     "TOOL_ACTION",
     "check_start",
+    "controller_of",
     "follow_joint_trajectory_goal",
     "joint_trajectory",
     "robot_move_goal",
@@ -54,19 +55,9 @@ __all__ = [
     "tool_goals",
 ]
 
-#: Time between trajectory points [s]: one point per cycle of the Ned's 25 Hz
-#: trajectory controller (see :func:`joint_trajectory`).
-DEFAULT_PERIOD = 0.04
-#: Joint names of the Ned3 Pro's ``/joint_states`` and trajectory controller.
-NED_JOINT_NAMES: tuple[str, ...] = tuple(f"joint_{i}" for i in range(1, 7))
-#: Goal tolerances of the Ned3 Pro trajectory controller [rad], joint_1..joint_6.
-GOAL_TOLERANCE: tuple[float, ...] = (0.002, 0.001, 0.001, 0.03, 0.03, 0.03)
-#: Time the controller allows after the trajectory's end to reach the goal [s].
-GOAL_TIME_TOLERANCE = 1.0
-FOLLOW_JOINT_TRAJECTORY_ACTION = (
-    "/niryo_robot_follow_joint_trajectory_controller/follow_joint_trajectory"
-)
+#: Niryo's arm commander action (``RobotMove``), Ned robots only.
 ROBOT_MOVE_ACTION = "/niryo_robot_arm_commander/robot_action"
+#: Niryo's tools commander action (``Tool``), Ned robots only.
 TOOL_ACTION = "/niryo_robot_tools_commander/action_server"
 EXECUTE_FULL_TRAJ = 11
 OPEN_GRIPPER = 1
@@ -98,10 +89,25 @@ def _validated(traj: Trajectory) -> Trajectory:
     return dataclasses.replace(traj)
 
 
-def _robot_columns(traj: Trajectory, robot_joint_names: Sequence[str] | None) -> tuple[
+def controller_of(traj: Trajectory, controller: TrajectoryController | None = None
+                  ) -> TrajectoryController:
+    """The trajectory controller that ``traj``'s goals address.
+
+    ``controller`` if given, else the ``controller.yaml`` of the bundled robot the
+    trajectory names, else settings derived from the trajectory's joint names.
+
+    Raises:
+        ConfigError: The robot's ``controller.yaml`` is malformed or names other joints.
+    """
+    if controller is not None:
+        return controller
+    return controller_for(traj.robot, traj.joint_names)
+
+
+def _robot_columns(traj: Trajectory, robot_joint_names: Sequence[str]) -> tuple[
         tuple[str, ...], list[int]]:
     """The robot's joint names and, for each, its column in ``traj``."""
-    robot = tuple(NED_JOINT_NAMES if robot_joint_names is None else robot_joint_names)
+    robot = tuple(robot_joint_names)
     if len(set(robot)) != len(robot):
         raise TrajectoryError(f"duplicate robot joint names {list(robot)}",
                               key="robot_joint_names")
@@ -122,8 +128,13 @@ def _period_ns(period: float) -> int:
     return period_ns
 
 
-def _points(traj: Trajectory, period: float, robot_joint_names: Sequence[str] | None) -> _Points:
+def _points(traj: Trajectory, period: float | None, robot_joint_names: Sequence[str] | None,
+            controller: TrajectoryController | None) -> _Points:
     """Sample ``traj`` every ``period`` [s] from its start, plus its exact final knot."""
+    if period is None or robot_joint_names is None:
+        spec = controller_of(traj, controller)
+        period = spec.period if period is None else period
+        robot_joint_names = spec.joint_names if robot_joint_names is None else robot_joint_names
     period_ns = _period_ns(period)
     traj = _validated(traj)
     names, cols = _robot_columns(traj, robot_joint_names)
@@ -155,29 +166,31 @@ def _build_joint_trajectory(f: MessageFactory, pts: _Points, stamp_ns: int) -> A
                  joint_names=list(pts.names), points=points)
 
 
-def joint_trajectory(traj: Trajectory, *, period: float = DEFAULT_PERIOD,
-                     robot_joint_names: Sequence[str] | None = None, stamp_ns: int = 0,
+def joint_trajectory(traj: Trajectory, *, period: float | None = None,
+                     robot_joint_names: Sequence[str] | None = None,
+                     controller: TrajectoryController | None = None, stamp_ns: int = 0,
                      backend: Backend = "auto") -> Any:
     """``trajectory_msgs/msg/JointTrajectory`` sampled from ``traj``.
 
     Points carry positions [rad], velocities [rad/s], accelerations [rad/s^2] and
     ``time_from_start`` (rounded to the nanosecond), every ``period`` from the start and
-    at the exact final knot. Columns come in the robot's joint order, whatever the
+    at the exact final knot. Columns come in the controller's joint order, whatever the
     order in ``traj``.
 
-    Why 0.04 s by default: the Ned's joint trajectory controller runs at 25 Hz and
-    joins consecutive points with quintic splines matching position, velocity and
-    acceleration at both ends. With one point per control cycle, every spline spans a
-    single cycle between two states of our own trajectory, so what the controller
-    samples is our motion (our timing, hence the limits safepath verified) up to a
-    negligible spline error. Sparser points let the controller's spline, not our
-    collision-checked path, decide where the arm is in between; denser points change
-    nothing the controller can execute at 25 Hz and only make the goal larger.
+    The spacing is the robot's (its ``controller.yaml``). The Ned3 Pro's, 0.04 s, is one
+    point per cycle of its 25 Hz joint trajectory controller, which joins consecutive
+    points with quintic splines matching position, velocity and acceleration at both
+    ends: every spline spans a single cycle between two states of our own trajectory, so
+    what the controller samples is our motion (our timing, hence the limits safepath
+    verified) up to a negligible spline error. Sparser points would let the controller's
+    spline, not our collision-checked path, decide where the arm is in between.
 
     Args:
         traj: The timed trajectory.
-        period: Time between points [s].
-        robot_joint_names: The robot's joint names; default ``joint_1``..``joint_6``.
+        period: Time between points [s]; default: the controller's.
+        robot_joint_names: The controller's joint names; default: the controller's.
+        controller: The robot's trajectory controller; default: the one of the robot
+            ``traj`` names (see :func:`controller_of`).
         stamp_ns: ``header.stamp`` [ns]; 0 asks the controller to start on receipt.
         backend: ``auto``, ``rosbags`` or ``rclpy`` (see
             :func:`safepath.ros.messages.message_factory`).
@@ -187,40 +200,53 @@ def joint_trajectory(traj: Trajectory, *, period: float = DEFAULT_PERIOD,
             increasing, non-finite values, or a period that is not > 0.
         RosError: ``backend='rclpy'`` without a ROS 2 installation.
     """
-    pts = _points(traj, period, robot_joint_names)
+    pts = _points(traj, period, robot_joint_names, controller)
     return _build_joint_trajectory(message_factory(backend, _JT_TYPES), pts, stamp_ns)
 
 
 def follow_joint_trajectory_goal(
-        traj: Trajectory, *, period: float = DEFAULT_PERIOD,
+        traj: Trajectory, *, period: float | None = None,
         robot_joint_names: Sequence[str] | None = None,
-        goal_tolerance: Sequence[float] | None = GOAL_TOLERANCE,
-        goal_time_tolerance: float = GOAL_TIME_TOLERANCE,
+        goal_tolerance: Sequence[float] | None | Literal["controller"] = "controller",
+        goal_time_tolerance: float | None = None,
+        controller: TrajectoryController | None = None,
         backend: Backend = "auto") -> Any:
     """``control_msgs/action/FollowJointTrajectory_Goal`` for the arm's trajectory controller.
 
-    Send it to :data:`FOLLOW_JOINT_TRAJECTORY_ACTION`. The controller executes the points
-    with our timing. Path tolerances are left to the controller's defaults.
+    Send it to the controller's ``follow_joint_trajectory_action``
+    (``controller_of(traj).follow_joint_trajectory_action``). The controller executes the
+    points with our timing. Path tolerances are left to the controller's defaults.
 
     Args:
         traj: The timed trajectory.
         period: Time between points [s] (see :func:`joint_trajectory`).
-        robot_joint_names: The robot's joint names; default ``joint_1``..``joint_6``.
-        goal_tolerance: Final position tolerance per robot joint [rad], or None to leave
-            the controller's own.
-        goal_time_tolerance: Time allowed after the end to reach the goal [s].
+        robot_joint_names: The controller's joint names; default: the controller's.
+        goal_tolerance: Final position tolerance per controller joint [rad]; None sends
+            none (the controller's own apply); default: the robot's ``controller.yaml``.
+        goal_time_tolerance: Time allowed after the end to reach the goal [s]; default:
+            the controller's.
+        controller: The robot's trajectory controller; default: the one of the robot
+            ``traj`` names (see :func:`controller_of`).
         backend: ``auto``, ``rosbags`` or ``rclpy``.
 
     Raises:
         TrajectoryError: Bad trajectory, period or tolerances.
         RosError: ``backend='rclpy'`` without control_msgs.
     """
-    pts = _points(traj, period, robot_joint_names)
+    spec = controller_of(traj, controller)
+    pts = _points(traj, period, robot_joint_names, spec)
+    if isinstance(goal_tolerance, str):
+        if goal_tolerance != "controller":
+            raise TrajectoryError(f"expected tolerances [rad], None or 'controller', got "
+                                  f"{goal_tolerance!r}", key="goal_tolerance")
+        goal_tolerance = _reordered(spec.goal_tolerance, spec.joint_names, pts.names)
     tolerance = [] if goal_tolerance is None else [float(v) for v in goal_tolerance]
     if tolerance and (len(tolerance) != len(pts.names)
                       or not all(math.isfinite(v) and v >= 0 for v in tolerance)):
         raise TrajectoryError(f"expected {len(pts.names)} finite tolerances >= 0 [rad], "
                               f"got {list(goal_tolerance or [])}", key="goal_tolerance")
+    if goal_time_tolerance is None:
+        goal_time_tolerance = spec.goal_time_tolerance
     if not math.isfinite(goal_time_tolerance) or goal_time_tolerance < 0:
         raise TrajectoryError(f"must be >= 0 [s], got {goal_time_tolerance}",
                               key="goal_time_tolerance")
@@ -243,10 +269,23 @@ def follow_joint_trajectory_goal(
                  goal_time_tolerance=_duration(f, round(goal_time_tolerance * _NS)))
 
 
-def robot_move_goal(traj: Trajectory, *, period: float = DEFAULT_PERIOD,
+def _reordered(values: Sequence[float] | None, names: Sequence[str], order: Sequence[str]
+               ) -> list[float] | None:
+    """Per-joint ``values`` given in ``names`` order, in ``order`` instead."""
+    if values is None:
+        return None
+    by_name = dict(zip(names, values, strict=True))
+    if set(by_name) != set(order):
+        raise TrajectoryError(f"controller tolerances are for {list(names)}, the goal's joints "
+                              f"are {list(order)}", key="goal_tolerance")
+    return [by_name[n] for n in order]
+
+
+def robot_move_goal(traj: Trajectory, *, period: float | None = None,
                     robot_joint_names: Sequence[str] | None = None,
+                    controller: TrajectoryController | None = None,
                     backend: Backend = "auto") -> Any:
-    """Niryo ``RobotMove`` goal running ``traj`` as ``EXECUTE_FULL_TRAJ``.
+    """Niryo ``RobotMove`` goal running ``traj`` as ``EXECUTE_FULL_TRAJ`` (Ned robots).
 
     Send it to :data:`ROBOT_MOVE_ACTION`. The arm commander checks the points against
     the position limits, moves from where the arm is to the first point, then **re-times
@@ -258,7 +297,7 @@ def robot_move_goal(traj: Trajectory, *, period: float = DEFAULT_PERIOD,
         TrajectoryError: Bad trajectory or period.
         RosError: ``backend='rclpy'`` without niryo_ned_ros2_interfaces.
     """
-    pts = _points(traj, period, robot_joint_names)
+    pts = _points(traj, period, robot_joint_names, controller)
     f = message_factory(backend, (*_JT_TYPES, f"{_NIRYO}/action/RobotMove_Goal",
                                   f"{_NIRYO}/msg/ArmMoveCommand", f"{_NIRYO}/msg/RPY",
                                   f"{_NIRYO}/msg/ShiftPose", "geometry_msgs/msg/Point",

@@ -32,7 +32,7 @@ from typing import Any
 import numpy as np
 
 from ..errors import ConfigError, PoseError
-from ..planning import PlanOptions, Route, WorldState, load_routes, plan_cell, plan_route
+from ..planning import PlanOptions, Route, WorldState, plan_cell, plan_route
 from ..planning.planner import route_order
 from ..trajectory import Trajectory
 from ._transport import encode_error, picklable_record
@@ -71,9 +71,8 @@ class _Worker:
 
         self.cell = load_cell(scene)
         self.base_poses = dict(self.cell.poses)
-        self.routes_path = self.cell.folder / "routes.yaml"
-        self.routes: dict[str, Route] = load_routes(
-            self.cell.folder, poses=list(self.cell.poses), objects=list(self.cell.scene.objects))
+        self.routes_path = self.cell.folder / "routes.yaml" if self.cell.folder else None
+        self.routes: dict[str, Route] = self.cell.route_table()
         self.options = options
         self.version = 0
         self._cache: OrderedDict[tuple[Any, ...], Trajectory] = OrderedDict()

@@ -20,7 +20,7 @@ import numpy as np
 from ..cell import Cell
 from ..collision import CheckOptions, CollisionChecker, StateReport
 from ..errors import ConfigError, TrajectoryError
-from ..planning import Route, WorldState, initial_world, load_routes
+from ..planning import Route, WorldState, initial_world
 from ..scene import AllowedContact
 from ..trajectory import Trajectory, load_trajectory
 
@@ -121,9 +121,9 @@ def load_plans(cell: Cell, source: str | Path) -> dict[str, Trajectory]:
 
 def routes_of(cell: Cell) -> dict[str, Route]:
     """The cell's routes (``routes.yaml``), or none when it has no such file."""
-    if not (cell.folder / "routes.yaml").exists():
+    if cell.routes is None and (cell.folder is None or not (cell.folder / "routes.yaml").exists()):
         return {}
-    return load_routes(cell.folder, poses=list(cell.poses), objects=list(cell.scene.objects))
+    return cell.route_table()
 
 
 def affected_routes(routes: Mapping[str, Route], poses: Sequence[str]) -> list[str]:

@@ -55,14 +55,13 @@ def plan_in_worker(folder: str, poses: dict[str, list[float]], routes: list[str]
         SafepathError: Whatever loading or planning raised.
     """
     from ..cell import load_cell
-    from ..planning import PlannerOptions, PlanOptions, load_routes, plan_cell
+    from ..planning import PlannerOptions, PlanOptions, plan_cell
 
     cell = load_cell(folder)
     for name, q in poses.items():
         cell.poses[name] = cell.robot.as_joint_vector(q, name=f"poses.{name}",
                                                       path=cell.poses_path)
-    all_routes = load_routes(cell.folder, poses=list(cell.poses),
-                             objects=list(cell.scene.objects))
+    all_routes = cell.route_table()
     keep = set(all_routes if routes is None else routes)
     for name in list(keep):
         if name not in all_routes:

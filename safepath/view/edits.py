@@ -232,7 +232,7 @@ class PoseEdits:
             what = "; ".join(c.describe(names) for c in changes)
             raise PosesChanged(f"not saved: {', '.join(self.conflicts)} changed in another "
                                f"save while you edited ({what}); take the saved version or "
-                               f"keep yours, pose by pose", path=self.cell.poses_path,
+                               f"keep yours, pose by pose", path=self.cell.poses_file(),
                                changes=changes, conflicts=list(self.conflicts))
         statuses = [self.status(n) for n in self.edits]
         bad = [s for s in statuses if s.collisions]

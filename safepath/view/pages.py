@@ -96,7 +96,7 @@ class Pages:
             changes = self.poses.reload()
             names = self.cell.robot.joint_names
             what = "; ".join(c.describe(names) for c in changes) or "no pose changed"
-            self._changed(f"{self.cell.poses_path.name} reloaded by {client}: {what}",
+            self._changed(f"{self.cell.poses_file().name} reloaded by {client}: {what}",
                           [c.pose for c in changes])
 
     def plans_changed(self) -> None:
@@ -122,13 +122,13 @@ class Pages:
             if stale:
                 doing = "re-planning..." if self._plans.running else "re-plan to update them"
                 lines.append(f"**stale routes**: planned with poses that differ from "
-                             f"{self.cell.poses_path.name} ({', '.join(stale)}); {doing}")
+                             f"{self.cell.poses_file().name} ({', '.join(stale)}); {doing}")
             on_disk = self.poses.on_disk
             if on_disk is not None:
                 names = self.cell.robot.joint_names
                 what = ("; ".join(c.describe(names) for c in on_disk)
                         or "unreadable, or formatting only")
-                lines.append(f"**{self.cell.poses_path.name} changed on disk** ({what}): "
+                lines.append(f"**{self.cell.poses_file().name} changed on disk** ({what}): "
                              "saving is refused until a page reloads it")
             self._notice.content = "\n\n".join(lines)
 

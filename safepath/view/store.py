@@ -129,7 +129,7 @@ class PosesStore:
 
     def __init__(self, cell: Cell) -> None:
         self.robot = cell.robot
-        self.path = cell.poses_path
+        self.path = cell.poses_file()
         self.log_path = self.path.with_name(LOG_NAME)
 
     def read(self) -> PosesSnapshot:

@@ -87,3 +87,24 @@ def test_bag_of_the_cycle_holds_both_outcomes_back_to_back(tmp_path: Path) -> No
     assert main(["plan", str(BUNDLED), "--out", str(tmp_path / "again"), "--bag",
                  str(bag)]) == 2
     assert not (tmp_path / "again").exists()
+
+
+def test_a_bag_that_cannot_be_written_leaves_no_output(tmp_path: Path,
+                                                        capsys: pytest.CaptureFixture[str]
+                                                        ) -> None:
+    blocker = tmp_path / "a_file"
+    blocker.write_text("not a folder\n")
+    out = tmp_path / "out"
+    # Planning succeeds; the bag's folder cannot be made (its parent is a file).
+    assert main(["plan", str(BUNDLED), "--out", str(out), "--route", "phase1",
+                 "--bag", str(blocker / "cycle")]) == 2
+    err = capsys.readouterr().err.splitlines()
+    assert len(err) == 1 and err[0].startswith("safepath plan: error: cannot write bag")
+    assert not out.exists()  # no JSON, CSV or summary of the routes planned
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["a_file"]
+    # An output folder that existed keeps exactly what it held.
+    out.mkdir()
+    (out / "keep.txt").write_text("mine\n")
+    assert main(["plan", str(BUNDLED), "--out", str(out), "--route", "phase1",
+                 "--bag", str(blocker / "cycle")]) == 2
+    assert sorted(p.name for p in out.iterdir()) == ["keep.txt"]

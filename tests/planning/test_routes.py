@@ -107,7 +107,7 @@ def test_step_shorthands(tmp_path: Path) -> None:
     ({"r": {"start": "high1", "steps": [{"move": "high2", "tcp_speed": -1}]}},
      "routes.r.steps[0].tcp_speed", ""),
     ({"r": {"start": "high1", "steps": [{"move": "high2", "fast": True}]}},
-     "routes.r.steps[0]", "unknown key"),
+     "routes.r.steps[0].fast", "unknown key"),
     ({"r": {"start": "high1", "steps": [{"via": "high2", "stop": True}]}},
      "routes.r.steps[0].stop", "never stops"),
     ({"r": {"start": "high1", "steps": [{"close": "spoon"}]}},

@@ -21,9 +21,9 @@ from safepath.ros.bag import (
     read_bag,
     write_bag,
 )
-from safepath.ros.goals import NED_JOINT_NAMES, joint_trajectory
+from safepath.ros.goals import joint_trajectory
 
-from .test_messages import assert_same, phase1, phase2
+from .test_messages import NED_JOINT_NAMES, assert_same, phase1, phase2
 
 START = 1_700_000_000 * 10**9  # a fixed clock start [ns]
 

@@ -19,8 +19,6 @@ from rosbags.typesys.base import Nodetype
 from safepath.errors import InputError, RosError, TrajectoryError
 from safepath.ros import goals
 from safepath.ros.goals import (
-    GOAL_TOLERANCE,
-    NED_JOINT_NAMES,
     check_start,
     follow_joint_trajectory_goal,
     joint_trajectory,
@@ -31,6 +29,11 @@ from safepath.ros.goals import (
 )
 from safepath.ros.messages import DEFINITIONS, deserialize, message_factory, serialize, typestore
 from safepath.trajectory import GripperEvent, Trajectory
+from safepath.trajectory_controller import controller_for
+
+NED_JOINT_NAMES = tuple(f"joint_{i}" for i in range(1, 7))
+#: Niryo's niryo_controllers.yaml, as robots/ned3pro/controller.yaml must give them [rad].
+GOAL_TOLERANCE = (0.002, 0.001, 0.001, 0.03, 0.03, 0.03)
 
 # Taught joint poses of the quality-check cell [rad] (Niryo ROSCon 2025 workshop numbers).
 POSES = {
@@ -316,9 +319,13 @@ def test_joint_names_must_match_the_robot() -> None:
             build(wrong, backend="rosbags")
         assert info.value.key == "joint_names"
     five = Trajectory(NED_JOINT_NAMES[:5], traj.t, traj.q[:, :5], traj.qd[:, :5],
-                      traj.qdd[:, :5], traj.step_index, traj.steps)
+                      traj.qdd[:, :5], traj.step_index, traj.steps, robot="ned3pro")
     with pytest.raises(TrajectoryError):
         joint_trajectory(five, backend="rosbags")
+    # A robot without a controller file: its own joints, in its own order.
+    anonymous = dataclasses.replace(five, robot="")
+    assert joint_trajectory(anonymous, backend="rosbags").joint_names == list(
+        NED_JOINT_NAMES[:5])
     with pytest.raises(TrajectoryError):
         joint_trajectory(traj, robot_joint_names=list(NED_JOINT_NAMES) + ["joint_7"],
                          backend="rosbags")
@@ -507,6 +514,10 @@ def test_rclpy_branch_builds_native_classes(monkeypatch: pytest.MonkeyPatch) -> 
     assert [t.position for t in goal.goal_tolerance] == list(GOAL_TOLERANCE)
 
 
-def test_module_constants() -> None:
-    assert goals.FOLLOW_JOINT_TRAJECTORY_ACTION.endswith("/follow_joint_trajectory")
-    assert goals.DEFAULT_PERIOD == 0.04
+def test_ned_controller_comes_from_its_robot_folder() -> None:
+    ned = controller_for("ned3pro", NED_JOINT_NAMES)
+    assert ned.source is not None and ned.source.name == "controller.yaml"
+    assert ned.follow_joint_trajectory_action == (
+        "/niryo_robot_follow_joint_trajectory_controller/follow_joint_trajectory")
+    assert ned.period == 0.04 and ned.goal_tolerance == GOAL_TOLERANCE
+    assert goals.controller_of(phase1()) == ned

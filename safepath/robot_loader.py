@@ -1,0 +1,203 @@
+"""Loading robots: by name (a bundled folder or an ``example-robot-data`` arm) or folder.
+
+A robot folder (see ``robots/ned3pro``) holds a URDF with primitive collision shapes,
+a ``robot.yaml`` with what a URDF cannot say (velocity and acceleration limits, the
+TCP frame, the tool), the computed list of link pairs that never need checking, and
+optionally a ``controller.yaml`` (its ROS 2 trajectory controller, see
+:mod:`safepath.trajectory_controller`). Robots of ``example-robot-data`` (``ur5``,
+``panda``, ...) load by name too; a bundled folder of the same name that holds only a
+``controller.yaml`` adds their controller settings.
+"""
+
+from __future__ import annotations
+
+import logging
+from collections.abc import Sequence
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pinocchio as pin
+
+from ._io import as_float, as_str, as_vector, check_keys, get_key, read_yaml
+from ._paths import ROBOTS_DIR
+from .errors import ConfigError, FrameNotFound, RobotNotFound
+from .robot import Robot, ToolSpec, adjacent_link_pairs
+from .trajectory_controller import FILE_NAME as CONTROLLER_FILE
+from .trajectory_controller import TrajectoryController, read_controller
+
+__all__ = ["ROBOTS_DIR", "load_robot", "robot_names"]
+
+log = logging.getLogger(__name__)
+
+_ROBOT_KEYS = ("name", "urdf", "joints", "velocity_limits", "acceleration_limits", "tcp_frame",
+               "tool", "allowed_collisions")
+_TOOL_KEYS = ("name", "id", "contact_links", "open_width", "closed_width")
+
+
+def robot_names() -> list[str]:
+    """Names that :func:`load_robot` accepts: project folders, then example-robot-data."""
+    names = sorted(p.parent.name for p in ROBOTS_DIR.glob("*/robot.yaml"))
+    return names + _erd_names()
+
+
+def _erd_names() -> list[str]:
+    try:
+        from example_robot_data.robots_loader import ROBOTS
+    except ImportError:  # pragma: no cover - dependency is declared
+        return []
+    return sorted(ROBOTS)
+
+
+def load_robot(name_or_path: str | Path, *, acceleration_limits: Sequence[float] | None = None
+               ) -> Robot:
+    """Load a robot by name (``"ned3pro"``, ``"ur5"``, ``"panda"``) or robot-folder path.
+
+    Args:
+        name_or_path: A folder under ``robots/``, a path to a robot folder or its
+            ``robot.yaml``, or an ``example-robot-data`` name (its controller settings
+            from ``robots/<name>/controller.yaml`` when there is one).
+        acceleration_limits: Override the acceleration limits [rad/s^2].
+
+    Raises:
+        RobotNotFound: The name is neither a folder nor an example-robot-data robot.
+        ConfigError: The robot files are malformed (names file and key).
+    """
+    text = str(name_or_path)
+    candidate = Path(text)
+    if candidate.name == "robot.yaml":
+        candidate = candidate.parent
+    if candidate.is_dir() and (candidate / "robot.yaml").exists():
+        robot = _load_folder(candidate)
+    elif candidate.is_dir() and (candidate / CONTROLLER_FILE).is_file() \
+            and candidate.name in _erd_names():
+        # A folder that only adds controller settings to an example-robot-data arm.
+        from ._erd import load_erd
+
+        robot = load_erd(candidate.name, controller_path=candidate / CONTROLLER_FILE)
+    elif (ROBOTS_DIR / text / "robot.yaml").exists():
+        robot = _load_folder(ROBOTS_DIR / text)
+    elif text in _erd_names():
+        from ._erd import load_erd
+
+        robot = load_erd(text, controller_path=_bundled_controller(text))
+    elif candidate.exists():
+        raise ConfigError("not a robot folder (no robot.yaml)", path=candidate)
+    else:
+        raise RobotNotFound(text, robot_names())
+    if acceleration_limits is not None:
+        acc = np.asarray(acceleration_limits, dtype=float)
+        if acc.shape != (robot.dof,) or not np.all(np.isfinite(acc)) or np.any(acc <= 0):
+            raise ConfigError(f"need {robot.dof} finite positive values, got "
+                              f"{np.asarray(acceleration_limits).tolist()}",
+                              key="acceleration_limits")
+        robot.acceleration_limits = acc
+    return robot
+
+
+def _bundled_controller(name: str) -> Path | None:
+    """A bundled ``robots/<name>/controller.yaml`` for an example-robot-data arm."""
+    path = ROBOTS_DIR / name / CONTROLLER_FILE
+    return path if path.is_file() else None
+
+
+def _load_folder(folder: Path) -> Robot:
+    spec_path = folder / "robot.yaml"
+    spec = read_yaml(spec_path)
+    if not isinstance(spec, dict):
+        raise ConfigError("expected a mapping at the top level", path=spec_path)
+    check_keys(spec, _ROBOT_KEYS, path=spec_path)
+    name = as_str(get_key(spec, "name", path=spec_path), path=spec_path, key="name")
+    urdf_rel = as_str(get_key(spec, "urdf", path=spec_path), path=spec_path, key="urdf")
+    urdf = folder / urdf_rel
+    if not urdf.exists():
+        raise ConfigError(f"URDF file not found: {urdf}", path=spec_path, key="urdf")
+    try:
+        full = pin.buildModelFromUrdf(str(urdf))
+        geom = pin.buildGeomFromUrdf(full, str(urdf), pin.GeometryType.COLLISION,
+                                     package_dirs=[str(folder)])
+        visual = pin.buildGeomFromUrdf(full, str(urdf), pin.GeometryType.VISUAL,
+                                       package_dirs=[str(folder)])
+    except (ValueError, RuntimeError, OSError) as exc:
+        raise ConfigError(f"cannot load URDF ({str(exc).splitlines()[0]})", path=urdf) from None
+
+    joints = get_key(spec, "joints", path=spec_path)
+    if not isinstance(joints, list) or not all(isinstance(j, str) for j in joints):
+        raise ConfigError("expected a list of joint names", path=spec_path, key="joints")
+    model_joints = list(full.names[1:])
+    if joints != model_joints:
+        raise ConfigError(f"joints {joints} do not match the URDF's movable joints "
+                          f"{model_joints}", path=spec_path, key="joints")
+    n = len(joints)
+    vel = as_vector(get_key(spec, "velocity_limits", path=spec_path), n, path=spec_path,
+                    key="velocity_limits")
+    acc = as_vector(get_key(spec, "acceleration_limits", path=spec_path), n, path=spec_path,
+                    key="acceleration_limits")
+    tcp = as_str(get_key(spec, "tcp_frame", path=spec_path), path=spec_path, key="tcp_frame")
+    tool = _parse_tool(spec.get("tool"), spec_path, full)
+    pairs: list[tuple[str, str]] = []
+    pairs_file = spec.get("allowed_collisions")
+    pairs_path = folder / "allowed_collisions.yaml"
+    if pairs_file is not None:
+        pairs_path = folder / as_str(pairs_file, path=spec_path, key="allowed_collisions")
+        if pairs_path.exists():
+            pairs = _read_pairs(pairs_path, full)
+        else:
+            log.warning("%s: allowed_collisions file %s missing; only adjacent links skipped",
+                        spec_path, pairs_path.name)
+            pairs = adjacent_link_pairs(full, geom)
+    controller: TrajectoryController | None = None
+    if (folder / CONTROLLER_FILE).is_file():
+        controller = read_controller(folder / CONTROLLER_FILE, model_joints)
+    return Robot(name=name, model=full, collision_model=geom, visual_model=visual,
+                 velocity_limits=vel, acceleration_limits=acc, tcp_frame=tcp, tool=tool,
+                 allowed_self_pairs=pairs, source=spec_path, urdf_path=urdf,
+                 allowed_collisions_path=pairs_path, controller=controller)
+
+
+def _parse_tool(raw: Any, path: Path, model: pin.Model) -> ToolSpec | None:
+    if raw is None:
+        return None
+    if not isinstance(raw, dict):
+        raise ConfigError("expected a mapping", path=path, key="tool")
+    check_keys(raw, _TOOL_KEYS, path=path, prefix="tool")
+    links = get_key(raw, "contact_links", path=path, prefix="tool")
+    if not isinstance(links, list):
+        raise ConfigError("expected a list of link names", path=path, key="tool.contact_links")
+    for link in links:
+        if not model.existFrame(str(link)):
+            raise FrameNotFound(str(link), [f.name for f in model.frames], path=path,
+                                key="tool.contact_links")
+    open_w = as_float(get_key(raw, "open_width", path=path, prefix="tool"), path=path,
+                      key="tool.open_width", positive=True)
+    closed_w = as_float(get_key(raw, "closed_width", path=path, prefix="tool"), path=path,
+                        key="tool.closed_width", non_negative=True)
+    tool_id = get_key(raw, "id", path=path, prefix="tool")
+    if not isinstance(tool_id, int):
+        raise ConfigError(f"expected an integer, got {tool_id!r}", path=path, key="tool.id")
+    return ToolSpec(name=str(raw.get("name", "tool")), tool_id=tool_id,
+                    contact_links=tuple(str(x) for x in links), open_width=open_w,
+                    closed_width=closed_w)
+
+
+def _read_pairs(path: Path, model: pin.Model) -> list[tuple[str, str]]:
+    data = read_yaml(path)
+    entries = get_key(data, "pairs", path=path)
+    if not isinstance(entries, list):
+        raise ConfigError("expected a list", path=path, key="pairs")
+    out = []
+    for i, entry in enumerate(entries):
+        key = f"pairs[{i}]"
+        if not isinstance(entry, dict) or "links" not in entry:
+            raise ConfigError("expected {links: [a, b], reason: ...}", path=path, key=key)
+        links = entry["links"]
+        if not (isinstance(links, list) and len(links) == 2):
+            raise ConfigError("expected two link names", path=path, key=f"{key}.links")
+        for link in links:
+            if not model.existFrame(str(link)):
+                raise FrameNotFound(str(link), [f.name for f in model.frames], path=path,
+                                    key=f"{key}.links")
+        out.append((str(links[0]), str(links[1])))
+    return out
+
+
