@@ -37,6 +37,7 @@ from .planning import (
     TimingOptions,
     WorldState,
     load_routes,
+    plan,
     plan_cell,
     plan_route,
 )
@@ -98,6 +99,7 @@ __all__ = [
     "load_routes",
     "load_scene",
     "load_trajectory",
+    "plan",
     "plan_cell",
     "plan_route",
     "placement",

@@ -29,7 +29,7 @@ if TYPE_CHECKING:
 __all__ = ["Cell", "PoseCheck", "load_cell", "check_poses"]
 
 
-@dataclass(eq=False)
+@dataclass(eq=False, repr=False)
 class Cell:
     """A robot in its scene, with its taught poses and routes.
 
@@ -110,6 +110,20 @@ class Cell:
             raise ConfigError("the cell was built in Python: it has no poses file",
                               key="poses_path")
         return self.poses_path
+
+    def __getstate__(self) -> dict[str, Any]:
+        state = dict(self.__dict__)
+        state.pop("_local", None)  # per-thread checkers: rebuilt where the cell is used
+        return state
+
+    def __setstate__(self, state: dict[str, Any]) -> None:
+        self.__dict__.update(state)
+        self._local = threading.local()
+
+    def __repr__(self) -> str:
+        where = f", folder={str(self.folder)!r}" if self.folder is not None else ""
+        return (f"Cell({self.scene.name!r}, robot={self.robot.name!r}, "
+                f"{len(self.poses)} poses{where})")
 
     def route_table(self) -> dict[str, Route]:
         """The cell's routes: those it was given, else ``routes.yaml`` of its folder.

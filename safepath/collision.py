@@ -17,7 +17,6 @@ of it. Allowed contacts are excluded from clearance and margins.
 from __future__ import annotations
 
 import logging
-import re
 from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import replace
 from typing import Any
@@ -28,7 +27,7 @@ import pinocchio as pin
 from .checks import CheckOptions, Pair, SegmentReport, StateReport
 from .errors import ConfigError
 from .fastcheck import COLLIDES, FREE, UNSURE, SphereLayer
-from .robot import Robot
+from .robot import Robot, is_prismatic
 from .scene import GRIPPER, AllowedContact, Scene, SceneObject
 
 __all__ = ["CheckOptions", "StateReport", "SegmentReport", "CollisionChecker"]
@@ -242,10 +241,7 @@ class CollisionChecker:
                 reach[parent] = max(reach[parent], offset + reach[j])
         w = np.zeros(model.nv)
         for j in range(1, nj):
-            joint = model.joints[j]
-            short = joint.shortname()
-            prismatic = "Prismatic" in short or re.fullmatch(r"JointModelP[XYZ]", short)
-            w[joint.idx_v] = 1.0 if prismatic else reach[j]
+            w[model.joints[j].idx_v] = 1.0 if is_prismatic(model, j) else reach[j]
         return w
 
     # -- the fast layer ----------------------------------------------------------------------

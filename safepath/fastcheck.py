@@ -35,6 +35,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 import pinocchio as pin
 
+from .robot import is_prismatic
 from .spheres import SphereFit, fit_spheres
 
 if TYPE_CHECKING:
@@ -304,8 +305,7 @@ def _mover_weights(model: Any, G: np.ndarray, Gi: np.ndarray, lower: np.ndarray,
         reach = float(np.linalg.norm(G[m, :3])) + float(G[m, 3])
         j = int(Gi[m, 0])
         while j > 0:
-            prismatic = model.joints[j].shortname().startswith(("JointModelP",
-                                                                "JointModelPrismatic"))
+            prismatic = is_prismatic(model, j)
             iv = model.joints[j].idx_v
             W[m, iv] = 1.0 if prismatic else reach
             reach += float(np.linalg.norm(model.jointPlacements[j].translation))

@@ -10,7 +10,7 @@ import threading
 from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import Any, Literal
 
 import numpy as np
 import pinocchio as pin
@@ -18,7 +18,7 @@ import pinocchio as pin
 from .errors import ConfigError, FrameNotFound, PoseError
 from .trajectory_controller import TrajectoryController
 
-__all__ = ["Robot", "ToolSpec", "adjacent_link_pairs"]
+__all__ = ["Robot", "ToolSpec", "adjacent_link_pairs", "joint_motion", "is_prismatic"]
 
 @dataclass(frozen=True)
 class ToolSpec:
@@ -95,6 +95,10 @@ class Robot:
         #: Its ROS 2 trajectory controller (from the robot folder's ``controller.yaml``, or
         #: derived from the joint names): what :mod:`safepath.ros` addresses.
         self.controller = controller or TrajectoryController.derived(self.joint_names)
+        #: How :func:`safepath.load_robot` loads this robot again (a folder or a name), or
+        #: None for a robot built in Python. A robot pickles as this reference (worker
+        #: processes load it themselves); one without a reference does not pickle.
+        self.reference: str | None = None
         self._local = threading.local()  # one pinocchio Data per thread
 
     # -- basic facts -------------------------------------------------------------------
@@ -173,6 +177,38 @@ class Robot:
         if not self.model.existFrame(frame):
             raise FrameNotFound(frame, [f.name for f in self.model.frames])
         return int(self.model.getFrameId(frame))
+
+
+JointKind = Literal["revolute", "prismatic"]
+_AXES = {"X": (1.0, 0.0, 0.0), "Y": (0.0, 1.0, 0.0), "Z": (0.0, 0.0, 1.0)}
+
+
+def joint_motion(model: pin.Model, j: int) -> tuple[JointKind, tuple[float, float, float]] | None:
+    """How joint ``j`` of ``model`` moves its child: the one place that reads joint types.
+
+    Returns:
+        ``("revolute" | "prismatic", axis)`` for a 1-DoF revolute or prismatic joint (axis
+        in the joint frame; unit length for Pinocchio's aligned joints, as given in the
+        URDF for unaligned ones), or None for any other joint (helical, spherical, ...).
+    """
+    joint = model.joints[j]
+    name = joint.shortname()
+    if joint.nq != 1 or joint.nv != 1:
+        return None
+    for prefix, kind in (("JointModelR", "revolute"), ("JointModelP", "prismatic")):
+        if name[:-1] == prefix and name[-1] in _AXES:
+            return kind, _AXES[name[-1]]  # type: ignore[return-value]
+    if name in ("JointModelRevoluteUnaligned", "JointModelPrismaticUnaligned"):
+        axis = np.asarray(joint.extract().axis, dtype=float)
+        kind = "revolute" if "Revolute" in name else "prismatic"
+        return kind, (float(axis[0]), float(axis[1]), float(axis[2]))  # type: ignore[return-value]
+    return None
+
+
+def is_prismatic(model: pin.Model, j: int) -> bool:
+    """Whether joint ``j`` of ``model`` slides (1-DoF prismatic, any axis)."""
+    motion = joint_motion(model, j)
+    return motion is not None and motion[0] == "prismatic"
 
 
 def adjacent_link_pairs(model: pin.Model, geom: pin.GeometryModel) -> list[tuple[str, str]]:

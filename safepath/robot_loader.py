@@ -11,6 +11,7 @@ optionally a ``controller.yaml`` (its ROS 2 trajectory controller, see
 
 from __future__ import annotations
 
+import copyreg
 import logging
 from collections.abc import Sequence
 from pathlib import Path
@@ -92,7 +93,25 @@ def load_robot(name_or_path: str | Path, *, acceleration_limits: Sequence[float]
                               f"{np.asarray(acceleration_limits).tolist()}",
                               key="acceleration_limits")
         robot.acceleration_limits = acc
+    robot.reference = str(Path(text).resolve()) if Path(text).exists() else text
     return robot
+
+
+def _reduce_robot(robot: Robot) -> tuple[Any, ...]:
+    """Pickle a robot as the reference it was loaded from (pinocchio's models, coal's
+    shapes and per-thread workspaces stay behind; the receiver loads them itself)."""
+    if robot.reference is None:
+        raise ConfigError(f"robot '{robot.name}' was built in Python and cannot be sent to "
+                          "another process; load it with safepath.load_robot (a folder or "
+                          "a name)", key="robot")
+    return (_load_again, (robot.reference, tuple(float(a) for a in robot.acceleration_limits)))
+
+
+def _load_again(reference: str, acceleration_limits: tuple[float, ...]) -> Robot:
+    return load_robot(reference, acceleration_limits=acceleration_limits)
+
+
+copyreg.pickle(Robot, _reduce_robot)
 
 
 def _bundled_controller(name: str) -> Path | None:

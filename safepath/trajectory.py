@@ -20,6 +20,7 @@ from typing import Any, Literal
 import numpy as np
 
 from ._io import atomic_write_text
+from ._knots import interval_index
 from .errors import TrajectoryError
 
 __all__ = ["GripperEvent", "Trajectory", "load_trajectory"]
@@ -139,7 +140,7 @@ class Trajectory:
 
     def step_at(self, time: float) -> str:
         """Name of the step being executed at ``time`` [s]."""
-        k = int(np.clip(np.searchsorted(self.t, time, side="right") - 1, 0, self.t.size - 1))
+        k = int(interval_index(self.t, time, self.t.size))
         return self.steps[self.step_index[k]] if self.steps else ""
 
     # -- sampling --------------------------------------------------------------------------
@@ -150,7 +151,7 @@ class Trajectory:
         if self.t.size == 1:
             n = ts.size
             return (np.repeat(self.q, n, 0), np.repeat(self.qd, n, 0), np.repeat(self.qdd, n, 0))
-        k = np.clip(np.searchsorted(self.t, ts, side="right") - 1, 0, self.t.size - 2)
+        k = interval_index(self.t, ts, self.t.size - 1)
         t0, t1 = self.t[k], self.t[k + 1]
         h = (t1 - t0)[:, None]
         s = ((ts - t0) / (t1 - t0))[:, None]
@@ -179,7 +180,7 @@ class Trajectory:
         q, qd, qdd = self.sample(times)
         qd[0], qdd[0] = self.qd[0], self.qdd[0]
         q[-1], qd[-1], qdd[-1] = self.q[-1], self.qd[-1], self.qdd[-1]
-        k = np.clip(np.searchsorted(self.t, times, side="right") - 1, 0, self.t.size - 1)
+        k = interval_index(self.t, times, self.t.size)
         return Trajectory(self.joint_names, times, q, qd, qdd, self.step_index[k], self.steps,
                           self.events, self.robot, self.route, dict(self.info))
 

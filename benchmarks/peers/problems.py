@@ -178,9 +178,7 @@ def cell_steps(cell: Any) -> list[CellStep]:
                     seed = cell.pose(target.pose) if target.pose is not None else q
                     T = robot.frame_pose(seed)
                     T.translation = T.translation + np.asarray(target.offset)
-                    goal = solve_ik(robot, T, seed, options=LineOptions())
-                    if goal is None:
-                        raise RuntimeError(f"no IK for {labels[i]}")
+                    goal = solve_ik(robot, T, seed, options=LineOptions(), step=labels[i])
                     goal_name = None
                 allowed = (scene.contacts_at(pose_name) + scene.contacts_at(goal_name)
                            if step.kind == "line" else ())

@@ -1,6 +1,7 @@
 """Planning: routes of taught poses to verified, timed trajectories."""
 
 from .cartesian import LineOptions, cartesian_line, solve_ik
+from .motion import plan
 from .planner import PlanOptions, WorldState, initial_world, plan_cell, plan_route
 from .routes import Route, Step, Target, load_routes
 from .sampling import PLANNERS, PlannerOptions, plan_joint_path
@@ -22,6 +23,7 @@ __all__ = [
     "cartesian_line",
     "initial_world",
     "load_routes",
+    "plan",
     "plan_cell",
     "plan_joint_path",
     "plan_route",

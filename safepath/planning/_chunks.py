@@ -15,6 +15,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from .._knots import interval_index
 from ..errors import PlanningError, VerificationError
 from ..scene import AllowedContact
 from ..trajectory import GripperEvent, Trajectory
@@ -157,7 +158,7 @@ def _check_spline(cell: Cell, path: object, s_way: np.ndarray, seg_of_poly: Sequ
     n = max(2, int(np.ceil(length / 0.02)) + 1)
     s = np.linspace(0.0, length, n)
     Q = path(s)  # type: ignore[operator]
-    poly = np.clip(np.searchsorted(s_way, s, side="right") - 1, 0, len(seg_of_poly) - 1)
+    poly = interval_index(s_way, s, len(seg_of_poly))
     step_of = [seg_of_poly[p] for p in poly]
     # Consecutive chords of the same step share a checker: check them as one polyline.
     start = 0

@@ -16,6 +16,7 @@ from typing import Protocol
 
 import numpy as np
 
+from .._knots import interval_index
 from ..robot import Robot
 from . import _topp
 
@@ -98,7 +99,7 @@ def path_limits(robot: Robot, path: PathSpline, s_way: np.ndarray, scales: Seque
     grid = _grid(path.x, s_way, grid_step)
     seg_scales = np.asarray(scales, dtype=float) * speed_scale
     last = len(seg_scales) - 1
-    seg_of_grid = np.clip(np.searchsorted(s_way, grid, side="right") - 1, 0, last)
+    seg_of_grid = interval_index(s_way, grid, last + 1)
     # A gridpoint on a segment boundary ends one segment and starts the next: the
     # smaller limits of the two hold there.
     seg_before = np.clip(np.searchsorted(s_way, grid, side="left") - 1, 0, last)

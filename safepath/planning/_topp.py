@@ -30,6 +30,8 @@ from typing import Any
 
 import numpy as np
 
+from .._knots import interval_index
+
 __all__ = ["Profile", "acceleration_rows", "solve", "parametrize", "evaluate"]
 
 #: Largest squared path speed [1/s^2] where no joint limits it (a joint path at rest).
@@ -131,7 +133,7 @@ def evaluate(profile: Profile, t: np.ndarray) -> tuple[np.ndarray, np.ndarray, n
 
     The last time is taken as the end of the path (at rest), exactly.
     """
-    k = np.clip(np.searchsorted(profile.t, t, side="right") - 1, 0, profile.u.size - 1)
+    k = interval_index(profile.t, t, profile.u.size)
     dt = t - profile.t[k]
     u = profile.u[k]
     sd0 = profile.sd[k]

@@ -20,6 +20,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from ..errors import VerificationError
+from ..robot import joint_motion
 
 if TYPE_CHECKING:
     import pinocchio as pin
@@ -29,7 +30,6 @@ __all__ = ["Grid", "Layer", "PoseCache", "ShapeSpec", "WalkMemory", "bound_betwe
 
 _BOX, _SPHERE, _CYLINDER, _CAPSULE, _HULL = 0, 1, 2, 3, 4
 _REVOLUTE, _PRISMATIC = 1, 2
-_AXES = {"X": (1.0, 0.0, 0.0), "Y": (0.0, 1.0, 0.0), "Z": (0.0, 0.0, 1.0)}
 #: Above this excess over its threshold [m], a pair's bounding-sphere bound is used
 #: alone: the step it allows is long enough that the finer bounds would not pay.
 _COARSE = 0.05
@@ -126,22 +126,16 @@ def _shape_table(specs: list[ShapeSpec]) -> tuple[np.ndarray, np.ndarray]:
 
 
 def _joint_kind(model: pin.Model, j: int) -> tuple[int, tuple[float, float, float]]:
-    joint = model.joints[j]
-    name = joint.shortname()
-    if joint.nq == 1 and joint.nv == 1:
-        for prefix, kind in (("JointModelR", _REVOLUTE), ("JointModelP", _PRISMATIC)):
-            if name[:-1] == prefix and name[-1] in _AXES:
-                return kind, _AXES[name[-1]]
-        if name in ("JointModelRevoluteUnaligned", "JointModelPrismaticUnaligned"):
-            axis = np.asarray(joint.extract().axis, dtype=float)
-            if abs(float(np.linalg.norm(axis)) - 1.0) > 1e-9:
-                raise VerificationError(f"joint {model.names[j]}: axis {axis.tolist()} is "
-                                        "not a unit vector", time=0.0, q=None, pairs=[])
-            kind = _REVOLUTE if "Revolute" in name else _PRISMATIC
-            return kind, (float(axis[0]), float(axis[1]), float(axis[2]))
-    raise VerificationError(f"unsupported joint {model.names[j]} ({name}): the verifier "
-                            "handles 1-dof revolute and prismatic joints", time=0.0,
-                            q=None, pairs=[])
+    motion = joint_motion(model, j)
+    if motion is None:
+        raise VerificationError(f"unsupported joint {model.names[j]} "
+                                f"({model.joints[j].shortname()}): the verifier handles 1-dof "
+                                "revolute and prismatic joints", time=0.0, q=None, pairs=[])
+    kind, axis = motion
+    if abs(float(np.linalg.norm(axis)) - 1.0) > 1e-9:
+        raise VerificationError(f"joint {model.names[j]}: axis {list(axis)} is not a unit "
+                                "vector", time=0.0, q=None, pairs=[])
+    return (_REVOLUTE if kind == "revolute" else _PRISMATIC), axis
 
 
 def motion_weights(model: pin.Model, joints: list[int], T_joint_geom: list[np.ndarray],

@@ -58,12 +58,25 @@ class LineOptions:
 
 
 def solve_ik(robot: Robot, T_world_tcp: pin.SE3, q_seed: np.ndarray, *,
-             options: LineOptions = LineOptions(), data: pin.Data | None = None
-             ) -> np.ndarray | None:
-    """Joint vector that puts the TCP at ``T_world_tcp``, near ``q_seed``; None if none.
+             options: LineOptions = LineOptions(), data: pin.Data | None = None,
+             step: str | None = None) -> np.ndarray:
+    """Joint vector that puts the TCP at ``T_world_tcp`` [m, rad], near ``q_seed`` [rad].
 
     Damped least squares on the 6-D frame error (LOCAL frame), joint limits enforced by
     clipping each iterate. ``data`` lets a caller reuse its Pinocchio workspace.
+
+    Args:
+        robot: The robot.
+        T_world_tcp: The TCP pose to reach, in the world frame.
+        q_seed: Where the iteration starts [rad].
+        options: Tolerances and the iteration budget.
+        data: A Pinocchio workspace of ``robot.model`` to reuse.
+        step: Route step (or pose) the target belongs to, for the error.
+
+    Raises:
+        IKError: No solution within ``options.max_iterations`` (the target out of reach,
+            or not reachable from the seed within the joint limits); carries the target
+            position and the remaining error.
     """
     model = robot.model
     if data is None:
@@ -81,7 +94,12 @@ def solve_ik(robot: Robot, T_world_tcp: pin.SE3, q_seed: np.ndarray, *,
             return q
         J = pin.Jlog6(M) @ pin.computeFrameJacobian(model, data, q, fid, pin.LOCAL)
         q = np.clip(q + J.T @ np.linalg.solve(J @ J.T + damping, err), robot.lower, robot.upper)
-    return None
+    pin.forwardKinematics(model, data, q)
+    left = float(np.linalg.norm(T_world_tcp.translation
+                                - pin.updateFramePlacement(model, data, fid).translation))
+    raise IKError(f"no inverse-kinematics solution for the target in {options.max_iterations} "
+                  f"iterations ({left * 1000:.1f} mm away)", step=step, fraction=1.0,
+                  position=np.array(T_world_tcp.translation))
 
 
 def cartesian_line(robot: Robot, q_start: np.ndarray, q_goal: np.ndarray, *,

@@ -289,11 +289,7 @@ def _resolve(cell: Cell, step: Step, q: np.ndarray, label: str, options: PlanOpt
     seed = cell.pose(target.pose) if target.pose is not None else q
     T = cell.robot.frame_pose(seed)
     T.translation = T.translation + np.asarray(target.offset)
-    goal = solve_ik(cell.robot, T, seed, options=options.line)
-    if goal is None:
-        raise IKError("no inverse-kinematics solution for the target", step=label,
-                      fraction=1.0, position=T.translation.copy())
-    return goal, None
+    return solve_ik(cell.robot, T, seed, options=options.line, step=label), None
 
 
 def _gripper(cell: Cell, world: WorldState, step: Step, q: np.ndarray, label: str,

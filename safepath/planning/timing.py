@@ -24,6 +24,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .._knots import interval_index
 from ..errors import TimingError
 from ..robot import Robot
 from . import _topp
@@ -236,8 +237,7 @@ def _time_once(path: PathSpline, limits: PathLimits, factor: np.ndarray, knot_pe
     qd = ps * sd[:, None]
     qdd = pss * (sd ** 2)[:, None] + ps * sdd[:, None]
     qd[0] = qd[-1] = 0.0  # at rest (not -0.0)
-    segment = np.clip(np.searchsorted(limits.s_way, s, side="right") - 1, 0,
-                      limits.vmax_seg.shape[0] - 1)
+    segment = interval_index(limits.s_way, s, limits.vmax_seg.shape[0])
     return _Run(t, s, qd, qdd, segment, *_knot_ratios(qd, qdd, segment, limits))
 
 

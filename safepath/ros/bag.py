@@ -30,6 +30,7 @@ from typing import Any
 import numpy as np
 from rosbags.rosbag2 import Reader, ReaderError, StoragePlugin, Writer, WriterError
 
+from .._knots import interval_index
 from ..errors import RosError, TrajectoryError
 from ..trajectory import Trajectory
 from ..trajectory_controller import TrajectoryController
@@ -99,8 +100,7 @@ def _joint_states(trajs: Sequence[Trajectory], starts_ns: Sequence[int], total_n
     types = typestore().types
     step_ns = round(_NS / rate)
     times = np.arange(0, total_ns + step_ns, step_ns, dtype=np.int64)
-    which = np.clip(np.searchsorted(np.asarray(starts_ns), times, side="right") - 1,
-                    0, len(trajs) - 1)
+    which = interval_index(np.asarray(starts_ns), times, len(trajs))
     out: list[tuple[int, Any]] = []
     for k, traj in enumerate(trajs):
         mine = times[which == k]

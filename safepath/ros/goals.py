@@ -33,6 +33,7 @@ from typing import Any, Literal
 
 import numpy as np
 
+from .._knots import interval_index
 from ..errors import InputError, TrajectoryError
 from ..trajectory import GripperEvent, Trajectory
 from ..trajectory_controller import TrajectoryController, controller_for
@@ -365,7 +366,7 @@ def _segment(traj: Trajectory, t_from: float, t_to: float, index: int) -> Trajec
     q, qd, qdd = traj.sample(times)
     if t_to >= traj.t[-1]:
         q[-1], qd[-1], qdd[-1] = traj.q[-1], traj.qd[-1], traj.qdd[-1]
-    knot = np.clip(np.searchsorted(traj.t, times, side="right") - 1, 0, traj.t.size - 1)
+    knot = interval_index(traj.t, times, traj.t.size)
     info = {**traj.info, "segment": index, "time_offset": t_from}
     return Trajectory(traj.joint_names, times - t_from, q, qd, qdd, traj.step_index[knot],
                       traj.steps, (), traj.robot, traj.route, info)

@@ -25,6 +25,7 @@ from typing import Any
 
 import numpy as np
 
+from ..cell import Cell
 from ..planning import PlanOptions
 from ._slot import KEEP_POSES, Job, Slot
 from ._transport import WorkerError
@@ -72,7 +73,7 @@ class Core:
         start_method: Multiprocessing start method (``spawn`` or ``forkserver``).
     """
 
-    def __init__(self, scene: Path, options: PlanOptions, workers: int,
+    def __init__(self, scene: Path | Cell, options: PlanOptions, workers: int,
                  start_method: str) -> None:
         self.cond = threading.Condition()
         self.closing = False

@@ -26,6 +26,7 @@ from multiprocessing.process import BaseProcess
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
+from ..cell import Cell
 from ..errors import PlannerTimeout
 from ..planning import PlanOptions
 from . import _worker
@@ -138,7 +139,7 @@ class Slot:
         options: Planning options.
     """
 
-    def __init__(self, core: Any, index: int, context: Context, scene: Path,
+    def __init__(self, core: Any, index: int, context: Context, scene: Path | Cell,
                  options: PlanOptions) -> None:
         self._core = core
         self.index = index

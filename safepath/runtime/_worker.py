@@ -31,6 +31,7 @@ from typing import Any
 
 import numpy as np
 
+from ..cell import Cell
 from ..errors import ConfigError, PoseError
 from ..planning import PlanOptions, Route, WorldState, plan_cell, plan_route
 from ..planning.planner import route_order
@@ -66,10 +67,10 @@ class _PipeHandler(logging.Handler):
 class _Worker:
     """The loaded cell, its routes and the results planned so far."""
 
-    def __init__(self, scene: Path, options: PlanOptions) -> None:
+    def __init__(self, scene: Path | Cell, options: PlanOptions) -> None:
         from ..cell import load_cell
 
-        self.cell = load_cell(scene)
+        self.cell = scene if isinstance(scene, Cell) else load_cell(scene)
         self.base_poses = dict(self.cell.poses)
         self.routes_path = self.cell.folder / "routes.yaml" if self.cell.folder else None
         self.routes: dict[str, Route] = self.cell.route_table()
@@ -166,12 +167,12 @@ class _Worker:
         raise ValueError(f"unknown job kind '{kind}'")
 
 
-def serve(conn: Connection, scene: Path, options: PlanOptions, log_level: int) -> None:
+def serve(conn: Connection, scene: Path | Cell, options: PlanOptions, log_level: int) -> None:
     """Entry point of the worker process: load the cell, then answer jobs until told to stop.
 
     Args:
         conn: This end of the pipe to the caller.
-        scene: The scene folder.
+        scene: The scene folder, or a cell (unpickled here).
         options: Planning options (the seed of a job may override the planner's).
         log_level: Level of the caller's ``safepath`` logger; records at or above it are
             forwarded.

@@ -33,6 +33,7 @@ from typing import Any, Literal
 
 import numpy as np
 
+from ..cell import Cell
 from ..errors import ConfigError, InputError, PoseError
 from ..planning import PlanOptions, WorldState
 from ..trajectory import Trajectory
@@ -54,14 +55,17 @@ class RuntimePlanner:
     which is restarted in the background.
 
     Args:
-        scene: The scene folder (``scene.yaml``, ``poses.yaml``, ``routes.yaml``).
+        scene: The scene folder (``scene.yaml``, ``poses.yaml``, ``routes.yaml``), or a
+            :class:`~safepath.cell.Cell` with its routes (built in Python; its robot must
+            come from :func:`~safepath.load_robot`, which the workers call again).
         options: Planning options (default: ``PlanOptions()``).
         workers: Worker processes; requests are spread over them, each runs one at a time.
         start_method: ``spawn`` (default) or ``forkserver``; never ``fork``, which is
             unsafe in a process with threads (rclpy, viser).
 
     Raises:
-        ConfigError: The scene folder does not exist.
+        ConfigError: The scene folder does not exist, or the cell's robot was built in
+            Python (it cannot be sent to a worker process).
         InputError: ``workers`` or ``start_method`` is invalid.
 
     Example::
@@ -73,12 +77,19 @@ class RuntimePlanner:
         planner.close()                                          # at shutdown
     """
 
-    def __init__(self, scene: str | Path, *, options: PlanOptions | None = None,
+    def __init__(self, scene: str | Path | Cell, *, options: PlanOptions | None = None,
                  workers: int = 1,
                  start_method: Literal["spawn", "forkserver"] = "spawn") -> None:
-        folder = Path(scene).expanduser().resolve()
-        if not folder.is_dir():
-            raise ConfigError("scene folder not found", path=folder)
+        source: Path | Cell
+        if isinstance(scene, Cell):
+            import pickle
+
+            pickle.dumps(scene)  # a robot built in Python cannot reach the workers: say so now
+            source = scene
+        else:
+            source = Path(scene).expanduser().resolve()
+            if not source.is_dir():
+                raise ConfigError("scene folder not found", path=source)
         if isinstance(workers, bool) or not isinstance(workers, int) or workers < 1:
             raise InputError(f"workers must be an integer >= 1, got {workers!r}", key="workers")
         if start_method not in ("spawn", "forkserver"):
@@ -87,9 +98,9 @@ class RuntimePlanner:
         if options is not None and not isinstance(options, PlanOptions):
             raise InputError(f"options must be PlanOptions, got {type(options).__name__}",
                              key="options")
-        self.scene = folder
+        self.scene = source
         self.options = options or PlanOptions()
-        self._core = Core(folder, self.options, workers, start_method)
+        self._core = Core(source, self.options, workers, start_method)
         self._finalizer = weakref.finalize(self, self._core.release)
         self._finalizer.atexit = False  # _close_all stops the workers at exit
 

@@ -17,6 +17,7 @@ from pathlib import Path
 
 import numpy as np
 
+from .._knots import interval_index
 from ..cell import Cell
 from ..collision import CheckOptions, CollisionChecker, StateReport
 from ..errors import ConfigError, TrajectoryError
@@ -73,7 +74,7 @@ class RouteReview:
     def step_index_at(self, time: float) -> int:
         """Index of the step being executed at ``time`` [s]."""
         traj = self.trajectory
-        k = int(np.clip(np.searchsorted(traj.t, time, side="right") - 1, 0, traj.t.size - 1))
+        k = int(interval_index(traj.t, time, traj.t.size))
         return int(traj.step_index[k])
 
 
@@ -279,8 +280,7 @@ def _sample(cell: Cell, name: str, traj: Trajectory, worlds: list[WorldState],
         times = np.append(times, traj.duration)
     q, qd, _ = traj.sample(times + traj.t[0])
     checkers = StepCheckers(cell, worlds, allowed)
-    k = np.clip(np.searchsorted(traj.t, times + traj.t[0], side="right") - 1, 0,
-                traj.t.size - 1)
+    k = interval_index(traj.t, times + traj.t[0], traj.t.size)
     steps = traj.step_index[k]
     n = times.size
     tcp = np.empty((n, 3))

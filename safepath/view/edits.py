@@ -18,7 +18,7 @@ import pinocchio as pin
 
 from ..cell import Cell
 from ..collision import CollisionChecker, StateReport
-from ..errors import CollisionError, IKError, PoseError, SafepathError
+from ..errors import CollisionError, PoseError, SafepathError
 from ..planning import solve_ik
 from .store import PoseChange, PosesChanged, PosesSnapshot
 
@@ -178,11 +178,7 @@ class PoseEdits:
         Raises:
             IKError: No solution near the current pose (the pose is left as it was).
         """
-        q = solve_ik(self.cell.robot, T_world_tcp, self.q(name))
-        if q is None:
-            raise IKError("no inverse-kinematics solution for the dragged TCP", step=name,
-                          fraction=1.0, position=np.array(T_world_tcp.translation))
-        return self.set(name, q)
+        return self.set(name, solve_ik(self.cell.robot, T_world_tcp, self.q(name), step=name))
 
     def invalid(self) -> list[PoseStatus]:
         """Edited poses that are outside the limits or in collision."""

@@ -93,7 +93,10 @@ def test_solve_ik_round_trip_and_failure(bundled_cell: Cell) -> None:
     assert np.linalg.norm(pin.log3(robot.frame_pose(q).rotation.T @ T.rotation)) < 1e-4
     assert robot.within_limits(q)
     far = pin.SE3(T.rotation, T.translation + np.array([1.0, 0.0, 0.0]))
-    assert solve_ik(robot, far, target_q) is None
+    with pytest.raises(IKError, match="no inverse-kinematics solution") as info:
+        solve_ik(robot, far, target_q, step="reach")
+    assert info.value.step == "reach" and info.value.fraction == 1.0
+    np.testing.assert_allclose(info.value.position, far.translation)
 
 
 # -- the numba line kernel against Pinocchio ----------------------------------------------
@@ -181,7 +184,10 @@ def test_kernel_solve_takes_the_steps_of_solve_ik(any_robot: Robot) -> None:
         T = robot.frame_pose(q_target)
         if trial == 0:  # out of reach
             T = pin.SE3(T.rotation, T.translation + np.array([5.0, 0.0, 0.0]))
-        expected = solve_ik(robot, T, seed, options=options)
+        try:
+            expected: np.ndarray | None = solve_ik(robot, T, seed, options=options)
+        except IKError:
+            expected = None
         q = seed.copy()
         steps = kernel.solve(chain.joint_f, chain.joint_i, chain.frame_f,
                              np.ascontiguousarray(T.rotation), np.ascontiguousarray(T.translation),
@@ -242,3 +248,28 @@ def test_joint_jump_is_reported_where_it_happens(bundled_cell: Cell) -> None:
     # At a waypoint: k/n of the line, n the number of 4 mm steps.
     n = int(np.ceil(np.linalg.norm(p1 - p0) / options.step))
     assert err.fraction * n == pytest.approx(round(err.fraction * n), abs=1e-9)
+
+
+def test_joint_motion_reads_every_joint_kind_of_the_screw_robot() -> None:
+    """One place reads joint types (collision weights, the sphere layer's bounds and the
+    verifier all ask it): aligned and unaligned, revolute and prismatic; helical is none."""
+    from safepath.robot import is_prismatic, joint_motion
+
+    model = _screw_robot().model
+    found = [joint_motion(model, j) for j in range(1, model.njoints)]
+    assert [None if f is None else f[0] for f in found] == [
+        "revolute", "prismatic", "revolute", None, "revolute", "prismatic", "revolute"]
+    assert found[1] is not None and np.allclose(found[1][1], [0.6, 0.0, 0.8])
+    assert found[5] is not None and found[5][1] == (1.0, 0.0, 0.0)
+    assert [is_prismatic(model, j) for j in range(1, model.njoints)] == [
+        False, True, False, False, False, True, False]
+
+
+def test_interval_index_is_the_one_knot_lookup() -> None:
+    from safepath._knots import interval_index
+
+    t = np.array([0.0, 0.5, 1.0, 2.0])
+    assert interval_index(t, [-1.0, 0.0, 0.49, 0.5, 1.99, 2.0, 9.0], t.size - 1).tolist() == [
+        0, 0, 0, 1, 2, 2, 2]
+    assert interval_index(t, [2.0, 9.0], t.size).tolist() == [3, 3]
+    assert int(interval_index(t, 0.75, t.size)) == 1
