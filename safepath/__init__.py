@@ -44,7 +44,8 @@ from .planning import (
 from .poses import dump_poses, load_poses, save_poses
 from .robot import Robot, ToolSpec
 from .robot_loader import load_robot, robot_names
-from .scene import AllowedContact, Grasp, Scene, SceneObject, Shape, load_scene, placement
+from .scene import AllowedContact, Grasp, Scene, SceneObject, Shape, placement
+from .scene_loader import load_scene
 from .trajectory import GripperEvent, Trajectory, load_trajectory
 from .trajectory_controller import TrajectoryController
 

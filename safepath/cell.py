@@ -10,7 +10,7 @@ import threading
 from collections.abc import Mapping
 from dataclasses import KW_ONLY, dataclass, field
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 import numpy as np
 
@@ -21,10 +21,9 @@ from .errors import ConfigError, PoseError, unknown_name
 from .poses import POSE_NAME, load_poses
 from .robot import Robot
 from .robot_loader import load_robot
-from .scene import Scene, load_scene
-
-if TYPE_CHECKING:
-    from .planning.routes import Route
+from .routes import Route, check_routes, load_routes
+from .scene import Scene
+from .scene_loader import load_scene
 
 __all__ = ["Cell", "PoseCheck", "load_cell", "check_poses"]
 
@@ -84,8 +83,6 @@ class Cell:
         self.poses = poses
         _check_scene_against(self.robot, self.scene, poses)
         if self.routes is not None:
-            from .planning.routes import check_routes
-
             self.routes = check_routes(self.routes, poses=list(poses),
                                        objects=list(self.scene.objects))
 
@@ -136,8 +133,6 @@ class Cell:
         if self.folder is None:
             raise ConfigError("the cell has no routes (give Cell(..., routes=...))",
                               key="routes")
-        from .planning.routes import load_routes
-
         return load_routes(self.folder, poses=list(self.poses),
                            objects=list(self.scene.objects))
 

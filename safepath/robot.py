@@ -195,13 +195,15 @@ def joint_motion(model: pin.Model, j: int) -> tuple[JointKind, tuple[float, floa
     name = joint.shortname()
     if joint.nq != 1 or joint.nv != 1:
         return None
-    for prefix, kind in (("JointModelR", "revolute"), ("JointModelP", "prismatic")):
+    kinds: tuple[tuple[str, JointKind], ...] = (("JointModelR", "revolute"),
+                                               ("JointModelP", "prismatic"))
+    for prefix, kind in kinds:
         if name[:-1] == prefix and name[-1] in _AXES:
-            return kind, _AXES[name[-1]]  # type: ignore[return-value]
+            return kind, _AXES[name[-1]]
     if name in ("JointModelRevoluteUnaligned", "JointModelPrismaticUnaligned"):
         axis = np.asarray(joint.extract().axis, dtype=float)
-        kind = "revolute" if "Revolute" in name else "prismatic"
-        return kind, (float(axis[0]), float(axis[1]), float(axis[2]))  # type: ignore[return-value]
+        unaligned: JointKind = "revolute" if "Revolute" in name else "prismatic"
+        return unaligned, (float(axis[0]), float(axis[1]), float(axis[2]))
     return None
 
 

@@ -183,3 +183,63 @@ def test_unknown_name_wording() -> None:
     many = [f"name{i}" for i in range(75)]
     text = unknown_name("robot", "qqq", many)
     assert text.startswith("unknown robot 'qqq' (75 known, e.g. ") and len(text) < 200
+
+
+@pytest.mark.parametrize(("text", "key", "words"), [
+    ("rutes: {}\n", "rutes", "did you mean 'routes'"),
+    ("defaults: {sped: 0.5}\nroutes: {r: {start: a, steps: [move: b]}}\n", "defaults.sped",
+     "did you mean 'speed'"),
+    ("routes: {r: {start: a, aftr: q, steps: [move: b]}}\n", "routes.r.aftr",
+     "did you mean 'after'"),
+    ("routes: {r: {start: a, steps: [{line: {up: 0.05, pose: a}}]}}\n",
+     "routes.r.steps[0].line.pose", "unknown key 'pose'"),
+    ("routes: {r: {start: a, steps: [{line: {pose: a, ofset: [0, 0, 1]}}]}}\n",
+     "routes.r.steps[0].line.ofset", "did you mean 'offset'"),
+])
+def test_routes_file_refuses_unknown_keys_at_every_level(tmp_path: Any, text: str, key: str,
+                                                         words: str) -> None:
+    from safepath import load_routes
+
+    path = tmp_path / "routes.yaml"
+    path.write_text(text)
+    with pytest.raises(ConfigError, match=words) as info:
+        load_routes(path, poses=["a", "b"], objects=[])
+    assert info.value.key == key and info.value.path == path
+
+
+def test_robot_and_controller_files_refuse_unknown_keys(tmp_path: Any) -> None:
+    import shutil
+
+    from safepath import load_robot
+    from safepath.robot_loader import ROBOTS_DIR
+
+    folder = tmp_path / "arm"
+    shutil.copytree(ROBOTS_DIR / "ned3pro", folder)
+    spec = folder / "robot.yaml"
+    original = spec.read_text()
+    spec.write_text(original.replace("velocity_limits:", "velocty_limits:"))
+    with pytest.raises(ConfigError, match="did you mean 'velocity_limits'") as info:
+        load_robot(folder)
+    assert info.value.key == "velocty_limits" and info.value.path == spec
+    spec.write_text(original.replace("  open_width:", "  open_widht:"))
+    with pytest.raises(ConfigError, match="did you mean 'open_width'") as info:
+        load_robot(folder)
+    assert info.value.key == "tool.open_widht"
+    spec.write_text(original)
+    controller = folder / "controller.yaml"
+    text = controller.read_text()
+    controller.write_text(text.replace("goal_tolerance:", "goal_tolerence:"))
+    with pytest.raises(ConfigError, match="did you mean 'goal_tolerance'") as info:
+        load_robot(folder)
+    assert info.value.path == controller
+    controller.write_text(text.replace("joint_names: [joint_1,", "joint_names: [joint_0,"))
+    with pytest.raises(ConfigError, match="not the robot's") as info:
+        load_robot(folder)
+    assert info.value.key == "joint_names"
+    controller.write_text(text.replace("period: 0.04", "period: 0"))
+    with pytest.raises(ConfigError, match="> 0") as info:
+        load_robot(folder)
+    assert info.value.key == "period"
+    controller.write_text(text)
+    robot = load_robot(folder)
+    assert robot.controller.source == controller and robot.reference == str(folder.resolve())

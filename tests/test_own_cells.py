@@ -177,3 +177,13 @@ def test_runtime_planner_takes_a_cell_built_in_python(ur5_plans: dict) -> None:
     with pytest.raises(safepath.ConfigError, match="built in Python"):
         RuntimePlanner(Cell(bare, cell.scene, cell.poses, routes=cell.routes))
 
+
+
+def test_plan_refuses_a_start_in_collision_naming_the_pairs() -> None:
+    cell = safepath.load_cell(CELLS / "ur5_cell")
+    q = cell.pose("above_bin").copy()
+    q[1] = -0.2  # the forearm down in the table
+    assert not cell.checker().check(q).valid
+    with pytest.raises(safepath.PlanningError, match="start state is invalid") as info:
+        safepath.plan(cell.robot, cell.scene, q, cell.pose("beside_wall"))
+    assert "forearm_link / table" in str(info.value)

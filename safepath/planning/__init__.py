@@ -1,9 +1,9 @@
 """Planning: routes of taught poses to verified, timed trajectories."""
 
+from ..routes import Route, Step, Target, load_routes
 from .cartesian import LineOptions, cartesian_line, solve_ik
 from .motion import plan
 from .planner import PlanOptions, WorldState, initial_world, plan_cell, plan_route
-from .routes import Route, Step, Target, load_routes
 from .sampling import PLANNERS, PlannerOptions, plan_joint_path
 from .timing import TimingOptions
 from .verify import FclVerifier, VerifyResult

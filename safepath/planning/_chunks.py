@@ -17,9 +17,9 @@ import numpy as np
 
 from .._knots import interval_index
 from ..errors import PlanningError, VerificationError
+from ..routes import Route, Step
 from ..scene import AllowedContact
 from ..trajectory import GripperEvent, Trajectory
-from .routes import Route, Step
 from .timing import TimedPiece, spline_path, time_path
 from .verify import VerifyResult
 

@@ -38,8 +38,8 @@ def cmd_plan(args: argparse.Namespace) -> int:
     from .._io import check_names
     from ..cell import load_cell
     from ..errors import ConfigError
+    from ..routes import after_chain
     from .planner import PlanOptions, plan_cell
-    from .routes import after_chain
     from .sampling import PlannerOptions
     from .timing import TimingOptions
 
@@ -136,7 +136,7 @@ def _write_outputs(out: Path, trajectories: dict[str, Any], summary: dict[str, A
 
 
 def cycle_order(routes: dict) -> list[str]:
-    from .routes import after_chain
+    from ..routes import after_chain
 
     """Every chain of routes from a first route to a last one, back to back: for the
     quality-check cell, phase1, phase2_safe, phase1, phase2_unsafe."""

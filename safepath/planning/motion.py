@@ -14,10 +14,10 @@ from typing import Any, Literal
 from ..cell import Cell
 from ..errors import ConfigError
 from ..robot import Robot
+from ..routes import Route, Step, Target
 from ..scene import Scene
 from ..trajectory import Trajectory
 from .planner import PlanOptions, WorldState, initial_world, plan_route
-from .routes import Route, Step, Target
 
 __all__ = ["plan"]
 
@@ -53,8 +53,8 @@ def plan(robot: Robot, scene: Scene, q_start: Any, q_goal: Any, *,
         PoseError: A configuration of the wrong length, not finite or outside the limits
             (key ``q_start`` or ``q_goal``).
         ConfigError: A bad ``kind``, ``speed`` or ``tcp_speed``; ``held`` without a grasp.
-        CollisionError, PlanningError, IKError, TimingError, VerificationError: As for a
-            route (the start or goal in collision, no path, no timing, a failed re-check).
+        PlanningError, IKError, TimingError, VerificationError: As for a route (the start
+            or goal in collision, naming the pairs; no path; no timing; a failed re-check).
     """
     if not isinstance(robot, Robot):
         raise ConfigError(f"expected a safepath.Robot, got {type(robot).__name__}", key="robot")

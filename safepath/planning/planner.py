@@ -21,11 +21,11 @@ import numpy as np
 from ..cell import Cell
 from ..collision import CheckOptions, CollisionChecker
 from ..errors import IKError, PlanningError, TimingError
+from ..routes import Route, Step
 from ..scene import AllowedContact
 from ..trajectory import Trajectory
 from ._chunks import Segment, assemble, time_chunk, time_segments
 from .cartesian import LineOptions, cartesian_line
-from .routes import Route, Step
 from .sampling import PlannerOptions, plan_joint_path
 from .timing import TimedPiece, TimingOptions
 from .verify import FclVerifier

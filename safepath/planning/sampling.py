@@ -20,6 +20,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .._io import check_names
 from ..collision import CollisionChecker
 from ..errors import ConfigError, PlannerTimeout, PlanningError
 
@@ -56,9 +57,7 @@ class PlannerOptions:
     shortcut_min_gain: float = 0.01
 
     def __post_init__(self) -> None:
-        if self.planner not in PLANNERS:
-            raise ConfigError(f"unknown planner '{self.planner}' (known: {', '.join(PLANNERS)})",
-                              key="planner")
+        check_names([self.planner], PLANNERS, path=None, key="planner", what="planner")
         if not self.time_limit > 0:
             raise ConfigError(f"time_limit must be > 0, got {self.time_limit}", key="time_limit")
         if not 0.0 <= self.shortcut_min_gain < 1.0:

@@ -29,6 +29,7 @@ import math
 from dataclasses import dataclass, field
 from typing import Literal
 
+from .._io import check_names
 from ..errors import InputError, TrajectoryError
 from ..trajectory import GripperEvent, Trajectory
 from .goals import split_at_gripper_events
@@ -231,9 +232,8 @@ class QualityCheckController:
         Routes are taken while planning and in FAULT (kept for after ``reset()``);
         never while the cell runs.
         """
-        if name not in self.options.routes:
-            raise InputError(f"unknown route '{name}' (known: {', '.join(self.options.routes)})",
-                             key="route")
+        check_names([name], self.options.routes, path=None, key="route", what="route",
+                    error=InputError)
         if self._state not in (CellState.PLANNING, CellState.FAULT):
             logger.warning("route '%s' arrived in state %s: ignored", name, self._state.value)
             return []

@@ -33,6 +33,7 @@ from typing import Any, Literal
 
 import numpy as np
 
+from .._io import check_names
 from .._knots import interval_index
 from ..errors import InputError, TrajectoryError
 from ..trajectory import GripperEvent, Trajectory
@@ -338,9 +339,8 @@ def tool_goal(action: Literal["open", "close"], *, tool_id: int = GRIPPER_1_TOOL
         RosError: ``backend='rclpy'`` without niryo_ned_ros2_interfaces.
     """
     codes = {"open": OPEN_GRIPPER, "close": CLOSE_GRIPPER}
-    if action not in codes:
-        raise InputError(f"unknown gripper action {action!r} (known: open, close)",
-                         key="action")
+    check_names([action], codes, path=None, key="action", what="gripper action",
+                error=InputError)
     f = message_factory(backend, (f"{_NIRYO}/action/Tool_Goal", f"{_NIRYO}/msg/ToolCommand"))
     cmd = f.new(f"{_NIRYO}/msg/ToolCommand", cmd_type=codes[action],
                 tool_id=_check_int(tool_id, -128, 127, "tool_id"), speed=0,

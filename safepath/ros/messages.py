@@ -31,6 +31,7 @@ from rosbags.serde import SerdeError
 from rosbags.typesys import Stores, TypesysError, get_types_from_msg, get_typestore
 from rosbags.typesys.store import Typestore
 
+from .._io import check_names
 from ..errors import InputError, RosError
 
 __all__ = [
@@ -323,8 +324,8 @@ def message_factory(backend: Backend, typenames: Sequence[str]) -> MessageFactor
     if backend == "rosbags":
         return MessageFactory("rosbags")
     if backend not in ("auto", "rclpy"):
-        raise InputError(f"unknown backend '{backend}' (known: auto, rosbags, rclpy)",
-                         key="backend")
+        check_names([backend], ("auto", "rosbags", "rclpy"), path=None, key="backend",
+                    what="backend", error=InputError)
     try:
         importlib.import_module("rclpy")
         for name in typenames:

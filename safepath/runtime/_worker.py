@@ -31,8 +31,9 @@ from typing import Any
 
 import numpy as np
 
+from .._io import check_names
 from ..cell import Cell
-from ..errors import ConfigError, PoseError
+from ..errors import PoseError
 from ..planning import PlanOptions, Route, WorldState, plan_cell, plan_route
 from ..planning.planner import route_order
 from ..trajectory import Trajectory
@@ -95,9 +96,8 @@ class _Worker:
         """The poses as joint vectors [rad], each checked like a taught pose."""
         out: dict[str, np.ndarray] = {}
         for name, q in poses.items():
-            if name not in self.base_poses:
-                raise PoseError(f"unknown pose '{name}' (known: {', '.join(self.base_poses)})",
-                                key=str(name))
+            check_names([name], self.base_poses, path=None, key=str(name), what="pose",
+                        error=PoseError)
             out[name] = self.cell.robot.as_joint_vector(q, name=name)
         return out
 
@@ -109,9 +109,7 @@ class _Worker:
             self.options, planner=dataclasses.replace(self.options.planner, seed=seed))
 
     def _route(self, name: str) -> Route:
-        if name not in self.routes:
-            raise ConfigError(f"unknown route '{name}' (known: {', '.join(self.routes)})",
-                              path=self.routes_path, key="routes")
+        check_names([name], self.routes, path=self.routes_path, key="routes", what="route")
         return self.routes[name]
 
     def _chain(self, name: str) -> list[str]:

@@ -19,6 +19,7 @@ from typing import Any, Literal, Protocol
 
 import numpy as np
 
+from .._io import check_names
 from ..errors import InputError
 from ..trajectory import Trajectory
 
@@ -56,21 +57,16 @@ def plan_in_worker(folder: str, poses: dict[str, list[float]], routes: list[str]
     """
     from ..cell import load_cell
     from ..planning import PlannerOptions, PlanOptions, plan_cell
+    from ..routes import after_chain
 
     cell = load_cell(folder)
     for name, q in poses.items():
         cell.poses[name] = cell.robot.as_joint_vector(q, name=f"poses.{name}",
                                                       path=cell.poses_path)
     all_routes = cell.route_table()
-    keep = set(all_routes if routes is None else routes)
-    for name in list(keep):
-        if name not in all_routes:
-            raise InputError(f"unknown route '{name}' (known: {', '.join(all_routes)})",
-                             key="route")
-        after = all_routes[name].after
-        while after is not None:
-            keep.add(after)
-            after = all_routes[after].after
+    asked = list(all_routes if routes is None else routes)
+    check_names(asked, all_routes, path=None, key="route", what="route", error=InputError)
+    keep = {r for name in asked for r in after_chain(all_routes, name)}
     chosen = {k: v for k, v in all_routes.items() if k in keep}
     options = PlanOptions(planner=PlannerOptions(seed=seed))
     return plan_cell(cell, options, routes=chosen)

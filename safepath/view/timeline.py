@@ -18,6 +18,7 @@ from typing import Any
 
 import numpy as np
 
+from .._io import check_names
 from ..cell import Cell
 from ..errors import InputError, SafepathError
 from ..planning import initial_world
@@ -92,9 +93,8 @@ class Timeline:
         Raises:
             InputError: No such planned route (lists them).
         """
-        if name not in self.reviews:
-            known = ", ".join(self.reviews) or "none planned yet"
-            raise InputError(f"unknown route '{name}' (routes: {known})", key="route")
+        check_names([name], self.reviews, path=None, key="route", what="route",
+                    error=InputError)
         self.route, data = name, self.reviews[name]
         panel = self.panel
         panel.route.value = name

@@ -1,4 +1,4 @@
-"""Routes as data: ``routes.yaml`` of a scene folder.
+"""Routes as data: ``routes.yaml`` of a scene folder, or routes built in Python.
 
 A route starts at a taught pose and lists steps::
 
@@ -33,8 +33,8 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Literal
 
-from .._io import as_float, as_str, as_vector, check_keys, check_names, get_key, read_yaml
-from ..errors import ConfigError
+from ._io import as_float, as_str, as_vector, check_keys, check_names, get_key, read_yaml
+from .errors import ConfigError
 
 __all__ = ["Target", "Step", "Route", "load_routes", "check_routes", "after_chain"]
 
@@ -104,9 +104,7 @@ class Step:
     stop: bool = False
 
     def __post_init__(self) -> None:
-        if self.kind not in _STEP_KINDS:
-            raise ConfigError(f"unknown step kind {self.kind!r} (known: "
-                              f"{', '.join(_STEP_KINDS)})", key="kind")
+        check_names([self.kind], _STEP_KINDS, path=None, key="kind", what="step kind")
         motion = self.kind in ("move", "line")
         if motion and not isinstance(self.target, Target):
             raise ConfigError(f"a {self.kind} step needs a Target, got {self.target!r}",
@@ -293,8 +291,11 @@ def _parse_target(raw: Any, poses: Sequence[str], path: Path, key: str) -> Targe
     if isinstance(raw, str):
         return Target(_check_pose(raw, poses, path, key))
     if isinstance(raw, dict):
-        if set(raw) == {"up"}:
+        if "up" in raw:
+            check_keys(raw, ("up",), path=path, prefix=key)
             dz = as_float(raw["up"], path=path, key=f"{key}.up")
+            if dz == 0.0:
+                raise ConfigError("a move up by 0 goes nowhere", path=path, key=f"{key}.up")
             return Target(None, (0.0, 0.0, dz))
         check_keys(raw, ("pose", "offset"), path=path, prefix=key)
         pose = _check_pose(get_key(raw, "pose", path=path, prefix=key), poses, path,
