@@ -194,7 +194,7 @@ class MonitorNodeCore:
         Raises:
             SafepathError: A bad cell or route, or a planning failure.
         """
-        from .. import load_cell, load_routes, plan_cell
+        from .. import load_cell, plan_cell
         from ..ros.goals import split_at_gripper_events
 
         p = self.parameters
@@ -202,8 +202,7 @@ class MonitorNodeCore:
         if planner is not None:
             traj = planner.plan_route(p.route).result()
         else:
-            routes = load_routes(cell.folder / "routes.yaml", poses=list(cell.poses),
-                                 objects=list(cell.scene.objects))
+            routes = cell.route_table()
             if p.route not in routes:
                 raise ConfigError(f"unknown route (routes: {', '.join(routes)})",
                                   key="route")

@@ -16,7 +16,7 @@ import numpy as np
 
 from ..cell import Cell
 from ..errors import PlanningError
-from ..planning import PlanOptions, Route, WorldState, load_routes, plan_route
+from ..planning import PlanOptions, Route, WorldState, plan_route
 from ..scene import SceneObject, Shape
 from ..trajectory import Trajectory
 from .monitor import ReplanRequest
@@ -69,8 +69,7 @@ def replan(cell: Cell, route_name: str, request: ReplanRequest, *, held: str | N
     Raises:
         PlanningError: The step is unknown, or no verified path exists around it.
     """
-    routes = load_routes(cell.folder / "routes.yaml", poses=list(cell.poses),
-                         objects=list(cell.scene.objects))
+    routes = cell.route_table()
     base = route_name
     while base.endswith(SUFFIX):  # a re-planned route: its steps are the original's tail
         base = base[:-len(SUFFIX)]
