@@ -196,6 +196,34 @@ def prefix_separation(C, R, body_start, Bd, s0, s1, S, cells, cstart, blocks, bs
 
 
 @njit(cache=True, nogil=True)
+def near_robot(C, R, body_start, Bd, s0, s1, E, within, out):  # noqa: N803
+    """Whether each element of ``E`` comes within ``within`` [m] of the robot's spheres at
+    any state ``s0..s1-1`` (``out``, bool per element)."""
+    nbodies = body_start.size - 1
+    for i in range(E.shape[0]):
+        x, y, z, re = E[i, 0], E[i, 1], E[i, 2], E[i, 3]
+        hit = False
+        for s in range(s0, s1):
+            for m in range(nbodies):
+                if Bd[s, m, 3] < 0.0 or _gap(x, y, z, re, Bd[s], m) > within:
+                    continue
+                for sp in range(body_start[m], body_start[m + 1]):
+                    if R[sp] < 0.0:
+                        continue
+                    dx = x - C[s, sp, 0]
+                    dy = y - C[s, sp, 1]
+                    dz = z - C[s, sp, 2]
+                    if math.sqrt(dx * dx + dy * dy + dz * dz) - R[sp] - re <= within:
+                        hit = True
+                        break
+                if hit:
+                    break
+            if hit:
+                break
+        out[i] = hit
+
+
+@njit(cache=True, nogil=True)
 def scene_distance(P, kind, T, dims, reach, within, out):  # noqa: N803
     """Smallest signed distance [m] from each point of ``P`` (n, 3) to the scene's
     primitives (kind 0 box, 1 cylinder, 2 sphere, 3 capsule; ``T`` (k, 4, 4) their

@@ -147,6 +147,7 @@ class Monitor:
         self._last_stamp: dict[str, float] = {}
         self.last: Decision = Decision(0.0, "continue", "not started", 1.0)
         self.stats = {"out_of_order": 0, "stale": 0, "malformed": 0}
+        self._self_filtered = 0
 
     # -- motion ----------------------------------------------------------------------
     def follow(self, traj: Trajectory, *, start: float, held: str | None = None,
@@ -273,9 +274,12 @@ class Monitor:
         E = np.vstack(parts) if parts else np.zeros((0, 4))  # noqa: N806
         from . import _kernels
 
+        tau_c, _ = self.state_at(now)
+        if o.self_filter is not None and len(E):
+            E = self._without_robot(E, now - age, tau_c)  # noqa: N806
+            counts = replace(counts, robot=self._self_filtered)
         elements = _kernels.bucket(E, o.cell_size) if len(E) else (
             E, np.zeros((0, 4)), np.zeros(1, np.int64), np.zeros((0, 4)), np.zeros(1, np.int64))
-        tau_c, _ = self.state_at(now)
         tau_l, r_l = self.state_at(now + o.command_latency)
         a = assess(self._path, self._sweep, elements, age, tau_c, tau_l, r_l, o)
         base = dict(separation_now=a.separation_now, separation_path=a.separation_path,
@@ -288,6 +292,23 @@ class Monitor:
                    else "sensor silence: " + ", ".join(silent))
             return self._stop(now, tau_l, r_l, why, base)
         return self._choose(now, a, tau_l, r_l, base, E)
+
+    def _without_robot(self, E: np.ndarray, captured: float, tau_c: float  # noqa: N803
+                       ) -> np.ndarray:
+        """``E`` without the elements on the robot at the states it passed since
+        ``captured`` (within ``self_filter`` plus the sampling spacing)."""
+        from . import _kernels
+
+        sweep = self._sweep
+        assert sweep is not None and self.options.self_filter is not None
+        s0 = sweep.index_at(self.state_at(captured)[0])
+        s1 = min(sweep.index_at(tau_c) + 2, sweep.tau.size)
+        on_robot = np.zeros(len(E), dtype=np.bool_)
+        _kernels.near_robot(sweep.centers, sweep.spheres.radii, sweep.spheres.body_start,
+                            sweep.bounding, s0, s1, E,
+                            self.options.self_filter + sweep.spacing, on_robot)
+        self._self_filtered = int(on_robot.sum())
+        return np.ascontiguousarray(E[~on_robot])
 
     def _choose(self, now: float, a: Assessment, tau_l: float, r_l: float,
                 base: dict[str, Any], E: np.ndarray) -> Decision:  # noqa: N803

@@ -52,6 +52,8 @@ class Counts:
         invalid: Readings below ``range_min`` or with infinite coordinates, ignored.
         scene: Elements inside the static scene (within the scene filter), ignored.
         cropped: Elements outside the workspace, ignored.
+        robot: Elements on the robot itself (``self_filter``), ignored (counted over
+            every source of the decision).
     """
 
     used: int = 0
@@ -61,6 +63,7 @@ class Counts:
     invalid: int = 0
     scene: int = 0
     cropped: int = 0
+    robot: int = 0
 
 
 def stamp_seconds(stamp: Any, *, key: str = "header.stamp") -> float:

@@ -57,6 +57,10 @@ class MonitorOptions:
         range_cap: Separations beyond this are not refined (reported as inf) [m].
         scene_filter: Elements within this of a static scene object belong to the
             scene and are ignored [m]; None keeps them all.
+        self_filter: Elements within this of the robot's enclosing spheres, at the states
+            it passed since the observation was captured, are the robot's own and
+            ignored [m]; None (default) keeps them. Anything that close to the arm is
+            then invisible: use it only for sensors that see the arm.
         workspace: Axis-aligned box (xmin, ymin, zmin, xmax, ymax, zmax) [m] outside
             which elements are ignored; None keeps them all.
         future_tolerance: Stamps later than now by more than this are refused [s].
@@ -81,6 +85,7 @@ class MonitorOptions:
     cell_size: float = 0.05
     range_cap: float = 3.0
     scene_filter: float | None = 0.02
+    self_filter: float | None = None
     workspace: tuple[float, float, float, float, float, float] | None = None
     future_tolerance: float = 0.05
     replan_cluster: float = 0.3
@@ -105,6 +110,8 @@ class MonitorOptions:
             raise ConfigError(f"must lie in (0, 1], got {self.min_scale}", key="min_scale")
         if self.scene_filter is not None:
             _positive("scene_filter", float(self.scene_filter), zero=True)
+        if self.self_filter is not None:
+            _positive("self_filter", float(self.self_filter), zero=True)
         if self.workspace is not None:
             w = np.asarray(self.workspace, dtype=float)
             if w.shape != (6,) or not np.all(np.isfinite(w)) or np.any(w[:3] >= w[3:]):

@@ -211,3 +211,38 @@ def test_silence_does_not_count_toward_a_replan(cell: Cell, phase1: Phase1) -> N
     kinds = [m.observe(Cloud(2.0 + k / 30, "cam", near), 2.0 + k / 30).kind for k in range(45)]
     assert "replan" not in kinds[:29] and kinds.count("replan") == 1
     assert m.last.kind == "stop"
+
+
+def test_self_filter_ignores_the_arm_itself(cell: Cell, phase1: Phase1) -> None:
+    """A camera that sees the arm: without the self filter the monitor stops for the arm,
+    with it the arm's own points are ignored and counted, and a point beside it is not."""
+    import pinocchio as pin
+
+    traj, held = phase1.motions[0]
+    rng = np.random.default_rng(5)
+    t = 1.6
+    q = traj.sample([t])[0][0]
+    data = cell.robot.model.createData()
+    pin.forwardKinematics(cell.robot.model, data, q)
+    pts = []
+    for g in cell.robot.collision_model.geometryObjects:
+        if g.parentJoint == 0:
+            continue
+        M = data.oMi[g.parentJoint].homogeneous @ g.placement.homogeneous
+        pts.append(surface_points(g.geometry, 40, rng) @ M[:3, :3].T + M[:3, 3])
+    arm = np.vstack(pts)
+    decisions = {}
+    for self_filter in (None, 0.0):
+        m = make_monitor(cell, self_filter=self_filter)
+        m.follow(traj, start=0.0, held=held)
+        decisions[self_filter] = m.observe(Cloud(t, "cam", _world_to_cam(arm)), t)
+    assert decisions[None].kind == "stop"
+    d = decisions[0.0]
+    assert d.kind == "continue" and d.counts.robot == len(arm)
+    m = make_monitor(cell, self_filter=0.0)
+    m.follow(traj, start=0.0, held=held)
+    tcp = cell.robot.tcp_position(q)
+    outward = np.array([tcp[0], tcp[1], 0.0]) / np.linalg.norm(tcp[:2])
+    beside = np.vstack([arm, tcp + 0.12 * outward])  # 12 cm out from the gripper
+    d = m.observe(Cloud(t, "cam", _world_to_cam(beside)), t)
+    assert d.counts.robot == len(arm) and d.kind == "stop"
