@@ -3,10 +3,12 @@
 from ..routes import Route, Step, Target, load_routes
 from .cartesian import LineOptions, cartesian_line, solve_ik
 from .motion import plan
-from .planner import PlanOptions, WorldState, initial_world, plan_cell, plan_route
+from .options import PlanOptions
+from .planner import plan_cell, plan_route
 from .sampling import PLANNERS, PlannerOptions, plan_joint_path
 from .timing import TimingOptions
 from .verify import FclVerifier, VerifyResult
+from .world import WorldState, initial_world
 
 __all__ = [
     "PLANNERS",

@@ -25,7 +25,8 @@ from .verify import VerifyResult
 
 if TYPE_CHECKING:
     from ..cell import Cell
-    from .planner import CheckerCache, PlanOptions, WorldState
+    from .options import PlanOptions
+    from .world import CheckerCache, WorldState
 
 __all__ = ["time_chunk", "time_segments", "assemble"]
 
@@ -38,7 +39,6 @@ class Segment:
     step: Step
     waypoints: list[np.ndarray]
     allowed: tuple[AllowedContact, ...]
-
 
 
 def time_chunk(cell: Cell, segments: list[Segment], world: WorldState, options: PlanOptions,

@@ -14,107 +14,25 @@ from __future__ import annotations
 import logging
 import time
 from collections.abc import Mapping
-from dataclasses import dataclass, field, replace
+from dataclasses import replace
 
 import numpy as np
 
 from ..cell import Cell
-from ..collision import CheckOptions, CollisionChecker
 from ..errors import IKError, PlanningError, TimingError
 from ..routes import Route, Step
-from ..scene import AllowedContact
 from ..trajectory import Trajectory
 from ._chunks import Segment, assemble, time_chunk, time_segments
-from .cartesian import LineOptions, cartesian_line
-from .sampling import PlannerOptions, plan_joint_path
-from .timing import TimedPiece, TimingOptions
-from .verify import FclVerifier
+from .cartesian import cartesian_line
+from .options import PlanOptions
+from .sampling import plan_joint_path
+from .timing import TimedPiece
+from .world import CheckerCache, WorldState, initial_world
 
 __all__ = ["PlanOptions", "WorldState", "plan_route", "plan_cell", "route_order",
            "initial_world"]
 
 log = logging.getLogger(__name__)
-
-
-@dataclass(frozen=True)
-class PlanOptions:
-    """Options of route planning (each part has its own options object).
-
-    Attributes:
-        check: Collision checking (resolution, margin); margins are enforced.
-        planner: Sampling planner (name, time budget, seed).
-        line: Cartesian lines.
-        timing: Time parameterisation (global speed scale).
-        grasp_tolerance: How far the object may be from the gripper when it closes [m].
-        baseline: Also time the stop-and-go baseline (every motion step rest to rest
-            along its own path, same limits) into ``info["baseline_duration"]``.
-    """
-
-    check: CheckOptions = field(default_factory=lambda: CheckOptions(enforce_margin=True))
-    planner: PlannerOptions = field(default_factory=PlannerOptions)
-    line: LineOptions = field(default_factory=LineOptions)
-    timing: TimingOptions = field(default_factory=TimingOptions)
-    grasp_tolerance: float = 0.005
-    baseline: bool = False
-
-
-@dataclass
-class WorldState:
-    """Which object the gripper holds and where the others rest.
-
-    Attributes:
-        held: Held object, or None.
-        resting: World placement (4x4) of movable objects that are not held.
-    """
-
-    held: str | None = None
-    resting: dict[str, np.ndarray] = field(default_factory=dict)
-
-    def copy(self) -> WorldState:
-        """An independent copy."""
-        return WorldState(self.held, {k: v.copy() for k, v in self.resting.items()})
-
-    def key(self) -> tuple:
-        """Hashable identity of the state."""
-        return (self.held, tuple(sorted((k, v.round(9).tobytes())
-                                        for k, v in self.resting.items())))
-
-
-class CheckerCache:
-    """Checkers and verifiers, built once per world state and allowed-contact set."""
-
-    def __init__(self, cell: Cell, options: PlanOptions) -> None:
-        self.cell = cell
-        self.options = options
-        # Kept on the cell (per thread) so that planning again, as a node or a review
-        # session does, does not rebuild them; they depend on the world state and the
-        # allowed contacts (the keys), never on the taught poses.
-        self._checkers: dict[tuple, CollisionChecker] = cell.cache(("checkers", options.check))
-        self._verifiers: dict[tuple, FclVerifier] = cell.cache(("verifiers", options.check))
-
-    def checker(self, world: WorldState, allowed: tuple[AllowedContact, ...]) -> CollisionChecker:
-        key = (world.key(), allowed)
-        if key not in self._checkers:
-            self._checkers[key] = CollisionChecker(
-                self.cell.robot, self.cell.scene, held=world.held, resting=world.resting,
-                allowed=allowed, options=self.options.check)
-        return self._checkers[key]
-
-    def verifier(self, world: WorldState, allowed: tuple[AllowedContact, ...]) -> FclVerifier:
-        key = (world.key(), allowed)
-        if key not in self._verifiers:
-            opts = self.options.check
-            self._verifiers[key] = FclVerifier(
-                self.cell.robot, self.cell.scene, held=world.held, resting=dict(world.resting),
-                allowed=allowed, resolution=opts.resolution, margin=opts.margin,
-                enforce_margin=opts.enforce_margin)
-        return self._verifiers[key]
-
-
-def initial_world(cell: Cell) -> WorldState:
-    """The scene's world: nothing held, movable objects at their scene placement."""
-    return WorldState(None, {o.name: o.T_world_object.copy()
-                             for o in cell.scene.objects.values() if o.movable})
 
 
 def route_order(routes: Mapping[str, Route]) -> list[str]:

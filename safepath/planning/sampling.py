@@ -24,7 +24,7 @@ from .._io import check_names
 from ..collision import CollisionChecker
 from ..errors import ConfigError, PlannerTimeout, PlanningError
 
-__all__ = ["PlannerOptions", "plan_joint_path", "shortcut", "PLANNERS"]
+__all__ = ["PlannerOptions", "plan_joint_path", "shortcut", "default_range", "PLANNERS"]
 
 log = logging.getLogger(__name__)
 
@@ -32,6 +32,9 @@ log = logging.getLogger(__name__)
 PLANNERS = ("RRTConnect", "RRT", "RRTstar", "InformedRRTstar", "AORRTC", "SORRTstar")
 
 _OMPL_LOCK = threading.Lock()
+
+#: Fraction of the joint-space diagonal that :func:`default_range` gives.
+RANGE_FRACTION = 1.0 / 15.0
 
 
 @dataclass(frozen=True)
@@ -42,27 +45,68 @@ class PlannerOptions:
         planner: OMPL planner name (see :data:`PLANNERS`).
         time_limit: Planning time budget [s].
         seed: Seed of OMPL's generator and of the shortcutter.
-        range: Planner extension range [rad]; 0 lets OMPL choose.
+        range: Longest edge a planner adds in one extension [rad]; None derives it from
+            the robot's joint ranges (:func:`default_range`), 0 leaves it to OMPL (a fifth
+            of the joint-space diagonal, too long for arms whose joints turn twice round,
+            like the UR5's).
         shortcut_iterations: Random shortcut attempts after planning.
         shortcut_min_gain: A shortcut is checked only if it would shorten the path by at
             least this share of its length (checking is what a shortcut costs; the many
             that would gain little are not worth it).
+
+    The optimizing planners (``RRTstar``, ``InformedRRTstar``, ``SORRTstar``) keep
+    improving their path until ``time_limit`` runs out; the others stop at their first
+    path.
     """
 
     planner: str = "RRTConnect"
     time_limit: float = 2.0
     seed: int = 0
-    range: float = 0.0
+    range: float | None = None
     shortcut_iterations: int = 100
     shortcut_min_gain: float = 0.01
 
     def __post_init__(self) -> None:
         check_names([self.planner], PLANNERS, path=None, key="planner", what="planner")
-        if not self.time_limit > 0:
-            raise ConfigError(f"time_limit must be > 0, got {self.time_limit}", key="time_limit")
-        if not 0.0 <= self.shortcut_min_gain < 1.0:
+        if not _real(self.time_limit) or not self.time_limit > 0:
+            raise ConfigError(f"time_limit must be > 0 [s], got {self.time_limit!r}",
+                              key="time_limit")
+        if isinstance(self.seed, bool) or not isinstance(self.seed, (int, np.integer)):
+            raise ConfigError(f"seed must be an integer, got {self.seed!r}", key="seed")
+        if self.range is not None and not (_real(self.range) and self.range >= 0
+                                           and np.isfinite(self.range)):
+            raise ConfigError(f"range must be None or >= 0 [rad], got {self.range!r}",
+                              key="range")
+        if isinstance(self.shortcut_iterations, bool) or not isinstance(
+                self.shortcut_iterations, (int, np.integer)) or self.shortcut_iterations < 0:
+            raise ConfigError(f"shortcut_iterations must be an integer >= 0, got "
+                              f"{self.shortcut_iterations!r}", key="shortcut_iterations")
+        if not _real(self.shortcut_min_gain) or not 0.0 <= self.shortcut_min_gain < 1.0:
             raise ConfigError(f"shortcut_min_gain must be in [0, 1), got "
-                              f"{self.shortcut_min_gain}", key="shortcut_min_gain")
+                              f"{self.shortcut_min_gain!r}", key="shortcut_min_gain")
+
+
+def _real(value: object) -> bool:
+    return isinstance(value, (int, float, np.integer, np.floating)) and not isinstance(value, bool)
+
+
+def default_range(lower: np.ndarray, upper: np.ndarray) -> float:
+    """The extension range safepath's planners use unless told otherwise [rad].
+
+    A fifteenth of the joint-space diagonal, each joint's span counted up to one turn
+    (2π [rad]): a revolute joint that can turn twice round (the UR5's) reaches no new
+    configuration of its link in the second turn, and OMPL's own rule (a fifth of the
+    full diagonal, 5.8 rad for the UR5) makes the single-tree planners (RRT, RRTstar,
+    ...) try edges so long that nearly all collide. This gives 0.73 rad for the Ned3
+    Pro, 0.87 rad for the Panda and 1.03 rad for the UR5 (the fraction was chosen on a
+    detour problem of each: ``tests/planning/test_planners.py``).
+
+    Args:
+        lower: Lower joint position limits [rad or m].
+        upper: Upper joint position limits [rad or m].
+    """
+    span = np.minimum(np.asarray(upper, float) - np.asarray(lower, float), 2.0 * np.pi)
+    return float(RANGE_FRACTION * np.linalg.norm(span))
 
 
 def plan_joint_path(checker: CollisionChecker, q_start: np.ndarray, q_goal: np.ndarray, *,
@@ -134,8 +178,10 @@ def _solve(checker: CollisionChecker, q_start: np.ndarray, q_goal: np.ndarray,
         goal[i] = float(q_goal[i])
     setup.setStartAndGoalStates(start, goal)
     planner = getattr(og, options.planner)(si)
-    if options.range > 0 and hasattr(planner, "setRange"):
-        planner.setRange(options.range)
+    extension = default_range(robot.lower, robot.upper) if options.range is None \
+        else options.range
+    if extension > 0 and hasattr(planner, "setRange"):
+        planner.setRange(extension)
     setup.setPlanner(planner)
     t0 = time.perf_counter()
     status = setup.solve(options.time_limit)
@@ -186,7 +232,18 @@ def shortcut(checker: CollisionChecker, path: list[np.ndarray], rng: np.random.G
             if replaced - float(np.linalg.norm(qb - qa)) < min_gain * float(np.sum(lengths)):
                 continue
         if checker.segment_is_valid(qa, qb, check_ends=True):
-            pts = pts[: a + 1] + [qa, qb] + pts[b + 1:]
-            pts = [p for k, p in enumerate(pts)
-                   if k == 0 or np.max(np.abs(p - pts[k - 1])) > 1e-9]
+            pts = _without_repeats(pts[: a + 1] + [qa, qb] + pts[b + 1:])
     return pts
+
+
+def _without_repeats(pts: list[np.ndarray], tol: float = 1e-9) -> list[np.ndarray]:
+    """The polyline without points closer than ``tol`` to the one before; the ends are
+    kept exactly (a shortcut point that came within ``tol`` of the goal gives way to
+    it: repeated shortcuts onto the last segment shrink it that far)."""
+    out = [p for k, p in enumerate(pts) if k == 0 or np.max(np.abs(p - pts[k - 1])) > tol]
+    if out[-1] is not pts[-1]:  # the goal was dropped for the point just before it
+        if len(out) > 1:
+            out[-1] = pts[-1]
+        else:
+            out.append(pts[-1])
+    return out

@@ -1,0 +1,77 @@
+"""The world a route plans in: what the gripper holds, where the other objects rest,
+and the checkers and verifiers built for each such state."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ..cell import Cell
+from ..collision import CollisionChecker
+from ..scene import AllowedContact
+from .options import PlanOptions
+from .verify import FclVerifier
+
+__all__ = ["WorldState", "CheckerCache", "initial_world"]
+
+
+@dataclass
+class WorldState:
+    """Which object the gripper holds and where the others rest.
+
+    Attributes:
+        held: Held object, or None.
+        resting: World placement (4x4) of movable objects that are not held.
+    """
+
+    held: str | None = None
+    resting: dict[str, np.ndarray] = field(default_factory=dict)
+
+    def copy(self) -> WorldState:
+        """An independent copy."""
+        return WorldState(self.held, {k: v.copy() for k, v in self.resting.items()})
+
+    def key(self) -> tuple:
+        """Hashable identity of the state."""
+        return (self.held, tuple(sorted((k, v.round(9).tobytes())
+                                        for k, v in self.resting.items())))
+
+
+def initial_world(cell: Cell) -> WorldState:
+    """The scene's world: nothing held, movable objects at their scene placement."""
+    return WorldState(None, {o.name: o.T_world_object.copy()
+                             for o in cell.scene.objects.values() if o.movable})
+
+
+class CheckerCache:
+    """Checkers and verifiers, built once per world state and allowed-contact set."""
+
+    def __init__(self, cell: Cell, options: PlanOptions) -> None:
+        self.cell = cell
+        self.options = options
+        # Kept on the cell (per thread) so that planning again, as a node or a review
+        # session does, does not rebuild them; they depend on the world state and the
+        # allowed contacts (the keys), never on the taught poses.
+        self._checkers: dict[tuple, CollisionChecker] = cell.cache(("checkers", options.check))
+        self._verifiers: dict[tuple, FclVerifier] = cell.cache(("verifiers", options.check))
+
+    def checker(self, world: WorldState, allowed: tuple[AllowedContact, ...]) -> CollisionChecker:
+        """The collision checker of ``world`` with the contacts ``allowed``."""
+        key = (world.key(), allowed)
+        if key not in self._checkers:
+            self._checkers[key] = CollisionChecker(
+                self.cell.robot, self.cell.scene, held=world.held, resting=world.resting,
+                allowed=allowed, options=self.options.check)
+        return self._checkers[key]
+
+    def verifier(self, world: WorldState, allowed: tuple[AllowedContact, ...]) -> FclVerifier:
+        """The independent verifier of ``world`` with the contacts ``allowed``."""
+        key = (world.key(), allowed)
+        if key not in self._verifiers:
+            opts = self.options.check
+            self._verifiers[key] = FclVerifier(
+                self.cell.robot, self.cell.scene, held=world.held, resting=dict(world.resting),
+                allowed=allowed, resolution=opts.resolution, margin=opts.margin,
+                enforce_margin=opts.enforce_margin)
+        return self._verifiers[key]
