@@ -38,6 +38,7 @@ bench: $(STAMP)
 	$(BIN)/python benchmarks/collision_checks.py
 	$(BIN)/python benchmarks/plan_cycle.py
 	$(BIN)/python benchmarks/runtime_heartbeat.py
+	$(BIN)/python benchmarks/runtime_recovery.py
 	$(BIN)/python benchmarks/cold_start.py
 
 ## Side-by-side run against mplib, pyroboplan, roboplan (creates their own venvs).

@@ -8,12 +8,17 @@ caller -> worker
     ``("stop",)``: exit.
 
 worker -> caller
-    ``("ready", 0, info)`` or ``("error", 0, ErrorRecord)`` once, after loading;
-    ``("ok", job_id, value)`` or ``("error", job_id, ErrorRecord)`` per job;
+    ``("ready", 0, info)`` or ``("error", 0, ErrorRecord)`` once, after loading and
+    warming up (``info["entries"]``: the pickled results of the warm-up plan, by cache
+    key, planned with the loaded poses);
+    ``("ok", job_id, (answer, entries))`` or ``("error", job_id, ErrorRecord)`` per job:
+    ``answer`` is the pickled result, ``entries`` the pickled results the caller may
+    cache, by cache key (a route plans the routes it follows too: each is an entry);
     ``("log", 0, LogRecord)`` any time (records of the ``safepath`` loggers).
 
 The worker answers jobs one at a time, in order. It exits on ``stop``, when the caller
-closes the pipe, or when the caller terminates it (a cancelled or timed-out job).
+closes the pipe, or when the caller terminates it (a cancelled or timed-out job). It
+keeps no results: the caller caches them, so that stopping a worker loses none.
 """
 
 from __future__ import annotations
@@ -22,8 +27,8 @@ import dataclasses
 import importlib
 import logging
 import os
+import pickle
 import signal
-from collections import OrderedDict
 from collections.abc import Mapping
 from multiprocessing.connection import Connection
 from pathlib import Path
@@ -35,8 +40,6 @@ from .._io import check_names
 from ..cell import Cell
 from ..errors import PoseError
 from ..planning import PlanOptions, Route, WorldState, plan_cell, plan_route
-from ..planning.planner import route_order
-from ..trajectory import Trajectory
 from ._transport import encode_error, picklable_record
 
 __all__ = ["serve"]
@@ -44,11 +47,12 @@ __all__ = ["serve"]
 #: Modules the planner imports lazily on its first plan; the worker imports them while
 #: loading, so that the first plan runs as fast as the next ones.
 WARM_MODULES = ("ompl.base", "ompl.geometric", "ompl.util", "numba", "scipy.interpolate",
-                "safepath._fastkernels", "safepath.planning._topp", "fcl", "coal",
-                "scipy.spatial")
+                "safepath._fastkernels", "safepath.planning._topp",
+                "safepath.planning._verify_kernel", "safepath.planning._ik_kernel", "fcl",
+                "coal", "scipy.spatial")
 
-#: Planned results kept per poses version (route or cell plans).
-CACHE_SIZE = 32
+#: A result, and the results the caller may cache by key (see ``_core.Core._cache_key``).
+Answer = tuple[Any, dict[tuple[Any, ...], Any]]
 
 
 class _PipeHandler(logging.Handler):
@@ -66,7 +70,7 @@ class _PipeHandler(logging.Handler):
 
 
 class _Worker:
-    """The loaded cell, its routes and the results planned so far."""
+    """The loaded cell and its routes."""
 
     def __init__(self, scene: Path | Cell, options: PlanOptions) -> None:
         from ..cell import load_cell
@@ -77,7 +81,6 @@ class _Worker:
         self.routes: dict[str, Route] = self.cell.route_table()
         self.options = options
         self.version = 0
-        self._cache: OrderedDict[tuple[Any, ...], Trajectory] = OrderedDict()
         for name in WARM_MODULES:
             try:
                 importlib.import_module(name)
@@ -90,7 +93,6 @@ class _Worker:
         if version != self.version:
             self.cell.poses = {**self.base_poses, **overlay}
             self.version = version
-            self._cache.clear()
 
     def validate(self, poses: Mapping[str, Any]) -> dict[str, np.ndarray]:
         """The poses as joint vectors [rad], each checked like a taught pose."""
@@ -119,50 +121,60 @@ class _Worker:
             chain.append(after)
         return chain[::-1]
 
-    def _remember(self, key: tuple[Any, ...], traj: Trajectory) -> None:
-        self._cache[key] = traj
-        self._cache.move_to_end(key)
-        while len(self._cache) > CACHE_SIZE:
-            self._cache.popitem(last=False)
-
-    def plan_route(self, name: str, seed: int | None, world: WorldState | None) -> Trajectory:
-        """One route, from ``world`` or from the end world of the routes it follows."""
+    def plan_route(self, name: str, seed: int | None, world: WorldState | None) -> Answer:
+        """One route, from ``world`` or from the end world of the routes it follows (all
+        of them are entries)."""
         options = self._options(seed)
         seed_used = options.planner.seed
-        world_key = None if world is None else world.key()
-        key = ("route", name, seed_used, world_key)
-        if key in self._cache:
-            return self._cache[key]
         if world is not None:
             traj = plan_route(self.cell, self._route(name), options, world=world)
-            self._remember(key, traj)
-            return traj
+            return traj, {("route", name, seed_used, world.key()): traj}
         chain = self._chain(name)
         planned = plan_cell(self.cell, options, routes={n: self.routes[n] for n in chain})
-        for n, t in planned.items():
-            self._remember(("route", n, seed_used, None), t)
-        return planned[name]
+        return planned[name], {("route", n, seed_used, None): t for n, t in planned.items()}
 
-    def plan_cell(self, seed: int | None) -> dict[str, Trajectory]:
-        """Every route of the cell, in the order :func:`safepath.plan_cell` gives."""
-        seed_used = self._options(seed).planner.seed
-        keys = {n: ("route", n, seed_used, None) for n in route_order(self.routes)}
-        if all(k in self._cache for k in keys.values()):
-            return {n: self._cache[k] for n, k in keys.items()}
-        planned = plan_cell(self.cell, self._options(seed), routes=self.routes)
-        for n, t in planned.items():
-            self._remember(keys[n], t)
-        return planned
+    def plan_cell(self, seed: int | None) -> Answer:
+        """Every route of the cell, in the order :func:`safepath.plan_cell` gives (the
+        whole and each route are entries)."""
+        options = self._options(seed)
+        seed_used = options.planner.seed
+        planned = plan_cell(self.cell, options, routes=self.routes)
+        entries: dict[tuple[Any, ...], Any] = {
+            ("route", n, seed_used, None): t for n, t in planned.items()}
+        entries[("cell", seed_used)] = planned
+        return planned, entries
 
-    def run(self, kind: str, payload: dict[str, Any]) -> Any:
+    def warm_up(self) -> dict[tuple[Any, ...], Any]:
+        """Plan the cell once with the default seed, so that a worker is warm when it
+        is first used (collision checkers and verifiers built, numba kernels loaded:
+        a fresh worker's first plan takes seconds, the next ones tens of milliseconds).
+        Returns the results as cache entries; none if the cell does not plan (the error
+        comes back when a request asks for it)."""
+        try:
+            return self.plan_cell(None)[1]
+        except Exception as exc:  # noqa: BLE001 - a request reports it, typed
+            logging.getLogger(__name__).debug("warm-up plan failed: %s", exc)
+            return {}
+
+    def run(self, kind: str, payload: dict[str, Any]) -> Answer:
         """Carry out one job."""
         if kind == "route":
             return self.plan_route(payload["name"], payload["seed"], payload["world"])
         if kind == "cell":
             return self.plan_cell(payload["seed"])
         if kind == "validate":
-            return self.validate(payload["poses"])
+            return self.validate(payload["poses"]), {}
         raise ValueError(f"unknown job kind '{kind}'")
+
+
+def _encode(answer: Answer) -> tuple[bytes, dict[tuple[Any, ...], bytes]]:
+    """Pickle the result and the entries (an entry that is the result is pickled once)."""
+    value, entries = answer
+    pickled = {key: pickle.dumps(v, protocol=pickle.HIGHEST_PROTOCOL)
+               for key, v in entries.items()}
+    same = [pickled[key] for key, v in entries.items() if v is value]
+    data = same[0] if same else pickle.dumps(value, protocol=pickle.HIGHEST_PROTOCOL)
+    return data, pickled
 
 
 def serve(conn: Connection, scene: Path | Cell, options: PlanOptions, log_level: int) -> None:
@@ -188,7 +200,9 @@ def serve(conn: Connection, scene: Path | Cell, options: PlanOptions, log_level:
     except Exception as exc:  # noqa: BLE001 - every load failure goes back typed
         conn.send(("error", 0, encode_error(exc)))
         return
-    conn.send(("ready", 0, {"pid": os.getpid(), "poses": list(worker.base_poses),
+    entries = _encode((None, worker.warm_up()))[1]
+    conn.send(("ready", 0, {"pid": os.getpid(), "entries": entries,
+                            "poses": list(worker.base_poses),
                             "routes": list(worker.routes)}))
     while True:
         try:
@@ -202,7 +216,7 @@ def serve(conn: Connection, scene: Path | Cell, options: PlanOptions, log_level:
             continue
         _, job_id, kind, payload = message
         try:
-            reply: tuple[str, int, Any] = ("ok", job_id, worker.run(kind, payload))
+            reply: tuple[str, int, Any] = ("ok", job_id, _encode(worker.run(kind, payload)))
         except Exception as exc:  # noqa: BLE001 - errors are results of the job
             reply = ("error", job_id, encode_error(exc))
         try:

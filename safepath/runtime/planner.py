@@ -10,10 +10,14 @@ and unpickle answers (about 1 ms for the three routes of the bundled cell).
 
 Lifecycle: the workers start in the background as soon as the planner is built (about
 1 s: imports, loading, warm-up), so the first plan is answered sooner; ``ready()``
-tells when they are loaded. ``close()`` (or leaving a ``with`` block) cancels what is
-queued or running and stops the workers. A planner that is garbage-collected without
-``close()`` finishes the work already asked for, then stops its workers; at interpreter
-exit every worker is stopped and reaped.
+tells when they are loaded. Then one more, a warm spare, loads: a request that is
+cancelled or times out while it plans stops its worker (native code cannot be
+interrupted otherwise), and the spare takes its place at once while a new spare loads.
+Results are cached in this process (per poses, seed and world), so stopping a worker
+loses none, and a request the cache holds is answered without a worker. ``close()`` (or
+leaving a ``with`` block) cancels what is queued or running and stops the workers. A
+planner that is garbage-collected without ``close()`` finishes the work already asked
+for, then stops its workers; at interpreter exit every worker is stopped and reaped.
 
 Like any ``spawn`` multiprocessing, the worker imports the caller's main module: a
 script must keep its entry point under ``if __name__ == "__main__":``.
@@ -52,7 +56,7 @@ class RuntimePlanner:
 
     ``future.cancel()`` succeeds until the answer is in (``future.running()`` stays False
     meanwhile): a request not yet started is dropped, a running one stops its worker,
-    which is restarted in the background.
+    which a warm spare replaces at once.
 
     Args:
         scene: The scene folder (``scene.yaml``, ``poses.yaml``, ``routes.yaml``), or a
@@ -62,6 +66,9 @@ class RuntimePlanner:
         workers: Worker processes; requests are spread over them, each runs one at a time.
         start_method: ``spawn`` (default) or ``forkserver``; never ``fork``, which is
             unsafe in a process with threads (rclpy, viser).
+        spare: Keep one more worker loaded, to replace at once a worker stopped by a
+            cancelled or timed-out request (it costs the memory of one worker process;
+            without it the next request waits one to three seconds for a new worker).
 
     Raises:
         ConfigError: The scene folder does not exist, or the cell's robot was built in
@@ -79,7 +86,8 @@ class RuntimePlanner:
 
     def __init__(self, scene: str | Path | Cell, *, options: PlanOptions | None = None,
                  workers: int = 1,
-                 start_method: Literal["spawn", "forkserver"] = "spawn") -> None:
+                 start_method: Literal["spawn", "forkserver"] = "spawn",
+                 spare: bool = True) -> None:
         source: Path | Cell
         if isinstance(scene, Cell):
             import pickle
@@ -95,12 +103,14 @@ class RuntimePlanner:
         if start_method not in ("spawn", "forkserver"):
             raise InputError(f"start_method must be 'spawn' or 'forkserver', got "
                              f"{start_method!r}", key="start_method")
+        if not isinstance(spare, bool):
+            raise InputError(f"spare must be True or False, got {spare!r}", key="spare")
         if options is not None and not isinstance(options, PlanOptions):
             raise InputError(f"options must be PlanOptions, got {type(options).__name__}",
                              key="options")
         self.scene = source
         self.options = options or PlanOptions()
-        self._core = Core(source, self.options, workers, start_method)
+        self._core = Core(source, self.options, workers, start_method, spares=int(spare))
         self._finalizer = weakref.finalize(self, self._core.release)
         self._finalizer.atexit = False  # _close_all stops the workers at exit
 
@@ -110,15 +120,18 @@ class RuntimePlanner:
         """Plan, time and verify one route.
 
         Without ``world`` the route starts in the world its ``after`` chain leaves (the
-        routes it follows are planned too, and cached in the worker), exactly as in
-        :func:`safepath.plan_cell`. Results are cached per poses, seed and world: asking
-        again costs only the round trip.
+        routes it follows are planned too, and cached), exactly as in
+        :func:`safepath.plan_cell`. Results are cached in this process per poses, seed and
+        world: asking again is answered at once (about a millisecond to unpickle), also
+        after a cancelled or timed-out request.
 
         Args:
             name: Route name in ``routes.yaml``.
             seed: Planner seed (default: the options' seed).
-            timeout: Time budget [s] counted from when a worker takes the request (not
-                while it waits in the queue or for a worker to start); None: no limit.
+            timeout: Time budget [s] counted from this call: when it runs out the future
+                fails with ``PlannerTimeout`` (within a few milliseconds), wherever the
+                request is (queued, waiting for a worker, or planning: then its worker
+                is stopped and replaced); None: no limit.
             world: World state at the start, instead of the ``after`` chain's.
 
         Returns:
@@ -139,7 +152,8 @@ class RuntimePlanner:
 
         Args:
             seed: Planner seed (default: the options' seed).
-            timeout: Time budget once a worker has the request [s]; None: no limit.
+            timeout: Time budget from this call [s], as in :meth:`plan_route`; None: no
+                limit.
 
         Returns:
             A future of the trajectories by route name (failures as in :meth:`plan_route`).
