@@ -19,14 +19,15 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from ..errors import VerificationError
+from ..errors import ConfigError
 from ..robot import joint_motion
 
 if TYPE_CHECKING:
     import pinocchio as pin
 
 __all__ = ["Grid", "Layer", "PoseCache", "ShapeSpec", "WalkMemory", "bound_between",
-           "motion_weights", "pair_weights", "shape_spec"]
+           "joint_kind", "motion_weights", "pair_weights", "shape_spec",
+           "unsupported_geometry", "SUPPORTED"]
 
 _BOX, _SPHERE, _CYLINDER, _CAPSULE, _HULL = 0, 1, 2, 3, 4
 _REVOLUTE, _PRISMATIC = 1, 2
@@ -61,9 +62,14 @@ class ShapeSpec:
     vertices: np.ndarray = field(default_factory=lambda: np.zeros((0, 3)), compare=False)
 
 
-def shape_spec(geometry: object) -> ShapeSpec:
+def shape_spec(geometry: object, name: str = "") -> ShapeSpec:
     """The conservative layer's view of a coal geometry (a convex mesh: its hull's
-    vertices, the points FCL's convex is made of)."""
+    vertices, the points FCL's convex is made of; a triangle mesh: the hull of its
+    vertices, which encloses it, so that its distance bounds the mesh's from below).
+
+    Raises:
+        ConfigError: A geometry the verifier does not handle (names it as ``name``).
+    """
     import coal
 
     origin = (0.0, 0.0, 0.0)
@@ -78,17 +84,28 @@ def shape_spec(geometry: object) -> ShapeSpec:
         if isinstance(geometry, coal.Capsule):
             return ShapeSpec(_CAPSULE, (radius, half, 0.0), origin, radius + half)
         return ShapeSpec(_CYLINDER, (radius, half, 0.0), origin, float(np.hypot(radius, half)))
-    if isinstance(geometry, coal.ConvexBase):
+    if isinstance(geometry, (coal.ConvexBase, coal.BVHModelBase)):
         from scipy.spatial import ConvexHull
 
-        pts = np.asarray(geometry.points(), dtype=float)
+        pts = np.asarray(geometry.points() if isinstance(geometry, coal.ConvexBase)
+                         else geometry.vertices(), dtype=float)
         pts = pts[ConvexHull(pts).vertices]
         c = (pts.min(axis=0) + pts.max(axis=0)) / 2
         rel = np.ascontiguousarray(pts - c)
         return ShapeSpec(_HULL, (0.0, 0.0, 0.0), (float(c[0]), float(c[1]), float(c[2])),
                          float(np.linalg.norm(rel, axis=1).max()), rel)
-    raise VerificationError(f"unsupported geometry {type(geometry).__name__}", time=0.0,
-                            q=None, pairs=[])
+    raise unsupported_geometry(geometry, name)
+
+
+#: What the verifier handles, for messages.
+SUPPORTED = "boxes, spheres, cylinders, capsules, convex meshes and triangle meshes"
+
+
+def unsupported_geometry(geometry: object, name: str) -> ConfigError:
+    """The error for a collision geometry the verifier cannot check."""
+    what = f"collision geometry '{name}'" if name else "a collision geometry"
+    return ConfigError(f"{what} is a {type(geometry).__name__}: the independent verifier "
+                       f"handles {SUPPORTED}", key=name or None)
 
 
 def bound_between(a: ShapeSpec, T_world_a: np.ndarray, b: ShapeSpec,
@@ -125,16 +142,21 @@ def _shape_table(specs: list[ShapeSpec]) -> tuple[np.ndarray, np.ndarray]:
     return table, np.ascontiguousarray(np.vstack(verts) if verts else np.zeros((0, 3)))
 
 
-def _joint_kind(model: pin.Model, j: int) -> tuple[int, tuple[float, float, float]]:
+def joint_kind(model: pin.Model, j: int) -> tuple[int, tuple[float, float, float]]:
+    """(revolute or prismatic, unit axis in the joint frame) of joint ``j``.
+
+    Raises:
+        ConfigError: Any other joint (names it).
+    """
     motion = joint_motion(model, j)
     if motion is None:
-        raise VerificationError(f"unsupported joint {model.names[j]} "
-                                f"({model.joints[j].shortname()}): the verifier handles 1-dof "
-                                "revolute and prismatic joints", time=0.0, q=None, pairs=[])
+        raise ConfigError(f"joint '{model.names[j]}' is a {model.joints[j].shortname()}: the "
+                          "independent verifier handles 1-dof revolute and prismatic joints",
+                          key=model.names[j])
     kind, axis = motion
     if abs(float(np.linalg.norm(axis)) - 1.0) > 1e-9:
-        raise VerificationError(f"joint {model.names[j]}: axis {list(axis)} is not a unit "
-                                "vector", time=0.0, q=None, pairs=[])
+        raise ConfigError(f"joint '{model.names[j]}': axis {list(axis)} is not a unit vector",
+                          key=model.names[j])
     return (_REVOLUTE if kind == "revolute" else _PRISMATIC), axis
 
 
@@ -156,14 +178,14 @@ def motion_weights(model: pin.Model, joints: list[int], T_joint_geom: list[np.nd
         dist = float(np.linalg.norm(centre)) + shape.radius
         j = joint
         while j > 0:
-            kind, axis = _joint_kind(model, j)
+            kind, axis = joint_kind(model, j)
             v = model.joints[j].idx_v
             if kind == _PRISMATIC:
                 out[m, v] = 1.0
                 stroke = max(abs(model.lowerPositionLimit[v]), abs(model.upperPositionLimit[v]))
                 if not np.isfinite(stroke):
-                    raise VerificationError(f"prismatic joint {model.names[j]} has no "
-                                            "position limits", time=0.0, q=None, pairs=[])
+                    raise ConfigError(f"prismatic joint '{model.names[j]}' has no position "
+                                      "limits", key=model.names[j])
                 dist += stroke
             elif j == joint:
                 across = centre - np.dot(centre, axis) * np.asarray(axis)
@@ -322,7 +344,7 @@ class Layer:
         iq = np.zeros(nj, dtype=np.int64)
         for j in range(1, nj):
             place[j] = model.jointPlacements[j].homogeneous[:3]
-            kind[j], axis[j] = _joint_kind(model, j)
+            kind[j], axis[j] = joint_kind(model, j)
             iq[j] = model.joints[j].idx_q
         joint_of = np.zeros(model.nv, dtype=np.int64)
         upstream = np.zeros((model.nv, model.nv))

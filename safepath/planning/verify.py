@@ -14,6 +14,11 @@ certified: at an earlier (or the same) sample, the conservative layer bounded th
 pair's distance from below, and that bound minus how much the pair's bodies can have
 moved it since still exceeds what the pair must keep (its margin, zero, or, for a pair
 allowed to touch, zero: in contact, FCL's penetration depth decides).
+
+Geometry: boxes, spheres, cylinders, capsules, convex meshes and triangle meshes (FCL
+checks the mesh itself; the conservative layer bounds it by the hull of its vertices,
+which encloses it). :func:`check_verifiable` refuses anything else before planning
+starts, naming the object.
 """
 
 from __future__ import annotations
@@ -27,18 +32,16 @@ import numpy as np
 from ..errors import VerificationError
 from ..robot import Robot
 from ..scene import GRIPPER, AllowedContact, Scene
-from ._verify_bounds import (
-    Grid,
-    Layer,
-    PoseCache,
-    ShapeSpec,
-    WalkMemory,
-    motion_weights,
-    pair_weights,
-    shape_spec,
+from ._verify_bodies import (
+    _fcl_shape,  # noqa: F401 - the monitor's simulation and the tests build shapes with it
+    check_verifiable,
+    environment_bodies,
+    held_bodies,
+    robot_bodies,
 )
+from ._verify_bounds import Grid, Layer, PoseCache, WalkMemory, motion_weights, pair_weights
 
-__all__ = ["FclVerifier", "VerifyResult"]
+__all__ = ["FclVerifier", "VerifyResult", "check_verifiable"]
 
 Pair = tuple[str, str]
 #: Margin kept between the clearance walk's threshold and the tolerance [m], so that
@@ -71,48 +74,6 @@ class VerifyResult:
     bound_checks: int = 0
 
 
-def _fcl_shape(geometry: object) -> object:
-    import coal
-    import fcl
-
-    if isinstance(geometry, coal.Box):
-        return fcl.Box(*(2 * np.asarray(geometry.halfSide)))
-    if isinstance(geometry, coal.Sphere):
-        return fcl.Sphere(float(geometry.radius))
-    if isinstance(geometry, coal.Cylinder):
-        return fcl.Cylinder(float(geometry.radius), 2 * float(geometry.halfLength))
-    if isinstance(geometry, coal.Capsule):
-        return fcl.Capsule(float(geometry.radius), 2 * float(geometry.halfLength))
-    if isinstance(geometry, coal.ConvexBase):
-        pts = np.asarray(geometry.points(), dtype=float)
-        from scipy.spatial import ConvexHull
-
-        hull = ConvexHull(pts)
-        faces = np.hstack([np.full((len(hull.simplices), 1), 3), hull.simplices]).ravel()
-        return fcl.Convex(pts, len(hull.simplices), faces)
-    raise VerificationError(f"unsupported geometry {type(geometry).__name__}", time=0.0,
-                            q=None, pairs=[])
-
-
-@dataclass(frozen=True)
-class _Body:
-    """A moving body (robot geometry or held object) or an environment object."""
-
-    name: str
-    joint: int  # 0 for the environment and bodies fixed to the base
-    T: np.ndarray  # in its joint frame (movers) or in the world (environment), 4 x 4
-    fcl: object
-    spec: ShapeSpec
-
-
-def _body(name: str, joint: int, T: np.ndarray, geometry: object) -> _Body:
-    import fcl
-
-    T = np.asarray(T, dtype=float)
-    obj = fcl.CollisionObject(_fcl_shape(geometry), fcl.Transform(T[:3, :3], T[:3, 3]))
-    return _Body(name, joint, T, obj, shape_spec(geometry))
-
-
 class FclVerifier:
     """Re-checks timed samples with FCL for one world state.
 
@@ -125,6 +86,10 @@ class FclVerifier:
         resolution: Largest motion between samples [m].
         margin: Safety margin override [m]; None uses the scene's.
         enforce_margin: Count a sample closer to an object than its margin as a failure.
+
+    Raises:
+        ConfigError: A geometry or joint the verifier does not handle (see
+            :func:`check_verifiable`).
     """
 
     def __init__(self, robot: Robot, scene: Scene | None, *, held: str | None = None,
@@ -134,33 +99,10 @@ class FclVerifier:
         self.robot = robot
         self.resolution = resolution
         self.enforce_margin = enforce_margin
-        self._movers = [_body(robot.model.frames[g.parentFrame].name, int(g.parentJoint),
-                              g.placement.homogeneous, g.geometry)
-                        for g in robot.collision_model.geometryObjects]
-        self._env: list[_Body] = []
-        if scene is not None:
-            for obj in scene.objects.values():
-                placed: np.ndarray | None = obj.T_world_object
-                if obj.movable:
-                    if obj.name == held:
-                        continue
-                    placed = (resting or {}).get(obj.name, obj.T_world_object)
-                if placed is not None:
-                    self._env.append(_body(obj.name, 0, placed, obj.shape.to_coal()))
-        if held is not None and scene is not None and scene.grasp is not None:
-            tcp = robot.model.frames[robot.tcp_frame_id]
-            T_joint_obj = tcp.placement.homogeneous @ scene.grasp.T_tcp_object
-            self._movers.append(_body(held, int(tcp.parentJoint), T_joint_obj,
-                                      scene.objects[held].shape.to_coal()))
+        self._movers = robot_bodies(robot) + held_bodies(robot, scene, held)
+        self._env = environment_bodies(scene, held, resting)
         self._pairs = self._pair_list(robot, held, allowed)
-        margin_of = {b.name: (margin if margin is not None else
-                              (scene.margin_for(b.name) if scene else 0.0))
-                     for b in self._env}
-        # What each pair must keep: its signed distance must not fall below this [m].
-        self._theta = np.array([
-            -depth if depth > 0.0 else
-            (margin_of[self._env[j].name] if env and enforce_margin else 0.0)
-            for _, j, env, depth in self._pairs], dtype=float)
+        self._theta = self._thresholds(scene, margin, enforce_margin)
         # The layer certifies a pair allowed to touch only where it is apart: in
         # contact, FCL's penetration depth decides.
         self._bound_theta = np.where([d > 0.0 for *_, d in self._pairs], 0.0, self._theta)
@@ -170,13 +112,29 @@ class FclVerifier:
         self._weights = motion_weights(robot.model, [b.joint for b in self._movers],
                                        [b.T for b in self._movers],
                                        [b.spec for b in self._movers])
+        self._layer = self._conservative_layer()
+
+    def _thresholds(self, scene: Scene | None, margin: float | None, enforce_margin: bool
+                    ) -> np.ndarray:
+        """What each pair must keep: its signed distance must not fall below this [m]
+        (minus the allowed depth of a contact, the object's margin if enforced, else 0)."""
+        margin_of = {b.name: (margin if margin is not None else
+                              (scene.margin_for(b.name) if scene else 0.0))
+                     for b in self._env}
+        return np.array([
+            -depth if depth > 0.0 else
+            (margin_of[self._env[j].name] if env and enforce_margin else 0.0)
+            for _, j, env, depth in self._pairs], dtype=float)
+
+    def _conservative_layer(self) -> Layer:
+        """The layer that bounds every pair's distance from below (``_verify_bounds``)."""
+        joints = [b.joint for b in self._movers]
         pairs = [(i, j, env) for i, j, env, _ in self._pairs]
-        self._layer = Layer(robot.model, [b.joint for b in self._movers],
-                            [b.T for b in self._movers], [b.spec for b in self._movers],
-                            [b.T for b in self._env], [b.spec for b in self._env], pairs,
-                            pair_weights(robot.model, [b.joint for b in self._movers],
-                                         self._weights, pairs),
-                            self._tracked)
+        return Layer(self.robot.model, joints, [b.T for b in self._movers],
+                     [b.spec for b in self._movers], [b.T for b in self._env],
+                     [b.spec for b in self._env], pairs,
+                     pair_weights(self.robot.model, joints, self._weights, pairs),
+                     self._tracked)
 
     def _pair_list(self, robot: Robot, held: str | None, allowed: Iterable[AllowedContact]
                    ) -> list[tuple[int, int, bool, float]]:

@@ -10,21 +10,24 @@ dense FCL check of every grid sample finds, and its bounds must be lower bounds.
 
 from __future__ import annotations
 
+import copy
 import dataclasses
 import itertools
+import time
 
 import coal
 import fcl
 import numpy as np
 import pinocchio as pin
 import pytest
+from scipy.spatial import ConvexHull
 
-from safepath import CheckOptions, VerificationError
+from safepath import CheckOptions, ConfigError, VerificationError, plan_cell
 from safepath.cell import Cell
 from safepath.planning import FclVerifier, VerifyResult, initial_world
 from safepath.planning._verify_bounds import bound_between, shape_spec
 from safepath.planning.timing import TimedPiece, spline_path, time_path
-from safepath.planning.verify import _fcl_shape
+from safepath.planning.verify import _fcl_shape, check_verifiable
 from safepath.robot import Robot
 from safepath.scene import AllowedContact, Scene, SceneObject, Shape
 
@@ -425,3 +428,67 @@ def test_a_hull_is_bounded_by_its_own_vertices() -> None:
             apart += 1
             assert bound >= true - 1e-3, (trial, bound, true)
     assert apart > 30
+
+
+# -- geometry the verifier handles, and refuses before planning --------------------------------
+def _with_geometry(robot: Robot, change: dict[str, object]) -> Robot:
+    """A copy of ``robot`` whose collision geometries named in ``change`` are replaced."""
+    out = copy.copy(robot)
+    out.collision_model = robot.collision_model.copy()
+    for g in out.collision_model.geometryObjects:
+        if g.name in change:
+            g.geometry = change[g.name]
+    return out
+
+
+def _box_mesh(box: coal.Box) -> coal.BVHModelOBBRSS:
+    """The triangle mesh of a box's surface (12 triangles)."""
+    half = np.asarray(box.halfSide)
+    corners = np.array(list(itertools.product((-1.0, 1.0), repeat=3))) * half
+    hull = ConvexHull(corners)
+    mesh = coal.BVHModelOBBRSS()
+    mesh.beginModel(len(hull.simplices), len(corners))
+    mesh.addVertices(corners)
+    mesh.addTriangles(hull.simplices.astype(np.int32))
+    mesh.endModel()
+    return mesh
+
+
+def test_a_triangle_mesh_is_verified_like_the_shape_it_meshes(detour_cell: Cell) -> None:
+    # Every box of the arm as a triangle mesh (as a user's own URDF meshes load): FCL
+    # checks the mesh, the conservative layer bounds it by its hull.
+    robot = detour_cell.robot
+    meshed = _with_geometry(robot, {g.name: _box_mesh(g.geometry)
+                                    for g in robot.collision_model.geometryObjects
+                                    if isinstance(g.geometry, coal.Box)})
+    check_verifiable(meshed, detour_cell.scene)
+    piece = _straight(detour_cell, "high1", "high2")
+    world = initial_world(detour_cell)
+    errors = []
+    for arm in (robot, meshed):
+        verifier = FclVerifier(arm, detour_cell.scene, held="vial",
+                               resting=dict(world.resting))
+        with pytest.raises(VerificationError) as info:
+            verifier.verify(piece.t, piece.q, piece.qd, steps=[STEP] * len(piece.t))
+        errors.append(info.value)
+    assert errors[1].time == errors[0].time and errors[1].pairs == errors[0].pairs
+    free = _straight(detour_cell, "high1", "safe")
+    results = [FclVerifier(arm, None).verify(free.t, free.q, free.qd)
+               for arm in (robot, meshed)]
+    assert results[1].samples == results[0].samples
+
+
+def test_unsupported_geometry_is_refused_before_planning_naming_it(
+        detour_cell: Cell) -> None:
+    odd = _with_geometry(detour_cell.robot, {"forearm_link_0": coal.Ellipsoid(0.05, 0.04, 0.1)})
+    with pytest.raises(ConfigError, match="forearm_link_0.*Ellipsoid") as info:
+        check_verifiable(odd, detour_cell.scene)
+    assert info.value.key == "forearm_link_0"
+    with pytest.raises(ConfigError) as info:
+        FclVerifier(odd, detour_cell.scene)
+    assert info.value.key == "forearm_link_0"
+    cell = dataclasses.replace(detour_cell, robot=odd)
+    t0 = time.perf_counter()
+    with pytest.raises(ConfigError, match="forearm_link_0"):
+        plan_cell(cell)
+    assert time.perf_counter() - t0 < 1.0  # refused up front, nothing planned

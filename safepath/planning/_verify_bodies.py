@@ -1,0 +1,126 @@
+"""The verifier's bodies: FCL objects and layer shapes built from the robot's collision
+geometry, the held object and the scene, and the check that refuses what the verifier
+cannot handle before anything is planned."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..robot import Robot
+from ..scene import Scene
+from ._verify_bounds import ShapeSpec, joint_kind, shape_spec, unsupported_geometry
+
+__all__ = ["Body", "check_verifiable", "robot_bodies", "held_bodies", "environment_bodies"]
+
+
+def _supported(geometry: object) -> bool:
+    import coal
+
+    return isinstance(geometry, (coal.Box, coal.Sphere, coal.Cylinder, coal.Capsule,
+                                 coal.ConvexBase, coal.BVHModelBase))
+
+
+def check_verifiable(robot: Robot, scene: Scene | None = None) -> None:
+    """Refuse, before anything is planned, what the independent verifier cannot check
+    (a trajectory it cannot check is never released, so planning would be in vain).
+
+    Raises:
+        ConfigError: A collision geometry of the robot or the scene, or a joint, the
+            verifier does not handle; names it (``key``).
+    """
+    for g in robot.collision_model.geometryObjects:
+        if not _supported(g.geometry):
+            raise unsupported_geometry(g.geometry, g.name)
+    for obj in (scene.objects.values() if scene is not None else ()):
+        shape = obj.shape.to_coal()
+        if not _supported(shape):
+            raise unsupported_geometry(shape, obj.name)
+    for j in range(1, robot.model.njoints):
+        joint_kind(robot.model, j)
+
+
+def _fcl_shape(geometry: object, name: str = "") -> object:
+    import coal
+    import fcl
+
+    if isinstance(geometry, coal.Box):
+        return fcl.Box(*(2 * np.asarray(geometry.halfSide)))
+    if isinstance(geometry, coal.Sphere):
+        return fcl.Sphere(float(geometry.radius))
+    if isinstance(geometry, coal.Cylinder):
+        return fcl.Cylinder(float(geometry.radius), 2 * float(geometry.halfLength))
+    if isinstance(geometry, coal.Capsule):
+        return fcl.Capsule(float(geometry.radius), 2 * float(geometry.halfLength))
+    if isinstance(geometry, coal.ConvexBase):
+        pts = np.asarray(geometry.points(), dtype=float)
+        from scipy.spatial import ConvexHull
+
+        hull = ConvexHull(pts)
+        faces = np.hstack([np.full((len(hull.simplices), 1), 3), hull.simplices]).ravel()
+        return fcl.Convex(pts, len(hull.simplices), faces)
+    if isinstance(geometry, coal.BVHModelBase):
+        mesh = fcl.BVHModel()
+        triangles = np.array([[t[0], t[1], t[2]] for t in
+                              (geometry.tri_indices(k) for k in range(geometry.num_tris))],
+                             dtype=np.int64).reshape(-1, 3)
+        mesh.beginModel(geometry.num_vertices, geometry.num_tris)
+        mesh.addSubModel(np.asarray(geometry.vertices(), dtype=float), triangles)
+        mesh.endModel()
+        return mesh
+    raise unsupported_geometry(geometry, name)
+
+
+@dataclass(frozen=True)
+class Body:
+    """A moving body (robot geometry or held object) or an environment object."""
+
+    name: str
+    joint: int  # 0 for the environment and bodies fixed to the base
+    T: np.ndarray  # in its joint frame (movers) or in the world (environment), 4 x 4
+    fcl: object
+    spec: ShapeSpec
+
+
+def _body(name: str, joint: int, T: np.ndarray, geometry: object, label: str = "") -> Body:
+    """A body named ``name`` (its link or object: the pairs' names); ``label`` names its
+    geometry in errors (default: ``name``)."""
+    import fcl
+
+    T = np.asarray(T, dtype=float)
+    obj = fcl.CollisionObject(_fcl_shape(geometry, label or name),
+                              fcl.Transform(T[:3, :3], T[:3, 3]))
+    return Body(name, joint, T, obj, shape_spec(geometry, label or name))
+
+
+def robot_bodies(robot: Robot) -> list[Body]:
+    """The robot's collision geometries, each on its joint."""
+    return [_body(robot.model.frames[g.parentFrame].name, int(g.parentJoint),
+                  g.placement.homogeneous, g.geometry, g.name)
+            for g in robot.collision_model.geometryObjects]
+
+
+def held_bodies(robot: Robot, scene: Scene | None, held: str | None) -> list[Body]:
+    """The held object, on the TCP's joint where the scene's grasp holds it (or none)."""
+    if held is None or scene is None or scene.grasp is None:
+        return []
+    tcp = robot.model.frames[robot.tcp_frame_id]
+    T_joint_obj = tcp.placement.homogeneous @ scene.grasp.T_tcp_object
+    return [_body(held, int(tcp.parentJoint), T_joint_obj, scene.objects[held].shape.to_coal())]
+
+
+def environment_bodies(scene: Scene | None, held: str | None,
+                        resting: dict[str, np.ndarray | None] | None) -> list[Body]:
+    """The scene's objects in the world: movable ones where they rest (absent if None),
+    the held one left out."""
+    out: list[Body] = []
+    for obj in (scene.objects.values() if scene is not None else ()):
+        placed: np.ndarray | None = obj.T_world_object
+        if obj.movable:
+            if obj.name == held:
+                continue
+            placed = (resting or {}).get(obj.name, obj.T_world_object)
+        if placed is not None:
+            out.append(_body(obj.name, 0, placed, obj.shape.to_coal()))
+    return out
