@@ -14,11 +14,13 @@ from __future__ import annotations
 import logging
 import time
 from collections.abc import Mapping
-from dataclasses import replace
+from dataclasses import dataclass, replace
 
 import numpy as np
 
 from ..cell import Cell
+from ..checks import Pair
+from ..collision import CollisionChecker
 from ..errors import IKError, PlanningError, TimingError
 from ..routes import Route, Step
 from ..trajectory import Trajectory
@@ -27,6 +29,7 @@ from .cartesian import cartesian_line
 from .options import PlanOptions
 from .sampling import plan_joint_path
 from .timing import TimedPiece
+from .verify import check_verifiable
 from .world import CheckerCache, WorldState, initial_world
 
 __all__ = ["PlanOptions", "WorldState", "plan_route", "plan_cell", "route_order",
@@ -55,8 +58,15 @@ def route_order(routes: Mapping[str, Route]) -> list[str]:
 def plan_cell(cell: Cell, options: PlanOptions | None = None, *,
               routes: Mapping[str, Route] | None = None) -> dict[str, Trajectory]:
     """Plan, time and verify every route of the cell (its routes, or ``routes.yaml`` of
-    its folder: :meth:`Cell.route_table`)."""
+    its folder: :meth:`Cell.route_table`).
+
+    Raises:
+        ConfigError: The robot or the scene has geometry the independent verifier does
+            not handle (before anything is planned), or ``routes.yaml`` is invalid.
+        PlanningError, TimingError, VerificationError: As :func:`plan_route`.
+    """
     options = options or PlanOptions()
+    check_verifiable(cell.robot, cell.scene)
     if routes is None:
         routes = cell.route_table()
     cache = CheckerCache(cell, options)
@@ -82,69 +92,123 @@ def plan_route(cell: Cell, route: Route, options: PlanOptions | None = None, *,
         world: World state at the start (default: the scene's).
 
     Raises:
+        ConfigError: The robot or the scene has geometry the independent verifier does
+            not handle (before anything is planned).
         PlanningError: A step cannot be planned (step, pose and reason).
         TimingError: No timing within the limits.
         VerificationError: The timed result failed the independent re-check.
     """
     options = options or PlanOptions()
+    check_verifiable(cell.robot, cell.scene)
     traj, _ = _plan(cell, route, world.copy() if world else initial_world(cell), options,
                     CheckerCache(cell, options))
     return traj
 
 
+@dataclass
+class _Paths:
+    """A route's checked paths, before timing.
+
+    Attributes:
+        chunks: The motion between two stops: its segments and the world they move in.
+        actions: Gripper actions as (chunks before it, step index, step).
+        world: The world when the route ends.
+        shortcut_time: Time spent shortcutting OMPL's paths [s].
+    """
+
+    chunks: list[tuple[list[Segment], WorldState]]
+    actions: list[tuple[int, int, Step]]
+    world: WorldState
+    shortcut_time: float
+
+
 def _plan(cell: Cell, route: Route, world: WorldState, options: PlanOptions,
           cache: CheckerCache) -> tuple[Trajectory, WorldState]:
+    """Paths, then timing and verification, then the trajectory and its figures."""
     t_start = time.perf_counter()
-    robot, scene = cell.robot, cell.scene
     labels = route.labels()
+    paths = _plan_paths(cell, route, world, options, cache, labels)
+    plan_time = time.perf_counter() - t_start
+    pieces, chunk_ends, min_clear, closest = _time_and_verify(cell, paths.chunks, options,
+                                                              cache, labels)
+    traj = assemble(cell, route, labels, pieces, chunk_ends, paths.actions)
+    _check_position_limits(cell, traj)
+    traj.info.update({
+        "planning_time": plan_time,
+        "shortcut_time": paths.shortcut_time,
+        "total_time": time.perf_counter() - t_start,
+        "min_clearance": min_clear,
+        "closest_pair": list(closest) if closest else None,
+        "seed": options.planner.seed,
+        "speed_scale": options.timing.speed_scale,
+        "resolution": options.check.resolution,
+    })
+    if options.baseline:
+        traj.info["baseline_duration"] = _baseline(cell, route, paths.chunks, options, cache)
+    return traj, paths.world
+
+
+def _plan_paths(cell: Cell, route: Route, world: WorldState, options: PlanOptions,
+                cache: CheckerCache, labels: list[str]) -> _Paths:
+    """Every motion step's checked path, cut into chunks at the stops and the gripper
+    actions (which change the world)."""
     q = cell.pose(route.start)
     pose_name: str | None = route.start
     chunks: list[tuple[list[Segment], WorldState]] = []
-    actions: list[tuple[int, int, Step]] = []  # (after chunk, step index, step)
+    actions: list[tuple[int, int, Step]] = []
     current: list[Segment] = []
-    planner_opts = options.planner
     times: dict[str, float] = {}
     for i, step in enumerate(route.steps):
-        label = labels[i]
-        if step.is_motion:
-            assert step.target is not None
-            goal, goal_name = _resolve(cell, step, q, label, options)
-            if step.kind == "line":
-                allowed = scene.contacts_at(pose_name) + scene.contacts_at(goal_name)
-                checker = cache.checker(world, allowed)
-                waypoints = cartesian_line(robot, q, goal, options=options.line, step_name=label)
-                report = checker.check_path(waypoints)
-                if not report.valid:
-                    why = report.limit_violation or ", ".join(f"{a} / {b}"
-                                                              for a, b in report.collisions)
-                    raise IKError(f"the line collides ({why})", step=label,
-                                  fraction=report.fraction or 0.0,
-                                  position=robot.tcp_position(report.q)
-                                  if report.q is not None else None)
-            else:
-                allowed = ()
-                checker = cache.checker(world, allowed)
-                seeded = replace(planner_opts, seed=planner_opts.seed + i)
-                waypoints = plan_joint_path(checker, q, goal, options=seeded, step=label,
-                                            times=times)
-            current.append(Segment(i, step, waypoints, allowed))
-            q, pose_name = goal, goal_name
-            if step.stop:
-                chunks.append((current, world.copy()))
-                current = []
-        else:
+        if not step.is_motion:
             if current:
                 chunks.append((current, world.copy()))
                 current = []
             actions.append((len(chunks), i, step))
-            world = _gripper(cell, world, step, q, label, options)
+            world = _gripper(cell, world, step, q, labels[i], options)
+            continue
+        goal, goal_name = _resolve(cell, step, q, labels[i], options)
+        if step.kind == "line":
+            allowed = cell.scene.contacts_at(pose_name) + cell.scene.contacts_at(goal_name)
+            waypoints = _line_path(cell, cache.checker(world, allowed), q, goal, options,
+                                   labels[i])
+        else:
+            allowed = ()
+            seeded = replace(options.planner, seed=options.planner.seed + i)
+            waypoints = plan_joint_path(cache.checker(world, allowed), q, goal,
+                                        options=seeded, step=labels[i], times=times)
+        current.append(Segment(i, step, waypoints, allowed))
+        q, pose_name = goal, goal_name
+        if step.stop:
+            chunks.append((current, world.copy()))
+            current = []
     if current:
         chunks.append((current, world.copy()))
-    plan_time = time.perf_counter() - t_start
+    return _Paths(chunks, actions, world, times.get("shortcut", 0.0))
 
-    # Timing and verification, chunk by chunk.
+
+def _line_path(cell: Cell, checker: CollisionChecker, q: np.ndarray, goal: np.ndarray,
+               options: PlanOptions, label: str) -> list[np.ndarray]:
+    """The straight TCP line from ``q`` to ``goal``, checked; IKError where it collides."""
+    robot = cell.robot
+    waypoints = cartesian_line(robot, q, goal, options=options.line, step_name=label)
+    report = checker.check_path(waypoints)
+    if not report.valid:
+        why = report.limit_violation or ", ".join(f"{a} / {b}" for a, b in report.collisions)
+        raise IKError(f"the line collides ({why})", step=label,
+                      fraction=report.fraction or 0.0,
+                      position=robot.tcp_position(report.q) if report.q is not None else None)
+    return waypoints
+
+
+def _time_and_verify(cell: Cell, chunks: list[tuple[list[Segment], WorldState]],
+                     options: PlanOptions, cache: CheckerCache, labels: list[str]
+                     ) -> tuple[list[tuple[TimedPiece, list[int]]], list[float], float,
+                                Pair | None]:
+    """Time and verify chunk by chunk: the timed pieces (with the step of each knot),
+    when each chunk ends [s] (gripper events happen there), and the smallest clearance
+    the verifier found [m] with its pair."""
     pieces: list[tuple[TimedPiece, list[int]]] = []
-    chunk_ends: list[float] = []  # when each chunk ends [s]: gripper events happen there
+    chunk_ends: list[float] = []
     elapsed = 0.0
     min_clear, closest = float("inf"), None
     for segments, chunk_world in chunks:
@@ -155,33 +219,24 @@ def _plan(cell: Cell, route: Route, world: WorldState, options: PlanOptions,
             pieces.append((piece, steps_of_knots))
             elapsed += float(piece.t[-1])
         chunk_ends.append(elapsed)
-    traj = assemble(cell, route, labels, pieces, chunk_ends, actions)
-    _check_position_limits(cell, traj)
-    traj.info.update({
-        "planning_time": plan_time,
-        "shortcut_time": times.get("shortcut", 0.0),
-        "total_time": time.perf_counter() - t_start,
-        "min_clearance": min_clear,
-        "closest_pair": list(closest) if closest else None,
-        "seed": options.planner.seed,
-        "speed_scale": options.timing.speed_scale,
-        "resolution": options.check.resolution,
-    })
-    if options.baseline:
-        # A figure for comparison only: the same steps' paths, each timed rest to rest.
-        # Its failure must not throw away the verified trajectory.
-        total: float | None = 0.0
-        try:
-            for segments, chunk_world in chunks:
-                for seg in segments:
-                    piece, _ = time_segments(cell, [seg], chunk_world, options, cache,
-                                             check=False, blend=0.0)
-                    total = (total or 0.0) + float(piece.t[-1])
-        except TimingError as exc:
-            log.warning("route %s: no stop-and-go baseline (%s)", route.name, exc)
-            total = None
-        traj.info["baseline_duration"] = total
-    return traj, world
+    return pieces, chunk_ends, min_clear, closest
+
+
+def _baseline(cell: Cell, route: Route, chunks: list[tuple[list[Segment], WorldState]],
+              options: PlanOptions, cache: CheckerCache) -> float | None:
+    """The stop-and-go duration [s]: the same steps' paths, each timed rest to rest. A
+    figure for comparison only: its failure must not throw away the verified trajectory."""
+    total = 0.0
+    try:
+        for segments, chunk_world in chunks:
+            for seg in segments:
+                piece, _ = time_segments(cell, [seg], chunk_world, options, cache,
+                                         check=False, blend=0.0)
+                total += float(piece.t[-1])
+    except TimingError as exc:
+        log.warning("route %s: no stop-and-go baseline (%s)", route.name, exc)
+        return None
+    return total
 
 
 def _check_position_limits(cell: Cell, traj: Trajectory) -> None:
