@@ -360,9 +360,14 @@ def test_four_threads_get_the_serial_results(blocked: RuntimePlanner,
     assert_same(again.result(timeout=LONG), serial[50]["phase1"])
 
 
-def test_planning_does_not_stall_this_process(blocked: RuntimePlanner) -> None:
+def test_planning_does_not_stall_this_process(blocked: RuntimePlanner, slow: RuntimePlanner,
+                                              planner: RuntimePlanner) -> None:
     # The blocked cell makes OMPL plan: in-process, that holds the interpreter lock for
     # most of 100 ms at a time (see benchmarks/runtime_heartbeat.py --detour high1 high2).
+    # Measured once no spare of this module's planners is loading (on two cores, a
+    # loading worker takes the CPU this process's heartbeat needs).
+    for p in (blocked, slow, planner):
+        wait_for(lambda p=p: len(p.stats().spares) == 1, "the spares to load")
     gaps: list[float] = []
     stop = threading.Event()
 
