@@ -40,6 +40,7 @@ from .._io import check_names
 from ..cell import Cell
 from ..errors import PoseError
 from ..planning import PlanOptions, Route, WorldState, plan_cell, plan_route
+from ..routes import after_chain
 from ._transport import encode_error, picklable_record
 
 __all__ = ["serve"]
@@ -116,10 +117,8 @@ class _Worker:
 
     def _chain(self, name: str) -> list[str]:
         """``name`` and the routes it follows (``after``), first one first."""
-        chain = [name]
-        while (after := self._route(chain[-1]).after) is not None:
-            chain.append(after)
-        return chain[::-1]
+        self._route(name)  # an unknown name is refused naming the routes file
+        return after_chain(self.routes, name)
 
     def plan_route(self, name: str, seed: int | None, world: WorldState | None) -> Answer:
         """One route, from ``world`` or from the end world of the routes it follows (all
