@@ -76,113 +76,150 @@ class CollisionChecker:
         return CollisionChecker(self.robot, self.scene, **kwargs)
 
     def _build(self) -> None:
-        robot, scene = self.robot, self.scene
-        model = robot.model
-        gmodel = robot.collision_model.copy()
+        """The geometry model (robot, scene, held object), the pairs to check and the
+        coal requests, step by step."""
+        gmodel = self.robot.collision_model.copy()
         gmodel.removeAllCollisionPairs()  # loaders may have added their own
         n_robot = gmodel.ngeoms
-        self._names: list[str] = [robot.geometry_link(i) for i in range(n_robot)]
-        env: list[int] = []
-        if scene is not None:
-            for obj in scene.objects.values():
-                if obj.movable:
-                    if obj.name == self.held:
-                        continue
-                    T = self.resting.get(obj.name, obj.T_world_object)
-                    if T is None:
-                        continue
-                    obj = obj.placed(T)
-                env.append(self._add(gmodel, obj.name, 0, 0, obj.T_world_object, obj))
-        held_idx: int | None = None
-        if self.held is not None:
-            if scene is None or scene.grasp is None or scene.grasp.object != self.held:
-                raise ConfigError(f"cannot hold '{self.held}': the scene has no grasp for it",
-                                  key="grasp.object")
-            obj = scene.objects[self.held]
-            tcp = model.frames[robot.tcp_frame_id]
-            T_joint_obj = tcp.placement.homogeneous @ scene.grasp.T_tcp_object
-            held_idx = self._add(gmodel, obj.name, tcp.parentJoint, robot.tcp_frame_id,
-                                 T_joint_obj, obj)
-        self._env = env
-        self._held_idx = held_idx
+        self._names: list[str] = [self.robot.geometry_link(i) for i in range(n_robot)]
+        self._env = self._add_environment(gmodel)
+        held_idx = self._add_held(gmodel)
         self.geometry_model = gmodel
-
-        # Which pairs to check.
-        skip_self = robot.allowed_self_pairs
-        contact_links = set(robot.tool.contact_links) if robot.tool else set()
-        allowed = self._expand_allowed(contact_links)
-        pairs: list[tuple[int, int, float | None]] = []  # (a, b, -security margin)
-        movers = list(range(n_robot)) + ([held_idx] if held_idx is not None else [])
-        geoms = gmodel.geometryObjects
-        for ia, a in enumerate(movers):
-            for b in movers[ia + 1:]:
-                na, nb = self._names[a], self._names[b]
-                if na == nb or geoms[a].parentJoint == geoms[b].parentJoint:
-                    continue
-                if b == held_idx and na in contact_links:
-                    continue  # the jaws hold it
-                if tuple(sorted((na, nb))) in skip_self and b != held_idx:
-                    continue
-                depth = allowed.get((min(na, nb), max(na, nb)), 0.0)
-                if depth is None:
-                    continue
-                pairs.append((a, b, depth))
-            for e in env:
-                if geoms[a].parentJoint == 0:
-                    continue  # both fixed to the world
-                ne = self._names[e]
-                depth = allowed.get((min(self._names[a], ne), max(self._names[a], ne)), 0.0)
-                if depth is None:
-                    continue
-                pairs.append((a, e, depth))
+        pairs = self._pair_list(gmodel, n_robot, held_idx)
         for a, b, _ in pairs:
             gmodel.addCollisionPair(pin.CollisionPair(a, b))
         self._pairs = [(a, b) for a, b, _ in pairs]
         self._pair_names = [(self._names[a], self._names[b]) for a, b in self._pairs]
-        self._data = model.createData()
+        self._data = self.robot.model.createData()
         self._gdata = pin.GeometryData(gmodel)
-        env_set = set(env)
+        self._pair_margin = self._pair_margins()
+        self._set_requests([depth for *_, depth in pairs])
+        self._weights = self._displacement_weights()
+        self._build_broad_phase(gmodel)
+        self._layer: SphereLayer | None = None
+        self._layer_built = False
+        self._classify: Any = None
+
+    def _add_environment(self, gmodel: pin.GeometryModel) -> list[int]:
+        """Add the scene's objects (movable ones where they rest, the held one left out);
+        their geometry indices."""
+        env: list[int] = []
+        for obj in (self.scene.objects.values() if self.scene is not None else ()):
+            if obj.movable:
+                if obj.name == self.held:
+                    continue
+                T = self.resting.get(obj.name, obj.T_world_object)
+                if T is None:
+                    continue
+                obj = obj.placed(T)
+            env.append(self._add(gmodel, obj.name, 0, 0, obj.T_world_object, obj))
+        return env
+
+    def _add_held(self, gmodel: pin.GeometryModel) -> int | None:
+        """Add the held object on the TCP's joint, where the scene's grasp holds it; its
+        geometry index (None: nothing held)."""
+        if self.held is None:
+            return None
+        scene = self.scene
+        if scene is None or scene.grasp is None or scene.grasp.object != self.held:
+            raise ConfigError(f"cannot hold '{self.held}': the scene has no grasp for it",
+                              key="grasp.object")
+        tcp = self.robot.model.frames[self.robot.tcp_frame_id]
+        T_joint_obj = tcp.placement.homogeneous @ scene.grasp.T_tcp_object
+        return self._add(gmodel, self.held, tcp.parentJoint, self.robot.tcp_frame_id,
+                         T_joint_obj, scene.objects[self.held])
+
+    def _pair_list(self, gmodel: pin.GeometryModel, n_robot: int, held_idx: int | None
+                   ) -> list[tuple[int, int, float]]:
+        """(a, b, allowed depth [m]) of every pair to check: movers (robot and held
+        object) against each other and against the environment, without the pairs that
+        are never checked or allowed to touch at any depth."""
+        contact_links = set(self.robot.tool.contact_links) if self.robot.tool else set()
+        allowed = self._expand_allowed(contact_links)
+        movers = list(range(n_robot)) + ([held_idx] if held_idx is not None else [])
+        geoms = gmodel.geometryObjects
+        pairs: list[tuple[int, int, float]] = []
+        for ia, a in enumerate(movers):
+            for b in movers[ia + 1:]:
+                depth = self._self_pair_depth(gmodel, a, b, held_idx, contact_links, allowed)
+                if depth is not None:
+                    pairs.append((a, b, depth))
+            if geoms[a].parentJoint == 0:
+                continue  # both fixed to the world
+            for e in self._env:
+                na, ne = self._names[a], self._names[e]
+                depth = allowed.get((min(na, ne), max(na, ne)), 0.0)
+                if depth is not None:
+                    pairs.append((a, e, depth))
+        return pairs
+
+    def _self_pair_depth(self, gmodel: pin.GeometryModel, a: int, b: int,
+                         held_idx: int | None, contact_links: set[str],
+                         allowed: dict[Pair, float | None]) -> float | None:
+        """The allowed depth [m] of the mover pair (a, b), or None if it is not checked:
+        same link or joint, the jaws and the object they hold, an allowed self pair, or
+        a contact allowed at any depth."""
+        geoms = gmodel.geometryObjects
+        na, nb = self._names[a], self._names[b]
+        if na == nb or geoms[a].parentJoint == geoms[b].parentJoint:
+            return None
+        if b == held_idx and na in contact_links:
+            return None  # the jaws hold it
+        if tuple(sorted((na, nb))) in self.robot.allowed_self_pairs and b != held_idx:
+            return None
+        return allowed.get((min(na, nb), max(na, nb)), 0.0)
+
+    def _pair_margins(self) -> list[float]:
+        """Each pair's safety margin [m]: the options' override, or the scene's margin
+        of the environment object in it."""
+        scene, env_set = self.scene, set(self._env)
         margin_default = (self.options.margin if self.options.margin is not None
                           else (scene.margin if scene else 0.0))
-        self._pair_margin = []
+        margins = []
         for a, b in self._pairs:
             env_name = self._names[b] if b in env_set else self._names[a]
             if self.options.margin is None and scene is not None:
-                self._pair_margin.append(scene.margin_for(env_name))
+                margins.append(scene.margin_for(env_name))
             else:
-                self._pair_margin.append(margin_default)
-        for k in range(len(pairs)):
+                margins.append(margin_default)
+        return margins
+
+    def _set_requests(self, depths: list[float]) -> None:
+        """coal's request of each pair (contacts on; the security margin: minus the
+        allowed depth, or the margin where enforced), and the distance pairs."""
+        env_set = set(self._env)
+        requests = self._gdata.collisionRequests
+        for k in range(len(depths)):
             # Without contacts coal 3.0's boolean GJK path misses some deep box-box
             # penetrations (seen: two boxes 18 mm into each other reported free).
-            self._gdata.collisionRequests[k].enable_contact = True
-        for k, (a, b, depth) in enumerate(pairs):
+            requests[k].enable_contact = True
+        for k, ((a, b), depth) in enumerate(zip(self._pairs, depths, strict=True)):
             if depth:
-                self._gdata.collisionRequests[k].security_margin = -depth
+                requests[k].security_margin = -depth
             elif self.options.enforce_margin and ((a in env_set) != (b in env_set)):
-                self._gdata.collisionRequests[k].security_margin = self._pair_margin[k]
+                requests[k].security_margin = self._pair_margin[k]
         # Distances: robot (and held object) against the environment, not allowed ones.
         self._dist_pairs = [k for k, (a, b) in enumerate(self._pairs)
-                            if (a in env_set) != (b in env_set) and not pairs[k][2]]
-        self._dist_gdata = pin.GeometryData(gmodel)
+                            if (a in env_set) != (b in env_set) and not depths[k]]
+        self._dist_gdata = pin.GeometryData(self.geometry_model)
         active = np.zeros(len(self._pairs), dtype=bool)
         active[self._dist_pairs] = True
         for k in range(len(self._pairs)):
             self._dist_gdata.activeCollisionPairs[k] = bool(active[k])
-        self._weights = self._displacement_weights()
-        # Broad phase (AABB tree) for the fast path; it honours the same pairs and the
-        # same per-pair margins, and answers like the pair-by-pair loop (tested).
+
+    def _build_broad_phase(self, gmodel: pin.GeometryModel) -> None:
+        """Broad phase (AABB tree) for the fast path; it honours the same pairs and the
+        same per-pair margins, and answers like the pair-by-pair loop (tested); and the
+        same for batches of states evaluated in one C++ call (segments)."""
+        model = self.robot.model
         self._broad = pin.BroadPhaseManager_DynamicAABBTreeCollisionManager(
             model, gmodel, self._gdata)
-        # The same, for batches of states evaluated in one C++ call (segments).
         self._pool = pin.BroadPhaseManagerPool_DynamicAABBTreeCollisionManager(model, gmodel, 1)
         pool_data = self._pool.getGeometryData(0)
         for k in range(len(self._pairs)):
             pool_data.collisionRequests[k].security_margin = \
                 self._gdata.collisionRequests[k].security_margin
             pool_data.collisionRequests[k].enable_contact = True
-        self._layer: SphereLayer | None = None
-        self._layer_built = False
-        self._classify: Any = None
 
     def _add(self, gmodel: pin.GeometryModel, name: str, joint: int, frame: int,
              T: np.ndarray, obj: SceneObject) -> int:
