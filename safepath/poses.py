@@ -56,6 +56,20 @@ def load_poses(path: str | Path, robot: Robot, *, names: Sequence[str] | None = 
         data = {}
     if not isinstance(data, dict):
         raise PoseError("expected a mapping of pose names to joint lists", path=path)
+    raw = _entries(data, path)
+    poses = {name: _pose(name, key, q, robot, path) for name, (key, q) in raw.items()}
+    if names is not None:
+        known = list(names)
+        for name, (key, _) in raw.items():
+            check_names([name], known, path=path, key=key, what="pose name", error=PoseError)
+        missing = [n for n in known if n not in poses]
+        if missing:
+            raise PoseError(f"missing pose(s): {', '.join(missing)}", path=path)
+    return poses
+
+
+def _entries(data: dict, path: Path) -> dict[str, tuple[str, object]]:
+    """Pose name to (YAML key, raw value): top-level entries and those under ``poses:``."""
     raw: dict[str, tuple[str, object]] = {}
     for key, value in data.items():
         if key == "poses" and isinstance(value, dict):
@@ -65,25 +79,20 @@ def load_poses(path: str | Path, robot: Robot, *, names: Sequence[str] | None = 
             continue
         else:
             _add(raw, str(key), str(key), value, path)
-    poses: dict[str, np.ndarray] = {}
-    for name, (key, q) in raw.items():
-        if not POSE_NAME.match(name):
-            raise PoseError(f"'{name}' is not a valid pose name", path=path, key=key)
-        if not isinstance(q, list):
-            raise PoseError(f"expected a list of {robot.dof} joint values, got {q!r}",
-                            path=path, key=key)
-        for i, v in enumerate(q):
-            if isinstance(v, bool) or not isinstance(v, (int, float)):
-                raise PoseError(f"value {i} is not a number: {v!r}", path=path, key=key)
-        poses[name] = robot.as_joint_vector(q, name=key, path=path)
-    if names is not None:
-        known = list(names)
-        for name, (key, _) in raw.items():
-            check_names([name], known, path=path, key=key, what="pose name", error=PoseError)
-        missing = [n for n in known if n not in poses]
-        if missing:
-            raise PoseError(f"missing pose(s): {', '.join(missing)}", path=path)
-    return poses
+    return raw
+
+
+def _pose(name: str, key: str, q: object, robot: Robot, path: Path) -> np.ndarray:
+    """One pose entry, validated: its name, a list of numbers, then the robot's checks."""
+    if not POSE_NAME.match(name):
+        raise PoseError(f"'{name}' is not a valid pose name", path=path, key=key)
+    if not isinstance(q, list):
+        raise PoseError(f"expected a list of {robot.dof} joint values, got {q!r}",
+                        path=path, key=key)
+    for i, v in enumerate(q):
+        if isinstance(v, bool) or not isinstance(v, (int, float)):
+            raise PoseError(f"value {i} is not a number: {v!r}", path=path, key=key)
+    return robot.as_joint_vector(q, name=key, path=path)
 
 
 def _add(raw: dict[str, tuple[str, object]], name: str, key: str, q: object, path: Path) -> None:

@@ -265,15 +265,7 @@ class Scene:
         object.__setattr__(self, "margin", as_float(
             self.margin.item() if isinstance(self.margin, np.generic) else self.margin,
             path=self.path, key="margin", non_negative=True))
-        contacts = tuple(self.allowed_contacts)
-        for i, contact in enumerate(contacts):
-            if not isinstance(contact, AllowedContact):
-                raise ConfigError(f"expected an AllowedContact, got {type(contact).__name__}",
-                                  key=f"allowed_contacts[{i}]", **where)
-            if not any(b in objects for b in contact.between):
-                raise ConfigError(f"neither of {list(contact.between)} is a scene object",
-                                  key=f"allowed_contacts[{i}].between", **where)
-        object.__setattr__(self, "allowed_contacts", contacts)
+        object.__setattr__(self, "allowed_contacts", self._checked_contacts(objects))
         if self.grasp is not None:
             if not isinstance(self.grasp, Grasp):
                 raise ConfigError(f"expected a Grasp, got {type(self.grasp).__name__}",
@@ -283,6 +275,19 @@ class Scene:
             if not objects[self.grasp.object].movable:
                 raise ConfigError(f"object '{self.grasp.object}' is not movable",
                                   key="grasp.object", **where)
+
+    def _checked_contacts(self, objects: Mapping[str, SceneObject]
+                          ) -> tuple[AllowedContact, ...]:
+        """The allowed contacts as a tuple, each an AllowedContact naming a scene object."""
+        contacts = tuple(self.allowed_contacts)
+        for i, contact in enumerate(contacts):
+            if not isinstance(contact, AllowedContact):
+                raise ConfigError(f"expected an AllowedContact, got {type(contact).__name__}",
+                                  key=f"allowed_contacts[{i}]", path=self.path)
+            if not any(b in objects for b in contact.between):
+                raise ConfigError(f"neither of {list(contact.between)} is a scene object",
+                                  key=f"allowed_contacts[{i}].between", path=self.path)
+        return contacts
 
     def static_objects(self) -> list[SceneObject]:
         """Objects that never move."""

@@ -162,6 +162,34 @@ def _pct(v: float | None) -> str:
     return "-" if v is None else f"{100 * v:.0f}%"
 
 
+def _install_rows(out: dict) -> list[str]:
+    """The install table's lines (size and import time, ratios to safepath)."""
+    lines = ["", "| planner | install | install time [s] | size [MB] | import [s] |",
+             "|---|---|---|---|---|"]
+    inst = out["install"]
+    sp = inst.get("safepath", {})
+    for name in ORDER:
+        if name not in inst:
+            continue
+        i = inst[name]
+        if not i.get("ok"):
+            err = " ".join((i.get("error") or "?").split())
+            lines.append(f"| {name} | FAILED: {err[:90]} | "
+                         f"{i.get('install_seconds') or '-'} | - | - |")
+            continue
+        size = i.get("closure", {}).get("bytes")
+        size_s = "-" if size is None else f"{size / 2**20:.0f}" + _ratio(
+            size, sp.get("closure", {}).get("bytes"))
+        imp = i.get("import_seconds")
+        imp_s = "-" if imp is None else f"{imp:.2f}" + _ratio(imp, sp.get("import_seconds"))
+        how = "project venv" if name == "safepath" else (
+            "ok (cached venv)" if i.get("cached") else "ok")
+        secs = i.get("install_seconds")
+        lines.append(f"| {name} | {how} | {'-' if secs is None else secs} | {size_s} | "
+                     f"{imp_s} |")
+    return lines
+
+
 def table(out: dict) -> str:
     """The results table (plain text, markdown-compatible), ratios to safepath."""
     lines = []
@@ -204,29 +232,7 @@ def table(out: dict) -> str:
                             f"{r['own_checker_agrees']})")
             lines.append(f"| {set_name} | {name} | {solved} | {recheck} | "
                          f"{_pct(r['verified_rate'])} | {plan} | {total} | {dur} | {checks} |")
-    lines += ["", "| planner | install | install time [s] | size [MB] | import [s] |",
-              "|---|---|---|---|---|"]
-    inst = out["install"]
-    sp = inst.get("safepath", {})
-    for name in ORDER:
-        if name not in inst:
-            continue
-        i = inst[name]
-        if not i.get("ok"):
-            err = " ".join((i.get("error") or "?").split())
-            lines.append(f"| {name} | FAILED: {err[:90]} | "
-                         f"{i.get('install_seconds') or '-'} | - | - |")
-            continue
-        size = i.get("closure", {}).get("bytes")
-        size_s = "-" if size is None else f"{size / 2**20:.0f}" + _ratio(
-            size, sp.get("closure", {}).get("bytes"))
-        imp = i.get("import_seconds")
-        imp_s = "-" if imp is None else f"{imp:.2f}" + _ratio(imp, sp.get("import_seconds"))
-        how = "project venv" if name == "safepath" else (
-            "ok (cached venv)" if i.get("cached") else "ok")
-        secs = i.get("install_seconds")
-        lines.append(f"| {name} | {how} | {'-' if secs is None else secs} | {size_s} | "
-                     f"{imp_s} |")
+    lines += _install_rows(out)
     for name, pub in out.get("published", {}).items():
         lines += ["", f"{name}: NOT MEASURED HERE ({pub['install_attempt']}). Published: "
                   f"{pub['figure']} [{pub['source']}]; {pub['not_comparable']}."]

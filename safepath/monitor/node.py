@@ -87,22 +87,8 @@ def parameters_from_mapping(raw: Mapping[str, Any], *, path: Path | None = None
     for k, v in strings.items():
         if not isinstance(v, str) or not v:
             raise ConfigError(f"must be a non-empty string, got {v!r}", path=path, key=k)
-    vectors: dict[str, tuple[float, float, float]] = {}
-    for k in ("scan_xyz", "scan_rpy"):
-        if k in raw:
-            v = raw[k]
-            if not isinstance(v, (list, tuple)) or len(v) != 3 or not all(
-                    isinstance(x, (int, float)) and not isinstance(x, bool)
-                    and np.isfinite(x) for x in v):
-                raise ConfigError(f"must be 3 finite numbers, got {v!r}", path=path, key=k)
-            vectors[k] = (float(v[0]), float(v[1]), float(v[2]))
-    numbers: dict[str, float] = {}
-    for k in (*_OPTION_KEYS, *_NODE_NUMBERS):
-        if k in raw:
-            v = raw[k]
-            if isinstance(v, bool) or not isinstance(v, (int, float)):
-                raise ConfigError(f"must be a number, got {v!r}", path=path, key=k)
-            numbers[k] = float(v)
+    vectors = _vectors(raw, path)
+    numbers = _numbers(raw, path)
     frame = strings.get("scan_frame", "laser")
     xyz = vectors.get("scan_xyz", (0.0, 0.0, 0.0))
     rpy = vectors.get("scan_rpy", (0.0, 0.0, 0.0))
@@ -115,6 +101,33 @@ def parameters_from_mapping(raw: Mapping[str, Any], *, path: Path | None = None
         raise ConfigError(exc.reason, path=path, key=exc.key) from None
     return NodeParameters(options=options, scan_xyz=xyz, scan_rpy=rpy, replan_margin=margin,
                           **strings)
+
+
+def _vectors(raw: Mapping[str, Any], path: Path | None
+             ) -> dict[str, tuple[float, float, float]]:
+    """The scanner placement parameters given, each 3 finite numbers."""
+    vectors: dict[str, tuple[float, float, float]] = {}
+    for k in ("scan_xyz", "scan_rpy"):
+        if k in raw:
+            v = raw[k]
+            if not isinstance(v, (list, tuple)) or len(v) != 3 or not all(
+                    isinstance(x, (int, float)) and not isinstance(x, bool)
+                    and np.isfinite(x) for x in v):
+                raise ConfigError(f"must be 3 finite numbers, got {v!r}", path=path, key=k)
+            vectors[k] = (float(v[0]), float(v[1]), float(v[2]))
+    return vectors
+
+
+def _numbers(raw: Mapping[str, Any], path: Path | None) -> dict[str, float]:
+    """The numeric parameters given (monitor options and the node's own)."""
+    numbers: dict[str, float] = {}
+    for k in (*_OPTION_KEYS, *_NODE_NUMBERS):
+        if k in raw:
+            v = raw[k]
+            if isinstance(v, bool) or not isinstance(v, (int, float)):
+                raise ConfigError(f"must be a number, got {v!r}", path=path, key=k)
+            numbers[k] = float(v)
+    return numbers
 
 
 def load_node_parameters(path: str | Path, node: str = NODE_NAME) -> NodeParameters:
