@@ -4,7 +4,10 @@ Prints, as the median of a few runs:
 - ``start()`` with plans read from files (``safepath view --plans``): the page can be
   opened and shows the routes when it returns;
 - ``start()`` without plans, and the time until the routes planned in the background
-  are shown (``safepath view``).
+  are shown (``safepath view``);
+- a save of an edited pose (``ReviewSession.save_poses``: content-hash check, atomic
+  write with backup, re-read, a line in ``poses.log``, every editor moved on), on a copy
+  of the cell.
 
 The start-up to first frame *in a browser* is printed by tests/view/test_browser.py
 (headless Chromium, software WebGL). Run: ``.venv/bin/python benchmarks/view_startup.py``.
@@ -13,6 +16,8 @@ The start-up to first frame *in a browser* is printed by tests/view/test_browser
 from __future__ import annotations
 
 import argparse
+import os
+import shutil
 import statistics
 import tempfile
 import time
@@ -53,6 +58,33 @@ def main() -> None:
     print(f"  with --plans (routes shown)        {statistics.median(with_plans):6.2f} s")
     print(f"  without plans (page usable)        {statistics.median(bare):6.2f} s")
     print(f"  without plans (routes planned)     {statistics.median(planned):6.2f} s")
+    saves = save_times(10 * args.runs)
+    print(f"save of an edited pose, median of {len(saves)}: "
+          f"{statistics.median(saves) * 1000:.1f} ms (max {max(saves) * 1000:.1f} ms); "
+          f"load {os.getloadavg()[0]:.1f}")
+
+
+def save_times(count: int) -> list[float]:
+    """Durations of ``count`` saves of an edited pose [s], on a copy of the cell."""
+    with tempfile.TemporaryDirectory() as tmp:
+        cell = Path(tmp) / "cell"
+        cell.mkdir()
+        for item in CELL.glob("*.yaml"):
+            shutil.copy(item, cell / item.name)
+        session = ReviewSession(cell, options=ViewOptions(port=0, plan_on_start=False,
+                                                          replan_on_save=False)).start()
+        try:
+            q = session.edit_pose("high1").q.copy()
+            out = []
+            for i in range(count):
+                q[0] += 0.001 if i % 2 else -0.001
+                session.set_joints(q)
+                t0 = time.perf_counter()
+                session.save_poses()
+                out.append(time.perf_counter() - t0)
+            return out
+        finally:
+            session.stop()
 
 
 if __name__ == "__main__":

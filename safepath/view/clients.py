@@ -209,6 +209,8 @@ class ClientEditor:
         pose = self.editor.pose
         self.widgets.enable(may_edit=may_edit, editing=pose is not None,
                             conflict=pose is not None and pose in self.edits.conflicts)
+        # A read-only page looks at a pose without the gizmo it could not drag.
+        self.editor.set_gizmo_visible(may_edit and bool(self.widgets.gizmo_enabled.value))
         lines = []
         if not may_edit:
             lines.append("**read-only**: enter the edit token (printed on the server "
@@ -264,7 +266,7 @@ class ClientEditor:
         for j, slider in enumerate(w.joints):
             on(slider, functools.partial(
                 lambda j, e: self.set_joint(j, float(e.target.value)), j))
-        on(w.gizmo_enabled, lambda e: self.editor.set_gizmo_visible(bool(e.target.value)))
+        on(w.gizmo_enabled, lambda e: self.update_access())
         on(w.reset, lambda e: self.reset_pose(), button=True)
         on(w.take_saved, lambda e: self.take_saved(), button=True)
         on(w.keep_mine, lambda e: self.keep_mine(), button=True)

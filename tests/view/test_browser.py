@@ -259,6 +259,7 @@ def test_two_pages_need_the_token_and_lose_no_edit(tmp_path: Path, cell_copy: Pa
         wait_for(lambda: session.playing, 10.0, "a read-only page could not play")
         session.pause()
         q0 = pa.edit_pose("high1").q.copy()  # looking at a pose is allowed
+        assert pa.editor.pose == "high1" and not pa.editor.gizmo.visible
         with pytest.raises(AccessDenied, match="read-only"):
             pa.set_joint(0, float(q0[0]) + 0.05)
         with pytest.raises(AccessDenied, match="read-only"):
@@ -277,6 +278,7 @@ def test_two_pages_need_the_token_and_lose_no_edit(tmp_path: Path, cell_copy: Pa
         wait_for(lambda: pa.widgets.token.value == token, 10.0, "typing failed")
         assert a.click_button("Unlock editing")
         wait_for(lambda: pa.may_edit, 10.0, "the right token did not unlock the page")
+        assert pa.editor.gizmo.visible  # now it can drag the TCP of high1
         wait_for(lambda: button_disabled(a, "Save poses") is False, 10.0,
                  "Save stayed disabled after the unlock")
         assert not pb.may_edit and button_disabled(b, "Save poses")
