@@ -1,17 +1,21 @@
 """Robots of ``example-robot-data`` as safepath robots.
 
-Fingers and other non-arm joints are locked at the reference posture; mesh collision
+Fingers are locked joints (the user gives their positions, else their whole travel is
+covered, see :func:`safepath.load_robot`); joints of more than one DoF are locked at the
+reference posture; mesh collision
 geometry is replaced by its convex hull (which encloses it: a wrapped non-convex mesh
 misses contacts); the SRDF's disabled pairs and adjacent links are skipped.
 """
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from pathlib import Path
 
 import numpy as np
 import pinocchio as pin
 
+from ._locked import lock_joints, read_mimics
 from .errors import ConfigError
 from .robot import Robot, adjacent_link_pairs
 from .trajectory_controller import read_controller
@@ -31,13 +35,15 @@ def _default_acceleration(velocity: np.ndarray) -> np.ndarray:
     return 2.0 * velocity
 
 
-def load_erd(name: str, *, controller_path: Path | None = None) -> Robot:
+def load_erd(name: str, *, controller_path: Path | None = None,
+             locked_joints: Mapping[str, float | str] | None = None) -> Robot:
     """Load an example-robot-data robot as a safepath :class:`Robot` (arm joints only).
 
     Args:
         name: The example-robot-data name (``ur5``, ``panda``, ...).
         controller_path: A ``controller.yaml`` with its ROS 2 trajectory controller
             (None: settings derived from its joint names).
+        locked_joints: Finger positions (see :func:`safepath.load_robot`).
     """
     import example_robot_data as erd
     from example_robot_data.robots_loader import ROBOTS
@@ -46,14 +52,17 @@ def load_erd(name: str, *, controller_path: Path | None = None) -> Robot:
     wrapper = loader.robot
     model, geom, visual = wrapper.model, wrapper.collision_model, wrapper.visual_model
     srdf = getattr(loader, "srdf_path", None)
-    # Arms only: lock fingers and other non-arm joints at the reference posture.
-    q_ref = np.array(getattr(loader, "q0", None) if getattr(loader, "q0", None) is not None
-                     else pin.neutral(model))
-    lock = [j for j in range(1, model.njoints)
-            if "finger" in model.names[j] or model.joints[j].nq != 1]
+    # Joints of more than one DoF: locked at the neutral posture.
+    lock = [j for j in range(1, model.njoints) if model.joints[j].nq != 1]
     if lock:
-        model, (geom, visual) = pin.buildReducedModel(model, [geom, visual], lock, q_ref)
+        model, (geom, visual) = pin.buildReducedModel(model, [geom, visual], lock,
+                                                      pin.neutral(model))
     geom = _convexify(geom)
+    # Fingers: locked where the user says (whole travel if not said).
+    arm = [n for n in model.names[1:] if "finger" not in n]
+    model, (geom, visual), locked = lock_joints(
+        model, [geom, visual], arm, locked_joints,
+        mimics=read_mimics(getattr(loader, "df_path", None)), key="locked_joints")
     pairs = adjacent_link_pairs(model, geom)
     if srdf and Path(srdf).exists():
         pairs += _srdf_disabled_pairs(Path(srdf))
@@ -66,6 +75,7 @@ def load_erd(name: str, *, controller_path: Path | None = None) -> Robot:
     return Robot(name=name, model=model, collision_model=geom, visual_model=visual,
                  velocity_limits=vel, acceleration_limits=acc, tcp_frame=tcp,
                  allowed_self_pairs=pairs, source=None, controller=controller,
+                 locked_joints=locked,
                  urdf_path=Path(loader.df_path) if getattr(loader, "df_path", None) else None)
 
 

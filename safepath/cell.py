@@ -215,7 +215,13 @@ def load_cell(folder: str | Path) -> Cell:
     if scene.path is not None:
         folder = scene.path.parent
     relative = folder / scene.robot
-    robot = load_robot(relative if relative.is_dir() else scene.robot)
+    try:
+        robot = load_robot(relative if relative.is_dir() else scene.robot,
+                           locked_joints=scene.locked_joints)
+    except ConfigError as exc:
+        if exc.path is not None or not (exc.key or "").startswith("locked_joints"):
+            raise
+        raise ConfigError(exc.reason, path=scene.path, key=exc.key) from None
     poses_path = folder / "poses.yaml"
     poses = load_poses(poses_path, robot) if poses_path.exists() else {}
     return Cell(robot, scene, poses, folder=folder, poses_path=poses_path)

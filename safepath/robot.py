@@ -15,6 +15,7 @@ from typing import Any, Literal
 import numpy as np
 import pinocchio as pin
 
+from ._locked import LockedJoint
 from .errors import ConfigError, FrameNotFound, PoseError
 from .trajectory_controller import TrajectoryController
 
@@ -61,6 +62,7 @@ class Robot:
         urdf_path: Path | None = None,
         allowed_collisions_path: Path | None = None,
         controller: TrajectoryController | None = None,
+        locked_joints: Sequence[LockedJoint] = (),
     ) -> None:
         self.name = name
         self.model = model
@@ -99,6 +101,9 @@ class Robot:
         #: None for a robot built in Python. A robot pickles as this reference (worker
         #: processes load it themselves); one without a reference does not pickle.
         self.reference: str | None = None
+        #: Joints held still during motions (fingers, ...): their value, or None where the
+        #: collision geometry covers their whole travel. See :func:`safepath.load_robot`.
+        self.locked_joints: tuple[LockedJoint, ...] = tuple(locked_joints)
         self._local = threading.local()  # one pinocchio Data per thread
 
     # -- basic facts -------------------------------------------------------------------

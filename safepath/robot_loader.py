@@ -13,7 +13,7 @@ from __future__ import annotations
 
 import copyreg
 import logging
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -21,6 +21,7 @@ import numpy as np
 import pinocchio as pin
 
 from ._io import as_float, as_str, as_vector, check_keys, get_key, read_yaml
+from ._locked import TRAVEL, lock_joints, read_mimics
 from ._paths import ROBOTS_DIR
 from .errors import ConfigError, FrameNotFound, RobotNotFound
 from .robot import Robot, ToolSpec, adjacent_link_pairs
@@ -31,8 +32,8 @@ __all__ = ["ROBOTS_DIR", "load_robot", "robot_names"]
 
 log = logging.getLogger(__name__)
 
-_ROBOT_KEYS = ("name", "urdf", "joints", "velocity_limits", "acceleration_limits", "tcp_frame",
-               "tool", "allowed_collisions")
+_ROBOT_KEYS = ("name", "urdf", "joints", "locked_joints", "velocity_limits",
+               "acceleration_limits", "tcp_frame", "tool", "allowed_collisions")
 _TOOL_KEYS = ("name", "id", "contact_links", "open_width", "closed_width")
 
 
@@ -50,38 +51,51 @@ def _erd_names() -> list[str]:
     return sorted(ROBOTS)
 
 
-def load_robot(name_or_path: str | Path, *, acceleration_limits: Sequence[float] | None = None
-               ) -> Robot:
+def load_robot(name_or_path: str | Path, *, acceleration_limits: Sequence[float] | None = None,
+               locked_joints: Mapping[str, float | str] | None = None) -> Robot:
     """Load a robot by name (``"ned3pro"``, ``"ur5"``, ``"panda"``) or robot-folder path.
+
+    Joints that the URDF moves but safepath does not plan (fingers: the Panda's
+    ``panda_finger_joint1``, the Gen3 Lite's ``right_finger_bottom_joint``) are *locked*:
+    held still during every motion, at the value given here. A joint not given covers its
+    whole travel: the collision geometry of the links it moves then encloses every place
+    they can take, so a path stays collision-free whatever the gripper does. Joints that
+    mimic another (URDF ``<mimic>``) follow it. :attr:`Robot.locked_joints` tells what
+    was chosen.
 
     Args:
         name_or_path: A folder under ``robots/``, a path to a robot folder or its
             ``robot.yaml``, or an ``example-robot-data`` name (its controller settings
             from ``robots/<name>/controller.yaml`` when there is one).
         acceleration_limits: Override the acceleration limits [rad/s^2].
+        locked_joints: ``{joint: position [rad or m] or "travel"}`` for locked joints,
+            e.g. ``{"panda_finger_joint1": 0.04}`` (Panda fingers open).
 
     Raises:
         RobotNotFound: The name is neither a folder nor an example-robot-data robot.
-        ConfigError: The robot files are malformed (names file and key).
+        ConfigError: The robot files are malformed (names file and key), or a locked
+            joint is unknown, not lockable, or given a value outside its limits.
     """
     text = str(name_or_path)
     candidate = Path(text)
     if candidate.name == "robot.yaml":
         candidate = candidate.parent
     if candidate.is_dir() and (candidate / "robot.yaml").exists():
-        robot = _load_folder(candidate)
+        robot = _load_folder(candidate, locked_joints)
     elif candidate.is_dir() and (candidate / CONTROLLER_FILE).is_file() \
             and candidate.name in _erd_names():
         # A folder that only adds controller settings to an example-robot-data arm.
         from ._erd import load_erd
 
-        robot = load_erd(candidate.name, controller_path=candidate / CONTROLLER_FILE)
+        robot = load_erd(candidate.name, controller_path=candidate / CONTROLLER_FILE,
+                         locked_joints=locked_joints)
     elif (ROBOTS_DIR / text / "robot.yaml").exists():
-        robot = _load_folder(ROBOTS_DIR / text)
+        robot = _load_folder(ROBOTS_DIR / text, locked_joints)
     elif text in _erd_names():
         from ._erd import load_erd
 
-        robot = load_erd(text, controller_path=_bundled_controller(text))
+        robot = load_erd(text, controller_path=_bundled_controller(text),
+                         locked_joints=locked_joints)
     elif candidate.exists():
         raise ConfigError("not a robot folder (no robot.yaml)", path=candidate)
     else:
@@ -104,11 +118,15 @@ def _reduce_robot(robot: Robot) -> tuple[Any, ...]:
         raise ConfigError(f"robot '{robot.name}' was built in Python and cannot be sent to "
                           "another process; load it with safepath.load_robot (a folder or "
                           "a name)", key="robot")
-    return (_load_again, (robot.reference, tuple(float(a) for a in robot.acceleration_limits)))
+    locked = {j.name: (TRAVEL if j.value is None else j.value) for j in robot.locked_joints
+              if j.follows is None}
+    return (_load_again, (robot.reference, tuple(float(a) for a in robot.acceleration_limits),
+                          locked))
 
 
-def _load_again(reference: str, acceleration_limits: tuple[float, ...]) -> Robot:
-    return load_robot(reference, acceleration_limits=acceleration_limits)
+def _load_again(reference: str, acceleration_limits: tuple[float, ...],
+                locked: dict[str, float | str] | None = None) -> Robot:
+    return load_robot(reference, acceleration_limits=acceleration_limits, locked_joints=locked)
 
 
 copyreg.pickle(Robot, _reduce_robot)
@@ -120,7 +138,8 @@ def _bundled_controller(name: str) -> Path | None:
     return path if path.is_file() else None
 
 
-def _load_folder(folder: Path) -> Robot:
+def _load_folder(folder: Path, locked_values: Mapping[str, float | str] | None = None
+                 ) -> Robot:
     spec_path = folder / "robot.yaml"
     spec = read_yaml(spec_path)
     if not isinstance(spec, dict):
@@ -143,10 +162,17 @@ def _load_folder(folder: Path) -> Robot:
     joints = get_key(spec, "joints", path=spec_path)
     if not isinstance(joints, list) or not all(isinstance(j, str) for j in joints):
         raise ConfigError("expected a list of joint names", path=spec_path, key="joints")
+    locked_names = get_key(spec, "locked_joints", path=spec_path, default=[]) or []
+    if not isinstance(locked_names, list) or not all(isinstance(j, str) for j in locked_names):
+        raise ConfigError("expected a list of joint names", path=spec_path, key="locked_joints")
     model_joints = list(full.names[1:])
-    if joints != model_joints:
-        raise ConfigError(f"joints {joints} do not match the URDF's movable joints "
-                          f"{model_joints}", path=spec_path, key="joints")
+    if joints != [j for j in model_joints if j not in locked_names]:
+        raise ConfigError(f"joints {joints} and locked_joints {locked_names} are not the "
+                          f"URDF's movable joints {model_joints} (joints in that order)",
+                          path=spec_path, key="joints")
+    full, (geom, visual), locked = lock_joints(
+        full, [geom, visual], joints, locked_values, mimics=read_mimics(urdf))
+    model_joints = list(full.names[1:])
     n = len(joints)
     vel = as_vector(get_key(spec, "velocity_limits", path=spec_path), n, path=spec_path,
                     key="velocity_limits")
@@ -171,7 +197,8 @@ def _load_folder(folder: Path) -> Robot:
     return Robot(name=name, model=full, collision_model=geom, visual_model=visual,
                  velocity_limits=vel, acceleration_limits=acc, tcp_frame=tcp, tool=tool,
                  allowed_self_pairs=pairs, source=spec_path, urdf_path=urdf,
-                 allowed_collisions_path=pairs_path, controller=controller)
+                 allowed_collisions_path=pairs_path, controller=controller,
+                 locked_joints=locked)
 
 
 def _parse_tool(raw: Any, path: Path, model: pin.Model) -> ToolSpec | None:

@@ -231,6 +231,9 @@ class Scene:
         allowed_contacts: Contacts allowed on purpose.
         grasp: How the movable object is held, if any.
         path: File the scene came from.
+        locked_joints: Positions of the robot's locked joints (fingers) in this cell,
+            ``{joint: value [rad or m] or "travel"}``; a joint not named covers its whole
+            travel (see :func:`safepath.load_robot`).
     """
 
     name: str
@@ -240,6 +243,7 @@ class Scene:
     allowed_contacts: tuple[AllowedContact, ...] = ()
     grasp: Grasp | None = None
     path: Path | None = None
+    locked_joints: Mapping[str, float | str] = field(default_factory=dict)
 
     def __post_init__(self) -> None:
         where = {"path": self.path}

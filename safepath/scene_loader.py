@@ -15,7 +15,8 @@ from .scene import SIZE_KEYS, AllowedContact, Grasp, Scene, SceneObject, Shape, 
 
 __all__ = ["load_scene"]
 
-_SCENE_KEYS = ("name", "robot", "margin", "objects", "grasp", "allowed_contacts", "note")
+_SCENE_KEYS = ("name", "robot", "margin", "objects", "grasp", "allowed_contacts", "note",
+               "locked_joints")
 _OBJECT_KEYS = ("shape", "size", "radius", "length", "xyz", "rpy", "margin", "movable",
                 "color", "note")
 _CONTACT_KEYS = ("between", "at", "max_depth", "reason")
@@ -51,8 +52,13 @@ def load_scene(path: str | Path) -> Scene:
     grasp = None
     if data.get("grasp") is not None:
         grasp = _parse_grasp(data["grasp"], path, objects)
+    locked = get_key(data, "locked_joints", path=path, default={}) or {}
+    if not isinstance(locked, dict):
+        raise ConfigError("expected a mapping {joint: position or 'travel'}", path=path,
+                          key="locked_joints")
     return Scene(name=name, robot=robot, objects=objects, margin=margin,
-                 allowed_contacts=contacts, grasp=grasp, path=path)
+                 allowed_contacts=contacts, grasp=grasp, path=path,
+                 locked_joints={str(k): v for k, v in locked.items()})
 
 
 def _parse_object(name: str, raw: Any, path: Path) -> SceneObject:

@@ -1,7 +1,8 @@
 """The sphere layer: its spheres enclose the real shapes, and it never contradicts coal.
 
 Enclosure is checked on sampled surface points of every collision shape of the Ned3 Pro,
-the Panda and the UR5 (example-robot-data convex hulls included) and of the held vial.
+the Gen3 Lite (fingers over their whole travel), the Panda and the UR5 (example-robot-data
+convex hulls included) and of the held vial.
 Agreement is checked on random states (uniform in the limits, and close around the
 taught poses where the robot is near the cell): a state the layer calls free is free for
 coal, and a state it calls colliding collides for coal, with and without margins.
@@ -19,7 +20,7 @@ from safepath.fastcheck import COLLIDES, FREE, UNSURE
 from safepath.robot import Robot
 from safepath.spheres import fit_spheres, surface_points
 
-ROBOTS = ["ned3pro", "panda", "ur5"]
+ROBOTS = ["ned3pro", "gen3_lite", "panda", "ur5"]
 
 
 @pytest.fixture(scope="module")
@@ -133,7 +134,7 @@ def test_layer_never_contradicts_coal_in_the_cell(cell: Cell, held: bool, margin
     assert [fast.is_valid(q) for q in sample] == [exact.is_valid(q) for q in sample]
 
 
-@pytest.mark.parametrize("name", ["panda", "ur5"])
+@pytest.mark.parametrize("name", ["gen3_lite", "panda", "ur5"])
 def test_layer_never_contradicts_coal_for_other_robots(cell: Cell, name: str) -> None:
     # The cell's objects around another arm: convex-hull links (example-robot-data).
     robot = load_robot(name)

@@ -1,4 +1,5 @@
-"""The Ned3 Pro description against Niryo's reference, and its allowed pairs up to date."""
+"""The robot descriptions against the makers' references (Niryo's Ned3 Pro, Kinova's Gen3
+Lite), and the Ned3 Pro's allowed pairs up to date."""
 
 from __future__ import annotations
 
@@ -19,13 +20,17 @@ REFERENCE_POSES = SHARED / "reference" / "roscon2025_cell" / "quality_check_pose
 
 
 @pytest.mark.skipif(not CHECK_TOOL.is_file(), reason="no ../shared/tools next to the repo")
-def test_urdf_passes_the_reference_model_check() -> None:
+@pytest.mark.parametrize("args", [["robots/ned3pro/ned3pro.urdf"],
+                                  ["robots/gen3_lite/gen3_lite.urdf", "--reference",
+                                   "gen3_lite"]], ids=["ned3pro", "gen3_lite"])
+def test_urdf_passes_the_reference_model_check(args: list[str]) -> None:
     result = subprocess.run(
-        [sys.executable, str(CHECK_TOOL), "robots/ned3pro/ned3pro.urdf"],
+        [sys.executable, str(CHECK_TOOL), *args],
         cwd=REPO_ROOT, capture_output=True, text=True, timeout=300, check=False)
     assert result.returncode == 0, result.stdout[-2000:] + result.stderr[-2000:]
     assert "PASS" in result.stdout.splitlines()[-1]
     assert "FAIL" not in result.stdout
+    assert "worst position error 0.000 mm" in result.stdout
 
 
 @pytest.mark.skipif(not REFERENCE_POSES.is_file(), reason="no ../shared/reference")
