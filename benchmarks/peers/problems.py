@@ -62,11 +62,13 @@ def write_panda_cell(problems: Mapping[str, Any], folder: Path) -> Path:
     """Write the Panda problem set as a safepath scene folder (scene, poses, routes).
 
     One route per problem (``p00`` ...), from its start pose to its goal by one free
-    ``move``. The scene margin is 0, so every planner sees the same free space.
+    ``move``. The scene margin is 0, so every planner sees the same free space; the
+    fingers are closed (locked at 0), as every adapter holds them.
     """
     folder.mkdir(parents=True, exist_ok=True)
-    (folder / "scene.yaml").write_text(_scene_yaml("panda_table", "panda",
-                                                   problems["obstacles"], 0.0))
+    (folder / "scene.yaml").write_text(
+        _scene_yaml("panda_table", "panda", problems["obstacles"], 0.0)
+        + "locked_joints:\n  panda_finger_joint1: 0.0\n")
     poses = ["poses:"]
     routes = ["routes:"]
     for p in problems["problems"]:
