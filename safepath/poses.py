@@ -26,6 +26,7 @@ import numpy as np
 from ._io import atomic_write_text, check_names, read_yaml
 from .errors import PoseError
 from .robot import Robot
+from .tcp_targets import is_cartesian, parse_cartesian, solve_target
 
 __all__ = ["load_poses", "save_poses", "dump_poses", "POSE_NAME"]
 
@@ -57,7 +58,10 @@ def load_poses(path: str | Path, robot: Robot, *, names: Sequence[str] | None = 
     if not isinstance(data, dict):
         raise PoseError("expected a mapping of pose names to joint lists", path=path)
     raw = _entries(data, path)
-    poses = {name: _pose(name, key, q, robot, path) for name, (key, q) in raw.items()}
+    poses: dict[str, np.ndarray] = {}
+    for name, (key, q) in raw.items():  # file order: a TCP pose's seed comes before it
+        poses[name] = _tcp_pose(name, key, q, robot, path, poses) if is_cartesian(q) \
+            else _pose(name, key, q, robot, path)
     if names is not None:
         known = list(names)
         for name, (key, _) in raw.items():
@@ -80,6 +84,21 @@ def _entries(data: dict, path: Path) -> dict[str, tuple[str, object]]:
         else:
             _add(raw, str(key), str(key), value, path)
     return raw
+
+
+def _tcp_pose(name: str, key: str, spec: object, robot: Robot, path: Path,
+              known: dict[str, np.ndarray]) -> np.ndarray:
+    """A pose given as a TCP pose, solved by IK from a seed pose given before it."""
+    assert isinstance(spec, dict)
+    if not POSE_NAME.match(name):
+        raise PoseError(f"'{name}' is not a valid pose name", path=path, key=key)
+    target = parse_cartesian(spec, path=path, key=key, extra=frozenset({"seed"}))
+    seed = spec.get("seed")
+    if not isinstance(seed, str) or seed not in known:
+        raise PoseError("a TCP pose needs `seed:`, the name of a pose given before it in "
+                        "this file", path=path, key=f"{key}.seed")
+    return robot.as_joint_vector(solve_target(robot, target, known[seed], path=path, key=key),
+                                 name=key, path=path)
 
 
 def _pose(name: str, key: str, q: object, robot: Robot, path: Path) -> np.ndarray:

@@ -15,6 +15,8 @@ A route starts at a taught pose and lists steps::
           - line: low1
           - open: vial             # released where it is
           - line: {up: 0.05}       # straight up from where the TCP is
+          - line: {position: [0.4, -0.2, 0.21], orientation: [0, 0.7071, 0, 0.7071]}
+                                   # a TCP pose (quaternion x, y, z, w), see tcp_targets
       phase2_safe:
         after: phase1              # starts in the world phase1 leaves (vial on the plate)
         start: high2
@@ -35,6 +37,7 @@ from typing import Any, Literal
 
 from ._io import as_float, as_str, as_vector, check_keys, check_names, get_key, read_yaml
 from .errors import ConfigError
+from .tcp_targets import CartesianTarget, is_cartesian, parse_cartesian
 
 __all__ = ["Target", "Step", "Route", "load_routes", "check_routes", "after_chain"]
 
@@ -50,10 +53,13 @@ class Target:
         pose: A taught pose, or None for a target relative to the current TCP.
         offset: TCP translation added in the world frame [m] (orientation kept); a
             non-zero offset is reached by inverse kinematics seeded from the pose.
+        cartesian: A TCP pose (position and orientation) reached by inverse kinematics
+            seeded from where the robot is; ``pose`` is then None.
     """
 
     pose: str | None
     offset: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    cartesian: CartesianTarget | None = None
 
     def __post_init__(self) -> None:
         if self.pose is not None and (not isinstance(self.pose, str) or not self.pose):
@@ -74,9 +80,11 @@ class Target:
     @property
     def exact_pose(self) -> str | None:
         """The taught pose, if the target is exactly it."""
-        return self.pose if not any(self.offset) else None
+        return self.pose if not any(self.offset) and self.cartesian is None else None
 
     def __str__(self) -> str:
+        if self.cartesian is not None:
+            return "tcp(" + ",".join(f"{v:.3f}" for v in self.cartesian.position) + ")"
         if self.exact_pose:
             return self.exact_pose
         off = ",".join(f"{v:+.3f}" for v in self.offset)
@@ -94,6 +102,9 @@ class Step:
         speed: Fraction of the velocity and acceleration limits, in (0, 1].
         tcp_speed: TCP speed limit [m/s], or None.
         stop: Whether the robot stops at the end of this motion.
+        max_tilt: Largest angle between the held object's axis and the vertical at
+            every released sample of this step [rad], or None (an orientation path
+            constraint: "keep the cup upright").
     """
 
     kind: StepKind
@@ -102,6 +113,7 @@ class Step:
     speed: float = 1.0
     tcp_speed: float | None = None
     stop: bool = False
+    max_tilt: float | None = None
 
     def __post_init__(self) -> None:
         check_names([self.kind], _STEP_KINDS, path=None, key="kind", what="step kind")
@@ -290,6 +302,8 @@ def _parse_target(raw: Any, poses: Sequence[str], path: Path, key: str) -> Targe
     """``high1``, ``{pose: safe, offset: [0, 0, 0.05]}`` or ``{up: 0.05}``."""
     if isinstance(raw, str):
         return Target(_check_pose(raw, poses, path, key))
+    if is_cartesian(raw):
+        return Target(None, cartesian=parse_cartesian(raw, path=path, key=key))
     if isinstance(raw, dict):
         if "up" in raw:
             check_keys(raw, ("up",), path=path, prefix=key)
@@ -303,7 +317,8 @@ def _parse_target(raw: Any, poses: Sequence[str], path: Path, key: str) -> Targe
         offset = as_vector(raw.get("offset", [0.0, 0.0, 0.0]), 3, path=path,
                            key=f"{key}.offset")
         return Target(pose, (offset[0], offset[1], offset[2]))
-    raise ConfigError(f"expected a pose name, {{pose: .., offset: [..]}} or {{up: ..}}, "
+    raise ConfigError(f"expected a pose name, {{pose: .., offset: [..]}}, {{up: ..}} or "
+                      f"{{position: [..], orientation: [x, y, z, w]}}, "
                       f"got {raw!r}", path=path, key=key)
 
 
@@ -337,7 +352,7 @@ def _parse_step(raw: Any, path: Path, key: str, poses: Sequence[str], objects: S
         raise ConfigError("a step needs exactly one of move, line, via, open, close",
                           path=path, key=key)
     kind = kinds[0]
-    check_keys(raw, (kind, "speed", "tcp_speed", "stop"), path=path, prefix=key)
+    check_keys(raw, (kind, "speed", "tcp_speed", "stop", "max_tilt"), path=path, prefix=key)
     speed = as_float(raw.get("speed", defaults.get("speed", 1.0)), path=path,
                      key=f"{key}.speed", positive=True)
     if speed > 1.0:
@@ -350,14 +365,22 @@ def _parse_step(raw: Any, path: Path, key: str, poses: Sequence[str], objects: S
     if not isinstance(stop, bool):
         raise ConfigError(f"expected true or false, got {stop!r}", path=path, key=f"{key}.stop")
     if kind in ("open", "close"):
+        if "max_tilt" in raw:
+            raise ConfigError("max_tilt applies to motions", path=path, key=f"{key}.max_tilt")
         obj = raw[kind]
         if obj is not None:
             obj = as_str(obj, path=path, key=f"{key}.{kind}")
             check_names([obj], objects, path=path, key=f"{key}.{kind}", what="object")
         return Step(kind, None, obj, speed, tcp_speed, True)  # type: ignore[arg-type]
     target = _parse_target(raw[kind], poses, path, f"{key}.{kind}")
+    tilt = raw.get("max_tilt")
+    max_tilt = None if tilt is None else as_float(tilt, path=path, key=f"{key}.max_tilt",
+                                                  non_negative=True)
+    if max_tilt is not None and max_tilt > 3.1416:
+        raise ConfigError(f"max_tilt is an angle [rad] in [0, pi], got {max_tilt:g}",
+                          path=path, key=f"{key}.max_tilt")
     if kind == "via":
         if stop:
             raise ConfigError("a via point never stops", path=path, key=f"{key}.stop")
-        return Step("move", target, None, speed, tcp_speed, False)
-    return Step(kind, target, None, speed, tcp_speed, stop)  # type: ignore[arg-type]
+        return Step("move", target, None, speed, tcp_speed, False, max_tilt)
+    return Step(kind, target, None, speed, tcp_speed, stop, max_tilt)  # type: ignore[arg-type]

@@ -135,3 +135,24 @@ def test_in_process_main_matches(repo_root: Path, capsys: pytest.CaptureFixture[
     out = capsys.readouterr().out
     assert len(_rows(out)) == 12
     assert np.isfinite([float(m[5]) for m in _rows(out)]).all()
+
+
+def test_check_pouring_cell(repo_root: Path, tmp_path: Path) -> None:
+    result = run("check", "scenes/pouring_cell", cwd=repo_root)
+    assert result.returncode == 0, result.stderr
+    assert "robot gen3_lite" in result.stdout
+    assert "8/8 states valid, 0 below margin" in result.stdout
+    # The seed's non-unit quaternion: one line naming file and key, exit status 2.
+    import shutil
+
+    copy = tmp_path / "pouring_cell"
+    shutil.copytree(repo_root / "scenes" / "pouring_cell", copy)
+    poses = copy / "poses.yaml"
+    poses.write_text(poses.read_text().replace(
+        "position: [0.40, 0.20, 0.22]\n    orientation: [0.5, 0.5, 0.5, 0.5]",
+        "position: [0.40, 0.20, 0.22]\n    orientation: [0.5, 0.5, 0.5, 0.9]"))
+    bad = run("check", str(copy), cwd=repo_root)
+    assert bad.returncode == 2
+    assert bad.stdout == ""
+    (line,) = bad.stderr.strip().splitlines()
+    assert "poses.above_bowl.orientation" in line and "not a unit quaternion" in line

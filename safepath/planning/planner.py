@@ -26,6 +26,7 @@ from ..routes import Route, Step
 from ..trajectory import Trajectory
 from ._chunks import Segment, assemble, time_chunk, time_segments
 from .cartesian import cartesian_line
+from .constraints import check_tilt
 from .options import PlanOptions
 from .sampling import plan_joint_path
 from .timing import TimedPiece
@@ -133,6 +134,7 @@ def _plan(cell: Cell, route: Route, world: WorldState, options: PlanOptions,
                                                               cache, labels)
     traj = assemble(cell, route, labels, pieces, chunk_ends, paths.actions)
     _check_position_limits(cell, traj)
+    check_tilt(cell, route, traj)  # orientation path constraints (max_tilt)
     traj.info.update({
         "planning_time": plan_time,
         "shortcut_time": paths.shortcut_time,
@@ -260,8 +262,11 @@ def _resolve(cell: Cell, step: Step, q: np.ndarray, label: str, options: PlanOpt
     if target.exact_pose is not None:
         return cell.pose(target.exact_pose), target.exact_pose
     seed = cell.pose(target.pose) if target.pose is not None else q
-    T = cell.robot.frame_pose(seed)
-    T.translation = T.translation + np.asarray(target.offset)
+    if target.cartesian is not None:
+        T = target.cartesian.tcp_pose(cell.robot)
+    else:
+        T = cell.robot.frame_pose(seed)
+        T.translation = T.translation + np.asarray(target.offset)
     return solve_ik(cell.robot, T, seed, options=options.line, step=label), None
 
 
