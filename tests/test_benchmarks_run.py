@@ -25,6 +25,7 @@ CASES = [
     ("cold_start.py", ["--runs", "1", "--warmup", "0"], "first / second plan_cell"),
     ("monitor.py", ["--decisions", "20", "--speeds", "1.6"], "decision latency"),
     ("panda_set.py", ["--limit", "2"], "the same, CPU time"),
+    ("pour.py", ["--runs", "2", "--events", "20"], "path-consistent stop"),
 ]
 
 

@@ -16,6 +16,7 @@ import pytest
 from .conftest import ROOT
 
 NOTEBOOK = ROOT / "notebooks" / "quality_check_cell.ipynb"
+POURING = ROOT / "notebooks" / "pouring_cell.ipynb"
 KERNEL = "safepath-test-venv"
 
 
@@ -34,9 +35,10 @@ def _kernel_manager(kernel_dir: Path) -> object:
     return AsyncKernelManager(kernel_name=KERNEL, kernel_spec_manager=specs)
 
 
-def test_notebook_is_committed_without_outputs() -> None:
+@pytest.mark.parametrize("path", [NOTEBOOK, POURING], ids=lambda p: p.name)
+def test_notebook_is_committed_without_outputs(path: Path) -> None:
     nbformat = pytest.importorskip("nbformat")
-    nb = nbformat.read(NOTEBOOK, as_version=4)
+    nb = nbformat.read(path, as_version=4)
     nbformat.validate(nb)
     assert nb.nbformat == 4
     code = [c for c in nb.cells if c.cell_type == "code"]
@@ -69,3 +71,24 @@ def test_notebook_runs_and_plots(tmp_path: Path) -> None:
     rows = poses.splitlines()[1:]
     assert len(rows) == 12  # 6 poses, empty and holding the vial
     assert all(" True " in r and " ok " in r for r in rows), poses
+
+
+def test_pouring_notebook_runs_and_plots(tmp_path: Path) -> None:
+    nbformat = pytest.importorskip("nbformat")
+    nbclient = pytest.importorskip("nbclient")
+    pytest.importorskip("ipykernel")
+    pytest.importorskip("matplotlib")
+    nb = nbformat.read(POURING, as_version=4)
+    client = nbclient.NotebookClient(
+        nb, km=_kernel_manager(tmp_path / "kernels"), timeout=300,
+        resources={"metadata": {"path": str(POURING.parent)}})
+    client.execute()
+    outputs = [o for c in nb.cells if c.cell_type == "code" for o in c.outputs]
+    assert not [o for o in outputs if o.output_type == "error"]
+    images = [o for o in outputs if o.output_type == "display_data"
+              and "image/png" in o.get("data", {})]
+    assert len(images) == 3  # tilt + joint speeds, mass curve + tilt, TCP path + speed
+    text = "".join(o.get("text", "") for o in outputs if o.output_type == "stream")
+    for expected in ("2 routes planned, timed and verified", "largest tilt of the cup",
+                     "slow tilt:", "stop decided at", "final mass", "barista:"):
+        assert expected in text

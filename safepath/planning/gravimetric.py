@@ -1,0 +1,311 @@
+"""The gravimetric pour in simulation: a flow model, a scale, and the stop on its reading.
+
+The seed (001) tilts the cup in 20 separate moves while reading a scale on ``/weight``,
+stops once the reading reaches 100 g and goes back upright: ~103 g in the bowl, 110-120 g
+before the slow tilt. Here the tilt is one continuous timed motion
+(:func:`~safepath.planning.pour.plan_tilt`); when the controller decides to stop, the
+robot brakes along the same path (:class:`~safepath.planning.stop.StopPlanner`) and
+returns upright by a motion planned, checked, timed and verified like any other.
+
+Flow model (documented, simple, deterministic for a seed): material leaves the cup when
+its tilt passes ``spill_angle``, at ``gain * (tilt - spill_angle) ** 1.5`` [g/s] (the rate
+rises with the depth of the lip below the surface), reaches the bowl ``fall_time`` later,
+and the scale reports the bowl's mass ``latency`` later, every ``period``, with Gaussian
+``noise``. Nothing of this is the seed's; it exists so that the closed loop can be tested.
+
+Controller (:func:`simulate_pour`): at each reading it estimates the flow rate (slope of
+the last readings), and stops when the reading plus what is still to come (in the air and
+in the sensor's latency, during the stop, during the return until the tilt is back below
+the spill angle) reaches the target. :func:`simulate_stepwise` runs the seed's 20-step
+tilt in the same simulation for comparison.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+import time
+from collections.abc import Callable
+from dataclasses import dataclass
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from ..errors import ConfigError
+
+if TYPE_CHECKING:
+    from ..cell import Cell
+    from .pour import PourMotion, PourOptions
+
+__all__ = ["FlowModel", "PourRun", "simulate_pour", "simulate_stepwise", "stop_and_return",
+           "calibrate_still"]
+
+
+@dataclass(frozen=True, kw_only=True)
+class FlowModel:
+    """The cup, the material and the scale.
+
+    Attributes:
+        gain: Flow rate per (rad beyond the spill angle)^1.5 [g/s].
+        spill_angle: Tilt at which material starts to leave the cup [rad].
+        fall_time: Time from the lip to the bowl [s].
+        latency: Scale reading delay [s].
+        period: Scale reading period [s].
+        noise: Standard deviation of a reading [g].
+        seed: Seed of the noise.
+    """
+
+    gain: float = 30.0
+    spill_angle: float = math.radians(70.0)
+    fall_time: float = 0.15
+    latency: float = 0.10
+    period: float = 0.0125
+    noise: float = 0.2
+    seed: int = 0
+
+    def __post_init__(self) -> None:
+        for name in ("gain", "fall_time", "period"):
+            if not getattr(self, name) > 0:
+                raise ConfigError(f"must be > 0, got {getattr(self, name)!r}", key=name)
+        for name in ("latency", "noise"):
+            if not getattr(self, name) >= 0:
+                raise ConfigError(f"must be >= 0, got {getattr(self, name)!r}", key=name)
+
+    def rate(self, tilt: np.ndarray) -> np.ndarray:
+        """Flow out of the cup at ``tilt`` [rad] (array) [g/s]."""
+        return self.gain * np.maximum(np.asarray(tilt) - self.spill_angle, 0.0) ** 1.5
+
+
+@dataclass(frozen=True)
+class PourRun:
+    """One simulated pour.
+
+    Attributes:
+        final_mass: Mass in the bowl once everything has landed [g].
+        stop_time: When the stop was decided [s] (None: never).
+        stop_tilt: Tilt when the robot came to rest [rad].
+        compute_time: Wall time of the stop computation at the event [s].
+        t: Simulation times [s].
+        tilt: Tilt of the cup [rad].
+        mass: Mass in the bowl [g].
+        readings: (time [s], reading [g]) of the scale.
+    """
+
+    final_mass: float
+    stop_time: float | None
+    stop_tilt: float
+    compute_time: float
+    t: np.ndarray
+    tilt: np.ndarray
+    mass: np.ndarray
+    readings: np.ndarray
+
+
+def _landed(model: FlowModel, t: np.ndarray, tilt: np.ndarray) -> np.ndarray:
+    """Mass in the bowl at times ``t`` for a tilt history sampled at ``t`` [g]."""
+    out = np.concatenate([[0.0], np.cumsum(0.5 * (model.rate(tilt[1:]) + model.rate(tilt[:-1]))
+                                           * np.diff(t))])
+    return np.interp(t - model.fall_time, t, out, left=0.0)
+
+
+def _readings(model: FlowModel, t: np.ndarray, mass: np.ndarray, until: float) -> np.ndarray:
+    rng = np.random.default_rng(model.seed)
+    times = np.arange(model.period, until, model.period)
+    true = np.interp(times - model.latency, t, mass, left=0.0)
+    return np.column_stack([times, true + rng.normal(0.0, model.noise, times.size)])
+
+
+def simulate_pour(tilt_of_t: Callable[[float], float], duration: float,
+                  stop: Callable[[float], tuple[np.ndarray, np.ndarray, float]],
+                  model: FlowModel, *, target: float = 100.0,
+                  still: Callable[[float], float] | None = None,
+                  return_speed: float = math.radians(30.0), brake_time: float = 0.25,
+                  min_reading: float = 5.0, dt: float = 0.002) -> PourRun:
+    """Closed loop: follow the tilt, stop on the scale's reading, return upright.
+
+    The controller knows the tilt it commands, the flow law's shape (spill angle,
+    exponent), the scale's latency and the fall time, but not the flow gain: it fits the
+    gain to the readings (least squares of reading against the flow integral of the tilt
+    history ``latency + fall_time`` earlier), predicts the final mass if it stopped now
+    (everything poured so far, the flow during braking and while turning back below the
+    spill angle) and stops when that reaches ``target``. What the stop and the return
+    pour is ``still(tilt)`` (per unit gain; :func:`calibrate_still` measures it on the
+    planned motions), else estimated as ``brake_time`` at the current rate plus a turn
+    back at ``return_speed``.
+
+    Args:
+        tilt_of_t: Cup tilt along the pour motion at time t [rad].
+        duration: Duration of the pour motion [s].
+        stop: Called with the event time; returns the tilt history from then on (times
+            from the event [s], tilts [rad]: the stop, then the return upright) and the
+            wall time the stop computation took [s].
+        model: Flow and scale (the simulated truth).
+        target: Mass to pour [g].
+        still: Flow integral of the stop and the return from a tilt (per unit gain) [s].
+        return_speed: Angular speed of the return upright assumed without ``still``
+            [rad/s].
+        brake_time: Braking (and speeding up back) time assumed without ``still`` [s].
+        min_reading: Readings below this are not used to fit the gain [g].
+        dt: Simulation step [s].
+    """
+    t_motion = np.arange(0.0, duration + dt, dt)
+    tilt_motion = np.array([tilt_of_t(float(x)) for x in t_motion])
+    # The readings up to any time depend only on the tilt before it: simulate the motion
+    # alone, find the decision, then splice the stop and the return in.
+    mass_motion = _landed(model, t_motion, tilt_motion)
+    readings = _readings(model, t_motion, mass_motion, duration)
+    shape = dataclasses.replace(model, gain=1.0)  # the flow law without its gain
+    poured = np.concatenate([[0.0], np.cumsum(0.5 * (shape.rate(tilt_motion[1:])
+                                                      + shape.rate(tilt_motion[:-1]))
+                                              * np.diff(t_motion))])
+    seen = np.interp(readings[:, 0] - model.latency - model.fall_time, t_motion, poured,
+                     left=0.0)
+    decided = None
+    num = den = 0.0
+    for k in range(len(readings)):
+        tk, rk = readings[k]
+        if rk >= min_reading:
+            num += rk * seen[k]
+            den += seen[k] ** 2
+        if den <= 0.0:
+            continue
+        gain = num / den
+        theta = tilt_of_t(float(tk))
+        x = max(theta - model.spill_angle, 0.0)
+        so_far = float(np.interp(tk, t_motion, poured))
+        coming = still(theta) if still is not None else \
+            x ** 1.5 * brake_time + x ** 2.5 / (2.5 * return_speed)
+        if gain * (so_far + coming) >= target:
+            decided = float(tk)
+            break
+    if decided is None:
+        t_all, tilt_all, compute = t_motion, tilt_motion, 0.0
+    else:
+        after_t, after_tilt, compute = stop(decided)
+        keep = t_motion < decided
+        t_all = np.concatenate([t_motion[keep], decided + after_t])
+        tilt_all = np.concatenate([tilt_motion[keep], after_tilt])
+        t_all, idx = np.unique(t_all, return_index=True)
+        tilt_all = tilt_all[idx]
+    # Let everything land.
+    ahead = model.latency + model.fall_time
+    tail = np.arange(t_all[-1] + dt, t_all[-1] + ahead + 1.0, dt)
+    t_all = np.concatenate([t_all, tail])
+    tilt_all = np.concatenate([tilt_all, np.full(tail.size, tilt_all[-1])])
+    mass = _landed(model, t_all, tilt_all)
+    rest = tilt_all[np.searchsorted(t_all, decided)] if decided is not None else tilt_all[-1]
+    return PourRun(float(mass[-1]), decided, float(rest), compute, t_all, tilt_all, mass,
+                   _readings(model, t_all, mass, float(t_all[-1])))
+
+
+def calibrate_still(stop: Callable[[float], tuple[np.ndarray, np.ndarray, float]],
+                    tilt_of_t: Callable[[float], float], duration: float, model: FlowModel,
+                    *, samples: int = 6) -> Callable[[float], float]:
+    """What the stop and the return pour from a tilt, per unit flow gain [s], measured
+    on the real stop and planned return at ``samples`` events past the spill angle and
+    interpolated in the tilt (the controller's model of its own motions)."""
+    shape = dataclasses.replace(model, gain=1.0)
+    times = np.linspace(0.0, duration, 400)
+    tilts = np.array([tilt_of_t(float(t)) for t in times])
+    first = times[np.argmax(tilts > model.spill_angle)] if (tilts > model.spill_angle).any() \
+        else duration
+    events = np.linspace(first, duration * 0.999, samples)
+    at, integral = [], []
+    for event in events:
+        t, tilt, _ = stop(float(event))
+        rate = shape.rate(tilt)
+        at.append(tilt_of_t(float(event)))
+        integral.append(float(np.sum(0.5 * (rate[1:] + rate[:-1]) * np.diff(t))))
+    xs, ys = np.array(at), np.array(integral)
+
+    def still(theta: float) -> float:
+        return float(np.interp(theta, xs, ys, left=0.0))
+
+    return still
+
+
+def simulate_stepwise(model: FlowModel, *, angle: float = math.radians(115.0), steps: int = 20,
+                      speed: float = math.radians(20.0), accel: float = math.radians(40.0),
+                      pause: float = 0.3, target: float = 100.0, dt: float = 0.002) -> PourRun:
+    """The seed's slow tilt: ``steps`` separate rest-to-rest moves of ``angle / steps``
+    (bounded speed and acceleration), the weight read after each (``pause`` [s] for
+    MoveIt's plan and execute round trip); at ``target`` it goes back upright."""
+    start = time.perf_counter()
+    step = angle / steps
+
+    def move(delta: float) -> np.ndarray:
+        d = abs(delta)
+        t_acc = min(speed / accel, math.sqrt(d / accel))
+        v = accel * t_acc
+        t_total = 2 * t_acc + max(0.0, d - accel * t_acc ** 2) / v
+        ts = np.arange(0.0, t_total + dt, dt)
+        pos = np.where(ts < t_acc, 0.5 * accel * ts ** 2,
+                       np.where(ts < t_total - t_acc, 0.5 * accel * t_acc ** 2
+                                + v * (ts - t_acc),
+                                d - 0.5 * accel * np.maximum(t_total - ts, 0) ** 2))
+        return np.sign(delta) * np.minimum(pos, d)
+
+    t_hist, tilt_hist = [0.0], [0.0]
+    decided = None
+    for _ in range(steps):
+        seg = tilt_hist[-1] + move(step)
+        t_hist += list(t_hist[-1] + dt * np.arange(1, seg.size + 1))
+        tilt_hist += list(seg)
+        pause_t = t_hist[-1] + dt * np.arange(1, int(pause / dt) + 1)
+        t_hist += list(pause_t)
+        tilt_hist += [tilt_hist[-1]] * pause_t.size
+        t_arr, tilt_arr = np.array(t_hist), np.array(tilt_hist)
+        mass = _landed(model, t_arr, tilt_arr)
+        reading = _readings(model, t_arr, mass, t_arr[-1] + model.period)[-1, 1]
+        if reading >= target:
+            decided = float(t_arr[-1])
+            break
+    back = tilt_hist[-1] + move(-tilt_hist[-1])
+    t_hist += list(t_hist[-1] + dt * np.arange(1, back.size + 1))
+    tilt_hist += list(back)
+    t_arr, tilt_arr = np.array(t_hist), np.array(tilt_hist)
+    tail = np.arange(t_arr[-1] + dt, t_arr[-1] + model.latency + model.fall_time + 1.0, dt)
+    t_arr = np.concatenate([t_arr, tail])
+    tilt_arr = np.concatenate([tilt_arr, np.zeros(tail.size)])
+    mass = _landed(model, t_arr, tilt_arr)
+    return PourRun(float(mass[-1]), decided, float(tilt_hist[-back.size - 1]),
+                   time.perf_counter() - start, t_arr, tilt_arr, mass,
+                   _readings(model, t_arr, mass, float(t_arr[-1])))
+
+
+def stop_and_return(cell: Cell, motion: PourMotion, R_upright: np.ndarray, pivot: np.ndarray,
+                    *, options: PourOptions | None = None
+                    ) -> Callable[[float], tuple[np.ndarray, np.ndarray, float]]:
+    """The ``stop`` of :func:`simulate_pour` for a planned tilt: brake along the tilt's
+    path at the event (a :class:`~safepath.planning.stop.StopPlanner` prepared here), then
+    go back upright about the same pivot with :func:`~safepath.planning.pour.plan_tilt`
+    (planned, timed, checked and verified). Returns the tilt history from the event and
+    the wall time of the stop computation alone."""
+    from .pour import PourOptions, plan_tilt, tilt_of
+    from .stop import StopPlanner, path_state
+
+    traj = motion.trajectory
+    planner = StopPlanner(cell.robot, motion.path,
+                          timed=(traj.t, motion.s, traj.q, traj.qd, traj.qdd))
+    axis = cup_axis(cell)
+
+    def stop(event: float) -> tuple[np.ndarray, np.ndarray, float]:
+        start = time.perf_counter()
+        s, sd = path_state(motion.path, motion.s, traj.qd, traj.t, event)
+        braking = planner.stop(s, sd, time=event)
+        compute = time.perf_counter() - start
+        back = plan_tilt(cell, braking.q[-1], R_upright, pivot,
+                         options=options or PourOptions())
+        tilt_stop = np.array([tilt_of(cell.robot.frame_pose(q).rotation, axis)
+                              for q in braking.q])
+        times = np.concatenate([braking.t, braking.t[-1] + back.trajectory.t[1:]])
+        return times, np.concatenate([tilt_stop, back.tilt[1:]]), compute
+
+    return stop
+
+
+def cup_axis(cell: Cell) -> np.ndarray:
+    """The held cup's axis in the TCP frame."""
+    from .pour import cup_axis_in_tcp
+
+    return cup_axis_in_tcp(cell)
