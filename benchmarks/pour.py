@@ -123,6 +123,8 @@ def main() -> None:
         decided = f"{res.stop_time:.2f}" if res.stop_time is not None else "never"
         print(f"| {run} | {model.gain:.1f} | {model.latency:.3f} | {res.final_mass:.2f} | "
               f"{decided} | {res.compute_time * 1000:.2f} | {seed_res.final_mass:.1f} |")
+    if not ours:
+        return
     err = np.abs(np.array(ours) - TARGET)
     print(f"\nfinal masses, safepath: {min(ours):.2f} .. {max(ours):.2f} g, worst error "
           f"{err.max():.2f} g ({'aim met' if err.max() <= 2.0 else 'aim NOT met'}: "
