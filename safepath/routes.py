@@ -73,9 +73,13 @@ class Target:
             raise ConfigError(f"expected three finite numbers [m], got {self.offset!r}",
                               key="offset")
         object.__setattr__(self, "offset", offset)
-        if self.pose is None and not any(offset):
+        if self.pose is None and not any(offset) and self.cartesian is None:
             raise ConfigError("a target relative to the TCP needs a non-zero offset",
                               key="offset")
+        if self.cartesian is not None and (not isinstance(self.cartesian, CartesianTarget)
+                                           or self.pose is not None or any(offset)):
+            raise ConfigError("a TCP-pose target is a CartesianTarget alone (no pose, no "
+                              "offset)", key="cartesian")
 
     @property
     def exact_pose(self) -> str | None:

@@ -18,8 +18,8 @@ from ..errors import ConfigError, PlanningError
 
 if TYPE_CHECKING:
     from ..cell import Cell
-    from ..trajectory import Trajectory
     from ..routes import Route
+    from ..trajectory import Trajectory
 
 __all__ = ["tilt_profile", "check_tilt"]
 

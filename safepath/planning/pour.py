@@ -223,10 +223,12 @@ def _follow(cell: Cell, q_start: np.ndarray, parts: list[tuple[PoseCurve, int, f
         for i in range(1, n + 1):
             u = i / n
             T = curve(u)
-            sol = solve_ik(robot, pin.SE3(T[:3, :3], T[:3, 3]), q, options=line, data=data)
-            if sol is None:
+            try:
+                sol = solve_ik(robot, pin.SE3(T[:3, :3], T[:3, 3]), q, options=line,
+                               data=data, step=name)
+            except IKError:
                 raise IKError("no inverse-kinematics solution on the pour path", step=name,
-                              fraction=u, position=T[:3, 3].copy())
+                              fraction=u, position=T[:3, 3].copy()) from None
             jump = float(np.max(np.abs(sol - q)))
             if jump > options.max_joint_step:
                 raise IKError(f"joint jump of {jump:.3f} rad (singularity or branch switch)",

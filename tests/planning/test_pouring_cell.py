@@ -18,7 +18,7 @@ from safepath import Cell, PlanningError, load_cell
 from safepath.planning import plan_cell, plan_route
 from safepath.planning.planner import WorldState
 from safepath.planning.pour import PourMotion, PourOptions, plan_barista, plan_tilt, tilt_curve
-from safepath.planning.routes import Route, Step, Target
+from safepath.routes import Route, Step, Target
 from safepath.trajectory import Trajectory
 
 REPO_ROOT = Path(__file__).resolve().parents[2]
