@@ -15,8 +15,7 @@ import pinocchio as pin
 import pytest
 
 from safepath import Cell, PlanningError, load_cell
-from safepath.planning import plan_cell, plan_route
-from safepath.planning.planner import WorldState
+from safepath.planning import WorldState, plan_cell, plan_route
 from safepath.planning.pour import PourMotion, PourOptions, plan_barista, plan_tilt, tilt_curve
 from safepath.routes import Route, Step, Target
 from safepath.trajectory import Trajectory
