@@ -11,8 +11,11 @@ Layouts read:
 
     grip: [-0.0168,-0.0208,-0.8436,-0.0459,-0.6519,-0.0245]
 
-A file may hold both (a nested file to which the recorder appended lines). Saving
-always writes the nested layout, atomically, keeping the previous file as ``poses.yaml~``.
+A file may hold both (a nested file to which the recorder appended lines). A pose may
+also be given as a TCP pose (position, orientation quaternion (x, y, z, w), optional
+frame, and the ``seed:`` pose the inverse kinematics starts from, given before it), solved
+when the file is read: see :mod:`safepath.tcp_targets`. Saving always writes the nested
+layout, atomically, keeping the previous file as ``poses.yaml~``.
 """
 
 from __future__ import annotations

@@ -22,7 +22,7 @@ from ..cell import Cell
 from ..checks import Pair
 from ..collision import CollisionChecker
 from ..errors import IKError, PlanningError, TimingError
-from ..routes import Route, Step
+from ..routes import Route, Step, after_chain
 from ..trajectory import Trajectory
 from ._chunks import Segment, assemble, time_chunk, time_segments
 from .cartesian import cartesian_line
@@ -40,19 +40,17 @@ log = logging.getLogger(__name__)
 
 
 def route_order(routes: Mapping[str, Route]) -> list[str]:
-    """Route names so that every route comes after the one it follows."""
+    """Route names so that every route comes after the one it follows.
+
+    Raises:
+        ConfigError: A route follows one that is not given, or routes follow each other
+            in a cycle (key ``routes.<name>.after``).
+    """
     order: list[str] = []
-
-    def visit(name: str) -> None:
-        if name in order:
-            return
-        after = routes[name].after
-        if after is not None:
-            visit(after)
-        order.append(name)
-
     for name in routes:
-        visit(name)
+        for link in after_chain(routes, name):
+            if link not in order:
+                order.append(link)
     return order
 
 

@@ -80,6 +80,25 @@ def test_bundled_routes_load_as_written(bundled_cell: Cell) -> None:
     assert route_order({k: routes[k] for k in reversed(list(routes))})[0] == "phase1"
 
 
+def test_plan_cell_names_a_missing_or_circular_after(bundled_cell: Cell) -> None:
+    """Routes given to plan_cell directly: a route that follows one not given, or routes
+    that follow each other, are a ConfigError naming the key (not a bare KeyError or a
+    RecursionError), before anything is planned."""
+    import dataclasses
+
+    from safepath.planning import plan_cell
+
+    routes = load_routes(BUNDLED, poses=list(bundled_cell.poses),
+                         objects=list(bundled_cell.scene.objects))
+    with pytest.raises(ConfigError, match="phase1") as missing:
+        plan_cell(bundled_cell, routes={"phase2_safe": routes["phase2_safe"]})
+    assert missing.value.key == "routes.phase2_safe.after"
+    looped = {"phase1": dataclasses.replace(routes["phase1"], after="phase2_safe"),
+              "phase2_safe": routes["phase2_safe"]}
+    with pytest.raises(ConfigError, match="cycle"):
+        plan_cell(bundled_cell, routes=looped)
+
+
 def test_step_shorthands(tmp_path: Path) -> None:
     routes = _load(tmp_path, {"r": {"start": "high1", "steps": [
         "close", {"move": "high2", "stop": True}, "open", {"via": {"pose": "low1"}}]}})
