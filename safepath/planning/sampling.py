@@ -216,6 +216,7 @@ def shortcut(checker: CollisionChecker, path: list[np.ndarray], rng: np.random.G
             del pts[i + 1]
         else:
             i += 1
+    lengths = _lengths(pts)
     for _ in range(iterations):
         if len(pts) < 3:
             break
@@ -226,14 +227,20 @@ def shortcut(checker: CollisionChecker, path: list[np.ndarray], rng: np.random.G
         qa = pts[a] + ta * (pts[a + 1] - pts[a])
         qb = pts[b] + tb * (pts[b + 1] - pts[b])
         if min_gain > 0.0:
-            lengths = np.linalg.norm(np.diff(np.asarray(pts), axis=0), axis=1)
             replaced = ((1.0 - ta) * lengths[a] + float(np.sum(lengths[a + 1:b]))
                         + tb * lengths[b])
             if replaced - float(np.linalg.norm(qb - qa)) < min_gain * float(np.sum(lengths)):
                 continue
         if checker.segment_is_valid(qa, qb, check_ends=True):
             pts = _without_repeats(pts[: a + 1] + [qa, qb] + pts[b + 1:])
+            lengths = _lengths(pts)
     return pts
+
+
+def _lengths(pts: list[np.ndarray]) -> np.ndarray:
+    """Joint-space length of every segment of a polyline [rad] (kept beside the path,
+    recomputed only when a shortcut changes it)."""
+    return np.linalg.norm(np.diff(np.asarray(pts), axis=0), axis=1)
 
 
 def _without_repeats(pts: list[np.ndarray], tol: float = 1e-9) -> list[np.ndarray]:

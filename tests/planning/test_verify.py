@@ -315,6 +315,17 @@ def _shape(kind: str, rng: np.random.Generator) -> object:
 KINDS = ["box", "sphere", "cylinder", "capsule", "convex"]
 
 
+def _pose_pair(rng: np.random.Generator, low: float, high: float) -> list[np.ndarray]:
+    """Two random world poses (4 x 4), the second shifted along x by U(low, high) [m]."""
+    poses = []
+    for shift in (0.0, rng.uniform(low, high)):
+        T = np.eye(4)
+        T[:3, :3] = pin.exp3(rng.normal(0.0, 2.0, 3))
+        T[:3, 3] = rng.normal(0.0, 0.02, 3) + [shift, 0.0, 0.0]
+        poses.append(T)
+    return poses
+
+
 @pytest.mark.parametrize("kinds", list(itertools.combinations_with_replacement(KINDS, 2)),
                          ids="-".join)
 def test_the_shape_bound_is_below_fcl_distance(kinds: tuple[str, str]) -> None:
@@ -323,12 +334,7 @@ def test_the_shape_bound_is_below_fcl_distance(kinds: tuple[str, str]) -> None:
     rng = np.random.default_rng(sum(map(ord, "".join(kinds))))
     for _ in range(40):
         shapes = [_shape(kind, rng) for kind in kinds]
-        poses = []
-        for shift in (0.0, rng.uniform(0.0, 0.25)):
-            T = np.eye(4)
-            T[:3, :3] = pin.exp3(rng.normal(0.0, 2.0, 3))
-            T[:3, 3] = rng.normal(0.0, 0.02, 3) + [shift, 0.0, 0.0]
-            poses.append(T)
+        poses = _pose_pair(rng, 0.0, 0.25)
         objects = [fcl.CollisionObject(_fcl_shape(g), fcl.Transform(T[:3, :3], T[:3, 3]))
                    for g, T in zip(shapes, poses, strict=True)]
         bound = bound_between(shape_spec(shapes[0]), poses[0], shape_spec(shapes[1]), poses[1])
@@ -413,12 +419,7 @@ def test_a_hull_is_bounded_by_its_own_vertices() -> None:
     apart = 0
     for trial in range(120):
         hull, box = hulls[trial % len(hulls)], coal.Box(*rng.uniform(0.05, 0.4, 3))
-        poses = []
-        for shift in (0.0, rng.uniform(0.1, 0.4)):
-            T = np.eye(4)
-            T[:3, :3] = pin.exp3(rng.normal(0.0, 2.0, 3))
-            T[:3, 3] = rng.normal(0.0, 0.02, 3) + [shift, 0.0, 0.0]
-            poses.append(T)
+        poses = _pose_pair(rng, 0.1, 0.4)
         true = coal.distance(hull, coal.Transform3s(poses[0][:3, :3], poses[0][:3, 3]), box,
                              coal.Transform3s(poses[1][:3, :3], poses[1][:3, 3]),
                              coal.DistanceRequest(), coal.DistanceResult())
