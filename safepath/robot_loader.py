@@ -170,6 +170,7 @@ def _load_folder(folder: Path, locked_values: Mapping[str, float | str] | None =
         raise ConfigError(f"joints {joints} and locked_joints {locked_names} are not the "
                           f"URDF's movable joints {model_joints} (joints in that order)",
                           path=spec_path, key="joints")
+    unlocked = full
     full, (geom, visual), locked = lock_joints(
         full, [geom, visual], joints, locked_values, mimics=read_mimics(urdf))
     model_joints = list(full.names[1:])
@@ -194,11 +195,36 @@ def _load_folder(folder: Path, locked_values: Mapping[str, float | str] | None =
     controller: TrajectoryController | None = None
     if (folder / CONTROLLER_FILE).is_file():
         controller = read_controller(folder / CONTROLLER_FILE, model_joints)
+        _check_gripper_joint(controller, unlocked)
     return Robot(name=name, model=full, collision_model=geom, visual_model=visual,
                  velocity_limits=vel, acceleration_limits=acc, tcp_frame=tcp, tool=tool,
                  allowed_self_pairs=pairs, source=spec_path, urdf_path=urdf,
                  allowed_collisions_path=pairs_path, controller=controller,
                  locked_joints=locked)
+
+
+def _check_gripper_joint(controller: TrajectoryController, model: pin.Model) -> None:
+    """The gripper's joint exists, moves in its unit, and its range is within the URDF's."""
+    gripper = controller.gripper
+    if gripper is None:
+        return
+    where = {"path": controller.source}
+    if not model.existJointName(gripper.joint):
+        raise ConfigError(f"'{gripper.joint}' is not a joint of the robot's URDF",
+                          key="gripper.joint", **where)
+    joint = model.joints[model.getJointId(gripper.joint)]
+    kind = joint.shortname()
+    unit = "m" if "Prismatic" in kind or kind.startswith("JointModelP") else "rad"
+    if joint.nq != 1 or gripper.unit != unit:
+        raise ConfigError(f"'{gripper.joint}' ({kind}) moves in [{unit}], not "
+                          f"[{gripper.unit}]", key="gripper.unit", **where)
+    low = float(model.lowerPositionLimit[joint.idx_q])
+    high = float(model.upperPositionLimit[joint.idx_q])
+    g_low, g_high = gripper.position_range
+    if g_low < low - 1e-9 or g_high > high + 1e-9:
+        raise ConfigError(f"[{g_low:g}, {g_high:g}] {unit} exceeds the URDF's limits of "
+                          f"'{gripper.joint}' [{low:g}, {high:g}] {unit}",
+                          key="gripper.position_range", **where)
 
 
 def _parse_tool(raw: Any, path: Path, model: pin.Model) -> ToolSpec | None:

@@ -9,11 +9,21 @@ folder as ``controller.yaml`` (``robots/ned3pro/controller.yaml``)::
     goal_time_tolerance: 1.0                                 # [s]
     period: 0.04                                             # [s] between points
     joint_state_rate: 50.0                                   # [Hz] of /joint_states
+    gripper:                                                 # optional: robots with one
+      action: /my_gripper_controller/gripper_cmd             # control_msgs/GripperCommand
+      joint: finger_joint
+      unit: rad                                              # rad (revolute) or m
+      position_range: [0.0, 0.8]                             # what the controller accepts
+      open_position: 0.0
+      closed_position: 0.8
+      max_effort: 100.0                                      # sent with every goal
 
-Every key but ``follow_joint_trajectory_action`` may be left out. A robot without such a
-file (an ``example-robot-data`` arm without a folder, a robot built in Python) gets
-:meth:`TrajectoryController.derived`: the robot's own joint names, ros2_controllers'
-conventional ``/joint_trajectory_controller/follow_joint_trajectory``, the controller's
+Every key but ``follow_joint_trajectory_action`` may be left out; a robot without a
+gripper (or whose gripper is not driven through ``control_msgs/GripperCommand``) has no
+``gripper`` section. A robot without a ``controller.yaml`` (an ``example-robot-data`` arm
+without a folder, a robot built in Python) gets :meth:`TrajectoryController.derived`:
+the robot's own joint names, ros2_controllers' conventional
+``/joint_trajectory_controller/follow_joint_trajectory``, the controller's
 own goal tolerances, points every 10 ms.
 """
 
@@ -24,20 +34,101 @@ import math
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import Any, Literal
 
 from ._io import as_float, as_str, as_vector, check_keys, get_key, read_yaml
 from ._paths import ROBOTS_DIR
-from .errors import ConfigError
+from .errors import ConfigError, InputError
 
-__all__ = ["TrajectoryController", "controller_for", "read_controller"]
+__all__ = ["GripperController", "TrajectoryController", "controller_for", "read_controller"]
 
 #: The file in a robot folder.
 FILE_NAME = "controller.yaml"
 _KEYS = ("follow_joint_trajectory_action", "joint_names", "goal_tolerance",
-         "goal_time_tolerance", "period", "joint_state_rate")
+         "goal_time_tolerance", "period", "joint_state_rate", "gripper")
+_GRIPPER_KEYS = ("action", "joint", "unit", "position_range", "open_position",
+                 "closed_position", "max_effort")
 #: ros2_controllers' conventional name of a joint trajectory controller's action.
 GENERIC_ACTION = "/joint_trajectory_controller/follow_joint_trajectory"
+
+
+def _action_name(action: object, key: str, example: str, where: dict[str, Any]) -> str:
+    if not isinstance(action, str) or not action.startswith("/") or " " in action:
+        raise ConfigError(f"expected an absolute action name such as '{example}', got "
+                          f"{action!r}", key=key, **where)
+    return action
+
+
+@dataclass(frozen=True, kw_only=True)
+class GripperController:
+    """A gripper driven through ``control_msgs/action/GripperCommand``
+    (ros2_controllers' ``GripperActionController``, as MoveIt's gripper interface uses it).
+
+    Attributes:
+        action: The ``GripperCommand`` action's name.
+        joint: The joint the controller drives (its position is the command's).
+        unit: ``rad`` for a revolute joint, ``m`` for a prismatic one.
+        position_range: (lowest, highest) position the controller accepts [rad or m].
+        open_position: Position of the open gripper [rad or m].
+        closed_position: Position of the closed gripper [rad or m].
+        max_effort: The goal's ``max_effort`` (the controller's own unit; 0 leaves it to
+            the controller).
+        source: The file these settings came from (None: built in Python).
+    """
+
+    action: str
+    joint: str
+    unit: Literal["rad", "m"]
+    position_range: tuple[float, float]
+    open_position: float
+    closed_position: float
+    max_effort: float
+    source: Path | None = field(default=None, compare=False)
+
+    def __post_init__(self) -> None:
+        where: dict[str, Any] = {"path": self.source}
+        _action_name(self.action, "gripper.action", "/gripper_controller/gripper_cmd", where)
+        if not isinstance(self.joint, str) or not self.joint:
+            raise ConfigError(f"expected a joint name, got {self.joint!r}", key="gripper.joint",
+                              **where)
+        if self.unit not in ("rad", "m"):
+            raise ConfigError(f"expected 'rad' or 'm', got {self.unit!r}", key="gripper.unit",
+                              **where)
+        rng = tuple(self.position_range)
+        if len(rng) != 2 or not all(_finite(v) for v in rng) or not rng[0] < rng[1]:
+            raise ConfigError(f"expected [lowest, highest] finite positions, lowest < highest, "
+                              f"got {list(rng)}", key="gripper.position_range", **where)
+        object.__setattr__(self, "position_range", (float(rng[0]), float(rng[1])))
+        for key in ("open_position", "closed_position"):
+            self.check_position(getattr(self, key), key=f"gripper.{key}", error=ConfigError)
+        if self.open_position == self.closed_position:
+            raise ConfigError(f"open and closed positions are both {self.open_position}",
+                              key="gripper.closed_position", **where)
+        if not _finite(self.max_effort) or self.max_effort < 0:
+            raise ConfigError(f"expected a finite number >= 0, got {self.max_effort!r}",
+                              key="gripper.max_effort", **where)
+
+    def check_position(self, position: float, *, key: str = "position",
+                       error: type[InputError] = InputError) -> float:
+        """``position`` as a float, or a typed error if it is outside :attr:`position_range`.
+
+        Raises:
+            InputError: (or ``error``) Not a finite number, or outside the range.
+        """
+        low, high = self.position_range
+        if not _finite(position):
+            raise error(f"expected a finite number [{self.unit}], got {position!r}", key=key,
+                        path=self.source if error is ConfigError else None)
+        if not low <= float(position) <= high:
+            raise error(f"{float(position):g} {self.unit} is outside the range of "
+                        f"'{self.joint}' [{low:g}, {high:g}] {self.unit}", key=key,
+                        path=self.source if error is ConfigError else None)
+        return float(position)
+
+
+def _finite(value: object) -> bool:
+    return isinstance(value, (int, float)) and not isinstance(value, bool) \
+        and math.isfinite(value)
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -52,6 +143,7 @@ class TrajectoryController:
         goal_time_tolerance: Time allowed after the trajectory's end to reach the goal [s].
         period: Time between the points of a ``JointTrajectory`` [s].
         joint_state_rate: Rate of ``/joint_states`` written into bags [Hz].
+        gripper: The gripper's ``GripperCommand`` controller (None: no such gripper).
         source: The file these settings came from (None: derived or built in Python).
     """
 
@@ -61,6 +153,7 @@ class TrajectoryController:
     goal_time_tolerance: float = 1.0
     period: float = 0.01
     joint_state_rate: float = 50.0
+    gripper: GripperController | None = None
     source: Path | None = field(default=None, compare=False)
 
     def __post_init__(self) -> None:
@@ -71,11 +164,11 @@ class TrajectoryController:
             raise ConfigError(f"expected distinct joint names, got {list(names)}",
                               key="joint_names", **where)
         object.__setattr__(self, "joint_names", names)
-        action = self.follow_joint_trajectory_action
-        if not isinstance(action, str) or not action.startswith("/") or " " in action:
-            raise ConfigError(f"expected an absolute action name such as "
-                              f"'{GENERIC_ACTION}', got {action!r}",
-                              key="follow_joint_trajectory_action", **where)
+        _action_name(self.follow_joint_trajectory_action, "follow_joint_trajectory_action",
+                     GENERIC_ACTION, where)
+        if self.gripper is not None and not isinstance(self.gripper, GripperController):
+            raise ConfigError(f"expected a GripperController, got {self.gripper!r}",
+                              key="gripper", **where)
         if self.goal_tolerance is not None:
             tol = tuple(float(v) for v in self.goal_tolerance)
             if len(tol) != len(names) or not all(math.isfinite(v) and v >= 0 for v in tol):
@@ -146,12 +239,33 @@ def read_controller(path: str | Path, joint_names: Sequence[str] | None = None
         key: as_float(data[key], path=path, key=key, positive=key != "goal_time_tolerance",
                       non_negative=True)
         for key in ("goal_time_tolerance", "period", "joint_state_rate") if key in data}
+    gripper = _read_gripper(data["gripper"], path) if data.get("gripper") is not None else None
     spec = TrajectoryController(joint_names=tuple(raw_names),
                                 follow_joint_trajectory_action=action, goal_tolerance=tol,
-                                source=path, **numbers)
+                                gripper=gripper, source=path, **numbers)
     if joint_names is not None:
         spec.check_joints(joint_names, path=path)
     return spec
+
+
+def _read_gripper(raw: Any, path: Path) -> GripperController:
+    """The ``gripper`` section of a ``controller.yaml``."""
+    if not isinstance(raw, dict):
+        raise ConfigError("expected a mapping", path=path, key="gripper")
+    check_keys(raw, _GRIPPER_KEYS, path=path, prefix="gripper")
+
+    def value(key: str) -> Any:
+        return get_key(raw, key, path=path, prefix="gripper")
+
+    low, high = as_vector(value("position_range"), 2, path=path, key="gripper.position_range")
+    return GripperController(
+        action=as_str(value("action"), path=path, key="gripper.action"),
+        joint=as_str(value("joint"), path=path, key="gripper.joint"),
+        unit=as_str(value("unit"), path=path, key="gripper.unit"),  # type: ignore[arg-type]
+        position_range=(low, high),
+        **{key: as_float(value(key), path=path, key=f"gripper.{key}")
+           for key in ("open_position", "closed_position", "max_effort")},
+        source=path)
 
 
 def controller_for(robot: str, joint_names: Sequence[str]) -> TrajectoryController:

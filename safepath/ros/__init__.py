@@ -8,6 +8,8 @@ return the native ``rclpy`` message classes instead (``backend="auto"``).
   Niryo ``RobotMove`` and ``Tool`` goals from a :class:`~safepath.trajectory.Trajectory`;
   the controller's names, tolerances and timing come from the trajectory's robot
   (its folder's ``controller.yaml``).
+* :mod:`safepath.ros.gripper`: ``control_msgs/GripperCommand`` goals from the ``gripper``
+  section of the robot's ``controller.yaml`` (the Gen3 Lite under ros2_kortex).
 * :mod:`safepath.ros.bag`: write and read a ROS 2 bag (MCAP) of a cycle.
 * :mod:`safepath.ros.controller`: the quality-check cell's state machine, ROS-free.
 * :mod:`safepath.ros.messages`: the type store and CDR (de)serialisation.
@@ -41,6 +43,7 @@ from .goals import (
     tool_goal,
     tool_goals,
 )
+from .gripper import gripper_command_goal, gripper_command_goals, gripper_of
 from .messages import deserialize, message_factory, serialize, typestore
 
 __all__ = [
@@ -63,6 +66,9 @@ __all__ = [
     "controller_of",
     "deserialize",
     "follow_joint_trajectory_goal",
+    "gripper_command_goal",
+    "gripper_command_goals",
+    "gripper_of",
     "joint_trajectory",
     "message_factory",
     "read_bag",

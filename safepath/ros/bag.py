@@ -12,6 +12,12 @@ topic                    type                                one message
 ``/safepath/gripper``    ``std_msgs/msg/String`` (JSON)       per gripper event, at its time
 ``/joint_states``        ``sensor_msgs/msg/JointState``       every 1/``joint_state_rate``
 =======================  ==================================  ===============================
+
+With ``goals=True`` the bag also holds the goals a node sends, as it would send them:
+``/safepath/arm_goal`` (``control_msgs/action/FollowJointTrajectory_Goal``, per trajectory,
+at its start) and, for a robot whose ``controller.yaml`` has a ``gripper`` section,
+``/safepath/gripper_goal`` (``control_msgs/action/GripperCommand_Goal``, per gripper event,
+at its time).
 """
 
 from __future__ import annotations
@@ -34,11 +40,12 @@ from .._knots import interval_index
 from ..errors import RosError, TrajectoryError
 from ..trajectory import Trajectory
 from ..trajectory_controller import TrajectoryController
-from .goals import controller_of, joint_trajectory
+from .goals import controller_of, follow_joint_trajectory_goal, joint_trajectory
+from .gripper import gripper_command_goal
 from .messages import deserialize, serialize, typestore
 
-__all__ = ["BagContents", "BagMessage", "GRIPPER_TOPIC", "JOINT_STATES_TOPIC", "ROUTE_TOPIC",
-           "TRAJECTORY_TOPIC", "read_bag", "write_bag"]
+__all__ = ["ARM_GOAL_TOPIC", "BagContents", "BagMessage", "GRIPPER_GOAL_TOPIC", "GRIPPER_TOPIC",
+           "JOINT_STATES_TOPIC", "ROUTE_TOPIC", "TRAJECTORY_TOPIC", "read_bag", "write_bag"]
 
 logger = logging.getLogger(__name__)
 
@@ -46,6 +53,8 @@ TRAJECTORY_TOPIC = "/safepath/trajectory"
 ROUTE_TOPIC = "/safepath/route"
 GRIPPER_TOPIC = "/safepath/gripper"
 JOINT_STATES_TOPIC = "/joint_states"
+ARM_GOAL_TOPIC = "/safepath/arm_goal"
+GRIPPER_GOAL_TOPIC = "/safepath/gripper_goal"
 #: Largest jump allowed between the end of one trajectory and the start of the next [rad].
 JOIN_TOLERANCE = 1e-4
 
@@ -55,6 +64,10 @@ _TOPICS = {
     ROUTE_TOPIC: "std_msgs/msg/String",
     GRIPPER_TOPIC: "std_msgs/msg/String",
     JOINT_STATES_TOPIC: "sensor_msgs/msg/JointState",
+}
+_GOAL_TOPICS = {
+    ARM_GOAL_TOPIC: "control_msgs/action/FollowJointTrajectory_Goal",
+    GRIPPER_GOAL_TOPIC: "control_msgs/action/GripperCommand_Goal",
 }
 
 
@@ -131,10 +144,46 @@ def _check_joins(trajs: Sequence[Trajectory], names: tuple[str, ...]) -> None:
                                   f"'{prev.route}' ends: not one cycle", key=f"trajectories[{k}]")
 
 
+def _cycle_records(trajs: Sequence[Trajectory], names: tuple[str, ...], period: float,
+                   spec: TrajectoryController, start_time_ns: int, goals: bool
+                   ) -> tuple[list[tuple[int, int, str, Any]], list[int], int]:
+    """Messages of the trajectories back to back: (time [ns], order, topic, message), the
+    start of each trajectory and the end of the cycle [ns from its start]."""
+    records: list[tuple[int, int, str, Any]] = []  # (time [ns], order, topic, message)
+    starts_ns: list[int] = []
+    clock_ns = 0
+    for traj in trajs:
+        msg = joint_trajectory(traj, period=period, robot_joint_names=names,
+                               stamp_ns=start_time_ns + clock_ns, backend="rosbags")
+        starts_ns.append(clock_ns)
+        t0 = start_time_ns + clock_ns
+        records.append((t0, 0, TRAJECTORY_TOPIC, msg))
+        records.append((t0, 1, ROUTE_TOPIC, _string(
+            {"route": traj.route, "robot": traj.robot, "duration": traj.duration,
+             "steps": traj.step_durations()})))
+        if goals:
+            records.append((t0, 1, ARM_GOAL_TOPIC, follow_joint_trajectory_goal(
+                traj, period=period, robot_joint_names=names, controller=spec,
+                backend="rosbags")))
+        for event in traj.events:
+            t_event = t0 + round((event.time - traj.t[0]) * _NS)
+            records.append((t_event, 2, GRIPPER_TOPIC,
+                            _string({"route": traj.route, "time": event.time,
+                                     "action": event.action, "step": event.step,
+                                     "object": event.object})))
+            if goals and spec.gripper is not None:
+                records.append((t_event, 2, GRIPPER_GOAL_TOPIC, gripper_command_goal(
+                    spec, event.action, backend="rosbags")))
+        last = msg.points[-1].time_from_start
+        clock_ns += last.sec * _NS + last.nanosec
+    return records, starts_ns, clock_ns
+
+
 def write_bag(path: str | Path, trajectories: Iterable[Trajectory], *,
               joint_state_rate: float | None = None, period: float | None = None,
               robot_joint_names: Sequence[str] | None = None,
-              controller: TrajectoryController | None = None, start_time_ns: int = 0) -> Path:
+              controller: TrajectoryController | None = None, start_time_ns: int = 0,
+              goals: bool = False) -> Path:
     """Write a ROS 2 bag (MCAP) of a cycle; see the module docstring for its layout.
 
     Each trajectory starts where the previous one ends, on one clock from
@@ -154,6 +203,9 @@ def write_bag(path: str | Path, trajectories: Iterable[Trajectory], *,
         controller: The robot's trajectory controller; default: the one of the robot
             the first trajectory names (see :func:`safepath.ros.goals.controller_of`).
         start_time_ns: Clock time of the cycle's start [ns since the epoch].
+        goals: Also write the arm's ``FollowJointTrajectory`` goals and, for a robot with
+            a ``gripper`` section in its ``controller.yaml``, the ``GripperCommand`` goals
+            of its gripper events.
 
     Returns:
         ``path``.
@@ -178,25 +230,8 @@ def write_bag(path: str | Path, trajectories: Iterable[Trajectory], *,
     period = spec.period if period is None else period
 
     # Build (and so validate) every message before touching the file system.
-    records: list[tuple[int, int, str, Any]] = []  # (time [ns], order, topic, message)
-    starts_ns: list[int] = []
-    clock_ns = 0
-    for traj in trajs:
-        msg = joint_trajectory(traj, period=period, robot_joint_names=names,
-                               stamp_ns=start_time_ns + clock_ns, backend="rosbags")
-        starts_ns.append(clock_ns)
-        t0 = start_time_ns + clock_ns
-        records.append((t0, 0, TRAJECTORY_TOPIC, msg))
-        records.append((t0, 1, ROUTE_TOPIC, _string(
-            {"route": traj.route, "robot": traj.robot, "duration": traj.duration,
-             "steps": traj.step_durations()})))
-        for event in traj.events:
-            records.append((t0 + round((event.time - traj.t[0]) * _NS), 2, GRIPPER_TOPIC,
-                            _string({"route": traj.route, "time": event.time,
-                                     "action": event.action, "step": event.step,
-                                     "object": event.object})))
-        last = msg.points[-1].time_from_start
-        clock_ns += last.sec * _NS + last.nanosec
+    records, starts_ns, clock_ns = _cycle_records(trajs, names, period, spec, start_time_ns,
+                                                  goals)
     _check_joins(trajs, names)
     records += [(t, 3, JOINT_STATES_TOPIC, m) for t, m in
                 _joint_states(trajs, starts_ns, clock_ns, joint_state_rate, names,
@@ -216,10 +251,13 @@ def write_bag(path: str | Path, trajectories: Iterable[Trajectory], *,
         tmp_bag = tmp_root / path.name
         with Writer(tmp_bag, version=Writer.VERSION_LATEST,
                     storage_plugin=StoragePlugin.MCAP) as writer:
+            types = {**_TOPICS, **(_GOAL_TOPICS if goals else {})}
+            if spec.gripper is None:
+                types.pop(GRIPPER_GOAL_TOPIC, None)
             conns = {topic: writer.add_connection(topic, msgtype, typestore=typestore())
-                     for topic, msgtype in _TOPICS.items()}
+                     for topic, msgtype in types.items()}
             for time_ns, _, topic, msg in records:
-                writer.write(conns[topic], time_ns, serialize(msg, _TOPICS[topic]))
+                writer.write(conns[topic], time_ns, serialize(msg, types[topic]))
         os.rename(tmp_bag, path)
     except (WriterError, OSError) as exc:
         raise RosError(f"cannot write bag {path}: {exc}") from None

@@ -211,7 +211,7 @@ def follow_joint_trajectory_goal(
         robot_joint_names: Sequence[str] | None = None,
         goal_tolerance: Sequence[float] | None | Literal["controller"] = "controller",
         goal_time_tolerance: float | None = None,
-        controller: TrajectoryController | None = None,
+        controller: TrajectoryController | None = None, stamp_ns: int = 0,
         backend: Backend = "auto") -> Any:
     """``control_msgs/action/FollowJointTrajectory_Goal`` for the arm's trajectory controller.
 
@@ -229,6 +229,9 @@ def follow_joint_trajectory_goal(
             the controller's.
         controller: The robot's trajectory controller; default: the one of the robot
             ``traj`` names (see :func:`controller_of`).
+        stamp_ns: ``trajectory.header.stamp`` [ns]: the clock time of the trajectory's
+            t = 0 (0: start on receipt). A stamp in the past makes the controller join the
+            trajectory where it is by then (how a stop replaces a running motion).
         backend: ``auto``, ``rosbags`` or ``rclpy``.
 
     Raises:
@@ -264,7 +267,7 @@ def follow_joint_trajectory_goal(
                       velocity=0.0, acceleration=0.0)
                 for name, value in zip(pts.names, tolerance, strict=True)] if tolerance else []
     return f.new("control_msgs/action/FollowJointTrajectory_Goal",
-                 trajectory=_build_joint_trajectory(f, pts, 0),
+                 trajectory=_build_joint_trajectory(f, pts, stamp_ns),
                  multi_dof_trajectory=no_multi_dof, path_tolerance=[],
                  component_path_tolerance=[], goal_tolerance=goal_tol,
                  component_goal_tolerance=[],

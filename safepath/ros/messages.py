@@ -3,8 +3,8 @@
 The type store holds the ROS 2 Humble standard types that ship with rosbags, plus
 the definitions written below for the types rosbags lacks:
 
-* ``control_msgs``: FollowJointTrajectory goal/result/feedback and the tolerances,
-  as in control_msgs 4.x (Humble).
+* ``control_msgs``: FollowJointTrajectory and GripperCommand goal/result/feedback, the
+  tolerances and ``GripperCommand``, as in control_msgs 4.x (Humble).
 * ``niryo_ned_ros2_interfaces``: RobotMove and Tool actions, ArmMoveCommand, ToolCommand,
   ShiftPose, RPY, RobotState, DigitalIO(State), ControlConveyor and SetConveyor services,
   with the field lists of Niryo's Ned ROS 2 driver.
@@ -106,6 +106,23 @@ string[] multi_dof_joint_names
 trajectory_msgs/MultiDOFJointTrajectoryPoint multi_dof_desired
 trajectory_msgs/MultiDOFJointTrajectoryPoint multi_dof_actual
 trajectory_msgs/MultiDOFJointTrajectoryPoint multi_dof_error
+""",
+    "control_msgs/msg/GripperCommand": """
+float64 position    # [m] or [rad], the gripper joint's unit
+float64 max_effort  # the controller's unit
+""",
+    "control_msgs/action/GripperCommand_Goal": "control_msgs/GripperCommand command\n",
+    "control_msgs/action/GripperCommand_Result": """
+float64 position    # where the gripper ended [m] or [rad]
+float64 effort
+bool stalled        # stopped before the goal (an object in the way)
+bool reached_goal
+""",
+    "control_msgs/action/GripperCommand_Feedback": """
+float64 position
+float64 effort
+bool stalled
+bool reached_goal
 """,
     # -- Niryo Ned ROS 2 driver -----------------------------------------------------------
     f"{_NIRYO}/msg/RPY": """
