@@ -26,6 +26,7 @@ CASES = [
     ("monitor.py", ["--decisions", "20", "--speeds", "1.6"], "decision latency"),
     ("panda_set.py", ["--limit", "2"], "the same, CPU time"),
     ("pour.py", ["--runs", "2", "--events", "20"], "path-consistent stop"),
+    ("pour_controller.py", ["--runs", "1"], "final masses"),
 ]
 
 

@@ -12,6 +12,9 @@ return the native ``rclpy`` message classes instead (``backend="auto"``).
   section of the robot's ``controller.yaml`` (the Gen3 Lite under ros2_kortex).
 * :mod:`safepath.ros.bag`: write and read a ROS 2 bag (MCAP) of a cycle.
 * :mod:`safepath.ros.controller`: the quality-check cell's state machine, ROS-free.
+* :mod:`safepath.ros.pour_controller`: the gravimetric pour's state machine, ROS-free
+  (:mod:`~safepath.ros.pour_setup` builds it from the pour node's parameters,
+  :mod:`~safepath.ros.pour_sim` dry-runs it on a simulated cell and scale).
 * :mod:`safepath.ros.messages`: the type store and CDR (de)serialisation.
 """
 
@@ -45,6 +48,14 @@ from .goals import (
 )
 from .gripper import gripper_command_goal, gripper_command_goals, gripper_of
 from .messages import deserialize, message_factory, serialize, typestore
+from .pour_controller import (
+    PourController,
+    PourControllerOptions,
+    PourReport,
+    PourState,
+    SendArmGoal,
+    SendGripperGoal,
+)
 
 __all__ = [
     "ActuateGripper",
@@ -57,9 +68,15 @@ __all__ = [
     "CycleReport",
     "Fault",
     "MoveArm",
+    "PourController",
+    "PourControllerOptions",
+    "PourReport",
+    "PourState",
     "QualityCheckController",
     "ROBOT_MOVE_ACTION",
     "RequestVerdict",
+    "SendArmGoal",
+    "SendGripperGoal",
     "SetConveyor",
     "TOOL_ACTION",
     "check_start",

@@ -1,0 +1,438 @@
+"""The gravimetric pour's decision logic, without ROS: an explicit state machine.
+
+As :class:`~safepath.ros.controller.QualityCheckController` does for the quality-check
+cell: events in (weight readings with their stamps, goal results and feedback, clock
+ticks), each with the current clock time [s]; commands out, for the node to carry out.
+No threads and no clock inside: a pour can be replayed in a test.
+
+::
+
+    READY --start()--> BEFORE: the steps before the pour (e.g. the pick route: motions and
+        gripper goals, each after the previous one succeeded)
+    BEFORE --done--> POURING: the planned tilt, as one goal
+    POURING --predicted final mass reaches the target--> STOPPING: a stop goal replaces the
+        tilt (its own knots, then path-consistent braking); the return is computed at once
+    POURING --tilt finished first--> HOLDING: still tilted, still reading
+    HOLDING --target predicted, or hold_timeout--> RETURNING
+    STOPPING --stop done--> RETURNING: the return upright goal
+    RETURNING --done--> AFTER: the steps after the pour (e.g. the place route) --> DONE
+    POURING / HOLDING --no reading for weight_timeout--> STOPPING / RETURNING (scale silent)
+    any --failed or overdue goal--> FAULT (the running goal cancelled)
+    any --kill()--> FAULT: a tilt is braked along its path, any other goal cancelled
+
+The stop and the return never leave the tilt's verified path: the stop holds the tilt's
+own knots then brakes along it (:class:`~safepath.planning.stop.StopPlanner`), the return
+runs the same path backwards, timed by TOPP-RA (:meth:`PourStopper.back`, a few
+milliseconds), so both are computed when the decision is taken, within ``stop_lead``.
+
+Every arm goal carries ``start_time``: the clock time of its trajectory's t = 0, for the
+goal's ``header.stamp``. Motions from rest start ``start_delay`` after they are sent (the
+controller holds the arm at their first point until then), so the controller knows when
+the tilt, and so the commanded flow, began; a stop goal is stamped with the time of its
+first knot, which is already running, so the trajectory controller joins it where the arm
+is; the return starts as soon as the stop has succeeded. Weight readings are stamped with
+the clock time they were taken.
+"""
+
+from __future__ import annotations
+
+import enum
+import logging
+import math
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, field
+from typing import TYPE_CHECKING, Literal
+
+import numpy as np
+
+from ..errors import InputError, SafepathError
+from ..trajectory import GripperEvent, Trajectory
+from .controller import CancelGoal, Fault
+from .pour_parts import MassPredictor, PourStopper
+
+if TYPE_CHECKING:
+    from ..planning.gravimetric import FlowModel
+    from ..planning.pour import PourMotion
+    from ..robot import Robot
+
+__all__ = ["PourCommand", "PourController", "PourControllerOptions",
+           "PourReport", "PourState", "SendArmGoal", "SendGripperGoal"]
+
+logger = logging.getLogger(__name__)
+
+#: Largest jump between the end of one motion and the start of the next [rad].
+JOIN_TOLERANCE = 1e-3
+
+
+class PourState(enum.Enum):
+    """States of :class:`PourController`."""
+
+    READY = "ready"
+    BEFORE = "before"
+    POURING = "pouring"
+    STOPPING = "stopping"
+    HOLDING = "holding"
+    RETURNING = "returning"
+    AFTER = "after"
+    DONE = "done"
+    FAULT = "fault"
+
+
+@dataclass(frozen=True, kw_only=True)
+class PourControllerOptions:
+    """Target and time-outs of the pour.
+
+    Attributes:
+        target: Mass to pour [g].
+        min_reading: Poured masses below this are not used to fit the flow [g].
+        tare_window: The scale's tare is the mean of its readings over this long before
+            the tilt starts [s] (what was in the bowl; the target is what is poured).
+        stop_lead: Time from a decision to the start of braking [s]: the stop goal must
+            reach the trajectory controller before (it holds the tilt's knots until then).
+        start_delay: Time from sending a motion from rest to its start [s].
+        weight_timeout: Longest gap between readings while pouring [s]; then the pour
+            stops and returns upright.
+        hold_timeout: Longest wait at the end of the tilt for the target [s].
+        motion_timeout_margin: Time allowed beyond a motion's duration [s].
+        gripper_timeout: Longest gripper goal [s].
+        sync_tolerance: Largest difference between the trajectory controller's progress
+            (feedback) and the controller's own clock [s].
+    """
+
+    target: float = 100.0
+    min_reading: float = 5.0
+    tare_window: float = 0.5
+    stop_lead: float = 0.05
+    start_delay: float = 0.1
+    weight_timeout: float = 0.5
+    hold_timeout: float = 10.0
+    motion_timeout_margin: float = 5.0
+    gripper_timeout: float = 5.0
+    sync_tolerance: float = 0.1
+
+    def __post_init__(self) -> None:
+        for name in ("target", "tare_window", "stop_lead", "start_delay", "weight_timeout",
+                     "hold_timeout", "motion_timeout_margin", "gripper_timeout",
+                     "sync_tolerance"):
+            value = getattr(self, name)
+            if isinstance(value, bool) or not isinstance(value, (int, float)) \
+                    or not math.isfinite(value) or value <= 0:
+                raise InputError(f"must be a number > 0, got {value!r}", key=name)
+        if not (isinstance(self.min_reading, (int, float)) and math.isfinite(self.min_reading)
+                and self.min_reading >= 0):
+            raise InputError(f"must be a number >= 0 [g], got {self.min_reading!r}",
+                             key="min_reading")
+
+
+# -- commands ------------------------------------------------------------------------------
+@dataclass(frozen=True)
+class SendArmGoal:
+    """Send ``trajectory`` to the arm's trajectory controller; answer with
+    ``on_goal_result(goal_id, ...)``.
+
+    Attributes:
+        goal_id: The goal's id.
+        purpose: ``route`` (a step before or after the pour), ``pour``, ``stop`` or
+            ``return``. A ``stop`` replaces the running ``pour`` goal.
+        trajectory: The motion.
+        start_time: Clock time of the trajectory's t = 0 [s] (the goal's header.stamp).
+    """
+
+    goal_id: int
+    purpose: Literal["route", "pour", "stop", "return"]
+    trajectory: Trajectory = field(repr=False)
+    start_time: float
+
+
+@dataclass(frozen=True)
+class SendGripperGoal:
+    """Open or close the gripper (e.g. :func:`safepath.ros.gripper_command_goal` of
+    ``event.action``); answer with ``on_goal_result(goal_id, ...)``."""
+
+    goal_id: int
+    event: GripperEvent
+
+
+@dataclass(frozen=True)
+class PourReport:
+    """The pour is over.
+
+    Attributes:
+        target: The target [g].
+        tare: The scale's reading before the tilt began [g].
+        last_reading: The last reading when the report was made [g] (poured: minus tare).
+        predicted: The final mass predicted at the decision [g] (None: never decided).
+        gain: The fitted flow gain [g/s/rad^1.5] (None: no usable reading).
+        decided_at: Tilt time of the decision [s] (None: none).
+        reason: Why the pour ended (target predicted, scale silent, hold time-out).
+        stopped: Whether the tilt was braked (False: it had finished).
+    """
+
+    target: float
+    tare: float
+    last_reading: float | None
+    predicted: float | None
+    gain: float | None
+    decided_at: float | None
+    reason: str
+    stopped: bool
+
+
+PourCommand = SendArmGoal | SendGripperGoal | CancelGoal | PourReport | Fault
+
+
+@dataclass
+class _Pending:
+    goal_id: int
+    kind: Literal["route", "pour", "stop", "return", "gripper"]
+    deadline: float
+    start_time: float = 0.0
+
+
+class PourController:
+    """The gravimetric pour's state machine (see the module docstring).
+
+    Not thread-safe: a node calls it from one thread at a time.
+
+    Args:
+        robot: The robot (its limits bound the stop).
+        pour: The planned, verified tilt (:func:`~safepath.planning.pour.plan_tilt`).
+        flow: The controller's model of the cup and the scale (see :class:`MassPredictor`).
+        options: Target and time-outs.
+        still: What the stop and the return pour per unit gain; default: measured on the
+            controller's own stops and returns (:meth:`PourStopper.calibrate_still`).
+        return_angular_speed: Bound on the cup's angular speed on the way back [rad/s].
+        before: Motions and gripper events before the pour, in order (e.g.
+            ``split_at_gripper_events(pick)``); the last motion must end where the tilt
+            starts.
+        after: Motions and gripper events after the return upright.
+    """
+
+    def __init__(self, robot: Robot, pour: PourMotion, flow: FlowModel, *,
+                 options: PourControllerOptions | None = None,
+                 still: Callable[[float], float] | None = None,
+                 return_angular_speed: float = math.radians(30.0),
+                 before: Sequence[Trajectory | GripperEvent] = (),
+                 after: Sequence[Trajectory | GripperEvent] = ()) -> None:
+        self.options = options or PourControllerOptions()
+        self.pour = pour
+        traj = pour.trajectory
+        _check_chain([*before, traj], "before")
+        self._before, self._after = list(before), list(after)
+        self._stopper = PourStopper(robot, pour, return_angular_speed=return_angular_speed)
+        if still is None:
+            still = self._stopper.calibrate_still(flow)
+        self._predictor = MassPredictor(traj.t, pour.tilt, flow, still=still,
+                                        min_reading=self.options.min_reading)
+        self._state = PourState.READY
+        self._queue: list[Trajectory | GripperEvent] = []
+        self._pending: _Pending | None = None
+        self._next_id = 0
+        self._t0 = math.nan  # clock time at which the tilt started
+        self._last_reading: float | None = None
+        self._last_reading_time = math.nan
+        self._early: list[tuple[float, float]] = []  # (stamp, mass) before the tilt
+        self._tare: float | None = None
+        self._hold_since = math.nan
+        self._return: Trajectory | None = None
+        self._decision: tuple[float | None, float | None, str, bool] | None = None
+        self.report: PourReport | None = None
+
+    @property
+    def state(self) -> PourState:
+        """The current state."""
+        return self._state
+
+    @property
+    def predictor(self) -> MassPredictor:
+        """The mass predictor (its fitted gain, for logs and plots)."""
+        return self._predictor
+
+    # -- events ----------------------------------------------------------------------------
+    def start(self, now: float) -> list[PourCommand]:
+        """Run the steps before the pour, then the pour. Only from READY."""
+        if self._state is not PourState.READY:
+            logger.warning("start in state %s: ignored", self._state.value)
+            return []
+        self._state = PourState.BEFORE
+        self._queue = list(self._before)
+        return self._next(now)
+
+    def on_weight(self, mass: float, stamp: float, now: float) -> list[PourCommand]:
+        """A scale reading of ``mass`` [g] taken at clock time ``stamp`` [s]."""
+        if not (math.isfinite(mass) and math.isfinite(stamp)):
+            logger.warning("reading %r at %r ignored (not finite)", mass, stamp)
+            return []
+        self._last_reading, self._last_reading_time = float(mass), float(now)
+        pouring = self._state in (PourState.POURING, PourState.HOLDING)
+        if not pouring or stamp < self._t0:
+            if self._state in (PourState.READY, PourState.BEFORE, PourState.POURING):
+                self._early.append((float(stamp), float(mass)))
+            return []
+        if self._tare is None:
+            recent = [m for t, m in self._early if t >= self._t0 - self.options.tare_window]
+            self._tare = float(np.mean(recent)) if recent else 0.0
+            self._early = []
+        self._predictor.add(mass - self._tare, stamp - self._t0)
+        if self._state is PourState.POURING:
+            tau = now + self.options.stop_lead - self._t0
+        else:
+            tau = now - self._t0
+        predicted = self._predictor.predict(tau)
+        if predicted is not None and predicted >= self.options.target:
+            return self._end_pour(now, f"final mass {predicted:.1f} g predicted", predicted)
+        return []
+
+    def on_goal_result(self, goal_id: int, success: bool, message: str,
+                       now: float) -> list[PourCommand]:
+        """An arm or gripper goal finished. Results of replaced goals are ignored."""
+        pending = self._pending
+        if pending is None or pending.goal_id != goal_id:
+            logger.debug("result of goal %d ignored (not the one awaited)", goal_id)
+            return []
+        self._pending = None
+        if not success:
+            return self._fault(f"{pending.kind} goal {goal_id} failed: {message}",
+                               cancel=False)
+        if pending.kind == "pour":
+            self._state = PourState.HOLDING
+            self._hold_since = now
+            return []
+        if pending.kind == "stop":
+            return self._send_return(now)
+        if pending.kind == "return":
+            self._state = PourState.AFTER
+            self._queue = list(self._after)
+        return self._next(now)
+
+    def on_arm_feedback(self, goal_id: int, time_from_start: float,
+                        now: float) -> list[PourCommand]:
+        """The trajectory controller's progress on a goal (its ``desired.time_from_start``
+        [s]); a tilt that runs out of step with the controller's clock is a fault (the
+        commanded flow would be wrong)."""
+        pending = self._pending
+        if pending is None or pending.goal_id != goal_id or pending.kind != "pour":
+            return []
+        lag = (now - self._t0) - time_from_start
+        if abs(lag) > self.options.sync_tolerance:
+            return self._fault(f"the tilt is {lag:+.3f} s out of step with the clock "
+                               f"(tolerance {self.options.sync_tolerance} s)")
+        return []
+
+    def on_tick(self, now: float) -> list[PourCommand]:
+        """Time passes: time-outs, a silent scale, the hold at the end of the tilt."""
+        opts = self.options
+        if self._state in (PourState.POURING, PourState.HOLDING) and \
+                now - self._last_reading_time > opts.weight_timeout:
+            return self._end_pour(now, f"no weight reading for {opts.weight_timeout:g} s", None)
+        if self._state is PourState.HOLDING and now - self._hold_since > opts.hold_timeout:
+            return self._end_pour(now, f"target not reached {opts.hold_timeout:g} s after "
+                                  f"the tilt ended", None)
+        pending = self._pending
+        if pending is not None and now > pending.deadline:
+            return self._fault(f"{pending.kind} goal {pending.goal_id} overdue")
+        return []
+
+    def kill(self, now: float) -> list[PourCommand]:
+        """Stop everything now: a running tilt brakes along its path, any other goal is
+        cancelled; no further motion (FAULT)."""
+        if self._state in (PourState.DONE, PourState.FAULT, PourState.READY):
+            return []
+        if self._state is PourState.POURING and self._pending is not None:
+            try:
+                stop = self._stop_goal(now)
+            except SafepathError as exc:  # no braking within the limits: cancel instead
+                return self._fault(f"killed (no path-consistent stop: {exc})")
+            return [stop, *self._fault("killed", cancel=False)]
+        return self._fault("killed")
+
+    # -- transitions -----------------------------------------------------------------------
+    def _new_id(self) -> int:
+        self._next_id += 1
+        return self._next_id
+
+    def _arm_goal(self, purpose: Literal["route", "pour", "stop", "return"],
+                  traj: Trajectory, start_time: float) -> SendArmGoal:
+        goal_id = self._new_id()
+        deadline = start_time + traj.duration + self.options.motion_timeout_margin
+        self._pending = _Pending(goal_id, purpose, deadline, start_time)
+        return SendArmGoal(goal_id, purpose, traj, start_time)
+
+    def _next(self, now: float) -> list[PourCommand]:
+        if self._queue:
+            step = self._queue.pop(0)
+            if isinstance(step, GripperEvent):
+                goal_id = self._new_id()
+                self._pending = _Pending(goal_id, "gripper", now + self.options.gripper_timeout)
+                return [SendGripperGoal(goal_id, step)]
+            return [self._arm_goal("route", step, now + self.options.start_delay)]
+        if self._state is PourState.BEFORE:
+            self._state = PourState.POURING
+            goal = self._arm_goal("pour", self.pour.trajectory, now + self.options.start_delay)
+            self._t0 = goal.start_time
+            self._last_reading_time = max(self._last_reading_time, self._t0) \
+                if math.isfinite(self._last_reading_time) else self._t0
+            return [goal]
+        if self._state is PourState.AFTER:
+            self._state = PourState.DONE
+            predicted, decided, reason, stopped = self._decision or (None, None, "", False)
+            self.report = PourReport(self.options.target, self._tare or 0.0,
+                                     self._last_reading, predicted,
+                                     self._predictor.gain, decided, reason, stopped)
+            return [self.report]
+        return []
+
+    def _stop_goal(self, now: float) -> SendArmGoal:
+        tau = now - self._t0
+        stop = self._stopper.stop(tau, tau + self.options.stop_lead)
+        return self._arm_goal("stop", stop, self._t0 + stop.info["time_offset"])
+
+    def _end_pour(self, now: float, reason: str, predicted: float | None) -> list[PourCommand]:
+        """Brake (while pouring) or not (holding at the end), then back upright."""
+        logger.info("pour ends: %s", reason)
+        stopped = self._state is PourState.POURING
+        self._decision = (predicted, now - self._t0, reason, stopped)
+        try:
+            if stopped:
+                stop = self._stop_goal(now)
+                s_rest = float(stop.trajectory.info["s_rest"])
+            else:
+                s_rest = float(self.pour.s[-1])
+            self._return = self._stopper.back(s_rest) if s_rest > 1e-9 else None
+        except SafepathError as exc:
+            return self._fault(f"no stop or return within the limits: {exc}")
+        if stopped:
+            self._state = PourState.STOPPING
+            return [stop]
+        return self._send_return(now)
+
+    def _send_return(self, now: float) -> list[PourCommand]:
+        """The arm is at rest where the tilt stopped: back upright."""
+        if self._return is None:  # stopped before the cup turned at all
+            self._state = PourState.AFTER
+            self._queue = list(self._after)
+            return self._next(now)
+        self._state = PourState.RETURNING
+        return [self._arm_goal("return", self._return, now)]
+
+    def _fault(self, reason: str, *, cancel: bool = True) -> list[PourCommand]:
+        logger.error("pour fault: %s", reason)
+        out: list[PourCommand] = []
+        pending = self._pending
+        if cancel and pending is not None:
+            out.append(CancelGoal(pending.goal_id))
+        self._state = PourState.FAULT
+        self._pending = None
+        self._queue = []
+        out.append(Fault(reason))
+        return out
+
+
+def _check_chain(steps: Sequence[Trajectory | GripperEvent], key: str) -> None:
+    """Consecutive motions of ``steps`` join (each starts where the previous one ends)."""
+    motions = [s for s in steps if isinstance(s, Trajectory)]
+    for k in range(1, len(motions)):
+        jump = float(np.max(np.abs(motions[k].q[0] - motions[k - 1].q[-1])))
+        if not jump <= JOIN_TOLERANCE:
+            raise InputError(f"motion {k} starts {jump:.4g} rad away from where the one "
+                             f"before it ends", key=key)

@@ -1,0 +1,256 @@
+"""What the pour controller computes: the mass it will end with, and the stop goal.
+
+* :class:`MassPredictor`: the controller's model of its own pour. It knows the tilt it
+  commands (the planned tilt motion), the flow law's shape, the scale's latency and the
+  fall time (a :class:`~safepath.planning.gravimetric.FlowModel`), but not the flow gain:
+  it fits the gain to the readings (least squares of each reading against the flow
+  integral of the commanded tilt ``latency + fall_time`` before it) and predicts the final
+  mass if braking began at a given moment: everything poured until then plus what the
+  stop and the return upright pour (``still``, per unit gain). This is the decision rule
+  of :func:`~safepath.planning.gravimetric.simulate_pour`, fed one reading at a time.
+* :class:`PourStopper`: the stop goal for a running tilt. It holds the tilt's own knots
+  from the present one to the braking point, then the fastest path-consistent braking
+  (:class:`~safepath.planning.stop.StopPlanner`): every sample is a state ``q(s)`` of the
+  verified path, within the joint limits, so the trajectory controller that receives it
+  (stamped with the clock time of its first knot) joins it where the arm is and never
+  leaves the verified path.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from collections.abc import Callable
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from ..errors import InputError
+from ..trajectory import Trajectory
+
+if TYPE_CHECKING:
+    from ..planning._path_limits import PathSpline
+    from ..planning.gravimetric import FlowModel
+    from ..planning.pour import PourMotion
+    from ..planning.timing import TimedPiece, TimingOptions
+    from ..robot import Robot
+
+__all__ = ["MassPredictor", "PourStopper"]
+
+
+class MassPredictor:
+    """Fits the flow gain to the scale and predicts the final mass (see the module doc).
+
+    Args:
+        t: Times of the commanded tilt motion [s] (from its start).
+        tilt: The cup's tilt at those times [rad]; held at the last value afterwards.
+        flow: The flow law's shape, the scale's latency and the fall time (its ``gain``
+            and ``noise`` are not used: the gain is fitted).
+        still: What the stop and the return upright pour from a tilt, per unit gain [s]
+            (:func:`~safepath.planning.gravimetric.calibrate_still`); default: braking for
+            ``brake_time`` at the current rate, then turning back at ``return_speed``.
+        min_reading: Readings below this are not used for the fit [g].
+        return_speed: Angular speed of the return assumed without ``still`` [rad/s].
+        brake_time: Braking time assumed without ``still`` [s].
+
+    Raises:
+        InputError: Times not increasing, or tilts of another length or not finite.
+    """
+
+    def __init__(self, t: np.ndarray, tilt: np.ndarray, flow: FlowModel, *,
+                 still: Callable[[float], float] | None = None, min_reading: float = 5.0,
+                 return_speed: float = math.radians(30.0), brake_time: float = 0.25) -> None:
+        t, tilt = np.asarray(t, dtype=float), np.asarray(tilt, dtype=float)
+        if t.ndim != 1 or t.size < 2 or not np.all(np.diff(t) > 0):
+            raise InputError("expected at least two strictly increasing times [s]", key="t")
+        if tilt.shape != t.shape or not np.all(np.isfinite(tilt)):
+            raise InputError(f"expected {t.size} finite tilts [rad]", key="tilt")
+        self.flow = flow
+        self._t, self._tilt = t, tilt
+        rate = dataclasses.replace(flow, gain=1.0).rate(tilt)
+        self._rate_end = float(rate[-1])
+        self._cum = np.concatenate([[0.0], np.cumsum(0.5 * (rate[1:] + rate[:-1]) * np.diff(t))])
+        self._still = still
+        self._min_reading = min_reading
+        self._return_speed, self._brake_time = return_speed, brake_time
+        self._num = self._den = 0.0
+        self.readings = 0
+
+    def tilt(self, tau: float) -> float:
+        """Commanded tilt at motion time ``tau`` [s] [rad]."""
+        return float(np.interp(tau, self._t, self._tilt))
+
+    def poured(self, tau: float) -> float:
+        """Flow integral of the commanded tilt up to motion time ``tau``, per unit gain [s]."""
+        if tau <= self._t[0]:
+            return 0.0
+        if tau >= self._t[-1]:
+            return float(self._cum[-1]) + self._rate_end * (tau - float(self._t[-1]))
+        return float(np.interp(tau, self._t, self._cum))
+
+    def add(self, mass: float, tau: float) -> None:
+        """A reading of ``mass`` [g] taken at motion time ``tau`` [s]."""
+        seen = self.poured(tau - self.flow.latency - self.flow.fall_time)
+        self.readings += 1
+        if mass >= self._min_reading and seen > 0.0:
+            self._num += mass * seen
+            self._den += seen * seen
+
+    @property
+    def gain(self) -> float | None:
+        """The fitted flow gain [g/s/rad^1.5], None before a usable reading."""
+        return self._num / self._den if self._den > 0.0 else None
+
+    def coming(self, theta: float) -> float:
+        """What the stop and the return pour from tilt ``theta``, per unit gain [s]."""
+        if self._still is not None:
+            return float(self._still(theta))
+        x = max(theta - self.flow.spill_angle, 0.0)
+        return x ** 1.5 * self._brake_time + x ** 2.5 / (2.5 * self._return_speed)
+
+    def predict(self, tau: float) -> float | None:
+        """Final mass if braking began at motion time ``tau`` [g] (None: no fit yet)."""
+        gain = self.gain
+        if gain is None:
+            return None
+        return gain * (self.poured(tau) + self.coming(self.tilt(tau)))
+
+
+class PourStopper:
+    """Stop goals and returns upright for a planned tilt (see the module doc).
+
+    Args:
+        robot: The robot (its limits bound the braking and the return).
+        motion: The planned, verified tilt.
+        return_angular_speed: Bound on the cup's angular speed on the way back [rad/s].
+        timing: TOPP-RA options of the return.
+    """
+
+    def __init__(self, robot: Robot, motion: PourMotion, *,
+                 return_angular_speed: float = math.radians(30.0),
+                 timing: TimingOptions | None = None) -> None:
+        from ..planning.stop import StopPlanner
+        from ..planning.timing import TimingOptions
+
+        if not (math.isfinite(return_angular_speed) and return_angular_speed > 0):
+            raise InputError(f"must be > 0 [rad/s], got {return_angular_speed!r}",
+                             key="return_angular_speed")
+        self.robot, self.motion = robot, motion
+        traj = motion.trajectory
+        self.planner = StopPlanner(robot, motion.path,
+                                   timed=(traj.t, motion.s, traj.q, traj.qd, traj.qdd))
+        # On a rotation about a fixed point the TCP speed is the angular speed times the
+        # TCP's distance to it: the bound becomes a TCP speed limit, as in plan_tilt.
+        turning = motion.angular_speed > 1e-6
+        lever = float(np.median(motion.tcp_speed[turning] / motion.angular_speed[turning])) \
+            if turning.any() else 0.0
+        self.return_tcp_speed = return_angular_speed * lever if lever > 0 else None
+        self.timing = timing or TimingOptions(spacing=0.2)
+
+    def tilt_at(self, s: np.ndarray | float) -> np.ndarray:
+        """Tilt of the cup at path parameters ``s`` of the tilt's path [rad]."""
+        return np.interp(s, self.motion.s, self.motion.tilt)
+
+    def _stop_arrays(self, tau_now: float, tau_brake: float
+                     ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray,
+                                int, int]:
+        from ..planning.stop import path_state
+
+        motion, traj = self.motion, self.motion.trajectory
+        t = traj.t
+        k0 = int(np.clip(np.searchsorted(t, tau_now, side="right") - 1, 0, t.size - 2))
+        kb = int(np.searchsorted(t, max(tau_brake, t[k0]), side="left"))
+        if kb >= t.size - 1:  # the motion's own end comes first
+            kb = t.size - 1
+            return (t[k0:] - t[k0], motion.s[k0:], traj.q[k0:], traj.qd[k0:], traj.qdd[k0:],
+                    k0, kb)
+        s, sd = path_state(motion.path, motion.s, traj.qd, t, float(t[kb]))
+        braking = self.planner.stop(s, sd, time=float(t[kb]))
+        return (np.concatenate([t[k0:kb + 1] - t[k0], t[kb] - t[k0] + braking.t[1:]]),
+                np.concatenate([motion.s[k0:kb + 1], braking.s[1:]]),
+                np.vstack([traj.q[k0:kb + 1], braking.q[1:]]),
+                np.vstack([traj.qd[k0:kb + 1], braking.qd[1:]]),
+                np.vstack([traj.qdd[k0:kb + 1], braking.qdd[1:]]), k0, kb)
+
+    def stop(self, tau_now: float, tau_brake: float) -> Trajectory:
+        """The stop goal when the arm is at motion time ``tau_now`` [s] and braking may
+        begin at ``tau_brake`` [s] (the first knot at or after it).
+
+        The trajectory starts at the last knot at or before ``tau_now`` (its
+        ``info['time_offset']`` is that knot's motion time: stamp the goal with the clock
+        time of it), follows the motion's own knots to the braking knot, then brakes;
+        ``info['s_rest']`` is the path parameter where it comes to rest. When braking
+        cannot end before the path does, the rest of the motion (which comes to rest at
+        its end) is the stop.
+
+        Raises:
+            TimingError: A braking sample would break a limit.
+        """
+        traj = self.motion.trajectory
+        tt, s, q, qd, qdd, k0, kb = self._stop_arrays(tau_now, tau_brake)
+        return Trajectory(traj.joint_names, tt, q, qd, qdd, np.zeros(tt.size, dtype=int),
+                          ("stop",), (), traj.robot, f"{traj.route}:stop",
+                          {"time_offset": float(traj.t[k0]), "brake_at": float(traj.t[kb]),
+                           "s_rest": float(s[-1])})
+
+    def back(self, s_rest: float) -> Trajectory:
+        """Back upright from rest at path parameter ``s_rest``: the tilt's own path in
+        reverse (every sample a state ``q(s)`` of the verified path), timed rest to rest
+        by TOPP-RA within the joint limits and ``return_angular_speed``.
+
+        Raises:
+            InputError: ``s_rest`` not within the path (or at its start: nothing to undo).
+            TimingError: No timing within the limits.
+        """
+        piece, s_rest = self._back_piece(s_rest)
+        traj = self.motion.trajectory
+        return Trajectory(traj.joint_names, piece.t, piece.q, piece.qd, piece.qdd,
+                          np.zeros(piece.t.size, dtype=int), ("return",), (), traj.robot,
+                          f"{traj.route}:return", {"s_from": s_rest})
+
+    def _back_piece(self, s_rest: float) -> tuple[TimedPiece, float]:
+        from ..planning.timing import time_path
+
+        end = float(self.motion.path.x[-1])
+        if not (math.isfinite(s_rest) and 1e-9 < s_rest <= end + 1e-12):
+            raise InputError(f"expected a path parameter in (0, {end:.6g}], got {s_rest!r}",
+                             key="s_rest")
+        s_rest = min(float(s_rest), end)
+        piece = time_path(self.robot, _Reversed(self.motion.path, s_rest),
+                          np.array([0.0, s_rest]), scales=[1.0],
+                          tcp_speeds=[self.return_tcp_speed], options=self.timing,
+                          step="return")
+        return piece, s_rest
+
+    def stop_and_back(self, tau: float) -> tuple[np.ndarray, np.ndarray]:
+        """Times from ``tau`` [s] and tilts [rad] of braking at ``tau`` and returning."""
+        tt, s, *_ = self._stop_arrays(tau, tau)
+        piece, s_rest = self._back_piece(float(s[-1]))
+        times = np.concatenate([tt, tt[-1] + piece.t[1:]])
+        return times, self.tilt_at(np.concatenate([s, s_rest - piece.s[1:]]))
+
+    def calibrate_still(self, flow: FlowModel, *, samples: int = 6) -> Callable[[float], float]:
+        """What the stop and the return pour from a tilt, per unit gain [s], measured on
+        this stopper's own stops and returns (for :class:`MassPredictor`)."""
+        from ..planning.gravimetric import calibrate_still
+
+        traj = self.motion.trajectory
+
+        def stop(event: float) -> tuple[np.ndarray, np.ndarray, float]:
+            t, tilt = self.stop_and_back(event)
+            return t, tilt, 0.0
+
+        return calibrate_still(stop, lambda x: float(np.interp(x, traj.t, self.motion.tilt)),
+                               traj.duration, flow, samples=samples)
+
+
+class _Reversed:
+    """A joint path run backwards from ``s_end``: ``u -> path(s_end - u)``."""
+
+    def __init__(self, path: PathSpline, s_end: float) -> None:
+        self.path, self.s_end = path, s_end
+        inner = path.x[(path.x > 0.0) & (path.x < s_end)]
+        self.x = np.concatenate([[0.0], (s_end - inner)[::-1], [s_end]])
+
+    def __call__(self, s: np.ndarray | float, nu: int = 0) -> np.ndarray:
+        return np.asarray(self.path(self.s_end - np.asarray(s), nu)) * (-1.0) ** nu
