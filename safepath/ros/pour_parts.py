@@ -193,6 +193,21 @@ class PourStopper:
                           {"time_offset": float(traj.t[k0]), "brake_at": float(traj.t[kb]),
                            "s_rest": float(s[-1])})
 
+    def until(self, stop: Trajectory) -> Trajectory:
+        """The part of the tilt that ran before ``stop`` (one of :meth:`stop`'s) took over,
+        for a bag or a plot of what the arm did: tilt, then stop, then :meth:`back`.
+
+        Raises:
+            InputError: ``stop`` took over at the tilt's very start (nothing ran before).
+        """
+        from .goals import _segment
+
+        offset = float(stop.info.get("time_offset", 0.0))
+        traj = self.motion.trajectory
+        if not offset > traj.t[0]:
+            raise InputError("the stop took over at the start of the tilt", key="stop")
+        return _segment(traj, float(traj.t[0]), offset, 0)
+
     def back(self, s_rest: float) -> Trajectory:
         """Back upright from rest at path parameter ``s_rest``: the tilt's own path in
         reverse (every sample a state ``q(s)`` of the verified path), timed rest to rest

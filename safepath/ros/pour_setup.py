@@ -123,6 +123,7 @@ class PourSetup:
         controller: The pour's controller.
         before: Steps before the pour (the pick route split at its gripper events).
         after: Steps after the return upright (the place route).
+        routes: The planned pick and place routes, whole (with their gripper events).
     """
 
     cell: Cell
@@ -130,6 +131,7 @@ class PourSetup:
     controller: PourController
     before: tuple[Trajectory | GripperEvent, ...]
     after: tuple[Trajectory | GripperEvent, ...]
+    routes: Mapping[str, Trajectory]
 
 
 def build_pour(params: PourParameters) -> PourSetup:
@@ -175,7 +177,7 @@ def build_pour(params: PourParameters) -> PourSetup:
                                     weight_timeout=params.weight_timeout)
     controller = PourController(cell.robot, tilt, flow, options=options, before=before,
                                 after=after, return_angular_speed=params.return_speed)
-    return PourSetup(cell, tilt, controller, before, after)
+    return PourSetup(cell, tilt, controller, before, after, planned)
 
 
 def _number(value: Any) -> bool:

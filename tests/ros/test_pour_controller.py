@@ -115,15 +115,15 @@ def test_kill_brakes_the_tilt_on_its_path_and_nothing_follows(pour: Pour) -> Non
     goals = [c for _, c in commands_of(run, SendArmGoal)]
     assert [g.purpose for g in goals] == ["pour", "stop"]
     stop = goals[1].trajectory
-    # Braked along the tilt's path: every sample is q(s) of the verified motion, and the
-    # arm ends at rest where the stop ends.
-    traj = pour.motion.trajectory
-    s = np.interp(stop.t + stop.info["time_offset"], traj.t, pour.motion.s)
-    assert np.max(np.abs(stop.qd[-1])) == 0.0
-    assert np.max(np.abs(run.q[-1] - stop.q[-1])) < 1e-12
-    assert stop.duration < 1.0 and stop.q[-1] is not None
+    # Braked along the tilt's path: it comes to rest at a state q(s) of the verified path,
+    # before the tilt's end, within the limits, and the arm stays there.
+    s_rest = stop.info["s_rest"]
+    assert 0.0 < s_rest < pour.motion.s[-1]
+    np.testing.assert_allclose(stop.q[-1], pour.motion.path(np.array([s_rest]))[0], atol=1e-12)
+    assert np.max(np.abs(stop.qd[-1])) == 0.0 and stop.duration < 1.0
+    assert np.all(np.abs(stop.qd) <= pour.cell.robot.velocity_limits * (1 + 1e-9))
     assert np.all(np.abs(stop.qdd) <= pour.cell.robot.acceleration_limits * (1 + 1e-9))
-    assert s[-1] < pour.motion.s[-1]
+    assert np.max(np.abs(run.q[-1] - stop.q[-1])) < 1e-12
     # A killed controller takes no more events.
     assert ctrl.on_weight(200.0, 20.0, 20.0) == [] and ctrl.on_tick(30.0) == []
 
@@ -237,13 +237,12 @@ def test_predictor_recovers_the_gain_from_clean_readings() -> None:
 def test_bag_of_a_pour_with_its_stop_and_return(pour: Pour, tmp_path: Path) -> None:
     """The executed tilt (up to the stop's first knot), the stop and the return upright,
     back to back, with their FollowJointTrajectory goals, read back from the MCAP."""
-    traj = pour.motion.trajectory
     stopper = PourStopper(pour.cell.robot, pour.motion)
     stop = stopper.stop(9.0, 9.05)
-    from safepath.ros.goals import _segment
-
-    executed = _segment(traj, 0.0, stop.info["time_offset"], 0)
-    back = pour.plan_return(stop.q[-1])
+    executed = stopper.until(stop)
+    assert executed.t[-1] == stop.info["time_offset"] and executed.t[-1] <= 9.0
+    np.testing.assert_array_equal(executed.q[-1], stop.q[0])
+    back = pour.plan_return(stop.q[-1])  # planned from scratch: IK, TOPP-RA, FCL
     start = 1_700_000_000 * 10**9
     bag = read_bag(write_bag(tmp_path / "pour", [executed, stop, back], start_time_ns=start,
                              goals=True))
@@ -296,3 +295,30 @@ def test_what_was_in_the_bowl_is_tared(pour: Pour) -> None:
     assert abs(run.final_mass - 100.0) <= 2.0  # poured, on top of the 30 g
     assert run.readings[-1][1] == pytest.approx(30.0 + run.final_mass, abs=1.0)
     assert run.decision_time is not None and run.decision_time < 0.5  # generous
+
+
+def test_stop_goal_as_the_node_sends_it(pour: Pour) -> None:
+    """The stop is stamped with the clock time of its first knot (already running), so
+    the trajectory controller samples it where the arm is; CDR round trip of the goal."""
+    from safepath.ros.goals import follow_joint_trajectory_goal
+    from safepath.ros.messages import deserialize, serialize
+
+    ctrl = pour.controller()
+    (tilt,) = ctrl.start(1000.0)
+    assert isinstance(tilt, SendArmGoal)
+    t0 = tilt.start_time
+    for k in range(1, 400):  # readings until the scale goes silent at t0 + 5 s
+        ctrl.on_weight(0.0, t0 + k * 0.0125, t0 + k * 0.0125)
+    (stop,) = ctrl.on_tick(t0 + 5.6)
+    assert isinstance(stop, SendArmGoal) and stop.purpose == "stop"
+    assert t0 + 5.6 - 0.005 <= stop.start_time <= t0 + 5.6
+    goal = follow_joint_trajectory_goal(stop.trajectory, stamp_ns=round(stop.start_time * 1e9),
+                                        backend="rosbags")
+    back = deserialize(serialize(goal), "control_msgs/action/FollowJointTrajectory_Goal")
+    stamp = back.trajectory.header.stamp
+    assert stamp.sec * 10**9 + stamp.nanosec == round(stop.start_time * 1e9)
+    first = back.trajectory.points[0]
+    assert (first.time_from_start.sec, first.time_from_start.nanosec) == (0, 0)
+    k0 = int(np.searchsorted(pour.motion.trajectory.t, stop.trajectory.info["time_offset"]))
+    np.testing.assert_array_equal(first.positions, pour.motion.trajectory.q[k0])
+    assert back.goal_tolerance == []  # robots/gen3_lite/controller.yaml: the controller's own

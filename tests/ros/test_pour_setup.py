@@ -9,6 +9,7 @@ import py_compile
 from pathlib import Path
 from typing import Any
 
+import numpy as np
 import pytest
 import yaml
 
@@ -93,3 +94,32 @@ def test_missing_parameter_and_wrong_robot() -> None:
     with pytest.raises(InputError, match="holds robot 'gen3_lite', not 'ned3pro'") as info:
         build_pour(PourParameters.from_mapping(values))
     assert info.value.key == "robot"
+
+
+def test_bag_of_pick_pour_place_with_gripper_goals(setup: PourSetup, tmp_path: Path) -> None:
+    """Pick (with its gripper events), the tilt until a stop, the stop, the return
+    upright, place: one bag with every goal the node sends, read back."""
+    from safepath.ros.bag import ARM_GOAL_TOPIC, GRIPPER_GOAL_TOPIC, read_bag, write_bag
+    from safepath.ros.pour_parts import PourStopper
+
+    pick, place = setup.routes["pick_cup"], setup.routes["place_cup"]
+    stopper = PourStopper(setup.cell.robot, setup.tilt)
+    stop = stopper.stop(15.0, 15.05)
+    back = stopper.back(stop.info["s_rest"])
+    sequence = [pick, stopper.until(stop), stop, back, place]
+    start = 1_700_000_000 * 10**9
+    bag = read_bag(write_bag(tmp_path / "pour", sequence, start_time_ns=start, goals=True))
+    arm = bag.on(ARM_GOAL_TOPIC)
+    assert len(arm) == 5
+    begins = np.cumsum([0] + [round(t.duration * 1e9) for t in sequence[:-1]])
+    assert [m.timestamp - start for m in arm] == list(begins)
+    for m, traj in zip(arm, sequence, strict=True):
+        pts = m.msg.trajectory.points
+        np.testing.assert_array_equal(pts[-1].positions, traj.q[-1])
+        assert m.msg.trajectory.joint_names == list(traj.joint_names)
+    grip = bag.on(GRIPPER_GOAL_TOPIC)
+    expected = [(begins[0] + round(e.time * 1e9), e.action) for e in pick.events] + \
+        [(begins[4] + round(e.time * 1e9), e.action) for e in place.events]
+    assert [(m.timestamp - start, "close" if m.msg.command.position == 0.8 else "open")
+            for m in grip] == expected
+    assert [m.msg.command.position for m in grip] == [0.0, 0.8, 0.0]
