@@ -22,8 +22,10 @@ No threads and no clock inside: a pour can be replayed in a test.
 
 The stop and the return never leave the tilt's verified path: the stop holds the tilt's
 own knots then brakes along it (:class:`~safepath.planning.stop.StopPlanner`), the return
-runs the same path backwards, timed by TOPP-RA (:meth:`PourStopper.back`, a few
-milliseconds), so both are computed when the decision is taken, within ``stop_lead``.
+runs the same path backwards, timed by TOPP-RA (:meth:`PourStopper.back`); both are
+re-checked by the independent FCL verifier. The stop is computed when the decision is
+taken (a few milliseconds, well within ``stop_lead``), the return at the next tick, while
+the arm brakes.
 
 Every arm goal carries ``start_time``: the clock time of its trajectory's t = 0, for the
 goal's ``header.stamp``. Motions from rest start ``start_delay`` after they are sent (the
@@ -51,9 +53,9 @@ from .controller import CancelGoal, Fault
 from .pour_parts import MassPredictor, PourStopper
 
 if TYPE_CHECKING:
+    from ..cell import Cell
     from ..planning.gravimetric import FlowModel
     from ..planning.pour import PourMotion
-    from ..robot import Robot
 
 __all__ = ["PourCommand", "PourController", "PourControllerOptions",
            "PourReport", "PourState", "SendArmGoal", "SendGripperGoal"]
@@ -195,7 +197,8 @@ class PourController:
     Not thread-safe: a node calls it from one thread at a time.
 
     Args:
-        robot: The robot (its limits bound the stop).
+        cell: The cell the tilt was planned in (limits, scene and held cup: the stop and
+            the return are re-checked in it).
         pour: The planned, verified tilt (:func:`~safepath.planning.pour.plan_tilt`).
         flow: The controller's model of the cup and the scale (see :class:`MassPredictor`).
         options: Target and time-outs.
@@ -208,7 +211,7 @@ class PourController:
         after: Motions and gripper events after the return upright.
     """
 
-    def __init__(self, robot: Robot, pour: PourMotion, flow: FlowModel, *,
+    def __init__(self, cell: Cell, pour: PourMotion, flow: FlowModel, *,
                  options: PourControllerOptions | None = None,
                  still: Callable[[float], float] | None = None,
                  return_angular_speed: float = math.radians(30.0),
@@ -219,7 +222,7 @@ class PourController:
         traj = pour.trajectory
         _check_chain([*before, traj], "before")
         self._before, self._after = list(before), list(after)
-        self._stopper = PourStopper(robot, pour, return_angular_speed=return_angular_speed)
+        self._stopper = PourStopper(cell, pour, return_angular_speed=return_angular_speed)
         if still is None:
             still = self._stopper.calibrate_still(flow)
         self._predictor = MassPredictor(traj.t, pour.tilt, flow, still=still,
@@ -235,6 +238,7 @@ class PourController:
         self._tare: float | None = None
         self._hold_since = math.nan
         self._return: Trajectory | None = None
+        self._s_rest = 0.0  # path parameter where the tilt comes to rest
         self._decision: tuple[float | None, float | None, str, bool] | None = None
         self.report: PourReport | None = None
 
@@ -328,6 +332,10 @@ class PourController:
         if self._state is PourState.HOLDING and now - self._hold_since > opts.hold_timeout:
             return self._end_pour(now, f"target not reached {opts.hold_timeout:g} s after "
                                   f"the tilt ended", None)
+        if self._state is PourState.STOPPING:
+            problem = self._prepare_return()
+            if problem is not None:
+                return self._fault(problem)
         pending = self._pending
         if pending is not None and now > pending.deadline:
             return self._fault(f"{pending.kind} goal {pending.goal_id} overdue")
@@ -388,26 +396,40 @@ class PourController:
         return self._arm_goal("stop", stop, self._t0 + stop.info["time_offset"])
 
     def _end_pour(self, now: float, reason: str, predicted: float | None) -> list[PourCommand]:
-        """Brake (while pouring) or not (holding at the end), then back upright."""
+        """Brake (while pouring) or not (holding at the end), then back upright.
+
+        Only the stop is computed here (the decision's latency); the return is computed
+        at the next event (a tick), while the arm brakes."""
         logger.info("pour ends: %s", reason)
         stopped = self._state is PourState.POURING
         self._decision = (predicted, now - self._t0, reason, stopped)
+        self._return = None
+        if not stopped:  # at rest at the end of the tilt
+            self._s_rest = float(self.pour.s[-1])
+            return self._send_return(now)
         try:
-            if stopped:
-                stop = self._stop_goal(now)
-                s_rest = float(stop.trajectory.info["s_rest"])
-            else:
-                s_rest = float(self.pour.s[-1])
-            self._return = self._stopper.back(s_rest) if s_rest > 1e-9 else None
+            stop = self._stop_goal(now)
         except SafepathError as exc:
-            return self._fault(f"no stop or return within the limits: {exc}")
-        if stopped:
-            self._state = PourState.STOPPING
-            return [stop]
-        return self._send_return(now)
+            return self._fault(f"no path-consistent stop: {exc}")
+        self._s_rest = float(stop.trajectory.info["s_rest"])
+        self._state = PourState.STOPPING
+        return [stop]
+
+    def _prepare_return(self) -> str | None:
+        """Compute the return upright from where the stop ends (None: done, else why not)."""
+        if self._return is not None or self._s_rest <= 1e-9:
+            return None
+        try:
+            self._return = self._stopper.back(self._s_rest)
+        except SafepathError as exc:
+            return f"no return upright within the limits: {exc}"
+        return None
 
     def _send_return(self, now: float) -> list[PourCommand]:
         """The arm is at rest where the tilt stopped: back upright."""
+        problem = self._prepare_return()
+        if problem is not None:
+            return self._fault(problem)
         if self._return is None:  # stopped before the cup turned at all
             self._state = PourState.AFTER
             self._queue = list(self._after)

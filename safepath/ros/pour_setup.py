@@ -175,7 +175,7 @@ def build_pour(params: PourParameters) -> PourSetup:
                      spill_angle=params.spill_angle)
     options = PourControllerOptions(target=params.target, stop_lead=params.stop_lead,
                                     weight_timeout=params.weight_timeout)
-    controller = PourController(cell.robot, tilt, flow, options=options, before=before,
+    controller = PourController(cell, tilt, flow, options=options, before=before,
                                 after=after, return_angular_speed=params.return_speed)
     return PourSetup(cell, tilt, controller, before, after, planned)
 

@@ -41,6 +41,8 @@ class Run:
         readings: (stamp [s], reading [g]) of the scale.
         report: The controller's report (None: it did not finish).
         decision_time: Wall time of the event call that sent the stop [s] (None: none).
+        tick_time: Longest wall time of a tick call [s] (the one that computed the return
+            upright, when there was a stop).
         faults: Faults the controller reported.
     """
 
@@ -52,6 +54,7 @@ class Run:
     readings: list[tuple[float, float]]
     report: PourReport | None
     decision_time: float | None = None
+    tick_time: float = 0.0
     faults: list[Fault] = field(default_factory=list)
 
 
@@ -71,6 +74,7 @@ class PourSim:
         self.axis = cup_axis_in_tcp(cell)
         self.gripper_time, self.initial_mass = gripper_time, initial_mass
         self.decision_time: float | None = None
+        self.tick_time = 0.0
         self.rng = np.random.default_rng(truth.seed)
         self.now = 0.0
         self.arm: tuple[int, Trajectory, float] | None = None  # (goal id, trajectory, start)
@@ -193,14 +197,17 @@ class PourSim:
             if kill_at is not None and self.now >= kill_at:
                 kill_at = None
                 self.handle(ctrl.kill(self.now))
-            self.handle(ctrl.on_tick(self.now))
+            start = time.perf_counter()
+            cmds = ctrl.on_tick(self.now)
+            self.tick_time = max(self.tick_time, time.perf_counter() - start)
+            self.handle(cmds)
             if done_at is None and (ctrl.report is not None or self.faults) and self.arm is None:
                 done_at = self.now
             if done_at is not None and self.now > done_at + truth.latency + truth.fall_time + 0.5:
                 break
         return Run(self.out[-1], self.log, np.array(self.ts), np.array(self.qs),
                    np.array(self.tilts), self.readings, ctrl.report, self.decision_time,
-                   self.faults)
+                   self.tick_time, self.faults)
 
 
 def commands_of(run: Run, kind: type) -> list[tuple[float, PourCommand]]:

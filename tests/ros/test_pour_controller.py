@@ -56,7 +56,7 @@ class Pour:
         R1 = pin.exp3(np.array([-1.0, 0.0, 0.0]) * math.radians(115)) @ T0.rotation
         self.motion: PourMotion = plan_tilt(
             cell, self.q0, R1, self.pivot, options=PourOptions(max_angular_speed=math.radians(5)))
-        self.stopper = PourStopper(cell.robot, self.motion)
+        self.stopper = PourStopper(cell, self.motion)
         self.still = self.stopper.calibrate_still(FlowModel())
 
     def plan_return(self, q: np.ndarray) -> Trajectory:
@@ -66,7 +66,7 @@ class Pour:
     def controller(self, latency: float = 0.1, **kwargs: object) -> PourController:
         """The controller knows the scale's latency, the fall time and the flow law's shape,
         not the flow gain."""
-        return PourController(self.cell.robot, self.motion, FlowModel(latency=latency),
+        return PourController(self.cell, self.motion, FlowModel(latency=latency),
                               still=self.still, **kwargs)  # type: ignore[arg-type]
 
 
@@ -237,7 +237,7 @@ def test_predictor_recovers_the_gain_from_clean_readings() -> None:
 def test_bag_of_a_pour_with_its_stop_and_return(pour: Pour, tmp_path: Path) -> None:
     """The executed tilt (up to the stop's first knot), the stop and the return upright,
     back to back, with their FollowJointTrajectory goals, read back from the MCAP."""
-    stopper = PourStopper(pour.cell.robot, pour.motion)
+    stopper = PourStopper(pour.cell, pour.motion)
     stop = stopper.stop(9.0, 9.05)
     executed = stopper.until(stop)
     assert executed.t[-1] == stop.info["time_offset"] and executed.t[-1] <= 9.0

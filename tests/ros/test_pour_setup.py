@@ -103,7 +103,7 @@ def test_bag_of_pick_pour_place_with_gripper_goals(setup: PourSetup, tmp_path: P
     from safepath.ros.pour_parts import PourStopper
 
     pick, place = setup.routes["pick_cup"], setup.routes["place_cup"]
-    stopper = PourStopper(setup.cell.robot, setup.tilt)
+    stopper = PourStopper(setup.cell, setup.tilt)
     stop = stopper.stop(15.0, 15.05)
     back = stopper.back(stop.info["s_rest"])
     sequence = [pick, stopper.until(stop), stop, back, place]
