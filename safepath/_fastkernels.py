@@ -12,7 +12,6 @@ limits), UNSURE (ask the exact checker).
 from __future__ import annotations
 
 import math
-from collections import namedtuple
 
 import numpy as np
 from numba import njit
@@ -48,35 +47,52 @@ SPHERES_ONLY = -1
 GW, GIW = 19, 8
 JOINT_FIXED, JOINT_REVOLUTE, JOINT_PRISMATIC = 0, 1, 2
 
-#: Scratch arrays of one evaluation (allocated once per kernel call).
-#: ``warm`` holds, per pair, the last direction GJK found (the next state's first guess).
-Workspace = namedtuple("Workspace", ["Rw", "pw", "tmp", "tmp2", "Ra", "pa", "da", "Rb", "pb",
-                                     "db", "axes", "Cw", "bufa", "bufb", "simplex", "sa", "sb",
-                                     "gv", "warm", "absu", "DL", "CC", "hint", "budget"])
+#: Scratch of one kernel call: the joint frames ``Rw`` (nj, 3, 3) and ``pw`` (nj, 3), one
+#: float buffer ``wf`` and one int buffer ``wi``. Helpers take these four arrays, never a
+#: tuple of many: a numba call pays the reference counts (and copies the descriptors) of
+#: every array it is passed, ~10 ns each, and the per-pair helpers run millions of times a
+#: second. ``wf`` starts with fixed slots (W_*: two 3-vectors, two placed shapes, the
+#: separating-axis candidates, GJK's simplex and supports, a local joint placement); the
+#: per-checker blocks follow, where ``wi``'s header says (WI_*); ``wi`` then holds, per
+#: pair, the hull vertices where GJK's support searches start.
+W_TMP, W_TMP2, W_RA, W_PA, W_DA, W_RB, W_PB, W_DB = 0, 3, 6, 15, 18, 21, 30, 33
+W_AXES, W_S, W_SA, W_SB, W_GV, W_M, W_T = 36, 108, 120, 123, 126, 129, 138
+W_FIXED = 141
+#: Blocks of ``wf``: world bounding-sphere centres of the movers (ng, 3); two placed sphere
+#: sets (ns, 5) each; per pair, the last direction GJK found (3: the next state's first
+#: guess) and the clearance budget of the last evaluation; |u| (dof); per mover and joint,
+#: its distance to the joint's axis (DL) and how fast that can grow (CC) (ng, dof).
+WI_CW, WI_BUFA, WI_BUFB, WI_WARM, WI_ABSU, WI_DL, WI_CC, WI_BUDGET, WI_HINT = range(9)
+WI_HEADER = 9
 
 
 @njit(cache=True, nogil=True)
 def _workspace(ib):
-    nj, ng, ns, npairs = ib[H_NJ], ib[H_NG], ib[H_NS], ib[H_NP]
-    return Workspace(np.empty((nj, 3, 3)), np.empty((nj, 3)), np.empty(3), np.empty(3),
-                     np.empty((3, 3)), np.empty(3), np.empty(3), np.empty((3, 3)),
-                     np.empty(3), np.empty(3), np.empty((24, 3)), np.empty((ng, 3)),
-                     np.empty((ns, 5)), np.empty((ns, 5)), np.empty((4, 3)), np.empty(3),
-                     np.empty(3), np.empty(3), np.zeros((npairs, 3)), np.zeros(ib[H_DOF]),
-                     np.zeros((ng, ib[H_DOF])), np.zeros((ng, ib[H_DOF])),
-                     np.full((npairs, 2), -1, dtype=np.int64), np.zeros(npairs))
+    """Fresh scratch (Rw, pw, wf, wi) for the checker packed in ``ib``."""
+    nj, ng, ns, npairs, dof = ib[H_NJ], ib[H_NG], ib[H_NS], ib[H_NP], ib[H_DOF]
+    wi = np.empty(WI_HEADER + 2 * npairs, dtype=np.int64)
+    sizes = (3 * ng, 5 * ns, 5 * ns, 3 * npairs, dof, ng * dof, ng * dof, npairs)
+    o = W_FIXED
+    for i in range(8):
+        wi[i] = o
+        o += sizes[i]
+    wi[WI_HINT] = WI_HEADER
+    wi[WI_HEADER:] = -1
+    wf = np.empty(o)  # written before read, but for these blocks:
+    wf[wi[WI_WARM]:wi[WI_WARM] + 3 * npairs] = 0.0  # no direction yet
+    wf[wi[WI_DL]:wi[WI_BUDGET]] = 0.0  # DL, CC of joints that do not move a mover
+    return np.empty((nj, 3, 3)), np.empty((nj, 3)), wf, wi
 
 
 @njit(cache=True, nogil=True)
-def _fk(q, fb, ib, Rw, pw):  # noqa: N803
+def _fk(q, fb, ib, Rw, pw, wf):  # noqa: N803
     """World rotation and position of every joint frame at ``q`` into Rw (nj,3,3), pw (nj,3)."""
     nj = ib[H_NJ]
     oj, oji = ib[H_J], ib[H_JI]
     Rw[0, :, :] = 0.0
     Rw[0, 0, 0] = Rw[0, 1, 1] = Rw[0, 2, 2] = 1.0
     pw[0, :] = 0.0
-    M = np.empty((3, 3))
-    t = np.empty(3)
+    M, t = W_M, W_T  # the local placement, rows of M at wf[M + 3 r]
     for j in range(1, nj):
         base = oj + 15 * j
         parent = ib[oji + 3 * j]
@@ -84,8 +100,8 @@ def _fk(q, fb, ib, Rw, pw):  # noqa: N803
         # Local placement (joint placement times the joint's own motion).
         for r in range(3):
             for c in range(3):
-                M[r, c] = fb[base + 3 * r + c]
-            t[r] = fb[base + 9 + r]
+                wf[M + 3 * r + c] = fb[base + 3 * r + c]
+            wf[t + r] = fb[base + 9 + r]
         if kind != JOINT_FIXED:
             x = q[ib[oji + 3 * j + 2]]
             ax, ay, az = fb[base + 12], fb[base + 13], fb[base + 14]
@@ -102,33 +118,28 @@ def _fk(q, fb, ib, Rw, pw):  # noqa: N803
                 R21 = az * ay * v + ax * s_
                 R22 = c_ + az * az * v
                 for r in range(3):
-                    m0, m1, m2 = M[r, 0], M[r, 1], M[r, 2]
-                    M[r, 0] = m0 * R00 + m1 * R10 + m2 * R20
-                    M[r, 1] = m0 * R01 + m1 * R11 + m2 * R21
-                    M[r, 2] = m0 * R02 + m1 * R12 + m2 * R22
+                    m0, m1, m2 = wf[M + 3 * r], wf[M + 3 * r + 1], wf[M + 3 * r + 2]
+                    wf[M + 3 * r] = m0 * R00 + m1 * R10 + m2 * R20
+                    wf[M + 3 * r + 1] = m0 * R01 + m1 * R11 + m2 * R21
+                    wf[M + 3 * r + 2] = m0 * R02 + m1 * R12 + m2 * R22
             else:
                 for r in range(3):
-                    t[r] += (M[r, 0] * ax + M[r, 1] * ay + M[r, 2] * az) * x
+                    wf[t + r] += (wf[M + 3 * r] * ax + wf[M + 3 * r + 1] * ay
+                                  + wf[M + 3 * r + 2] * az) * x
         for r in range(3):
-            pw[j, r] = (Rw[parent, r, 0] * t[0] + Rw[parent, r, 1] * t[1]
-                        + Rw[parent, r, 2] * t[2] + pw[parent, r])
+            pw[j, r] = (Rw[parent, r, 0] * wf[t] + Rw[parent, r, 1] * wf[t + 1]
+                        + Rw[parent, r, 2] * wf[t + 2] + pw[parent, r])
             for c in range(3):
-                Rw[j, r, c] = (Rw[parent, r, 0] * M[0, c] + Rw[parent, r, 1] * M[1, c]
-                               + Rw[parent, r, 2] * M[2, c])
+                Rw[j, r, c] = (Rw[parent, r, 0] * wf[M + c] + Rw[parent, r, 1] * wf[M + 3 + c]
+                               + Rw[parent, r, 2] * wf[M + 6 + c])
 
 
 @njit(cache=True, nogil=True, inline="always")
-def _world(fb, s, Rj, pj, out):  # noqa: N803
-    """World centre of sphere/point at fb[s:s+3] (joint frame) into ``out``."""
+def _world(fb, s, Rw, pw, j, wf, o):  # noqa: N803
+    """World centre of the sphere/point at fb[s:s+3] (frame of joint ``j``) into wf[o:o+3]."""
     x, y, z = fb[s], fb[s + 1], fb[s + 2]
     for r in range(3):
-        out[r] = Rj[r, 0] * x + Rj[r, 1] * y + Rj[r, 2] * z + pj[r]
-
-
-@njit(cache=True, nogil=True)
-def _env_sdist(fb, ib, e, p):  # noqa: N803
-    """Signed distance [m] from world point ``p`` to environment object ``e``."""
-    return _env_sdist3(fb, ib, e, p[0], p[1], p[2])
+        wf[o + r] = Rw[j, r, 0] * x + Rw[j, r, 1] * y + Rw[j, r, 2] * z + pw[j, r]
 
 
 @njit(cache=True, nogil=True)
@@ -160,151 +171,166 @@ def _env_sdist3(fb, ib, e, px, py, pz):  # noqa: N803
     return math.sqrt(x * x + y * y + (z - zc) * (z - zc)) - a
 
 
-@njit(cache=True, nogil=True)
-def _support(kind, R, d0, d1, d2, nx, ny, nz):  # noqa: N803
-    """Half extent [m] of a primitive (rotation ``R``, dimensions d) along unit n."""
+@njit(cache=True, nogil=True, inline="always")
+def _support(kind, wf, o, d, nx, ny, nz):  # noqa: N803
+    """Half extent [m] along unit n of a primitive placed in ``wf`` (rotation rows at
+    wf[o:o+9], dimensions at wf[d:d+3])."""
     if kind == ENV_BOX or kind == ENV_BOX_ONLY_OUTER:
-        return (d0 * abs(R[0, 0] * nx + R[1, 0] * ny + R[2, 0] * nz)
-                + d1 * abs(R[0, 1] * nx + R[1, 1] * ny + R[2, 1] * nz)
-                + d2 * abs(R[0, 2] * nx + R[1, 2] * ny + R[2, 2] * nz))
+        return (wf[d] * abs(wf[o] * nx + wf[o + 3] * ny + wf[o + 6] * nz)
+                + wf[d + 1] * abs(wf[o + 1] * nx + wf[o + 4] * ny + wf[o + 7] * nz)
+                + wf[d + 2] * abs(wf[o + 2] * nx + wf[o + 5] * ny + wf[o + 8] * nz))
     if kind == ENV_SPHERE:
-        return d0
-    c = R[0, 2] * nx + R[1, 2] * ny + R[2, 2] * nz
+        return wf[d]
+    c = wf[o + 2] * nx + wf[o + 5] * ny + wf[o + 8] * nz
     if kind == ENV_CAPSULE:
-        return d1 * abs(c) + d0
-    return d1 * abs(c) + d0 * math.sqrt(max(0.0, 1.0 - c * c))
+        return wf[d + 1] * abs(c) + wf[d]
+    return wf[d + 1] * abs(c) + wf[d] * math.sqrt(max(0.0, 1.0 - c * c))
 
 
-@njit(cache=True, nogil=True)
-def _primitive_axes(kind, R, axes, n):  # noqa: N803
-    """Append a primitive's own axes (box: its three face normals; cylinder, capsule: its
-    z axis) to ``axes`` from row ``n``; returns the new row count."""
+@njit(cache=True, nogil=True, inline="always")
+def _primitive_axes(kind, wf, o, n):  # noqa: N803
+    """Append the own axes of the primitive whose rotation is at wf[o:o+9] (box: its three
+    face normals; cylinder, capsule: its z axis) to the candidate axes from row ``n``;
+    returns the new row count."""
     if kind == ENV_BOX or kind == ENV_BOX_ONLY_OUTER:
         for c in range(3):
-            axes[n, 0], axes[n, 1], axes[n, 2] = R[0, c], R[1, c], R[2, c]
+            x = W_AXES + 3 * n
+            wf[x], wf[x + 1], wf[x + 2] = wf[o + c], wf[o + 3 + c], wf[o + 6 + c]
             n += 1
     elif kind == ENV_CYLINDER or kind == ENV_CAPSULE:
-        axes[n, 0], axes[n, 1], axes[n, 2] = R[0, 2], R[1, 2], R[2, 2]
+        x = W_AXES + 3 * n
+        wf[x], wf[x + 1], wf[x + 2] = wf[o + 2], wf[o + 5], wf[o + 8]
+        n += 1
+    return n
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _push_axis(wf, n, x, y, z):  # noqa: N803
+    """Append (x, y, z) normalised to the candidate axes unless it is ~0; the row count."""
+    norm = math.sqrt(x * x + y * y + z * z)
+    if norm > 1e-9:
+        o = W_AXES + 3 * n
+        wf[o], wf[o + 1], wf[o + 2] = x / norm, y / norm, z / norm
         n += 1
     return n
 
 
 @njit(cache=True, nogil=True)
-def _sat_gap(ka, Ra, pa, da, kb, Rb, pb, db, axes):  # noqa: N803
-    """Lower bound [m] on the distance of two convex primitives: the largest gap between
-    their projections over a set of separating-axis candidates (face normals, primitive
-    axes, their cross products, the centre line). For two boxes the 15 axes are complete:
-    a bound < 0 then means they intersect."""
-    na = _primitive_axes(ka, Ra, axes, 0)
-    nb = _primitive_axes(kb, Rb, axes, na)
+def _sat_gap(ka, kb, wf):  # noqa: N803
+    """Lower bound [m] on the distance of the two convex primitives placed in ``wf`` (A at
+    W_RA, W_PA, W_DA; B at W_RB, W_PB, W_DB): the largest gap between their projections
+    over a set of separating-axis candidates (face normals, primitive axes, their cross
+    products, the centre line). For two boxes the 15 axes are complete: a bound < 0 then
+    means they intersect."""
+    na = _primitive_axes(ka, wf, W_RA, 0)
+    nb = _primitive_axes(kb, wf, W_RB, na)
     n = nb
     for i in range(na):
+        oi = W_AXES + 3 * i
         for j in range(na, nb):
-            x = axes[i, 1] * axes[j, 2] - axes[i, 2] * axes[j, 1]
-            y = axes[i, 2] * axes[j, 0] - axes[i, 0] * axes[j, 2]
-            z = axes[i, 0] * axes[j, 1] - axes[i, 1] * axes[j, 0]
-            norm = math.sqrt(x * x + y * y + z * z)
-            if norm > 1e-9:
-                axes[n, 0], axes[n, 1], axes[n, 2] = x / norm, y / norm, z / norm
-                n += 1
-    dx, dy, dz = pb[0] - pa[0], pb[1] - pa[1], pb[2] - pa[2]
-    norm = math.sqrt(dx * dx + dy * dy + dz * dz)
-    if norm > 1e-9:
-        axes[n, 0], axes[n, 1], axes[n, 2] = dx / norm, dy / norm, dz / norm
-        n += 1
+            oj = W_AXES + 3 * j
+            n = _push_axis(wf, n, wf[oi + 1] * wf[oj + 2] - wf[oi + 2] * wf[oj + 1],
+                           wf[oi + 2] * wf[oj] - wf[oi] * wf[oj + 2],
+                           wf[oi] * wf[oj + 1] - wf[oi + 1] * wf[oj])
+    dx, dy, dz = wf[W_PB] - wf[W_PA], wf[W_PB + 1] - wf[W_PA + 1], wf[W_PB + 2] - wf[W_PA + 2]
+    n = _push_axis(wf, n, dx, dy, dz)
     # Round shapes: the centre line's part across each axis.
     for which in range(2):
         kind = ka if which == 0 else kb
         if kind == ENV_CYLINDER or kind == ENV_CAPSULE:
-            R = Ra if which == 0 else Rb
-            ax, ay, az = R[0, 2], R[1, 2], R[2, 2]
+            o = W_RA if which == 0 else W_RB
+            ax, ay, az = wf[o + 2], wf[o + 5], wf[o + 8]
             t = dx * ax + dy * ay + dz * az
-            x, y, z = dx - t * ax, dy - t * ay, dz - t * az
-            norm = math.sqrt(x * x + y * y + z * z)
-            if norm > 1e-9:
-                axes[n, 0], axes[n, 1], axes[n, 2] = x / norm, y / norm, z / norm
-                n += 1
+            n = _push_axis(wf, n, dx - t * ax, dy - t * ay, dz - t * az)
     best = -1e300
     for i in range(n):
-        x, y, z = axes[i, 0], axes[i, 1], axes[i, 2]
+        o = W_AXES + 3 * i
+        x, y, z = wf[o], wf[o + 1], wf[o + 2]
         gap = (abs(dx * x + dy * y + dz * z)
-               - _support(ka, Ra, da[0], da[1], da[2], x, y, z)
-               - _support(kb, Rb, db[0], db[1], db[2], x, y, z))
+               - _support(ka, wf, W_RA, W_DA, x, y, z)
+               - _support(kb, wf, W_RB, W_DB, x, y, z))
         if gap > best:
             best = gap
     return best
 
 
-@njit(cache=True, nogil=True)
-def _mover_frame(fb, ib, m, Rw, pw, R, p):  # noqa: N803
-    """World rotation and position of mover ``m``'s primitive into R, p."""
+@njit(cache=True, nogil=True, inline="always")
+def _mover_frame(fb, ib, m, Rw, pw, wf, oR, op):  # noqa: N803
+    """World rotation (rows at wf[oR:oR+9]) and position (wf[op:op+3]) of mover ``m``'s
+    primitive."""
     og = ib[H_G] + GW * m
     j = ib[ib[H_GI] + GIW * m]
     for r in range(3):
-        p[r] = (Rw[j, r, 0] * fb[og + 13] + Rw[j, r, 1] * fb[og + 14] + Rw[j, r, 2] * fb[og + 15]
-                + pw[j, r])
+        wf[op + r] = (Rw[j, r, 0] * fb[og + 13] + Rw[j, r, 1] * fb[og + 14]
+                      + Rw[j, r, 2] * fb[og + 15] + pw[j, r])
         for c in range(3):
-            R[r, c] = (Rw[j, r, 0] * fb[og + 4 + c] + Rw[j, r, 1] * fb[og + 7 + c]
-                       + Rw[j, r, 2] * fb[og + 10 + c])
+            wf[oR + 3 * r + c] = (Rw[j, r, 0] * fb[og + 4 + c] + Rw[j, r, 1] * fb[og + 7 + c]
+                                  + Rw[j, r, 2] * fb[og + 10 + c])
 
 
 @njit(cache=True, nogil=True)
-def _place_pair(fb, ib, a, b, is_env, ws):  # noqa: N803
-    """Place mover ``a``'s shape (ws.Ra, pa, da) and environment object (``is_env``) or
-    mover ``b``'s shape (ws.Rb, pb, db) at the state in ``ws``; returns their kinds."""
+def _place_pair(fb, ib, a, b, is_env, Rw, pw, wf):  # noqa: N803
+    """Place mover ``a``'s shape (W_RA, W_PA, W_DA) and environment object (``is_env``) or
+    mover ``b``'s shape (W_RB, W_PB, W_DB) in ``wf`` at the state of Rw, pw; returns their
+    kinds."""
     og, ogi = ib[H_G], ib[H_GI]
     ka = ib[ogi + GIW * a + 5]
-    _mover_frame(fb, ib, a, ws.Rw, ws.pw, ws.Ra, ws.pa)
+    _mover_frame(fb, ib, a, Rw, pw, wf, W_RA, W_PA)
     for r in range(3):
-        ws.da[r] = fb[og + GW * a + 16 + r]
+        wf[W_DA + r] = fb[og + GW * a + 16 + r]
     if is_env == 1:
         oe = ib[H_E] + 15 * b
         kb = ib[ib[H_EI] + b]
         for r in range(3):
-            ws.pb[r] = fb[oe + 9 + r]
-            ws.db[r] = fb[oe + 12 + r]
+            wf[W_PB + r] = fb[oe + 9 + r]
+            wf[W_DB + r] = fb[oe + 12 + r]
             for c in range(3):
-                ws.Rb[r, c] = fb[oe + 3 * r + c]
+                wf[W_RB + 3 * r + c] = fb[oe + 3 * r + c]
     else:
         kb = ib[ogi + GIW * b + 5]
-        _mover_frame(fb, ib, b, ws.Rw, ws.pw, ws.Rb, ws.pb)
+        _mover_frame(fb, ib, b, Rw, pw, wf, W_RB, W_PB)
         for r in range(3):
-            ws.db[r] = fb[og + GW * b + 16 + r]
+            wf[W_DB + r] = fb[og + GW * b + 16 + r]
     return ka, kb
 
 
 @njit(cache=True, nogil=True)
-def _sat_pair(fb, ib, a, b, is_env, ws):  # noqa: N803
+def _sat_pair(fb, ib, a, b, is_env, Rw, pw, wf):  # noqa: N803
     """Separating-axis bound [m] between mover ``a``'s primitive and environment object
-    (``is_env``) or mover ``b``'s primitive, at the state placed in ``ws``."""
-    ka, kb = _place_pair(fb, ib, a, b, is_env, ws)
-    return _sat_gap(ka, ws.Ra, ws.pa, ws.da, kb, ws.Rb, ws.pb, ws.db, ws.axes)
+    (``is_env``) or mover ``b``'s primitive, at the state of Rw, pw."""
+    ka, kb = _place_pair(fb, ib, a, b, is_env, Rw, pw, wf)
+    return _sat_gap(ka, kb, wf)
 
 
 @njit(cache=True, nogil=True)
-def _gjk_pair(fb, ib, k, a, b, is_env, ws, low, high):  # noqa: N803
+def _gjk_pair(fb, ib, k, a, b, is_env, Rw, pw, wf, wi, low, high):  # noqa: N803
     """GJK's distance lower bound [m] between mover ``a``'s shape and environment object
     or mover ``b``'s (pair ``k``; its last direction warm-starts the search), searched
     until it reaches ``high`` or the distance is known to be at most ``low``."""
     ogi = ib[H_GI]
-    ka, kb = _place_pair(fb, ib, a, b, is_env, ws)
+    ka, kb = _place_pair(fb, ib, a, b, is_env, Rw, pw, wf)
     va0, va1 = ib[ogi + GIW * a + 6], ib[ogi + GIW * a + 7]
     vb0 = vb1 = 0
     if is_env == 0:
         vb0, vb1 = ib[ogi + GIW * b + 6], ib[ogi + GIW * b + 7]
-    return distance_lower_bound(ka, ws.Ra, ws.pa, ws.da, va0, va1, kb, ws.Rb, ws.pb, ws.db,
-                                vb0, vb1, fb, ib[H_V], ib, ib[H_AP], ib[H_AI], ws.hint[k],
-                                ws.warm[k], ws.simplex, ws.sa, ws.sb,
-                                ws.gv, ws.tmp, low, high)
+    ow, oh = wi[WI_WARM] + 3 * k, wi[WI_HINT] + 2 * k
+    return distance_lower_bound(ka, wf[W_RA:W_RA + 9].reshape((3, 3)), wf[W_PA:W_PA + 3],
+                                wf[W_DA:W_DA + 3], va0, va1, kb,
+                                wf[W_RB:W_RB + 9].reshape((3, 3)), wf[W_PB:W_PB + 3],
+                                wf[W_DB:W_DB + 3], vb0, vb1, fb, ib[H_V], ib, ib[H_AP],
+                                ib[H_AI], wi[oh:oh + 2], wf[ow:ow + 3],
+                                wf[W_S:W_S + 12].reshape((4, 3)), wf[W_SA:W_SA + 3],
+                                wf[W_SB:W_SB + 3], wf[W_GV:W_GV + 3], wf[W_TMP:W_TMP + 3],
+                                low, high)
 
 
 @njit(cache=True, nogil=True)
-def _pair_bound(k, fb, ib, ws, enough):  # noqa: N803
+def _pair_bound(k, fb, ib, Rw, pw, wf, wi, enough):  # noqa: N803
     """Lower bound [m] on the distance of pair ``k`` finer than its bounding spheres
-    (placed in ``ws.Cw`` by the caller): the separating-axis bound of two primitives,
-    GJK's when one is a hull, or the fine spheres of a body that is no primitive. A bound
-    of ``enough`` (beyond the pair's margin) is sufficient for the caller."""
-    Rw, pw, tmp, Cw = ws.Rw, ws.pw, ws.tmp, ws.Cw
+    (placed in wf's WI_CW block by the caller): the separating-axis bound of two
+    primitives, GJK's when one is a hull, or the fine spheres of a body that is no
+    primitive. A bound of ``enough`` (beyond the pair's margin) is sufficient for the
+    caller."""
     op, of = ib[H_PI] + 4 * k, ib[H_P] + k
     a, b, is_env = ib[op], ib[op + 1], ib[op + 2]
     sm = max(fb[of], 0.0)
@@ -313,46 +339,51 @@ def _pair_bound(k, fb, ib, ws, enough):  # noqa: N803
     kb = ENV_BOX if is_env == 1 else ib[ogi + GIW * b + 5]
     if ka != SPHERES_ONLY and kb != SPHERES_ONLY:
         if ka == HULL or kb == HULL:
-            return _gjk_pair(fb, ib, k, a, b, is_env, ws, sm, sm + enough)
-        return _sat_pair(fb, ib, a, b, is_env, ws)
+            return _gjk_pair(fb, ib, k, a, b, is_env, Rw, pw, wf, wi, sm, sm + enough)
+        return _sat_pair(fb, ib, a, b, is_env, Rw, pw, wf)
     ja = ib[ogi + GIW * a]
     if is_env == 1:
         best = 1e300
         for s in range(ib[ogi + GIW * a + 1], ib[ogi + GIW * a + 2]):
-            _world(fb, oS + 4 * s, Rw[ja], pw[ja], tmp)
-            d = _env_sdist(fb, ib, b, tmp) - fb[oS + 4 * s + 3]
+            _world(fb, oS + 4 * s, Rw, pw, ja, wf, W_TMP)
+            d = (_env_sdist3(fb, ib, b, wf[W_TMP], wf[W_TMP + 1], wf[W_TMP + 2])
+                 - fb[oS + 4 * s + 3])
             if d < best:
                 best = d
                 if best - sm <= 0.0:
                     return best
         return best
     ra, rb = fb[og + GW * a + 3], fb[og + GW * b + 3]
-    cbx, cby, cbz = Cw[b, 0], Cw[b, 1], Cw[b, 2]
-    ca0, ca1, ca2 = Cw[a, 0], Cw[a, 1], Cw[a, 2]
+    ocw = wi[WI_CW]
+    cbx, cby, cbz = wf[ocw + 3 * b], wf[ocw + 3 * b + 1], wf[ocw + 3 * b + 2]
+    ca0, ca1, ca2 = wf[ocw + 3 * a], wf[ocw + 3 * a + 1], wf[ocw + 3 * a + 2]
     # Two sphere sets: place each once, bound each sphere against the other body's
     # bounding sphere, take one real pair distance as an upper bound, and compare only
     # the spheres whose bound beats it.
-    A, B = ws.bufa, ws.bufb
-    na = _place_spheres(fb, ib, a, Rw, pw, cbx, cby, cbz, rb, A)
-    nb = _place_spheres(fb, ib, b, Rw, pw, ca0, ca1, ca2, ra, B)
+    A, B = wi[WI_BUFA], wi[WI_BUFB]  # rows of 5 in wf
+    na = _place_spheres(fb, ib, a, Rw, pw, cbx, cby, cbz, rb, wf, A)
+    nb = _place_spheres(fb, ib, b, Rw, pw, ca0, ca1, ca2, ra, wf, B)
     sa = 0
     for i in range(1, na):
-        if A[i, 4] < A[sa, 4]:
+        if wf[A + 5 * i + 4] < wf[A + 5 * sa + 4]:
             sa = i
     sb = 0
     for i in range(1, nb):
-        if B[i, 4] < B[sb, 4]:
+        if wf[B + 5 * i + 4] < wf[B + 5 * sb + 4]:
             sb = i
-    best = (math.sqrt((A[sa, 0] - B[sb, 0]) ** 2 + (A[sa, 1] - B[sb, 1]) ** 2
-                      + (A[sa, 2] - B[sb, 2]) ** 2) - A[sa, 3] - B[sb, 3])
+    i0, j0 = A + 5 * sa, B + 5 * sb
+    best = (math.sqrt((wf[i0] - wf[j0]) ** 2 + (wf[i0 + 1] - wf[j0 + 1]) ** 2
+                      + (wf[i0 + 2] - wf[j0 + 2]) ** 2) - wf[i0 + 3] - wf[j0 + 3])
     for i in range(na):
-        if A[i, 4] >= best:
+        i0 = A + 5 * i
+        if wf[i0 + 4] >= best:
             continue
         for j in range(nb):
-            if B[j, 4] >= best:
+            j0 = B + 5 * j
+            if wf[j0 + 4] >= best:
                 continue
-            d = (math.sqrt((A[i, 0] - B[j, 0]) ** 2 + (A[i, 1] - B[j, 1]) ** 2
-                           + (A[i, 2] - B[j, 2]) ** 2) - A[i, 3] - B[j, 3])
+            d = (math.sqrt((wf[i0] - wf[j0]) ** 2 + (wf[i0 + 1] - wf[j0 + 1]) ** 2
+                           + (wf[i0 + 2] - wf[j0 + 2]) ** 2) - wf[i0 + 3] - wf[j0 + 3])
             if d < best:
                 best = d
                 if best - sm <= 0.0:
@@ -361,9 +392,10 @@ def _pair_bound(k, fb, ib, ws, enough):  # noqa: N803
 
 
 @njit(cache=True, nogil=True)
-def _place_spheres(fb, ib, m, Rw, pw, ox, oy, oz, orad, out):  # noqa: N803
-    """World centres and radii of mover ``m``'s outer spheres into ``out`` rows (x, y, z,
-    r, lower bound of the distance to the sphere (ox, oy, oz, orad)); returns the count."""
+def _place_spheres(fb, ib, m, Rw, pw, ox, oy, oz, orad, wf, out):  # noqa: N803
+    """World centres and radii of mover ``m``'s outer spheres into rows of 5 of ``wf`` from
+    ``out`` (x, y, z, r, lower bound of the distance to the sphere (ox, oy, oz, orad));
+    returns the count."""
     oS, ogi = ib[H_S], ib[H_GI]
     j = ib[ogi + GIW * m]
     n = 0
@@ -373,17 +405,17 @@ def _place_spheres(fb, ib, m, Rw, pw, ox, oy, oz, orad, out):  # noqa: N803
         wy = Rw[j, 1, 0] * x + Rw[j, 1, 1] * y + Rw[j, 1, 2] * z + pw[j, 1]
         wz = Rw[j, 2, 0] * x + Rw[j, 2, 1] * y + Rw[j, 2, 2] * z + pw[j, 2]
         r = fb[oS + 4 * s + 3]
-        out[n, 0], out[n, 1], out[n, 2], out[n, 3] = wx, wy, wz, r
-        out[n, 4] = math.sqrt((wx - ox) ** 2 + (wy - oy) ** 2 + (wz - oz) ** 2) - r - orad
+        o = out + 5 * n
+        wf[o], wf[o + 1], wf[o + 2], wf[o + 3] = wx, wy, wz, r
+        wf[o + 4] = math.sqrt((wx - ox) ** 2 + (wy - oy) ** 2 + (wz - oz) ** 2) - r - orad
         n += 1
     return n
 
 
 @njit(cache=True, nogil=True)
-def _pair_collides(k, fb, ib, eps, ws):  # noqa: N803
+def _pair_collides(k, fb, ib, eps, Rw, pw, wf):  # noqa: N803
     """Whether pair ``k`` is certainly closer than its margin: an inner sphere reaches
     that close, or (two boxes, no margin) the complete separating-axis test fails."""
-    Rw, pw, tmp, tmp2 = ws.Rw, ws.pw, ws.tmp, ws.tmp2
     op, of = ib[H_PI] + 4 * k, ib[H_P] + k
     a, b, is_env, proof = ib[op], ib[op + 1], ib[op + 2], ib[op + 3]
     if proof == 0:
@@ -392,88 +424,96 @@ def _pair_collides(k, fb, ib, eps, ws):  # noqa: N803
     oS, ogi = ib[H_S], ib[H_GI]
     ja = ib[ogi + GIW * a]
     ka = ib[ogi + GIW * a + 5]
+    t1, t2 = W_TMP, W_TMP2
     if is_env == 1:
         if (sm == 0.0 and ka == ENV_BOX and ib[ib[H_EI] + b] == ENV_BOX
-                and _sat_pair(fb, ib, a, b, 1, ws) < -eps):
+                and _sat_pair(fb, ib, a, b, 1, Rw, pw, wf) < -eps):
             return True
         for s in range(ib[ogi + GIW * a + 3], ib[ogi + GIW * a + 4]):
-            _world(fb, oS + 4 * s, Rw[ja], pw[ja], tmp)
-            if _env_sdist(fb, ib, b, tmp) - fb[oS + 4 * s + 3] < sm - eps:
+            _world(fb, oS + 4 * s, Rw, pw, ja, wf, t1)
+            if (_env_sdist3(fb, ib, b, wf[t1], wf[t1 + 1], wf[t1 + 2]) - fb[oS + 4 * s + 3]
+                    < sm - eps):
                 return True
         return False
     jb = ib[ogi + GIW * b]
     kb = ib[ogi + GIW * b + 5]
-    if sm == 0.0 and ka == ENV_BOX and kb == ENV_BOX and _sat_pair(fb, ib, a, b, 0, ws) < -eps:
+    if (sm == 0.0 and ka == ENV_BOX and kb == ENV_BOX
+            and _sat_pair(fb, ib, a, b, 0, Rw, pw, wf) < -eps):
         return True
     for s in range(ib[ogi + GIW * a + 3], ib[ogi + GIW * a + 4]):
-        _world(fb, oS + 4 * s, Rw[ja], pw[ja], tmp)
+        _world(fb, oS + 4 * s, Rw, pw, ja, wf, t1)
         rs = fb[oS + 4 * s + 3]
         for t in range(ib[ogi + GIW * b + 3], ib[ogi + GIW * b + 4]):
-            _world(fb, oS + 4 * t, Rw[jb], pw[jb], tmp2)
-            d = math.sqrt((tmp[0] - tmp2[0]) ** 2 + (tmp[1] - tmp2[1]) ** 2
-                          + (tmp[2] - tmp2[2]) ** 2) - rs - fb[oS + 4 * t + 3]
+            _world(fb, oS + 4 * t, Rw, pw, jb, wf, t2)
+            d = math.sqrt((wf[t1] - wf[t2]) ** 2 + (wf[t1 + 1] - wf[t2 + 1]) ** 2
+                          + (wf[t1 + 2] - wf[t2 + 2]) ** 2) - rs - fb[oS + 4 * t + 3]
             if d < sm - eps:
                 return True
     return False
 
 
 @njit(cache=True, nogil=True)
-def _evaluate(q, fb, ib, ws, rates, want_radius):  # noqa: N803
+def _evaluate(q, fb, ib, Rw, pw, wf, wi, rates, want_radius):  # noqa: N803
     """(status, radius) of one state inside the limits. With ``want_radius``, radius is
     the largest ``h`` such that every state ``q + t u`` with ``|t| < h`` is certainly
-    valid, ``rates[k]`` bounding how fast pair ``k`` can close per unit ``t``."""
-    Rw, pw, Cw = ws.Rw, ws.pw, ws.Cw
-    _fk(q, fb, ib, Rw, pw)
+    valid, ``rates[k]`` bounding how fast pair ``k`` can close per unit ``t`` (and wf's
+    WI_ABSU, WI_CC blocks filled by ``_pair_rates``)."""
+    _fk(q, fb, ib, Rw, pw, wf)
     oc = ib[H_C]
     refine, free_eps, proof_eps = fb[oc + C_REFINE], fb[oc + C_FREE_EPS], fb[oc + C_PROOF_EPS]
     if not want_radius:
         refine = 0.0
     og, ogi, op_, of_ = ib[H_G], ib[H_GI], ib[H_PI], ib[H_P]
+    ocw, obud = wi[WI_CW], wi[WI_BUDGET]
+    odl, occ, oabs = wi[WI_DL], wi[WI_CC], wi[WI_ABSU]
     # Bounding spheres of the movers, in the world.
     for m in range(ib[H_NG]):
         j = ib[ogi + GIW * m]
         x, y, z = fb[og + GW * m], fb[og + GW * m + 1], fb[og + GW * m + 2]
         for r in range(3):
-            Cw[m, r] = Rw[j, r, 0] * x + Rw[j, r, 1] * y + Rw[j, r, 2] * z + pw[j, r]
+            wf[ocw + 3 * m + r] = (Rw[j, r, 0] * x + Rw[j, r, 1] * y + Rw[j, r, 2] * z
+                                   + pw[j, r])
     if want_radius:
         for m in range(ib[H_NG]):
-            _axis_distances(m, fb, ib, Rw, pw, Cw, ws.DL)
+            _axis_distances(m, fb, ib, Rw, pw, wf, ocw, odl)
     unsure = False
     radius = 1e300
     oe, oer = ib[H_E], ib[H_ER]
     for k in range(ib[H_NP]):
         a, b, is_env = ib[op_ + 4 * k], ib[op_ + 4 * k + 1], ib[op_ + 4 * k + 2]
         sm = max(fb[of_ + k], 0.0)
+        cax, cay, caz = wf[ocw + 3 * a], wf[ocw + 3 * a + 1], wf[ocw + 3 * a + 2]
         if is_env == 1:
             if not want_radius:
                 # Broad phase: bounding spheres apart by more than the margin decide the
                 # pair (free) without measuring the object.
-                dx = Cw[a, 0] - fb[oe + 15 * b + 9]
-                dy = Cw[a, 1] - fb[oe + 15 * b + 10]
-                dz = Cw[a, 2] - fb[oe + 15 * b + 11]
+                dx = cax - fb[oe + 15 * b + 9]
+                dy = cay - fb[oe + 15 * b + 10]
+                dz = caz - fb[oe + 15 * b + 11]
                 reach = fb[og + GW * a + 3] + fb[oer + b] + sm + free_eps
                 if dx * dx + dy * dy + dz * dz > reach * reach:
                     continue
-            coarse = _env_sdist3(fb, ib, b, Cw[a, 0], Cw[a, 1], Cw[a, 2]) - fb[og + GW * a + 3]
+            coarse = _env_sdist3(fb, ib, b, cax, cay, caz) - fb[og + GW * a + 3]
         else:
-            dd = ((Cw[a, 0] - Cw[b, 0]) ** 2 + (Cw[a, 1] - Cw[b, 1]) ** 2
-                  + (Cw[a, 2] - Cw[b, 2]) ** 2)
+            dd = ((cax - wf[ocw + 3 * b]) ** 2 + (cay - wf[ocw + 3 * b + 1]) ** 2
+                  + (caz - wf[ocw + 3 * b + 2]) ** 2)
             rr = fb[og + GW * a + 3] + fb[og + GW * b + 3]
             if not want_radius and dd > (rr + sm + free_eps) ** 2:
                 continue
             coarse = math.sqrt(dd) - rr
         budget = coarse - sm - free_eps
         if budget <= refine:
-            budget = max(coarse, _pair_bound(k, fb, ib, ws, refine + free_eps)) - sm - free_eps
+            budget = max(coarse, _pair_bound(k, fb, ib, Rw, pw, wf, wi,
+                                             refine + free_eps)) - sm - free_eps
         if budget <= 0.0:
-            if _pair_collides(k, fb, ib, proof_eps, ws):
+            if _pair_collides(k, fb, ib, proof_eps, Rw, pw, wf):
                 return COLLIDES, 0.0
             unsure = True
             continue
         if want_radius:
-            ws.budget[k] = budget
+            wf[obud + k] = budget
         if want_radius and rates[k] > 0.0:
-            h = max(budget / rates[k], _local_radius(k, a, b, budget, ib, ws.DL, ws.CC, ws.absu))
+            h = max(budget / rates[k], _local_radius(k, a, b, budget, ib, wf, odl, occ, oabs))
             if h < radius:
                 radius = h
     if unsure:
@@ -481,50 +521,54 @@ def _evaluate(q, fb, ib, ws, rates, want_radius):  # noqa: N803
     return FREE, radius
 
 
-@njit(cache=True, nogil=True)
-def _axis_distances(m, fb, ib, Rw, pw, Cw, DL):  # noqa: N803
-    """DL[m, v]: how fast [m per unit of joint v] mover ``m``'s points move when joint
-    ``v`` alone moves, at the state placed in Rw, pw, Cw: the distance of its bounding
-    sphere from the joint's axis plus its radius (revolute), 1 (prismatic)."""
+@njit(cache=True, nogil=True, inline="always")
+def _axis_distances(m, fb, ib, Rw, pw, wf, ocw, odl):  # noqa: N803
+    """DL[m, v] (wf from ``odl``, rows of dof): how fast [m per unit of joint v] mover
+    ``m``'s points move when joint ``v`` alone moves, at the state placed in Rw, pw and
+    the bounding centres (wf from ``ocw``): the distance of its bounding sphere from the
+    joint's axis plus its radius (revolute), 1 (prismatic)."""
     oj, oji, og, ogi = ib[H_J], ib[H_JI], ib[H_G], ib[H_GI]
+    dof = ib[H_DOF]
     r_m = fb[og + GW * m + 3]
     j = ib[ogi + GIW * m]
     while j > 0:
         v = ib[oji + 3 * j + 2]
         if ib[oji + 3 * j + 1] == JOINT_PRISMATIC:
-            DL[m, v] = 1.0
+            wf[odl + m * dof + v] = 1.0
         else:
             base = oj + 15 * j
             ax, ay, az = fb[base + 12], fb[base + 13], fb[base + 14]
             ux = Rw[j, 0, 0] * ax + Rw[j, 0, 1] * ay + Rw[j, 0, 2] * az
             uy = Rw[j, 1, 0] * ax + Rw[j, 1, 1] * ay + Rw[j, 1, 2] * az
             uz = Rw[j, 2, 0] * ax + Rw[j, 2, 1] * ay + Rw[j, 2, 2] * az
-            dx, dy, dz = Cw[m, 0] - pw[j, 0], Cw[m, 1] - pw[j, 1], Cw[m, 2] - pw[j, 2]
+            dx = wf[ocw + 3 * m] - pw[j, 0]
+            dy = wf[ocw + 3 * m + 1] - pw[j, 1]
+            dz = wf[ocw + 3 * m + 2] - pw[j, 2]
             cx, cy, cz = dy * uz - dz * uy, dz * ux - dx * uz, dx * uy - dy * ux
-            DL[m, v] = math.sqrt(cx * cx + cy * cy + cz * cz) + r_m
+            wf[odl + m * dof + v] = math.sqrt(cx * cx + cy * cy + cz * cz) + r_m
         j = ib[oji + 3 * j]
 
 
 @njit(cache=True, nogil=True, inline="always")
-def _local_radius(k, a, b, budget, ib, DL, CC, absu):  # noqa: N803
+def _local_radius(k, a, b, budget, ib, wf, odl, occ, oabs):  # noqa: N803
     """A radius (in units of ``t``) within which pair ``k`` cannot close by ``budget`` [m],
-    from the bodies' distances to the joint axes at this state (``DL``, see
-    ``_axis_distances``), which grow along the segment by at most ``CC`` per unit of
-    ``t``: the closing speed is at most A + B |t|, so the radius solves
-    A h + B h^2 / 2 = budget. (Passed arrays, not the workspace: a numba call that
-    takes the workspace pays the reference counts of all its arrays.)"""
+    from the bodies' distances to the joint axes at this state (DL, see
+    ``_axis_distances``), which grow along the segment by at most CC per unit of ``t``
+    (wf from ``odl``, ``occ``; |u| from ``oabs``): the closing speed is at most
+    A + B |t|, so the radius solves A h + B h^2 / 2 = budget."""
     dof, opm = ib[H_DOF], ib[H_PM] + k * ib[H_DOF]
     A = B = 0.0
     for v in range(dof):
-        if absu[v] == 0.0:
+        au = wf[oabs + v]
+        if au == 0.0:
             continue
         mask = ib[opm + v]
         if mask & 1:
-            A += absu[v] * DL[a, v]
-            B += absu[v] * CC[a, v]
+            A += au * wf[odl + a * dof + v]
+            B += au * wf[occ + a * dof + v]
         if mask & 2:
-            A += absu[v] * DL[b, v]
-            B += absu[v] * CC[b, v]
+            A += au * wf[odl + b * dof + v]
+            B += au * wf[occ + b * dof + v]
     if A <= 0.0:
         return 0.0
     if B <= 1e-12 * A:
@@ -546,32 +590,33 @@ def classify(q, fb, ib):  # noqa: N803
     """Status of one state: FREE, COLLIDES (or outside the limits) or UNSURE."""
     if not _within_limits(q, fb, ib):
         return COLLIDES
-    ws = _workspace(ib)
-    status, _ = _evaluate(q, fb, ib, ws, ws.tmp, False)
+    Rw, pw, wf, wi = _workspace(ib)
+    status, _ = _evaluate(q, fb, ib, Rw, pw, wf, wi, wf, False)
     return status
 
 
 @njit(cache=True, nogil=True)
 def classify_many(Q, fb, ib, out):  # noqa: N803
     """Status of every row of ``Q`` into ``out``."""
-    ws = _workspace(ib)
+    Rw, pw, wf, wi = _workspace(ib)
     for i in range(Q.shape[0]):
         if not _within_limits(Q[i], fb, ib):
             out[i] = COLLIDES
             continue
-        out[i], _ = _evaluate(Q[i], fb, ib, ws, ws.tmp, False)
+        out[i], _ = _evaluate(Q[i], fb, ib, Rw, pw, wf, wi, wf, False)
 
 
 @njit(cache=True, nogil=True)
-def _pair_rates(u, fb, ib, ws, rates):  # noqa: N803
+def _pair_rates(u, fb, ib, wf, wi, rates):  # noqa: N803
     """Per pair, a bound on how fast its two bodies approach per unit of ``t`` along
     the joint-space direction ``u`` [m] (joints that carry both bodies leave their
-    distance alone). Also ws.absu = |u| and, per mover and joint, ws.CC: how fast its
-    distance to that joint's axis can grow per unit of ``t`` (the joints between the
-    two move it, at most by their weights)."""
+    distance alone). Also wf's WI_ABSU block = |u| and, per mover and joint, its WI_CC
+    block: how fast the mover's distance to that joint's axis can grow per unit of ``t``
+    (the joints between the two move it, at most by their weights)."""
     dof, ow, oji, ogi = ib[H_DOF], ib[H_W], ib[H_JI], ib[H_GI]
+    oabs, occ = wi[WI_ABSU], wi[WI_CC]
     for v in range(dof):
-        ws.absu[v] = abs(u[v])
+        wf[oabs + v] = abs(u[v])
     for k in range(ib[H_NP]):
         op = ib[H_PI] + 4 * k
         opm = ib[H_PM] + k * dof
@@ -584,15 +629,15 @@ def _pair_rates(u, fb, ib, ws, rates):  # noqa: N803
                 w += fb[ow + a * dof + v]
             if mask & 2:
                 w += fb[ow + b * dof + v]
-            r += w * ws.absu[v]
+            r += w * wf[oabs + v]
         rates[k] = r
     for m in range(ib[H_NG]):
         acc = 0.0
         j = ib[ogi + GIW * m]
         while j > 0:
             v = ib[oji + 3 * j + 2]
-            ws.CC[m, v] = 0.0 if ib[oji + 3 * j + 1] == JOINT_PRISMATIC else acc
-            acc += fb[ow + m * dof + v] * ws.absu[v]
+            wf[occ + m * dof + v] = 0.0 if ib[oji + 3 * j + 1] == JOINT_PRISMATIC else acc
+            acc += fb[ow + m * dof + v] * wf[oabs + v]
             j = ib[oji + 3 * j]
 
 
@@ -614,7 +659,8 @@ def certify_polyline(P, n, lo, hi, fb, ib, unsure_seg, unsure_idx, max_unsure): 
         else FREE (no state left but the unsure ones).
     """
     npairs, dof = ib[H_NP], ib[H_DOF]
-    ws = _workspace(ib)
+    Rw, pw, wf, wi = _workspace(ib)
+    obud = wi[WI_BUDGET]
     rates = np.empty(npairs)
     u = np.empty(dof)
     qs = np.empty(dof)
@@ -630,7 +676,7 @@ def certify_polyline(P, n, lo, hi, fb, ib, unsure_seg, unsure_idx, max_unsure): 
     for k in range(P.shape[0] - 1):
         for j in range(dof):
             u[j] = P[k + 1, j] - P[k, j]
-        _pair_rates(u, fb, ib, ws, rates)
+        _pair_rates(u, fb, ib, wf, wi, rates)
         if carry:
             for p in range(npairs):
                 spent[p] += rates[p]
@@ -656,7 +702,7 @@ def certify_polyline(P, n, lo, hi, fb, ib, unsure_seg, unsure_idx, max_unsure): 
             t = mid / nk
             for j in range(dof):
                 qs[j] = P[k, j] + t * u[j]
-            status, radius = _evaluate(qs, fb, ib, ws, rates, True)
+            status, radius = _evaluate(qs, fb, ib, Rw, pw, wf, wi, rates, True)
             evaluated += 1
             if status == COLLIDES:
                 return COLLIDES, k, mid, evaluated, n_unsure
@@ -668,7 +714,7 @@ def certify_polyline(P, n, lo, hi, fb, ib, unsure_seg, unsure_idx, max_unsure): 
                 if first and mid + m >= hi[k]:
                     carry = True
                     for p in range(npairs):
-                        carried[p] = ws.budget[p]
+                        carried[p] = wf[obud + p]
                         spent[p] = rates[p] * (nk - mid) / nk
             else:
                 unsure_seg[n_unsure] = k

@@ -34,7 +34,7 @@ TOL = 2e-4
 MAX_ITER = 32
 
 
-@njit(cache=True, nogil=True)
+@njit(cache=True, nogil=True, inline="always")
 def _climb(fb, ov, ib, oap, oai, v0, v1, start, lx, ly, lz):  # noqa: N803
     """The hull vertex (row) farthest along (lx, ly, lz): steepest ascent over the
     hull's edges from ``start``. Exact on a convex polytope: a vertex that is not
@@ -55,7 +55,7 @@ def _climb(fb, ov, ib, oap, oai, v0, v1, start, lx, ly, lz):  # noqa: N803
         g = nxt
 
 
-@njit(cache=True, nogil=True)
+@njit(cache=True, nogil=True, inline="always")
 def support(kind, R, p, d, fb, ov, v0, v1, ib, oap, oai, start, nx, ny, nz,  # noqa: N803
             out):
     """World point of a shape farthest along (nx, ny, nz) (not necessarily unit) into
@@ -150,7 +150,7 @@ def _triangle(S, i, j, k, v):  # noqa: N803
     return (1 << i) | (1 << j) | (1 << k)
 
 
-@njit(cache=True, nogil=True)
+@njit(cache=True, nogil=True, inline="always")
 def _origin_outside(S, i, j, k, o):  # noqa: N803
     """Whether the origin and S[o] lie strictly on opposite sides of plane (i, j, k)."""
     ab0, ab1, ab2 = S[j, 0] - S[i, 0], S[j, 1] - S[i, 1], S[j, 2] - S[i, 2]
@@ -161,7 +161,7 @@ def _origin_outside(S, i, j, k, o):  # noqa: N803
     return s_origin * s_other < 0.0
 
 
-@njit(cache=True, nogil=True)
+@njit(cache=True, nogil=True, inline="always")
 def _closest(S, n, v, tmp):  # noqa: N803
     """Closest point ``v`` of the simplex S[:n] to the origin; S is reduced in place to
     the vertices that span it. Returns the new count (4: the origin is inside)."""
