@@ -33,9 +33,14 @@ H_PM = 19
 H_AP, H_AI = 20, 21
 #: Radius of a sphere about each environment object's centre that holds it (floats).
 H_ER = 22
-HEADER = 23
-# Constants (fb[ib[H_C] + k]).
-C_REFINE, C_FREE_EPS, C_PROOF_EPS = 0, 1, 2
+#: The checker's displacement weights (floats, dof): a joint step dq moves no point of
+#: the robot (or held object) more than sum(w |dq|) [m].
+H_DW = 23
+HEADER = 24
+# Constants (fb[ib[H_C] + k]); C_RES: the checker's resolution [m].
+C_REFINE, C_FREE_EPS, C_PROOF_EPS, C_RES = 0, 1, 2, 3
+#: Status of a segment whose start (index 0) or end (index 1) is outside the limits.
+OUTSIDE = 3
 
 ENV_BOX, ENV_CYLINDER, ENV_SPHERE, ENV_CAPSULE, ENV_BOX_ONLY_OUTER = 0, 1, 2, 3, 4
 #: Shape kinds of movers (same codes; HULL: a convex hull, measured by GJK on its
@@ -453,11 +458,13 @@ def _pair_collides(k, fb, ib, eps, Rw, pw, wf):  # noqa: N803
 
 
 @njit(cache=True, nogil=True)
-def _evaluate(q, fb, ib, Rw, pw, wf, wi, rates, want_radius):  # noqa: N803
+def _evaluate(q, fb, ib, Rw, pw, wf, wi, rates, want_radius, need):  # noqa: N803
     """(status, radius) of one state inside the limits. With ``want_radius``, radius is
     the largest ``h`` such that every state ``q + t u`` with ``|t| < h`` is certainly
     valid, ``rates[k]`` bounding how fast pair ``k`` can close per unit ``t`` (and wf's
-    WI_ABSU, WI_CC blocks filled by ``_pair_rates``)."""
+    WI_ABSU, WI_CC blocks filled by ``_pair_rates``), or some radius of at least
+    ``need`` when that is all the caller can use (pairs whose closing-rate radius
+    reaches ``need`` skip the finer local radius)."""
     _fk(q, fb, ib, Rw, pw, wf)
     oc = ib[H_C]
     refine, free_eps, proof_eps = fb[oc + C_REFINE], fb[oc + C_FREE_EPS], fb[oc + C_PROOF_EPS]
@@ -513,7 +520,9 @@ def _evaluate(q, fb, ib, Rw, pw, wf, wi, rates, want_radius):  # noqa: N803
         if want_radius:
             wf[obud + k] = budget
         if want_radius and rates[k] > 0.0:
-            h = max(budget / rates[k], _local_radius(k, a, b, budget, ib, wf, odl, occ, oabs))
+            h = budget / rates[k]
+            if h < need:
+                h = max(h, _local_radius(k, a, b, budget, ib, wf, odl, occ, oabs))
             if h < radius:
                 radius = h
     if unsure:
@@ -591,7 +600,7 @@ def classify(q, fb, ib):  # noqa: N803
     if not _within_limits(q, fb, ib):
         return COLLIDES
     Rw, pw, wf, wi = _workspace(ib)
-    status, _ = _evaluate(q, fb, ib, Rw, pw, wf, wi, wf, False)
+    status, _ = _evaluate(q, fb, ib, Rw, pw, wf, wi, wf, False, 0.0)
     return status
 
 
@@ -603,7 +612,7 @@ def classify_many(Q, fb, ib, out):  # noqa: N803
         if not _within_limits(Q[i], fb, ib):
             out[i] = COLLIDES
             continue
-        out[i], _ = _evaluate(Q[i], fb, ib, Rw, pw, wf, wi, wf, False)
+        out[i], _ = _evaluate(Q[i], fb, ib, Rw, pw, wf, wi, wf, False, 0.0)
 
 
 @njit(cache=True, nogil=True)
@@ -702,7 +711,9 @@ def certify_polyline(P, n, lo, hi, fb, ib, unsure_seg, unsure_idx, max_unsure): 
             t = mid / nk
             for j in range(dof):
                 qs[j] = P[k, j] + t * u[j]
-            status, radius = _evaluate(qs, fb, ib, Rw, pw, wf, wi, rates, True)
+            # A radius covering the rest of [a, b] is all this walk can use.
+            need = (max(mid - a, b - mid) + 0.5) / nk
+            status, radius = _evaluate(qs, fb, ib, Rw, pw, wf, wi, rates, True, need)
             evaluated += 1
             if status == COLLIDES:
                 return COLLIDES, k, mid, evaluated, n_unsure
@@ -735,3 +746,38 @@ def certify_polyline(P, n, lo, hi, fb, ib, unsure_seg, unsure_idx, max_unsure): 
                 qlo[tail], qhi[tail] = mid + m + 1, b
                 tail += 1
     return FREE, -1, -1, evaluated, n_unsure
+
+
+@njit(cache=True, nogil=True)
+def certify_segment(q0, q1, fb, ib, skip_start, skip_end, max_unsure):  # noqa: N803
+    """One straight segment, as :func:`certify_polyline` walks it, with what its caller
+    would otherwise do in Python around it (the planners' edge check: ~60 % of its time
+    went there): the limits at both ends, the grid count from the displacement weights
+    and the resolution, states 0 (unless ``skip_start``) to n (n - 1 with ``skip_end``).
+
+    Returns:
+        (status, index, evaluated, unsure, n): OUTSIDE with index 0 (start) or 1 (end);
+        COLLIDES with the colliding grid index; UNSURE or FREE as certify_polyline, with
+        ``unsure`` undecided states found (the caller then takes the general way).
+    """
+    if not _within_limits(q0, fb, ib):
+        return OUTSIDE, 0, 0, 0, 0
+    if not _within_limits(q1, fb, ib):
+        return OUTSIDE, 1, 0, 0, 0
+    dof, odw = ib[H_DOF], ib[H_DW]
+    bound = 0.0
+    for j in range(dof):
+        bound += fb[odw + j] * abs(q1[j] - q0[j])
+    n = max(1, int(math.ceil(bound / fb[ib[H_C] + C_RES])))
+    P = np.empty((2, dof))
+    for j in range(dof):
+        P[0, j], P[1, j] = q0[j], q1[j]
+    counts = np.full(1, n, dtype=np.int64)
+    lo = np.full(1, 1 if skip_start else 0, dtype=np.int64)
+    hi = np.full(1, n - 1 if skip_end else n, dtype=np.int64)
+    size = max(n + 1, 1)
+    seg = np.empty(size, dtype=np.int64)
+    idx = np.empty(size, dtype=np.int64)
+    status, _, i, evaluated, unsure = certify_polyline(P, counts, lo, hi, fb, ib, seg, idx,
+                                                       max_unsure)
+    return status, i, evaluated, unsure, n

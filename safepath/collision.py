@@ -26,7 +26,7 @@ import pinocchio as pin
 
 from .checks import CheckOptions, Pair, SegmentReport, StateReport
 from .errors import ConfigError
-from .fastcheck import COLLIDES, FREE, UNSURE, SphereLayer
+from .fastcheck import COLLIDES, FREE, OUTSIDE, UNSURE, SphereLayer
 from .robot import Robot, is_prismatic
 from .scene import GRIPPER, AllowedContact, Scene, SceneObject
 
@@ -409,6 +409,10 @@ class CollisionChecker:
         q0 = np.asarray(q0, dtype=float)
         q1 = np.asarray(q1, dtype=float)
         robot = self.robot
+        if self.layer is not None:
+            fast = self._certify_segment(q0, q1, check_ends, check_start, details)
+            if fast is not None:
+                return fast
         for end in (q0, q1):
             if not robot.within_limits(end):
                 s = 0.0 if end is q0 else 1.0
@@ -433,6 +437,30 @@ class CollisionChecker:
         states = q0[None, :] + fractions[:, None] * (q1 - q0)[None, :]
         # Bisection order: a collision is found early, and the batch stops there.
         return self._check_states(states, fractions, details)
+
+    def _certify_segment(self, q0: np.ndarray, q1: np.ndarray, check_ends: bool,
+                         check_start: bool | None, details: bool) -> SegmentReport | None:
+        """:meth:`check_segment` in one sphere-layer call where the layer decides every
+        state (the planners' common case); None where some state needs coal (the
+        general way then walks the segment again: the walk is deterministic)."""
+        layer = self.layer
+        assert layer is not None
+        skip_start = check_start is False or (not check_ends and not check_start)
+        status, i, evaluated, unsure, n = layer.certify_segment(
+            q0, q1, skip_start, not check_ends, _EARLY_UNSURE)
+        if status == FREE and unsure == 0:
+            return SegmentReport(True, evaluated)
+        if status == OUTSIDE:
+            end = q1 if i else q0
+            return SegmentReport(False, 0, float(i), end.copy(), (),
+                                 self.robot.limit_violation(end))
+        if status != COLLIDES:
+            return None
+        q = q0 + (i / n) * (q1 - q0)
+        if not details:
+            return SegmentReport(False, evaluated, i / n, q)
+        return SegmentReport(False, evaluated, i / n, q, tuple(self.collisions(q)),
+                             self.robot.limit_violation(q))
 
     def check_path(self, path: Sequence[np.ndarray], *, details: bool = True
                    ) -> SegmentReport:

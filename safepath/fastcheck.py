@@ -44,6 +44,8 @@ if TYPE_CHECKING:
 __all__ = ["SphereLayer", "FREE", "COLLIDES", "UNSURE", "LayerOptions"]
 
 FREE, COLLIDES, UNSURE = 0, 1, 2
+#: A segment with an end outside the joint limits (see SphereLayer.certify_segment).
+OUTSIDE = 3
 
 
 @dataclass(frozen=True)
@@ -118,6 +120,19 @@ class SphereLayer:
             hi.astype(np.int64), self.F, self.I, seg, idx,
             total + 1 if max_unsure is None else max_unsure)
         return int(status), int(k), int(i), int(evaluated), seg[:m], idx[:m]
+
+    def certify_segment(self, q0: np.ndarray, q1: np.ndarray, skip_start: bool,
+                        skip_end: bool, max_unsure: int) -> tuple[int, int, int, int, int]:
+        """Limits, grid count and certification of one segment in one kernel call (see
+        ``certify_segment`` in the kernels).
+
+        Returns:
+            (status, index, evaluated, unsure, states): status OUTSIDE (index 0: the
+            start, 1: the end), COLLIDES (at grid index), UNSURE or FREE (``unsure``
+            states left undecided); the segment is cut into ``states`` steps.
+        """
+        return _kernels().certify_segment(q0, q1, self.F, self.I, skip_start, skip_end,
+                                          max_unsure)  # type: ignore[no-any-return]
 
     @property
     def fits(self) -> list[SphereFit]:
@@ -225,9 +240,11 @@ def pack(checker: CollisionChecker, options: LayerOptions
     W = _mover_weights(model, G, Gi, robot.lower, robot.upper)
     PM = _pair_masks(model, Gi, Pi)
     L = np.concatenate([robot.lower, robot.upper])
-    C = np.array([options.refine, options.free_eps, options.proof_eps])
+    C = np.array([options.refine, options.free_eps, options.proof_eps,
+                  checker.options.resolution])
     V = np.vstack(vertices) if vertices else np.zeros((0, 3))
-    blocks_f = [J.ravel(), G.ravel(), S_.ravel(), E.ravel(), P, W.ravel(), L, C, V.ravel(), ER]
+    blocks_f = [J.ravel(), G.ravel(), S_.ravel(), E.ravel(), P, W.ravel(), L, C, V.ravel(), ER,
+                checker.displacement_weights]
     AP = np.concatenate(edge_ptr)
     AI = np.concatenate(edges) if edges else np.zeros(0, dtype=np.int64)
     blocks_i = [Ji.ravel(), Gi.ravel(), Ei, Pi.ravel(), PM.ravel(), AP, AI]
@@ -236,7 +253,8 @@ def pack(checker: CollisionChecker, options: LayerOptions
     header = np.zeros(K.HEADER, dtype=np.int64)
     header[[K.H_NJ, K.H_NG, K.H_NS, K.H_NE, K.H_NP, K.H_DOF]] = (
         nj, len(movers), len(S_), len(checker._env), len(checker._pairs), dof)
-    header[[K.H_J, K.H_G, K.H_S, K.H_E, K.H_P, K.H_W, K.H_L, K.H_C, K.H_V, K.H_ER]] = f_off[:10]
+    header[[K.H_J, K.H_G, K.H_S, K.H_E, K.H_P, K.H_W, K.H_L, K.H_C, K.H_V, K.H_ER,
+            K.H_DW]] = f_off[:11]
     header[[K.H_JI, K.H_GI, K.H_EI, K.H_PI, K.H_PM, K.H_AP, K.H_AI]] = i_off[:7]
     F = np.concatenate(blocks_f).astype(np.float64)
     I_ = np.concatenate([header, *blocks_i]).astype(np.int64)

@@ -155,7 +155,9 @@ class Robot:
 
     def within_limits(self, q: np.ndarray, tol: float = 0.0) -> bool:
         """Whether every joint lies inside its position limits (± ``tol`` [rad])."""
-        return bool(np.all(q >= self.lower - tol) and np.all(q <= self.upper + tol))
+        if tol:
+            return bool((q >= self.lower - tol).all() and (q <= self.upper + tol).all())
+        return bool((q >= self.lower).all() and (q <= self.upper).all())
 
     def limit_violation(self, q: np.ndarray) -> str | None:
         """Describe the first joint outside its limits, or None."""

@@ -226,3 +226,38 @@ def test_polylines_of_short_chords_answer_as_the_exact_grid(cell: Cell, panda_ce
         assert verdict == exact.check_path(curve, details=False).valid
         valid += verdict
     assert 5 < valid < 55
+
+
+def test_one_call_segments_report_as_the_polyline_walk(cell: Cell, panda_cell: Cell) -> None:
+    """check_segment's one-call way (limits, grid count and walk inside the kernel) reports
+    what the general polyline walk reports: verdict, states evaluated, where it fails,
+    for every choice of checked ends; an end outside the limits is named."""
+    for the_cell in (cell, panda_cell):
+        robot = the_cell.robot
+        checker = CollisionChecker(robot, the_cell.scene)
+        poses = np.array(list(the_cell.poses.values()))
+        rng = np.random.default_rng(11)
+        outcomes = set()
+        for trial in range(60):
+            q0, q1 = poses[rng.integers(len(poses), size=2)]
+            q1 = q0 + rng.uniform(0.05, 1.0) * (q1 - q0) + rng.normal(0.0, 0.05, len(q0))
+            q1 = np.clip(q1, robot.lower, robot.upper)
+            if trial % 10 == 9:  # an end beyond a limit
+                q1[trial % len(q1)] = robot.upper[trial % len(q1)] + 0.01
+            n = checker.segment_states(q0, q1)
+            for ends, start in ((True, None), (False, None), (False, True), (True, False)):
+                a = checker.check_segment(q0, q1, check_ends=ends, check_start=start,
+                                          details=False)
+                if trial % 10 == 9:
+                    assert not a.valid and a.fraction == 1.0 and a.limit_violation
+                    outcomes.add("outside")
+                    continue
+                lo, hi = (0, n) if ends else (1, n - 1)
+                lo = 1 if start is False else (0 if start else lo)
+                b = checker._certify(np.vstack([q0, q1]), np.array([n]), np.array([lo]),
+                                     np.array([hi]), False)
+                assert (a.valid, a.checked, a.fraction) == (b.valid, b.checked, b.fraction)
+                if not a.valid:
+                    np.testing.assert_array_equal(a.q, b.q)
+                outcomes.add("valid" if a.valid else "collides")
+        assert outcomes == {"valid", "collides", "outside"}
