@@ -12,6 +12,11 @@ points coal's hull is made of). Such a gap is a lower bound on the distance for 
 ``n``; GJK's simplex only steers ``n`` towards the one that makes the bound tight. A
 degenerate simplex can only stop the search early, giving a looser bound.
 
+numba's disk cache tracks only the file of the function it compiles: the kernels of
+:mod:`safepath._fastkernels` that call (and inline) these helpers keep their cached code
+when only this file changes. After editing it in a source checkout, delete
+``safepath/__pycache__/_fastkernels*.nb*`` (an installed copy compiles afresh).
+
 Shape kinds are those of :mod:`safepath._fastkernels` (box, cylinder, sphere, capsule,
 hull); a shape is (kind, world rotation ``R``, world position ``p``, dimensions ``d``,
 vertex rows ``v0:v1`` of the flat vertex block of ``fb`` starting at ``ov``, in the
