@@ -342,8 +342,9 @@ class PourController:
         return []
 
     def kill(self, now: float) -> list[PourCommand]:
-        """Stop everything now: a running tilt brakes along its path, any other goal is
-        cancelled; no further motion (FAULT)."""
+        """Stop everything now: a running tilt brakes along its path, a running stop
+        finishes, any other goal is cancelled (the trajectory controller then holds the
+        arm where it is); no further motion (FAULT)."""
         if self._state in (PourState.DONE, PourState.FAULT, PourState.READY):
             return []
         if self._state is PourState.POURING and self._pending is not None:
@@ -352,7 +353,9 @@ class PourController:
             except SafepathError as exc:  # no braking within the limits: cancel instead
                 return self._fault(f"killed (no path-consistent stop: {exc})")
             return [stop, *self._fault("killed", cancel=False)]
-        return self._fault("killed")
+        # Already braking along the path: let the stop finish (a cancel would halt the arm
+        # at once), send nothing after it.
+        return self._fault("killed", cancel=self._state is not PourState.STOPPING)
 
     # -- transitions -----------------------------------------------------------------------
     def _new_id(self) -> int:

@@ -322,3 +322,38 @@ def test_stop_goal_as_the_node_sends_it(pour: Pour) -> None:
     k0 = int(np.searchsorted(pour.motion.trajectory.t, stop.trajectory.info["time_offset"]))
     np.testing.assert_array_equal(first.positions, pour.motion.trajectory.q[k0])
     assert back.goal_tolerance == []  # robots/gen3_lite/controller.yaml: the controller's own
+
+
+def test_kill_while_braking_lets_the_stop_finish(pour: Pour) -> None:
+    ctrl = pour.controller()
+    ctrl.start(0.0)
+    (stop,) = ctrl.on_tick(5.0)  # silent scale: stop
+    assert isinstance(stop, SendArmGoal) and ctrl.state is PourState.STOPPING
+    out = ctrl.kill(5.01)
+    assert [type(c) for c in out] == [Fault]  # no cancel of the braking
+    assert ctrl.on_goal_result(stop.goal_id, True, "", 5.2) == []  # and no return after it
+    # Killed on a route step: that goal is cancelled.
+    lead_in = pour.plan_return(pour.motion.trajectory.q[500])
+    ctrl = pour.controller(before=[lead_in])
+    (route,) = ctrl.start(0.0)
+    out = ctrl.kill(0.5)
+    assert isinstance(out[0], CancelGoal) and out[0].goal_id == route.goal_id  # type: ignore[union-attr]
+
+
+@pytest.mark.parametrize(("gain", "reason"), [(12.0, "predicted"), (2.0, "not reached")])
+def test_a_slow_flow_holds_at_the_end_of_the_tilt(pour: Pour, gain: float, reason: str
+                                                  ) -> None:
+    """The tilt ends before the target: the cup stays tilted, the scale still decides;
+    with hardly any flow the hold times out and the cup goes back upright anyway."""
+    truth = FlowModel(gain=gain, latency=0.1, seed=8)
+    ctrl = pour.controller()
+    run = PourSim(pour.cell, truth).run(ctrl, pour.q0, max_time=80.0)
+    assert run.report is not None and reason in run.report.reason
+    assert not run.report.stopped  # the tilt ran to its end
+    goals = [c.purpose for _, c in commands_of(run, SendArmGoal)]  # type: ignore[attr-defined]
+    assert goals == ["pour", "return"]
+    assert run.tilt[-1] < math.radians(0.5)
+    if gain == 12.0:
+        assert abs(run.final_mass - 100.0) <= 2.0
+    else:
+        assert run.final_mass < 90.0
