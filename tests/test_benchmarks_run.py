@@ -27,6 +27,8 @@ CASES = [
     ("panda_set.py", ["--limit", "2"], "the same, CPU time"),
     ("pour.py", ["--runs", "2", "--events", "20"], "path-consistent stop"),
     ("pour_controller.py", ["--runs", "1"], "final masses"),
+    ("planners_any_arm.py", ["--seeds", "1", "--time-limit", "0.2", "--robots", "ur5",
+                             "--planners", "RRT,SORRTstar"], "first path"),
 ]
 
 

@@ -22,7 +22,8 @@ import numpy as np
 
 from .._io import check_names
 from ..collision import CollisionChecker
-from ..errors import ConfigError, PlannerTimeout, PlanningError
+from ..errors import ConfigError, PlanningError
+from . import _ompl
 
 __all__ = ["PlannerOptions", "plan_joint_path", "shortcut", "default_range", "PLANNERS"]
 
@@ -54,9 +55,13 @@ class PlannerOptions:
             least this share of its length (checking is what a shortcut costs; the many
             that would gain little are not worth it).
 
-    The optimizing planners (``RRTstar``, ``InformedRRTstar``, ``SORRTstar``) keep
-    improving their path until ``time_limit`` runs out; the others stop at their first
-    path.
+    The optimizing planners (``RRTstar``, ``InformedRRTstar``, ``AORRTC``,
+    ``SORRTstar``) keep improving their path until ``time_limit`` runs out; the others
+    stop at their first path. Until a first path is found, a tree that finds none within
+    an iteration budget is dropped and a new one grown with twice the budget (all but
+    AORRTC; :mod:`safepath.planning._ompl` says why): single-tree planners otherwise get
+    stuck behind an obstacle near the start or the goal on some seeds. Budgets count
+    iterations, not seconds, so a seed gives the same path however loaded the machine.
     """
 
     planner: str = "RRTConnect"
@@ -115,7 +120,10 @@ def plan_joint_path(checker: CollisionChecker, q_start: np.ndarray, q_goal: np.n
     """A collision-free joint path from ``q_start`` to ``q_goal`` (a polyline).
 
     ``times``, if given, accumulates the seconds spent shortcutting under ``"shortcut"``
-    (the rest is finding the path).
+    (the rest is finding the path), and, when OMPL plans, the seconds to its first path
+    under ``"first_path"`` and the trees it grew under ``"attempts"`` (a tree that finds
+    no path within its iteration budget is dropped for a new one: see
+    :mod:`safepath.planning._ompl`).
 
     Raises:
         PlanningError: Start or goal invalid (names the pair), or no path found.
@@ -129,8 +137,15 @@ def plan_joint_path(checker: CollisionChecker, q_start: np.ndarray, q_goal: np.n
             raise PlanningError(f"{label} state is invalid: {why}", step=step)
     if checker.segment_is_valid(q_start, q_goal):
         return [q_start.copy(), q_goal.copy()]
+    extension = default_range(checker.robot.lower, checker.robot.upper) \
+        if options.range is None else options.range
     with _OMPL_LOCK:
-        raw = _solve(checker, q_start, q_goal, options, step)
+        _seed_ompl(options.seed)
+        found = _ompl.solve(checker, q_start, q_goal, options, extension, step)
+    if times is not None:
+        times["first_path"] = times.get("first_path", 0.0) + found.first_path_time
+        times["attempts"] = times.get("attempts", 0.0) + found.attempts
+    raw = found.path
     rng = np.random.default_rng(options.seed)
     t0 = time.perf_counter()
     path = shortcut(checker, raw, rng, iterations=options.shortcut_iterations,
@@ -140,63 +155,14 @@ def plan_joint_path(checker: CollisionChecker, q_start: np.ndarray, q_goal: np.n
     return path
 
 
-def _solve(checker: CollisionChecker, q_start: np.ndarray, q_goal: np.ndarray,
-           options: PlannerOptions, step: str | None) -> list[np.ndarray]:
-    from ompl import base as ob
-    from ompl import geometric as og
+def _seed_ompl(seed: int) -> None:
+    """Reseed OMPL's process-wide generator (before any planner of the call exists)."""
     from ompl import util as ou
 
     # Reseeding after the first time makes OMPL log an error it does not act on.
     ou.setLogLevel(ou.LOG_NONE)
-    ou.RNG.setSeed(int(options.seed) % (2**31 - 1) + 1)  # before any planner exists
+    ou.RNG.setSeed(int(seed) % (2**31 - 1) + 1)
     ou.setLogLevel(ou.LOG_ERROR)
-    robot = checker.robot
-    n = robot.dof
-    space = ob.RealVectorStateSpace(n)
-    bounds = ob.RealVectorBounds(n)
-    for i in range(n):
-        bounds.setLow(i, float(robot.lower[i]))
-        bounds.setHigh(i, float(robot.upper[i]))
-    space.setBounds(bounds)
-    setup = og.SimpleSetup(space)
-
-    def to_array(state: object) -> np.ndarray:
-        return np.fromiter((state[i] for i in range(n)), float, n)  # type: ignore[index]
-
-    setup.setStateValidityChecker(lambda s: checker.is_valid(to_array(s)))
-    si = setup.getSpaceInformation()
-
-    class _Edges(ob.MotionValidator):  # type: ignore[misc]
-        def checkMotion(self, s1: object, s2: object, *_: object) -> bool:  # noqa: N802
-            return checker.segment_is_valid(to_array(s1), to_array(s2), check_ends=False)
-
-    validator = _Edges(si)
-    si.setMotionValidator(validator)
-    start, goal = space.allocState(), space.allocState()
-    for i in range(n):
-        start[i] = float(q_start[i])
-        goal[i] = float(q_goal[i])
-    setup.setStartAndGoalStates(start, goal)
-    planner = getattr(og, options.planner)(si)
-    extension = default_range(robot.lower, robot.upper) if options.range is None \
-        else options.range
-    if extension > 0 and hasattr(planner, "setRange"):
-        planner.setRange(extension)
-    setup.setPlanner(planner)
-    t0 = time.perf_counter()
-    status = setup.solve(options.time_limit)
-    elapsed = time.perf_counter() - t0
-    text = str(status)
-    log.info("OMPL %s: %s in %.3f s", options.planner, text, elapsed)
-    if text != "Exact solution" or not setup.haveExactSolutionPath():
-        if "imeout" in text or "Approximate" in text or elapsed >= options.time_limit * 0.99:
-            raise PlannerTimeout(f"no path within {options.time_limit:g} s", step=step,
-                                 status=text)
-        raise PlanningError("no collision-free path found", step=step, status=text)
-    path = setup.getSolutionPath()
-    states = [to_array(path.getState(i)) for i in range(path.getStateCount())]
-    states[0], states[-1] = q_start.copy(), q_goal.copy()
-    return states
 
 
 def shortcut(checker: CollisionChecker, path: list[np.ndarray], rng: np.random.Generator, *,
