@@ -98,8 +98,11 @@ class Robot:
         #: derived from the joint names): what :mod:`safepath.ros` addresses.
         self.controller = controller or TrajectoryController.derived(self.joint_names)
         #: How :func:`safepath.load_robot` loads this robot again (a folder or a name), or
-        #: None for a robot built in Python. A robot pickles as this reference (worker
-        #: processes load it themselves); one without a reference does not pickle.
+        #: None for a robot built in Python. A robot pickles as this reference, its locked
+        #: joints and its attributes a user may change (``robot_loader.CARRIED``: limits,
+        #: TCP frame, tool, controller...): worker processes load it themselves and apply
+        #: them. Changes made to ``model`` itself do not travel. One without a reference
+        #: does not pickle.
         self.reference: str | None = None
         #: Joints held still during motions (fingers, ...): their value, or None where the
         #: collision geometry covers their whole travel. See :func:`safepath.load_robot`.

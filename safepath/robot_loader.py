@@ -111,22 +111,39 @@ def load_robot(name_or_path: str | Path, *, acceleration_limits: Sequence[float]
     return robot
 
 
+#: What a user may change on a loaded robot, carried to the process that loads it again.
+CARRIED = ("name", "lower", "upper", "velocity_limits", "acceleration_limits", "tcp_frame",
+           "tcp_frame_id", "tool", "allowed_self_pairs", "controller")
+
+
 def _reduce_robot(robot: Robot) -> tuple[Any, ...]:
-    """Pickle a robot as the reference it was loaded from (pinocchio's models, coal's
-    shapes and per-thread workspaces stay behind; the receiver loads them itself)."""
+    """Pickle a robot as the reference it was loaded from, its locked joints and every
+    attribute of :data:`CARRIED` as it is now (pinocchio's models, coal's shapes and
+    per-thread workspaces stay behind; the receiver loads them itself)."""
     if robot.reference is None:
         raise ConfigError(f"robot '{robot.name}' was built in Python and cannot be sent to "
                           "another process; load it with safepath.load_robot (a folder or "
                           "a name)", key="robot")
     locked = {j.name: (TRAVEL if j.value is None else j.value) for j in robot.locked_joints
               if j.follows is None}
-    return (_load_again, (robot.reference, tuple(float(a) for a in robot.acceleration_limits),
-                          locked))
+    carried = {key: getattr(robot, key) for key in CARRIED}
+    return (_load_again, (robot.reference, locked, carried))
 
 
-def _load_again(reference: str, acceleration_limits: tuple[float, ...],
-                locked: dict[str, float | str] | None = None) -> Robot:
-    return load_robot(reference, acceleration_limits=acceleration_limits, locked_joints=locked)
+def _load_again(reference: str, locked: dict[str, float | str] | None,
+                carried: dict[str, Any]) -> Robot:
+    """The robot of ``reference`` loaded again, with the values it was sent with."""
+    robot = load_robot(reference, locked_joints=locked)
+    for key in ("lower", "upper", "velocity_limits", "acceleration_limits"):
+        value = np.array(carried[key], dtype=float)
+        if value.shape != (robot.dof,):
+            raise ConfigError(f"need {robot.dof} values, got {value.tolist()}", key=key)
+        setattr(robot, key, value)
+    for key in ("name", "tcp_frame", "tcp_frame_id", "tool", "allowed_self_pairs",
+                "controller"):
+        setattr(robot, key, carried[key])
+    robot.reference = reference
+    return robot
 
 
 copyreg.pickle(Robot, _reduce_robot)

@@ -187,3 +187,37 @@ def test_plan_refuses_a_start_in_collision_naming_the_pairs() -> None:
     with pytest.raises(safepath.PlanningError, match="start state is invalid") as info:
         safepath.plan(cell.robot, cell.scene, q, cell.pose("beside_wall"))
     assert "forearm_link / table" in str(info.value)
+
+
+def test_a_robot_keeps_its_locked_joints_and_changed_limits_in_a_worker() -> None:
+    """A robot sends its changes with it: a worker that loads it again by name plans
+    exactly as this process does (before, only the acceleration limits and the locked
+    joints travelled: halved velocity limits were lost, the plans differed)."""
+    from safepath.robot_loader import CARRIED
+    from safepath.runtime import RuntimePlanner
+
+    robot = safepath.load_robot("panda", locked_joints={"panda_finger_joint1": 0.04})
+    robot.velocity_limits = robot.velocity_limits * 0.5
+    robot.acceleration_limits = robot.acceleration_limits * 0.7
+    robot.lower = robot.lower.copy()
+    robot.lower[0] = -1.5  # a narrower first joint, as a cell's fence would ask
+    copy = pickle.loads(pickle.dumps(robot))
+    for key in CARRIED:
+        mine, theirs = getattr(robot, key), getattr(copy, key)
+        assert np.array_equal(mine, theirs) if isinstance(mine, np.ndarray) \
+            else mine == theirs, key
+    assert [(j.name, j.value) for j in copy.locked_joints] == \
+        [(j.name, j.value) for j in robot.locked_joints]
+    yaml_cell = safepath.load_cell(CELLS / "panda_cell")
+    cell = Cell(robot, yaml_cell.scene, yaml_cell.poses, routes=yaml_cell.route_table())
+    expected = safepath.plan_cell(cell)
+    with RuntimePlanner(cell, spare=False) as planner:
+        got = planner.plan_cell(timeout=240.0).result(timeout=300.0)
+    assert list(got) == list(expected)
+    for name, traj in expected.items():
+        assert np.array_equal(got[name].t, traj.t) and np.array_equal(got[name].q, traj.q)
+    # The changes matter: the robot as loaded plans other motions.
+    plain = Cell(safepath.load_robot("panda", locked_joints={"panda_finger_joint1": 0.04}),
+                 yaml_cell.scene, yaml_cell.poses, routes=yaml_cell.route_table())
+    other = safepath.plan_cell(plain)
+    assert any(other[n].duration != t.duration for n, t in expected.items())
