@@ -3,39 +3,98 @@
 A :class:`Job` owns the ``concurrent.futures.Future`` handed to the caller. The future
 stays *pending* until the answer is in, so ``future.cancel()`` succeeds at any time
 before that: before the job reaches a worker it simply never runs; while a worker plans
-it, the worker is stopped and replaced. Results are set from a short-lived thread, so
-that a done-callback that blocks (even one that waits for another future of the same
-planner) never stalls the planner.
+it, the worker is stopped and replaced. Results are set by the thread that has them
+(a slot, the deadline thread), which wakes ``result()`` at once; done-callbacks run on
+short-lived threads of their own, so that one that blocks (even one that waits for
+another future of the same planner) never stalls the planner.
 
 A job with a timeout has a deadline counted from the request. :class:`Deadlines` is
 one thread that fails every job whose deadline passed with ``PlannerTimeout``, wherever
-the job is (queued, waiting for pose updates or a worker, or planning), within about a
-millisecond of the deadline; the slot that plans it then stops its worker.
+the job is (queued, waiting for pose updates or a worker, or planning); a thread waiting
+in ``result()`` at the deadline fails it itself, one scheduler wake-up sooner. The slot
+that plans it then stops its worker.
 """
 
 from __future__ import annotations
 
 import heapq
+import logging
 import threading
 import time
 from collections.abc import Callable
-from concurrent.futures import Future
+from concurrent.futures import Future, wait
 from typing import Any, Protocol
 
 from ..errors import PlannerTimeout
 
-__all__ = ["Job", "Deadlines"]
+__all__ = ["Job", "Deadlines", "RequestFuture"]
+
+log = logging.getLogger(__name__)
 
 
 class _Interruptible(Protocol):
     def interrupt(self) -> None: ...
 
 
-def _settle(future: Future[Any], ok: bool, value: Any) -> None:
-    if ok:
-        future.set_result(value)
-    else:
-        future.set_exception(value)
+class RequestFuture(Future[Any]):
+    """The future of a request: its done-callbacks each run on a short-lived thread of
+    their own, so that the thread that answers (the deadline thread, a slot) sets the
+    result at once, waking ``result()`` directly, and a callback that blocks (even one
+    that waits for another future of the same planner) never stalls it. A callback added
+    once the future is done runs at once in the caller's thread, as for any future.
+
+    A thread waiting in :meth:`result` or :meth:`exception` when the request's deadline
+    passes times the request out itself: it wakes at the deadline on its own, instead of
+    waiting for the deadline thread to wake and then wake it (two scheduler wake-ups in
+    a row, each up to tens of milliseconds on a loaded machine).
+    """
+
+    _deadline: float | None = None
+    _expire: Callable[[], object] | None = None
+
+    def expire_at(self, deadline: float, expire: Callable[[], object]) -> None:
+        """Call ``expire`` in a waiting thread that reaches ``deadline``
+        (``time.monotonic()``) before the answer."""
+        self._deadline, self._expire = deadline, expire
+
+    def result(self, timeout: float | None = None) -> Any:
+        return super().result(self._await_deadline(timeout))
+
+    def exception(self, timeout: float | None = None) -> BaseException | None:
+        return super().exception(self._await_deadline(timeout))
+
+    def _await_deadline(self, timeout: float | None) -> float | None:
+        """Wait up to the deadline (if it comes before ``timeout`` [s]) and expire the
+        request there; the part of ``timeout`` left."""
+        start = time.monotonic()
+        deadline, expire = self._deadline, self._expire
+        if deadline is None or expire is None or self.done() or (
+                timeout is not None and start + timeout < deadline):
+            return timeout
+        if not wait([self], timeout=max(0.0, deadline - start)).done:
+            expire()
+        return None if timeout is None else max(0.0, timeout - (time.monotonic() - start))
+
+    def add_done_callback(self, fn: Callable[[Future[Any]], object]) -> None:
+        if self.done():
+            super().add_done_callback(fn)
+            return
+
+        def dispatch(future: Future[Any]) -> None:
+            try:
+                threading.Thread(target=_call, args=(fn, future), daemon=True,
+                                 name="safepath-runtime-callback").start()
+            except RuntimeError:  # no new threads at interpreter shutdown
+                _call(fn, future)
+
+        super().add_done_callback(dispatch)
+
+
+def _call(fn: Callable[[Future[Any]], object], future: Future[Any]) -> None:
+    try:
+        fn(future)
+    except Exception:  # as Future's own callbacks: logged, never raised into the planner
+        log.exception("exception calling callback for %r", future)
 
 
 class Job:
@@ -66,12 +125,15 @@ class Job:
         self.poses_seq = poses_seq
         self.describe = describe
         self.cache_key = cache_key
-        self.future: Future[Any] = Future()
+        self.future: RequestFuture = RequestFuture()
         self._on_finish = on_finish
         self._lock = threading.Lock()
         self._finished = False
         self._slot: _Interruptible | None = None
-        self.future.add_done_callback(self._on_done)
+        # In the thread that cancels (not dispatched): the slot is interrupted at once.
+        Future.add_done_callback(self.future, self._on_done)
+        if self.deadline is not None:
+            self.future.expire_at(self.deadline, self.expire)
 
     @property
     def finished(self) -> bool:
@@ -100,12 +162,11 @@ class Job:
             self._finished = True
             running = self.future.set_running_or_notify_cancel()
         self._on_finish(self, value if ok and running else None, timed_out and running)
-        if running:
-            try:
-                threading.Thread(target=_settle, args=(self.future, ok, value), daemon=True,
-                                 name=f"safepath-runtime-done-{self.id}").start()
-            except RuntimeError:  # no new threads at interpreter shutdown
-                _settle(self.future, ok, value)
+        if running:  # wakes result() now; the callbacks get threads of their own
+            if ok:
+                self.future.set_result(value)
+            else:
+                self.future.set_exception(value)
         return True
 
     def expire(self) -> bool:

@@ -291,6 +291,25 @@ def test_timeout_answers_at_its_deadline_and_keeps_the_cache(slow: RuntimePlanne
     wait_for(lambda: slow.stats().killed == before.killed + 1, "the worker to be stopped")
 
 
+def test_a_waiting_caller_times_its_request_out_itself(slow: RuntimePlanner,
+                                                       monkeypatch: pytest.MonkeyPatch) -> None:
+    """The thread blocked in ``result()`` fails the request at its deadline itself (one
+    scheduler wake-up, not the deadline thread's and then its own): here the deadline
+    thread never hears of the request, and the answer still comes at the deadline."""
+    from safepath.runtime import _job
+
+    wait_for(lambda: idle(slow), "the planner to be idle")
+    before = slow.stats()
+    monkeypatch.setattr(_job.Deadlines, "add", lambda self, job: None)
+    t0 = time.perf_counter()
+    with pytest.raises(PlannerTimeout, match="0.1 s timeout"):
+        slow.plan_cell(seed=37, timeout=0.1).result(timeout=LONG)
+    took = time.perf_counter() - t0
+    assert 0.1 <= took < 0.1 + CACHED, f"a 0.1 s timeout answered after {took:.3f} s"
+    assert slow.stats().timed_out == before.timed_out + 1
+    wait_for(lambda: slow.stats().killed == before.killed + 1, "the worker to be stopped")
+
+
 def test_a_queued_request_times_out_without_a_worker(slow: RuntimePlanner) -> None:
     wait_for(lambda: idle(slow), "the planner to be idle")
     before = slow.stats()
