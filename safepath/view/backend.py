@@ -20,6 +20,7 @@ from typing import Any, Literal, Protocol
 import numpy as np
 
 from .._io import check_names
+from ..cell import Cell
 from ..errors import InputError
 from ..trajectory import Trajectory
 
@@ -32,7 +33,8 @@ BackendKind = Literal["auto", "process", "runtime"]
 
 
 class PlanBackend(Protocol):
-    """Plans routes of one cell folder with given poses, outside the caller's process."""
+    """Plans routes of one cell (a folder, or a cell built in Python) with given poses,
+    outside the caller's process."""
 
     def plan(self, poses: Mapping[str, np.ndarray], routes: Sequence[str] | None = None
              ) -> Future[dict[str, Trajectory]]:
@@ -44,9 +46,10 @@ class PlanBackend(Protocol):
         ...
 
 
-def plan_in_worker(folder: str, poses: dict[str, list[float]], routes: list[str] | None,
-                   seed: int) -> dict[str, Trajectory]:
-    """Load the cell, override its poses, plan ``routes`` and the routes they follow.
+def plan_in_worker(source: str | Cell, poses: dict[str, list[float]],
+                   routes: list[str] | None, seed: int) -> dict[str, Trajectory]:
+    """Load the cell (a folder; a cell arrives unpickled), override its poses, plan
+    ``routes`` and the routes they follow.
 
     Runs in the worker process; its errors reach the caller's future as they were
     raised (typed, with their evidence).
@@ -59,7 +62,7 @@ def plan_in_worker(folder: str, poses: dict[str, list[float]], routes: list[str]
     from ..planning import PlannerOptions, PlanOptions, plan_cell
     from ..routes import after_chain
 
-    cell = load_cell(folder)
+    cell = source if isinstance(source, Cell) else load_cell(source)
     for name, q in poses.items():
         cell.poses[name] = cell.robot.as_joint_vector(q, name=f"poses.{name}",
                                                       path=cell.poses_path)
@@ -82,12 +85,13 @@ class ProcessPlanBackend:
     """Plans in one spawned worker process (started on first use, then kept warm).
 
     Args:
-        folder: The scene folder.
+        source: The scene folder, or a cell built in Python (its robot from
+            :func:`~safepath.load_robot`: it is sent to the worker).
         seed: Planner seed.
     """
 
-    def __init__(self, folder: str | Path, *, seed: int = 0) -> None:
-        self.folder = str(Path(folder).resolve())
+    def __init__(self, source: str | Path | Cell, *, seed: int = 0) -> None:
+        self.source = source if isinstance(source, Cell) else str(Path(source).resolve())
         self.seed = seed
         self._executor: ProcessPoolExecutor | None = None
 
@@ -104,7 +108,7 @@ class ProcessPlanBackend:
         # with a traceback. The parent gets a deferred Ctrl-C as usual.
         blocked = signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT})
         try:
-            return self._executor.submit(plan_in_worker, self.folder, payload,
+            return self._executor.submit(plan_in_worker, self.source, payload,
                                          None if routes is None else list(routes), self.seed)
         finally:
             signal.pthread_sigmask(signal.SIG_SETMASK, blocked)
@@ -119,11 +123,11 @@ class ProcessPlanBackend:
 class RuntimePlanBackend:
     """Adapter to ``safepath.runtime.RuntimePlanner`` (which plans in its own worker)."""
 
-    def __init__(self, folder: str | Path, *, seed: int = 0) -> None:
+    def __init__(self, source: str | Path | Cell, *, seed: int = 0) -> None:
         from ..runtime import RuntimePlanner
 
         self.seed = seed
-        self._planner: Any = RuntimePlanner(folder)
+        self._planner: Any = RuntimePlanner(source)
 
     def plan(self, poses: Mapping[str, np.ndarray], routes: Sequence[str] | None = None
              ) -> Future[dict[str, Trajectory]]:
@@ -153,10 +157,10 @@ class RuntimePlanBackend:
             close()
 
 
-def make_backend(folder: str | Path, *, kind: BackendKind = "auto", seed: int = 0
+def make_backend(source: str | Path | Cell, *, kind: BackendKind = "auto", seed: int = 0
                  ) -> PlanBackend:
-    """The planning backend: the runtime planner (``auto``, ``runtime``) or a process
-    pool (``process``)."""
+    """The planning backend of a scene folder or a cell: the runtime planner (``auto``,
+    ``runtime``) or a process pool (``process``)."""
     if kind == "process":
-        return ProcessPlanBackend(folder, seed=seed)
-    return RuntimePlanBackend(folder, seed=seed)
+        return ProcessPlanBackend(source, seed=seed)
+    return RuntimePlanBackend(source, seed=seed)

@@ -118,7 +118,8 @@ class Plans:
             if routes == []:
                 raise SafepathError(f"no route uses {', '.join(changed)}: nothing to re-plan")
             if self._backend is None:
-                self._backend = make_backend(self.cell.scene_folder(), kind=self.options.backend,
+                source = self.cell if self.cell.folder is None else self.cell.folder
+                self._backend = make_backend(source, kind=self.options.backend,
                                              seed=self.options.seed)
             self._say(f"planning {'every route' if routes is None else ', '.join(routes)}...")
             self.ready.clear()

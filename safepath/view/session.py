@@ -25,6 +25,7 @@ import threading
 import time
 from collections.abc import Callable, Mapping
 from concurrent.futures import Future
+from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
@@ -32,7 +33,7 @@ import numpy as np
 import pinocchio as pin
 import viser
 
-from ..cell import load_cell
+from ..cell import Cell, load_cell
 from ..errors import SafepathError
 from ..trajectory import Trajectory
 from ._ports import choose_port, is_loopback
@@ -63,19 +64,29 @@ class ReviewSession:
     """A browser session to review, edit and re-plan one cell.
 
     Args:
-        scene: The scene folder.
+        scene: The scene folder, or a :class:`~safepath.cell.Cell` built in Python
+            (the session works on a copy: the cell's poses change only through a save).
+            Edits of such a cell are saved to its ``poses_path`` (created by the first
+            save if it does not exist); without one, saving is refused with a
+            ``ConfigError``. Planning sends the cell to a worker process, so its robot
+            must come from :func:`~safepath.load_robot`.
         plans: Trajectories written by ``safepath plan`` (folder or file); None plans
             the cell at start-up, in the background.
         options: Host, port, access, rate, planning.
 
     Raises:
         SafepathError: Unknown scene, unreadable plan, plan for another robot.
+        ConfigError: A cell built in Python whose existing ``poses_path`` holds other
+            poses than the cell's.
     """
 
-    def __init__(self, scene: str | Path, *, plans: str | Path | None = None,
+    def __init__(self, scene: str | Path | Cell, *, plans: str | Path | None = None,
                  options: ViewOptions | None = None) -> None:
         self.options = opts = options or ViewOptions()
-        self.cell = load_cell(scene)
+        if isinstance(scene, Cell):
+            self.cell = replace(scene, poses=dict(scene.poses), _local=threading.local())
+        else:
+            self.cell = load_cell(scene)
         self.routes = routes_of(self.cell)
         self._given = load_plans(self.cell, plans) if plans is not None else None
         self.poses = SharedPoses(self.cell, PosesStore(self.cell))

@@ -33,7 +33,7 @@ from typing import Any
 import numpy as np
 
 from ..cell import Cell
-from ..errors import PoseError, SafepathError
+from ..errors import ConfigError, PoseError, SafepathError
 from ..poses import load_poses, save_poses
 
 __all__ = ["PoseChange", "PosesChanged", "PosesSnapshot", "PosesStore", "differences"]
@@ -123,24 +123,49 @@ class PosesChanged(SafepathError):
 class PosesStore:
     """Reads and saves one cell's poses file (see the module docstring).
 
+    A cell built in Python may have no poses file: its poses are then the only version,
+    and a save is refused with a ``ConfigError``. One whose ``poses_path`` does not
+    exist yet starts from its own poses, and the first save creates the file.
+
     Args:
         cell: The cell; its ``poses`` are left to the caller.
+
+    Raises:
+        ConfigError: The cell was built in Python with a ``poses_path`` that exists and
+            holds other poses than the cell's (names the file and the poses).
     """
 
     def __init__(self, cell: Cell) -> None:
         self.robot = cell.robot
-        self.path = cell.poses_file()
-        self.log_path = self.path.with_name(LOG_NAME)
+        #: The poses file, or None: the cell was built in Python without one.
+        self.path: Path | None = cell.poses_path
+        self.log_path = None if self.path is None else self.path.with_name(LOG_NAME)
+        # The cell's own poses are the version in force while there is no file.
+        self._initial = {k: np.array(q) for k, q in cell.poses.items()} \
+            if self.path is None or not self.path.exists() else None
+        if cell.folder is None and self._initial is None:
+            changes = differences(cell.poses, self.read().poses)
+            if changes:
+                what = "; ".join(c.describe(self.robot.joint_names) for c in changes)
+                raise ConfigError(f"the file holds other poses than the cell's ({what}): "
+                                  "build the cell from it (safepath.load_poses) or give a "
+                                  "new poses_path", path=self.path, key="poses_path")
 
     def read(self) -> PosesSnapshot:
-        """The file as it is now, with its hash.
+        """The file as it is now, with its hash (the cell's own poses, hash ``""``, while
+        it has no file).
 
         Raises:
             PoseError: The file is malformed (names file and key).
         """
+        if self.path is None:
+            return PosesSnapshot("", dict(self._initial or {}))
         for _ in range(5):
             raw = self._bytes()
-            poses = load_poses(self.path, self.robot) if raw is not None else {}
+            if raw is not None:
+                poses = load_poses(self.path, self.robot)
+            else:
+                poses = dict(self._initial) if self._initial is not None else {}
             if self._bytes() == raw:  # not rewritten while it was parsed
                 return PosesSnapshot(_digest(raw), poses)
         raise PoseError("the file keeps changing while it is read", path=self.path)
@@ -160,9 +185,15 @@ class PosesStore:
             The new version.
 
         Raises:
+            ConfigError: The cell has no poses file (built in Python without
+                ``poses_path``): nothing is written.
             PosesChanged: The file is not ``base`` any more (nothing is written).
             PoseError: A pose is malformed or outside the limits (nothing is written).
         """
+        if self.path is None or self.log_path is None:
+            raise ConfigError("not saved: the cell was built in Python without a poses "
+                              "file; build it with Cell(..., poses_path=PATH) to save its "
+                              "poses to PATH", key="poses_path")
         with open(self.log_path, "a", encoding="utf-8") as log_file:
             fcntl.flock(log_file, fcntl.LOCK_EX)
             current = self.read()
@@ -189,6 +220,8 @@ class PosesStore:
         return new
 
     def _bytes(self) -> bytes | None:
+        if self.path is None:
+            return None
         try:
             return self.path.read_bytes()
         except FileNotFoundError:

@@ -69,6 +69,7 @@ class SharedPoses:
 
         Raises:
             SafepathError: Nothing edited.
+            ConfigError: The cell has no poses file (built in Python without one).
             PosesChanged: A conflict in ``edits``, or the file is not the version the
                 edits were made on (nothing is written).
             CollisionError: An edited pose collides and ``insist`` is false.
@@ -77,6 +78,7 @@ class SharedPoses:
         poses, checks = edits.to_save(insist=insist)
         new = self.store.save(edits.base, poses, client=client, checks=checks, insist=insist)
         edits.saved(new)
+        assert self.store.path is not None  # the store saves only to a file
         return self.store.path, self._adopt(new)
 
     def reload(self) -> list[PoseChange]:
@@ -128,6 +130,8 @@ class SharedPoses:
         self.cell.poses.update({k: np.array(q) for k, q in snapshot.poses.items()})
 
     def _file_stat(self) -> tuple[int, int] | None:
+        if self.store.path is None:
+            return None
         try:
             st = self.store.path.stat()
         except FileNotFoundError:

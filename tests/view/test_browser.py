@@ -22,6 +22,7 @@ from typing import Any
 import numpy as np
 import pytest
 
+from safepath import Cell
 from safepath.view import ReviewSession, ViewOptions
 
 CHROMIUM = Path("/usr/bin/chromium")
@@ -343,4 +344,31 @@ def test_two_pages_need_the_token_and_lose_no_edit(tmp_path: Path, cell_copy: Pa
     finally:
         for browser in browsers:
             browser.close()
+        session.stop()
+
+
+def test_page_draws_a_cell_built_in_python(browser: Browser, cell: Cell) -> None:
+    """A cell built in Python (no folder, no poses file) is served like a folder's: the
+    page draws its robot (hiding it changes the page). (The page draws primitive
+    shapes: the meshes of example-robot-data's arms are not drawn yet.)"""
+    cell = Cell(cell.robot, cell.scene, cell.poses, routes=cell.route_table())
+    assert cell.folder is None and cell.poses_path is None
+    session = ReviewSession(cell, options=ViewOptions(port=0, plan_on_start=False)).start()
+    try:
+        browser.call("Page.enable")
+        browser.call("Page.navigate", url=session.url)
+        wait_for(lambda: bool(session.server.get_clients()), 20.0,
+                 "the page never connected to the server")
+        wait_for(lambda: drawn_pixels(browser.screenshot()) > 20000, 30.0,
+                 "the page never drew the scene")
+        browser.js("document.querySelectorAll('.mantine-Notification-closeButton')"
+                   ".forEach(b => b.click())")
+        time.sleep(1.0)
+        shown = browser.screenshot()
+        with session.server.atomic():
+            session.robot_nodes.set_visible(False)
+        time.sleep(1.0)
+        hidden = browser.screenshot()
+        assert changed_pixels(shown, hidden) > 2000, "the robot is not drawn"
+    finally:
         session.stop()
