@@ -135,6 +135,35 @@ def add_shape(server: Scope, path: str, name: str, kind: str,
     return None
 
 
+#: Meshes with more triangles than this are not drawn (a visual model's meshes can have
+#: hundreds of thousands; the collision model's convex hulls have hundreds).
+MAX_MESH_TRIANGLES = 50_000
+
+
+def add_mesh(server: Scope, path: str, name: str, vertices: np.ndarray, faces: np.ndarray,
+             color: Rgb) -> ShapeNode:
+    """Add a triangle mesh (vertices [m] in its frame, faces as vertex indices)."""
+    node = server.scene.add_mesh_simple(path, vertices=vertices, faces=faces, color=color)
+    return ShapeNode(name, node, [node], color, color)
+
+
+def coal_mesh(geometry: Any) -> tuple[np.ndarray, np.ndarray] | None:
+    """``(vertices [m], faces)`` of a coal convex hull or triangle mesh (the meshes of
+    example-robot-data's arms), or None for anything else or a mesh too big to draw."""
+    import coal
+
+    if isinstance(geometry, coal.Convex):
+        count, vertices, face = geometry.num_polygons, geometry.points(), geometry.polygons
+    elif isinstance(geometry, coal.BVHModelBase):
+        count, vertices, face = geometry.num_tris, geometry.vertices(), geometry.tri_indices
+    else:
+        return None
+    if not 0 < count <= MAX_MESH_TRIANGLES:
+        return None
+    faces = np.array([[face(i)[k] for k in range(3)] for i in range(count)], dtype=np.int32)
+    return np.asarray(vertices, dtype=np.float32), faces
+
+
 def coal_shape(geometry: Any) -> tuple[str, tuple[float, ...]] | None:
     """``(kind, size)`` of a coal primitive (see :class:`~safepath.scene.Shape`)."""
     import coal
@@ -177,15 +206,19 @@ class RobotNodes:
             indices: list[int] = []
             for i, geom in enumerate(gmodel.geometryObjects):
                 link = str(robot.model.frames[geom.parentFrame].name)
+                color = (palette.get(link, _LINK_PALETTE[0]) if which == "collision"
+                         else _to_rgb(geom.meshColor))
+                path = f"{prefix}/{which}/{i:02d}_{geom.name}"
                 shape = coal_shape(geom.geometry)
-                if shape is None:
+                mesh = coal_mesh(geom.geometry) if shape is None else None
+                if shape is not None:
+                    node = add_shape(server, path, link, shape[0], shape[1], color)
+                elif mesh is not None:
+                    node = add_mesh(server, path, link, mesh[0], mesh[1], color)
+                else:
                     log.warning("%s geometry %s: shape %s not drawn", which, geom.name,
                                 type(geom.geometry).__name__)
                     continue
-                color = (palette.get(link, _LINK_PALETTE[0]) if which == "collision"
-                         else _to_rgb(geom.meshColor))
-                node = add_shape(server, f"{prefix}/{which}/{i:02d}_{geom.name}", link,
-                                 shape[0], shape[1], color)
                 if node is not None:
                     node.root.visible = which == style
                     nodes.append(node)

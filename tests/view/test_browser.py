@@ -22,7 +22,7 @@ from typing import Any
 import numpy as np
 import pytest
 
-from safepath import Cell
+from safepath import Cell, load_cell
 from safepath.view import ReviewSession, ViewOptions
 
 CHROMIUM = Path("/usr/bin/chromium")
@@ -347,11 +347,14 @@ def test_two_pages_need_the_token_and_lose_no_edit(tmp_path: Path, cell_copy: Pa
         session.stop()
 
 
-def test_page_draws_a_cell_built_in_python(browser: Browser, cell: Cell) -> None:
-    """A cell built in Python (no folder, no poses file) is served like a folder's: the
-    page draws its robot (hiding it changes the page). (The page draws primitive
-    shapes: the meshes of example-robot-data's arms are not drawn yet.)"""
-    cell = Cell(cell.robot, cell.scene, cell.poses, routes=cell.route_table())
+def test_page_draws_a_cell_built_in_python(browser: Browser) -> None:
+    """A UR5 cell built in Python (no folder, no poses file) is served like a folder's:
+    the page draws its robot, whose links are meshes (example-robot-data's convex hulls):
+    hiding it changes the page."""
+    yaml_cell = load_cell(Path(__file__).resolve().parents[2] / "examples" / "cells"
+                          / "ur5_cell")
+    cell = Cell(yaml_cell.robot, yaml_cell.scene, yaml_cell.poses,
+                routes=yaml_cell.route_table())
     assert cell.folder is None and cell.poses_path is None
     session = ReviewSession(cell, options=ViewOptions(port=0, plan_on_start=False)).start()
     try:
