@@ -27,7 +27,11 @@ from typing import Any, Protocol
 
 from ..errors import PlannerTimeout
 
-__all__ = ["Job", "Deadlines", "RequestFuture"]
+__all__ = ["Job", "Deadlines", "RequestFuture", "WAITER_GRACE"]
+
+#: How long after a deadline the deadline thread leaves a request that a thread waits
+#: for to that thread [s] (the waiter, woken at the deadline, fails it first).
+WAITER_GRACE = 0.02
 
 log = logging.getLogger(__name__)
 
@@ -51,6 +55,8 @@ class RequestFuture(Future[Any]):
 
     _deadline: float | None = None
     _expire: Callable[[], object] | None = None
+    #: Threads waiting in :meth:`result` or :meth:`exception` for the deadline.
+    waiting = 0
 
     def expire_at(self, deadline: float, expire: Callable[[], object]) -> None:
         """Call ``expire`` in a waiting thread that reaches ``deadline``
@@ -71,7 +77,12 @@ class RequestFuture(Future[Any]):
         if deadline is None or expire is None or self.done() or (
                 timeout is not None and start + timeout < deadline):
             return timeout
-        if not wait([self], timeout=max(0.0, deadline - start)).done:
+        self.waiting += 1  # only ever read as "any": a lost update is harmless
+        try:
+            done = wait([self], timeout=max(0.0, deadline - start)).done
+        finally:
+            self.waiting -= 1
+        if not done:
             expire()
         return None if timeout is None else max(0.0, timeout - (time.monotonic() - start))
 
@@ -237,9 +248,15 @@ class Deadlines:
                     if not self._heap:
                         self._cond.wait()
                         continue
-                    delay = self._heap[0][0] - time.monotonic()
+                    now = time.monotonic()
+                    delay = self._heap[0][0] - now
                     if delay <= 0:
-                        job = heapq.heappop(self._heap)[2]
+                        due, _, job = heapq.heappop(self._heap)
+                        if job.future.waiting and due == job.deadline:
+                            # A thread waits for it and expires it itself: waking now too
+                            # would take the interpreter lock from it at its deadline.
+                            heapq.heappush(self._heap, (due + WAITER_GRACE, job.id, job))
+                            continue
                         break
                     self._cond.wait(delay)
             job.expire()
