@@ -58,6 +58,11 @@ def cmd_check(args: argparse.Namespace) -> int:
                   + ", ".join(_fmt_pair(p) for p in rep.collisions[1:]))
     low = sum(1 for r in rows if r.report.valid and not r.report.margin_ok)
     print(f"{len(rows) - unsafe}/{len(rows)} states valid, {low} below margin")
+    if cell.folder is not None and (cell.folder / "routes.yaml").is_file():
+        routes = cell.route_table()  # a malformed routes.yaml: a ConfigError, exit 2
+        steps = sum(len(r.steps) for r in routes.values())
+        print(f"routes.yaml: {len(routes)} routes, {steps} steps valid "
+              f"({', '.join(routes)})")
     if unsafe or (low and args.strict):
         return EXIT_UNSAFE
     return 0

@@ -24,7 +24,8 @@ A route starts at a taught pose and lists steps::
 
 Motion steps (``move``, ``line``, and ``via``, a move that never stops) do not stop at
 their end unless ``stop: true`` is given or a gripper action or the route's end follows:
-the robot blends through them.
+the robot blends through them. Pour steps (``tilt``, ``circle``: a held cup turned about
+a point of it, a horizontal circle of the TCP) are defined in :mod:`safepath.pour_steps`.
 """
 
 from __future__ import annotations
@@ -37,12 +38,13 @@ from typing import Any, Literal
 
 from ._io import as_float, as_str, as_vector, check_keys, check_names, get_key, read_yaml
 from .errors import ConfigError
+from .pour_steps import POUR_KINDS, Circle, Tilt, check_pour_fields, parse_pour_step, parse_speed
 from .tcp_targets import CartesianTarget, is_cartesian, parse_cartesian
 
 __all__ = ["Target", "Step", "Route", "load_routes", "check_routes", "after_chain"]
 
-StepKind = Literal["move", "line", "open", "close"]
-_STEP_KINDS = ("move", "line", "open", "close")
+StepKind = Literal["move", "line", "open", "close", "tilt", "circle"]
+_STEP_KINDS = ("move", "line", "open", "close", *POUR_KINDS)
 
 
 @dataclass(frozen=True)
@@ -100,7 +102,7 @@ class Step:
     """One step of a route.
 
     Attributes:
-        kind: ``move``, ``line``, ``open`` or ``close``.
+        kind: ``move``, ``line``, ``open``, ``close``, ``tilt`` or ``circle``.
         target: Where a motion goes (None for gripper actions).
         object: Object a gripper action takes or releases (None: the scene's grasp).
         speed: Fraction of the velocity and acceleration limits, in (0, 1].
@@ -109,6 +111,10 @@ class Step:
         max_tilt: Largest angle between the held object's axis and the vertical at
             every released sample of this step [rad], or None (an orientation path
             constraint: "keep the cup upright").
+        pour: What a ``tilt`` or ``circle`` step does (:class:`~safepath.pour_steps.Tilt`,
+            :class:`~safepath.pour_steps.Circle`); None for the other kinds.
+        max_angular_speed: Bound on the held cup's angular speed during a ``tilt``
+            [rad/s] (required there; None elsewhere). A ``circle`` needs ``tcp_speed``.
     """
 
     kind: StepKind
@@ -118,15 +124,19 @@ class Step:
     tcp_speed: float | None = None
     stop: bool = False
     max_tilt: float | None = None
+    pour: Tilt | Circle | None = None
+    max_angular_speed: float | None = None
 
     def __post_init__(self) -> None:
         check_names([self.kind], _STEP_KINDS, path=None, key="kind", what="step kind")
+        check_pour_fields(self.kind, self.pour, self.max_angular_speed, self.tcp_speed,
+                          self.max_tilt)
         motion = self.kind in ("move", "line")
         if motion and not isinstance(self.target, Target):
             raise ConfigError(f"a {self.kind} step needs a Target, got {self.target!r}",
                               key="target")
         if not motion and self.target is not None:
-            raise ConfigError(f"a gripper action has no target, got {self.target!r}",
+            raise ConfigError(f"a {self.kind} step has no target, got {self.target!r}",
                               key="target")
         if self.object is not None and (not isinstance(self.object, str) or not self.object):
             raise ConfigError(f"expected an object name or None, got {self.object!r}",
@@ -146,11 +156,11 @@ class Step:
     @property
     def is_motion(self) -> bool:
         """Whether the step moves the arm."""
-        return self.kind in ("move", "line")
+        return self.kind in ("move", "line", *POUR_KINDS)
 
     def label(self, index: int) -> str:
         """Short unique name, e.g. ``2 line high1``."""
-        what = self.target if self.target is not None else (self.object or "")
+        what = self.target if self.target is not None else (self.pour or self.object or "")
         return f"{index} {self.kind} {what}".rstrip()
 
 
@@ -180,6 +190,10 @@ class Route:
             raise ConfigError(f"expected a non-empty sequence of Step, got {self.steps!r}",
                               key="steps")
         object.__setattr__(self, "steps", steps)
+        for i, step in enumerate(steps):
+            if step.kind == "circle" and (i == 0 or steps[i - 1].kind != "tilt"):
+                raise ConfigError("a circle follows a tilt directly (the two are one "
+                                  "continuous motion)", key=f"steps[{i}].circle")
         if self.after is not None and (not isinstance(self.after, str) or not self.after):
             raise ConfigError(f"expected a route name or None, got {self.after!r}",
                               key="after")
@@ -342,7 +356,10 @@ def _parse_route(name: str, raw: Any, path: Path, poses: Sequence[str],
     after = raw.get("after")
     if after is not None:
         after = as_str(after, path=path, key=f"{key}.after")
-    return Route(name, start, steps, after)
+    try:
+        return Route(name, start, steps, after)
+    except ConfigError as exc:  # the order of the steps (a circle after its tilt)
+        raise ConfigError(exc.reason, path=path, key=f"{key}.{exc.key}") from None
 
 
 def _parse_step(raw: Any, path: Path, key: str, poses: Sequence[str], objects: Sequence[str],
@@ -351,17 +368,15 @@ def _parse_step(raw: Any, path: Path, key: str, poses: Sequence[str], objects: S
         raw = {raw: None}
     if not isinstance(raw, dict):
         raise ConfigError("expected a mapping such as {move: high2}", path=path, key=key)
-    kinds = [k for k in ("move", "line", "via", "open", "close") if k in raw]
+    kinds = [k for k in ("move", "line", "via", "open", "close", *POUR_KINDS) if k in raw]
     if len(kinds) != 1:
-        raise ConfigError("a step needs exactly one of move, line, via, open, close",
-                          path=path, key=key)
+        raise ConfigError("a step needs exactly one of move, line, via, open, close, tilt, "
+                          "circle", path=path, key=key)
     kind = kinds[0]
+    if kind in POUR_KINDS:
+        return _pour_step(raw, kind, path, key, defaults)
     check_keys(raw, (kind, "speed", "tcp_speed", "stop", "max_tilt"), path=path, prefix=key)
-    speed = as_float(raw.get("speed", defaults.get("speed", 1.0)), path=path,
-                     key=f"{key}.speed", positive=True)
-    if speed > 1.0:
-        raise ConfigError(f"speed is a fraction of the limits, at most 1, got {speed:g}",
-                          path=path, key=f"{key}.speed")
+    speed = parse_speed(raw, defaults, path=path, key=key)
     tcp = raw.get("tcp_speed", defaults.get("tcp_speed"))
     tcp_speed = None if tcp is None else as_float(tcp, path=path, key=f"{key}.tcp_speed",
                                                   positive=True)
@@ -388,3 +403,12 @@ def _parse_step(raw: Any, path: Path, key: str, poses: Sequence[str], objects: S
             raise ConfigError("a via point never stops", path=path, key=f"{key}.stop")
         return Step("move", target, None, speed, tcp_speed, False, max_tilt)
     return Step(kind, target, None, speed, tcp_speed, stop, max_tilt)  # type: ignore[arg-type]
+
+
+
+def _pour_step(raw: dict, kind: str, path: Path, key: str, defaults: Mapping[str, Any]
+               ) -> Step:
+    pour, speed, bound = parse_pour_step(raw, kind, path=path, key=key, defaults=defaults)
+    if isinstance(pour, Tilt):
+        return Step("tilt", None, None, speed, pour=pour, max_angular_speed=bound)
+    return Step("circle", None, None, speed, tcp_speed=bound, pour=pour)

@@ -77,6 +77,8 @@ def cmd_plan(args: argparse.Namespace) -> int:
         print(f"{name:<15} {row['steps']:>5} {row['planning_time'] * 1000:>9.0f} "
               f"{row['motion_time']:>10.3f} {base_text} {ratio} "
               f"{row['min_clearance'] * 1000:>14.1f}  {pair}")
+    for line in _figure_lines(summary):
+        print(line)
     print(f"wrote {len(trajectories)} trajectories (JSON, CSV) and summary.json to {out}")
     if bag is not None:
         print(f"wrote a ROS 2 bag of the cycle ({' -> '.join(t.route for t in cycle)}) to {bag}")
@@ -92,7 +94,26 @@ def _summary_row(traj: Any) -> dict[str, Any]:
         "min_clearance": traj.info["min_clearance"],
         "closest_pair": traj.info["closest_pair"],
         "step_durations": traj.step_durations(),
+        **{k: traj.info[k] for k in ("carried_tilt", "pours") if k in traj.info},
     }
+
+
+def _figure_lines(summary: dict[str, Any]) -> list[str]:
+    """The held object's largest tilt on the steps that keep it upright, and the pours'
+    figures, route by route (measured on the released samples)."""
+    import math
+
+    from ._pour_chunk import describe
+
+    lines = []
+    for name, row in summary.items():
+        carried = row.get("carried_tilt")
+        if carried:
+            lines.append(f"{name}: carried upright, tilt <= "
+                         f"{math.degrees(carried['max']):.3f} deg (max_tilt "
+                         f"{math.degrees(carried['bound']):.2f} deg)")
+        lines += [f"{name}: {line}" for line in describe(row.get("pours") or {})]
+    return lines
 
 
 def _write_outputs(out: Path, trajectories: dict[str, Any], summary: dict[str, Any],

@@ -21,7 +21,7 @@ if TYPE_CHECKING:
     from ..routes import Route
     from ..trajectory import Trajectory
 
-__all__ = ["tilt_profile", "check_tilt"]
+__all__ = ["tilt_profile", "check_tilt", "tilt_bound"]
 
 
 def tilt_profile(cell: Cell, q: np.ndarray) -> np.ndarray:
@@ -59,3 +59,9 @@ def check_tilt(cell: Cell, route: Route, traj: Trajectory) -> float:
                             f" deg at t = {traj.t[k]:.3f} s, more than max_tilt "
                             f"{math.degrees(float(bounds[i])):.2f} deg", step=traj.steps[i])
     return float(tilt.max())
+
+
+def tilt_bound(route: Route) -> float | None:
+    """The smallest ``max_tilt`` of the route's steps [rad], or None if none has one."""
+    bounds = [s.max_tilt for s in route.steps if s.max_tilt is not None]
+    return min(bounds) if bounds else None

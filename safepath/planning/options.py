@@ -6,6 +6,7 @@ from dataclasses import dataclass, field
 
 from ..checks import CheckOptions
 from .cartesian import LineOptions
+from .pour import PourOptions
 from .sampling import PlannerOptions
 from .timing import TimingOptions
 
@@ -21,6 +22,8 @@ class PlanOptions:
         planner: Sampling planner (name, time budget, seed).
         line: Cartesian lines.
         timing: Time parameterisation (global speed scale).
+        pour: Pour steps (``tilt``, ``circle``): waypoint spacing and the tolerances
+            checked on the released samples (their bounds come from the steps).
         grasp_tolerance: How far the object may be from the gripper when it closes [m].
         baseline: Also time the stop-and-go baseline (every motion step rest to rest
             along its own path, same limits) into ``info["baseline_duration"]``.
@@ -30,5 +33,6 @@ class PlanOptions:
     planner: PlannerOptions = field(default_factory=PlannerOptions)
     line: LineOptions = field(default_factory=LineOptions)
     timing: TimingOptions = field(default_factory=TimingOptions)
+    pour: PourOptions = field(default_factory=PourOptions)
     grasp_tolerance: float = 0.005
     baseline: bool = False

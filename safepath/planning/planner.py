@@ -25,8 +25,9 @@ from ..errors import IKError, PlanningError, TimingError
 from ..routes import Route, Step, after_chain
 from ..trajectory import Trajectory
 from ._chunks import Segment, assemble, time_chunk, time_segments
+from ._pour_chunk import PourChunk, plan_pour_chunk
 from .cartesian import cartesian_line
-from .constraints import check_tilt
+from .constraints import check_tilt, tilt_bound
 from .options import PlanOptions
 from .sampling import plan_joint_path
 from .timing import TimedPiece
@@ -115,7 +116,7 @@ class _Paths:
         shortcut_time: Time spent shortcutting OMPL's paths [s].
     """
 
-    chunks: list[tuple[list[Segment], WorldState]]
+    chunks: list[tuple[list[Segment], WorldState] | PourChunk]
     actions: list[tuple[int, int, Step]]
     world: WorldState
     shortcut_time: float
@@ -132,7 +133,12 @@ def _plan(cell: Cell, route: Route, world: WorldState, options: PlanOptions,
                                                               cache, labels)
     traj = assemble(cell, route, labels, pieces, chunk_ends, paths.actions)
     _check_position_limits(cell, traj)
-    check_tilt(cell, route, traj)  # orientation path constraints (max_tilt)
+    carried = check_tilt(cell, route, traj)  # orientation path constraints (max_tilt)
+    if tilt_bound(route) is not None:
+        traj.info["carried_tilt"] = {"max": carried, "bound": tilt_bound(route)}
+    pours = [c.figures for c in paths.chunks if isinstance(c, PourChunk)]
+    if pours:
+        traj.info["pours"] = {k: v for f in pours for k, v in f.items()}
     traj.info.update({
         "planning_time": plan_time,
         "shortcut_time": paths.shortcut_time,
@@ -154,11 +160,20 @@ def _plan_paths(cell: Cell, route: Route, world: WorldState, options: PlanOption
     actions (which change the world)."""
     q = cell.pose(route.start)
     pose_name: str | None = route.start
-    chunks: list[tuple[list[Segment], WorldState]] = []
+    chunks: list[tuple[list[Segment], WorldState] | PourChunk] = []
     actions: list[tuple[int, int, Step]] = []
     current: list[Segment] = []
     times: dict[str, float] = {}
     for i, step in enumerate(route.steps):
+        if step.kind in ("tilt", "circle"):  # rest to rest; a circle goes with its tilt
+            if current:
+                chunks.append((current, world.copy()))
+                current = []
+            if step.kind == "tilt":
+                chunks.append(plan_pour_chunk(cell, route, i, q, world, options, cache,
+                                              labels))
+                q, pose_name = chunks[-1].piece.q[-1], None  # type: ignore[union-attr]
+            continue
         if not step.is_motion:
             if current:
                 chunks.append((current, world.copy()))
@@ -200,7 +215,7 @@ def _line_path(cell: Cell, checker: CollisionChecker, q: np.ndarray, goal: np.nd
     return waypoints
 
 
-def _time_and_verify(cell: Cell, chunks: list[tuple[list[Segment], WorldState]],
+def _time_and_verify(cell: Cell, chunks: list[tuple[list[Segment], WorldState] | PourChunk],
                      options: PlanOptions, cache: CheckerCache, labels: list[str]
                      ) -> tuple[list[tuple[TimedPiece, list[int]]], list[float], float,
                                 Pair | None]:
@@ -211,9 +226,10 @@ def _time_and_verify(cell: Cell, chunks: list[tuple[list[Segment], WorldState]],
     chunk_ends: list[float] = []
     elapsed = 0.0
     min_clear, closest = float("inf"), None
-    for segments, chunk_world in chunks:
-        for piece, steps_of_knots, result in time_chunk(cell, segments, chunk_world, options,
-                                                        cache, labels):
+    for chunk in chunks:
+        timed = [(chunk.piece, chunk.steps_of_knots, chunk.result)] \
+            if isinstance(chunk, PourChunk) else time_chunk(cell, *chunk, options, cache, labels)
+        for piece, steps_of_knots, result in timed:
             if result.min_clearance < min_clear:
                 min_clear, closest = result.min_clearance, result.closest_pair
             pieces.append((piece, steps_of_knots))
@@ -222,13 +238,19 @@ def _time_and_verify(cell: Cell, chunks: list[tuple[list[Segment], WorldState]],
     return pieces, chunk_ends, min_clear, closest
 
 
-def _baseline(cell: Cell, route: Route, chunks: list[tuple[list[Segment], WorldState]],
+def _baseline(cell: Cell, route: Route,
+              chunks: list[tuple[list[Segment], WorldState] | PourChunk],
               options: PlanOptions, cache: CheckerCache) -> float | None:
-    """The stop-and-go duration [s]: the same steps' paths, each timed rest to rest. A
-    figure for comparison only: its failure must not throw away the verified trajectory."""
+    """The stop-and-go duration [s]: the same steps' paths, each timed rest to rest (a
+    pour counts as itself). A figure for comparison only: its failure must not throw
+    away the verified trajectory."""
     total = 0.0
     try:
-        for segments, chunk_world in chunks:
+        for chunk in chunks:
+            if isinstance(chunk, PourChunk):
+                total += chunk.duration
+                continue
+            segments, chunk_world = chunk
             for seg in segments:
                 piece, _ = time_segments(cell, [seg], chunk_world, options, cache,
                                          check=False, blend=0.0)

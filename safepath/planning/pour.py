@@ -40,8 +40,9 @@ from .verify import FclVerifier, VerifyResult
 
 if TYPE_CHECKING:
     from ..cell import Cell
+    from ..collision import CollisionChecker
 
-__all__ = ["PourOptions", "PourMotion", "plan_tilt", "plan_barista", "tilt_of",
+__all__ = ["PourOptions", "PourMotion", "PourWorld", "plan_tilt", "plan_barista", "tilt_of",
            "cup_axis_in_tcp"]
 
 #: Poses along a motion: u in [0, 1] -> T_world_tcp (4x4).
@@ -159,11 +160,30 @@ def circle_curve(T_start: np.ndarray, center: np.ndarray, turns: float) -> PoseC
     return pose
 
 
+@dataclass(frozen=True)
+class PourWorld:
+    """The world a pour is checked in, as a route has it (default: the cell's grasped
+    object held, the others where the scene puts them).
+
+    Attributes:
+        checker: The collision checker of released samples.
+        verifier: The independent re-check.
+        names: Step names of the motion's parts (``tilt`` and ``circle`` by default).
+    """
+
+    checker: CollisionChecker
+    verifier: FclVerifier
+    names: tuple[str, ...]
+
+
 def plan_tilt(cell: Cell, q_start: np.ndarray, R_goal: np.ndarray, pivot: np.ndarray, *,
-              options: PourOptions = PourOptions(), resting: dict | None = None
-              ) -> PourMotion:
+              options: PourOptions = PourOptions(), resting: dict | None = None,
+              world: PourWorld | None = None) -> PourMotion:
     """Tilt the held cup from the orientation at ``q_start`` to ``R_goal`` (TCP frame in
     the world) about ``pivot`` [m], as one continuous timed trajectory.
+
+    ``world`` (a route's step: its checker, verifier and step name) replaces the cell's
+    default world and ``resting``.
 
     Raises:
         IKError: The path leaves the reachable set or switches branch.
@@ -180,12 +200,12 @@ def plan_tilt(cell: Cell, q_start: np.ndarray, R_goal: np.ndarray, pivot: np.nda
                           "bounded through the TCP speed about it)", key="pivot")
     n = max(2, math.ceil(angle / options.angle_step))
     return _plan(cell, q_start, [(curve, n, options.max_angular_speed * lever, "tilt")],
-                 options, resting)
+                 options, resting, world)
 
 
 def plan_barista(cell: Cell, q_start: np.ndarray, R_goal: np.ndarray, pivot: np.ndarray,
                  center: np.ndarray, *, turns: float = 1.0, options: PourOptions = PourOptions(),
-                 resting: dict | None = None) -> PourMotion:
+                 resting: dict | None = None, world: PourWorld | None = None) -> PourMotion:
     """Tilt about ``pivot`` as :func:`plan_tilt`, then move the TCP ``turns`` times round
     the horizontal circle about ``center`` [m] through the tilted TCP, tilt held, as one
     continuous trajectory (TCP speed at most ``options.tcp_speed`` on the circle)."""
@@ -206,7 +226,7 @@ def plan_barista(cell: Cell, q_start: np.ndarray, R_goal: np.ndarray, pivot: np.
     n_circle = max(8, math.ceil(2 * math.pi * radius * abs(turns) / options.path_step))
     return _plan(cell, q_start, [(tilt, n_tilt, options.max_angular_speed * lever, "tilt"),
                                  (circle, n_circle, options.tcp_speed, "circle")],
-                 options, resting)
+                 options, resting, world)
 
 
 def _follow(cell: Cell, q_start: np.ndarray, parts: list[tuple[PoseCurve, int, float, str]],
@@ -242,8 +262,11 @@ def _follow(cell: Cell, q_start: np.ndarray, parts: list[tuple[PoseCurve, int, f
 
 
 def _plan(cell: Cell, q_start: np.ndarray, parts: list[tuple[PoseCurve, int, float, str]],
-          options: PourOptions, resting: dict | None) -> PourMotion:
+          options: PourOptions, resting: dict | None, world: PourWorld | None) -> PourMotion:
     robot = cell.robot
+    kinds = np.array([p[3] for p in parts])  # "tilt", "circle"
+    if world is not None:
+        parts = [(c, n, v, name) for (c, n, v, _), name in zip(parts, world.names, strict=True)]
     W, part_of, u_of, _ = _follow(cell, q_start, parts, options)
     path, s_way, _ = spline_path(list(W), options.timing.spacing)
     seg_part = part_of[1:]  # polyline segment k ends at waypoint k + 1
@@ -258,7 +281,7 @@ def _plan(cell: Cell, q_start: np.ndarray, parts: list[tuple[PoseCurve, int, flo
     T_knots = np.array([robot.frame_pose(qk).homogeneous for qk in q])
     v_lim = np.array([parts[p][2] for p in seg_part])[seg]
     v_tcp, w_cup = _speeds(robot, q, qd, T_knots)
-    w_lim = np.where(np.array([parts[p][3] for p in seg_part])[seg] == "tilt",
+    w_lim = np.where(kinds[seg_part][seg] == "tilt",
                      options.max_angular_speed, np.inf)
     stretch = max(1.0, float(np.max(v_tcp / v_lim)), float(np.max(w_cup / w_lim)))
     if stretch > 1.0:  # knots between TOPP-RA's gridpoints: stretch time uniformly
@@ -288,12 +311,13 @@ def _plan(cell: Cell, q_start: np.ndarray, parts: list[tuple[PoseCurve, int, flo
                             f"deg at t = {t[worst]:.3f} s", step=names[seg_part[seg[worst]]])
     step_index = seg_part[seg]
     held = cell.scene.grasp.object if cell.scene.grasp else None
-    checker = cell.checker(held=held is not None)
+    checker = world.checker if world else cell.checker(held=held is not None)
     report = checker.check_path(list(q))
     if not report.valid:
         why = report.limit_violation or ", ".join(f"{a} / {b}" for a, b in report.collisions)
         raise PlanningError(f"the pour collides ({why})", step=names[0])
-    verifier = FclVerifier(robot, cell.scene, held=held, resting=resting or {})
+    verifier = world.verifier if world else FclVerifier(robot, cell.scene, held=held,
+                                                        resting=resting or {})
     result = verifier.verify(t, q, qd, steps=[names[i] for i in step_index])
     traj = Trajectory(robot.joint_names, t, q, qd, qdd, step_index, tuple(names),
                       robot=robot.name, route="+".join(names),

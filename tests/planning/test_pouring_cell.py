@@ -55,7 +55,7 @@ def test_pick_and_place_keep_the_cup_upright(cell: Cell, planned: dict[str, Traj
     from safepath.planning import load_routes
 
     routes = load_routes(POURING, poses=list(cell.poses), objects=list(cell.scene.objects))
-    assert set(planned) == {"pick_cup", "place_cup"}
+    assert set(planned) == {"pick_cup", "slow_pour", "barista_pour", "place_cup"}
     constrained = 0
     for name, traj in planned.items():
         _within_joint_limits(cell, traj)
