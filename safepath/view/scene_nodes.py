@@ -156,12 +156,27 @@ def coal_mesh(geometry: Any) -> tuple[np.ndarray, np.ndarray] | None:
         count, vertices, face = geometry.num_polygons, geometry.points(), geometry.polygons
     elif isinstance(geometry, coal.BVHModelBase):
         count, vertices, face = geometry.num_tris, geometry.vertices(), geometry.tri_indices
+    elif isinstance(geometry, coal.ConvexBase):
+        return _hull_mesh(np.asarray(geometry.points(), dtype=float).reshape(-1, 3))
     else:
         return None
     if not 0 < count <= MAX_MESH_TRIANGLES:
         return None
     faces = np.array([[face(i)[k] for k in range(3)] for i in range(count)], dtype=np.int32)
     return np.asarray(vertices, dtype=np.float32), faces
+
+
+def _hull_mesh(points: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """``(vertices, faces)`` of a ``coal.ConvexBase`` that keeps only its points (the
+    fingers' whole-travel hulls of :mod:`safepath._locked`): every point a vertex, the
+    faces the triangles of the points' convex hull, turned outwards."""
+    from scipy.spatial import ConvexHull
+
+    faces = np.asarray(ConvexHull(points).simplices, dtype=np.int32)
+    a, b, c = points[faces[:, 0]], points[faces[:, 1]], points[faces[:, 2]]
+    inward = np.einsum("ij,ij->i", np.cross(b - a, c - a), a - points.mean(axis=0)) < 0
+    faces[inward] = faces[inward][:, ::-1]
+    return points.astype(np.float32), faces
 
 
 def coal_shape(geometry: Any) -> tuple[str, tuple[float, ...]] | None:

@@ -89,6 +89,6 @@ def test_pouring_notebook_runs_and_plots(tmp_path: Path) -> None:
               and "image/png" in o.get("data", {})]
     assert len(images) == 3  # tilt + joint speeds, mass curve + tilt, TCP path + speed
     text = "".join(o.get("text", "") for o in outputs if o.output_type == "stream")
-    for expected in ("2 routes planned, timed and verified", "largest tilt of the cup",
+    for expected in ("4 routes planned, timed and verified", "largest tilt of the cup",
                      "slow tilt:", "stop decided at", "final mass", "barista:"):
         assert expected in text

@@ -375,3 +375,48 @@ def test_page_draws_a_cell_built_in_python(browser: Browser) -> None:
         assert changed_pixels(shown, hidden) > 2000, "the robot is not drawn"
     finally:
         session.stop()
+
+
+POURING = Path(__file__).resolve().parents[2] / "scenes" / "pouring_cell"
+
+
+def test_the_fingers_whole_travel_hulls_are_drawn(browser: Browser) -> None:
+    """The Gen3 Lite's fingers are covered over their whole travel by coal convex hulls
+    (``locked_joints: travel``); the page draws each as a mesh of the hull's points."""
+    import coal
+
+    from safepath.view.scene_nodes import coal_mesh
+
+    session = ReviewSession(POURING, options=ViewOptions(port=0)).start()
+    try:
+        robot = session.cell.robot
+        hulls = {f"/robot/collision/{i:02d}_{g.name}": g.geometry
+                 for i, g in enumerate(robot.collision_model.geometryObjects)
+                 if isinstance(g.geometry, coal.ConvexBase)}
+        assert len(hulls) == 4  # two links per finger
+        browser.call("Page.enable")
+        browser.call("Page.navigate", url=session.url)
+        wait_for(lambda: bool(browser.js("typeof window.__viserSceneTree === 'object'")),
+                 30.0, "the page never loaded viser's scene")
+
+        def drawn(name: str) -> list[int] | None:
+            return browser.js(  # type: ignore[no-any-return]
+                "(() => { const e = window.__viserSceneTree.getState()"
+                f"[{json.dumps(name)}]; if (!e || e.message.type !== 'MeshMessage') "
+                "return null; const p = e.message.props; "
+                "return [p.vertices.length / 3, p.faces.length / 3]; })()")
+
+        for name, hull in hulls.items():
+            wait_for(lambda n=name: drawn(n) is not None, 30.0, f"{name} is not in the page")
+            vertices, faces = coal_mesh(hull)  # type: ignore[misc]
+            assert drawn(name) == [hull.num_points, len(faces)]
+            assert len(vertices) == hull.num_points and hull.num_points > 8
+        # The three.js scene holds a mesh of each hull's vertex count.
+        counts = browser.js(
+            "(() => { const out = []; window.__viserMutable.scene.traverse(o => { if (o.isMesh"
+            " && o.geometry && o.geometry.attributes.position) "
+            "out.push(o.geometry.attributes.position.count); }); return out; })()")
+        for hull in hulls.values():
+            assert hull.num_points in counts
+    finally:
+        session.stop()
