@@ -147,7 +147,7 @@ def test_plan_writes_the_pours_like_any_route(tmp_path: Path,
     assert main(["plan", str(POURING), "--out", str(out), "--bag", str(bag)]) == 0
     printed = capsys.readouterr().out
     summary = json.loads((out / "summary.json").read_text())
-    assert list(summary) == ["pick_cup", "slow_pour", "barista_pour", "place_cup"]
+    assert list(summary) == ["pick_cup", "place_cup", "slow_pour", "barista_pour"]
     for name in summary:
         traj = load_trajectory(out / f"{name}.json")
         assert traj.route == name and traj.duration > 0
@@ -165,13 +165,13 @@ def test_plan_writes_the_pours_like_any_route(tmp_path: Path,
     assert "tilt error <=" in circle and "(limit 0.050)" in circle
     assert "cup angular speed <=" in next(line for line in printed.splitlines()
                                          if line.startswith("slow_pour: 0 tilt"))
-    # The bag holds the whole chain, the pours included, back to back.
+    # The bag holds both chains back to back (pick and place; pick and the two pours).
     contents = read_bag(bag)
     routes = [json.loads(m.msg.data)["route"] for m in contents.on("/safepath/route")]
-    assert routes == ["pick_cup", "slow_pour", "barista_pour", "place_cup"]
+    assert routes == ["pick_cup", "place_cup", "pick_cup", "slow_pour", "barista_pour"]
     goals = contents.on("/safepath/trajectory")
-    assert len(goals) == 4
-    last = goals[1].msg.points[-1].time_from_start
+    assert len(goals) == 5
+    last = goals[3].msg.points[-1].time_from_start
     assert last.sec + last.nanosec * 1e-9 == pytest.approx(
         load_trajectory(out / "slow_pour.json").duration, abs=1e-3)
 
