@@ -25,7 +25,7 @@ CASES = [
     ("cold_start.py", ["--runs", "1", "--warmup", "0"], "first / second plan_cell"),
     ("monitor.py", ["--decisions", "20", "--speeds", "1.6"], "decision latency"),
     ("panda_set.py", ["--limit", "2"], "the same, CPU time"),
-    ("pour.py", ["--runs", "2", "--events", "20"], "path-consistent stop"),
+    ("pour.py", ["--runs", "2", "--events", "20"], "seed measured ~103 g"),
     ("pour_controller.py", ["--runs", "1"], "final masses"),
     ("planners_any_arm.py", ["--seeds", "1", "--time-limit", "0.2", "--robots", "ur5",
                              "--planners", "RRT,SORRTstar"], "first path"),

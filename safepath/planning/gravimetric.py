@@ -2,22 +2,32 @@
 
 The seed (001) tilts the cup in 20 separate moves while reading a scale on ``/weight``,
 stops once the reading reaches 100 g and goes back upright: ~103 g in the bowl, 110-120 g
-before the slow tilt. Here the tilt is one continuous timed motion
+with their first version (one move straight to 90 deg). Here the tilt is one continuous timed motion
 (:func:`~safepath.planning.pour.plan_tilt`); when the controller decides to stop, the
 robot brakes along the same path (:class:`~safepath.planning.stop.StopPlanner`) and
 returns upright by a motion planned, checked, timed and verified like any other.
 
-Flow model (documented, simple, deterministic for a seed): material leaves the cup when
-its tilt passes ``spill_angle``, at ``gain * (tilt - spill_angle) ** 1.5`` [g/s] (the rate
-rises with the depth of the lip below the surface), reaches the bowl ``fall_time`` later,
-and the scale reports the bowl's mass ``latency`` later, every ``period``, with Gaussian
-``noise``. Nothing of this is the seed's; it exists so that the closed loop can be tested.
+Flow model (documented, deterministic for a seed), two variants:
 
-Controller (:func:`simulate_pour`): at each reading it estimates the flow rate (slope of
-the last readings), and stops when the reading plus what is still to come (in the air and
-in the sensor's latency, during the stop, during the return until the tilt is back below
-the spill angle) reaches the target. :func:`simulate_stepwise` runs the seed's 20-step
-tilt in the same simulation for comparison.
+* ``FlowModel(cup=Cup())``: a cup that empties over its lip
+  (:class:`~safepath.planning.cup.Cup`): ``gain * (tilt - spill_angle(content)) ** 1.5``
+  [g/s], the spill angle rising as the cup empties; its fill, repose and gain were fitted
+  to the seed's two measured figures (``scenes/pouring_cell/README.md``). The benchmark
+  and the tests use it.
+* ``FlowModel()`` (``cup=None``): an endless cup, ``gain * (tilt - spill_angle) ** 1.5``
+  past a fixed ``spill_angle`` whatever was poured (with it the seed's 20 steps pour
+  136-220 g, far from their ~103 g); kept for the ROS pour controller's simulation.
+
+Either way the material reaches the bowl ``fall_time`` later, and the scale reports the
+bowl's mass ``latency`` later, every ``period``, with Gaussian ``noise``.
+
+Controller (:func:`simulate_pour`): it knows the flow law's shape (for the cup: the cup
+and its fill), the scale's latency and the fall time, but not the flow gain; at each
+reading it fits the gain to the readings so far, predicts the final mass if it stopped
+now (what is in the air and in the sensor's latency, what the stop and the return still
+pour) and stops when that reaches the target (endless cup: a closed-form fit and
+:func:`calibrate_still`; cup: :mod:`._cup_control`). :func:`simulate_stepwise` runs the
+seed's stepwise tilt in the same simulation for comparison.
 """
 
 from __future__ import annotations
@@ -32,13 +42,15 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from ..errors import ConfigError
+from ._cup_control import StopTable, decide, plan_stops
+from .cup import Cup
 
 if TYPE_CHECKING:
     from ..cell import Cell
     from .pour import PourMotion, PourOptions
 
 __all__ = ["FlowModel", "PourRun", "simulate_pour", "simulate_stepwise", "stop_and_return",
-           "calibrate_still"]
+           "calibrate_still", "plan_stops", "StopTable", "Cup"]
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -53,6 +65,8 @@ class FlowModel:
         period: Scale reading period [s].
         noise: Standard deviation of a reading [g].
         seed: Seed of the noise.
+        cup: The cup that empties (its spill angle rises as it does; ``spill_angle`` is
+            then unused), or None: an endless cup spilling past ``spill_angle``.
     """
 
     gain: float = 30.0
@@ -62,8 +76,12 @@ class FlowModel:
     period: float = 0.0125
     noise: float = 0.2
     seed: int = 0
+    cup: Cup | None = None
 
     def __post_init__(self) -> None:
+        if self.cup is not None and not isinstance(self.cup, Cup):
+            raise ConfigError(f"expected a Cup or None, got {type(self.cup).__name__}",
+                              key="cup")
         for name in ("gain", "fall_time", "period"):
             if not getattr(self, name) > 0:
                 raise ConfigError(f"must be > 0, got {getattr(self, name)!r}", key=name)
@@ -72,7 +90,7 @@ class FlowModel:
                 raise ConfigError(f"must be >= 0, got {getattr(self, name)!r}", key=name)
 
     def rate(self, tilt: np.ndarray) -> np.ndarray:
-        """Flow out of the cup at ``tilt`` [rad] (array) [g/s]."""
+        """Flow out of the endless cup at ``tilt`` [rad] (array) [g/s]."""
         return self.gain * np.maximum(np.asarray(tilt) - self.spill_angle, 0.0) ** 1.5
 
 
@@ -89,6 +107,8 @@ class PourRun:
         tilt: Tilt of the cup [rad].
         mass: Mass in the bowl [g].
         readings: (time [s], reading [g]) of the scale.
+        gain_estimate: The controller's flow gain when it decided [g/s/rad^1.5] (NaN
+            where it has none: the seed's way, the endless cup).
     """
 
     final_mass: float
@@ -99,12 +119,16 @@ class PourRun:
     tilt: np.ndarray
     mass: np.ndarray
     readings: np.ndarray
+    gain_estimate: float = float("nan")
 
 
 def _landed(model: FlowModel, t: np.ndarray, tilt: np.ndarray) -> np.ndarray:
     """Mass in the bowl at times ``t`` for a tilt history sampled at ``t`` [g]."""
-    out = np.concatenate([[0.0], np.cumsum(0.5 * (model.rate(tilt[1:]) + model.rate(tilt[:-1]))
-                                           * np.diff(t))])
+    if model.cup is not None:
+        out = model.cup.pour(t, tilt, model.gain)
+    else:
+        out = np.concatenate([[0.0], np.cumsum(0.5 * (model.rate(tilt[1:])
+                                                      + model.rate(tilt[:-1])) * np.diff(t))])
     return np.interp(t - model.fall_time, t, out, left=0.0)
 
 
@@ -120,7 +144,8 @@ def simulate_pour(tilt_of_t: Callable[[float], float], duration: float,
                   model: FlowModel, *, target: float = 100.0,
                   still: Callable[[float], float] | None = None,
                   return_speed: float = math.radians(30.0), brake_time: float = 0.25,
-                  min_reading: float = 5.0, dt: float = 0.002) -> PourRun:
+                  min_reading: float = 5.0, stops: StopTable | None = None,
+                  dt: float = 0.002) -> PourRun:
     """Closed loop: follow the tilt, stop on the scale's reading, return upright.
 
     The controller knows the tilt it commands, the flow law's shape (spill angle,
@@ -132,6 +157,10 @@ def simulate_pour(tilt_of_t: Callable[[float], float], duration: float,
     pour is ``still(tilt)`` (per unit gain; :func:`calibrate_still` measures it on the
     planned motions), else estimated as ``brake_time`` at the current rate plus a turn
     back at ``return_speed``.
+
+    With a cup (``model.cup``), the controller knows the cup and fits the gain on a grid
+    instead (:func:`~safepath.planning._cup_control.decide`); what its stop and return
+    pour comes from ``stops`` (:func:`plan_stops`, made here if not given).
 
     Args:
         tilt_of_t: Cup tilt along the pour motion at time t [rad].
@@ -146,6 +175,7 @@ def simulate_pour(tilt_of_t: Callable[[float], float], duration: float,
             [rad/s].
         brake_time: Braking (and speeding up back) time assumed without ``still`` [s].
         min_reading: Readings below this are not used to fit the gain [g].
+        stops: With a cup: the controller's model of its stops.
         dt: Simulation step [s].
     """
     t_motion = np.arange(0.0, duration + dt, dt)
@@ -154,6 +184,11 @@ def simulate_pour(tilt_of_t: Callable[[float], float], duration: float,
     # alone, find the decision, then splice the stop and the return in.
     mass_motion = _landed(model, t_motion, tilt_motion)
     readings = _readings(model, t_motion, mass_motion, duration)
+    if model.cup is not None:
+        if stops is None:
+            stops = plan_stops(stop, tilt_of_t, duration, model.cup)
+        decided, gain = decide(model, t_motion, tilt_motion, readings, stops, target)
+        return _finish(model, t_motion, tilt_motion, stop, decided, gain, dt)
     shape = dataclasses.replace(model, gain=1.0)  # the flow law without its gain
     poured = np.concatenate([[0.0], np.cumsum(0.5 * (shape.rate(tilt_motion[1:])
                                                       + shape.rate(tilt_motion[:-1]))
@@ -178,6 +213,13 @@ def simulate_pour(tilt_of_t: Callable[[float], float], duration: float,
         if gain * (so_far + coming) >= target:
             decided = float(tk)
             break
+    return _finish(model, t_motion, tilt_motion, stop, decided, float("nan"), dt)
+
+
+def _finish(model: FlowModel, t_motion: np.ndarray, tilt_motion: np.ndarray,
+            stop: Callable[[float], tuple[np.ndarray, np.ndarray, float]],
+            decided: float | None, gain: float, dt: float) -> PourRun:
+    """Splice the stop and the return in at the decision, let everything land."""
     if decided is None:
         t_all, tilt_all, compute = t_motion, tilt_motion, 0.0
     else:
@@ -188,14 +230,13 @@ def simulate_pour(tilt_of_t: Callable[[float], float], duration: float,
         t_all, idx = np.unique(t_all, return_index=True)
         tilt_all = tilt_all[idx]
     # Let everything land.
-    ahead = model.latency + model.fall_time
-    tail = np.arange(t_all[-1] + dt, t_all[-1] + ahead + 1.0, dt)
+    tail = np.arange(t_all[-1] + dt, t_all[-1] + model.latency + model.fall_time + 2.0, dt)
     t_all = np.concatenate([t_all, tail])
     tilt_all = np.concatenate([tilt_all, np.full(tail.size, tilt_all[-1])])
     mass = _landed(model, t_all, tilt_all)
     rest = tilt_all[np.searchsorted(t_all, decided)] if decided is not None else tilt_all[-1]
     return PourRun(float(mass[-1]), decided, float(rest), compute, t_all, tilt_all, mass,
-                   _readings(model, t_all, mass, float(t_all[-1])))
+                   _readings(model, t_all, mass, float(t_all[-1])), gain)
 
 
 def calibrate_still(stop: Callable[[float], tuple[np.ndarray, np.ndarray, float]],
@@ -224,53 +265,54 @@ def calibrate_still(stop: Callable[[float], tuple[np.ndarray, np.ndarray, float]
     return still
 
 
+def _move(delta: float, speed: float, accel: float, dt: float) -> np.ndarray:
+    """A rest-to-rest move by ``delta`` [rad] (trapezoidal speed), sampled every dt."""
+    d = abs(delta)
+    t_acc = min(speed / accel, math.sqrt(d / accel))
+    v = accel * t_acc
+    t_total = 2 * t_acc + max(0.0, d - accel * t_acc ** 2) / v
+    ts = np.arange(dt, t_total + dt, dt)
+    pos = np.where(ts < t_acc, 0.5 * accel * ts ** 2,
+                   np.where(ts < t_total - t_acc, 0.5 * accel * t_acc ** 2 + v * (ts - t_acc),
+                            d - 0.5 * accel * np.maximum(t_total - ts, 0) ** 2))
+    return float(np.sign(delta)) * np.minimum(pos, d)
+
+
 def simulate_stepwise(model: FlowModel, *, angle: float = math.radians(115.0), steps: int = 20,
                       speed: float = math.radians(20.0), accel: float = math.radians(40.0),
-                      pause: float = 0.3, target: float = 100.0, dt: float = 0.002) -> PourRun:
-    """The seed's slow tilt: ``steps`` separate rest-to-rest moves of ``angle / steps``
-    (bounded speed and acceleration), the weight read after each (``pause`` [s] for
-    MoveIt's plan and execute round trip); at ``target`` it goes back upright."""
+                      pause: float = 0.3, wait: float = 20.0, target: float = 100.0,
+                      dt: float = 0.002) -> PourRun:
+    """The seed's way: ``steps`` separate rest-to-rest moves of ``angle / steps`` (bounded
+    speed and acceleration, ``pause`` [s] between them for MoveIt's plan-and-execute round
+    trip), then waiting at the last tilt (at most ``wait`` [s]), while reading the scale;
+    when a reading reaches ``target``, the move in progress finishes (a MoveIt move is
+    not interrupted) and the cup goes back upright. ``steps=1, angle=pi/2`` is the
+    seed's first version (one move straight to 90 deg)."""
     start = time.perf_counter()
-    step = angle / steps
-
-    def move(delta: float) -> np.ndarray:
-        d = abs(delta)
-        t_acc = min(speed / accel, math.sqrt(d / accel))
-        v = accel * t_acc
-        t_total = 2 * t_acc + max(0.0, d - accel * t_acc ** 2) / v
-        ts = np.arange(0.0, t_total + dt, dt)
-        pos = np.where(ts < t_acc, 0.5 * accel * ts ** 2,
-                       np.where(ts < t_total - t_acc, 0.5 * accel * t_acc ** 2
-                                + v * (ts - t_acc),
-                                d - 0.5 * accel * np.maximum(t_total - ts, 0) ** 2))
-        return np.sign(delta) * np.minimum(pos, d)
-
-    t_hist, tilt_hist = [0.0], [0.0]
-    decided = None
+    tilts, ends = [np.zeros(1)], []  # ends: index where each move ends
     for _ in range(steps):
-        seg = tilt_hist[-1] + move(step)
-        t_hist += list(t_hist[-1] + dt * np.arange(1, seg.size + 1))
-        tilt_hist += list(seg)
-        pause_t = t_hist[-1] + dt * np.arange(1, int(pause / dt) + 1)
-        t_hist += list(pause_t)
-        tilt_hist += [tilt_hist[-1]] * pause_t.size
-        t_arr, tilt_arr = np.array(t_hist), np.array(tilt_hist)
-        mass = _landed(model, t_arr, tilt_arr)
-        reading = _readings(model, t_arr, mass, t_arr[-1] + model.period)[-1, 1]
-        if reading >= target:
-            decided = float(t_arr[-1])
-            break
-    back = tilt_hist[-1] + move(-tilt_hist[-1])
-    t_hist += list(t_hist[-1] + dt * np.arange(1, back.size + 1))
-    tilt_hist += list(back)
-    t_arr, tilt_arr = np.array(t_hist), np.array(tilt_hist)
-    tail = np.arange(t_arr[-1] + dt, t_arr[-1] + model.latency + model.fall_time + 1.0, dt)
-    t_arr = np.concatenate([t_arr, tail])
-    tilt_arr = np.concatenate([tilt_arr, np.zeros(tail.size)])
-    mass = _landed(model, t_arr, tilt_arr)
-    return PourRun(float(mass[-1]), decided, float(tilt_hist[-back.size - 1]),
-                   time.perf_counter() - start, t_arr, tilt_arr, mass,
-                   _readings(model, t_arr, mass, float(t_arr[-1])))
+        tilts.append(tilts[-1][-1] + _move(angle / steps, speed, accel, dt))
+        ends.append(sum(a.size for a in tilts) - 1)
+        tilts.append(np.full(int(round(pause / dt)), tilts[-1][-1]))
+    tilts.append(np.full(int(round(wait / dt)), tilts[-1][-1]))
+    tilt = np.concatenate(tilts)
+    t = dt * np.arange(tilt.size)
+    readings = _readings(model, t, _landed(model, t, tilt), float(t[-1]))
+    hit = np.flatnonzero(readings[:, 1] >= target)
+    decided = float(readings[hit[0], 0]) if hit.size else None
+    k = int(np.searchsorted(t, decided)) if decided is not None else tilt.size - 1
+    end = k
+    if k + 1 < tilt.size and tilt[k + 1] > tilt[k]:  # inside a move: it finishes
+        end = next(e for e in ends if e >= k)
+    back = tilt[end] + _move(-tilt[end], speed, accel, dt)
+    tilt = np.concatenate([tilt[:end + 1], back])
+    t = dt * np.arange(tilt.size)
+    tail = np.arange(t[-1] + dt, t[-1] + model.latency + model.fall_time + 2.0, dt)
+    t = np.concatenate([t, tail])
+    tilt = np.concatenate([tilt, np.full(tail.size, tilt[-1])])
+    mass = _landed(model, t, tilt)
+    return PourRun(float(mass[-1]), decided, float(tilt[end]), time.perf_counter() - start, t,
+                   tilt, mass, _readings(model, t, mass, float(t[-1])))
 
 
 def stop_and_return(cell: Cell, motion: PourMotion, R_upright: np.ndarray, pivot: np.ndarray,
