@@ -775,9 +775,8 @@ def certify_segment(q0, q1, fb, ib, skip_start, skip_end, max_unsure):  # noqa: 
     counts = np.full(1, n, dtype=np.int64)
     lo = np.full(1, 1 if skip_start else 0, dtype=np.int64)
     hi = np.full(1, n - 1 if skip_end else n, dtype=np.int64)
-    size = max(n + 1, 1)
-    seg = np.empty(size, dtype=np.int64)
-    idx = np.empty(size, dtype=np.int64)
+    seg = np.empty(max(max_unsure, 1), dtype=np.int64)  # the walk stops at max_unsure
+    idx = np.empty(max(max_unsure, 1), dtype=np.int64)
     status, _, i, evaluated, unsure = certify_polyline(P, counts, lo, hi, fb, ib, seg, idx,
                                                        max_unsure)
     return status, i, evaluated, unsure, n

@@ -408,24 +408,12 @@ class CollisionChecker:
         """
         q0 = np.asarray(q0, dtype=float)
         q1 = np.asarray(q1, dtype=float)
-        robot = self.robot
         if self.layer is not None:
-            fast = self._certify_segment(q0, q1, check_ends, check_start, details)
-            if fast is not None:
-                return fast
-        for end in (q0, q1):
-            if not robot.within_limits(end):
-                s = 0.0 if end is q0 else 1.0
-                return SegmentReport(False, 0, s, end.copy(), (), robot.limit_violation(end))
+            return self._certify_segment(q0, q1, check_ends, check_start, details)
+        for s, end in ((0.0, q0), (1.0, q1)):
+            if not self.robot.within_limits(end):
+                return self._outside(end, s)
         n = self.segment_states(q0, q1)
-        lo, hi = (0, n) if check_ends else (1, n - 1)
-        if check_start is False:
-            lo = max(lo, 1)
-        elif check_start and not check_ends:
-            lo = 0
-        if self.layer is not None:
-            return self._certify(np.vstack([q0, q1]), np.array([n]), np.array([lo]),
-                                 np.array([hi]), details)
         order = _bisection_order(n, check_ends)
         if check_start is False:
             order = [i for i in order if i != 0]
@@ -439,27 +427,37 @@ class CollisionChecker:
         return self._check_states(states, fractions, details)
 
     def _certify_segment(self, q0: np.ndarray, q1: np.ndarray, check_ends: bool,
-                         check_start: bool | None, details: bool) -> SegmentReport | None:
-        """:meth:`check_segment` in one sphere-layer call where the layer decides every
-        state (the planners' common case); None where some state needs coal (the
-        general way then walks the segment again: the walk is deterministic)."""
+                         check_start: bool | None, details: bool) -> SegmentReport:
+        """:meth:`check_segment` with the sphere layer: limits, grid count and the walk
+        in one kernel call (the planners' common case); where some state needs coal, the
+        general polyline way walks the same grid again (the walk is deterministic)."""
         layer = self.layer
         assert layer is not None
         skip_start = check_start is False or (not check_ends and not check_start)
         status, i, evaluated, unsure, n = layer.certify_segment(
             q0, q1, skip_start, not check_ends, _EARLY_UNSURE)
+        if status == OUTSIDE:
+            return self._outside(q1 if i else q0, float(i))
         if status == FREE and unsure == 0:
             return SegmentReport(True, evaluated)
-        if status == OUTSIDE:
-            end = q1 if i else q0
-            return SegmentReport(False, 0, float(i), end.copy(), (),
-                                 self.robot.limit_violation(end))
-        if status != COLLIDES:
-            return None
-        q = q0 + (i / n) * (q1 - q0)
+        if status == COLLIDES:
+            return self._failure(q0 + (i / n) * (q1 - q0), i / n, evaluated, details)
+        return self._certify(np.vstack([q0, q1]), np.array([n]),
+                             np.array([1 if skip_start else 0]),
+                             np.array([n if check_ends else n - 1]), details)
+
+    def _outside(self, q: np.ndarray, fraction: float) -> SegmentReport:
+        """The report of a motion whose state ``q`` (at ``fraction``) is outside the
+        joint limits."""
+        return SegmentReport(False, 0, fraction, q.copy(), (), self.robot.limit_violation(q))
+
+    def _failure(self, q: np.ndarray, fraction: float, checked: int, details: bool
+                 ) -> SegmentReport:
+        """The report of a motion that collides at ``q`` (at ``fraction``), found after
+        ``checked`` states; with ``details``, its colliding pairs."""
         if not details:
-            return SegmentReport(False, evaluated, i / n, q)
-        return SegmentReport(False, evaluated, i / n, q, tuple(self.collisions(q)),
+            return SegmentReport(False, checked, fraction, q)
+        return SegmentReport(False, checked, fraction, q, tuple(self.collisions(q)),
                              self.robot.limit_violation(q))
 
     def check_path(self, path: Sequence[np.ndarray], *, details: bool = True
@@ -478,8 +476,7 @@ class CollisionChecker:
         outside = ~np.all((P >= robot.lower) & (P <= robot.upper), axis=1)
         if outside.any():
             k = int(np.argmax(outside))
-            return SegmentReport(False, 0, k / max(1, len(P) - 1), P[k].copy(), (),
-                                 robot.limit_violation(P[k]))
+            return self._outside(P[k], k / max(1, len(P) - 1))
         # segment_states of every segment at once.
         counts = np.maximum(1, np.ceil(np.abs(np.diff(P, axis=0)) @ self._weights
                                        / self.options.resolution)).astype(np.int64)
@@ -518,11 +515,7 @@ class CollisionChecker:
             evaluated += again
         if status == COLLIDES:
             q = P[k] + (i / counts[k]) * (P[k + 1] - P[k])
-            fraction = (k + i / counts[k]) / span
-            if not details:
-                return SegmentReport(False, evaluated, fraction, q)
-            return SegmentReport(False, evaluated, fraction, q, tuple(self.collisions(q)),
-                                 self.robot.limit_violation(q))
+            return self._failure(q, (k + i / counts[k]) / span, evaluated, details)
         if len(useg) == done:
             return SegmentReport(True, evaluated)
         return self._exact_grid(P, counts, useg[done:], uidx[done:], details, evaluated)
@@ -547,11 +540,7 @@ class CollisionChecker:
         if not hits.any():
             return SegmentReport(True, len(states))
         first = int(np.argmax(hits))
-        q, fraction = states[first], float(fractions[first])
-        if not details:
-            return SegmentReport(False, first + 1, fraction, q)
-        return SegmentReport(False, first + 1, fraction, q, tuple(self.collisions(q)),
-                             self.robot.limit_violation(q))
+        return self._failure(states[first], float(fractions[first]), first + 1, details)
 
 
 def _bisection_order(n: int, check_ends: bool) -> list[int]:

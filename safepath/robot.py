@@ -158,9 +158,8 @@ class Robot:
 
     def within_limits(self, q: np.ndarray, tol: float = 0.0) -> bool:
         """Whether every joint lies inside its position limits (± ``tol`` [rad])."""
-        if tol:
-            return bool((q >= self.lower - tol).all() and (q <= self.upper + tol).all())
-        return bool((q >= self.lower).all() and (q <= self.upper).all())
+        lower, upper = (self.lower - tol, self.upper + tol) if tol else (self.lower, self.upper)
+        return bool((q >= lower).all() and (q <= upper).all())
 
     def limit_violation(self, q: np.ndarray) -> str | None:
         """Describe the first joint outside its limits, or None."""
