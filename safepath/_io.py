@@ -76,6 +76,21 @@ def read_yaml(path: str | Path, *, error: type[InputError] = ConfigError) -> Any
         raise error(f"malformed YAML{where}: {problem}", path=path) from None
 
 
+def read_mapping(path: Path, known: Iterable[str]) -> dict[Any, Any]:
+    """A YAML file whose top level is a mapping of the ``known`` keys (a data folder's
+    robot.yaml, controller.yaml, scene.yaml, routes.yaml).
+
+    Raises:
+        ConfigError: Malformed YAML, another top level, or an unknown key (naming the
+            closest known one); names the file and key.
+    """
+    data = read_yaml(path)
+    if not isinstance(data, dict):
+        raise ConfigError("expected a mapping at the top level", path=path)
+    check_keys(data, known, path=path)
+    return data
+
+
 def get_key(mapping: Any, key: str, *, path: Path | None, prefix: str = "",
             default: Any = ..., error: type[InputError] = ConfigError) -> Any:
     """Return ``mapping[key]``, or raise a typed error naming the file and dotted key."""

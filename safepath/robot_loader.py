@@ -20,7 +20,7 @@ from typing import Any
 import numpy as np
 import pinocchio as pin
 
-from ._io import as_float, as_str, as_vector, check_keys, get_key, read_yaml
+from ._io import as_float, as_str, as_vector, check_keys, get_key, read_mapping, read_yaml
 from ._locked import TRAVEL, lock_joints, read_mimics
 from ._paths import ROBOTS_DIR
 from .errors import ConfigError, FrameNotFound, RobotNotFound
@@ -158,10 +158,7 @@ def _bundled_controller(name: str) -> Path | None:
 def _load_folder(folder: Path, locked_values: Mapping[str, float | str] | None = None
                  ) -> Robot:
     spec_path = folder / "robot.yaml"
-    spec = read_yaml(spec_path)
-    if not isinstance(spec, dict):
-        raise ConfigError("expected a mapping at the top level", path=spec_path)
-    check_keys(spec, _ROBOT_KEYS, path=spec_path)
+    spec = read_mapping(spec_path, _ROBOT_KEYS)
     name = as_str(get_key(spec, "name", path=spec_path), path=spec_path, key="name")
     urdf_rel = as_str(get_key(spec, "urdf", path=spec_path), path=spec_path, key="urdf")
     urdf = folder / urdf_rel

@@ -36,7 +36,15 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Literal
 
-from ._io import as_float, as_str, as_vector, check_keys, check_names, get_key, read_yaml
+from ._io import (
+    as_float,
+    as_str,
+    as_vector,
+    check_keys,
+    check_names,
+    get_key,
+    read_mapping,
+)
 from .errors import ConfigError
 from .pour_steps import POUR_KINDS, Circle, Tilt, check_pour_fields, parse_pour_step, parse_speed
 from .tcp_targets import CartesianTarget, is_cartesian, parse_cartesian
@@ -219,10 +227,7 @@ def load_routes(path: str | Path, *, poses: Sequence[str], objects: Sequence[str
     path = Path(path)
     if path.is_dir():
         path = path / "routes.yaml"
-    data = read_yaml(path)
-    if not isinstance(data, dict):
-        raise ConfigError("expected a mapping at the top level", path=path)
-    check_keys(data, ("routes", "defaults"), path=path)
+    data = read_mapping(path, ("routes", "defaults"))
     raw = get_key(data, "routes", path=path)
     if not isinstance(raw, dict) or not raw:
         raise ConfigError("expected a non-empty mapping of route names", path=path,

@@ -9,7 +9,15 @@ from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
-from ._io import as_float, as_str, as_vector, check_keys, check_names, get_key, read_yaml
+from ._io import (
+    as_float,
+    as_str,
+    as_vector,
+    check_keys,
+    check_names,
+    get_key,
+    read_mapping,
+)
 from .errors import ConfigError
 from .scene import SIZE_KEYS, AllowedContact, Grasp, Scene, SceneObject, Shape, placement
 
@@ -33,10 +41,7 @@ def load_scene(path: str | Path) -> Scene:
     path = Path(path)
     if path.is_dir():
         path = path / "scene.yaml"
-    data = read_yaml(path)
-    if not isinstance(data, dict):
-        raise ConfigError("expected a mapping at the top level", path=path)
-    check_keys(data, _SCENE_KEYS, path=path)
+    data = read_mapping(path, _SCENE_KEYS)
     name = as_str(get_key(data, "name", path=path), path=path, key="name")
     robot = as_str(get_key(data, "robot", path=path), path=path, key="robot")
     margin = as_float(get_key(data, "margin", path=path, default=0.010), path=path,

@@ -36,7 +36,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Literal
 
-from ._io import as_float, as_str, as_vector, check_keys, get_key, read_yaml
+from ._io import as_float, as_str, as_vector, check_keys, get_key, read_mapping
 from ._paths import ROBOTS_DIR
 from .errors import ConfigError, InputError
 
@@ -222,10 +222,7 @@ def read_controller(path: str | Path, joint_names: Sequence[str] | None = None
             names that are not the robot's, a bad number.
     """
     path = Path(path)
-    data = read_yaml(path)
-    if not isinstance(data, dict):
-        raise ConfigError("expected a mapping at the top level", path=path)
-    check_keys(data, _KEYS, path=path)
+    data = read_mapping(path, _KEYS)
     action = as_str(get_key(data, "follow_joint_trajectory_action", path=path), path=path,
                     key="follow_joint_trajectory_action")
     raw_names = data.get("joint_names") if joint_names is None \
