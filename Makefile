@@ -4,7 +4,7 @@ VENV ?= .venv
 BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed
 
-.PHONY: setup browser demo test lint bench bench-peers view clean
+.PHONY: setup kernels browser demo test lint bench bench-peers view clean
 
 $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
@@ -12,7 +12,12 @@ $(STAMP): pyproject.toml
 	$(BIN)/pip install --quiet -e ".[dev]"
 	touch $(STAMP)
 
-setup: $(STAMP)
+setup: $(STAMP) kernels
+
+## The numba kernels compiled ahead of time into the user cache (~1 min; nothing to do
+## when the build of the current sources exists).
+kernels: $(STAMP)
+	$(BIN)/safepath build-kernels
 
 ## Debian's Chromium for the browser test of the review session (needs root).
 browser:
@@ -21,7 +26,7 @@ browser:
 	  apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq chromium >/dev/null; }
 
 ## The main job on the bundled cell: check the taught poses, plan every route.
-demo: $(STAMP)
+demo: $(STAMP) kernels
 	$(BIN)/safepath check scenes/quality_check_cell
 	$(BIN)/safepath plan scenes/quality_check_cell --out out/quality_check_cell
 
@@ -30,11 +35,11 @@ lint: $(STAMP)
 	$(BIN)/mypy safepath
 
 ## Lint, type-check and run the whole test suite.
-test: $(STAMP) browser lint
+test: $(STAMP) kernels browser lint
 	$(BIN)/pytest -q
 
 ## Speed figures (each script prints its own).
-bench: $(STAMP)
+bench: $(STAMP) kernels
 	$(BIN)/python benchmarks/collision_checks.py
 	$(BIN)/python benchmarks/plan_cycle.py
 	$(BIN)/python benchmarks/runtime_heartbeat.py

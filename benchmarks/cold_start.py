@@ -8,22 +8,27 @@ Every figure is measured in new Python processes (this interpreter, ``subprocess
   time of the whole process (interpreter start to exit), measured by the parent;
 * the first and the second :func:`safepath.plan_cell` of the bundled cell in one new
   process (after ``import safepath`` and ``load_cell``), and their ratio;
-* for reference, ``import numba`` plus the first call of one cached safepath kernel
-  in a new process (after ``import safepath``): the fixed price of numba that the
-  first plan pays.
+* the first call of one safepath kernel in a new process (after ``import safepath``):
+  loading the kernels compiled ahead of time (``safepath build-kernels``, see
+  ``safepath._aot``), or, without a current build, importing numba and loading its
+  cached kernel: the fixed price the first plan pays for its kernels.
+
+The first line says which kernels the children ran; ``--jit`` makes them use numba's
+JIT even where a build exists (``SAFEPATH_AOT=0``), for the figures without it.
 
 Nothing is a cache hit of results: every process plans from scratch, every ``plan``
 writes to a new folder, and safepath keeps no planning results on disk. The on-disk
-caches in use are those of compiled code: Python bytecode (``__pycache__/*.pyc``) and
-numba's compiled kernels (``*.nbi``/``*.nbc`` in ``__pycache__`` or ``NUMBA_CACHE_DIR``),
-plus the operating system's file cache. ``--warmup`` runs (default 1, not counted)
+caches in use are those of compiled code: Python bytecode (``__pycache__/*.pyc``), the
+kernels compiled ahead of time (user cache) or numba's compiled kernels
+(``*.nbi``/``*.nbc`` in ``__pycache__`` or ``NUMBA_CACHE_DIR``), plus the operating
+system's file cache. ``--warmup`` runs (default 1, not counted)
 fill them first, so the figures are those of an installed copy, not of the first run
 after an install (which also compiles the numba kernels, several seconds).
 
 Targets, printed with the results: ``import safepath`` <= 0.3 s, the ``plan`` process
 <= 1.0 s, first ``plan_cell`` <= 2 x the second.
 
-Run: ``.venv/bin/python benchmarks/cold_start.py [--runs 7] [--warmup 1]``.
+Run: ``.venv/bin/python benchmarks/cold_start.py [--runs 7] [--warmup 1] [--jit]``.
 """
 
 from __future__ import annotations
@@ -64,7 +69,7 @@ t2 = time.perf_counter()
 print(json.dumps([t1 - t0, t2 - t1]))
 """
 
-_NUMBA = """
+_KERNEL = """
 import time
 import numpy as np
 import safepath
@@ -74,11 +79,20 @@ _ik_kernel.log6(np.eye(3), np.zeros(3), np.empty(6))
 print(time.perf_counter() - t0)
 """
 
+_STATUS = """
+import sys
+from safepath import _aot
+print(_aot.status())
+"""
+
+#: Environment of the children (``--jit`` adds SAFEPATH_AOT=0).
+ENV = dict(os.environ)
+
 
 def child(code: str, *args: str) -> str:
     """Run ``code`` in a new interpreter; return its standard output."""
     proc = subprocess.run([sys.executable, "-c", code, *args], cwd=ROOT, capture_output=True,
-                          text=True, check=False)
+                          text=True, check=False, env=ENV)
     if proc.returncode != 0:
         raise RuntimeError(f"child failed:\n{proc.stderr[-2000:]}")
     return proc.stdout
@@ -95,7 +109,7 @@ def plan_process(command: list[str]) -> float:
     with tempfile.TemporaryDirectory() as tmp:
         t0 = time.perf_counter()
         proc = subprocess.run([*command, "plan", str(CELL_DIR), "--out", tmp], cwd=ROOT,
-                              capture_output=True, text=True, check=False)
+                              capture_output=True, text=True, check=False, env=ENV)
         wall = time.perf_counter() - t0
     if proc.returncode != 0:
         raise RuntimeError(f"safepath plan failed:\n{proc.stderr[-2000:]}")
@@ -120,9 +134,13 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser.add_argument("--runs", type=int, default=7, help="new processes per figure")
     parser.add_argument("--warmup", type=int, default=1,
                         help="uncounted runs first (fill the compiled-code caches)")
+    parser.add_argument("--jit", action="store_true",
+                        help="numba's JIT kernels even where an ahead-of-time build exists")
     args = parser.parse_args(argv)
     if args.runs < 1 or args.warmup < 0:
         parser.error("--runs must be at least 1 and --warmup at least 0")
+    if args.jit:
+        ENV["SAFEPATH_AOT"] = "0"
 
     command = plan_command()
     print(f"cold_start: python {platform.python_version()} on {platform.machine()}, "
@@ -130,18 +148,19 @@ def main(argv: Sequence[str] | None = None) -> int:
     print(f"{args.runs} new processes per figure after {args.warmup} uncounted warm-up "
           f"run(s); plan command: {' '.join(Path(c).name for c in command)} plan "
           f"{CELL_DIR.relative_to(ROOT)} --out <new temporary folder>")
+    print(f"kernels: {child(_STATUS).strip()}")
     for _ in range(args.warmup):
         plan_process(command)
         child(_FIRST_SECOND, str(CELL_DIR))
 
-    imports, plans, first, second, numba = [], [], [], [], []
+    imports, plans, first, second, kernel = [], [], [], [], []
     for _ in range(args.runs):  # interleaved, so that load changes hit every figure alike
         imports.append(float(child(_IMPORT)))
         plans.append(plan_process(command))
         a, b = json.loads(child(_FIRST_SECOND, str(CELL_DIR)))
         first.append(a)
         second.append(b)
-        numba.append(float(child(_NUMBA)))
+        kernel.append(float(child(_KERNEL)))
     ratios = [a / b for a, b in zip(first, second, strict=True)]
 
     print()
@@ -153,7 +172,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     print(row("first plan_cell in a new process", first))
     print(row("second plan_cell (same process)", second))
     print(row("first / second plan_cell [ratio]", ratios, AIM_RATIO))
-    print(row("numba import + first cached kernel", numba))
+    print(row("first kernel call (load the kernels)", kernel))
     print(f"load average {load()} (after)")
     return 0
 

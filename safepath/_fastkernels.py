@@ -14,8 +14,8 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from numba import njit
 
+from ._aot import njit
 from ._gjk import HULL, distance_lower_bound
 
 FREE, COLLIDES, UNSURE = 0, 1, 2

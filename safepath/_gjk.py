@@ -28,7 +28,8 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from numba import njit
+
+from ._aot import njit
 
 # Same codes as safepath._fastkernels (kept here so that this module imports alone).
 BOX, CYLINDER, SPHERE, CAPSULE, BOX_ONLY_OUTER, HULL = 0, 1, 2, 3, 4, 5

@@ -85,6 +85,23 @@ def cmd_robot_pairs(args: argparse.Namespace) -> int:
     return 0
 
 
+def cmd_build_kernels(args: argparse.Namespace) -> int:
+    """Compile the numba kernels ahead of time (see :mod:`safepath._aot`)."""
+    from ._aot import cache_root
+    from ._aot.build import build
+    from ._aot.table import ENTRIES
+
+    try:
+        result = build(force=args.force)
+    except OSError as exc:
+        raise SafepathError(f"cannot write the kernel build to {cache_root()}: {exc}") from exc
+    if result.fresh:
+        print(f"built {len(ENTRIES)} kernels in {result.seconds:.0f} s: {result.path}")
+    else:
+        print(f"kernels up to date: {result.path}")
+    return 0
+
+
 def build_parser() -> argparse.ArgumentParser:
     """The argument parser of ``safepath``."""
     parser = argparse.ArgumentParser(prog="safepath", description=__doc__.splitlines()[0])
@@ -102,6 +119,12 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--samples", type=int, default=100_000)
     p.add_argument("--seed", type=int, default=0)
     p.set_defaults(func=cmd_robot_pairs)
+
+    p = sub.add_parser("build-kernels",
+                       help="compile the numba kernels ahead of time (a new process then "
+                            "plans without numba)")
+    p.add_argument("--force", action="store_true", help="rebuild even if up to date")
+    p.set_defaults(func=cmd_build_kernels)
 
     for register in _EXTRA:
         register(sub)

@@ -6,12 +6,17 @@ The session-scoped objects are read-only: a test that needs to change a cell tak
 
 from __future__ import annotations
 
+import os
 import shutil
 from pathlib import Path
 
 import pytest
 
 from safepath import Cell, Robot, load_cell
+
+# A kernel call whose arguments do not match its ahead-of-time signature raises in the
+# tests (a user's process runs numba's JIT kernel instead); child processes inherit it.
+os.environ.setdefault("SAFEPATH_AOT_STRICT", "1")
 
 #: The repository root (``tests/`` is one level below it).
 REPO_ROOT = Path(__file__).resolve().parents[1]

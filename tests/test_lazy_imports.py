@@ -7,9 +7,12 @@ hide an eager import. The cold-start figures themselves are printed by
 
 from __future__ import annotations
 
+import os
 import subprocess
 import sys
 from pathlib import Path
+
+import pytest
 
 ROOT = Path(__file__).resolve().parents[1]
 CELL = ROOT / "scenes" / "quality_check_cell"
@@ -17,13 +20,14 @@ CELL = ROOT / "scenes" / "quality_check_cell"
 HEAVY = ("viser", "rosbags", "matplotlib", "scipy", "toppra", "ompl", "numba", "fcl")
 
 
-def _loaded_after(code: str) -> list[set[str]]:
+def _loaded_after(code: str, **env: str) -> list[set[str]]:
     """Top-level packages of ``sys.modules`` wherever ``code`` calls ``mark()``."""
     script = ("import sys\n"
               "def mark():\n"
               "    print(' '.join(sorted({m.split('.')[0] for m in sys.modules})))\n" + code)
     out = subprocess.run([sys.executable, "-c", script], cwd=ROOT, capture_output=True,
-                         text=True, check=True, timeout=300).stdout
+                         text=True, check=True, timeout=300,
+                         env={**os.environ, **env}).stdout
     return [set(line.split()) for line in out.splitlines()]
 
 
@@ -40,13 +44,21 @@ def test_import_safepath_and_its_command_line_load_no_heavy_package() -> None:
     assert after_parser.isdisjoint(HEAVY), sorted(after_parser & set(HEAVY))
 
 
-def test_numba_loads_with_the_first_cartesian_line() -> None:
+@pytest.mark.parametrize("aot", ["0", "1"])
+def test_numba_loads_with_the_first_cartesian_line_unless_the_kernels_are_built(aot: str
+                                                                               ) -> None:
+    """With the kernels compiled ahead of time (``safepath build-kernels``, run by ``make
+    setup``) no planning step imports numba; without (or with SAFEPATH_AOT=0), the first
+    kernel call does."""
+    from safepath import _aot
+
     before, after = _loaded_after(
         "import safepath\n"
         f"cell = safepath.load_cell({str(CELL)!r})\n"
         "mark()\n"
         "safepath.planning.cartesian_line(cell.robot, cell.pose('high2'), cell.pose('low1'))\n"
-        "mark()\n")
+        "mark()\n", SAFEPATH_AOT=aot)
+    built = aot == "1" and _aot.find()[0] is not None
     assert "numba" not in before
-    assert "numba" in after
+    assert ("numba" in after) is not built
     assert after.isdisjoint({"viser", "rosbags", "matplotlib", "toppra", "ompl"})

@@ -23,7 +23,8 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from numba import njit
+
+from .._aot import njit
 
 __all__ = ["OK", "NO_SOLUTION", "JUMP", "tcp_pose", "tcp_jacobian", "log6", "jlog6",
            "solve", "line_path"]

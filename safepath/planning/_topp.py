@@ -17,8 +17,8 @@ exactly by eliminating ``u`` (Fourier-Motzkin: every pair of an upper and a lowe
 on ``u`` gives a bound on ``x``). A forward pass then takes, at each gridpoint, the
 largest ``u`` that keeps ``x_{i+1}`` controllable.
 
-The two passes are compiled with numba on first use (and cached on disk); numba is
-imported then, not when this module is imported.
+The two passes are compiled ahead of time (:mod:`safepath._aot`), or else with numba on
+first use (and cached on disk); numba is imported then, not when this module is imported.
 """
 
 from __future__ import annotations
@@ -245,10 +245,11 @@ def _forward(delta: np.ndarray, xmax: np.ndarray, a: np.ndarray, b: np.ndarray,
 
 
 def _kernels() -> dict[str, Callable[..., Any]]:
-    """The numba-compiled passes (compiled, or loaded from numba's cache, once)."""
+    """The compiled passes: ahead of time, else numba's (compiled, or loaded from numba's
+    cache, once); see :mod:`safepath._aot`."""
     with _lock:
         if not _compiled:
-            from numba import njit
+            from .._aot import njit
 
             _compiled["backward"] = njit(cache=True, nogil=True)(_backward)
             _compiled["forward"] = njit(cache=True, nogil=True)(_forward)

@@ -33,8 +33,9 @@ from __future__ import annotations
 
 import math
 
-import numba as nb
 import numpy as np
+
+from .._aot import njit
 
 BOX, SPHERE, CYLINDER, CAPSULE, HULL = 0, 1, 2, 3, 4
 REVOLUTE, PRISMATIC = 1, 2
@@ -47,14 +48,14 @@ KIND, PAR, CENTRE, RADIUS = 0, 1, 4, 7
 # the shape's axis j).
 
 
-@nb.njit(cache=True)
+@njit(cache=True)
 def _dots(S: tuple, n0: float, n1: float, n2: float) -> tuple[float, float, float]:
     """n along each of the shape's axes."""
     return (n0 * S[8] + n1 * S[11] + n2 * S[14], n0 * S[9] + n1 * S[12] + n2 * S[15],
             n0 * S[10] + n1 * S[13] + n2 * S[16])
 
 
-@nb.njit(cache=True)
+@njit(cache=True)
 def _axis(S: tuple, j: int) -> tuple[float, float, float]:
     """The shape's axis j in the world."""
     if j == 0:
@@ -64,7 +65,7 @@ def _axis(S: tuple, j: int) -> tuple[float, float, float]:
     return S[10], S[13], S[16]
 
 
-@nb.njit(cache=True)
+@njit(cache=True)
 def support(S: tuple, V: np.ndarray, n0: float, n1: float, n2: float) -> float:
     """How far the shape's projection on the unit axis n reaches beyond its centre along
     n [m] (half its width, but for a hull, whose rows of ``V`` are its vertices about
@@ -88,7 +89,7 @@ def support(S: tuple, V: np.ndarray, n0: float, n1: float, n2: float) -> float:
     return S[2] * u + S[1]  # type: ignore[no-any-return]
 
 
-@nb.njit(cache=True)
+@njit(cache=True)
 def _support_point(S: tuple, V: np.ndarray, n0: float, n1: float, n2: float
                    ) -> tuple[float, float, float]:
     """A point of the shape furthest along n: GJK's search only, the bounds use
@@ -130,7 +131,7 @@ def _support_point(S: tuple, V: np.ndarray, n0: float, n1: float, n2: float
     return x0, x1, x2
 
 
-@nb.njit(cache=True)
+@njit(cache=True)
 def gap(Sa: tuple, Sb: tuple, V: np.ndarray, n0: float, n1: float, n2: float) -> float:
     """Gap between the shapes' projections on the unit axis n [m]."""
     d0, d1, d2 = Sb[5] - Sa[5], Sb[6] - Sa[6], Sb[7] - Sa[7]
@@ -141,7 +142,7 @@ def gap(Sa: tuple, Sb: tuple, V: np.ndarray, n0: float, n1: float, n2: float) ->
             - support(Sb, V, -n0, -n1, -n2))
 
 
-@nb.njit(cache=True)
+@njit(cache=True)
 def sphere_bound(Sa: tuple, Sb: tuple) -> tuple[float, float, float, float]:
     """Distance between the bounding spheres [m] (never above the gap along the line
     between the centres), and that line's direction."""
@@ -152,7 +153,7 @@ def sphere_bound(Sa: tuple, Sb: tuple) -> tuple[float, float, float, float]:
     return dist - Sa[4] - Sb[4], d0 / dist, d1 / dist, d2 / dist
 
 
-@nb.njit(cache=True)
+@njit(cache=True)
 def _own_axes(S: tuple) -> tuple[int, int]:
     """The shape's axes worth trying: (first, count)."""
     kind = int(S[0])
@@ -163,7 +164,7 @@ def _own_axes(S: tuple) -> tuple[int, int]:
     return 2, 1
 
 
-@nb.njit(cache=True)
+@njit(cache=True)
 def axis_bound(Sa: tuple, Sb: tuple, V: np.ndarray) -> tuple[float, float, float, float]:
     """The largest gap along the line between the centres, the shapes' own axes and
     their cross products [m] (never below the bounding spheres' distance), and its
@@ -198,7 +199,7 @@ def axis_bound(Sa: tuple, Sb: tuple, V: np.ndarray) -> tuple[float, float, float
     return best, b0, b1, b2
 
 
-@nb.njit(cache=True)
+@njit(cache=True)
 def _solve(k: int, g00: float, g01: float, g02: float, g11: float, g12: float,
            g22: float, r0: float, r1: float, r2: float
            ) -> tuple[bool, float, float, float]:
@@ -226,7 +227,7 @@ def _solve(k: int, g00: float, g01: float, g02: float, g11: float, g12: float,
             (c01 * r0 + c11 * r1 + c12 * r2) / det, (c02 * r0 + c12 * r1 + c22 * r2) / det)
 
 
-@nb.njit(cache=True)
+@njit(cache=True)
 def gjk_bound(Sa: tuple, Sb: tuple, V: np.ndarray, best: float, w0: float, w1: float,
               w2: float, warm: bool) -> tuple[float, float, float, float, float]:
     """Raise the lower bound ``best`` [m] with the gaps along GJK's search directions.
@@ -318,7 +319,7 @@ def gjk_bound(Sa: tuple, Sb: tuple, V: np.ndarray, best: float, w0: float, w1: f
     return best, upper, b0, b1, b2
 
 
-@nb.njit(cache=True)
+@njit(cache=True)
 def certify(todo: np.ndarray, theta: np.ndarray, grid: tuple, kin: tuple, cache: tuple,
             pairs: tuple, world: tuple, memory: tuple, params: tuple
             ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:

@@ -46,8 +46,9 @@ from ._transport import encode_error, picklable_record
 __all__ = ["serve"]
 
 #: Modules the planner imports lazily on its first plan; the worker imports them while
-#: loading, so that the first plan runs as fast as the next ones.
-WARM_MODULES = ("ompl.base", "ompl.geometric", "ompl.util", "numba", "scipy.interpolate",
+#: loading, so that the first plan runs as fast as the next ones. The kernel modules load
+#: the kernels compiled ahead of time, or else numba (safepath._aot).
+WARM_MODULES = ("ompl.base", "ompl.geometric", "ompl.util", "scipy.interpolate",
                 "safepath._fastkernels", "safepath.planning._topp",
                 "safepath.planning._verify_kernel", "safepath.planning._ik_kernel", "fcl",
                 "coal", "scipy.spatial")

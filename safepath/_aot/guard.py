@@ -1,0 +1,97 @@
+"""Argument checks in front of the ahead-of-time kernels.
+
+An extension built by ``numba.pycc`` converts its arguments without checking them the
+way numba's dispatcher does: an int64 array passed for a float64 one, or a strided view
+for a contiguous one, would be read as if it were what the signature says. Each
+exported kernel is therefore called through a small Python function, generated from its
+row of :mod:`.table`, that checks every argument against the signature (~60 ns per array)
+and otherwise hands the call to the numba-compiled kernel (or raises, in strict mode).
+"""
+
+from __future__ import annotations
+
+import logging
+import re
+from collections.abc import Callable
+from typing import Any
+
+import numpy as np
+
+from .table import Entry
+
+__all__ = ["wrap", "describe"]
+
+log = logging.getLogger("safepath._aot")
+
+_ARRAY = re.compile(r"^(f8|i8|b1)\[((?::, )*)::1\]$")
+_DTYPES = {"f8": np.dtype(np.float64), "i8": np.dtype(np.int64), "b1": np.dtype(np.bool_)}
+#: C-contiguous, aligned, writeable (numpy's flag bits): what numba types as a mutable,
+#: aligned 'C' array.
+_FLAGS = 0x1 | 0x100 | 0x400
+_INTS = frozenset({int, np.int64, np.int32, np.int16, np.int8, np.uint32, np.uint16,
+                   np.uint8})
+_FLOATS = frozenset({float, np.float64})
+_BOOLS = frozenset({bool, np.bool_})
+_UNITUPLE = re.compile(r"^UniTuple\((\w+), (\d+)\)$")
+_SCALARS = {"f8": "_FLOATS", "i8": "_INTS", "b1": "_BOOLS"}
+
+
+def _check(name: str, kind: str | tuple[str, ...]) -> str:
+    """A Python expression true when the value ``name`` matches the type ``kind``."""
+    if isinstance(kind, tuple):
+        parts = [f"{name}.__class__ is tuple", f"len({name}) == {len(kind)}"]
+        parts += [_check(f"{name}[{i}]", k) for i, k in enumerate(kind)]
+        return " and ".join(parts)
+    match = _ARRAY.match(kind)
+    if match:
+        ndim = match.group(2).count(":") + 1
+        dtype = f"_{match.group(1)}"
+        # An unpickled array's dtype is equal to numpy's, not always the same object.
+        return (f"{name}.__class__ is _nd and ({name}.dtype is {dtype} or {name}.dtype == "
+                f"{dtype}) and {name}.ndim == {ndim} and {name}.flags.num & {_FLAGS} == "
+                f"{_FLAGS}")
+    if kind in _SCALARS:
+        return f"{name}.__class__ in {_SCALARS[kind]}"
+    match = _UNITUPLE.match(kind)
+    if match:
+        return _check(name, (match.group(1),) * int(match.group(2)))
+    raise ValueError(f"kernel table: type {kind!r} is not one the guards know")
+
+
+def describe(value: Any) -> str:
+    """A short type description of an argument, for messages."""
+    if isinstance(value, np.ndarray):
+        layout = "C" if value.flags.c_contiguous else "F" if value.flags.f_contiguous else "A"
+        ro = "" if value.flags.writeable else ", read-only"
+        return f"{value.dtype}[{value.ndim}d, {layout}{ro}]"
+    if isinstance(value, tuple):
+        return "(" + ", ".join(describe(v) for v in value) + ")"
+    return type(value).__name__
+
+
+def wrap(name: str, entry: Entry, compiled: Callable[..., Any],
+         fallback: Callable[[str, tuple[Any, ...]], Any]) -> Callable[..., Any]:
+    """The checked caller of one exported kernel.
+
+    Args:
+        name: Its export name.
+        entry: Its row of the table.
+        compiled: The ahead-of-time function.
+        fallback: Called with the name and the arguments when they do not match.
+    """
+    params = [f"a{i}" for i in range(len(entry.args))]
+    test = " and ".join(_check(p, k) for p, k in zip(params, entry.args, strict=True))
+    args = ", ".join(params)
+    source = (f"def {entry.function}({args}):\n"
+              f"    if {test}:\n"
+              f"        return _compiled({args})\n"
+              f"    return _fallback({name!r}, ({args}{',' if len(params) == 1 else ''}))\n")
+    scope: dict[str, Any] = {"_nd": np.ndarray, "_compiled": compiled, "_fallback": fallback,
+                             "_INTS": _INTS, "_FLOATS": _FLOATS, "_BOOLS": _BOOLS,
+                             **{f"_{k}": v for k, v in _DTYPES.items()}}
+    exec(compile(source, f"<safepath kernel {name}>", "exec"), scope)  # noqa: S102
+    function = scope[entry.function]
+    function.__doc__ = f"{entry.module}.{entry.function}, compiled ahead of time ({name})."
+    function.__qualname__ = entry.function
+    function.__module__ = entry.module
+    return function  # type: ignore[no-any-return]

@@ -1,0 +1,96 @@
+"""The one table of kernels compiled ahead of time, with their exact signatures.
+
+Every numba kernel that planning calls from Python (``plan_cell``, ``plan_route``, the
+runtime planner's workers) is listed here once, by its export name: the module and
+function that define it and the types of its arguments and result, in numba's notation.
+The argument types are exactly what the callers pass (C-contiguous, writeable arrays of
+these dtypes, Python or numpy scalars of these kinds); a call that passes anything else
+runs the numba-compiled (JIT) kernel instead, and under ``SAFEPATH_AOT_STRICT=1`` (the
+test suite) raises, so that a caller drifting from its signature fails in the tests,
+never in a user's plan. ``tests/test_aot.py`` compiles every entry with numba from
+these argument types and checks the result type against the table.
+
+Changing a kernel's arguments means changing its row here (the ahead-of-time module is
+then stale and is rebuilt by ``safepath build-kernels``; until then numba's JIT runs).
+Importing this module imports neither numba nor a kernel module.
+"""
+
+from __future__ import annotations
+
+from typing import NamedTuple
+
+__all__ = ["Entry", "ENTRIES", "MODULES"]
+
+#: Arrays: C-contiguous float64, int64 and bool arrays of 1 to 4 dimensions.
+F1, F2, F3, F4 = "f8[::1]", "f8[:, ::1]", "f8[:, :, ::1]", "f8[:, :, :, ::1]"
+I1, B1, B2 = "i8[::1]", "b1[::1]", "b1[:, ::1]"
+#: Scalars.
+FLOAT, INT, BOOL = "f8", "i8", "b1"
+
+
+class Entry(NamedTuple):
+    """One exported kernel.
+
+    Attributes:
+        module: The module that defines it (``safepath._fastkernels``).
+        function: Its name there.
+        args: The argument types (a tuple of types for a tuple argument).
+        result: The result type (``void``: none).
+    """
+
+    module: str
+    function: str
+    args: tuple[str | tuple[str, ...], ...]
+    result: str
+
+
+_FAST = "safepath._fastkernels"
+_VERIFY = "safepath.planning._verify_kernel"
+_IK = "safepath.planning._ik_kernel"
+_TOPP = "safepath.planning._topp"
+#: A placed shape of the verifier: a tuple of 17 floats.
+_SHAPE = "UniTuple(f8, 17)"
+
+#: Every exported kernel, by export name.
+ENTRIES: dict[str, Entry] = {
+    # The sphere layer (safepath.fastcheck.SphereLayer, safepath.collision).
+    "fast_classify": Entry(_FAST, "classify", (F1, F1, I1), INT),
+    "fast_classify_many": Entry(_FAST, "classify_many", (F2, F1, I1, I1), "void"),
+    "fast_certify_polyline": Entry(_FAST, "certify_polyline",
+                                   (F2, I1, I1, I1, F1, I1, I1, I1, INT), "UniTuple(i8, 5)"),
+    "fast_certify_segment": Entry(_FAST, "certify_segment", (F1, F1, F1, I1, BOOL, BOOL, INT),
+                                  "UniTuple(i8, 5)"),
+    # The release check's bounds (safepath.planning._verify_bounds).
+    "verify_certify": Entry(
+        _VERIFY, "certify",
+        (I1, F1,
+         (F2, F2, F2, F2, F2, I1, F1),  # grid
+         (I1, F3, I1, F2, I1, I1, F3, I1),  # kin
+         (B2, F4),  # cache
+         (I1, I1, B1, F2, B1),  # pairs
+         (F2, F3, F2),  # world
+         (F2, F1, I1, F1),  # memory
+         (FLOAT, FLOAT, FLOAT, FLOAT)),  # params
+        f"Tuple(({I1}, {I1}, {F1}))"),
+    "verify_axis_bound": Entry(_VERIFY, "axis_bound", (_SHAPE, _SHAPE, F2), "UniTuple(f8, 4)"),
+    "verify_gjk_bound": Entry(_VERIFY, "gjk_bound",
+                              (_SHAPE, _SHAPE, F2, FLOAT, FLOAT, FLOAT, FLOAT, BOOL),
+                              "UniTuple(f8, 5)"),
+    # Cartesian lines (safepath.planning.cartesian).
+    "ik_line_path": Entry(_IK, "line_path", (F2, I1, F1, F2, F1, F1, F1, F1, F1, F1, INT, F2),
+                          "Tuple((i8, i8, i8, f8))"),
+    "ik_solve": Entry(_IK, "solve", (F2, I1, F1, F2, F1, F1, F1, F1, F1, INT), INT),
+    "ik_tcp_pose": Entry(_IK, "tcp_pose", (F2, I1, F1, F1, F2, F1), "void"),
+    "ik_tcp_jacobian": Entry(_IK, "tcp_jacobian", (F2, I1, F1, F1, F2), "void"),
+    "ik_log6": Entry(_IK, "log6", (F2, F1, F1), "void"),
+    "ik_jlog6": Entry(_IK, "jlog6", (F2, F1, F2), "void"),
+    # TOPP-RA's two passes (safepath.planning._topp).
+    "topp_backward": Entry(_TOPP, "_backward", (F1, F1, F2, F2, F2, F1, F1), INT),
+    "topp_forward": Entry(_TOPP, "_forward", (F1, F1, F2, F2, F2, F1, F1, F1), "void"),
+}
+
+#: The modules whose source the ahead-of-time module is compiled from: it is used only
+#: while all of them are unchanged. Every kernel compiled through :func:`safepath._aot.njit`
+#: lives in one of them (tests/test_aot.py checks it); the monitor's and the cup's
+#: kernels (not on a planning path) use numba directly.
+MODULES: tuple[str, ...] = (_FAST, "safepath._gjk", _VERIFY, _IK, _TOPP)

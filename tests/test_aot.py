@@ -1,0 +1,258 @@
+"""The kernels compiled ahead of time (safepath._aot): same answers as numba's JIT, the
+signature table agrees with numba, a stale build is never used, and a process that
+plans with a current build never imports numba.
+
+The build itself is what ``make setup`` / ``safepath build-kernels`` writes to the
+user cache; the ``built`` fixture makes it if it is missing (about a minute).
+"""
+
+from __future__ import annotations
+
+import copy
+import json
+import logging
+import os
+import shutil
+import subprocess
+import sys
+from collections.abc import Callable, Iterator
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pytest
+
+import safepath
+from safepath import _aot
+from safepath._aot import guard
+from safepath._aot.build import Build, build, python_function, signature
+from safepath._aot.table import ENTRIES, MODULES, Entry
+
+ROOT = Path(__file__).resolve().parents[1]
+CELL = ROOT / "scenes" / "quality_check_cell"
+PANDA = ROOT / "examples" / "cells" / "panda_cell"
+#: Recorded calls kept per kernel (the first ones of the plans).
+KEEP = 150
+
+
+@pytest.fixture(scope="module")
+def built() -> Build:
+    return build()
+
+
+def _jit(entry: Entry) -> Callable[..., Any]:
+    """numba's JIT kernel of an entry (the one a process without the build runs)."""
+    import numba
+    from numba.core.registry import CPUDispatcher
+
+    _aot.materialize()  # callees bound as numba dispatchers, whatever the mode
+    value = getattr(sys.modules[entry.module], entry.function)
+    if isinstance(value, CPUDispatcher):
+        return value  # type: ignore[no-any-return]
+    return numba.njit(cache=True, nogil=True)(python_function(entry))  # type: ignore[no-any-return]
+
+
+def _same(a: Any, b: Any) -> bool:
+    """Equal bit for bit (arrays: dtype, shape and bytes; tuples item by item)."""
+    if isinstance(a, np.ndarray) or isinstance(b, np.ndarray):
+        return (isinstance(a, np.ndarray) and isinstance(b, np.ndarray) and a.dtype == b.dtype
+                and a.shape == b.shape and a.tobytes() == b.tobytes())
+    if isinstance(a, tuple):
+        return (isinstance(b, tuple) and len(a) == len(b)
+                and all(_same(x, y) for x, y in zip(a, b, strict=True)))
+    if isinstance(a, float):
+        return np.float64(a).tobytes() == np.float64(b).tobytes()
+    return bool(a == b) and type(a) is type(b)
+
+
+def test_every_kernel_module_is_hashed_and_every_entry_exists() -> None:
+    import importlib
+
+    from safepath.planning import _topp
+
+    for name in MODULES:
+        importlib.import_module(name)
+    _topp._kernels()
+    assert {module for module, _ in _aot.decorated} <= set(MODULES)
+    for name, entry in ENTRIES.items():
+        assert entry.module in MODULES, name
+        assert callable(python_function(entry)), name
+
+
+def test_table_signatures_are_the_ones_numba_infers() -> None:
+    """Compiling each entry with numba from the table's argument types gives the table's
+    result type: a kernel whose arguments or result changed fails here."""
+    from numba.core import sigutils
+
+    for name, entry in ENTRIES.items():
+        args, result = sigutils.normalize_signature(signature(entry))
+        dispatcher = _jit(entry)
+        dispatcher.compile(args)
+        inferred = dispatcher.overloads[tuple(args)].signature.return_type
+        assert inferred == result, f"{name}: numba infers {inferred}, the table says {result}"
+
+
+@pytest.fixture(scope="module")
+def recorded() -> dict[str, list[tuple[Any, ...]]]:
+    """Arguments of real kernel calls: the bundled cell and the Panda cell planned (the
+    first KEEP calls of every kernel, copied before the call: kernels write into some)."""
+    from safepath import _fastkernels
+    from safepath.planning import _ik_kernel, _topp, _verify_kernel
+
+    calls: dict[str, list[tuple[Any, ...]]] = {name: [] for name in ENTRIES}
+    by_function = {(e.module, e.function): n for n, e in ENTRIES.items()}
+
+    def recorder(name: str, kernel: Callable[..., Any]) -> Callable[..., Any]:
+        def call(*args: Any) -> Any:
+            if len(calls[name]) < KEEP:
+                calls[name].append(copy.deepcopy(args))
+            return kernel(*args)
+        return call
+
+    patched: list[tuple[Any, str, Any]] = []
+    for module in (_fastkernels, _verify_kernel, _ik_kernel):
+        for (mod, function), name in by_function.items():
+            if mod == module.__name__:
+                patched.append((module, function, getattr(module, function)))
+                setattr(module, function, recorder(name, getattr(module, function)))
+    kernels = _topp._kernels()
+    saved = dict(kernels)
+    kernels["backward"] = recorder("topp_backward", saved["backward"])
+    kernels["forward"] = recorder("topp_forward", saved["forward"])
+    try:
+        for folder in (CELL, PANDA):
+            safepath.plan_cell(safepath.load_cell(folder))
+    finally:
+        for module, function, value in patched:
+            setattr(module, function, value)
+        kernels.update(saved)
+    return calls
+
+
+def test_ahead_of_time_kernels_answer_as_numba_bit_for_bit(
+        built: Build, recorded: dict[str, list[tuple[Any, ...]]]) -> None:
+    module, reason = _aot._load(built.path)
+    assert module is not None, reason
+    planned = {"fast_classify", "fast_certify_segment", "fast_certify_polyline",
+               "verify_certify", "ik_line_path", "topp_backward", "topp_forward"}
+    assert all(len(recorded[name]) > 0 for name in planned), {
+        n: len(c) for n, c in recorded.items()}
+    compared = 0
+    for name, calls in recorded.items():
+        entry = ENTRIES[name]
+
+        def refuse(export: str, args: tuple[Any, ...]) -> Any:
+            raise AssertionError(f"{export}: {guard.describe(args)} is not its signature")
+
+        aot = guard.wrap(name, entry, getattr(module, name), refuse)
+        jit = _jit(entry)
+        for args in calls:
+            a, b = copy.deepcopy(args), copy.deepcopy(args)
+            out_a, out_b = aot(*a), jit(*b)
+            assert _same(out_a, out_b), f"{name}: results differ"
+            assert _same(a, b), f"{name}: arrays written differ"
+            compared += 1
+    assert compared >= 7 * 20
+
+
+def test_arguments_off_the_signature_run_the_jit_kernel_or_raise_when_strict(
+        built: Build, monkeypatch: pytest.MonkeyPatch, caplog: pytest.LogCaptureFixture
+) -> None:
+    """An int64 array where float64 is expected, or a strided view, would be read as the
+    signature says by the raw extension: the guard hands such calls to numba instead."""
+    module, _ = _aot._load(built.path)
+    assert module is not None
+    entry = ENTRIES["ik_log6"]
+    taken: list[tuple[Any, ...]] = []
+
+    def fallback(name: str, args: tuple[Any, ...]) -> Any:
+        taken.append(args)
+        return _aot._fallback(name, args)
+
+    log6 = guard.wrap("ik_log6", entry, module.ik_log6, fallback)
+    R = np.eye(3)
+    p = np.array([0.1, -0.2, 0.3])
+    out = np.empty(6)
+    log6(R, p, out)
+    assert not taken and np.allclose(out, [0.1, -0.2, 0.3, 0.0, 0.0, 0.0])
+    strided = np.zeros(12)[::2]
+    with pytest.raises(TypeError, match="do not match its signature"):
+        log6(R, p, strided)  # the suite runs strict (tests/conftest.py)
+    monkeypatch.setenv("SAFEPATH_AOT_STRICT", "0")
+    expected = out.copy()
+    with caplog.at_level(logging.WARNING, logger="safepath._aot"):
+        log6(R, p, strided)
+        np.testing.assert_array_equal(strided, expected)  # numba wrote through the view
+        log6(R, p.astype(np.float32), out)
+        np.testing.assert_allclose(out, expected, rtol=1e-6)
+    assert len(taken) == 3
+    assert "running numba's JIT kernel instead" in caplog.text
+
+
+def test_a_build_of_other_sources_is_never_used(built: Build, tmp_path: Path) -> None:
+    """Editing a kernel module (here _gjk.py, which only _fastkernels compiles) changes
+    the key: the build is not found, whatever is in the cache."""
+    copy_root = tmp_path / "safepath"
+    shutil.copytree(_aot.PACKAGE, copy_root,
+                    ignore=shutil.ignore_patterns("__pycache__", "*.so"))
+    assert _aot.source_key(copy_root) == built.key
+    assert _aot.find(copy_root)[0] == built.path
+    with open(copy_root / "_gjk.py", "a") as f:
+        f.write("\n# edited after the build\n")
+    stale_key = _aot.source_key(copy_root)
+    assert stale_key != built.key
+    path, reason = _aot.find(copy_root)
+    assert path is None and "no build for these sources" in reason
+    # The old build copied under the new key: its record names other sources.
+    shutil.copytree(built.path.parent, _aot.build_dir(stale_key))
+    try:
+        path, reason = _aot.find(copy_root)
+        assert path is None and "other sources" in reason
+    finally:
+        shutil.rmtree(_aot.build_dir(stale_key))
+
+
+def _child(code: str, **env: str) -> list[str]:
+    out = subprocess.run([sys.executable, "-c", code], cwd=ROOT, capture_output=True,
+                         text=True, timeout=600, env={**os.environ, **env})
+    assert out.returncode == 0, out.stderr[-3000:]
+    return out.stdout.split("\n")
+
+
+_PLAN = ("import sys, safepath\n"
+         "from safepath import _aot\n"
+         f"trajectories = safepath.plan_cell(safepath.load_cell({str(CELL)!r}))\n"
+         "print(_aot.status())\n"
+         "print('numba' in sys.modules, 'llvmlite' in sys.modules)\n"
+         "print(sorted(trajectories))\n")
+
+
+def test_a_new_process_plans_the_cell_without_numba(built: Build) -> None:
+    status, modules, routes = _child(_PLAN)[:3]
+    assert status == f"ahead-of-time ({built.path})"
+    assert modules == "False False"
+    assert routes == str(sorted(safepath.load_cell(CELL).route_table()))
+
+
+def test_without_a_build_the_kernels_run_on_numba(tmp_path: Path) -> None:
+    status, modules, _ = _child(_PLAN, SAFEPATH_KERNEL_CACHE=str(tmp_path))[:3]
+    assert status.startswith("numba JIT (no build for these sources in")
+    assert modules == "True True"
+
+
+@pytest.fixture()
+def isolated_cache(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> Iterator[Path]:
+    monkeypatch.setenv("SAFEPATH_KERNEL_CACHE", str(tmp_path))
+    yield tmp_path
+
+
+def test_an_unreadable_build_record_is_reported(built: Build, isolated_cache: Path) -> None:
+    folder = _aot.build_dir(built.key)
+    folder.mkdir(parents=True)
+    (folder / _aot.META).write_text("{not json")
+    path, reason = _aot.find()
+    assert path is None and "unreadable build record" in reason
+    (folder / _aot.META).write_text(json.dumps({"key": built.key, "file": "x.so",
+                                                "exports": sorted(ENTRIES)}))
+    path, reason = _aot.find()
+    assert path is None and "lacks its extension x.so" in reason
