@@ -32,3 +32,29 @@ def test_bad_input_is_refused() -> None:
         CubicPath(np.array([0.0, 1.0, 1.0]), np.zeros((3, 2)))
     with pytest.raises(ValueError, match="nu"):
         CubicPath(np.array([0.0, 1.0, 2.0]), np.zeros((3, 2)))(0.5, 3)
+
+
+def test_tridiagonal_solve_equals_lapack_bit_for_bit() -> None:
+    """The slopes' solver repeats LAPACK's dgtsv (what scipy's solve_banded((1, 1), ...)
+    calls) operation for operation: the same bits, with and without row interchanges,
+    so that dropping scipy.linalg changed no trajectory."""
+    from scipy.linalg import solve_banded
+
+    from safepath.planning._spline import _solve_tridiagonal
+
+    rng = np.random.default_rng(11)
+    pivoted = 0
+    for trial in range(3000):
+        n, k = int(rng.integers(3, 40)), int(rng.integers(1, 8))
+        ab = rng.normal(size=(3, n)) * rng.choice([1e-3, 1.0, 1e3], size=(3, n))
+        if trial % 2:  # diagonally dominant, as a spline's slopes
+            ab[1] = 3.0 * np.abs(ab[1]) + np.abs(ab[0]) + np.abs(ab[2])
+        else:
+            pivoted += int(np.any(np.abs(ab[1, :-1]) < np.abs(ab[2, :-1])))
+        b = rng.normal(size=(n, k))
+        ref = solve_banded((1, 1), ab.copy(), b.copy(), check_finite=False)
+        got = _solve_tridiagonal(ab[2, :-1], ab[1], ab[0, 1:], b)
+        assert got.tobytes() == ref.tobytes(), f"trial {trial}: n={n}, k={k}"
+    assert pivoted > 1000
+    with pytest.raises(ValueError, match="singular"):
+        _solve_tridiagonal(np.zeros(3), np.zeros(4), np.zeros(3), np.ones((4, 1)))
