@@ -7,6 +7,15 @@ dispatch cheap: the single-state API is called millions of times by planners).
 
 Status codes: FREE (certainly valid), COLLIDES (certainly in collision or outside the
 limits), UNSURE (ask the exact checker).
+
+Reference counts: only the entry points (``classify``, ``classify_many``,
+``certify_polyline``, ``certify_segment`` and the ``_workspace`` they allocate) are
+compiled with numba's reference counting; every helper below them (and those of
+:mod:`safepath._gjk`) is compiled without it (``_nrt=False``): they allocate nothing and
+return no arrays, and the counts numba keeps on every array a helper is passed or slices
+took ~20 % of a planner's time on the Panda (``perf``: NRT_incref / NRT_decref). Such a
+helper must keep to that: no array allocation, no array returned, no array-to-array slice
+assignment.
 """
 
 from __future__ import annotations
@@ -17,6 +26,10 @@ import numpy as np
 
 from ._aot import njit
 from ._gjk import HULL, distance_lower_bound
+
+#: How the helpers are compiled (see the module doc).
+_helper = njit(cache=True, nogil=True, _nrt=False)
+_inlined = njit(cache=True, nogil=True, _nrt=False, inline="always")
 
 FREE, COLLIDES, UNSURE = 0, 1, 2
 
@@ -89,7 +102,7 @@ def _workspace(ib):
     return np.empty((nj, 3, 3)), np.empty((nj, 3)), wf, wi
 
 
-@njit(cache=True, nogil=True)
+@_helper
 def _fk(q, fb, ib, Rw, pw, wf):  # noqa: N803
     """World rotation and position of every joint frame at ``q`` into Rw (nj,3,3), pw (nj,3)."""
     nj = ib[H_NJ]
@@ -139,7 +152,7 @@ def _fk(q, fb, ib, Rw, pw, wf):  # noqa: N803
                                + Rw[parent, r, 2] * wf[M + 6 + c])
 
 
-@njit(cache=True, nogil=True, inline="always")
+@_inlined
 def _world(fb, s, Rw, pw, j, wf, o):  # noqa: N803
     """World centre of the sphere/point at fb[s:s+3] (frame of joint ``j``) into wf[o:o+3]."""
     x, y, z = fb[s], fb[s + 1], fb[s + 2]
@@ -147,7 +160,7 @@ def _world(fb, s, Rw, pw, j, wf, o):  # noqa: N803
         wf[o + r] = Rw[j, r, 0] * x + Rw[j, r, 1] * y + Rw[j, r, 2] * z + pw[j, r]
 
 
-@njit(cache=True, nogil=True)
+@_helper
 def _env_sdist3(fb, ib, e, px, py, pz):  # noqa: N803
     """Signed distance [m] from world point (px, py, pz) to environment object ``e`` (for
     ENV_BOX_ONLY_OUTER: to a box that encloses it, a lower bound)."""
@@ -176,7 +189,7 @@ def _env_sdist3(fb, ib, e, px, py, pz):  # noqa: N803
     return math.sqrt(x * x + y * y + (z - zc) * (z - zc)) - a
 
 
-@njit(cache=True, nogil=True, inline="always")
+@_inlined
 def _support(kind, wf, o, d, nx, ny, nz):  # noqa: N803
     """Half extent [m] along unit n of a primitive placed in ``wf`` (rotation rows at
     wf[o:o+9], dimensions at wf[d:d+3])."""
@@ -192,7 +205,7 @@ def _support(kind, wf, o, d, nx, ny, nz):  # noqa: N803
     return wf[d + 1] * abs(c) + wf[d] * math.sqrt(max(0.0, 1.0 - c * c))
 
 
-@njit(cache=True, nogil=True, inline="always")
+@_inlined
 def _primitive_axes(kind, wf, o, n):  # noqa: N803
     """Append the own axes of the primitive whose rotation is at wf[o:o+9] (box: its three
     face normals; cylinder, capsule: its z axis) to the candidate axes from row ``n``;
@@ -209,7 +222,7 @@ def _primitive_axes(kind, wf, o, n):  # noqa: N803
     return n
 
 
-@njit(cache=True, nogil=True, inline="always")
+@_inlined
 def _push_axis(wf, n, x, y, z):  # noqa: N803
     """Append (x, y, z) normalised to the candidate axes unless it is ~0; the row count."""
     norm = math.sqrt(x * x + y * y + z * z)
@@ -220,7 +233,7 @@ def _push_axis(wf, n, x, y, z):  # noqa: N803
     return n
 
 
-@njit(cache=True, nogil=True)
+@_helper
 def _sat_gap(ka, kb, wf):  # noqa: N803
     """Lower bound [m] on the distance of the two convex primitives placed in ``wf`` (A at
     W_RA, W_PA, W_DA; B at W_RB, W_PB, W_DB): the largest gap between their projections
@@ -259,7 +272,7 @@ def _sat_gap(ka, kb, wf):  # noqa: N803
     return best
 
 
-@njit(cache=True, nogil=True, inline="always")
+@_inlined
 def _mover_frame(fb, ib, m, Rw, pw, wf, oR, op):  # noqa: N803
     """World rotation (rows at wf[oR:oR+9]) and position (wf[op:op+3]) of mover ``m``'s
     primitive."""
@@ -273,7 +286,7 @@ def _mover_frame(fb, ib, m, Rw, pw, wf, oR, op):  # noqa: N803
                                   + Rw[j, r, 2] * fb[og + 10 + c])
 
 
-@njit(cache=True, nogil=True)
+@_helper
 def _place_pair(fb, ib, a, b, is_env, Rw, pw, wf):  # noqa: N803
     """Place mover ``a``'s shape (W_RA, W_PA, W_DA) and environment object (``is_env``) or
     mover ``b``'s shape (W_RB, W_PB, W_DB) in ``wf`` at the state of Rw, pw; returns their
@@ -299,7 +312,7 @@ def _place_pair(fb, ib, a, b, is_env, Rw, pw, wf):  # noqa: N803
     return ka, kb
 
 
-@njit(cache=True, nogil=True)
+@_helper
 def _sat_pair(fb, ib, a, b, is_env, Rw, pw, wf):  # noqa: N803
     """Separating-axis bound [m] between mover ``a``'s primitive and environment object
     (``is_env``) or mover ``b``'s primitive, at the state of Rw, pw."""
@@ -307,7 +320,7 @@ def _sat_pair(fb, ib, a, b, is_env, Rw, pw, wf):  # noqa: N803
     return _sat_gap(ka, kb, wf)
 
 
-@njit(cache=True, nogil=True)
+@_helper
 def _gjk_pair(fb, ib, k, a, b, is_env, Rw, pw, wf, wi, low, high):  # noqa: N803
     """GJK's distance lower bound [m] between mover ``a``'s shape and environment object
     or mover ``b``'s (pair ``k``; its last direction warm-starts the search), searched
@@ -329,7 +342,7 @@ def _gjk_pair(fb, ib, k, a, b, is_env, Rw, pw, wf, wi, low, high):  # noqa: N803
                                 low, high)
 
 
-@njit(cache=True, nogil=True)
+@_helper
 def _pair_bound(k, fb, ib, Rw, pw, wf, wi, enough):  # noqa: N803
     """Lower bound [m] on the distance of pair ``k`` finer than its bounding spheres
     (placed in wf's WI_CW block by the caller): the separating-axis bound of two
@@ -396,7 +409,7 @@ def _pair_bound(k, fb, ib, Rw, pw, wf, wi, enough):  # noqa: N803
     return best
 
 
-@njit(cache=True, nogil=True)
+@_helper
 def _place_spheres(fb, ib, m, Rw, pw, ox, oy, oz, orad, wf, out):  # noqa: N803
     """World centres and radii of mover ``m``'s outer spheres into rows of 5 of ``wf`` from
     ``out`` (x, y, z, r, lower bound of the distance to the sphere (ox, oy, oz, orad));
@@ -417,7 +430,7 @@ def _place_spheres(fb, ib, m, Rw, pw, ox, oy, oz, orad, wf, out):  # noqa: N803
     return n
 
 
-@njit(cache=True, nogil=True)
+@_helper
 def _pair_collides(k, fb, ib, eps, Rw, pw, wf):  # noqa: N803
     """Whether pair ``k`` is certainly closer than its margin: an inner sphere reaches
     that close, or (two boxes, no margin) the complete separating-axis test fails."""
@@ -457,7 +470,7 @@ def _pair_collides(k, fb, ib, eps, Rw, pw, wf):  # noqa: N803
     return False
 
 
-@njit(cache=True, nogil=True)
+@_helper
 def _evaluate(q, fb, ib, Rw, pw, wf, wi, rates, want_radius, need):  # noqa: N803
     """(status, radius) of one state inside the limits. With ``want_radius``, radius is
     the largest ``h`` such that every state ``q + t u`` with ``|t| < h`` is certainly
@@ -530,7 +543,7 @@ def _evaluate(q, fb, ib, Rw, pw, wf, wi, rates, want_radius, need):  # noqa: N80
     return FREE, radius
 
 
-@njit(cache=True, nogil=True, inline="always")
+@_inlined
 def _axis_distances(m, fb, ib, Rw, pw, wf, ocw, odl):  # noqa: N803
     """DL[m, v] (wf from ``odl``, rows of dof): how fast [m per unit of joint v] mover
     ``m``'s points move when joint ``v`` alone moves, at the state placed in Rw, pw and
@@ -558,7 +571,7 @@ def _axis_distances(m, fb, ib, Rw, pw, wf, ocw, odl):  # noqa: N803
         j = ib[oji + 3 * j]
 
 
-@njit(cache=True, nogil=True, inline="always")
+@_inlined
 def _local_radius(k, a, b, budget, ib, wf, odl, occ, oabs):  # noqa: N803
     """A radius (in units of ``t``) within which pair ``k`` cannot close by ``budget`` [m],
     from the bodies' distances to the joint axes at this state (DL, see
@@ -585,7 +598,7 @@ def _local_radius(k, a, b, budget, ib, wf, odl, occ, oabs):  # noqa: N803
     return (math.sqrt(A * A + 2.0 * B * budget) - A) / B
 
 
-@njit(cache=True, nogil=True)
+@_helper
 def _within_limits(q, fb, ib):  # noqa: N803
     dof, ol = ib[H_DOF], ib[H_L]
     for i in range(dof):
@@ -615,7 +628,7 @@ def classify_many(Q, fb, ib, out):  # noqa: N803
         out[i], _ = _evaluate(Q[i], fb, ib, Rw, pw, wf, wi, wf, False, 0.0)
 
 
-@njit(cache=True, nogil=True)
+@_helper
 def _pair_rates(u, fb, ib, wf, wi, rates):  # noqa: N803
     """Per pair, a bound on how fast its two bodies approach per unit of ``t`` along
     the joint-space direction ``u`` [m] (joints that carry both bodies leave their

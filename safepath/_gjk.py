@@ -15,7 +15,9 @@ degenerate simplex can only stop the search early, giving a looser bound.
 numba's disk cache tracks only the file of the function it compiles: the kernels of
 :mod:`safepath._fastkernels` that call (and inline) these helpers keep their cached code
 when only this file changes. After editing it in a source checkout, delete
-``safepath/__pycache__/_fastkernels*.nb*`` (an installed copy compiles afresh).
+``safepath/__pycache__/_fastkernels*.nb*`` (an installed copy compiles afresh). Like the
+helpers there, these are compiled without numba's reference counting (see
+:mod:`safepath._fastkernels`): no allocation, no array returned.
 
 Shape kinds are those of :mod:`safepath._fastkernels` (box, cylinder, sphere, capsule,
 hull); a shape is (kind, world rotation ``R``, world position ``p``, dimensions ``d``,
@@ -31,6 +33,10 @@ import numpy as np
 
 from ._aot import njit
 
+#: How these are compiled (see the module doc).
+_helper = njit(cache=True, nogil=True, _nrt=False)
+_inlined = njit(cache=True, nogil=True, _nrt=False, inline="always")
+
 # Same codes as safepath._fastkernels (kept here so that this module imports alone).
 BOX, CYLINDER, SPHERE, CAPSULE, BOX_ONLY_OUTER, HULL = 0, 1, 2, 3, 4, 5
 
@@ -40,7 +46,7 @@ TOL = 2e-4
 MAX_ITER = 32
 
 
-@njit(cache=True, nogil=True, inline="always")
+@_inlined
 def _climb(fb, ov, ib, oap, oai, v0, v1, start, lx, ly, lz):  # noqa: N803
     """The hull vertex (row) farthest along (lx, ly, lz): steepest ascent over the
     hull's edges from ``start``. Exact on a convex polytope: a vertex that is not
@@ -61,7 +67,7 @@ def _climb(fb, ov, ib, oap, oai, v0, v1, start, lx, ly, lz):  # noqa: N803
         g = nxt
 
 
-@njit(cache=True, nogil=True, inline="always")
+@_inlined
 def support(kind, R, p, d, fb, ov, v0, v1, ib, oap, oai, start, nx, ny, nz,  # noqa: N803
             out):
     """World point of a shape farthest along (nx, ny, nz) (not necessarily unit) into
@@ -103,12 +109,12 @@ def support(kind, R, p, d, fb, ov, v0, v1, ib, oap, oai, start, nx, ny, nz,  # n
     return found
 
 
-@njit(cache=True, nogil=True, inline="always")
+@_inlined
 def _dot(a, b):
     return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
 
 
-@njit(cache=True, nogil=True)
+@_helper
 def _triangle(S, i, j, k, v):  # noqa: N803
     """Closest point to the origin of triangle S[i], S[j], S[k] into ``v``; returns a
     bit mask (1 << i ...) of the vertices that span it (Ericson, Real-Time Collision
@@ -156,7 +162,7 @@ def _triangle(S, i, j, k, v):  # noqa: N803
     return (1 << i) | (1 << j) | (1 << k)
 
 
-@njit(cache=True, nogil=True, inline="always")
+@_inlined
 def _origin_outside(S, i, j, k, o):  # noqa: N803
     """Whether the origin and S[o] lie strictly on opposite sides of plane (i, j, k)."""
     ab0, ab1, ab2 = S[j, 0] - S[i, 0], S[j, 1] - S[i, 1], S[j, 2] - S[i, 2]
@@ -167,7 +173,7 @@ def _origin_outside(S, i, j, k, o):  # noqa: N803
     return s_origin * s_other < 0.0
 
 
-@njit(cache=True, nogil=True, inline="always")
+@_inlined
 def _closest(S, n, v, tmp):  # noqa: N803
     """Closest point ``v`` of the simplex S[:n] to the origin; S is reduced in place to
     the vertices that span it. Returns the new count (4: the origin is inside)."""
@@ -182,7 +188,7 @@ def _closest(S, n, v, tmp):  # noqa: N803
             v[0], v[1], v[2] = S[0, 0], S[0, 1], S[0, 2]
             return 1
         if t >= 1.0:
-            S[0, :] = S[1, :]
+            S[0, 0], S[0, 1], S[0, 2] = S[1, 0], S[1, 1], S[1, 2]
             v[0], v[1], v[2] = S[0, 0], S[0, 1], S[0, 2]
             return 1
         v[0], v[1], v[2] = S[0, 0] + t * e0, S[0, 1] + t * e1, S[0, 2] + t * e2
@@ -208,12 +214,12 @@ def _closest(S, n, v, tmp):  # noqa: N803
     for r in range(n):
         if mask & (1 << r):
             if out != r:
-                S[out, :] = S[r, :]
+                S[out, 0], S[out, 1], S[out, 2] = S[r, 0], S[r, 1], S[r, 2]
             out += 1
     return out
 
 
-@njit(cache=True, nogil=True)
+@_helper
 def distance_lower_bound(ka, Ra, pa, da, va0, va1, kb, Rb, pb, db, vb0, vb1,  # noqa: N803
                          fb, ov, ib, oap, oai, hint, warm, S, sa, sb, v, tmp, low, high):
     """A lower bound [m] on the distance between shapes A and B (negative or zero when they

@@ -70,11 +70,14 @@ ENTRIES: dict[str, Entry] = {
          (I1, I1, B1, F2, B1),  # pairs
          (F2, F3, F2),  # world
          (F2, F1, I1, F1),  # memory
-         (FLOAT, FLOAT, FLOAT, FLOAT)),  # params
-        f"Tuple(({I1}, {I1}, {F1}))"),
+         (FLOAT, FLOAT, FLOAT, FLOAT),  # params
+         (I1, F1, F1, F1, F2, F2, F2, F2, I1, I1, I1, F1),  # scratch and outputs
+         INT, INT),  # where to start
+        "UniTuple(i8, 3)"),
     "verify_axis_bound": Entry(_VERIFY, "axis_bound", (_SHAPE, _SHAPE, F2), "UniTuple(f8, 4)"),
     "verify_gjk_bound": Entry(_VERIFY, "gjk_bound",
-                              (_SHAPE, _SHAPE, F2, FLOAT, FLOAT, FLOAT, FLOAT, BOOL),
+                              (_SHAPE, _SHAPE, F2, FLOAT, FLOAT, FLOAT, FLOAT, BOOL, F2,
+                               F2, I1),
                               "UniTuple(f8, 5)"),
     # Cartesian lines (safepath.planning.cartesian).
     "ik_line_path": Entry(_IK, "line_path", (F2, I1, F1, F2, F1, F1, F1, F1, F1, F1, INT, F2),

@@ -39,6 +39,8 @@ _FINE = 0.02
 #: A pair's last separating axis is trusted while its gap keeps this share of the last
 #: full bound's excess over the threshold.
 _KEEP = 0.5
+#: Room for uncertified couples per kernel call (the walk resumes when it is full).
+_ROOM = 1024
 
 
 @dataclass(frozen=True)
@@ -124,7 +126,8 @@ def bound_between(a: ShapeSpec, T_world_a: np.ndarray, b: ShapeSpec,
 
     Sa, Sb = placed(0, T_world_a), placed(1, T_world_b)
     bound, n0, n1, n2 = shapes.axis_bound(Sa, Sb, verts)
-    return float(shapes.gjk_bound(Sa, Sb, verts, bound, n0, n1, n2, False)[0])
+    return float(shapes.gjk_bound(Sa, Sb, verts, bound, n0, n1, n2, False, np.empty((4, 3)),
+                                  np.empty((3, 3)), np.empty(4, dtype=np.int64))[0])
 
 
 def _shape_table(specs: list[ShapeSpec]) -> tuple[np.ndarray, np.ndarray]:
@@ -406,12 +409,29 @@ class Layer:
                  ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         from . import _verify_kernel as kernel
 
-        return kernel.certify(  # type: ignore[no-any-return]
-            np.ascontiguousarray(todo, dtype=np.int64), theta,
-            (grid.cum, grid.step, grid.cum @ self._upstream.T, grid.step @ self._upstream.T,
-             np.ascontiguousarray(q, dtype=float), grid.knot_of, grid.frac),
-            self._kin, cache.arrays(), self._pairs, (self._shapes, self._env_pose, self._verts),
-            memory.arrays(), params)
+        todo = np.ascontiguousarray(todo, dtype=np.int64)
+        nv = grid.step.shape[1]
+        room = _ROOM
+        scratch = (np.empty(self._kin[0].size, dtype=np.int64), np.empty(nv), np.empty(nv),
+                   np.empty(nv), np.empty((3, 4)), np.empty((3, 4)), np.empty((4, 3)),
+                   np.empty((3, 3)), np.empty(4, dtype=np.int64),
+                   np.empty(room, dtype=np.int64), np.empty(room, dtype=np.int64),
+                   np.empty(room))
+        args = (todo, theta,
+                (grid.cum, grid.step, grid.cum @ self._upstream.T, grid.step @ self._upstream.T,
+                 np.ascontiguousarray(q, dtype=float), grid.knot_of, grid.frac),
+                self._kin, cache.arrays(), self._pairs, (self._shapes, self._env_pose,
+                                                         self._verts),
+                memory.arrays(), params, scratch)
+        parts = []
+        t = s = 0
+        while True:  # one call, unless the outputs fill up: then resume where it stopped
+            count, t, s = kernel.certify(*args, t, s)
+            parts.append([out[:count].copy() for out in scratch[-3:]])
+            if t >= todo.size:
+                break
+        pairs, samples, bounds = (np.concatenate(c) for c in zip(*parts, strict=True))
+        return pairs, samples, bounds
 
     def pose(self, q: np.ndarray, grid: Grid, cache: PoseCache, s: int, m: int
              ) -> np.ndarray:

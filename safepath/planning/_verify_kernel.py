@@ -9,6 +9,13 @@ and tuples of floats only, and the array work of the walk sits in closures insid
 :func:`certify`: a numba helper that takes arrays pays their reference counting on every
 call, which costs more than most of these helpers' work.
 
+The walk is compiled without numba's reference counting (``_nrt=False``): it allocates
+nothing, its scratch and output buffers come from the caller, and a reference count on
+every array it touches cost ~8 % of its time. :func:`certify` is the entry point that
+calls it (an ahead-of-time build compiles entry points with reference counting, their
+callees as they are declared). The walk returns when its output buffers are full, with
+the place to resume from.
+
 Shapes are convex: boxes, spheres, cylinders and capsules (cylinders and capsules along
 their local z), and convex hulls given by their vertices (a mesh link's own hull, as FCL
 checks it). The bound is the largest gap between the two shapes'
@@ -37,6 +44,9 @@ import numpy as np
 
 from .._aot import njit
 
+#: How every function here but the entry points is compiled (see the module doc).
+_kernel = njit(cache=True, _nrt=False)
+
 BOX, SPHERE, CYLINDER, CAPSULE, HULL = 0, 1, 2, 3, 4
 REVOLUTE, PRISMATIC = 1, 2
 #: Columns of the shape table.
@@ -48,14 +58,14 @@ KIND, PAR, CENTRE, RADIUS = 0, 1, 4, 7
 # the shape's axis j).
 
 
-@njit(cache=True)
+@_kernel
 def _dots(S: tuple, n0: float, n1: float, n2: float) -> tuple[float, float, float]:
     """n along each of the shape's axes."""
     return (n0 * S[8] + n1 * S[11] + n2 * S[14], n0 * S[9] + n1 * S[12] + n2 * S[15],
             n0 * S[10] + n1 * S[13] + n2 * S[16])
 
 
-@njit(cache=True)
+@_kernel
 def _axis(S: tuple, j: int) -> tuple[float, float, float]:
     """The shape's axis j in the world."""
     if j == 0:
@@ -65,7 +75,7 @@ def _axis(S: tuple, j: int) -> tuple[float, float, float]:
     return S[10], S[13], S[16]
 
 
-@njit(cache=True)
+@_kernel
 def support(S: tuple, V: np.ndarray, n0: float, n1: float, n2: float) -> float:
     """How far the shape's projection on the unit axis n reaches beyond its centre along
     n [m] (half its width, but for a hull, whose rows of ``V`` are its vertices about
@@ -89,7 +99,7 @@ def support(S: tuple, V: np.ndarray, n0: float, n1: float, n2: float) -> float:
     return S[2] * u + S[1]  # type: ignore[no-any-return]
 
 
-@njit(cache=True)
+@_kernel
 def _support_point(S: tuple, V: np.ndarray, n0: float, n1: float, n2: float
                    ) -> tuple[float, float, float]:
     """A point of the shape furthest along n: GJK's search only, the bounds use
@@ -131,7 +141,7 @@ def _support_point(S: tuple, V: np.ndarray, n0: float, n1: float, n2: float
     return x0, x1, x2
 
 
-@njit(cache=True)
+@_kernel
 def gap(Sa: tuple, Sb: tuple, V: np.ndarray, n0: float, n1: float, n2: float) -> float:
     """Gap between the shapes' projections on the unit axis n [m]."""
     d0, d1, d2 = Sb[5] - Sa[5], Sb[6] - Sa[6], Sb[7] - Sa[7]
@@ -142,7 +152,7 @@ def gap(Sa: tuple, Sb: tuple, V: np.ndarray, n0: float, n1: float, n2: float) ->
             - support(Sb, V, -n0, -n1, -n2))
 
 
-@njit(cache=True)
+@_kernel
 def sphere_bound(Sa: tuple, Sb: tuple) -> tuple[float, float, float, float]:
     """Distance between the bounding spheres [m] (never above the gap along the line
     between the centres), and that line's direction."""
@@ -153,7 +163,7 @@ def sphere_bound(Sa: tuple, Sb: tuple) -> tuple[float, float, float, float]:
     return dist - Sa[4] - Sb[4], d0 / dist, d1 / dist, d2 / dist
 
 
-@njit(cache=True)
+@_kernel
 def _own_axes(S: tuple) -> tuple[int, int]:
     """The shape's axes worth trying: (first, count)."""
     kind = int(S[0])
@@ -164,7 +174,7 @@ def _own_axes(S: tuple) -> tuple[int, int]:
     return 2, 1
 
 
-@njit(cache=True)
+@_kernel
 def axis_bound(Sa: tuple, Sb: tuple, V: np.ndarray) -> tuple[float, float, float, float]:
     """The largest gap along the line between the centres, the shapes' own axes and
     their cross products [m] (never below the bounding spheres' distance), and its
@@ -199,7 +209,7 @@ def axis_bound(Sa: tuple, Sb: tuple, V: np.ndarray) -> tuple[float, float, float
     return best, b0, b1, b2
 
 
-@njit(cache=True)
+@_kernel
 def _solve(k: int, g00: float, g01: float, g02: float, g11: float, g12: float,
            g22: float, r0: float, r1: float, r2: float
            ) -> tuple[bool, float, float, float]:
@@ -227,9 +237,10 @@ def _solve(k: int, g00: float, g01: float, g02: float, g11: float, g12: float,
             (c01 * r0 + c11 * r1 + c12 * r2) / det, (c02 * r0 + c12 * r1 + c22 * r2) / det)
 
 
-@njit(cache=True)
+@_kernel
 def gjk_bound(Sa: tuple, Sb: tuple, V: np.ndarray, best: float, w0: float, w1: float,
-              w2: float, warm: bool) -> tuple[float, float, float, float, float]:
+              w2: float, warm: bool, W: np.ndarray, e: np.ndarray, idx: np.ndarray
+              ) -> tuple[float, float, float, float, float]:
     """Raise the lower bound ``best`` [m] with the gaps along GJK's search directions.
 
     GJK walks the Minkowski difference B - A towards the origin, from its point
@@ -239,13 +250,12 @@ def gjk_bound(Sa: tuple, Sb: tuple, V: np.ndarray, best: float, w0: float, w1: f
     shapes), when it meets the origin, or after 32 steps. The closest point of the
     simplex is the smallest of its faces' projections that fall inside their face.
 
+    Scratch: ``W`` (4 x 3, the simplex), ``e`` (3 x 3, its edges), ``idx`` (4, int).
+
     Returns:
         The bound [m], the upper bound [m], and the axis of the bound if GJK raised
         it (else w).
     """
-    W = np.empty((4, 3))
-    e = np.empty((3, 3))
-    idx = np.empty(4, dtype=np.int64)
     d0, d1, d2 = Sb[5] - Sa[5], Sb[6] - Sa[6], Sb[7] - Sa[7]
     v0, v1, v2 = d0, d1, d2
     b0, b1, b2 = w0, w1, w2
@@ -321,8 +331,18 @@ def gjk_bound(Sa: tuple, Sb: tuple, V: np.ndarray, best: float, w0: float, w1: f
 
 @njit(cache=True)
 def certify(todo: np.ndarray, theta: np.ndarray, grid: tuple, kin: tuple, cache: tuple,
-            pairs: tuple, world: tuple, memory: tuple, params: tuple
-            ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+            pairs: tuple, world: tuple, memory: tuple, params: tuple, scratch: tuple,
+            t0: int, s0: int) -> tuple[int, int, int]:
+    """Walk every pair in ``todo`` along the grid with the lower bound (see
+    :func:`_walk`, which it calls)."""
+    return _walk(todo, theta, grid, kin, cache, pairs, world, memory,  # type: ignore[no-any-return]
+                 params, scratch, t0, s0)
+
+
+@_kernel
+def _walk(todo: np.ndarray, theta: np.ndarray, grid: tuple, kin: tuple, cache: tuple,
+          pairs: tuple, world: tuple, memory: tuple, params: tuple, scratch: tuple,
+          t0: int, s0: int) -> tuple[int, int, int]:
     """Walk every pair in ``todo`` along the grid with the lower bound.
 
     At a sample whose bound exceeds the pair's threshold, the samples until the bound
@@ -354,9 +374,18 @@ def certify(todo: np.ndarray, theta: np.ndarray, grid: tuple, kin: tuple, cache:
             negative, a clearance pair's threshold is the ceiling minus drop [m], if
             higher than its own).
 
+        scratch: (chain (joints, int), share, base, base_turn (dof each), M, T (3 x 4
+            each), GJK's W (4 x 3), e (3 x 3) and idx (4, int); the outputs: pair
+            (int), sample (int) and bound of every uncertified couple, as long as the
+            room they have).
+        t0, s0: Where to start: the walk of ``todo[t0]`` at sample ``s0`` (0, 0: from
+            the beginning; else where the last call stopped).
+
     Returns:
-        The uncertified (pair, sample) couples, pair by pair, samples ascending, and
-        their bounds [m].
+        The number of uncertified (pair, sample) couples written to the outputs (pair
+        by pair, samples ascending), and where to resume: (``todo.size``, 0) when the
+        walk is done, else the place after the last couple written (the outputs were
+        full). A walk resumed there goes on exactly as if it had not stopped.
     """
     cum, step, cum_turn, step_turn, qk, knot_of, frac = grid
     parent, place, kind, axis, iq, m_joint, m_place, joint_of = kin
@@ -367,9 +396,10 @@ def certify(todo: np.ndarray, theta: np.ndarray, grid: tuple, kin: tuple, cache:
     coarse, fine, keep, drop = params
     movers = m_joint.size
     n, nv = knot_of.size, qk.shape[1]
-    chain = np.empty(parent.size, dtype=np.int64)
-    share, base, base_turn = np.ones(nv), np.zeros(nv), np.zeros(nv)
-    M, T = np.empty((3, 4)), np.empty((3, 4))
+    chain, share, base, base_turn, M, T, W, e, idx, out_p, out_s, out_b = scratch
+    share[:] = 1.0
+    base[:] = 0.0
+    base_turn[:] = 0.0
 
     def joint_pose(s: int, j: int) -> None:
         """jpose[s, j] (and its missing ancestors) = parent's pose * placement * the
@@ -502,15 +532,19 @@ def certify(todo: np.ndarray, theta: np.ndarray, grid: tuple, kin: tuple, cache:
                 acc += weights[p, v] * min(1.0, share[v] + turned) * moved
         return acc
 
-    def reach(p: int, s: int, target: float) -> int:
-        """First sample after s at which pair p's gap can have changed by target [m];
-        the number of samples if none. The bound never decreases along the grid and
-        grows about linearly: each probe is interpolated from what the last ones found
-        (extrapolated, overshooting a little, until the target is bracketed), every
-        third one halves the bracket. Invariant: motion(lo) < target; motion(hi) >=
-        target, or hi is the number of samples and its motion unknown (inf)."""
+    def reach(p: int, s: int, target: float, rate: float) -> tuple[int, float]:
+        """First sample after s at which pair p's gap can have changed by target [m]
+        (the number of samples if none), and the motion per sample seen on the way
+        [m] (the next call's first guess; 0: none). The bound never decreases along
+        the grid and grows about linearly: the first probe is where ``rate`` (the last
+        call's) says the target is reached (without one, the next sample), each next
+        one interpolated from what the last ones found (extrapolated, overshooting a
+        little, until the target is bracketed), every third one halves the bracket.
+        Invariant: motion(lo) < target; motion(hi) >= target, or hi is the number of
+        samples and its motion unknown (inf)."""
         along(s)
-        lo, hi, m_lo, m_hi, probe, count = s, n, 0.0, np.inf, s + 1, 0
+        lo, hi, m_lo, m_hi, count = s, n, 0.0, np.inf, 0
+        probe = s + 1 if rate <= 0.0 else min(max(s + int(target / rate), s + 1), n - 1)
         while hi - lo > 1:
             m = motion(p, probe)
             if m >= target:
@@ -521,24 +555,24 @@ def certify(todo: np.ndarray, theta: np.ndarray, grid: tuple, kin: tuple, cache:
             if hi - lo <= 1:
                 break
             if m_hi == np.inf:
-                rate = m_lo / (lo - s)
-                ahead = 2 * (lo - s) if rate <= 0.0 else int(1.1 * (target - m_lo) / rate) + 1
+                slope = m_lo / (lo - s)
+                ahead = 2 * (lo - s) if slope <= 0.0 else int(1.1 * (target - m_lo) / slope) + 1
                 probe = min(lo + max(ahead, 1), hi - 1)
             elif count % 3 == 0:
                 probe = (lo + hi) // 2
             else:
                 share_ = (target - m_lo) / (m_hi - m_lo)
                 probe = min(max(lo + int(share_ * (hi - lo)), lo + 1), hi - 1)
-        return hi
+        if m_hi != np.inf:
+            return hi, m_hi / (hi - s)
+        return hi, (m_lo / (lo - s) if lo > s else 0.0)
 
-    cap = 256
-    out_p = np.empty(cap, dtype=np.int64)
-    out_s = np.empty(cap, dtype=np.int64)
-    out_b = np.empty(cap)
+    cap = out_p.size
     count = 0
-    for t in range(todo.size):
+    for t in range(t0, todo.size):
         p = todo[t]
-        s = 0
+        s = s0 if t == t0 else 0
+        rate = 0.0
         while s < n:
             th = max(theta[p], ceiling[0] - drop) if tracked[p] and drop >= 0.0 else theta[p]
             Sa, Sb = shapes(p, s)
@@ -558,7 +592,8 @@ def certify(todo: np.ndarray, theta: np.ndarray, grid: tuple, kin: tuple, cache:
                     stats[1] += 1
                     if full <= th + fine:
                         full, upper, f0, f1, f2 = gjk_bound(Sa, Sb, verts, full, f0, f1,
-                                                            f2, axes[p, 3] != 0.0)
+                                                            f2, axes[p, 3] != 0.0, W, e,
+                                                            idx)
                         stats[2] += 1
                         if tracked[p] and upper < ceiling[0]:
                             ceiling[0], ceiling[1], ceiling[2] = upper, p, s
@@ -568,20 +603,13 @@ def certify(todo: np.ndarray, theta: np.ndarray, grid: tuple, kin: tuple, cache:
                     last[p] = bound
             if bound > th:
                 set_shares(p, s, n0, n1, n2)
-                s = reach(p, s, bound - th)
+                s, rate = reach(p, s, bound - th, rate)
                 continue
-            if count == cap:
-                cap *= 2
-                grown_p = np.empty(cap, dtype=np.int64)
-                grown_s = np.empty(cap, dtype=np.int64)
-                grown_b = np.empty(cap)
-                grown_p[:count] = out_p
-                grown_s[:count] = out_s
-                grown_b[:count] = out_b
-                out_p, out_s, out_b = grown_p, grown_s, grown_b
             out_p[count] = p
             out_s[count] = s
             out_b[count] = bound
             count += 1
             s += 1
-    return out_p[:count], out_s[:count], out_b[:count]
+            if count == cap:
+                return count, t, s
+    return count, todo.size, 0

@@ -352,6 +352,38 @@ def test_the_same_input_gives_the_same_result(bundled: Plans) -> None:
     assert _verifier(cell).verify(t, q, qd) == first
 
 
+def test_a_walk_that_fills_its_outputs_resumes_where_it_stopped(
+        bundled: Plans, monkeypatch: pytest.MonkeyPatch) -> None:
+    """The kernel writes the couples it leaves to buffers of fixed room and returns when
+    they are full; resumed, the walk must go on as if it had not stopped: the same
+    couples, bounds and result as in one go, whatever the room."""
+    from safepath.planning import _verify_bounds
+
+    t, q, qd = _step(bundled, STEP)
+    verifier = _verifier(bundled.cell)
+    layer, grid = verifier._layer, verifier._grid(q)
+    pairs = len(verifier._pairs)
+
+    def walk(theta: np.ndarray) -> tuple[np.ndarray, ...]:
+        memory = _verify_bounds.WalkMemory.empty(pairs)
+        return layer.walk(np.arange(pairs), theta, q, grid, layer.cache(grid.samples), memory)
+
+    # Nothing clears an infinite threshold: every couple is left, pair by pair.
+    left = walk(np.full(pairs, np.inf))
+    assert left[0].size == pairs * grid.samples
+    np.testing.assert_array_equal(left[0], np.repeat(np.arange(pairs), grid.samples))
+    np.testing.assert_array_equal(left[1], np.tile(np.arange(grid.samples), pairs))
+    real = walk(verifier._bound_theta)
+    one_go = verifier.verify(t, q, qd)
+    for room in (1, 7):
+        monkeypatch.setattr(_verify_bounds, "_ROOM", room)
+        for mine, theirs in zip(walk(np.full(pairs, np.inf)), left, strict=True):
+            np.testing.assert_array_equal(mine, theirs)
+        for mine, theirs in zip(walk(verifier._bound_theta), real, strict=True):
+            np.testing.assert_array_equal(mine, theirs)
+        assert verifier.verify(t, q, qd) == one_go
+
+
 def _toy_arm(rng: np.random.Generator) -> Robot:
     """A random three-joint arm (turn, tilt, spin), with a box off the spin axis and a
     capsule along the tilted link."""
