@@ -1,14 +1,15 @@
 """The one table of kernels compiled ahead of time, with their exact signatures.
 
 Every numba kernel that planning calls from Python (``plan_cell``, ``plan_route``, the
-runtime planner's workers) is listed here once, by its export name: the module and
-function that define it and the types of its arguments and result, in numba's notation.
-The argument types are exactly what the callers pass (C-contiguous, writeable arrays of
-these dtypes, Python or numpy scalars of these kinds); a call that passes anything else
-runs the numba-compiled (JIT) kernel instead, and under ``SAFEPATH_AOT_STRICT=1`` (the
-test suite) raises, so that a caller drifting from its signature fails in the tests,
-never in a user's plan. ``tests/test_aot.py`` compiles every entry with numba from
-these argument types and checks the result type against the table.
+runtime planner's workers), and the monitor's, is listed here once, by its export name:
+the module and function that define it and the types of its arguments and result, in
+numba's notation. The argument types are exactly what the callers pass (C-contiguous,
+writeable arrays of these dtypes, Python or numpy scalars of these kinds); a call that
+passes anything else runs the numba-compiled (JIT) kernel instead, and under
+``SAFEPATH_AOT_STRICT=1`` (the test suite) raises, so that a caller drifting from its
+signature fails in the tests, never in a user's plan. ``tests/test_aot.py`` compiles
+every entry with numba from these argument types and checks the result type against
+the table, and replays recorded real calls through the guards.
 
 Changing a kernel's arguments means changing its row here (the ahead-of-time module is
 then stale and is rebuilt by ``safepath build-kernels``; until then numba's JIT runs).
@@ -48,6 +49,7 @@ _FAST = "safepath._fastkernels"
 _VERIFY = "safepath.planning._verify_kernel"
 _IK = "safepath.planning._ik_kernel"
 _TOPP = "safepath.planning._topp"
+_MONITOR = "safepath.monitor._kernels"
 #: A placed shape of the verifier: a tuple of 17 floats.
 _SHAPE = "UniTuple(f8, 17)"
 
@@ -87,6 +89,18 @@ ENTRIES: dict[str, Entry] = {
     "ik_tcp_jacobian": Entry(_IK, "tcp_jacobian", (F2, I1, F1, F1, F2), "void"),
     "ik_log6": Entry(_IK, "log6", (F2, F1, F1), "void"),
     "ik_jlog6": Entry(_IK, "jlog6", (F2, F1, F2), "void"),
+    # The monitor (safepath.monitor: separation bounds, speed profiles).
+    "monitor_bucket": Entry(_MONITOR, "bucket", (F2, FLOAT),
+                            f"Tuple(({F2}, {F2}, {I1}, {F2}, {I1}))"),
+    "monitor_prefix_separation": Entry(
+        _MONITOR, "prefix_separation",
+        (F3, F1, I1, F3, INT, INT, F2, F2, I1, F2, I1, FLOAT, F1, I1), "void"),
+    "monitor_near_robot": Entry(_MONITOR, "near_robot",
+                                (F3, F1, I1, F3, INT, INT, F2, FLOAT, B1), "void"),
+    "monitor_scene_distance": Entry(_MONITOR, "scene_distance",
+                                    (F2, I1, F3, F2, F1, FLOAT, F1), "void"),
+    "monitor_march": Entry(_MONITOR, "march", (F1, F2, F2, F1, FLOAT, FLOAT, FLOAT, F1, F1, F1),
+                           "Tuple((i8, i8, b1))"),
     # TOPP-RA's two passes (safepath.planning._topp).
     "topp_backward": Entry(_TOPP, "_backward", (F1, F1, F2, F2, F2, F1, F1), INT),
     "topp_forward": Entry(_TOPP, "_forward", (F1, F1, F2, F2, F2, F1, F1, F1), "void"),
@@ -94,6 +108,6 @@ ENTRIES: dict[str, Entry] = {
 
 #: The modules whose source the ahead-of-time module is compiled from: it is used only
 #: while all of them are unchanged. Every kernel compiled through :func:`safepath._aot.njit`
-#: lives in one of them (tests/test_aot.py checks it); the monitor's and the cup's
-#: kernels (not on a planning path) use numba directly.
-MODULES: tuple[str, ...] = (_FAST, "safepath._gjk", _VERIFY, _IK, _TOPP)
+#: lives in one of them (tests/test_aot.py checks it); the cup's (a simulated scale, not
+#: on a planning path) uses numba directly.
+MODULES: tuple[str, ...] = (_FAST, "safepath._gjk", _VERIFY, _IK, _TOPP, _MONITOR)

@@ -1,6 +1,7 @@
 """Numba kernels of the monitor: separation lower bounds and path-velocity profiles.
 
-Imported lazily (the first import compiles, or loads numba's on-disk cache).
+Imported lazily: the kernels compiled ahead of time (:mod:`safepath._aot`), else the first
+import compiles them (or loads numba's on-disk cache).
 
 Separation
     Observed elements are spheres (a point is a sphere of radius 0). They are bucketed
@@ -29,7 +30,8 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from numba import njit
+
+from .._aot import njit
 
 #: Cells per block edge.
 BLOCK = 4
