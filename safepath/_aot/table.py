@@ -76,6 +76,7 @@ ENTRIES: dict[str, Entry] = {
          (I1, F1, F1, F1, F2, F2, F2, F2, I1, I1, I1, F1),  # scratch and outputs
          INT, INT),  # where to start
         "UniTuple(i8, 3)"),
+    "verify_grid": Entry(_VERIFY, "grid", (F2, F2, FLOAT), f"Tuple(({I1}, {F1}, {F2}, {F2}))"),
     "verify_axis_bound": Entry(_VERIFY, "axis_bound", (_SHAPE, _SHAPE, F2), "UniTuple(f8, 4)"),
     "verify_gjk_bound": Entry(_VERIFY, "gjk_bound",
                               (_SHAPE, _SHAPE, F2, FLOAT, FLOAT, FLOAT, FLOAT, BOOL, F2,

@@ -42,17 +42,19 @@ class Segment:
 
 
 def time_chunk(cell: Cell, segments: list[Segment], world: WorldState, options: PlanOptions,
-                cache: CheckerCache, labels: list[str]
+                cache: CheckerCache, labels: list[str], known: float = float("inf")
                 ) -> list[tuple[TimedPiece, list[int], VerifyResult]]:
     """Time and verify a chunk: blended through its via points (large blends first, then
     smaller, then passing exactly); if no blend is collision-free or passes the
-    independent re-check, stop at the step boundaries, then at every corner."""
+    independent re-check, stop at the step boundaries, then at every corner. ``known``:
+    the smallest clearance of the route so far [m] (see ``FclVerifier.verify``); a
+    piece's result says inf unless it comes closer."""
     if len(segments) > 1 or len(segments[0].waypoints) > 2:
         for blend in options.timing.blend_radii:
             try:
                 piece, seg_steps = time_segments(cell, segments, world, options, cache,
                                                   blend=blend)
-                return [_verified(piece, seg_steps, segments, world, cache, labels)]
+                return [_verified(piece, seg_steps, segments, world, cache, labels, known)]
             except _NotFree:
                 log.debug("blend %.3f rad not collision-free", blend)
             except VerificationError as exc:
@@ -61,7 +63,8 @@ def time_chunk(cell: Cell, segments: list[Segment], world: WorldState, options: 
     for seg in segments:
         try:
             piece, seg_steps = time_segments(cell, [seg], world, options, cache, blend=0.0)
-            out.append(_verified(piece, seg_steps, [seg], world, cache, labels))
+            out.append(_verified(piece, seg_steps, [seg], world, cache, labels, known))
+            known = min(known, out[-1][2].min_clearance)
             continue
         except (_NotFree, VerificationError) as exc:
             if seg.step.kind == "line":
@@ -73,15 +76,17 @@ def time_chunk(cell: Cell, segments: list[Segment], world: WorldState, options: 
         for a, b in zip(seg.waypoints[:-1], seg.waypoints[1:], strict=True):
             part = Segment(seg.step_index, seg.step, [a, b], seg.allowed)
             piece, seg_steps = time_segments(cell, [part], world, options, cache, check=False)
-            out.append(_verified(piece, seg_steps, [part], world, cache, labels))
+            out.append(_verified(piece, seg_steps, [part], world, cache, labels, known))
+            known = min(known, out[-1][2].min_clearance)
     return out
 
 
 def _verified(piece: TimedPiece, seg_steps: list[int], segments: list[Segment],
-              world: WorldState, cache: CheckerCache, labels: list[str]
-              ) -> tuple[TimedPiece, list[int], VerifyResult]:
+              world: WorldState, cache: CheckerCache, labels: list[str],
+              known: float = float("inf")) -> tuple[TimedPiece, list[int], VerifyResult]:
     """Re-check a timed piece with the independent verifier, step by step (each step
-    with its own allowed contacts); raise VerificationError on failure."""
+    with its own allowed contacts; its clearance measured only below ``known`` and the
+    earlier steps' [m]); raise VerificationError on failure."""
     steps_of_knots = [seg_steps[k] for k in piece.segment]
     worst: VerifyResult | None = None
     index = np.asarray(steps_of_knots)
@@ -91,7 +96,8 @@ def _verified(piece: TimedPiece, seg_steps: list[int], segments: list[Segment],
         sel = np.flatnonzero(index == sidx)
         lo, hi = max(sel[0] - 1, 0), sel[-1] + 1
         result = verifier.verify(piece.t[lo:hi], piece.q[lo:hi], piece.qd[lo:hi],
-                                 steps=[labels[sidx]] * (hi - lo))
+                                 steps=[labels[sidx]] * (hi - lo), known=known)
+        known = min(known, result.min_clearance)
         if worst is None or result.min_clearance < worst.min_clearance:
             worst = result
     assert worst is not None

@@ -250,22 +250,18 @@ class Grid:
 
     @staticmethod
     def cut(q: np.ndarray, weights: np.ndarray, resolution: float) -> Grid:
-        """Cut the knots so that no body moves more than ``resolution`` [m] per sample.
+        """Cut the knots so that no body moves more than ``resolution`` [m] per sample
+        (the kernel's ``grid``).
 
         Args:
             q: Knot positions [rad]: (knots, dof).
             weights: Motion weights of the bodies (:func:`motion_weights`).
             resolution: Largest motion between samples [m].
         """
-        step = np.zeros_like(q)
-        step[1:] = np.abs(np.diff(q, axis=0))
-        cuts = np.ceil((step[1:] @ weights.T).max(axis=1, initial=0.0) / resolution)
-        cuts = np.maximum(cuts, 1).astype(np.int64)
-        knot_of = np.repeat(np.arange(len(q)), np.concatenate([[1], cuts]))
-        per_sample = np.repeat(cuts, cuts)
-        index = np.arange(1, per_sample.size + 1) - np.repeat(np.cumsum(cuts) - cuts, cuts)
-        frac = np.concatenate([[1.0], index / per_sample])
-        return Grid(knot_of, frac, step, np.cumsum(step, axis=0))
+        from . import _verify_kernel as kernel
+
+        return Grid(*kernel.grid(np.ascontiguousarray(q, dtype=float),
+                                 np.ascontiguousarray(weights, dtype=float), float(resolution)))
 
     @property
     def samples(self) -> int:

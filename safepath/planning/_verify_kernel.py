@@ -330,6 +330,48 @@ def gjk_bound(Sa: tuple, Sb: tuple, V: np.ndarray, best: float, w0: float, w1: f
 
 
 @njit(cache=True)
+def grid(q: np.ndarray, weights: np.ndarray, resolution: float
+         ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Cut the knots ``q`` (knots x dof) so that no body moves more than ``resolution``
+    [m] between two samples, the bodies' motion weights being ``weights`` (bodies x
+    dof): a knot interval whose weighted step reaches n resolutions gets n samples.
+
+    Returns:
+        (knot of every sample, fraction of its interval, |dq| into every knot (0 at the
+        first), its accumulated sum): see ``_verify_bounds.Grid``.
+    """
+    knots, dof = q.shape
+    step = np.empty((knots, dof))
+    cum = np.empty((knots, dof))
+    cuts = np.ones(knots, dtype=np.int64)
+    total = 1
+    for v in range(dof):
+        step[0, v] = 0.0
+        cum[0, v] = 0.0
+    for k in range(1, knots):
+        for v in range(dof):
+            step[k, v] = abs(q[k, v] - q[k - 1, v])
+            cum[k, v] = cum[k - 1, v] + step[k, v]
+        most = 0.0
+        for b in range(weights.shape[0]):
+            moved = 0.0
+            for v in range(dof):
+                moved += step[k, v] * weights[b, v]
+            most = max(most, moved)
+        cuts[k] = max(int(math.ceil(most / resolution)), 1)
+        total += cuts[k]
+    knot_of = np.empty(total, dtype=np.int64)
+    frac = np.empty(total)
+    knot_of[0], frac[0] = 0, 1.0
+    s = 1
+    for k in range(1, knots):
+        for i in range(1, cuts[k] + 1):
+            knot_of[s], frac[s] = k, i / cuts[k]
+            s += 1
+    return knot_of, frac, step, cum
+
+
+@njit(cache=True)
 def certify(todo: np.ndarray, theta: np.ndarray, grid: tuple, kin: tuple, cache: tuple,
             pairs: tuple, world: tuple, memory: tuple, params: tuple, scratch: tuple,
             t0: int, s0: int) -> tuple[int, int, int]:

@@ -228,7 +228,8 @@ def _time_and_verify(cell: Cell, chunks: list[tuple[list[Segment], WorldState] |
     min_clear, closest = float("inf"), None
     for chunk in chunks:
         timed = [(chunk.piece, chunk.steps_of_knots, chunk.result)] \
-            if isinstance(chunk, PourChunk) else time_chunk(cell, *chunk, options, cache, labels)
+            if isinstance(chunk, PourChunk) else time_chunk(cell, *chunk, options, cache, labels,
+                                                            min_clear)
         for piece, steps_of_knots, result in timed:
             if result.min_clearance < min_clear:
                 min_clear, closest = result.min_clearance, result.closest_pair

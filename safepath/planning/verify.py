@@ -60,8 +60,10 @@ class VerifyResult:
         min_clearance: Smallest robot-environment distance over the grid samples [m]:
             FCL's distance at one of them, every other sample being certified, or
             measured by FCL, no closer than that minus half the resolution (inf
-            without environment pairs).
-        closest_pair: Its pair.
+            without environment pairs; inf as well when it is not below the
+            ``known`` clearance the verification was given: then every sample is no
+            closer than ``known`` minus half the resolution).
+        closest_pair: Its pair (None with an inf clearance).
         pair_checks: Pair checks made with FCL.
         bound_checks: Pair bounds evaluated by the conservative layer.
     """
@@ -184,7 +186,8 @@ class FclVerifier:
         return (self._movers[i].name, self._env[j].name if env else self._movers[j].name)
 
     def verify(self, t: np.ndarray, q: np.ndarray, qd: np.ndarray, *,
-               steps: Sequence[str] | None = None) -> VerifyResult:
+               steps: Sequence[str] | None = None, known: float = float("inf")
+               ) -> VerifyResult:
         """Check a timed trajectory; raise on the first failing sample.
 
         The knots are first cut into a grid on which no point moves more than the
@@ -200,6 +203,14 @@ class FclVerifier:
             q: Knot positions [rad].
             qd: Knot velocities [rad/s] (unused, kept for the interface).
             steps: Step name of each knot (for the error).
+            known: A clearance already found elsewhere [m] (the earlier pieces of the
+                same route): this trajectory's is measured only where it is below that,
+                to within half the resolution as always; above it, the walk certifies
+                every sample no closer than ``known`` minus half the resolution and the
+                result says inf. The route's smallest clearance comes out the same,
+                for much less work where this trajectory keeps further away. The
+                safety judgement (collisions, margins, allowed depths) does not
+                depend on it.
 
         Raises:
             VerificationError: A sample collides, comes closer than a margin, or
@@ -207,7 +218,7 @@ class FclVerifier:
         """
         q = np.asarray(q, dtype=float)
         grid = self._grid(q)
-        run = _Run(self, q, grid, self._layer.cache(grid.samples))
+        run = _Run(self, q, grid, self._layer.cache(grid.samples), known)
         left = run.walk(np.arange(len(self._pairs)), self._bound_theta,
                         drop=self.resolution / 2 - _SLACK)
         fail_at, bad = run.safety(*left)
@@ -220,9 +231,12 @@ class FclVerifier:
                 time=float(t[k]), q=grid.state(q, fail_at), pairs=names,
                 step=steps[k] if steps is not None else None)
         run.clearance(*left)
-        closest = self._names(run.closest) if run.closest >= 0 else None
-        return VerifyResult(grid.samples, len(run.checked), run.min_clear, closest,
-                            run.pair_checks, int(run.memory.stats[0]))
+        if run.closest < 0:  # none (or none below ``known``)
+            return VerifyResult(grid.samples, len(run.checked), float("inf"), None,
+                                run.pair_checks, int(run.memory.stats[0]))
+        return VerifyResult(grid.samples, len(run.checked), run.min_clear,
+                            self._names(run.closest), run.pair_checks,
+                            int(run.memory.stats[0]))
 
 
 class _Run:
@@ -230,7 +244,7 @@ class _Run:
     and judges the pairs the layer could not certify."""
 
     def __init__(self, verifier: FclVerifier, q: np.ndarray, grid: Grid,
-                 cache: PoseCache) -> None:
+                 cache: PoseCache, known: float = float("inf")) -> None:
         import fcl
 
         self.v = verifier
@@ -240,7 +254,11 @@ class _Run:
         self.memory = WalkMemory.empty(len(verifier._pairs))
         self.checked: set[int] = set()
         self.pair_checks = 0
-        self.min_clear, self.closest = float("inf"), -1
+        # A clearance known from elsewhere is what this one must beat: the walk holds the
+        # clearance pairs to it from the start (as if GJK had found it here), and only a
+        # distance below it is kept.
+        self.min_clear, self.closest = known, -1
+        self.memory.ceiling[0] = known
         self._placed = [-1] * len(verifier._movers)
         self._dist_req = fcl.DistanceRequest()
 
