@@ -352,6 +352,36 @@ def test_the_same_input_gives_the_same_result(bundled: Plans) -> None:
     assert _verifier(cell).verify(t, q, qd) == first
 
 
+def test_a_known_clearance_is_measured_only_below_it_as_a_dense_check_finds_it(
+        bundled: Plans) -> None:
+    """Given the clearance an earlier piece of the route found, a verification measures
+    its own only where it comes closer: below ``known`` the value is FCL's at a sample
+    with no sample closer by more than half the resolution (as without it); not below,
+    the result says inf, and then no sample is closer than ``known`` minus half the
+    resolution. Either way the work is not more than without it."""
+    t, q, qd = _step(bundled, STEP)
+    cell = bundled.cell
+    verifier = _verifier(cell)
+    _, _, dense = _dense(verifier, q, _margins(cell, None, True))
+    alone = verifier.verify(t, q, qd)
+    tol = verifier.resolution / 2
+    assert dense - 1e-9 <= alone.min_clearance <= dense + tol
+    for known in (dense + 0.02, dense + tol / 2, dense - tol / 2, dense - 0.02):
+        result = verifier.verify(t, q, qd, known=known)
+        assert result.bound_checks <= alone.bound_checks
+        if result.min_clearance < np.inf:  # measured: FCL's at a sample, below known
+            assert dense - 1e-9 <= result.min_clearance <= min(dense + tol, known)
+            assert result.closest_pair is not None
+        else:  # nothing below known: then the samples keep known - tol
+            assert result.closest_pair is None
+            assert dense >= known - tol - 1e-9
+    # Well above: measured as alone; well below: inf, for fewer bound evaluations.
+    assert verifier.verify(t, q, qd, known=dense + 0.02).min_clearance < np.inf
+    below = verifier.verify(t, q, qd, known=dense - 0.02)
+    assert below.min_clearance == np.inf
+    assert below.bound_checks < alone.bound_checks
+
+
 def test_a_walk_that_fills_its_outputs_resumes_where_it_stopped(
         bundled: Plans, monkeypatch: pytest.MonkeyPatch) -> None:
     """The kernel writes the couples it leaves to buffers of fixed room and returns when
