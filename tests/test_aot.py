@@ -307,3 +307,39 @@ def test_an_unreadable_build_record_is_reported(built: Build, isolated_cache: Pa
                                                 "exports": sorted(ENTRIES)}))
     path, reason = _aot.find()
     assert path is None and "lacks its extension x.so" in reason
+
+
+def test_a_compiled_kernel_releases_the_gil(built: Build) -> None:
+    """As numba's nogil=True kernels do: Python runs in another thread meanwhile (with
+    the GIL held, this thread would run only around the call, a switch interval or so)."""
+    import threading
+    import time
+
+    module, _ = _aot._load(built.path)
+    assert module is not None
+    cell = safepath.load_cell(CELL)
+    layer = cell.checker(held=False).layer
+    assert layer is not None
+    Q = np.random.default_rng(0).uniform(cell.robot.lower, cell.robot.upper,
+                                         (100_000, cell.robot.dof))
+    out = np.empty(len(Q), dtype=np.int64)
+    started, done = threading.Event(), threading.Event()
+    call: list[float] = []
+
+    def work() -> None:
+        started.set()
+        t0 = time.perf_counter()
+        module.fast_classify_many(Q, layer.F, layer.I, out)
+        call.append(time.perf_counter() - t0)
+        done.set()
+
+    thread = threading.Thread(target=work)
+    thread.start()
+    first = last = None
+    while not done.is_set():
+        if started.is_set():
+            last = time.perf_counter()
+            first = first or last
+    thread.join()
+    assert call[0] > 0.05 and first is not None and last is not None
+    assert last - first > 0.5 * call[0], (last - first, call[0])

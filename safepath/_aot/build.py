@@ -100,8 +100,11 @@ def build(*, force: bool = False) -> Build:
     if existing is not None and not force:
         return Build(existing, key, 0.0, False)
     from . import materialize
+    from .table import MODULES
 
-    materialize()  # kernel modules imported with the extension in use: bind numba's
+    for name in MODULES:
+        importlib.import_module(name)
+    materialize()  # kernel modules imported with an extension in use (--force): numba's
     with warnings.catch_warnings():  # pycc is "pending deprecation"; it is what we need
         warnings.simplefilter("ignore")
         from numba.pycc import CC
