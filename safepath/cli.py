@@ -93,6 +93,9 @@ def cmd_build_kernels(args: argparse.Namespace) -> int:
 
     try:
         result = build(force=args.force)
+    except ImportError as exc:  # a numba without pycc: the JIT kernels still work
+        raise SafepathError(f"cannot compile the kernels ahead of time ({exc}); numba "
+                            "compiles them on first use instead") from exc
     except OSError as exc:
         raise SafepathError(f"cannot write the kernel build to {cache_root()}: {exc}") from exc
     if result.fresh:

@@ -343,3 +343,21 @@ def test_a_compiled_kernel_releases_the_gil(built: Build) -> None:
     thread.join()
     assert call[0] > 0.05 and first is not None and last is not None
     assert last - first > 0.5 * call[0], (last - first, call[0])
+
+
+def test_build_kernels_command(built: Build, tmp_path: Path, monkeypatch: pytest.MonkeyPatch,
+                               capsys: pytest.CaptureFixture[str]) -> None:
+    """Up to date: says where the build is. A cache it cannot write: one line, exit 2,
+    nothing written."""
+    from safepath.cli import main
+
+    assert main(["build-kernels"]) == 0
+    assert capsys.readouterr().out.strip() == f"kernels up to date: {built.path}"
+    blocker = tmp_path / "file"
+    blocker.write_text("")
+    monkeypatch.setenv("SAFEPATH_KERNEL_CACHE", str(blocker / "kernels"))
+    assert main(["build-kernels"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith(
+        f"safepath build-kernels: error: cannot write the kernel build to {blocker}")
+    assert blocker.read_text() == ""
