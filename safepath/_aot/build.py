@@ -26,7 +26,7 @@ from pathlib import Path
 from typing import Any
 
 from . import META, PACKAGE, build_dir, cache_root, find, module_name, source_key
-from .table import ENTRIES, Entry
+from .table import ENTRIES, Entry, Kind
 
 __all__ = ["Build", "build", "signature"]
 
@@ -51,7 +51,7 @@ class Build:
 def signature(entry: Entry) -> str:
     """The entry's signature in numba's notation (``i8(f8[::1], ...)``)."""
 
-    def one(kind: str | tuple[str, ...]) -> str:
+    def one(kind: Kind) -> str:
         if isinstance(kind, tuple):
             inner = ", ".join(one(k) for k in kind) + ("," if len(kind) == 1 else "")
             return f"Tuple(({inner}))"

@@ -17,7 +17,7 @@ from typing import Any
 
 import numpy as np
 
-from .table import Entry
+from .table import Entry, Kind
 
 __all__ = ["wrap", "describe"]
 
@@ -36,7 +36,7 @@ _UNITUPLE = re.compile(r"^UniTuple\((\w+), (\d+)\)$")
 _SCALARS = {"f8": "_FLOATS", "i8": "_INTS", "b1": "_BOOLS"}
 
 
-def _check(name: str, kind: str | tuple[str, ...]) -> str:
+def _check(name: str, kind: Kind) -> str:
     """A Python expression true when the value ``name`` matches the type ``kind``."""
     if isinstance(kind, tuple):
         parts = [f"{name}.__class__ is tuple", f"len({name}) == {len(kind)}"]

@@ -20,7 +20,10 @@ from __future__ import annotations
 
 from typing import NamedTuple
 
-__all__ = ["Entry", "ENTRIES", "MODULES"]
+__all__ = ["Entry", "ENTRIES", "Kind", "MODULES"]
+
+#: A type in numba's notation, or a tuple of them (a tuple argument, tuples nested).
+Kind = str | tuple["Kind", ...]
 
 #: Arrays: C-contiguous float64, int64 and bool arrays of 1 to 4 dimensions.
 F1, F2, F3, F4 = "f8[::1]", "f8[:, ::1]", "f8[:, :, ::1]", "f8[:, :, :, ::1]"
@@ -41,7 +44,7 @@ class Entry(NamedTuple):
 
     module: str
     function: str
-    args: tuple[str | tuple[str, ...], ...]
+    args: tuple[Kind, ...]
     result: str
 
 
@@ -52,6 +55,8 @@ _TOPP = "safepath.planning._topp"
 _MONITOR = "safepath.monitor._kernels"
 #: A placed shape of the verifier: a tuple of 17 floats.
 _SHAPE = "UniTuple(f8, 17)"
+#: The verifier's hull tables: vertices, neighbour starts, neighbour rows, climbs' starts.
+_HULLS = (F2, I1, I1, I1)
 
 #: Every exported kernel, by export name.
 ENTRIES: dict[str, Entry] = {
@@ -70,16 +75,17 @@ ENTRIES: dict[str, Entry] = {
          (I1, F3, I1, F2, I1, I1, F3, I1),  # kin
          (B2, F4),  # cache
          (I1, I1, B1, F2, B1),  # pairs
-         (F2, F3, F2),  # world
+         (F2, F3, _HULLS),  # world
          (F2, F1, I1, F1),  # memory
          (FLOAT, FLOAT, FLOAT, FLOAT),  # params
          (I1, F1, F1, F1, F2, F2, F2, F2, I1, I1, I1, F1),  # scratch and outputs
          INT, INT),  # where to start
         "UniTuple(i8, 3)"),
     "verify_grid": Entry(_VERIFY, "grid", (F2, F2, FLOAT), f"Tuple(({I1}, {F1}, {F2}, {F2}))"),
-    "verify_axis_bound": Entry(_VERIFY, "axis_bound", (_SHAPE, _SHAPE, F2), "UniTuple(f8, 4)"),
+    "verify_axis_bound": Entry(_VERIFY, "axis_bound", (_SHAPE, _SHAPE, _HULLS),
+                               "UniTuple(f8, 4)"),
     "verify_gjk_bound": Entry(_VERIFY, "gjk_bound",
-                              (_SHAPE, _SHAPE, F2, FLOAT, FLOAT, FLOAT, FLOAT, BOOL, F2,
+                              (_SHAPE, _SHAPE, _HULLS, FLOAT, FLOAT, FLOAT, FLOAT, BOOL, F2,
                                F2, I1),
                               "UniTuple(f8, 5)"),
     # Cartesian lines (safepath.planning.cartesian).

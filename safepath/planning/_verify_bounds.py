@@ -55,6 +55,9 @@ class ShapeSpec:
         centre: Its centre in the geometry frame [m] (a hull's: its bounding box's).
         radius: Radius of a sphere about the centre that holds it [m].
         vertices: A hull's vertices about its centre, in the geometry frame (rows) [m].
+        neighbours: A hull's edges: per vertex, where its neighbours start in
+            ``adjacent`` (vertices + 1 entries).
+        adjacent: The neighbours' rows in ``vertices``.
     """
 
     kind: int
@@ -62,6 +65,10 @@ class ShapeSpec:
     centre: tuple[float, float, float]
     radius: float
     vertices: np.ndarray = field(default_factory=lambda: np.zeros((0, 3)), compare=False)
+    neighbours: np.ndarray = field(default_factory=lambda: np.zeros(1, dtype=np.int64),
+                                   compare=False)
+    adjacent: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=np.int64),
+                                 compare=False)
 
 
 def shape_spec(geometry: object, name: str = "") -> ShapeSpec:
@@ -91,11 +98,13 @@ def shape_spec(geometry: object, name: str = "") -> ShapeSpec:
 
         pts = np.asarray(geometry.points() if isinstance(geometry, coal.ConvexBase)
                          else geometry.vertices(), dtype=float)
-        pts = pts[ConvexHull(pts).vertices]
+        hull = ConvexHull(pts)
+        pts = pts[hull.vertices]
         c = (pts.min(axis=0) + pts.max(axis=0)) / 2
         rel = np.ascontiguousarray(pts - c)
         return ShapeSpec(_HULL, (0.0, 0.0, 0.0), (float(c[0]), float(c[1]), float(c[2])),
-                         float(np.linalg.norm(rel, axis=1).max()), rel)
+                         float(np.linalg.norm(rel, axis=1).max()), rel,
+                         *_edges(hull.vertices, hull.simplices))
     raise unsupported_geometry(geometry, name)
 
 
@@ -117,7 +126,7 @@ def bound_between(a: ShapeSpec, T_world_a: np.ndarray, b: ShapeSpec,
     raised by GJK's directions): for tests and diagnostics."""
     from . import _verify_kernel as shapes
 
-    table, verts = _shape_table([a, b])
+    table, hulls = _shape_table([a, b])
 
     def placed(k: int, T: np.ndarray) -> tuple[float, ...]:
         T = np.asarray(T, dtype=float)
@@ -125,24 +134,61 @@ def bound_between(a: ShapeSpec, T_world_a: np.ndarray, b: ShapeSpec,
         return (*table[k, :4], table[k, 7], *centre, *T[:3, :3].ravel())
 
     Sa, Sb = placed(0, T_world_a), placed(1, T_world_b)
-    bound, n0, n1, n2 = shapes.axis_bound(Sa, Sb, verts)
-    return float(shapes.gjk_bound(Sa, Sb, verts, bound, n0, n1, n2, False, np.empty((4, 3)),
+    hulls = _climbing(hulls)
+    bound, n0, n1, n2 = shapes.axis_bound(Sa, Sb, hulls)
+    return float(shapes.gjk_bound(Sa, Sb, hulls, bound, n0, n1, n2, False, np.empty((4, 3)),
                                   np.empty((3, 3)), np.empty(4, dtype=np.int64))[0])
 
 
-def _shape_table(specs: list[ShapeSpec]) -> tuple[np.ndarray, np.ndarray]:
+def _edges(vertices: np.ndarray, triangles: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """A hull's edges as (neighbour starts, neighbour rows), its vertices numbered in
+    the order of ``vertices`` (qhull's vertex indices), from its facets' ``triangles``
+    (qhull's simplices: every edge of the hull is a side of one)."""
+    row = np.full(int(vertices.max()) + 1, -1, dtype=np.int64)
+    row[vertices] = np.arange(len(vertices))
+    tri = row[triangles]
+    pairs = np.concatenate([tri[:, [0, 1]], tri[:, [1, 2]], tri[:, [2, 0]]])
+    pairs = np.unique(np.sort(np.concatenate([pairs, pairs[:, ::-1]]), axis=1), axis=0)
+    both = np.concatenate([pairs, pairs[:, ::-1]])
+    both = both[np.lexsort((both[:, 1], both[:, 0]))]
+    starts = np.searchsorted(both[:, 0], np.arange(len(vertices) + 1))
+    return starts.astype(np.int64), np.ascontiguousarray(both[:, 1], dtype=np.int64)
+
+
+def _shape_table(specs: list[ShapeSpec]) -> tuple[np.ndarray, tuple[np.ndarray, ...]]:
     """The kernels' shape table (kind, parameters, centre, radius; a hull's parameters:
-    its first row in the vertex table and its count) and the vertex table."""
+    its first row in the vertex table and its count) and the hull tables (vertices,
+    per vertex row where its neighbours start, the neighbours' rows: all rows of the
+    vertex table)."""
     rows, verts, count = [], [], 0
+    starts: list[np.ndarray] = []
+    adjacent: list[np.ndarray] = []
     for spec in specs:
         par = spec.par
         if spec.kind == _HULL:
+            if len(spec.neighbours) != len(spec.vertices) + 1:
+                raise ValueError("a hull's shape spec needs its edges (shape_spec makes them)")
             par = (float(count), float(len(spec.vertices)), 0.0)
             verts.append(spec.vertices)
+            edges = sum(a.size for a in adjacent)
+            starts.append(spec.neighbours[:-1] + edges)
+            adjacent.append(spec.adjacent + count)
             count += len(spec.vertices)
         rows.append((spec.kind, *par, *spec.centre, spec.radius))
     table = np.array(rows, dtype=float).reshape(-1, 8)
-    return table, np.ascontiguousarray(np.vstack(verts) if verts else np.zeros((0, 3)))
+    if not verts:
+        return table, (np.zeros((0, 3)), np.zeros(1, dtype=np.int64),
+                       np.zeros(0, dtype=np.int64))
+    nbr = np.concatenate(adjacent).astype(np.int64)
+    ptr = np.concatenate([*starts, [nbr.size]]).astype(np.int64)
+    return table, (np.ascontiguousarray(np.vstack(verts)), ptr, nbr)
+
+
+def _climbing(hulls: tuple[np.ndarray, ...]) -> tuple[np.ndarray, ...]:
+    """The hull tables as the kernels take them: with a fresh start table (every climb
+    of a hull starts at its first vertex until one has ended elsewhere). One per walk:
+    the kernel updates it."""
+    return (*hulls, np.arange(len(hulls[0]), dtype=np.int64))
 
 
 def joint_kind(model: pin.Model, j: int) -> tuple[int, tuple[float, float, float]]:
@@ -362,7 +408,7 @@ class Layer:
         self._upstream = upstream
         self._env_pose = np.array([np.asarray(T)[:3] for T in T_world_env]).reshape(-1, 3, 4)
         # The kernels' shape and vertex tables; bodies first.
-        self._shapes, self._verts = _shape_table(movers + env)
+        self._shapes, self._hulls = _shape_table(movers + env)
         self._pairs = (np.array([a for a, _, _ in pairs], dtype=np.int64),
                        np.array([b for _, b, _ in pairs], dtype=np.int64),
                        np.array([e for _, _, e in pairs], dtype=np.bool_),
@@ -417,7 +463,7 @@ class Layer:
                 (grid.cum, grid.step, grid.cum @ self._upstream.T, grid.step @ self._upstream.T,
                  np.ascontiguousarray(q, dtype=float), grid.knot_of, grid.frac),
                 self._kin, cache.arrays(), self._pairs, (self._shapes, self._env_pose,
-                                                         self._verts),
+                                                         _climbing(self._hulls)),
                 memory.arrays(), params, scratch)
         parts = []
         t = s = 0

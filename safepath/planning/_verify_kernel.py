@@ -33,7 +33,9 @@ kind (0 box, 1 sphere, 2 cylinder, 3 capsule, 4 hull), three parameters (box hal
 extents; radius; radius and half length; a hull's first row in the vertex table and its
 count), the centre in the geometry frame, and the radius of a sphere about the centre
 that holds the shape. The vertex table holds the hulls' vertices about their centres,
-in their geometry frames.
+in their geometry frames; with it go, per vertex row, the rows of its neighbours along
+the hull's edges (where they start in the neighbour table, and that table): a hull's
+support climbs them instead of scanning every vertex.
 """
 
 from __future__ import annotations
@@ -76,19 +78,46 @@ def _axis(S: tuple, j: int) -> tuple[float, float, float]:
 
 
 @_kernel
-def support(S: tuple, V: np.ndarray, n0: float, n1: float, n2: float) -> float:
+def _hull_top(S: tuple, H: tuple, a0: float, a1: float, a2: float) -> tuple[float, int]:
+    """The largest of a hull's vertices along a (in its frame), and its row: climbing
+    the hull's edges to a better neighbour while there is one, from where its last
+    climb ended (kept in ``H``'s start table at the hull's first row: the next
+    direction asked of a hull is mostly close to the last one).
+
+    A linear function on a convex polytope that no edge from a vertex increases is at
+    its maximum there (the simplex method's argument); the edges are those of the
+    hull's triangulated facets, which include every edge of the polytope. So this is
+    the maximum over all the vertices from any start (to rounding: a neighbour better
+    by less than the rounding of a dot product may be missed, ~1e-16 m), visiting a
+    few of them."""
+    V, ptr, nbr, start = H
+    first = int(S[1])
+    k = start[first]
+    best = V[k, 0] * a0 + V[k, 1] * a1 + V[k, 2] * a2
+    while True:
+        top = k
+        for e in range(ptr[k], ptr[k + 1]):
+            j = nbr[e]
+            x = V[j, 0] * a0 + V[j, 1] * a1 + V[j, 2] * a2
+            if x > best:
+                best, top = x, j
+        if top == k:
+            start[first] = k
+            return best, k
+        k = top
+
+
+@_kernel
+def support(S: tuple, H: tuple, n0: float, n1: float, n2: float) -> float:
     """How far the shape's projection on the unit axis n reaches beyond its centre along
-    n [m] (half its width, but for a hull, whose rows of ``V`` are its vertices about
-    its centre in its own frame)."""
+    n [m] (half its width, but for a hull: ``H`` holds the hulls' vertices about their
+    centres in their own frames (rows), per vertex row where its neighbours start in
+    the neighbour rows, those rows, and per hull (at its first row) the vertex its
+    last climb ended at, updated)."""
     a0, a1, a2 = _dots(S, n0, n1, n2)
     kind = int(S[0])
     if kind == HULL:
-        best = -np.inf
-        for i in range(int(S[1]), int(S[1]) + int(S[2])):
-            x = V[i, 0] * a0 + V[i, 1] * a1 + V[i, 2] * a2
-            if x > best:
-                best = x
-        return best  # type: ignore[no-any-return]
+        return _hull_top(S, H, a0, a1, a2)[0]  # type: ignore[no-any-return]
     if kind == BOX:
         return S[1] * abs(a0) + S[2] * abs(a1) + S[3] * abs(a2)  # type: ignore[no-any-return]
     if kind == SPHERE:
@@ -100,7 +129,7 @@ def support(S: tuple, V: np.ndarray, n0: float, n1: float, n2: float) -> float:
 
 
 @_kernel
-def _support_point(S: tuple, V: np.ndarray, n0: float, n1: float, n2: float
+def _support_point(S: tuple, H: tuple, n0: float, n1: float, n2: float
                    ) -> tuple[float, float, float]:
     """A point of the shape furthest along n: GJK's search only, the bounds use
     :func:`support`."""
@@ -108,11 +137,8 @@ def _support_point(S: tuple, V: np.ndarray, n0: float, n1: float, n2: float
     a0, a1, a2 = _dots(S, n0, n1, n2)
     kind = int(S[0])
     if kind == HULL:
-        best, k = -np.inf, int(S[1])
-        for i in range(int(S[1]), int(S[1]) + int(S[2])):
-            x = V[i, 0] * a0 + V[i, 1] * a1 + V[i, 2] * a2
-            if x > best:
-                best, k = x, i
+        V = H[0]
+        k = _hull_top(S, H, a0, a1, a2)[1]
         for j in range(3):
             c0, c1, c2 = _axis(S, j)
             x0, x1, x2 = x0 + V[k, j] * c0, x1 + V[k, j] * c1, x2 + V[k, j] * c2
@@ -142,14 +168,14 @@ def _support_point(S: tuple, V: np.ndarray, n0: float, n1: float, n2: float
 
 
 @_kernel
-def gap(Sa: tuple, Sb: tuple, V: np.ndarray, n0: float, n1: float, n2: float) -> float:
+def gap(Sa: tuple, Sb: tuple, H: tuple, n0: float, n1: float, n2: float) -> float:
     """Gap between the shapes' projections on the unit axis n [m]."""
     d0, d1, d2 = Sb[5] - Sa[5], Sb[6] - Sa[6], Sb[7] - Sa[7]
     along = n0 * d0 + n1 * d1 + n2 * d2
     if along < 0.0:  # B lies behind A along n: measure along -n
         n0, n1, n2, along = -n0, -n1, -n2, -along
-    return (along - support(Sa, V, n0, n1, n2)  # type: ignore[no-any-return]
-            - support(Sb, V, -n0, -n1, -n2))
+    return (along - support(Sa, H, n0, n1, n2)  # type: ignore[no-any-return]
+            - support(Sb, H, -n0, -n1, -n2))
 
 
 @_kernel
@@ -175,24 +201,24 @@ def _own_axes(S: tuple) -> tuple[int, int]:
 
 
 @_kernel
-def axis_bound(Sa: tuple, Sb: tuple, V: np.ndarray) -> tuple[float, float, float, float]:
+def axis_bound(Sa: tuple, Sb: tuple, H: tuple) -> tuple[float, float, float, float]:
     """The largest gap along the line between the centres, the shapes' own axes and
     their cross products [m] (never below the bounding spheres' distance), and its
     axis."""
     best, b0, b1, b2 = sphere_bound(Sa, Sb)
-    g = gap(Sa, Sb, V, b0, b1, b2)  # the line between the centres
+    g = gap(Sa, Sb, H, b0, b1, b2)  # the line between the centres
     if g > best:
         best = g
     a_first, a_count = _own_axes(Sa)
     b_first, b_count = _own_axes(Sb)
     for i in range(a_first, a_first + a_count):
         n0, n1, n2 = _axis(Sa, i)
-        g = gap(Sa, Sb, V, n0, n1, n2)
+        g = gap(Sa, Sb, H, n0, n1, n2)
         if g > best:
             best, b0, b1, b2 = g, n0, n1, n2
     for j in range(b_first, b_first + b_count):
         n0, n1, n2 = _axis(Sb, j)
-        g = gap(Sa, Sb, V, n0, n1, n2)
+        g = gap(Sa, Sb, H, n0, n1, n2)
         if g > best:
             best, b0, b1, b2 = g, n0, n1, n2
     for i in range(a_first, a_first + a_count):
@@ -203,7 +229,7 @@ def axis_bound(Sa: tuple, Sb: tuple, V: np.ndarray) -> tuple[float, float, float
             norm = math.sqrt(c0 * c0 + c1 * c1 + c2 * c2)
             if norm > 1e-6:
                 n0, n1, n2 = c0 / norm, c1 / norm, c2 / norm
-                g = gap(Sa, Sb, V, n0, n1, n2)
+                g = gap(Sa, Sb, H, n0, n1, n2)
                 if g > best:
                     best, b0, b1, b2 = g, n0, n1, n2
     return best, b0, b1, b2
@@ -238,7 +264,7 @@ def _solve(k: int, g00: float, g01: float, g02: float, g11: float, g12: float,
 
 
 @_kernel
-def gjk_bound(Sa: tuple, Sb: tuple, V: np.ndarray, best: float, w0: float, w1: float,
+def gjk_bound(Sa: tuple, Sb: tuple, H: tuple, best: float, w0: float, w1: float,
               w2: float, warm: bool, W: np.ndarray, e: np.ndarray, idx: np.ndarray
               ) -> tuple[float, float, float, float, float]:
     """Raise the lower bound ``best`` [m] with the gaps along GJK's search directions.
@@ -261,8 +287,8 @@ def gjk_bound(Sa: tuple, Sb: tuple, V: np.ndarray, best: float, w0: float, w1: f
     b0, b1, b2 = w0, w1, w2
     count = 0
     if warm:
-        a0, a1, a2 = _support_point(Sa, V, w0, w1, w2)
-        c0, c1, c2 = _support_point(Sb, V, -w0, -w1, -w2)
+        a0, a1, a2 = _support_point(Sa, H, w0, w1, w2)
+        c0, c1, c2 = _support_point(Sb, H, -w0, -w1, -w2)
         v0, v1, v2 = c0 - a0, c1 - a1, c2 - a2
         W[0, 0], W[0, 1], W[0, 2] = v0, v1, v2
         count = 1
@@ -273,14 +299,14 @@ def gjk_bound(Sa: tuple, Sb: tuple, V: np.ndarray, best: float, w0: float, w1: f
         if norm < 1e-10:
             break  # touching or overlapping: the axis bounds are all there is
         n0, n1, n2 = v0 / norm, v1 / norm, v2 / norm
-        g = (n0 * d0 + n1 * d1 + n2 * d2 - support(Sa, V, n0, n1, n2)
-             - support(Sb, V, -n0, -n1, -n2))
+        g = (n0 * d0 + n1 * d1 + n2 * d2 - support(Sa, H, n0, n1, n2)
+             - support(Sb, H, -n0, -n1, -n2))
         if g > best:
             best, b0, b1, b2 = g, n0, n1, n2
         if norm - best < 1e-6:
             break
-        a0, a1, a2 = _support_point(Sa, V, n0, n1, n2)
-        c0, c1, c2 = _support_point(Sb, V, -n0, -n1, -n2)
+        a0, a1, a2 = _support_point(Sa, H, n0, n1, n2)
+        c0, c1, c2 = _support_point(Sb, H, -n0, -n1, -n2)
         W[count, 0], W[count, 1], W[count, 2] = c0 - a0, c1 - a1, c2 - a2
         count += 1
         # The closest point of the simplex to the origin, and the face it lies on.
@@ -405,7 +431,8 @@ def _walk(todo: np.ndarray, theta: np.ndarray, grid: tuple, kin: tuple, cache: t
         pairs: (body a, body or environment object b, b is environment, motion weights,
             counts for the clearance) of every pair.
         world: (shape table: the bodies' rows, then the environment objects'; world
-            pose of every environment object (3 x 4)).
+            pose of every environment object (3 x 4); the hull tables: vertices,
+            neighbour starts, neighbour rows, climbs' starts (see :func:`support`)).
         memory: Per pair, the axis that separated it best at its last full evaluation
             and 1 if there is one, and its last full bound [m]; the bounds evaluated
             (all, with the axes, with GJK); the ceiling (smallest GJK upper bound of a
@@ -433,7 +460,7 @@ def _walk(todo: np.ndarray, theta: np.ndarray, grid: tuple, kin: tuple, cache: t
     parent, place, kind, axis, iq, m_joint, m_place, joint_of = kin
     jdone, jpose = cache
     pair_a, pair_b, pair_env, weights, tracked = pairs
-    shp, env_pose, verts = world
+    shp, env_pose, hulls = world
     axes, last, stats, ceiling = memory
     coarse, fine, keep, drop = params
     movers = m_joint.size
@@ -624,16 +651,16 @@ def _walk(todo: np.ndarray, theta: np.ndarray, grid: tuple, kin: tuple, cache: t
             stats[0] += 1
             if bound <= th + coarse:
                 if axes[p, 3] != 0.0:
-                    warm = gap(Sa, Sb, verts, axes[p, 0], axes[p, 1], axes[p, 2])
+                    warm = gap(Sa, Sb, hulls, axes[p, 0], axes[p, 1], axes[p, 2])
                     if warm > bound:
                         bound, n0, n1, n2 = warm, axes[p, 0], axes[p, 1], axes[p, 2]
                 # The kept axis is trusted while its gap has not fallen far below the
                 # last full bound; else (or without one) the full bound is computed.
                 if bound - th < keep * (last[p] - th) or axes[p, 3] == 0.0:
-                    full, f0, f1, f2 = axis_bound(Sa, Sb, verts)
+                    full, f0, f1, f2 = axis_bound(Sa, Sb, hulls)
                     stats[1] += 1
                     if full <= th + fine:
-                        full, upper, f0, f1, f2 = gjk_bound(Sa, Sb, verts, full, f0, f1,
+                        full, upper, f0, f1, f2 = gjk_bound(Sa, Sb, hulls, full, f0, f1,
                                                             f2, axes[p, 3] != 0.0, W, e,
                                                             idx)
                         stats[2] += 1

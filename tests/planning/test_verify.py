@@ -493,6 +493,35 @@ def test_a_hull_is_bounded_by_its_own_vertices() -> None:
     assert apart > 30
 
 
+def test_a_hulls_support_climbs_to_the_largest_vertex_from_any_start() -> None:
+    """The layer's support of a hull climbs the hull's edges instead of scanning every
+    vertex: on the Panda's link hulls, for random directions, from random starts, it
+    must reach the same value as the scan over all vertices."""
+    from safepath import load_robot
+    from safepath.planning import _verify_kernel as kernel
+    from safepath.planning._verify_bounds import _climbing, _shape_table
+
+    specs = [shape_spec(g.geometry) for g in load_robot("panda").collision_model.geometryObjects
+             if isinstance(g.geometry, coal.ConvexBase)]
+    assert sum(len(s.vertices) > 50 for s in specs) >= 5
+    table, hulls = _shape_table(specs)
+    hulls = _climbing(hulls)
+    V, ptr, nbr, start = hulls
+    assert ptr.size == len(V) + 1 and nbr.size == ptr[-1]
+    rng = np.random.default_rng(11)
+    for k, spec in enumerate(specs):
+        first, count = int(table[k, 1]), int(table[k, 2])
+        S = (4.0, float(first), float(count), 0.0, spec.radius, 0.0, 0.0, 0.0,
+             1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0)
+        for _ in range(300):
+            start[first] = first + int(rng.integers(count))
+            n = rng.normal(size=3)
+            n /= np.linalg.norm(n)
+            want = max(V[i, 0] * n[0] + V[i, 1] * n[1] + V[i, 2] * n[2]
+                       for i in range(first, first + count))
+            assert kernel.support(S, hulls, n[0], n[1], n[2]) == want
+
+
 # -- geometry the verifier handles, and refuses before planning --------------------------------
 def _with_geometry(robot: Robot, change: dict[str, object]) -> Robot:
     """A copy of ``robot`` whose collision geometries named in ``change`` are replaced."""
