@@ -122,6 +122,7 @@ def recorded() -> dict[str, list[tuple[Any, ...]]]:
     saved = dict(kernels)
     kernels["backward"] = recorder("topp_backward", saved["backward"])
     kernels["forward"] = recorder("topp_forward", saved["forward"])
+    kernels["tridiagonal"] = recorder("topp_tridiagonal", saved["tridiagonal"])
     try:
         for folder in (CELL, PANDA):
             cell = safepath.load_cell(folder)

@@ -111,6 +111,7 @@ ENTRIES: dict[str, Entry] = {
     # TOPP-RA's two passes (safepath.planning._topp).
     "topp_backward": Entry(_TOPP, "_backward", (F1, F1, F2, F2, F2, F1, F1), INT),
     "topp_forward": Entry(_TOPP, "_forward", (F1, F1, F2, F2, F2, F1, F1, F1), "void"),
+    "topp_tridiagonal": Entry(_TOPP, "_tridiagonal", (F1, F1, F1, F2), INT),
 }
 
 #: The modules whose source the ahead-of-time module is compiled from: it is used only

@@ -244,6 +244,51 @@ def _forward(delta: np.ndarray, xmax: np.ndarray, a: np.ndarray, b: np.ndarray,
     x[n - 1] = 0.0
 
 
+def _tridiagonal(dl: np.ndarray, d: np.ndarray, du: np.ndarray, b: np.ndarray) -> int:
+    """Solve the tridiagonal system (sub-diagonal ``dl``, diagonal ``d``, super-diagonal
+    ``du``, n >= 3) for the right-hand sides ``b`` (n, k) in place, as LAPACK's ``dgtsv``
+    does it (Gaussian elimination with partial pivoting), operation for operation: the
+    spline slopes' solve (:func:`safepath.planning._spline._solve_tridiagonal`). All four
+    arrays are overwritten; ``b`` holds the solution.
+
+    Returns:
+        0, or 1 + the row of a zero pivot (a singular system; ``b`` is then garbage).
+    """
+    n, k = d.size, b.shape[1]
+    for i in range(n - 1):
+        if abs(d[i]) >= abs(dl[i]):
+            if d[i] == 0.0:
+                return i + 1
+            fact = dl[i] / d[i]
+            d[i + 1] = d[i + 1] - fact * du[i]
+            for c in range(k):
+                b[i + 1, c] = b[i + 1, c] - fact * b[i, c]
+            if i < n - 2:
+                dl[i] = 0.0
+        else:  # interchange rows i and i + 1
+            fact = d[i] / dl[i]
+            d[i] = dl[i]
+            temp = d[i + 1]
+            d[i + 1] = du[i] - fact * temp
+            if i < n - 2:
+                dl[i] = du[i + 1]
+                du[i + 1] = -fact * dl[i]
+            du[i] = temp
+            for c in range(k):
+                row = b[i, c]
+                b[i, c] = b[i + 1, c]
+                b[i + 1, c] = row - fact * b[i + 1, c]
+    if d[n - 1] == 0.0:
+        return n
+    for c in range(k):
+        b[n - 1, c] = b[n - 1, c] / d[n - 1]
+        b[n - 2, c] = (b[n - 2, c] - du[n - 2] * b[n - 1, c]) / d[n - 2]
+    for i in range(n - 3, -1, -1):
+        for c in range(k):
+            b[i, c] = (b[i, c] - du[i] * b[i + 1, c] - dl[i] * b[i + 2, c]) / d[i]
+    return 0
+
+
 def _kernels() -> dict[str, Callable[..., Any]]:
     """The compiled passes: ahead of time, else numba's (compiled, or loaded from numba's
     cache, once); see :mod:`safepath._aot`."""
@@ -253,4 +298,5 @@ def _kernels() -> dict[str, Callable[..., Any]]:
 
             _compiled["backward"] = njit(cache=True, nogil=True)(_backward)
             _compiled["forward"] = njit(cache=True, nogil=True)(_forward)
+            _compiled["tridiagonal"] = njit(cache=True, nogil=True)(_tridiagonal)
         return _compiled
