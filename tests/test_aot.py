@@ -362,3 +362,27 @@ def test_build_kernels_command(built: Build, tmp_path: Path, monkeypatch: pytest
     assert len(err) == 1 and err[0].startswith(
         f"safepath build-kernels: error: cannot write the kernel build to {blocker}")
     assert blocker.read_text() == ""
+
+
+def test_the_cache_keeps_the_latest_builds(tmp_path: Path) -> None:
+    import time
+
+    from safepath._aot.build import prune
+
+    folders = []
+    for i in range(5):
+        folder = tmp_path / f"build{i}"
+        folder.mkdir()
+        (folder / _aot.META).write_text("{}")
+        os.utime(folder / _aot.META, (1000.0 + i, 1000.0 + i))
+        folders.append(folder)
+    (tmp_path / "not-a-build").mkdir()
+    crashed = tmp_path / ".build-x"
+    crashed.mkdir()
+    os.utime(crashed, (time.time() - 7200, time.time() - 7200))
+    running = tmp_path / ".build-y"
+    running.mkdir()
+    gone = prune(tmp_path, keep=3, current=folders[0])
+    assert sorted(gone) == sorted([folders[1], folders[2], crashed])
+    assert sorted(p.name for p in tmp_path.iterdir()) == [
+        ".build-y", "build0", "build3", "build4", "not-a-build"]

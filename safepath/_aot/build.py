@@ -6,7 +6,7 @@ machine's CPU (``target_cpu = "host"``, as numba's JIT compiles), releasing the 
 while a kernel runs (as ``nogil=True`` does for the JIT kernels). The extension and a
 record of the build (``build.json``: key, exports, numba version, CPU, build time) are
 written to a new folder, which is then renamed into place: a reader sees a whole build
-or none.
+or none. The cache keeps the :data:`KEEP` latest builds.
 """
 
 from __future__ import annotations
@@ -28,7 +28,7 @@ from typing import Any
 from . import META, PACKAGE, build_dir, cache_root, find, module_name, source_key
 from .table import ENTRIES, Entry, Kind
 
-__all__ = ["Build", "build", "signature"]
+__all__ = ["Build", "build", "prune", "signature"]
 
 
 @dataclass(frozen=True)
@@ -143,4 +143,25 @@ def build(*, force: bool = False) -> Build:
     path, reason = find()
     if path is None:
         raise OSError(f"kernel build in {target} not found after writing it: {reason}")
+    prune(root, keep=KEEP, current=target)
     return Build(path, key, seconds, True)
+
+
+#: Builds kept in the cache (each ~1 MB): one per source state, the latest ones.
+KEEP = 16
+
+
+def prune(root: Path, *, keep: int, current: Path) -> list[Path]:
+    """Delete all but the ``keep`` most recently written builds in ``root`` (never
+    ``current``), and unfinished build folders older than an hour; returns what was
+    deleted. A process that still maps a deleted extension keeps it; one that finds it
+    gone runs numba's JIT."""
+    builds = sorted((d for d in root.iterdir() if d.is_dir() and (d / META).is_file()
+                     and d != current), key=lambda d: (d / META).stat().st_mtime,
+                    reverse=True)
+    old = builds[max(keep - 1, 0):]
+    old += [d for d in root.glob(".build-*")
+            if d.is_dir() and time.time() - d.stat().st_mtime > 3600]
+    for folder in old:
+        shutil.rmtree(folder, ignore_errors=True)
+    return old
