@@ -211,15 +211,24 @@ class CollisionChecker:
         """Broad phase (AABB tree) for the fast path; it honours the same pairs and the
         same per-pair margins, and answers like the pair-by-pair loop (tested); and the
         same for batches of states evaluated in one C++ call (segments)."""
-        model = self.robot.model
         self._broad = pin.BroadPhaseManager_DynamicAABBTreeCollisionManager(
-            model, gmodel, self._gdata)
-        self._pool = pin.BroadPhaseManagerPool_DynamicAABBTreeCollisionManager(model, gmodel, 1)
-        pool_data = self._pool.getGeometryData(0)
-        for k in range(len(self._pairs)):
-            pool_data.collisionRequests[k].security_margin = \
-                self._gdata.collisionRequests[k].security_margin
-            pool_data.collisionRequests[k].enable_contact = True
+            self.robot.model, gmodel, self._gdata)
+        self._pool: Any = None  # made when first needed (~2-7 ms; the sphere layer
+        # decides most segments without it)
+
+    def _batch_pool(self) -> Any:
+        """The broad phase for batches of states (one C++ call), with the same pairs and
+        per-pair margins."""
+        if self._pool is None:
+            pool = pin.BroadPhaseManagerPool_DynamicAABBTreeCollisionManager(
+                self.robot.model, self.geometry_model, 1)
+            pool_data = pool.getGeometryData(0)
+            for k in range(len(self._pairs)):
+                pool_data.collisionRequests[k].security_margin = \
+                    self._gdata.collisionRequests[k].security_margin
+                pool_data.collisionRequests[k].enable_contact = True
+            self._pool = pool
+        return self._pool
 
     def _add(self, gmodel: pin.GeometryModel, name: str, joint: int, frame: int,
              T: np.ndarray, obj: SceneObject) -> int:
@@ -536,7 +545,7 @@ class CollisionChecker:
         in the given order, stopping at the first collision (later states are then not
         evaluated); ``fractions`` says where each state lies, for the report."""
         hits = np.asarray(pin.computeCollisionsInParallel(
-            1, self._pool, np.asfortranarray(states.T), True, True), dtype=bool)
+            1, self._batch_pool(), np.asfortranarray(states.T), True, True), dtype=bool)
         if not hits.any():
             return SegmentReport(True, len(states))
         first = int(np.argmax(hits))

@@ -295,12 +295,16 @@ def _pair_masks(model: Any, Gi: np.ndarray, Pi: np.ndarray) -> np.ndarray:
     """Per pair and velocity index: bit 1 if the joint moves body a relative to body b
     (or the world), bit 2 if it moves b relative to a; 0 for joints that carry both
     (they move the pair as one rigid piece) and joints that carry neither."""
-    def chain(joint: int) -> set[int]:
-        out = set()
-        while joint > 0:
-            out.add(int(model.joints[joint].idx_v))
-            joint = model.parents[joint]
-        return out
+    chains: dict[int, set[int]] = {}
+
+    def chain(joint: int) -> set[int]:  # once per joint: pinocchio's accessors are slow
+        if joint not in chains:
+            out, j = set(), joint
+            while j > 0:
+                out.add(int(model.joints[j].idx_v))
+                j = model.parents[j]
+            chains[joint] = out
+        return chains[joint]
 
     PM = np.zeros((len(Pi), model.nv), dtype=np.int64)
     for k, (a, b, is_env, _) in enumerate(Pi):

@@ -65,8 +65,19 @@ class SphereFit:
                          self.inner_centers @ R.T + p, self.inner_radii)
 
 
+#: Fits made in this process, by what they are made from (see :func:`fit_spheres`).
+_FITS: dict[tuple[Any, ...], SphereFit] = {}
+#: Most fits kept (the oldest goes first): the robots' and held objects' shapes.
+_FITS_KEPT = 512
+
+
 def fit_spheres(geometry: Any, *, cell: float = 0.015) -> SphereFit:
     """Outer and inner spheres for a coal geometry.
+
+    A fit depends on nothing but the shape's kind, its dimensions (a hull's or mesh's
+    points) and ``cell``: it is made once per process for each (every checker of a robot
+    fits the same links; the runtime planner builds checkers whenever the scene
+    changes) and handed out again, its arrays read-only.
 
     Args:
         geometry: ``coal.Box``, ``Sphere``, ``Cylinder``, ``Capsule``, ``ConvexBase`` or a
@@ -76,6 +87,42 @@ def fit_spheres(geometry: Any, *, cell: float = 0.015) -> SphereFit:
     Raises:
         ValueError: A geometry of another kind (the checker then keeps it exact).
     """
+    key = _fit_key(geometry, cell)
+    fit = _FITS.get(key)
+    if fit is None:
+        fit = _fit_shape(geometry, cell)
+        for array in (fit.outer_centers, fit.outer_radii, fit.inner_centers, fit.inner_radii):
+            array.setflags(write=False)
+        if len(_FITS) >= _FITS_KEPT:
+            _FITS.pop(next(iter(_FITS)), None)
+        _FITS[key] = fit
+    return fit
+
+
+def _fit_key(geometry: Any, cell: float) -> tuple[Any, ...]:
+    """What a fit is made from: the shape's kind and dimensions (a digest of a hull's or
+    mesh's points), and the cell."""
+    import hashlib
+
+    import coal
+
+    if isinstance(geometry, coal.Sphere):
+        dims: tuple[Any, ...] = (float(geometry.radius),)
+    elif isinstance(geometry, coal.Box):
+        dims = tuple(float(x) for x in geometry.halfSide)
+    elif isinstance(geometry, (coal.Cylinder, coal.Capsule)):
+        dims = (float(geometry.radius), float(geometry.halfLength))
+    elif isinstance(geometry, (coal.ConvexBase, coal.BVHModelBase)):
+        points = np.ascontiguousarray(geometry.points() if isinstance(geometry, coal.ConvexBase)
+                                      else geometry.vertices(), dtype=float)
+        dims = (points.shape, hashlib.blake2b(points.tobytes(), digest_size=16).digest())
+    else:
+        dims = (id(geometry),)  # refused by _fit_shape
+    return (type(geometry).__name__, *dims, float(cell))
+
+
+def _fit_shape(geometry: Any, cell: float) -> SphereFit:
+    """The fit of :func:`fit_spheres`, made."""
     import coal
 
     if isinstance(geometry, coal.Sphere):

@@ -53,6 +53,42 @@ def test_outer_spheres_enclose_every_shape(name: str) -> None:
         _assert_enclosed(geom.geometry, rng, f"{name}/{geom.name}")
 
 
+def test_a_fit_is_made_once_per_shape_and_never_handed_to_another() -> None:
+    """Fits are kept per process by what they are made of (kind, dimensions, a hull's
+    points, the cell): the same shape gets the same (read-only) fit, a shape that differs
+    in any of those gets its own, equal to one made afresh, and enclosed."""
+    import coal
+
+    from safepath import spheres
+
+    box = coal.Box(0.1, 0.2, 0.3)
+    first = fit_spheres(box)
+    assert fit_spheres(coal.Box(0.1, 0.2, 0.3)) is first
+    assert not first.outer_radii.flags.writeable
+    rng = np.random.default_rng(2)
+    points = rng.normal(size=(40, 3)) * 0.05
+    moved = points.copy()
+    moved[np.argmax(np.linalg.norm(points, axis=1))] *= 1.5  # a vertex of the hull moves
+
+    def hull(pts: np.ndarray) -> object:
+        vec = coal.StdVec_Vec3s()
+        for p in pts:
+            vec.append(p)
+        return coal.Convex.convexHull(vec, False, "")
+
+    variants = [coal.Box(0.1, 0.2, 0.31), coal.Box(0.3, 0.2, 0.1), coal.Cylinder(0.1, 0.6),
+                coal.Capsule(0.1, 0.6), hull(points), hull(moved)]
+    fits = [fit_spheres(g) for g in variants]
+    assert fit_spheres(box, cell=0.01) is not first
+    for g, fit in zip(variants, fits, strict=True):
+        assert fit is not first
+        fresh = spheres._fit_shape(g, 0.015)
+        np.testing.assert_array_equal(fit.outer_centers, fresh.outer_centers)
+        np.testing.assert_array_equal(fit.outer_radii, fresh.outer_radii)
+        _assert_enclosed(g, rng, type(g).__name__)
+    assert fits[-1] is not fits[-2]
+
+
 def test_held_vial_is_enclosed(cell: Cell) -> None:
     _assert_enclosed(cell.scene.objects["vial"].shape.to_coal(), np.random.default_rng(3),
                      "vial")

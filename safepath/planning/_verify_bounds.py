@@ -255,12 +255,16 @@ def pair_weights(model: pin.Model, joints: list[int], weights: np.ndarray,
     that moves both (a common ancestor) moves them as one rigid piece and leaves their
     distance alone; every other joint moves one of them relative to the other.
     """
-    def movers_of(joint: int) -> set[int]:
-        out = set()
-        while joint > 0:
-            out.add(model.joints[joint].idx_v)
-            joint = model.parents[joint]
-        return out
+    chains: dict[int, set[int]] = {}
+
+    def movers_of(joint: int) -> set[int]:  # once per joint: pinocchio's accessors are slow
+        if joint not in chains:
+            out, j = set(), joint
+            while j > 0:
+                out.add(model.joints[j].idx_v)
+                j = model.parents[j]
+            chains[joint] = out
+        return chains[joint]
 
     out = np.zeros((len(pairs), weights.shape[1]))
     for p, (a, b, env) in enumerate(pairs):
