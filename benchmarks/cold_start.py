@@ -18,7 +18,9 @@ JIT even where a build exists (``SAFEPATH_AOT=0``), for the figures without it.
 
 Nothing is a cache hit of results: every process plans from scratch, every ``plan``
 writes to a new folder, and safepath keeps no planning results on disk. The on-disk
-caches in use are those of compiled code: Python bytecode (``__pycache__/*.pyc``), the
+caches in use are those of compiled code: Python bytecode (``__pycache__/*.pyc``, as an
+installed package has them; the children run without ``PYTHONDONTWRITEBYTECODE`` unless
+``--no-bytecode`` is given, which measures every import compiled from source), the
 kernels compiled ahead of time (user cache) or numba's compiled kernels
 (``*.nbi``/``*.nbc`` in ``__pycache__`` or ``NUMBA_CACHE_DIR``), plus the operating
 system's file cache. ``--warmup`` runs (default 1, not counted)
@@ -28,7 +30,8 @@ after an install (which also compiles the numba kernels, several seconds).
 Targets, printed with the results: ``import safepath`` <= 0.3 s, the ``plan`` process
 <= 1.0 s, first ``plan_cell`` <= 2 x the second.
 
-Run: ``.venv/bin/python benchmarks/cold_start.py [--runs 7] [--warmup 1] [--jit]``.
+Run: ``.venv/bin/python benchmarks/cold_start.py [--runs 7] [--warmup 1] [--jit]
+[--no-bytecode]``.
 """
 
 from __future__ import annotations
@@ -85,8 +88,9 @@ from safepath import _aot
 print(_aot.status())
 """
 
-#: Environment of the children (``--jit`` adds SAFEPATH_AOT=0).
-ENV = dict(os.environ)
+#: Environment of the children (``--jit`` adds SAFEPATH_AOT=0; bytecode is written and
+#: read unless ``--no-bytecode``).
+ENV = {k: v for k, v in os.environ.items() if k != "PYTHONDONTWRITEBYTECODE"}
 
 
 def child(code: str, *args: str) -> str:
@@ -136,11 +140,18 @@ def main(argv: Sequence[str] | None = None) -> int:
                         help="uncounted runs first (fill the compiled-code caches)")
     parser.add_argument("--jit", action="store_true",
                         help="numba's JIT kernels even where an ahead-of-time build exists")
+    parser.add_argument("--no-bytecode", action="store_true",
+                        help="children neither read nor write Python bytecode caches (every "
+                             "import compiled from source)")
     args = parser.parse_args(argv)
     if args.runs < 1 or args.warmup < 0:
         parser.error("--runs must be at least 1 and --warmup at least 0")
     if args.jit:
         ENV["SAFEPATH_AOT"] = "0"
+    if args.no_bytecode:
+        ENV["PYTHONDONTWRITEBYTECODE"] = "1"
+        empty = tempfile.TemporaryDirectory(prefix="safepath-nopyc-")  # removed at exit
+        ENV["PYTHONPYCACHEPREFIX"] = empty.name
 
     command = plan_command()
     print(f"cold_start: python {platform.python_version()} on {platform.machine()}, "
@@ -149,6 +160,8 @@ def main(argv: Sequence[str] | None = None) -> int:
           f"run(s); plan command: {' '.join(Path(c).name for c in command)} plan "
           f"{CELL_DIR.relative_to(ROOT)} --out <new temporary folder>")
     print(f"kernels: {child(_STATUS).strip()}")
+    print("Python bytecode: " + ("off (every import compiled from source)" if args.no_bytecode
+                                 else "cached in __pycache__ (as installed)"))
     for _ in range(args.warmup):
         plan_process(command)
         child(_FIRST_SECOND, str(CELL_DIR))

@@ -16,6 +16,7 @@ of it. Allowed contacts are excluded from clearance and margins.
 
 from __future__ import annotations
 
+import functools
 import logging
 from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import replace
@@ -81,21 +82,20 @@ class CollisionChecker:
         gmodel = self.robot.collision_model.copy()
         gmodel.removeAllCollisionPairs()  # loaders may have added their own
         n_robot = gmodel.ngeoms
-        self._names: list[str] = [self.robot.geometry_link(i) for i in range(n_robot)]
+        self._names: list[str] = list(self.robot.derived(
+            "geometry links", lambda: tuple(map(self.robot.geometry_link, range(n_robot)))))
         self._env = self._add_environment(gmodel)
         held_idx = self._add_held(gmodel)
-        self.geometry_model = gmodel
+        self._gmodel = gmodel  # coal's pairs are added on the first exact query
+        self._pairs_added = False
         pairs = self._pair_list(gmodel, n_robot, held_idx)
-        for a, b, _ in pairs:
-            gmodel.addCollisionPair(pin.CollisionPair(a, b))
         self._pairs = [(a, b) for a, b, _ in pairs]
         self._pair_names = [(self._names[a], self._names[b]) for a, b in self._pairs]
         self._data = self.robot.model.createData()
-        self._gdata = pin.GeometryData(gmodel)
         self._pair_margin = self._pair_margins()
         self._set_requests([depth for *_, depth in pairs])
         self._weights = self._displacement_weights()
-        self._build_broad_phase(gmodel)
+        self._pool: Any = None  # coal's batch broad phase, made when first needed
         self._layer: SphereLayer | None = None
         self._layer_built = False
         self._classify: Any = None
@@ -133,41 +133,42 @@ class CollisionChecker:
                    ) -> list[tuple[int, int, float]]:
         """(a, b, allowed depth [m]) of every pair to check: movers (robot and held
         object) against each other and against the environment, without the pairs that
-        are never checked or allowed to touch at any depth."""
+        are never checked or allowed to touch at any depth. In the order: for each mover,
+        the movers after it, then the environment."""
         contact_links = set(self.robot.tool.contact_links) if self.robot.tool else set()
         allowed = self._expand_allowed(contact_links)
+        touched = {n for key in allowed for n in key}  # names in an allowed contact
+        names, env = self._names, self._env
+        joint = [int(g.parentJoint) for g in gmodel.geometryObjects]
+        self_pairs = self.robot.allowed_self_pairs
         movers = list(range(n_robot)) + ([held_idx] if held_idx is not None else [])
-        geoms = gmodel.geometryObjects
         pairs: list[tuple[int, int, float]] = []
         for ia, a in enumerate(movers):
+            na = names[a]
             for b in movers[ia + 1:]:
-                depth = self._self_pair_depth(gmodel, a, b, held_idx, contact_links, allowed)
+                nb = names[b]
+                if na == nb or joint[a] == joint[b]:
+                    continue
+                if b == held_idx:
+                    if na in contact_links:
+                        continue  # the jaws hold it
+                elif ((na, nb) if na < nb else (nb, na)) in self_pairs:
+                    continue
+                depth = (allowed.get((na, nb) if na < nb else (nb, na), 0.0)
+                         if na in touched and nb in touched else 0.0)
                 if depth is not None:
                     pairs.append((a, b, depth))
-            if geoms[a].parentJoint == 0:
+            if joint[a] == 0:
                 continue  # both fixed to the world
-            for e in self._env:
-                na, ne = self._names[a], self._names[e]
-                depth = allowed.get((min(na, ne), max(na, ne)), 0.0)
+            if na not in touched:
+                pairs.extend((a, e, 0.0) for e in env)
+                continue
+            for e in env:
+                ne = names[e]
+                depth = allowed.get((na, ne) if na <= ne else (ne, na), 0.0)
                 if depth is not None:
                     pairs.append((a, e, depth))
         return pairs
-
-    def _self_pair_depth(self, gmodel: pin.GeometryModel, a: int, b: int,
-                         held_idx: int | None, contact_links: set[str],
-                         allowed: dict[Pair, float | None]) -> float | None:
-        """The allowed depth [m] of the mover pair (a, b), or None if it is not checked:
-        same link or joint, the jaws and the object they hold, an allowed self pair, or
-        a contact allowed at any depth."""
-        geoms = gmodel.geometryObjects
-        na, nb = self._names[a], self._names[b]
-        if na == nb or geoms[a].parentJoint == geoms[b].parentJoint:
-            return None
-        if b == held_idx and na in contact_links:
-            return None  # the jaws hold it
-        if tuple(sorted((na, nb))) in self.robot.allowed_self_pairs and b != held_idx:
-            return None
-        return allowed.get((min(na, nb), max(na, nb)), 0.0)
 
     def _pair_margins(self) -> list[float]:
         """Each pair's safety margin [m]: the options' override, or the scene's margin
@@ -175,46 +176,78 @@ class CollisionChecker:
         scene, env_set = self.scene, set(self._env)
         margin_default = (self.options.margin if self.options.margin is not None
                           else (scene.margin if scene else 0.0))
+        if self.options.margin is not None or scene is None:
+            return [margin_default] * len(self._pairs)
+        names = self._names
+        of_name: dict[str, float] = {}
         margins = []
         for a, b in self._pairs:
-            env_name = self._names[b] if b in env_set else self._names[a]
-            if self.options.margin is None and scene is not None:
-                margins.append(scene.margin_for(env_name))
-            else:
-                margins.append(margin_default)
+            name = names[b] if b in env_set else names[a]
+            margin = of_name.get(name)
+            if margin is None:
+                margin = of_name[name] = scene.margin_for(name)
+            margins.append(margin)
         return margins
 
     def _set_requests(self, depths: list[float]) -> None:
-        """coal's request of each pair (contacts on; the security margin: minus the
-        allowed depth, or the margin where enforced), and the distance pairs."""
-        env_set = set(self._env)
-        requests = self._gdata.collisionRequests
-        for k in range(len(depths)):
+        """Each pair's security margin for coal (minus the allowed depth, or the margin
+        where enforced; coal's requests get it when first needed) and the distance pairs."""
+        is_env = np.zeros(self._gmodel.ngeoms, dtype=bool)
+        is_env[self._env] = True
+        ab = np.array(self._pairs, dtype=np.int64).reshape(-1, 2)
+        across = is_env[ab[:, 0]] != is_env[ab[:, 1]]  # a mover and the environment
+        depth = np.array(depths, dtype=float)
+        margin = np.array(self._pair_margin, dtype=float)
+        self._security = np.where(depth != 0.0, -depth, np.where(
+            across & self.options.enforce_margin, margin, 0.0))
+        # Distances: robot (and held object) against the environment, not allowed ones.
+        self._dist_pairs = np.flatnonzero(across & (depth == 0.0)).tolist()
+
+    @property
+    def geometry_model(self) -> pin.GeometryModel:
+        """The robot's, the scene's and the held object's geometry, with the pairs checked
+        (coal's side of the checker; see :attr:`pairs` for their names)."""
+        if not self._pairs_added:
+            for a, b in self._pairs:
+                self._gmodel.addCollisionPair(pin.CollisionPair(a, b))
+            self._pairs_added = True
+        return self._gmodel
+
+    # coal's side of the checker is made on the first exact query: the sphere layer
+    # decides most states without it, and a planner builds a checker per world state
+    # and allowed-contact set (a dozen for a cell), most of which check a few segments.
+    def _requests_into(self, gdata: pin.GeometryData) -> pin.GeometryData:
+        """``gdata`` with contacts on and each pair's security margin."""
+        requests = gdata.collisionRequests
+        for k, margin in enumerate(self._security.tolist()):
             # Without contacts coal 3.0's boolean GJK path misses some deep box-box
             # penetrations (seen: two boxes 18 mm into each other reported free).
             requests[k].enable_contact = True
-        for k, ((a, b), depth) in enumerate(zip(self._pairs, depths, strict=True)):
-            if depth:
-                requests[k].security_margin = -depth
-            elif self.options.enforce_margin and ((a in env_set) != (b in env_set)):
-                requests[k].security_margin = self._pair_margin[k]
-        # Distances: robot (and held object) against the environment, not allowed ones.
-        self._dist_pairs = [k for k, (a, b) in enumerate(self._pairs)
-                            if (a in env_set) != (b in env_set) and not depths[k]]
-        self._dist_gdata = pin.GeometryData(self.geometry_model)
+            if margin:
+                requests[k].security_margin = margin
+        return gdata
+
+    @functools.cached_property
+    def _gdata(self) -> pin.GeometryData:
+        """coal's data of every pair, with its request."""
+        return self._requests_into(pin.GeometryData(self.geometry_model))
+
+    @functools.cached_property
+    def _broad(self) -> Any:
+        """Broad phase (AABB tree) for the fast path; it honours the same pairs and the
+        same per-pair margins, and answers like the pair-by-pair loop (tested)."""
+        return pin.BroadPhaseManager_DynamicAABBTreeCollisionManager(
+            self.robot.model, self.geometry_model, self._gdata)
+
+    @functools.cached_property
+    def _dist_gdata(self) -> pin.GeometryData:
+        """coal's data with only the distance pairs active."""
+        gdata = pin.GeometryData(self.geometry_model)
         active = np.zeros(len(self._pairs), dtype=bool)
         active[self._dist_pairs] = True
-        for k in range(len(self._pairs)):
-            self._dist_gdata.activeCollisionPairs[k] = bool(active[k])
-
-    def _build_broad_phase(self, gmodel: pin.GeometryModel) -> None:
-        """Broad phase (AABB tree) for the fast path; it honours the same pairs and the
-        same per-pair margins, and answers like the pair-by-pair loop (tested); and the
-        same for batches of states evaluated in one C++ call (segments)."""
-        self._broad = pin.BroadPhaseManager_DynamicAABBTreeCollisionManager(
-            self.robot.model, gmodel, self._gdata)
-        self._pool: Any = None  # made when first needed (~2-7 ms; the sphere layer
-        # decides most segments without it)
+        for k, on in enumerate(active.tolist()):
+            gdata.activeCollisionPairs[k] = on
+        return gdata
 
     def _batch_pool(self) -> Any:
         """The broad phase for batches of states (one C++ call), with the same pairs and
@@ -222,11 +255,7 @@ class CollisionChecker:
         if self._pool is None:
             pool = pin.BroadPhaseManagerPool_DynamicAABBTreeCollisionManager(
                 self.robot.model, self.geometry_model, 1)
-            pool_data = pool.getGeometryData(0)
-            for k in range(len(self._pairs)):
-                pool_data.collisionRequests[k].security_margin = \
-                    self._gdata.collisionRequests[k].security_margin
-                pool_data.collisionRequests[k].enable_contact = True
+            self._requests_into(pool.getGeometryData(0))
             self._pool = pool
         return self._pool
 
@@ -270,11 +299,14 @@ class CollisionChecker:
         return self._weights.copy()
 
     def _displacement_weights(self) -> np.ndarray:
-        model, gmodel = self.robot.model, self.geometry_model
+        model, gmodel = self.robot.model, self._gmodel
         nj = model.njoints
-        # Reach of each joint's own geometry about its origin.
-        reach = np.zeros(nj)
-        for g in gmodel.geometryObjects:
+        robot_geoms = self.robot.collision_model.geometryObjects
+        # Reach of each joint's own geometry about its origin: the robot's, made once per
+        # robot, then the rest (the held object; the environment is on no joint).
+        reach = self.robot.derived("checker reach", lambda: _own_reach(nj, robot_geoms)).copy()
+        for i in range(len(robot_geoms), gmodel.ngeoms):
+            g = gmodel.geometryObjects[i]
             if g.parentJoint == 0:
                 continue
             r = np.linalg.norm(g.placement.translation) + _bounding_radius(g.geometry)
@@ -567,6 +599,17 @@ def _bisection_order(n: int, check_ends: bool) -> list[int]:
         queue.append((lo, mid))
         queue.append((mid, hi))
     return out
+
+
+def _own_reach(nj: int, geoms: Any) -> np.ndarray:
+    """Per joint, the farthest its own geometry reaches from its origin [m]."""
+    reach = np.zeros(nj)
+    for g in geoms:
+        if g.parentJoint == 0:
+            continue
+        r = np.linalg.norm(g.placement.translation) + _bounding_radius(g.geometry)
+        reach[g.parentJoint] = max(reach[g.parentJoint], r)
+    return reach
 
 
 def _bounding_radius(geometry: Any) -> float:

@@ -297,3 +297,57 @@ def test_one_call_segments_report_as_the_polyline_walk(cell: Cell, panda_cell: C
                     np.testing.assert_array_equal(a.q, b.q)
                 outcomes.add("valid" if a.valid else "collides")
         assert outcomes == {"valid", "collides", "outside"}
+
+
+def _layer_of(robot: Robot, cell: Cell) -> tuple[np.ndarray, np.ndarray]:
+    layer = CollisionChecker(robot, cell.scene, held="vial").layer
+    assert layer is not None
+    return layer.F, layer.I
+
+
+def _afresh(robot: Robot, cell: Cell) -> tuple[np.ndarray, np.ndarray]:
+    robot._derived.clear()  # nothing kept: everything made from the shapes again
+    return _layer_of(robot, cell)
+
+
+def test_checkers_of_a_robot_share_its_part_and_see_it_change() -> None:
+    """What a checker builds from the robot's shapes alone is made once per robot and
+    shared read-only: a checker built with it packs the same buffers as one built
+    afresh. Moving a geometry, changing a limit or giving the robot a new collision model
+    makes it again."""
+    own = load_cell("scenes/quality_check_cell")  # its robot is changed below
+    robot = own.robot
+    first = CollisionChecker(robot, own.scene, held="vial")
+    second = CollisionChecker(robot, own.scene)
+    assert first.layer is not None and second.layer is not None
+    assert second.layer.fits[0] is first.layer.fits[0]
+    assert not first.layer.fits[0].outer_centers.flags.writeable
+    assert len(first.geometry_model.collisionPairs) == len(first.pairs)
+    F, I_ = _layer_of(robot, own)
+    fresh = _afresh(robot, own)
+    np.testing.assert_array_equal(fresh[0], F)
+    np.testing.assert_array_equal(fresh[1], I_)
+
+    def changed(what: str) -> None:
+        before = _layer_of(robot, own)
+        assert not np.array_equal(before[0], F), what
+        after = _afresh(robot, own)
+        np.testing.assert_array_equal(after[0], before[0], err_msg=what)
+        np.testing.assert_array_equal(after[1], before[1], err_msg=what)
+
+    geom = robot.collision_model.geometryObjects[3]
+    placement = geom.placement.copy()
+    geom.placement = pin.SE3(placement.rotation, placement.translation + [0.0, 0.0, 0.05])
+    assert np.allclose(robot.collision_model.geometryObjects[3].placement.translation,
+                       placement.translation + [0.0, 0.0, 0.05])
+    changed("a geometry moved in place")
+    robot.collision_model.geometryObjects[3].placement = placement
+    robot.upper = robot.upper - 0.1
+    changed("upper limits")
+    robot.upper = robot.upper + 0.1
+    import coal
+
+    bigger = robot.collision_model.copy()
+    bigger.geometryObjects[3].geometry = coal.Sphere(0.2)
+    robot.collision_model = bigger
+    changed("a new collision model")

@@ -10,7 +10,7 @@ import numpy as np
 
 from ..robot import Robot
 from ..scene import Scene
-from ._verify_bounds import ShapeSpec, joint_kind, shape_spec, unsupported_geometry
+from ._verify_bounds import ShapeSpec, joint_kind, motion_weights, shape_spec, unsupported_geometry
 
 __all__ = ["Body", "check_verifiable", "robot_bodies", "held_bodies", "environment_bodies"]
 
@@ -83,22 +83,44 @@ class Body:
     spec: ShapeSpec
 
 
-def _body(name: str, joint: int, T: np.ndarray, geometry: object, label: str = "") -> Body:
+def _body(name: str, joint: int, T: np.ndarray, geometry: object, label: str = "",
+          shape: object = None) -> Body:
     """A body named ``name`` (its link or object: the pairs' names); ``label`` names its
-    geometry in errors (default: ``name``)."""
+    geometry in errors (default: ``name``); ``shape``: its FCL shape, if made before."""
     import fcl
 
     T = np.asarray(T, dtype=float)
-    obj = fcl.CollisionObject(_fcl_shape(geometry, label or name),
-                              fcl.Transform(T[:3, :3], T[:3, 3]))
+    if shape is None:
+        shape = _fcl_shape(geometry, label or name)
+    obj = fcl.CollisionObject(shape, fcl.Transform(T[:3, :3], T[:3, 3]))
     return Body(name, joint, T, obj, shape_spec(geometry, label or name))
 
 
-def robot_bodies(robot: Robot) -> list[Body]:
-    """The robot's collision geometries, each on its joint."""
-    return [_body(robot.model.frames[g.parentFrame].name, int(g.parentJoint),
-                  g.placement.homogeneous, g.geometry, g.name)
-            for g in robot.collision_model.geometryObjects]
+def robot_bodies(robot: Robot) -> tuple[list[Body], np.ndarray]:
+    """The robot's collision geometries, each on its joint, and their motion weights
+    (:func:`motion_weights`: (bodies, dof), read-only).
+
+    The FCL shapes and layer shapes are made once per robot and shared (an FCL collision
+    object keeps a reference to its shape and never frees it); every verifier gets
+    collision objects of its own, as it places them.
+    """
+    import fcl
+
+    def make() -> tuple[list[Body], list[object], np.ndarray]:
+        geoms = list(robot.collision_model.geometryObjects)
+        shapes = [_fcl_shape(g.geometry, g.name) for g in geoms]
+        bodies = [_body(robot.model.frames[g.parentFrame].name, int(g.parentJoint),
+                        g.placement.homogeneous, g.geometry, g.name, shape)
+                  for g, shape in zip(geoms, shapes, strict=True)]
+        weights = motion_weights(robot.model, [b.joint for b in bodies],
+                                 [b.T for b in bodies], [b.spec for b in bodies])
+        weights.flags.writeable = False
+        return bodies, shapes, weights
+
+    bodies, shapes, weights = robot.derived("verifier bodies", make)
+    return [Body(b.name, b.joint, b.T, fcl.CollisionObject(
+        shape, fcl.Transform(b.T[:3, :3], b.T[:3, 3])), b.spec)
+        for b, shape in zip(bodies, shapes, strict=True)], weights
 
 
 def held_bodies(robot: Robot, scene: Scene | None, held: str | None) -> list[Body]:

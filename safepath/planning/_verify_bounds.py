@@ -26,7 +26,7 @@ if TYPE_CHECKING:
     import pinocchio as pin
 
 __all__ = ["Grid", "Layer", "PoseCache", "ShapeSpec", "WalkMemory", "bound_between",
-           "joint_kind", "motion_weights", "pair_weights", "shape_spec",
+           "joint_kind", "joint_tables", "motion_weights", "pair_weights", "shape_spec",
            "unsupported_geometry", "SUPPORTED"]
 
 _BOX, _SPHERE, _CYLINDER, _CAPSULE, _HULL = 0, 1, 2, 3, 4
@@ -246,6 +246,33 @@ def motion_weights(model: pin.Model, joints: list[int], T_joint_geom: list[np.nd
     return out
 
 
+def joint_tables(model: pin.Model) -> tuple[np.ndarray, ...]:
+    """The kinematic tables the walk reads: per joint its parent, placement in its
+    parent (3 x 4), kind, axis and q index; per velocity index its joint, and which
+    revolute joints lie upstream of it."""
+    nj = model.njoints
+    place = np.zeros((nj, 3, 4))
+    kind = np.zeros(nj, dtype=np.int64)
+    axis = np.zeros((nj, 3))
+    iq = np.zeros(nj, dtype=np.int64)
+    for j in range(1, nj):
+        place[j] = model.jointPlacements[j].homogeneous[:3]
+        kind[j], axis[j] = joint_kind(model, j)
+        iq[j] = model.joints[j].idx_q
+    joint_of = np.zeros(model.nv, dtype=np.int64)
+    upstream = np.zeros((model.nv, model.nv))
+    for j in range(1, nj):
+        v = model.joints[j].idx_v
+        joint_of[v] = j
+        k = model.parents[j]
+        while k > 0:
+            if kind[k] == _REVOLUTE:
+                upstream[v, model.joints[k].idx_v] = 1.0
+            k = model.parents[k]
+    return (np.array(model.parents, dtype=np.int64), place, kind, axis, iq, joint_of,
+            upstream)
+
+
 def pair_weights(model: pin.Model, joints: list[int], weights: np.ndarray,
                  pairs: list[tuple[int, int, bool]]) -> np.ndarray:
     """Per pair and joint, a bound on how much a unit of that joint's motion changes the
@@ -255,26 +282,21 @@ def pair_weights(model: pin.Model, joints: list[int], weights: np.ndarray,
     that moves both (a common ancestor) moves them as one rigid piece and leaves their
     distance alone; every other joint moves one of them relative to the other.
     """
-    chains: dict[int, set[int]] = {}
-
-    def movers_of(joint: int) -> set[int]:  # once per joint: pinocchio's accessors are slow
-        if joint not in chains:
-            out, j = set(), joint
-            while j > 0:
-                out.add(model.joints[j].idx_v)
-                j = model.parents[j]
-            chains[joint] = out
-        return chains[joint]
-
-    out = np.zeros((len(pairs), weights.shape[1]))
-    for p, (a, b, env) in enumerate(pairs):
-        if env:
-            out[p] = weights[a]
-            continue
-        common = sorted(movers_of(joints[a]) & movers_of(joints[b]))
-        out[p] = weights[a] + weights[b]
-        out[p, common] = 0.0
-    return out
+    carried = np.zeros((model.njoints, model.nv), dtype=np.bool_)  # joint -> its chain
+    for j in range(1, model.njoints):
+        carried[j] = carried[model.parents[j]]
+        carried[j, model.joints[j].idx_v] = True
+    a = np.array([p[0] for p in pairs], dtype=np.int64)
+    b = np.array([p[1] for p in pairs], dtype=np.int64)
+    env = np.array([p[2] for p in pairs], dtype=np.bool_)
+    body_joint = np.asarray(joints, dtype=np.int64).reshape(-1)
+    w = np.asarray(weights, dtype=float).reshape(len(body_joint), model.nv)
+    if not len(a):
+        return np.zeros((0, model.nv))
+    mover_b = np.where(env, 0, b)  # an environment index is no body's
+    other = np.where(env[:, None], 0.0, w[mover_b])
+    common = carried[body_joint[a]] & carried[body_joint[mover_b]] & ~env[:, None]
+    return np.where(common, 0.0, w[a] + other)
 
 
 @dataclass(frozen=True)
@@ -379,34 +401,18 @@ class Layer:
         pairs: (mover, mover or environment object, is environment) of each pair.
         weights: Motion weights of each pair (:func:`pair_weights`).
         clearance: Whether each pair counts for the clearance.
+        tables: :func:`joint_tables` of ``model``, if made before (they are read only).
     """
 
     def __init__(self, model: pin.Model, joints: list[int], T_joint_geom: list[np.ndarray],
                  movers: list[ShapeSpec], T_world_env: list[np.ndarray],
                  env: list[ShapeSpec], pairs: list[tuple[int, int, bool]],
-                 weights: np.ndarray, clearance: np.ndarray) -> None:
+                 weights: np.ndarray, clearance: np.ndarray,
+                 tables: tuple[np.ndarray, ...] | None = None) -> None:
         self._model = model
-        nj = model.njoints
-        place = np.zeros((nj, 3, 4))
-        kind = np.zeros(nj, dtype=np.int64)
-        axis = np.zeros((nj, 3))
-        iq = np.zeros(nj, dtype=np.int64)
-        for j in range(1, nj):
-            place[j] = model.jointPlacements[j].homogeneous[:3]
-            kind[j], axis[j] = joint_kind(model, j)
-            iq[j] = model.joints[j].idx_q
-        joint_of = np.zeros(model.nv, dtype=np.int64)
-        upstream = np.zeros((model.nv, model.nv))
-        for j in range(1, nj):
-            v = model.joints[j].idx_v
-            joint_of[v] = j
-            k = model.parents[j]
-            while k > 0:
-                if kind[k] == _REVOLUTE:
-                    upstream[v, model.joints[k].idx_v] = 1.0
-                k = model.parents[k]
-        self._kin = (np.array(model.parents, dtype=np.int64), place, kind, axis, iq,
-                     np.array(joints, dtype=np.int64),
+        parents, place, kind, axis, iq, joint_of, upstream = (
+            tables if tables is not None else joint_tables(model))
+        self._kin = (parents, place, kind, axis, iq, np.array(joints, dtype=np.int64),
                      np.array([np.asarray(T)[:3] for T in T_joint_geom]).reshape(-1, 3, 4),
                      joint_of)
         self._upstream = upstream

@@ -39,7 +39,15 @@ from ._verify_bodies import (
     held_bodies,
     robot_bodies,
 )
-from ._verify_bounds import Grid, Layer, PoseCache, WalkMemory, motion_weights, pair_weights
+from ._verify_bounds import (
+    Grid,
+    Layer,
+    PoseCache,
+    WalkMemory,
+    joint_tables,
+    motion_weights,
+    pair_weights,
+)
 
 __all__ = ["FclVerifier", "VerifyResult", "check_verifiable"]
 
@@ -101,7 +109,9 @@ class FclVerifier:
         self.robot = robot
         self.resolution = resolution
         self.enforce_margin = enforce_margin
-        self._movers = robot_bodies(robot) + held_bodies(robot, scene, held)
+        bodies, weights = robot_bodies(robot)
+        held_ones = held_bodies(robot, scene, held)
+        self._movers = bodies + held_ones
         self._env = environment_bodies(scene, held, resting)
         self._pairs = self._pair_list(robot, held, allowed)
         self._theta = self._thresholds(scene, margin, enforce_margin)
@@ -111,9 +121,9 @@ class FclVerifier:
         self._tracked = np.array([env and depth == 0.0 for _, _, env, depth in self._pairs],
                                  dtype=np.bool_).reshape(-1)
         self._clearance_pairs = np.flatnonzero(self._tracked)
-        self._weights = motion_weights(robot.model, [b.joint for b in self._movers],
-                                       [b.T for b in self._movers],
-                                       [b.spec for b in self._movers])
+        self._weights = np.vstack([weights, motion_weights(
+            robot.model, [b.joint for b in held_ones], [b.T for b in held_ones],
+            [b.spec for b in held_ones])])
         self._layer = self._conservative_layer()
 
     def _thresholds(self, scene: Scene | None, margin: float | None, enforce_margin: bool
@@ -136,7 +146,8 @@ class FclVerifier:
                      [b.spec for b in self._movers], [b.T for b in self._env],
                      [b.spec for b in self._env], pairs,
                      pair_weights(self.robot.model, joints, self._weights, pairs),
-                     self._tracked)
+                     self._tracked,
+                     self.robot.derived("verifier joints", lambda: joint_tables(self.robot.model)))
 
     def _pair_list(self, robot: Robot, held: str | None, allowed: Iterable[AllowedContact]
                    ) -> list[tuple[int, int, bool, float]]:
@@ -144,35 +155,34 @@ class FclVerifier:
         every pair to check: not on the same joint, not an allowed self pair, not the
         held object against the jaws, not allowed to touch at any depth."""
         contact_links = set(robot.tool.contact_links) if robot.tool else set()
-        depth: dict[Pair, float | None] = {}
-        for c in allowed:
-            a_side = sorted(contact_links) if c.between[0] == GRIPPER else [c.between[0]]
-            b_side = sorted(contact_links) if c.between[1] == GRIPPER else [c.between[1]]
-            for a, b in itertools.product(a_side, b_side):
-                key: Pair = (min(a, b), max(a, b))
-                old = depth.get(key, 0.0)
-                depth[key] = None if (old is None or c.max_depth is None) else max(old,
-                                                                                    c.max_depth)
+        depth = _allowed_depths(allowed, contact_links)
+        named = {n for key in depth for n in key}  # names in an allowed contact
         pairs: list[tuple[int, int, bool, float]] = []
-        movers = self._movers
-        for i, j in itertools.combinations(range(len(movers)), 2):
-            a, b = movers[i].name, movers[j].name
-            if a == b or movers[i].joint == movers[j].joint:
+        names = [b.name for b in self._movers]
+        joints = [b.joint for b in self._movers]
+        self_pairs = robot.allowed_self_pairs
+        for i, j in itertools.combinations(range(len(names)), 2):
+            a, b = names[i], names[j]
+            if a == b or joints[i] == joints[j]:
                 continue
-            is_held = held is not None and held in (a, b)
+            key = (a, b) if a < b else (b, a)
+            is_held = held is not None and held in key
             if is_held and (a in contact_links or b in contact_links):
                 continue
-            if not is_held and (min(a, b), max(a, b)) in robot.allowed_self_pairs:
+            if not is_held and key in self_pairs:
                 continue
-            d = depth.get((min(a, b), max(a, b)), 0.0)
+            d = depth.get(key, 0.0) if a in named and b in named else 0.0
             if d is not None:
                 pairs.append((i, j, False, d))
-        for i in range(len(movers)):
-            if movers[i].joint == 0:
+        env_names = [e.name for e in self._env]
+        for i, a in enumerate(names):
+            if joints[i] == 0:
                 continue
-            for j, env in enumerate(self._env):
-                a = movers[i].name
-                d = depth.get((min(a, env.name), max(a, env.name)), 0.0)
+            if a not in named:
+                pairs.extend((i, j, True, 0.0) for j in range(len(env_names)))
+                continue
+            for j, e in enumerate(env_names):
+                d = depth.get((a, e) if a <= e else (e, a), 0.0)
                 if d is not None:
                     pairs.append((i, j, True, d))
         return pairs
@@ -357,3 +367,18 @@ class _Run:
         again = self.walk(todo[v._theta[todo] < self.min_clear - tol], theta)
         for p, s in zip(*again[:2], strict=True):
             self._measure(int(p), int(s))
+
+
+def _allowed_depths(allowed: Iterable[AllowedContact], contact_links: set[str]
+                    ) -> dict[Pair, float | None]:
+    """Per pair of names (sorted), how deep it may touch [m] (None: at any depth)."""
+    depth: dict[Pair, float | None] = {}
+    for c in allowed:
+        a_side = sorted(contact_links) if c.between[0] == GRIPPER else [c.between[0]]
+        b_side = sorted(contact_links) if c.between[1] == GRIPPER else [c.between[1]]
+        for a, b in itertools.product(a_side, b_side):
+            key: Pair = (min(a, b), max(a, b))
+            old = depth.get(key, 0.0)
+            depth[key] = None if (old is None or c.max_depth is None) else max(old,
+                                                                                c.max_depth)
+    return depth

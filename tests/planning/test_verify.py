@@ -25,7 +25,8 @@ from scipy.spatial import ConvexHull
 from safepath import CheckOptions, ConfigError, VerificationError, plan_cell
 from safepath.cell import Cell
 from safepath.planning import FclVerifier, VerifyResult, initial_world
-from safepath.planning._verify_bounds import bound_between, shape_spec
+from safepath.planning._verify_bodies import robot_bodies
+from safepath.planning._verify_bounds import bound_between, pair_weights, shape_spec
 from safepath.planning.timing import TimedPiece, spline_path, time_path
 from safepath.planning.verify import _fcl_shape, check_verifiable
 from safepath.robot import Robot
@@ -584,3 +585,45 @@ def test_unsupported_geometry_is_refused_before_planning_naming_it(
     with pytest.raises(ConfigError, match="forearm_link_0"):
         plan_cell(cell)
     assert time.perf_counter() - t0 < 1.0  # refused up front, nothing planned
+
+
+def test_pair_weights_leave_out_exactly_the_joints_that_carry_both_bodies(
+        bundled_cell: Cell) -> None:
+    """Per pair and joint: a body against the environment moves by its own weight; two
+    bodies by the sum of theirs, except for a joint upstream of both (pinocchio's
+    ``supports``), which moves them as one piece."""
+    robot = bundled_cell.robot
+    verifier = _verifier(bundled_cell)
+    model, movers = robot.model, verifier._movers
+    weights = verifier._weights
+    pairs = [(i, j, env) for i, j, env, _ in verifier._pairs]
+    got = pair_weights(model, [b.joint for b in movers], weights, pairs)
+    assert got.shape == (len(pairs), model.nv)
+    carriers = [{model.joints[j].idx_v for j in model.supports[b.joint] if j > 0}
+                for b in movers]
+    assert any(not env and carriers[i] & carriers[j] for i, j, env in pairs)
+    for p, (i, j, env) in enumerate(pairs):
+        for v in range(model.nv):
+            want = (weights[i, v] if env else
+                    0.0 if v in carriers[i] & carriers[j] else weights[i, v] + weights[j, v])
+            assert got[p, v] == want, (p, v)
+
+
+def test_verifiers_of_a_robot_share_its_bodies_and_see_them_change(detour_cell: Cell) -> None:
+    """A robot's FCL shapes and motion weights are made once and shared; every verifier
+    places collision objects of its own; moving a geometry makes them again."""
+    robot = copy.copy(detour_cell.robot)
+    robot.collision_model = detour_cell.robot.collision_model.copy()
+    robot._derived = {}
+    (a, wa), (b, wb) = robot_bodies(robot), robot_bodies(robot)
+    assert wa is wb and not wa.flags.writeable
+    assert all(x.fcl is not y.fcl for x, y in zip(a, b, strict=True))
+    geom = robot.collision_model.geometryObjects[2]
+    geom.placement = pin.SE3(geom.placement.rotation, geom.placement.translation + 0.05)
+    c, wc = robot_bodies(robot)
+    assert not np.array_equal(wc, wa)
+    assert not np.array_equal(c[2].T, a[2].T)
+    robot._derived = {}
+    d, wd = robot_bodies(robot)
+    np.testing.assert_array_equal(wd, wc)
+    np.testing.assert_array_equal(d[2].T, c[2].T)

@@ -1,0 +1,289 @@
+"""The flat buffers the sphere layer's kernels read (layout in :mod:`safepath._fastkernels`),
+built from a collision checker.
+
+What depends on the robot alone (its joints, and each of its shapes: sphere fit, hull
+tables, reach per joint, the joints that carry it) is made once per robot and options and
+shared, read-only, by every checker of that robot: a planner builds a checker per world
+state and allowed-contact set (a dozen for a cell, one per problem for a benchmark), and
+they differ only in the held object, the scene and the pairs.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+import pinocchio as pin
+
+from .robot import Robot, is_prismatic
+from .spheres import SphereFit, fit_spheres
+
+if TYPE_CHECKING:
+    from .collision import CollisionChecker
+    from .fastcheck import LayerOptions
+
+__all__ = ["pack"]
+
+
+@dataclass(frozen=True)
+class _Mover:
+    """What the layer needs of one moving shape (a robot geometry or the held object)."""
+
+    fit: SphereFit  # in the frame of its joint
+    row: np.ndarray  # its row of G: bounding sphere, placement, primitive dimensions
+    joint: int
+    kind: int
+    spheres: np.ndarray  # outer rows, then inner rows: (x, y, z, r) in the joint frame
+    n_outer: int
+    hull: np.ndarray  # vertices (shape frame), or (0, 3)
+    degree: np.ndarray  # neighbours per hull vertex
+    neighbours: np.ndarray  # hull vertex rows, relative to this hull
+    weights: np.ndarray  # (nv,): how far its points lie from each joint's axis [m]
+    chain: np.ndarray  # (nv,) bool: the velocity indices of the joints that carry it
+
+
+@dataclass(frozen=True)
+class _RobotPart:
+    J: np.ndarray  # noqa: N815
+    Ji: np.ndarray  # noqa: N815
+    movers: list[_Mover]
+
+
+def _robot_part(robot: Robot, options: LayerOptions) -> _RobotPart:
+    """The robot's joints and shapes, made by the first checker of the robot."""
+
+    def make() -> _RobotPart:
+        model, geoms = robot.model, robot.collision_model.geometryObjects
+        J, Ji = _joints(model)
+        return _RobotPart(J, Ji, [_mover(model, g, options, robot.lower, robot.upper)
+                                  for g in geoms])
+
+    return robot.derived(("sphere layer", options), make)
+
+
+def _joints(model: pin.Model) -> tuple[np.ndarray, np.ndarray]:
+    """Per joint: placement (9 + 3) and axis (3); parent, kind and q index."""
+    from . import _fastkernels as K  # noqa: N812  (constants only; compiles nothing)
+
+    nj = model.njoints
+    data = model.createData()
+    pin.forwardKinematics(model, data, pin.neutral(model))
+    J = np.zeros((nj, 15))
+    Ji = np.zeros((nj, 3), dtype=np.int64)
+    for j in range(1, nj):
+        M = model.jointPlacements[j]
+        J[j, :9] = np.asarray(M.rotation).ravel()
+        J[j, 9:12] = M.translation
+        S = np.asarray(data.joints[j].S).ravel()
+        angular = np.linalg.norm(S[3:]) > 0.5
+        J[j, 12:15] = S[3:] if angular else S[:3]
+        Ji[j] = (model.parents[j], K.JOINT_REVOLUTE if angular else K.JOINT_PRISMATIC,
+                 model.joints[j].idx_q)
+    return J, Ji
+
+
+def _mover(model: pin.Model, geom: Any, options: LayerOptions, lower: np.ndarray,
+           upper: np.ndarray) -> _Mover:
+    """One moving shape's part of the buffers."""
+    import coal
+
+    from . import _fastkernels as K  # noqa: N812
+    from ._gjk import hull_tables
+
+    T = geom.placement.homogeneous
+    fit = fit_spheres(geom.geometry, cell=options.cell).transformed(T)
+    for array in (fit.outer_centers, fit.outer_radii, fit.inner_centers, fit.inner_radii):
+        array.flags.writeable = False  # shared by every checker of the robot
+    c, r = fit.bounding
+    kind, dims = _primitive(geom.geometry)
+    hull = np.zeros((0, 3))
+    degree = neighbours = np.zeros(0, dtype=np.int64)
+    if kind == K.SPHERES_ONLY and isinstance(geom.geometry, coal.ConvexBase):
+        hull, ptr, neighbours = hull_tables(np.asarray(geom.geometry.points()))
+        degree = np.diff(ptr)
+        kind = K.HULL
+    row = np.array([*c, r, *T[:3, :3].ravel(), *T[:3, 3], *dims], dtype=float)
+    outer = np.column_stack([fit.outer_centers, fit.outer_radii])
+    inner = np.column_stack([fit.inner_centers, fit.inner_radii])
+    joint = int(geom.parentJoint)
+    chain = np.zeros(model.nv, dtype=bool)
+    j = joint
+    while j > 0:
+        chain[model.joints[j].idx_v] = True
+        j = model.parents[j]
+    return _Mover(fit, row, joint, kind, np.vstack([outer, inner]), len(outer), hull, degree,
+                  neighbours, _weights(model, c, r, joint, lower, upper), chain)
+
+
+def pack(checker: CollisionChecker, options: LayerOptions
+         ) -> tuple[np.ndarray, np.ndarray, list[SphereFit]]:
+    """The flat buffers the kernels read, and the movers' sphere fits."""
+    from . import _fastkernels as K  # noqa: N812
+
+    robot = checker.robot
+    model, gmodel = robot.model, checker._gmodel
+    n_robot = robot.collision_model.ngeoms
+    part = _robot_part(robot, options)
+    env_set = set(checker._env)
+    movers_idx = [i for i in range(gmodel.ngeoms) if i not in env_set]
+    movers = [part.movers[g] if g < n_robot else
+              _mover(model, gmodel.geometryObjects[g], options, robot.lower, robot.upper)
+              for g in movers_idx]
+    G, Gi, S_, V, AP, AI = _mover_blocks(movers)
+    E, Ei, ER = _environment(checker)
+    P, Pi = _pairs(checker, movers_idx)
+    W = np.array([m.weights for m in movers]).reshape(len(movers), model.nv)
+    chains = np.array([m.chain for m in movers]).reshape(len(movers), model.nv)
+    PM = _pair_masks(chains, Pi)
+    L = np.concatenate([robot.lower, robot.upper])
+    C = np.array([options.refine, options.free_eps, options.proof_eps,
+                  checker.options.resolution])
+    blocks_f = [part.J.ravel(), G.ravel(), S_.ravel(), E.ravel(), P, W.ravel(), L, C,
+                V.ravel(), ER, checker.displacement_weights]
+    blocks_i = [part.Ji.ravel(), Gi.ravel(), Ei, Pi.ravel(), PM.ravel(), AP, AI]
+    f_off = np.cumsum([0] + [len(b) for b in blocks_f])
+    i_off = K.HEADER + np.cumsum([0] + [len(b) for b in blocks_i])
+    header = np.zeros(K.HEADER, dtype=np.int64)
+    header[[K.H_NJ, K.H_NG, K.H_NS, K.H_NE, K.H_NP, K.H_DOF]] = (
+        model.njoints, len(movers), len(S_), len(checker._env), len(checker._pairs), model.nq)
+    header[[K.H_J, K.H_G, K.H_S, K.H_E, K.H_P, K.H_W, K.H_L, K.H_C, K.H_V, K.H_ER,
+            K.H_DW]] = f_off[:11]
+    header[[K.H_JI, K.H_GI, K.H_EI, K.H_PI, K.H_PM, K.H_AP, K.H_AI]] = i_off[:7]
+    F = np.concatenate(blocks_f).astype(np.float64)
+    I_ = np.concatenate([header, *blocks_i]).astype(np.int64)
+    return F, I_, [m.fit for m in movers]
+
+
+def _mover_blocks(movers: list[_Mover]) -> tuple[np.ndarray, ...]:
+    """G, Gi, the spheres, the hull vertices and the hulls' neighbour tables."""
+    from . import _fastkernels as K  # noqa: N812
+
+    G = np.zeros((len(movers), K.GW))
+    Gi = np.zeros((len(movers), K.GIW), dtype=np.int64)
+    count = n_vertices = 0
+    for m, mover in enumerate(movers):
+        G[m] = mover.row
+        n_spheres, n_hull = len(mover.spheres), len(mover.hull)
+        Gi[m] = (mover.joint, count, count + mover.n_outer, count + mover.n_outer,
+                 count + n_spheres, mover.kind, n_vertices, n_vertices + n_hull)
+        count += n_spheres
+        n_vertices += n_hull
+    S_ = (np.vstack([m.spheres for m in movers]) if movers else np.zeros((0, 4)))
+    V = np.vstack([m.hull for m in movers]) if movers else np.zeros((0, 3))
+    # Hull edges: one neighbour list per vertex row of V, in V's rows.
+    degree = np.concatenate([np.zeros(1, dtype=np.int64)]
+                            + [m.degree for m in movers]).astype(np.int64)
+    AP = np.cumsum(degree)
+    starts = np.cumsum([0] + [len(m.hull) for m in movers])
+    AI = np.concatenate([np.zeros(0, dtype=np.int64)]
+                        + [m.neighbours + s for m, s in zip(movers, starts, strict=False)]
+                        ).astype(np.int64)
+    return G, Gi, S_, V, AP, AI
+
+
+def _environment(checker: CollisionChecker) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """World placement, dimensions and kind of each environment object, and the radius
+    of a sphere about its centre that holds it."""
+    from . import _fastkernels as K  # noqa: N812
+
+    gmodel = checker._gmodel
+    E = np.zeros((len(checker._env), 15))
+    Ei = np.zeros(len(checker._env), dtype=np.int64)
+    ER = np.zeros(len(checker._env))
+    for e, g in enumerate(checker._env):
+        geom = gmodel.geometryObjects[g]
+        shape = geom.geometry
+        T = geom.placement.homogeneous.copy()
+        kind, dims = _primitive(shape)
+        if kind == K.SPHERES_ONLY:  # any other shape: its local bounding box (no proofs)
+            shape.computeLocalAABB()
+            lo, hi = np.asarray(shape.aabb_local.min_), np.asarray(shape.aabb_local.max_)
+            kind, dims = K.ENV_BOX_ONLY_OUTER, (hi - lo) / 2
+            T[:3, 3] = T[:3, :3] @ ((hi + lo) / 2) + T[:3, 3]
+        E[e, :9] = T[:3, :3].ravel()
+        E[e, 9:12] = T[:3, 3]
+        E[e, 12:15] = dims
+        Ei[e] = kind
+        ER[e] = _holding_radius(kind, dims)
+    return E, Ei, ER
+
+
+def _pairs(checker: CollisionChecker, movers_idx: list[int]) -> tuple[np.ndarray, np.ndarray]:
+    """Per pair: its security margin, and (mover, mover or environment object, is
+    environment, margin >= 0), as the exact checker's pairs."""
+    n = checker._gmodel.ngeoms
+    env_pos = np.full(n, -1, dtype=np.int64)
+    env_pos[checker._env] = np.arange(len(checker._env))
+    mover_pos = np.full(n, -1, dtype=np.int64)
+    mover_pos[movers_idx] = np.arange(len(movers_idx))
+    ab = np.array(checker._pairs, dtype=np.int64).reshape(-1, 2)
+    a, b = ab[:, 0], ab[:, 1]
+    b_env, a_env = env_pos[b] >= 0, env_pos[a] >= 0
+    P = checker._security.astype(float)
+    Pi = np.zeros((len(ab), 4), dtype=np.int64)
+    Pi[:, 0] = np.where(a_env, mover_pos[b], mover_pos[a])
+    Pi[:, 1] = np.where(b_env, env_pos[b], np.where(a_env, env_pos[a], mover_pos[b]))
+    Pi[:, 2] = a_env | b_env
+    Pi[:, 3] = P >= 0
+    return P, Pi
+
+
+def _holding_radius(kind: int, dims: np.ndarray) -> float:
+    """Radius [m] of a sphere about a primitive's centre that holds it."""
+    from . import _fastkernels as K  # noqa: N812
+
+    if kind in (K.ENV_BOX, K.ENV_BOX_ONLY_OUTER):
+        return float(np.linalg.norm(dims))
+    if kind == K.ENV_CYLINDER:
+        return float(np.hypot(dims[0], dims[1]))
+    if kind == K.ENV_CAPSULE:
+        return float(dims[0] + dims[1])
+    return float(dims[0])  # sphere
+
+
+def _primitive(shape: Any) -> tuple[int, np.ndarray]:
+    """Kind code and dimensions [m] of a primitive the kernels measure exactly."""
+    import coal
+
+    from . import _fastkernels as K  # noqa: N812
+
+    if isinstance(shape, coal.Box):
+        return K.ENV_BOX, np.asarray(shape.halfSide, dtype=float)
+    if isinstance(shape, coal.Cylinder):
+        return K.ENV_CYLINDER, np.array([shape.radius, shape.halfLength, 0.0])
+    if isinstance(shape, coal.Sphere):
+        return K.ENV_SPHERE, np.array([shape.radius, 0.0, 0.0])
+    if isinstance(shape, coal.Capsule):
+        return K.ENV_CAPSULE, np.array([shape.radius, shape.halfLength, 0.0])
+    return K.SPHERES_ONLY, np.zeros(3)
+
+
+def _pair_masks(chains: np.ndarray, Pi: np.ndarray) -> np.ndarray:  # noqa: N803
+    """Per pair and velocity index: bit 1 if the joint moves body a relative to body b
+    (or the world), bit 2 if it moves b relative to a; 0 for joints that carry both
+    (they move the pair as one rigid piece) and joints that carry neither."""
+    ca = chains[Pi[:, 0]]
+    is_env = Pi[:, 2].astype(bool)
+    cb = chains[np.where(is_env, 0, Pi[:, 1])] & ~is_env[:, None]
+    return ((ca & ~cb).astype(np.int64) | ((cb & ~ca).astype(np.int64) << 1)).reshape(
+        len(Pi), chains.shape[1])
+
+
+def _weights(model: pin.Model, centre: np.ndarray, radius: float, joint: int,
+             lower: np.ndarray, upper: np.ndarray) -> np.ndarray:
+    """Per joint, how far [m] a mover's points can lie from the joint's axis (1 for a
+    prismatic joint; 0 for joints that do not move it): a point moves at most
+    Σ_j w_j |Δq_j| along a straight joint segment."""
+    w = np.zeros(model.nv)
+    reach = float(np.linalg.norm(centre)) + float(radius)
+    j = joint
+    while j > 0:
+        prismatic = is_prismatic(model, j)
+        iv = model.joints[j].idx_v
+        w[iv] = 1.0 if prismatic else reach
+        reach += float(np.linalg.norm(model.jointPlacements[j].translation))
+        if prismatic:  # the slide moves the points away from the joints above it
+            reach += max(abs(float(lower[iv])), abs(float(upper[iv])))
+        j = model.parents[j]
+    return w
