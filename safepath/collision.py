@@ -82,8 +82,8 @@ class CollisionChecker:
         gmodel = self.robot.collision_model.copy()
         gmodel.removeAllCollisionPairs()  # loaders may have added their own
         n_robot = gmodel.ngeoms
-        self._names: list[str] = list(self.robot.derived(
-            "geometry links", lambda: tuple(map(self.robot.geometry_link, range(n_robot)))))
+        links, self._own_reach = self.robot.derived("checker", self._robot_part)
+        self._names: list[str] = list(links)
         self._env = self._add_environment(gmodel)
         held_idx = self._add_held(gmodel)
         self._gmodel = gmodel  # coal's pairs are added on the first exact query
@@ -99,6 +99,19 @@ class CollisionChecker:
         self._layer: SphereLayer | None = None
         self._layer_built = False
         self._classify: Any = None
+
+    def _robot_part(self) -> tuple[tuple[str, ...], np.ndarray]:
+        """What every checker of the robot takes from it: the link of each geometry, and
+        per joint how far its own geometry reaches from its origin [m]."""
+        robot = self.robot
+        geoms = robot.collision_model.geometryObjects
+        reach = np.zeros(robot.model.njoints)
+        for g in geoms:
+            if g.parentJoint == 0:
+                continue
+            r = np.linalg.norm(g.placement.translation) + _bounding_radius(g.geometry)
+            reach[g.parentJoint] = max(reach[g.parentJoint], r)
+        return tuple(map(robot.geometry_link, range(len(geoms)))), reach
 
     def _add_environment(self, gmodel: pin.GeometryModel) -> list[int]:
         """Add the scene's objects (movable ones where they rest, the held one left out);
@@ -301,11 +314,10 @@ class CollisionChecker:
     def _displacement_weights(self) -> np.ndarray:
         model, gmodel = self.robot.model, self._gmodel
         nj = model.njoints
-        robot_geoms = self.robot.collision_model.geometryObjects
         # Reach of each joint's own geometry about its origin: the robot's, made once per
         # robot, then the rest (the held object; the environment is on no joint).
-        reach = self.robot.derived("checker reach", lambda: _own_reach(nj, robot_geoms)).copy()
-        for i in range(len(robot_geoms), gmodel.ngeoms):
+        reach = self._own_reach.copy()
+        for i in range(self.robot.collision_model.ngeoms, gmodel.ngeoms):
             g = gmodel.geometryObjects[i]
             if g.parentJoint == 0:
                 continue
@@ -576,12 +588,22 @@ class CollisionChecker:
         """Collision-check ``states`` (rows, inside the limits) in one C++ batch call,
         in the given order, stopping at the first collision (later states are then not
         evaluated); ``fractions`` says where each state lies, for the report."""
+        if len(states) <= _FEW:  # the sphere layer leaves a few: not worth a batch pool
+            for k, q in enumerate(states):
+                if self.exact_collides(q):
+                    return self._failure(q, float(fractions[k]), k + 1, details)
+            return SegmentReport(True, len(states))
         hits = np.asarray(pin.computeCollisionsInParallel(
             1, self._batch_pool(), np.asfortranarray(states.T), True, True), dtype=bool)
         if not hits.any():
             return SegmentReport(True, len(states))
         first = int(np.argmax(hits))
         return self._failure(states[first], float(fractions[first]), first + 1, details)
+
+
+#: Up to this many states are checked one by one (coal's broad phase, ~12 µs each for the
+#: Ned3 Pro in its cell) rather than in a batch, whose pool costs ~1-5 ms to make.
+_FEW = 32
 
 
 def _bisection_order(n: int, check_ends: bool) -> list[int]:
@@ -599,17 +621,6 @@ def _bisection_order(n: int, check_ends: bool) -> list[int]:
         queue.append((lo, mid))
         queue.append((mid, hi))
     return out
-
-
-def _own_reach(nj: int, geoms: Any) -> np.ndarray:
-    """Per joint, the farthest its own geometry reaches from its origin [m]."""
-    reach = np.zeros(nj)
-    for g in geoms:
-        if g.parentJoint == 0:
-            continue
-        r = np.linalg.norm(g.placement.translation) + _bounding_radius(g.geometry)
-        reach[g.parentJoint] = max(reach[g.parentJoint], r)
-    return reach
 
 
 def _bounding_radius(geometry: Any) -> float:

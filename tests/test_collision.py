@@ -434,3 +434,28 @@ def test_check_path_checks_the_last_waypoint(cell: Cell, robot: Robot) -> None:
     assert not checker.check_segment(q_b, q_c).valid
     assert not checker.check_path([q_b, q_c]).valid
     assert not checker.check_path([q_a, q_b, q_c]).valid
+
+
+@pytest.mark.parametrize("held", [False, True])
+def test_a_few_states_are_judged_one_by_one_as_a_batch_judges_them(
+        cell: Cell, robot: Robot, held: bool, monkeypatch: pytest.MonkeyPatch) -> None:
+    """States the sphere layer leaves to coal: a few go through the broad phase one by
+    one, more through a batch pool. Both give the same first collision, where it lies
+    and its pairs, and the same count of states checked."""
+    from safepath import collision
+
+    checker = cell.checker(held=held)
+    states = _random_states(robot, 24, seed=9)
+    colliding = [checker.exact_collides(q) for q in states]
+    assert any(colliding) and not all(colliding)
+    fractions = np.linspace(0.0, 1.0, len(states))
+    for start in range(0, len(states), 3):
+        batch = states[start:start + collision._FEW]
+        few = checker._check_states(batch, fractions[start:start + len(batch)], True)
+        with monkeypatch.context() as patch:
+            patch.setattr(collision, "_FEW", 0)
+            pooled = checker._check_states(batch, fractions[start:start + len(batch)], True)
+        assert (few.valid, few.checked, few.fraction, few.collisions) == (
+            pooled.valid, pooled.checked, pooled.fraction, pooled.collisions)
+        first = next((k for k, hit in enumerate(colliding[start:]) if hit), None)
+        assert few.checked == (len(batch) if first is None else first + 1)

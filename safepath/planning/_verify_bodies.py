@@ -10,7 +10,14 @@ import numpy as np
 
 from ..robot import Robot
 from ..scene import Scene
-from ._verify_bounds import ShapeSpec, joint_kind, motion_weights, shape_spec, unsupported_geometry
+from ._verify_bounds import (
+    ShapeSpec,
+    joint_kind,
+    joint_tables,
+    motion_weights,
+    shape_spec,
+    unsupported_geometry,
+)
 
 __all__ = ["Body", "check_verifiable", "robot_bodies", "held_bodies", "environment_bodies"]
 
@@ -96,9 +103,10 @@ def _body(name: str, joint: int, T: np.ndarray, geometry: object, label: str = "
     return Body(name, joint, T, obj, shape_spec(geometry, label or name))
 
 
-def robot_bodies(robot: Robot) -> tuple[list[Body], np.ndarray]:
-    """The robot's collision geometries, each on its joint, and their motion weights
-    (:func:`motion_weights`: (bodies, dof), read-only).
+def robot_bodies(robot: Robot) -> tuple[list[Body], np.ndarray, tuple[np.ndarray, ...]]:
+    """The robot's collision geometries, each on its joint, their motion weights
+    (:func:`motion_weights`: (bodies, dof), read-only) and the robot's
+    :func:`joint_tables`.
 
     The FCL shapes and layer shapes are made once per robot and shared (an FCL collision
     object keeps a reference to its shape and never frees it); every verifier gets
@@ -106,7 +114,7 @@ def robot_bodies(robot: Robot) -> tuple[list[Body], np.ndarray]:
     """
     import fcl
 
-    def make() -> tuple[list[Body], list[object], np.ndarray]:
+    def make() -> tuple[list[Body], list[object], np.ndarray, tuple[np.ndarray, ...]]:
         geoms = list(robot.collision_model.geometryObjects)
         shapes = [_fcl_shape(g.geometry, g.name) for g in geoms]
         bodies = [_body(robot.model.frames[g.parentFrame].name, int(g.parentJoint),
@@ -115,12 +123,12 @@ def robot_bodies(robot: Robot) -> tuple[list[Body], np.ndarray]:
         weights = motion_weights(robot.model, [b.joint for b in bodies],
                                  [b.T for b in bodies], [b.spec for b in bodies])
         weights.flags.writeable = False
-        return bodies, shapes, weights
+        return bodies, shapes, weights, joint_tables(robot.model)
 
-    bodies, shapes, weights = robot.derived("verifier bodies", make)
+    bodies, shapes, weights, tables = robot.derived("verifier", make)
     return [Body(b.name, b.joint, b.T, fcl.CollisionObject(
         shape, fcl.Transform(b.T[:3, :3], b.T[:3, 3])), b.spec)
-        for b, shape in zip(bodies, shapes, strict=True)], weights
+        for b, shape in zip(bodies, shapes, strict=True)], weights, tables
 
 
 def held_bodies(robot: Robot, scene: Scene | None, held: str | None) -> list[Body]:

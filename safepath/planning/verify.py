@@ -44,7 +44,6 @@ from ._verify_bounds import (
     Layer,
     PoseCache,
     WalkMemory,
-    joint_tables,
     motion_weights,
     pair_weights,
 )
@@ -109,7 +108,7 @@ class FclVerifier:
         self.robot = robot
         self.resolution = resolution
         self.enforce_margin = enforce_margin
-        bodies, weights = robot_bodies(robot)
+        bodies, weights, self._joint_tables = robot_bodies(robot)
         held_ones = held_bodies(robot, scene, held)
         self._movers = bodies + held_ones
         self._env = environment_bodies(scene, held, resting)
@@ -147,7 +146,7 @@ class FclVerifier:
                      [b.spec for b in self._env], pairs,
                      pair_weights(self.robot.model, joints, self._weights, pairs),
                      self._tracked,
-                     self.robot.derived("verifier joints", lambda: joint_tables(self.robot.model)))
+                     self._joint_tables)
 
     def _pair_list(self, robot: Robot, held: str | None, allowed: Iterable[AllowedContact]
                    ) -> list[tuple[int, int, bool, float]]:

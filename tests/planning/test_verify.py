@@ -615,15 +615,15 @@ def test_verifiers_of_a_robot_share_its_bodies_and_see_them_change(detour_cell: 
     robot = copy.copy(detour_cell.robot)
     robot.collision_model = detour_cell.robot.collision_model.copy()
     robot._derived = {}
-    (a, wa), (b, wb) = robot_bodies(robot), robot_bodies(robot)
+    (a, wa, _), (b, wb, _) = robot_bodies(robot), robot_bodies(robot)
     assert wa is wb and not wa.flags.writeable
     assert all(x.fcl is not y.fcl for x, y in zip(a, b, strict=True))
     geom = robot.collision_model.geometryObjects[2]
     geom.placement = pin.SE3(geom.placement.rotation, geom.placement.translation + 0.05)
-    c, wc = robot_bodies(robot)
+    c, wc, _ = robot_bodies(robot)
     assert not np.array_equal(wc, wa)
     assert not np.array_equal(c[2].T, a[2].T)
     robot._derived = {}
-    d, wd = robot_bodies(robot)
+    d, wd, _ = robot_bodies(robot)
     np.testing.assert_array_equal(wd, wc)
     np.testing.assert_array_equal(d[2].T, c[2].T)
