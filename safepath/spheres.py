@@ -25,6 +25,8 @@ from typing import Any
 
 import numpy as np
 
+from ._digest import blake2b
+
 __all__ = ["SphereFit", "fit_spheres", "surface_points"]
 
 #: Radii are grown (outer) or shrunk (inner) by this much [m]: floating-point slack.
@@ -102,8 +104,6 @@ def fit_spheres(geometry: Any, *, cell: float = 0.015) -> SphereFit:
 def _fit_key(geometry: Any, cell: float) -> tuple[Any, ...]:
     """What a fit is made from: the shape's kind and dimensions (a digest of a hull's or
     mesh's points), and the cell."""
-    import hashlib
-
     import coal
 
     if isinstance(geometry, coal.Sphere):
@@ -115,7 +115,7 @@ def _fit_key(geometry: Any, cell: float) -> tuple[Any, ...]:
     elif isinstance(geometry, (coal.ConvexBase, coal.BVHModelBase)):
         points = np.ascontiguousarray(geometry.points() if isinstance(geometry, coal.ConvexBase)
                                       else geometry.vertices(), dtype=float)
-        dims = (points.shape, hashlib.blake2b(points.tobytes(), digest_size=16).digest())
+        dims = (points.shape, blake2b(points.tobytes()))
     else:
         dims = (id(geometry),)  # refused by _fit_shape
     return (type(geometry).__name__, *dims, float(cell))

@@ -386,3 +386,39 @@ def test_the_cache_keeps_the_latest_builds(tmp_path: Path) -> None:
     assert sorted(gone) == sorted([folders[1], folders[2], crashed])
     assert sorted(p.name for p in tmp_path.iterdir()) == [
         ".build-y", "build0", "build3", "build4", "not-a-build"]
+
+
+def test_guards_compiled_code_is_kept_next_to_the_build_and_a_bad_file_is_replaced(
+        built: Build, tmp_path: Path, monkeypatch: pytest.MonkeyPatch,
+        caplog: pytest.LogCaptureFixture) -> None:
+    """A new process finds the guards compiled (no compile call); a damaged file is
+    ignored with a warning, the guards compiled again and the file made whole."""
+    module, _ = _aot._load(built.path)
+    assert module is not None
+    monkeypatch.setattr(guard, "_codes", {})
+    monkeypatch.setattr(guard, "_code_file", [])
+    guard.keep_code_in(tmp_path)
+    names = sorted(ENTRIES)[:3]
+    first = [guard.wrap(n, ENTRIES[n], getattr(module, n), _aot._fallback) for n in names]
+    kept = tmp_path / f"guards.{sys.implementation.cache_tag}.marshal"
+    assert kept.is_file() and not list(tmp_path.glob("*.part"))
+
+    def compiled_in_a_new_process() -> int:
+        guard._codes.clear()
+        guard.keep_code_in(tmp_path)
+        calls = []
+        real = compile
+        monkeypatch.setattr(guard, "compile", lambda *a: calls.append(a) or real(*a),
+                            raising=False)
+        again = [guard.wrap(n, ENTRIES[n], getattr(module, n), _aot._fallback)
+                 for n in names]
+        monkeypatch.delattr(guard, "compile")
+        assert [f.__code__.co_code for f in again] == [f.__code__.co_code for f in first]
+        return len(calls)
+
+    assert compiled_in_a_new_process() == 0
+    kept.write_bytes(b"\x00damaged")
+    with caplog.at_level(logging.WARNING, logger="safepath._aot"):
+        assert compiled_in_a_new_process() == len(names)
+    assert "ignored" in caplog.text
+    assert compiled_in_a_new_process() == 0

@@ -25,7 +25,7 @@ Environment:
 
 from __future__ import annotations
 
-import hashlib
+import importlib
 import importlib.util
 import json
 import logging
@@ -38,6 +38,7 @@ from pathlib import Path
 from types import ModuleType
 from typing import Any
 
+from .._digest import sha256
 from .table import ENTRIES, MODULES
 
 __all__ = ["njit", "compiled", "status", "source_key", "build_dir", "cache_root",
@@ -105,7 +106,7 @@ def source_key(root: Path = PACKAGE) -> str:
     Hashes the kernel modules' and this package's own sources, the Python ABI, the
     numba and llvmlite versions, the machine and the CPU.
     """
-    h = hashlib.sha256()
+    h = sha256()
     files = [_module_path(m, root) for m in sorted(MODULES)]
     files += [root / "_aot" / name for name in _OWN]
     for path in files:
@@ -172,6 +173,10 @@ def compiled() -> ModuleType | None:
             path, reason = find()
             if path is not None:
                 module, reason = _load(path)
+                if module is not None:
+                    from .guard import keep_code_in
+
+                    keep_code_in(path.parent)
         if module is None and _enabled():
             level = logging.INFO if reason.startswith("no build") else logging.WARNING
             log.log(level, "kernels compiled by numba on first use: %s", reason)

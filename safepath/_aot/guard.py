@@ -11,8 +11,13 @@ and otherwise hands the call to the numba-compiled kernel (or raises, in strict 
 from __future__ import annotations
 
 import logging
+import marshal
+import os
 import re
+import sys
 from collections.abc import Callable
+from pathlib import Path
+from types import CodeType
 from typing import Any
 
 import numpy as np
@@ -89,9 +94,52 @@ def wrap(name: str, entry: Entry, compiled: Callable[..., Any],
     scope: dict[str, Any] = {"_nd": np.ndarray, "_compiled": compiled, "_fallback": fallback,
                              "_INTS": _INTS, "_FLOATS": _FLOATS, "_BOOLS": _BOOLS,
                              **{f"_{k}": v for k, v in _DTYPES.items()}}
-    exec(compile(source, f"<safepath kernel {name}>", "exec"), scope)  # noqa: S102
+    exec(_code(source, name), scope)  # noqa: S102
     function = scope[entry.function]
     function.__doc__ = f"{entry.module}.{entry.function}, compiled ahead of time ({name})."
     function.__qualname__ = entry.function
     function.__module__ = entry.module
     return function  # type: ignore[no-any-return]
+
+
+#: The guards' compiled code by their source, and the file that keeps it (see
+#: :func:`keep_code_in`): compiling them costs ~3 ms in every new process.
+_codes: dict[str, CodeType] = {}
+_code_file: list[Path] = []
+
+
+def keep_code_in(folder: Path) -> None:
+    """Keep the guards' compiled code in ``folder`` (the build's own): read now, written
+    whenever a guard is compiled anew. A missing file is made; one that does not read
+    (another Python's, or damaged) is ignored with a warning and replaced."""
+    path = folder / f"guards.{sys.implementation.cache_tag}.marshal"
+    _code_file[:] = [path]
+    try:
+        data = marshal.loads(path.read_bytes())
+    except FileNotFoundError:
+        return
+    except (OSError, EOFError, ValueError, TypeError) as exc:
+        log.warning("kernel guards' code cache %s ignored (%s): compiled again", path, exc)
+        return
+    if not isinstance(data, dict) or not all(
+            isinstance(k, str) and isinstance(v, CodeType) for k, v in data.items()):
+        log.warning("kernel guards' code cache %s ignored (not a table of code): compiled "
+                    "again", path)
+        return
+    _codes.update(data)
+
+
+def _code(source: str, name: str) -> CodeType:
+    """The compiled ``source`` of a guard: kept, or compiled now (and kept)."""
+    code = _codes.get(source)
+    if code is None:
+        code = _codes[source] = compile(source, f"<safepath kernel {name}>", "exec")
+        if _code_file:
+            path = _code_file[0]
+            part = path.with_name(f"{path.name}.{os.getpid()}.part")
+            try:
+                part.write_bytes(marshal.dumps(_codes))
+                os.replace(part, path)  # whole or not at all, for concurrent processes
+            except OSError as exc:  # a read-only cache: compiled in every process
+                log.debug("kernel guards' code not kept in %s: %s", path, exc)
+    return code
