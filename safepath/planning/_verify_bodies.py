@@ -9,7 +9,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..robot import Robot
-from ..scene import Scene
+from ..scene import Scene, Shape
 from ._verify_bounds import (
     ShapeSpec,
     joint_kind,
@@ -91,16 +91,17 @@ class Body:
 
 
 def _body(name: str, joint: int, T: np.ndarray, geometry: object, label: str = "",
-          shape: object = None) -> Body:
+          shape: object = None, spec: ShapeSpec | None = None) -> Body:
     """A body named ``name`` (its link or object: the pairs' names); ``label`` names its
-    geometry in errors (default: ``name``); ``shape``: its FCL shape, if made before."""
+    geometry in errors (default: ``name``); ``shape``, ``spec``: its FCL shape and layer
+    shape, if made before."""
     import fcl
 
     T = np.asarray(T, dtype=float)
     if shape is None:
         shape = _fcl_shape(geometry, label or name)
     obj = fcl.CollisionObject(shape, fcl.Transform(T[:3, :3], T[:3, 3]))
-    return Body(name, joint, T, obj, shape_spec(geometry, label or name))
+    return Body(name, joint, T, obj, spec or shape_spec(geometry, label or name))
 
 
 def robot_bodies(robot: Robot) -> tuple[list[Body], np.ndarray, tuple[np.ndarray, ...]]:
@@ -152,5 +153,18 @@ def environment_bodies(scene: Scene | None, held: str | None,
                 continue
             placed = (resting or {}).get(obj.name, obj.T_world_object)
         if placed is not None:
-            out.append(_body(obj.name, 0, placed, obj.shape.to_coal()))
+            made = _ENV_SHAPES.get(obj.shape)
+            if made is None:
+                coal_shape = obj.shape.to_coal()
+                made = _ENV_SHAPES[obj.shape] = (_fcl_shape(coal_shape, obj.name),
+                                                 shape_spec(coal_shape, obj.name))
+                while len(_ENV_SHAPES) > _ENV_KEPT:
+                    del _ENV_SHAPES[next(iter(_ENV_SHAPES))]
+            out.append(_body(obj.name, 0, placed, None, shape=made[0], spec=made[1]))
     return out
+
+
+#: The FCL shape and layer shape of each scene shape (a primitive: its kind and sizes)
+#: made in this process, shared read-only by every verifier; the oldest go first.
+_ENV_SHAPES: dict[Shape, tuple[object, ShapeSpec]] = {}
+_ENV_KEPT = 256
