@@ -90,13 +90,23 @@ def _verified(piece: TimedPiece, seg_steps: list[int], segments: list[Segment],
     steps_of_knots = [seg_steps[k] for k in piece.segment]
     worst: VerifyResult | None = None
     index = np.asarray(steps_of_knots)
+    # Consecutive steps with the same allowed contacts are one verification (the same
+    # samples and judgement; one call, and their common knot evaluated once).
+    runs: list[tuple[tuple[AllowedContact, ...], list[int]]] = []
     for sidx in sorted(set(steps_of_knots)):
-        seg = next(s for s in segments if s.step_index == sidx)
-        verifier = cache.verifier(world, seg.allowed)
-        sel = np.flatnonzero(index == sidx)
+        allowed = next(s for s in segments if s.step_index == sidx).allowed
+        if runs and runs[-1][0] == allowed and runs[-1][1][-1] + 1 == sidx:
+            runs[-1][1].append(sidx)
+        else:
+            runs.append((allowed, [sidx]))
+    for allowed, run in runs:
+        verifier = cache.verifier(world, allowed)
+        sel = np.flatnonzero(np.isin(index, run))
         lo, hi = max(sel[0] - 1, 0), sel[-1] + 1
+        # Each knot named by its step; the first, where the run starts, by the run's first.
+        names = [labels[run[0]]] + [labels[int(index[k])] for k in range(lo + 1, hi)]
         result = verifier.verify(piece.t[lo:hi], piece.q[lo:hi], piece.qd[lo:hi],
-                                 steps=[labels[sidx]] * (hi - lo), known=known)
+                                 steps=names, known=known)
         known = min(known, result.min_clearance)
         if worst is None or result.min_clearance < worst.min_clearance:
             worst = result

@@ -11,6 +11,7 @@ import numpy as np
 import pytest
 
 from safepath import CheckOptions, CollisionChecker
+from safepath.cell import Cell
 from safepath.planning import initial_world
 
 from .conftest import (
@@ -178,3 +179,52 @@ def test_dense_samples_stay_within_limits(bundled: Plans, name: str) -> None:
     q, qd, _ = traj.sample(dense_times(traj, 0.001))
     assert np.all(q >= robot.lower - 1e-9) and np.all(q <= robot.upper + 1e-9)
     assert (np.abs(qd) / robot.velocity_limits).max() <= 1 + INTERPOLATION_TOL
+
+
+def test_consecutive_steps_with_the_same_contacts_are_verified_in_one_call(
+        bundled_cell: Cell, monkeypatch: pytest.MonkeyPatch) -> None:
+    """The release check verifies consecutive steps of a piece that allow the same
+    contacts in one call, over the same knots, each knot named by its step; its smallest
+    clearance is the per-step calls' to within half the resolution."""
+    from safepath import plan_cell
+    from safepath.planning import FclVerifier, _chunks
+
+    pieces: list[tuple[object, ...]] = []
+    calls: list[tuple[FclVerifier, np.ndarray, list[str], float]] = []
+    verified, verify = _chunks._verified, FclVerifier.verify
+
+    def spy_verified(piece: object, seg_steps: list[int], segments: list[object],
+                     *args: object) -> object:
+        pieces.append((piece, seg_steps, segments))
+        return verified(piece, seg_steps, segments, *args)  # type: ignore[arg-type]
+
+    def spy_verify(self: FclVerifier, t: np.ndarray, q: np.ndarray, qd: np.ndarray,
+                   **kwargs: object) -> object:
+        calls.append((self, np.asarray(t), list(kwargs["steps"]), float(kwargs["known"])))
+        return verify(self, t, q, qd, **kwargs)  # type: ignore[arg-type]
+
+    monkeypatch.setattr(_chunks, "_verified", spy_verified)
+    monkeypatch.setattr(FclVerifier, "verify", spy_verify)
+    plan_cell(bundled_cell)
+    monkeypatch.undo()
+    steps_per_piece = [len(set(seg_steps[k] for k in piece.segment))  # type: ignore[attr-defined]
+                       for piece, seg_steps, _ in pieces]
+    assert len(calls) < sum(steps_per_piece)  # some steps were verified together
+    merged = [c for c in calls if len(set(c[2])) > 1]
+    assert merged
+    for verifier, t, names, known in merged:
+        piece = next(p for p, _, _ in pieces
+                     if len(p.t) >= len(t) and any(  # type: ignore[attr-defined]
+                         np.array_equal(p.t[i:i + len(t)], t)  # type: ignore[attr-defined]
+                         for i in range(len(p.t) - len(t) + 1)))  # type: ignore[attr-defined]
+        lo = next(i for i in range(len(piece.t)) if np.array_equal(piece.t[i:i + len(t)], t))
+        q, qd = piece.q[lo:lo + len(t)], piece.qd[lo:lo + len(t)]
+        whole = verify(verifier, t, q, qd, steps=names, known=known)
+        # The same knots one step at a time, as before.
+        cut = next(k for k in range(1, len(names)) if names[k] != names[k - 1])
+        assert len(set(names[cut:])) == 1  # each step's knots together, in order
+        parts = [verify(verifier, t[:cut], q[:cut], qd[:cut], known=known)]
+        parts.append(verify(verifier, t[cut - 1:], q[cut - 1:], qd[cut - 1:], known=known))
+        best = min(p.min_clearance for p in parts)
+        assert abs(whole.min_clearance - best) <= verifier.resolution / 2 or (
+            whole.min_clearance == best == float("inf"))
