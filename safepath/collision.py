@@ -16,6 +16,7 @@ of it. Allowed contacts are excluded from clearance and margins.
 
 from __future__ import annotations
 
+import copy
 import functools
 import logging
 from collections.abc import Iterable, Mapping, Sequence
@@ -75,6 +76,36 @@ class CollisionChecker:
                                       allowed=self.allowed, options=self.options)
         kwargs.update(changes)
         return CollisionChecker(self.robot, self.scene, **kwargs)
+
+    def with_allowed(self, allowed: Iterable[AllowedContact]) -> CollisionChecker:
+        """This checker with other allowed contacts (the same robot, scene, world state
+        and options): its geometry, names, reach and, for the same pairs, the sphere
+        layer's tables are taken from this one; the pairs, their depths and margins are
+        made anew. Answers as ``clone(allowed=...)`` does (tested): a planner needs one
+        per step's allowed contacts in each world state."""
+        new = copy.copy(self)
+        for name in ("_gdata", "_broad", "_dist_gdata", "_F", "_I"):
+            new.__dict__.pop(name, None)  # coal's side and the layer: this checker's own
+        new.allowed = tuple(allowed)
+        new._gmodel = self._gmodel.copy()
+        new._gmodel.removeAllCollisionPairs()
+        new._pairs_added = False
+        new._names = list(self._names)
+        held_idx = new._gmodel.ngeoms - 1 if self.held is not None else None
+        pairs = new._pair_list(new._gmodel, self.robot.collision_model.ngeoms, held_idx)
+        new._pairs = [(a, b) for a, b, _ in pairs]
+        new._pair_names = [(new._names[a], new._names[b]) for a, b in new._pairs]
+        new._data = self.robot.model.createData()
+        new._pair_margin = new._pair_margins()
+        new._set_requests([depth for *_, depth in pairs])
+        new._pool = None
+        new._layer, new._layer_built, new._classify = None, False, None
+        if self._layer_built and self._layer is not None and new._pairs == self._pairs:
+            new._layer = self._layer.with_security(new._security)
+            new._layer_built = True
+            new._classify = new._layer.kernel("classify")
+            new._F, new._I = new._layer.F, new._layer.I
+        return new
 
     def _build(self) -> None:
         """The geometry model (robot, scene, held object), the pairs to check and the

@@ -29,6 +29,7 @@ The kernels are compiled with numba on first use (cached on disk afterwards).
 
 from __future__ import annotations
 
+import copy
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
 
@@ -85,6 +86,19 @@ class SphereLayer:
     def __init__(self, checker: CollisionChecker, options: LayerOptions | None = None) -> None:
         self.options = options or LayerOptions()
         self.F, self.I, self._fits = pack(checker, self.options)
+
+    def with_security(self, security: np.ndarray) -> SphereLayer:
+        """This layer for a checker with the same pairs and other security margins
+        (other allowed contact depths): the tables copied, the margins replaced."""
+        K = _kernels()  # noqa: N806
+        F, I_ = self.F.copy(), self.I.copy()
+        n, at = int(I_[K.H_NP]), int(I_[K.H_P])
+        F[at:at + n] = security
+        pairs = I_[int(I_[K.H_PI]):int(I_[K.H_PI]) + 4 * n].reshape(n, 4)
+        pairs[:, 3] = np.asarray(security) >= 0
+        out = copy.copy(self)
+        out.F, out.I = F, I_
+        return out
 
     # -- queries ------------------------------------------------------------------------
     @staticmethod

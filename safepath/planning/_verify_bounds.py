@@ -14,6 +14,7 @@ data (joint placements and axes, collision geometry), never the planner's checke
 
 from __future__ import annotations
 
+import copy
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING
 
@@ -424,6 +425,12 @@ class Layer:
                        np.array([e for _, _, e in pairs], dtype=np.bool_),
                        np.ascontiguousarray(weights, dtype=float),
                        np.asarray(clearance, dtype=np.bool_))
+
+    def with_clearance(self, clearance: np.ndarray) -> Layer:
+        """This layer with other pairs counting for the clearance (the same pairs)."""
+        out = copy.copy(self)
+        out._pairs = (*self._pairs[:4], np.asarray(clearance, dtype=np.bool_))
+        return out
 
     def cache(self, samples: int) -> PoseCache:
         """An empty pose cache for a grid of ``samples`` samples."""

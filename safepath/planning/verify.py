@@ -23,6 +23,7 @@ starts, naming the object.
 
 from __future__ import annotations
 
+import copy
 import itertools
 from collections.abc import Iterable, Sequence
 from dataclasses import dataclass
@@ -108,22 +109,39 @@ class FclVerifier:
         self.robot = robot
         self.resolution = resolution
         self.enforce_margin = enforce_margin
+        self._scene, self._held, self._margin = scene, held, margin
         bodies, weights, self._joint_tables = robot_bodies(robot)
         held_ones = held_bodies(robot, scene, held)
         self._movers = bodies + held_ones
         self._env = environment_bodies(scene, held, resting)
-        self._pairs = self._pair_list(robot, held, allowed)
-        self._theta = self._thresholds(scene, margin, enforce_margin)
+        self._set_pairs(allowed)
+        self._weights = np.vstack([weights, motion_weights(
+            robot.model, [b.joint for b in held_ones], [b.T for b in held_ones],
+            [b.spec for b in held_ones])])
+        self._layer = self._conservative_layer()
+
+    def with_allowed(self, allowed: Iterable[AllowedContact]) -> FclVerifier:
+        """This verifier with other allowed contacts (the same robot, scene, world state,
+        resolution and margins): its bodies and, for the same pairs, its layer's tables
+        are taken from this one (to be used in the same thread); the pairs and what each
+        must keep are made anew. Judges as a new verifier does (tested)."""
+        new = copy.copy(self)
+        new._set_pairs(allowed)
+        same = [p[:3] for p in new._pairs] == [p[:3] for p in self._pairs]
+        new._layer = (self._layer.with_clearance(new._tracked) if same
+                      else new._conservative_layer())
+        return new
+
+    def _set_pairs(self, allowed: Iterable[AllowedContact]) -> None:
+        """The pairs to check and what each must keep."""
+        self._pairs = self._pair_list(self.robot, self._held, allowed)
+        self._theta = self._thresholds(self._scene, self._margin, self.enforce_margin)
         # The layer certifies a pair allowed to touch only where it is apart: in
         # contact, FCL's penetration depth decides.
         self._bound_theta = np.where([d > 0.0 for *_, d in self._pairs], 0.0, self._theta)
         self._tracked = np.array([env and depth == 0.0 for _, _, env, depth in self._pairs],
                                  dtype=np.bool_).reshape(-1)
         self._clearance_pairs = np.flatnonzero(self._tracked)
-        self._weights = np.vstack([weights, motion_weights(
-            robot.model, [b.joint for b in held_ones], [b.T for b in held_ones],
-            [b.spec for b in held_ones])])
-        self._layer = self._conservative_layer()
 
     def _thresholds(self, scene: Scene | None, margin: float | None, enforce_margin: bool
                     ) -> np.ndarray:

@@ -58,20 +58,27 @@ class CheckerCache:
 
     def checker(self, world: WorldState, allowed: tuple[AllowedContact, ...]) -> CollisionChecker:
         """The collision checker of ``world`` with the contacts ``allowed``."""
-        key = (world.key(), allowed)
+        state = world.key()
+        key = (state, allowed)
         if key not in self._checkers:
-            self._checkers[key] = CollisionChecker(
-                self.cell.robot, self.cell.scene, held=world.held, resting=world.resting,
-                allowed=allowed, options=self.options.check)
+            # Another one of the same world state gives its geometry and layer tables.
+            base = next((c for (s, _), c in self._checkers.items() if s == state), None)
+            self._checkers[key] = base.with_allowed(allowed) if base is not None else \
+                CollisionChecker(self.cell.robot, self.cell.scene, held=world.held,
+                                 resting=world.resting, allowed=allowed,
+                                 options=self.options.check)
         return self._checkers[key]
 
     def verifier(self, world: WorldState, allowed: tuple[AllowedContact, ...]) -> FclVerifier:
         """The independent verifier of ``world`` with the contacts ``allowed``."""
-        key = (world.key(), allowed)
+        state = world.key()
+        key = (state, allowed)
         if key not in self._verifiers:
             opts = self.options.check
-            self._verifiers[key] = FclVerifier(
-                self.cell.robot, self.cell.scene, held=world.held, resting=dict(world.resting),
-                allowed=allowed, resolution=opts.resolution, margin=opts.margin,
-                enforce_margin=opts.enforce_margin)
+            base = next((v for (s, _), v in self._verifiers.items() if s == state), None)
+            self._verifiers[key] = base.with_allowed(allowed) if base is not None else \
+                FclVerifier(self.cell.robot, self.cell.scene, held=world.held,
+                            resting=dict(world.resting), allowed=allowed,
+                            resolution=opts.resolution, margin=opts.margin,
+                            enforce_margin=opts.enforce_margin)
         return self._verifiers[key]

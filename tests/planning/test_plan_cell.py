@@ -228,3 +228,48 @@ def test_consecutive_steps_with_the_same_contacts_are_verified_in_one_call(
         best = min(p.min_clearance for p in parts)
         assert abs(whole.min_clearance - best) <= verifier.resolution / 2 or (
             whole.min_clearance == best == float("inf"))
+
+
+def test_a_checker_and_verifier_made_for_other_contacts_judge_as_new_ones(
+        bundled_cell: Cell) -> None:
+    """The planner makes the checker and verifier of a world state's other allowed
+    contacts from the first one (``with_allowed``): the same pairs, margins, layer
+    tables and answers as ones made from scratch."""
+    from safepath import plan_cell
+    from safepath.planning import FclVerifier
+    from safepath.planning.options import PlanOptions
+
+    plan_cell(bundled_cell)
+    options = PlanOptions().check
+    made = bundled_cell.cache(("checkers", options))
+    verifiers = bundled_cell.cache(("verifiers", options))
+    worlds = [state for state, _ in made]
+    derived = [key for key in made if worlds.count(key[0]) > 1]
+    assert derived and any(allowed for _, allowed in derived)
+    rng = np.random.default_rng(5)
+    robot = bundled_cell.robot
+    states = rng.uniform(robot.lower, robot.upper, (200, robot.dof))
+    for key in derived:
+        checker = made[key]
+        fresh = CollisionChecker(robot, bundled_cell.scene, held=checker.held,
+                                 resting=checker.resting, allowed=key[1], options=options)
+        assert checker.pairs == fresh.pairs
+        np.testing.assert_array_equal(checker._security, fresh._security)
+        assert checker.layer is not None and fresh.layer is not None
+        np.testing.assert_array_equal(checker.layer.F, fresh.layer.F)
+        np.testing.assert_array_equal(checker.layer.I, fresh.layer.I)
+        assert [checker.is_valid(q) for q in states] == [fresh.is_valid(q) for q in states]
+        assert [checker.exact_collides(q) for q in states[:40]] == [
+            fresh.exact_collides(q) for q in states[:40]]
+        verifier = verifiers[key]
+        new = FclVerifier(robot, bundled_cell.scene, held=checker.held,
+                          resting=dict(checker.resting), allowed=key[1],
+                          resolution=options.resolution, margin=options.margin,
+                          enforce_margin=options.enforce_margin)
+        assert verifier._pairs == new._pairs
+        for mine, theirs in ((verifier._theta, new._theta),
+                             (verifier._bound_theta, new._bound_theta),
+                             (verifier._tracked, new._tracked)):
+            np.testing.assert_array_equal(mine, theirs)
+        for mine, theirs in zip(verifier._layer._pairs, new._layer._pairs, strict=True):
+            np.testing.assert_array_equal(mine, theirs)
