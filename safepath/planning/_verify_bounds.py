@@ -15,6 +15,7 @@ data (joint placements and axes, collision geometry), never the planner's checke
 from __future__ import annotations
 
 import copy
+import functools
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING
 
@@ -469,28 +470,34 @@ class Layer:
         from . import _verify_kernel as kernel
 
         todo = np.ascontiguousarray(todo, dtype=np.int64)
-        nv = grid.step.shape[1]
-        room = _ROOM
-        scratch = (np.empty(self._kin[0].size, dtype=np.int64), np.empty(nv), np.empty(nv),
-                   np.empty(nv), np.empty((3, 4)), np.empty((3, 4)), np.empty((4, 3)),
-                   np.empty((3, 3)), np.empty(4, dtype=np.int64),
-                   np.empty(room, dtype=np.int64), np.empty(room, dtype=np.int64),
-                   np.empty(room))
+        scratch = self._scratch  # written by the kernel; what it returns is copied out
         args = (todo, theta,
                 (grid.cum, grid.step, grid.cum @ self._upstream.T, grid.step @ self._upstream.T,
                  np.ascontiguousarray(q, dtype=float), grid.knot_of, grid.frac),
                 self._kin, cache.arrays(), self._pairs, (self._shapes, self._env_pose,
                                                          _climbing(self._hulls)),
                 memory.arrays(), params, scratch)
-        parts = []
-        t = s = 0
-        while True:  # one call, unless the outputs fill up: then resume where it stopped
+        count, t, s = kernel.certify(*args, 0, 0)
+        if t >= todo.size:  # one call, unless the outputs filled up
+            return tuple(out[:count].copy() for out in scratch[-3:])  # type: ignore[return-value]
+        parts = [[out[:count].copy() for out in scratch[-3:]]]
+        while t < todo.size:  # resume where it stopped
             count, t, s = kernel.certify(*args, t, s)
             parts.append([out[:count].copy() for out in scratch[-3:]])
-            if t >= todo.size:
-                break
         pairs, samples, bounds = (np.concatenate(c) for c in zip(*parts, strict=True))
         return pairs, samples, bounds
+
+    @functools.cached_property
+    def _scratch(self) -> tuple[np.ndarray, ...]:
+        """The walk's scratch and output buffers (see ``certify`` in the kernels), made
+        once per layer: a layer walks one grid at a time (a verifier is used by one
+        thread)."""
+        nv, room = self._upstream.shape[0], _ROOM
+        return (np.empty(self._kin[0].size, dtype=np.int64), np.empty(nv), np.empty(nv),
+                np.empty(nv), np.empty((3, 4)), np.empty((3, 4)), np.empty((4, 3)),
+                np.empty((3, 3)), np.empty(4, dtype=np.int64),
+                np.empty(room, dtype=np.int64), np.empty(room, dtype=np.int64),
+                np.empty(room))
 
     def pose(self, q: np.ndarray, grid: Grid, cache: PoseCache, s: int, m: int
              ) -> np.ndarray:
