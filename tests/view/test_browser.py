@@ -279,7 +279,9 @@ def test_two_pages_need_the_token_and_lose_no_edit(tmp_path: Path, cell_copy: Pa
         wait_for(lambda: pa.widgets.token.value == token, 10.0, "typing failed")
         assert a.click_button("Unlock editing")
         wait_for(lambda: pa.may_edit, 10.0, "the right token did not unlock the page")
-        assert pa.editor.gizmo.visible  # now it can drag the TCP of high1
+        # Now it can drag the TCP of high1: the page shows the gizmo once the unlock's
+        # callback has updated it (right after granting the edit, on the server's thread).
+        wait_for(lambda: pa.editor.gizmo.visible, 10.0, "no gizmo after the unlock")
         wait_for(lambda: button_disabled(a, "Save poses") is False, 10.0,
                  "Save stayed disabled after the unlock")
         assert not pb.may_edit and button_disabled(b, "Save poses")
