@@ -89,17 +89,8 @@ class CollisionChecker:
         new.allowed = tuple(allowed)
         new._gmodel = self._gmodel.copy()
         new._gmodel.removeAllCollisionPairs()
-        new._pairs_added = False
         new._names = list(self._names)
-        held_idx = new._gmodel.ngeoms - 1 if self.held is not None else None
-        pairs = new._pair_list(new._gmodel, self.robot.collision_model.ngeoms, held_idx)
-        new._pairs = [(a, b) for a, b, _ in pairs]
-        new._pair_names = [(new._names[a], new._names[b]) for a, b in new._pairs]
-        new._data = self.robot.model.createData()
-        new._pair_margin = new._pair_margins()
-        new._set_requests([depth for *_, depth in pairs])
-        new._pool = None
-        new._layer, new._layer_built, new._classify = None, False, None
+        new._set_pairs()
         if self._layer_built and self._layer is not None and new._pairs == self._pairs:
             new._layer = self._layer.with_security(new._security)
             new._layer_built = True
@@ -112,21 +103,27 @@ class CollisionChecker:
         coal requests, step by step."""
         gmodel = self.robot.collision_model.copy()
         gmodel.removeAllCollisionPairs()  # loaders may have added their own
-        n_robot = gmodel.ngeoms
         links, self._own_reach = self.robot.derived("checker", self._robot_part)
         self._names: list[str] = list(links)
         self._env = self._add_environment(gmodel)
-        held_idx = self._add_held(gmodel)
-        self._gmodel = gmodel  # coal's pairs are added on the first exact query
-        self._pairs_added = False
-        pairs = self._pair_list(gmodel, n_robot, held_idx)
+        self._add_held(gmodel)
+        self._gmodel = gmodel
+        self._set_pairs()
+        self._weights = self._displacement_weights()
+
+    def _set_pairs(self) -> None:
+        """The pairs of the allowed contacts, their margins and coal's security margins;
+        coal's side of the checker and the sphere layer are left to be made when first
+        needed (coal's pairs are added to the model on the first exact query)."""
+        held_idx = self._gmodel.ngeoms - 1 if self.held is not None else None  # added last
+        pairs = self._pair_list(self._gmodel, self.robot.collision_model.ngeoms, held_idx)
         self._pairs = [(a, b) for a, b, _ in pairs]
         self._pair_names = [(self._names[a], self._names[b]) for a, b in self._pairs]
+        self._pairs_added = False
         self._data = self.robot.model.createData()
         self._pair_margin = self._pair_margins()
         self._set_requests([depth for *_, depth in pairs])
-        self._weights = self._displacement_weights()
-        self._pool: Any = None  # coal's batch broad phase, made when first needed
+        self._pool: Any = None  # coal's batch broad phase
         self._layer: SphereLayer | None = None
         self._layer_built = False
         self._classify: Any = None
@@ -136,12 +133,7 @@ class CollisionChecker:
         per joint how far its own geometry reaches from its origin [m]."""
         robot = self.robot
         geoms = robot.collision_model.geometryObjects
-        reach = np.zeros(robot.model.njoints)
-        for g in geoms:
-            if g.parentJoint == 0:
-                continue
-            r = np.linalg.norm(g.placement.translation) + _bounding_radius(g.geometry)
-            reach[g.parentJoint] = max(reach[g.parentJoint], r)
+        reach = _reach_into(np.zeros(robot.model.njoints), geoms)
         return tuple(map(robot.geometry_link, range(len(geoms)))), reach
 
     def _add_environment(self, gmodel: pin.GeometryModel) -> list[int]:
@@ -347,13 +339,9 @@ class CollisionChecker:
         nj = model.njoints
         # Reach of each joint's own geometry about its origin: the robot's, made once per
         # robot, then the rest (the held object; the environment is on no joint).
-        reach = self._own_reach.copy()
-        for i in range(self.robot.collision_model.ngeoms, gmodel.ngeoms):
-            g = gmodel.geometryObjects[i]
-            if g.parentJoint == 0:
-                continue
-            r = np.linalg.norm(g.placement.translation) + _bounding_radius(g.geometry)
-            reach[g.parentJoint] = max(reach[g.parentJoint], r)
+        reach = _reach_into(self._own_reach.copy(), [
+            gmodel.geometryObjects[i]
+            for i in range(self.robot.collision_model.ngeoms, gmodel.ngeoms)])
         # Propagate from the leaves: reach(i) >= |origin of child| + reach(child).
         for j in range(nj - 1, 0, -1):
             parent = model.parents[j]
@@ -652,6 +640,17 @@ def _bisection_order(n: int, check_ends: bool) -> list[int]:
         queue.append((lo, mid))
         queue.append((mid, hi))
     return out
+
+
+def _reach_into(reach: np.ndarray, geoms: Any) -> np.ndarray:
+    """``reach`` (per joint [m]) raised to how far each geometry of ``geoms`` on a joint
+    reaches from that joint's origin."""
+    for g in geoms:
+        if g.parentJoint == 0:
+            continue
+        r = np.linalg.norm(g.placement.translation) + _bounding_radius(g.geometry)
+        reach[g.parentJoint] = max(reach[g.parentJoint], r)
+    return reach
 
 
 def _bounding_radius(geometry: Any) -> float:

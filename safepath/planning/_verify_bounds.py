@@ -403,17 +403,17 @@ class Layer:
         pairs: (mover, mover or environment object, is environment) of each pair.
         weights: Motion weights of each pair (:func:`pair_weights`).
         clearance: Whether each pair counts for the clearance.
-        tables: :func:`joint_tables` of ``model``, if made before (they are read only).
+        tables: :func:`joint_tables` of ``model`` (read only; shared by the robot's
+            verifiers).
     """
 
     def __init__(self, model: pin.Model, joints: list[int], T_joint_geom: list[np.ndarray],
                  movers: list[ShapeSpec], T_world_env: list[np.ndarray],
                  env: list[ShapeSpec], pairs: list[tuple[int, int, bool]],
                  weights: np.ndarray, clearance: np.ndarray,
-                 tables: tuple[np.ndarray, ...] | None = None) -> None:
+                 tables: tuple[np.ndarray, ...]) -> None:
         self._model = model
-        parents, place, kind, axis, iq, joint_of, upstream = (
-            tables if tables is not None else joint_tables(model))
+        parents, place, kind, axis, iq, joint_of, upstream = tables
         self._kin = (parents, place, kind, axis, iq, np.array(joints, dtype=np.int64),
                      np.array([np.asarray(T)[:3] for T in T_joint_geom]).reshape(-1, 3, 4),
                      joint_of)
@@ -477,14 +477,16 @@ class Layer:
                 self._kin, cache.arrays(), self._pairs, (self._shapes, self._env_pose,
                                                          _climbing(self._hulls)),
                 memory.arrays(), params, scratch)
-        count, t, s = kernel.certify(*args, 0, 0)
-        if t >= todo.size:  # one call, unless the outputs filled up
-            return tuple(out[:count].copy() for out in scratch[-3:])  # type: ignore[return-value]
-        parts = [[out[:count].copy() for out in scratch[-3:]]]
-        while t < todo.size:  # resume where it stopped
+        parts = []
+        t = s = 0
+        while True:  # one call, unless the outputs fill up: then resume where it stopped
             count, t, s = kernel.certify(*args, t, s)
-            parts.append([out[:count].copy() for out in scratch[-3:]])
-        pairs, samples, bounds = (np.concatenate(c) for c in zip(*parts, strict=True))
+            pairs, samples, bounds = (out[:count].copy() for out in scratch[-3:])
+            parts.append((pairs, samples, bounds))
+            if t >= todo.size:
+                break
+        if len(parts) > 1:
+            pairs, samples, bounds = (np.concatenate(c) for c in zip(*parts, strict=True))
         return pairs, samples, bounds
 
     @functools.cached_property

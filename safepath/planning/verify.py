@@ -27,7 +27,6 @@ import copy
 import itertools
 from collections.abc import Iterable, Sequence
 from dataclasses import dataclass
-from typing import Any
 
 import numpy as np
 
@@ -273,6 +272,8 @@ class _Run:
 
     def __init__(self, verifier: FclVerifier, q: np.ndarray, grid: Grid,
                  cache: PoseCache, known: float = float("inf")) -> None:
+        import fcl
+
         self.v = verifier
         self.q = q
         self.grid = grid
@@ -286,7 +287,7 @@ class _Run:
         self.min_clear, self.closest = known, -1
         self.memory.ceiling[0] = known
         self._placed = [-1] * len(verifier._movers)
-        self._dist_req: Any = None  # made with the first distance FCL measures
+        self._dist_req = fcl.DistanceRequest()
 
     def walk(self, todo: np.ndarray, theta: np.ndarray, drop: float = -1.0
              ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -316,8 +317,6 @@ class _Run:
         import fcl
 
         o1, o2 = self._objects(p, s)
-        if self._dist_req is None:
-            self._dist_req = fcl.DistanceRequest()
         d = float(fcl.distance(o1, o2, self._dist_req, fcl.DistanceResult()))
         _, _, env, depth = self.v._pairs[p]
         if env and depth == 0.0 and d < self.min_clear:

@@ -4,6 +4,7 @@ and the checkers and verifiers built for each such state."""
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from typing import TypeVar
 
 import numpy as np
 
@@ -14,6 +15,8 @@ from .options import PlanOptions
 from .verify import FclVerifier
 
 __all__ = ["WorldState", "CheckerCache", "initial_world"]
+
+T = TypeVar("T")
 
 
 @dataclass
@@ -62,7 +65,7 @@ class CheckerCache:
         key = (state, allowed)
         if key not in self._checkers:
             # Another one of the same world state gives its geometry and layer tables.
-            base = next((c for (s, _), c in self._checkers.items() if s == state), None)
+            base = _of_state(self._checkers, state)
             self._checkers[key] = base.with_allowed(allowed) if base is not None else \
                 CollisionChecker(self.cell.robot, self.cell.scene, held=world.held,
                                  resting=world.resting, allowed=allowed,
@@ -75,10 +78,15 @@ class CheckerCache:
         key = (state, allowed)
         if key not in self._verifiers:
             opts = self.options.check
-            base = next((v for (s, _), v in self._verifiers.items() if s == state), None)
+            base = _of_state(self._verifiers, state)
             self._verifiers[key] = base.with_allowed(allowed) if base is not None else \
                 FclVerifier(self.cell.robot, self.cell.scene, held=world.held,
                             resting=dict(world.resting), allowed=allowed,
                             resolution=opts.resolution, margin=opts.margin,
                             enforce_margin=opts.enforce_margin)
         return self._verifiers[key]
+
+
+def _of_state(made: dict[tuple, T], state: tuple) -> T | None:
+    """The first of ``made`` (by world state and allowed contacts) of world ``state``."""
+    return next((value for (s, _), value in made.items() if s == state), None)
