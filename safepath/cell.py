@@ -6,6 +6,7 @@ Built in Python (``Cell(robot, scene, poses, routes=...)``) or loaded from a sce
 
 from __future__ import annotations
 
+import importlib
 import threading
 from collections.abc import Mapping
 from dataclasses import KW_ONLY, dataclass, field
@@ -224,7 +225,24 @@ def load_cell(folder: str | Path) -> Cell:
         raise ConfigError(exc.reason, path=scene.path, key=exc.key) from None
     poses_path = folder / "poses.yaml"
     poses = load_poses(poses_path, robot) if poses_path.exists() else {}
-    return Cell(robot, scene, poses, folder=folder, poses_path=poses_path)
+    cell = Cell(robot, scene, poses, folder=folder, poses_path=poses_path)
+    _load_planning_code()
+    return cell
+
+
+def _load_planning_code() -> None:
+    """Load what every plan of a cell runs, once per process: the release check's
+    library (python-fcl, 5-8 ms) and the kernels compiled ahead of time (~2 ms), so
+    that a loaded cell's first plan pays for planning, not for loading code. Without a
+    current build the kernels stay lazy: numba (tenths of a second) is imported by
+    the first kernel call, not here."""
+    import fcl  # noqa: F401
+
+    from . import _aot
+
+    if _aot.compiled() is not None:
+        for name in _aot.PLANNING_MODULES:
+            importlib.import_module(name)
 
 
 def _check_scene_against(robot: Robot, scene: Scene, poses: Mapping[str, np.ndarray]) -> None:

@@ -62,3 +62,22 @@ def test_numba_loads_with_the_first_cartesian_line_unless_the_kernels_are_built(
     assert "numba" not in before
     assert ("numba" in after) is not built
     assert after.isdisjoint({"viser", "rosbags", "matplotlib", "toppra", "ompl"})
+
+
+@pytest.mark.parametrize("aot", ["0", "1"])
+def test_load_cell_loads_the_release_check_and_the_built_kernels_but_not_numba(aot: str
+                                                                            ) -> None:
+    """A loaded cell's first plan loads no code: ``load_cell`` loads python-fcl and the
+    kernels compiled ahead of time (when there is a current build), never numba."""
+    from safepath import _aot
+
+    packages, kernels = _loaded_after(
+        "import safepath\n"
+        f"safepath.load_cell({str(CELL)!r})\n"
+        "mark()\n"
+        "print(' '.join(m for m in sys.modules if m.endswith('_kernel')))\n", SAFEPATH_AOT=aot)
+    built = aot == "1" and _aot.find()[0] is not None
+    assert "fcl" in packages
+    assert packages.isdisjoint({"numba", "llvmlite"})
+    assert ("safepath.planning._verify_kernel" in kernels) is built
+    assert ("safepath.planning._ik_kernel" in kernels) is built

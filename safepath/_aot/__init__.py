@@ -39,10 +39,10 @@ from types import ModuleType
 from typing import Any
 
 from .._digest import sha256
-from .table import ENTRIES, MODULES
+from .table import ENTRIES, MODULES, PLANNING_MODULES
 
 __all__ = ["njit", "compiled", "status", "source_key", "build_dir", "cache_root",
-           "materialize", "strict"]
+           "materialize", "strict", "PLANNING_MODULES"]
 
 log = logging.getLogger(__name__)
 

@@ -20,7 +20,7 @@ from __future__ import annotations
 
 from typing import NamedTuple
 
-__all__ = ["Entry", "ENTRIES", "Kind", "MODULES"]
+__all__ = ["Entry", "ENTRIES", "Kind", "MODULES", "PLANNING_MODULES"]
 
 #: A type in numba's notation, or a tuple of them (a tuple argument, tuples nested).
 Kind = str | tuple["Kind", ...]
@@ -119,3 +119,5 @@ ENTRIES: dict[str, Entry] = {
 #: lives in one of them (tests/test_aot.py checks it); the cup's (a simulated scale, not
 #: on a planning path) uses numba directly.
 MODULES: tuple[str, ...] = (_FAST, "safepath._gjk", _VERIFY, _IK, _TOPP, _MONITOR)
+#: Those a plan calls (all but the monitor's).
+PLANNING_MODULES: tuple[str, ...] = (_FAST, "safepath._gjk", _VERIFY, _IK, _TOPP)
