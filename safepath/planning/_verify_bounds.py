@@ -211,6 +211,21 @@ def joint_kind(model: pin.Model, j: int) -> tuple[int, tuple[float, float, float
     return (_REVOLUTE if kind == "revolute" else _PRISMATIC), axis
 
 
+def undominated(weights: np.ndarray) -> np.ndarray:
+    """The rows of ``weights`` (bodies x dof, not negative) that no other row bounds in
+    every column (of equal rows, the first). A grid cut with them is the grid cut with
+    all: for a step of joint motions (not negative), a row bounded by another in every
+    column moves no more than it (the products and their sums round monotonically, so
+    also in floating point)."""
+    w = np.asarray(weights, dtype=float)
+    below = (w[:, None, :] <= w[None, :, :]).all(axis=2)  # [b, c]: row b <= row c
+    beaten = below & ~below.T  # strictly, in some column
+    same = below & below.T
+    first = np.arange(len(w))[:, None] > np.arange(len(w))[None, :]  # c before b
+    dropped = (beaten | (same & first)).any(axis=1)
+    return np.ascontiguousarray(w[~dropped])
+
+
 def motion_weights(model: pin.Model, joints: list[int], T_joint_geom: list[np.ndarray],
                    shapes: list[ShapeSpec]) -> np.ndarray:
     """Per body and joint, a bound on how far a unit of that joint's motion moves the

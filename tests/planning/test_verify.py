@@ -26,7 +26,13 @@ from safepath import CheckOptions, ConfigError, VerificationError, plan_cell
 from safepath.cell import Cell
 from safepath.planning import FclVerifier, VerifyResult, initial_world
 from safepath.planning._verify_bodies import robot_bodies
-from safepath.planning._verify_bounds import bound_between, pair_weights, shape_spec
+from safepath.planning._verify_bounds import (
+    Grid,
+    bound_between,
+    pair_weights,
+    shape_spec,
+    undominated,
+)
 from safepath.planning.timing import TimedPiece, spline_path, time_path
 from safepath.planning.verify import _fcl_shape, check_verifiable
 from safepath.robot import Robot
@@ -607,6 +613,30 @@ def test_pair_weights_leave_out_exactly_the_joints_that_carry_both_bodies(
             want = (weights[i, v] if env else
                     0.0 if v in carriers[i] & carriers[j] else weights[i, v] + weights[j, v])
             assert got[p, v] == want, (p, v)
+
+
+@pytest.mark.parametrize("seed", range(3))
+def test_a_grid_cut_with_the_undominated_weights_is_the_grid_cut_with_all(
+        bundled_cell: Cell, seed: int) -> None:
+    """The verifier cuts its grids with the bodies' weights that no other body's bound in
+    every joint: the same samples, bit for bit, on random knots (the cell's verifier,
+    and random weights with bounded and equal rows)."""
+    rng = np.random.default_rng(seed)
+    verifier = _verifier(bundled_cell)
+    robot = bundled_cell.robot
+    q = robot.lower + rng.random((40, robot.model.nq)) * (robot.upper - robot.lower)
+    random = rng.random((12, robot.model.nq)) * rng.integers(0, 2, (12, robot.model.nq))
+    random = np.vstack([random, random[:3], random[:4] * 0.5])  # equal and bounded rows
+    for weights in (verifier._weights, random):
+        kept = undominated(weights)
+        assert 0 < len(kept) < len(weights)
+        for row in weights:  # each row is bounded by a kept one
+            assert any((row <= k).all() for k in kept)
+        for resolution in (0.002, 0.05):
+            want, got = (Grid.cut(q, w, resolution) for w in (weights, kept))
+            for name in ("knot_of", "frac", "step", "cum"):
+                assert np.array_equal(getattr(want, name), getattr(got, name)), name
+    assert len(undominated(verifier._weights)) < len(verifier._weights) / 2
 
 
 def test_verifiers_of_a_robot_share_its_bodies_and_see_them_change(detour_cell: Cell) -> None:
