@@ -49,7 +49,11 @@ H_ER = 22
 #: The checker's displacement weights (floats, dof): a joint step dq moves no point of
 #: the robot (or held object) more than sum(w |dq|) [m].
 H_DW = 23
-HEADER = 24
+#: Per pair and joint (floats, pairs x dof): how fast the joint can close the pair [m per
+#: unit of the joint]: body a's weight where H_PM has bit 1, plus body b's where it has
+#: bit 2 (added in that order, as the masks would), else 0.
+H_PW = 24
+HEADER = 25
 # Constants (fb[ib[H_C] + k]); C_RES: the checker's resolution [m].
 C_REFINE, C_FREE_EPS, C_PROOF_EPS, C_RES = 0, 1, 2, 3
 #: Status of a segment whose start (index 0) or end (index 1) is outside the limits.
@@ -475,7 +479,7 @@ def _evaluate(q, fb, ib, Rw, pw, wf, wi, rates, want_radius, need):  # noqa: N80
     """(status, radius) of one state inside the limits. With ``want_radius``, radius is
     the largest ``h`` such that every state ``q + t u`` with ``|t| < h`` is certainly
     valid, ``rates[k]`` bounding how fast pair ``k`` can close per unit ``t`` (and wf's
-    WI_ABSU, WI_CC blocks filled by ``_pair_rates``), or some radius of at least
+    WI_ABSU block filled by ``_pair_rates``, WI_CC by ``_axis_growth``), or some radius of at least
     ``need`` when that is all the caller can use (pairs whose closing-rate radius
     reaches ``need`` skip the finer local radius)."""
     _fk(q, fb, ib, Rw, pw, wf)
@@ -632,27 +636,27 @@ def classify_many(Q, fb, ib, out):  # noqa: N803
 def _pair_rates(u, fb, ib, wf, wi, rates):  # noqa: N803
     """Per pair, a bound on how fast its two bodies approach per unit of ``t`` along
     the joint-space direction ``u`` [m] (joints that carry both bodies leave their
-    distance alone). Also wf's WI_ABSU block = |u| and, per mover and joint, its WI_CC
-    block: how fast the mover's distance to that joint's axis can grow per unit of ``t``
-    (the joints between the two move it, at most by their weights)."""
-    dof, ow, oji, ogi = ib[H_DOF], ib[H_W], ib[H_JI], ib[H_GI]
-    oabs, occ = wi[WI_ABSU], wi[WI_CC]
+    distance alone: their H_PW weight is 0). Also wf's WI_ABSU block = |u|."""
+    dof, opw = ib[H_DOF], ib[H_PW]
+    oabs = wi[WI_ABSU]
     for v in range(dof):
         wf[oabs + v] = abs(u[v])
     for k in range(ib[H_NP]):
-        op = ib[H_PI] + 4 * k
-        opm = ib[H_PM] + k * dof
-        a, b = ib[op], ib[op + 1]
+        row = opw + k * dof
         r = 0.0
         for v in range(dof):
-            mask = ib[opm + v]
-            w = 0.0
-            if mask & 1:
-                w += fb[ow + a * dof + v]
-            if mask & 2:
-                w += fb[ow + b * dof + v]
-            r += w * wf[oabs + v]
+            r += fb[row + v] * wf[oabs + v]
         rates[k] = r
+
+
+@_helper
+def _axis_growth(fb, ib, wf, wi):  # noqa: N803
+    """Per mover and joint, wf's WI_CC block: how fast the mover's distance to that
+    joint's axis can grow per unit of ``t`` along the direction whose |u| is in the
+    WI_ABSU block (the joints between the two move it, at most by their weights).
+    Only an evaluation with a radius reads it."""
+    dof, ow, oji, ogi = ib[H_DOF], ib[H_W], ib[H_JI], ib[H_GI]
+    oabs, occ = wi[WI_ABSU], wi[WI_CC]
     for m in range(ib[H_NG]):
         acc = 0.0
         j = ib[ogi + GIW * m]
@@ -695,6 +699,13 @@ def certify_polyline(P, n, lo, hi, fb, ib, unsure_seg, unsure_idx, max_unsure): 
     carry = False
     carried = np.empty(npairs)
     spent = np.empty(npairs)
+    # FIFO of disjoint, non-empty index ranges still to cover (coarse to fine), made once
+    # for the longest segment.
+    room = 3
+    for k in range(P.shape[0] - 1):
+        room = max(room, hi[k] - lo[k] + 3)
+    qlo = np.empty(room, dtype=np.int64)
+    qhi = np.empty(room, dtype=np.int64)
     for k in range(P.shape[0] - 1):
         for j in range(dof):
             u[j] = P[k + 1, j] - P[k, j]
@@ -709,12 +720,10 @@ def certify_polyline(P, n, lo, hi, fb, ib, unsure_seg, unsure_idx, max_unsure): 
                 continue
         if hi[k] < lo[k]:
             continue
+        _axis_growth(fb, ib, wf, wi)  # for this segment's evaluations
         nk = n[k]
         first = True
         size = hi[k] - lo[k] + 3
-        # FIFO of disjoint, non-empty index ranges still to cover (coarse to fine).
-        qlo = np.empty(size, dtype=np.int64)
-        qhi = np.empty(size, dtype=np.int64)
         head, tail = 0, 1
         qlo[0], qhi[0] = lo[k], hi[k]
         while head < tail:

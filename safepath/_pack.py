@@ -136,11 +136,12 @@ def pack(checker: CollisionChecker, options: LayerOptions
     W = np.array([m.weights for m in movers]).reshape(len(movers), model.nv)
     chains = np.array([m.chain for m in movers]).reshape(len(movers), model.nv)
     PM = _pair_masks(chains, Pi)
+    PW = _pair_weights(W, Pi, PM)
     L = np.concatenate([robot.lower, robot.upper])
     C = np.array([options.refine, options.free_eps, options.proof_eps,
                   checker.options.resolution])
     blocks_f = [part.J.ravel(), G.ravel(), S_.ravel(), E.ravel(), P, W.ravel(), L, C,
-                V.ravel(), ER, checker.displacement_weights]
+                V.ravel(), ER, checker.displacement_weights, PW.ravel()]
     blocks_i = [part.Ji.ravel(), Gi.ravel(), Ei, Pi.ravel(), PM.ravel(), AP, AI]
     f_off = np.cumsum([0] + [len(b) for b in blocks_f])
     i_off = K.HEADER + np.cumsum([0] + [len(b) for b in blocks_i])
@@ -148,7 +149,7 @@ def pack(checker: CollisionChecker, options: LayerOptions
     header[[K.H_NJ, K.H_NG, K.H_NS, K.H_NE, K.H_NP, K.H_DOF]] = (
         model.njoints, len(movers), len(S_), len(checker._env), len(checker._pairs), model.nq)
     header[[K.H_J, K.H_G, K.H_S, K.H_E, K.H_P, K.H_W, K.H_L, K.H_C, K.H_V, K.H_ER,
-            K.H_DW]] = f_off[:11]
+            K.H_DW, K.H_PW]] = f_off[:12]
     header[[K.H_JI, K.H_GI, K.H_EI, K.H_PI, K.H_PM, K.H_AP, K.H_AI]] = i_off[:7]
     F = np.concatenate(blocks_f).astype(np.float64)
     I_ = np.concatenate([header, *blocks_i]).astype(np.int64)
@@ -268,6 +269,16 @@ def _pair_masks(chains: np.ndarray, Pi: np.ndarray) -> np.ndarray:  # noqa: N803
     cb = chains[np.where(is_env, 0, Pi[:, 1])] & ~is_env[:, None]
     return ((ca & ~cb).astype(np.int64) | ((cb & ~ca).astype(np.int64) << 1)).reshape(
         len(Pi), chains.shape[1])
+
+
+def _pair_weights(W: np.ndarray, Pi: np.ndarray, PM: np.ndarray) -> np.ndarray:  # noqa: N803
+    """Per pair and velocity index, how fast the joint can close the pair [m per unit]:
+    body a's weight where the mask has bit 1, plus body b's where it has bit 2 (in that
+    order, from 0: the sums the kernels made from the masks, bit for bit). An
+    environment object is never b's side of a mask."""
+    a = W[Pi[:, 0]]
+    b = W[np.where(Pi[:, 2] == 1, 0, Pi[:, 1])]
+    return (0.0 + np.where(PM & 1, a, 0.0)) + np.where(PM & 2, b, 0.0)
 
 
 def _weights(model: pin.Model, centre: np.ndarray, radius: float, joint: int,

@@ -264,6 +264,39 @@ def test_polylines_of_short_chords_answer_as_the_exact_grid(cell: Cell, panda_ce
     assert 5 < valid < 55
 
 
+def test_pair_weights_are_the_mask_sums_of_the_bodies_weights(cell: Cell,
+                                                             panda_cell: Cell) -> None:
+    """The packed per-pair weights (what a joint step can close each pair by) are body a's
+    weights where the pair's mask has bit 1 plus body b's where it has bit 2, for robot
+    pairs, environment pairs and the held object's pairs."""
+    from safepath import _fastkernels as K  # noqa: N812
+
+    checkers = [cell.checker(), cell.checker(held=True),
+                CollisionChecker(panda_cell.robot, panda_cell.scene)]
+    for checker in checkers:
+        layer = checker.layer
+        assert layer is not None
+        F, I_ = layer.F, layer.I  # noqa: N806
+        n, dof = int(I_[K.H_NP]), int(I_[K.H_DOF])
+        W = F[I_[K.H_W]:I_[K.H_W] + int(I_[K.H_NG]) * dof].reshape(-1, dof)  # noqa: N806
+        pairs = I_[I_[K.H_PI]:I_[K.H_PI] + 4 * n].reshape(n, 4)
+        masks = I_[I_[K.H_PM]:I_[K.H_PM] + n * dof].reshape(n, dof)
+        got = F[I_[K.H_PW]:I_[K.H_PW] + n * dof].reshape(n, dof)
+        kinds = set()
+        for k, (a, b, env, _) in enumerate(pairs):
+            kinds.add(bool(env))
+            for v in range(dof):
+                want = 0.0
+                if masks[k, v] & 1:
+                    want += W[a, v]
+                if masks[k, v] & 2:
+                    assert not env
+                    want += W[b, v]
+                assert got[k, v] == want, (k, v)
+        assert kinds == {True, False}
+        assert (got > 0).any() and (got == 0).any()
+
+
 def test_one_call_segments_report_as_the_polyline_walk(cell: Cell, panda_cell: Cell) -> None:
     """check_segment's one-call way (limits, grid count and walk inside the kernel) reports
     what the general polyline walk reports: verdict, states evaluated, where it fails,
