@@ -87,9 +87,10 @@ def _verified(piece: TimedPiece, seg_steps: list[int], segments: list[Segment],
     """Re-check a timed piece with the independent verifier, step by step (each step
     with its own allowed contacts; its clearance measured only below ``known`` and the
     earlier steps' [m]); raise VerificationError on failure."""
-    steps_of_knots = [seg_steps[k] for k in piece.segment]
+    index = np.asarray(seg_steps)[piece.segment]
+    steps_of_knots = index.tolist()
     worst: VerifyResult | None = None
-    index = np.asarray(steps_of_knots)
+    names_of = np.asarray(labels, dtype=object)
     # Consecutive steps with the same allowed contacts are one verification (the same
     # samples and judgement; one call, and their common knot evaluated once).
     runs: list[tuple[tuple[AllowedContact, ...], list[int]]] = []
@@ -101,10 +102,10 @@ def _verified(piece: TimedPiece, seg_steps: list[int], segments: list[Segment],
             runs.append((allowed, [sidx]))
     for allowed, run in runs:
         verifier = cache.verifier(world, allowed)
-        sel = np.flatnonzero(np.isin(index, run))
+        sel = np.flatnonzero((index >= run[0]) & (index <= run[-1]))  # run: consecutive
         lo, hi = max(sel[0] - 1, 0), sel[-1] + 1
         # Each knot named by its step; the first, where the run starts, by the run's first.
-        names = [labels[run[0]]] + [labels[int(index[k])] for k in range(lo + 1, hi)]
+        names = [labels[run[0]], *names_of[index[lo + 1:hi]]]
         result = verifier.verify(piece.t[lo:hi], piece.q[lo:hi], piece.qd[lo:hi],
                                  steps=names, known=known)
         known = min(known, result.min_clearance)
@@ -116,6 +117,16 @@ def _verified(piece: TimedPiece, seg_steps: list[int], segments: list[Segment],
 
 class _NotFree(Exception):
     pass
+
+
+def _apart(last: np.ndarray | None, pts: Sequence[np.ndarray]) -> bool:
+    """Whether no point of ``pts`` lies within 1e-10 (in every joint) of the one before
+    it, ``last`` before the first (None: nothing before)."""
+    P = np.asarray(pts, dtype=float)  # noqa: N806
+    steps = np.abs(np.diff(P, axis=0)).max(axis=1)
+    if last is not None and np.max(np.abs(P[0] - last)) < 1e-10:
+        return False
+    return bool(np.all(steps >= 1e-10))
 
 
 def time_segments(cell: Cell, segments: list[Segment], world: WorldState,
@@ -136,14 +147,22 @@ def time_segments(cell: Cell, segments: list[Segment], world: WorldState,
             corners.append((len(waypoints) - 1, float(min(blend, 0.4 * lengths[n - 1],
                                                           0.4 * lengths[n]))))
         pts = seg.waypoints if not waypoints else seg.waypoints[1:]
+        detour = seg.step.kind == "move" and blend > 0
+        if not detour and len(pts) > 1 and _apart(waypoints[-1] if waypoints else None, pts):
+            # No point repeats the one before it (the common case: every point is kept).
+            if waypoints:
+                seg_of_poly.extend([n] * len(pts))
+            else:
+                seg_of_poly.extend([n] * (len(pts) - 1))
+            waypoints.extend(pts)
+            continue
         for j, p in enumerate(pts):
             if waypoints and np.max(np.abs(p - waypoints[-1])) < 1e-10:
                 continue
             if waypoints:
                 seg_of_poly.append(n)
             waypoints.append(p)
-            inner = seg.step.kind == "move" and 0 < j < len(pts) - 1 and blend > 0
-            if inner:  # a vertex of a planned detour
+            if detour and 0 < j < len(pts) - 1:  # a vertex of a planned detour
                 a = float(np.linalg.norm(p - pts[j - 1]))
                 b = float(np.linalg.norm(pts[j + 1] - p))
                 corners.append((len(waypoints) - 1, min(blend, 0.4 * a, 0.4 * b)))

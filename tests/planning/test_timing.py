@@ -357,3 +357,19 @@ def test_timing_needs_neither_toppra_nor_numba_at_import() -> None:
                          text=True, check=True, timeout=120).stdout.split()
     jit = _aot.find()[0] is None or os.environ.get("SAFEPATH_AOT") == "0"
     assert out == ["False", "False", str(jit), "False"]
+
+
+def test_a_segment_takes_the_quick_way_only_when_no_point_repeats_the_one_before() -> None:
+    """time_segments keeps every waypoint of a segment at once only when none lies within
+    1e-10 (in every joint) of the one before it, the last kept one before the first;
+    otherwise it drops the repeats one by one."""
+    from safepath.planning._chunks import _apart
+
+    a = np.array([0.1, 0.2, 0.3])
+    b = a + [0.0, 0.0, 1e-9]
+    c = a + [0.0, 0.0, 5e-11]
+    assert _apart(None, [a, b])
+    assert _apart(a - 1.0, [a, b])
+    assert not _apart(None, [a, c])  # c repeats a
+    assert not _apart(c, [a, b])  # a repeats the last kept point
+    assert not _apart(None, [a, b, b.copy()])
