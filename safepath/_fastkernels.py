@@ -700,7 +700,7 @@ def certify_polyline(P, n, lo, hi, fb, ib, unsure_seg, unsure_idx, max_unsure): 
     carried = np.empty(npairs)
     spent = np.empty(npairs)
     # FIFO of disjoint, non-empty index ranges still to cover (coarse to fine), made once
-    # for the longest segment.
+    # for the longest segment: a segment's live ranges and the two it adds fit in it.
     room = 3
     for k in range(P.shape[0] - 1):
         room = max(room, hi[k] - lo[k] + 3)
@@ -723,7 +723,6 @@ def certify_polyline(P, n, lo, hi, fb, ib, unsure_seg, unsure_idx, max_unsure): 
         _axis_growth(fb, ib, wf, wi)  # for this segment's evaluations
         nk = n[k]
         first = True
-        size = hi[k] - lo[k] + 3
         head, tail = 0, 1
         qlo[0], qhi[0] = lo[k], hi[k]
         while head < tail:
@@ -756,7 +755,7 @@ def certify_polyline(P, n, lo, hi, fb, ib, unsure_seg, unsure_idx, max_unsure): 
                 if n_unsure >= max_unsure:
                     return UNSURE, k, mid, evaluated, n_unsure
             first = False
-            if tail + 2 > size:
+            if tail + 2 > room:
                 live = tail - head
                 qlo[:live] = qlo[head:tail].copy()
                 qhi[:live] = qhi[head:tail].copy()

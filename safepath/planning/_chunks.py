@@ -119,14 +119,17 @@ class _NotFree(Exception):
     pass
 
 
+#: A waypoint within this [rad] of the one before it, in every joint, repeats it.
+_REPEAT = 1e-10
+
+
 def _apart(last: np.ndarray | None, pts: Sequence[np.ndarray]) -> bool:
-    """Whether no point of ``pts`` lies within 1e-10 (in every joint) of the one before
-    it, ``last`` before the first (None: nothing before)."""
+    """Whether no point of ``pts`` repeats the one before it (``_REPEAT``), ``last``
+    before the first (None: nothing before)."""
     P = np.asarray(pts, dtype=float)  # noqa: N806
-    steps = np.abs(np.diff(P, axis=0)).max(axis=1)
-    if last is not None and np.max(np.abs(P[0] - last)) < 1e-10:
+    if last is not None and np.max(np.abs(P[0] - last)) < _REPEAT:
         return False
-    return bool(np.all(steps >= 1e-10))
+    return bool(np.all(np.abs(np.diff(P, axis=0)).max(axis=1) >= _REPEAT))
 
 
 def time_segments(cell: Cell, segments: list[Segment], world: WorldState,
@@ -150,14 +153,11 @@ def time_segments(cell: Cell, segments: list[Segment], world: WorldState,
         detour = seg.step.kind == "move" and blend > 0
         if not detour and len(pts) > 1 and _apart(waypoints[-1] if waypoints else None, pts):
             # No point repeats the one before it (the common case: every point is kept).
-            if waypoints:
-                seg_of_poly.extend([n] * len(pts))
-            else:
-                seg_of_poly.extend([n] * (len(pts) - 1))
+            seg_of_poly.extend([n] * (len(pts) if waypoints else len(pts) - 1))
             waypoints.extend(pts)
             continue
         for j, p in enumerate(pts):
-            if waypoints and np.max(np.abs(p - waypoints[-1])) < 1e-10:
+            if waypoints and np.max(np.abs(p - waypoints[-1])) < _REPEAT:
                 continue
             if waypoints:
                 seg_of_poly.append(n)

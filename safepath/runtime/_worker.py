@@ -36,6 +36,7 @@ from typing import Any
 
 import numpy as np
 
+from .._aot import PLANNING_MODULES
 from .._io import check_names
 from ..cell import Cell
 from ..errors import PoseError
@@ -48,9 +49,8 @@ __all__ = ["serve"]
 #: Modules the planner imports lazily on its first plan; the worker imports them while
 #: loading, so that the first plan runs as fast as the next ones. The kernel modules load
 #: the kernels compiled ahead of time, or else numba (safepath._aot).
-WARM_MODULES = ("ompl.base", "ompl.geometric", "ompl.util", "safepath._fastkernels",
-                "safepath.planning._topp", "safepath.planning._verify_kernel",
-                "safepath.planning._ik_kernel", "fcl", "coal", "scipy.spatial")
+WARM_MODULES = ("ompl.base", "ompl.geometric", "ompl.util", *PLANNING_MODULES, "fcl",
+                "coal", "scipy.spatial")
 
 #: A result, and the results the caller may cache by key (see ``_core.Core._cache_key``).
 Answer = tuple[Any, dict[tuple[Any, ...], Any]]
