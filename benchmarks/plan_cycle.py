@@ -102,8 +102,9 @@ def measure(cell: Cell, routes: Mapping[str, Route], names: Sequence[str],
 def stage_clock() -> Iterator[dict[str, float]]:
     """Accumulate the time spent in TOPPRA timing and in FCL verification [s].
 
-    Wraps the two functions for the duration of the ``with`` block only (the planner
-    calls them through these module attributes); the originals run unchanged.
+    Wraps the timing function and the verifiers' ``verify`` (a route's pieces go through
+    ``StagedVerifier``, the pour's through ``FclVerifier``; neither calls the other) for
+    the duration of the ``with`` block only; the originals run unchanged.
     """
     from safepath.planning import _chunks, verify
 
@@ -120,7 +121,9 @@ def stage_clock() -> Iterator[dict[str, float]]:
 
     with mock.patch.object(_chunks, "time_path", clocked("timing", _chunks.time_path)), \
             mock.patch.object(verify.FclVerifier, "verify",
-                              clocked("verification", verify.FclVerifier.verify)):
+                              clocked("verification", verify.FclVerifier.verify)), \
+            mock.patch.object(verify.StagedVerifier, "verify",
+                              clocked("verification", verify.StagedVerifier.verify)):
         yield spent
 
 

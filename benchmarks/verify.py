@@ -1,4 +1,4 @@
-"""Cost of the independent release check (``FclVerifier.verify``) on the bundled cell.
+"""Cost of the independent release check (``StagedVerifier.verify``) on the bundled cell.
 
 Records every verification one warm :func:`safepath.plan_cell` of the quality-check cell
 makes (its three routes), then replays them:
@@ -35,7 +35,7 @@ import pinocchio as pin
 
 from safepath import load_cell, plan_cell
 from safepath.planning import FclVerifier, VerifyResult
-from safepath.planning import verify as verify_module
+from safepath.planning.verify import StagedVerifier
 
 CELL_DIR = Path(__file__).resolve().parents[1] / "scenes" / "quality_check_cell"
 #: Aim for the verifier's time per warm plan of the cell [s].
@@ -44,12 +44,13 @@ AIM = 0.010
 
 @dataclass(frozen=True)
 class Call:
-    """One verification made while planning: the verifier and its trajectory."""
+    """One verification made while planning: the verifier, its trajectory and the knot
+    where each of its stages starts."""
 
-    verifier: FclVerifier
+    verifier: StagedVerifier
     t: np.ndarray
     q: np.ndarray
-    qd: np.ndarray
+    starts: list[int]
 
 
 def record_calls() -> list[Call]:
@@ -57,14 +58,14 @@ def record_calls() -> list[Call]:
     cell = load_cell(CELL_DIR)
     plan_cell(cell)
     calls: list[Call] = []
-    original = verify_module.FclVerifier.verify
+    original = StagedVerifier.verify
 
-    def recording(self: FclVerifier, t: np.ndarray, q: np.ndarray, qd: np.ndarray,
+    def recording(self: StagedVerifier, t: np.ndarray, q: np.ndarray, starts: list[int],
                   **kwargs: object) -> VerifyResult:
-        calls.append(Call(self, t, q, qd))
-        return original(self, t, q, qd, **kwargs)  # type: ignore[arg-type]
+        calls.append(Call(self, t, q, list(starts)))
+        return original(self, t, q, starts, **kwargs)  # type: ignore[arg-type]
 
-    with mock.patch.object(verify_module.FclVerifier, "verify", recording):
+    with mock.patch.object(StagedVerifier, "verify", recording):
         plan_cell(cell)
     return calls
 
@@ -72,25 +73,35 @@ def record_calls() -> list[Call]:
 def replay(calls: Sequence[Call]) -> tuple[float, list[VerifyResult]]:
     """Wall time of the verifier on the calls [s], and its results."""
     start = time.perf_counter()
-    results = [c.verifier.verify(c.t, c.q, c.qd) for c in calls]
+    results = [c.verifier.verify(c.t, c.q, c.starts) for c in calls]
     return time.perf_counter() - start, results
 
 
 def dense(call: Call) -> tuple[bool, float]:
-    """Brute force: every grid sample placed with pinocchio, every pair judged with FCL
-    (against the verifier's own pair list and what each pair must keep).
+    """Brute force: every grid sample of each stage's stretch placed with pinocchio,
+    every pair judged with FCL (against the stage verifier's own pair list and what each
+    pair must keep).
 
     Returns:
         Whether a sample fails, and the smallest robot-environment distance [m].
     """
-    v = call.verifier
-    grid = v._grid(np.asarray(call.q, dtype=float))
+    ends = [*call.starts[1:], len(call.q) - 1]
+    failed, clearance = False, np.inf
+    for v, a, b in zip(call.verifier.verifiers, call.starts, ends, strict=True):
+        stage_failed, stage_clearance = _dense_stretch(v, np.asarray(call.q[a:b + 1]))
+        failed, clearance = failed or stage_failed, min(clearance, stage_clearance)
+    return failed, clearance
+
+
+def _dense_stretch(v: FclVerifier, q: np.ndarray) -> tuple[bool, float]:
+    """:func:`dense` on one stage's stretch ``q`` with its verifier ``v``."""
+    grid = v._grid(q)
     model = v.robot.model
     data = model.createData()
     request = fcl.DistanceRequest()
     clearance = np.inf
     for s in range(grid.samples):
-        pin.forwardKinematics(model, data, grid.state(call.q, s))
+        pin.forwardKinematics(model, data, grid.state(q, s))
         for body in v._movers:
             T = data.oMi[body.joint].homogeneous @ body.T
             body.fcl.setTransform(fcl.Transform(T[:3, :3], T[:3, 3]))
@@ -137,7 +148,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         times.append(seconds)
     samples = sum(r.samples for r in results)
     checked = sum(r.checked for r in results)
-    print(f"FclVerifier on one warm plan_cell of {CELL_DIR.name} (3 routes): "
+    print(f"The release check on one warm plan_cell of {CELL_DIR.name} (3 routes): "
           f"{len(calls)} verifications, {samples} grid samples; {load_average()}")
     best, median = min(times), statistics.median(times)
     print(f"  verifier: {best * 1e3:.1f} ms per plan (median {median * 1e3:.1f} ms over "
@@ -150,7 +161,9 @@ def main(argv: Sequence[str] | None = None) -> int:
     verdicts = [dense(c) for c in chosen]
     brute = time.perf_counter() - start
     seconds, mine = replay(chosen)
-    same = all(not failed and dmin <= r.min_clearance <= dmin + c.verifier.resolution / 2 + 1e-9
+    same = all(not failed
+               and dmin - 1e-9 <= r.min_clearance  # FCL at one sample, placed its way
+               <= dmin + c.verifier.verifiers[0].resolution / 2 + 1e-9
                for (failed, dmin), r, c in zip(verdicts, mine, chosen, strict=True))
     print(f"  brute force (every sample, every pair, FCL) on {len(chosen)} of them: "
           f"{brute * 1e3:.0f} ms, the verifier {seconds * 1e3:.1f} ms on the same "

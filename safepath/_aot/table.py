@@ -70,7 +70,7 @@ ENTRIES: dict[str, Entry] = {
     # The release check's bounds (safepath.planning._verify_bounds).
     "verify_certify": Entry(
         _VERIFY, "certify",
-        (I1, F1,
+        (I1, I1, I1, F1,  # todo, its stretches, theta
          (F2, F2, F2, F2, F2, I1, F1),  # grid
          (I1, F3, I1, F2, I1, I1, F3, I1),  # kin
          (B2, F4),  # cache

@@ -84,35 +84,27 @@ def time_chunk(cell: Cell, segments: list[Segment], world: WorldState, options: 
 def _verified(piece: TimedPiece, seg_steps: list[int], segments: list[Segment],
               world: WorldState, cache: CheckerCache, labels: list[str],
               known: float = float("inf")) -> tuple[TimedPiece, list[int], VerifyResult]:
-    """Re-check a timed piece with the independent verifier, step by step (each step
-    with its own allowed contacts; its clearance measured only below ``known`` and the
-    earlier steps' [m]); raise VerificationError on failure."""
+    """Re-check a timed piece with the independent verifier, each step under its own
+    allowed contacts, in one check (its clearance measured only below ``known`` [m]);
+    raise VerificationError on failure."""
     index = np.asarray(seg_steps)[piece.segment]
     steps_of_knots = index.tolist()
-    worst: VerifyResult | None = None
-    names_of = np.asarray(labels, dtype=object)
-    # Consecutive steps with the same allowed contacts are one verification (the same
-    # samples and judgement; one call, and their common knot evaluated once).
-    runs: list[tuple[tuple[AllowedContact, ...], list[int]]] = []
+    # Consecutive steps with the same allowed contacts are one stage (the same samples
+    # and judgement); the stages are checked as one, each from the knot before its
+    # first step's first knot (where the stage before ends).
+    stages: list[tuple[AllowedContact, ...]] = []
+    starts: list[int] = []
+    last = -2
     for sidx in sorted(set(steps_of_knots)):
         allowed = next(s for s in segments if s.step_index == sidx).allowed
-        if runs and runs[-1][0] == allowed and runs[-1][1][-1] + 1 == sidx:
-            runs[-1][1].append(sidx)
-        else:
-            runs.append((allowed, [sidx]))
-    for allowed, run in runs:
-        verifier = cache.verifier(world, allowed)
-        sel = np.flatnonzero((index >= run[0]) & (index <= run[-1]))  # run: consecutive
-        lo, hi = max(sel[0] - 1, 0), sel[-1] + 1
-        # Each knot named by its step; the first, where the run starts, by the run's first.
-        names = [labels[run[0]], *names_of[index[lo + 1:hi]]]
-        result = verifier.verify(piece.t[lo:hi], piece.q[lo:hi], piece.qd[lo:hi],
-                                 steps=names, known=known)
-        known = min(known, result.min_clearance)
-        if worst is None or result.min_clearance < worst.min_clearance:
-            worst = result
-    assert worst is not None
-    return piece, steps_of_knots, worst
+        if not stages or stages[-1] != allowed or last + 1 != sidx:
+            stages.append(allowed)
+            starts.append(max(int(np.argmax(index == sidx)) - 1, 0))
+        last = sidx
+    names = np.asarray(labels, dtype=object)[index].tolist()
+    result = cache.stages(world, stages).verify(piece.t, piece.q, starts, steps=names,
+                                                known=known)
+    return piece, steps_of_knots, result
 
 
 class _NotFree(Exception):

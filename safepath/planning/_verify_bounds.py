@@ -455,15 +455,18 @@ class Layer:
                          np.empty((samples, nj, 3, 4)))
 
     def walk(self, todo: np.ndarray, theta: np.ndarray, q: np.ndarray, grid: Grid,
-             cache: PoseCache, memory: WalkMemory, drop: float = -1.0
+             cache: PoseCache, memory: WalkMemory, drop: float = -1.0,
+             stretches: tuple[np.ndarray, np.ndarray] | None = None
              ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Certify what the bounds prove along the grid, for the pairs ``todo``.
 
         A sample of pair ``p`` is certified when the bound at an earlier (or the same)
-        sample, minus the pair's motion bound since, exceeds ``theta[p]``.
+        sample of the stretch walked, minus the pair's motion bound since, exceeds
+        ``theta[p]``.
 
         Args:
-            todo: Pair indices, walked in this order.
+            todo: Pair indices, walked in this order (a pair may come more than once,
+                with stretches apart).
             theta: Threshold of every pair: the signed distance must exceed it [m].
             q: Knot positions [rad].
             grid: The grid.
@@ -472,28 +475,36 @@ class Layer:
             drop: If not negative, a clearance pair's threshold is the memory's ceiling
                 (falling as GJK finds closer points) minus ``drop`` [m], where that is
                 higher than ``theta``.
+            stretches: Per entry of ``todo``, the first sample it walks and the one
+                after its last (None: the whole grid).
 
         Returns:
-            (pairs, samples, bounds [m]) not certified, pair by pair, samples ascending.
+            (pairs, samples, bounds [m]) not certified, entry by entry, samples
+            ascending.
         """
         return self._certify(todo, theta, q, grid, cache, memory,
-                             (_COARSE, _FINE, _KEEP, float(drop)))
+                             (_COARSE, _FINE, _KEEP, float(drop)), stretches)
 
     def _certify(self, todo: np.ndarray, theta: np.ndarray, q: np.ndarray, grid: Grid,
-                 cache: PoseCache, memory: WalkMemory, params: tuple[float, ...]
+                 cache: PoseCache, memory: WalkMemory, params: tuple[float, ...],
+                 stretches: tuple[np.ndarray, np.ndarray] | None = None
                  ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         from . import _verify_kernel as kernel
 
         todo = np.ascontiguousarray(todo, dtype=np.int64)
+        if stretches is None:
+            stretches = (np.zeros(todo.size, dtype=np.int64),
+                         np.full(todo.size, grid.samples, dtype=np.int64))
+        first, stop = (np.ascontiguousarray(a, dtype=np.int64) for a in stretches)
         scratch = self._scratch  # written by the kernel; what it returns is copied out
-        args = (todo, theta,
+        args = (todo, first, stop, theta,
                 (grid.cum, grid.step, grid.cum @ self._upstream.T, grid.step @ self._upstream.T,
                  np.ascontiguousarray(q, dtype=float), grid.knot_of, grid.frac),
                 self._kin, cache.arrays(), self._pairs, (self._shapes, self._env_pose,
                                                          _climbing(self._hulls)),
                 memory.arrays(), params, scratch)
         parts = []
-        t = s = 0
+        t, s = 0, (int(first[0]) if todo.size else 0)
         while True:  # one call, unless the outputs fill up: then resume where it stopped
             count, t, s = kernel.certify(*args, t, s)
             pairs, samples, bounds = (out[:count].copy() for out in scratch[-3:])

@@ -398,20 +398,20 @@ def grid(q: np.ndarray, weights: np.ndarray, resolution: float
 
 
 @njit(cache=True)
-def certify(todo: np.ndarray, theta: np.ndarray, grid: tuple, kin: tuple, cache: tuple,
-            pairs: tuple, world: tuple, memory: tuple, params: tuple, scratch: tuple,
-            t0: int, s0: int) -> tuple[int, int, int]:
-    """Walk every pair in ``todo`` along the grid with the lower bound (see
-    :func:`_walk`, which it calls)."""
-    return _walk(todo, theta, grid, kin, cache, pairs, world, memory,  # type: ignore[no-any-return]
-                 params, scratch, t0, s0)
+def certify(todo: np.ndarray, first: np.ndarray, stop: np.ndarray, theta: np.ndarray,
+            grid: tuple, kin: tuple, cache: tuple, pairs: tuple, world: tuple, memory: tuple,
+            params: tuple, scratch: tuple, t0: int, s0: int) -> tuple[int, int, int]:
+    """Walk every pair in ``todo`` along its stretch of the grid with the lower bound
+    (see :func:`_walk`, which it calls)."""
+    return _walk(todo, first, stop, theta, grid, kin, cache, pairs,  # type: ignore[no-any-return]
+                 world, memory, params, scratch, t0, s0)
 
 
 @_kernel
-def _walk(todo: np.ndarray, theta: np.ndarray, grid: tuple, kin: tuple, cache: tuple,
-          pairs: tuple, world: tuple, memory: tuple, params: tuple, scratch: tuple,
-          t0: int, s0: int) -> tuple[int, int, int]:
-    """Walk every pair in ``todo`` along the grid with the lower bound.
+def _walk(todo: np.ndarray, first: np.ndarray, stop: np.ndarray, theta: np.ndarray,
+          grid: tuple, kin: tuple, cache: tuple, pairs: tuple, world: tuple, memory: tuple,
+          params: tuple, scratch: tuple, t0: int, s0: int) -> tuple[int, int, int]:
+    """Walk every pair in ``todo`` along its stretch of the grid with the lower bound.
 
     At a sample whose bound exceeds the pair's threshold, the samples until the bound
     on how much the pair's gap (along the bound's axis) can have changed reaches the
@@ -419,7 +419,10 @@ def _walk(todo: np.ndarray, theta: np.ndarray, grid: tuple, kin: tuple, cache: t
     and the walk goes on at the next sample.
 
     Args:
-        todo: Pairs to walk, in this order.
+        todo: Pairs to walk, in this order (a pair may come more than once, for
+            stretches apart).
+        first, stop: The stretch of the grid each entry of ``todo`` walks: samples
+            ``first`` to ``stop`` - 1.
         theta: Threshold of every pair [m].
         grid: (accumulated joint motion |dq| at every knot (knots x dof), its step
             into every knot, the same for the turning of the revolute joints upstream
@@ -447,12 +450,12 @@ def _walk(todo: np.ndarray, theta: np.ndarray, grid: tuple, kin: tuple, cache: t
             each), GJK's W (4 x 3), e (3 x 3) and idx (4, int); the outputs: pair
             (int), sample (int) and bound of every uncertified couple, as long as the
             room they have).
-        t0, s0: Where to start: the walk of ``todo[t0]`` at sample ``s0`` (0, 0: from
-            the beginning; else where the last call stopped).
+        t0, s0: Where to start: the walk of ``todo[t0]`` at sample ``s0`` (0,
+            ``first[0]``: from the beginning; else where the last call stopped).
 
     Returns:
-        The number of uncertified (pair, sample) couples written to the outputs (pair
-        by pair, samples ascending), and where to resume: (``todo.size``, 0) when the
+        The number of uncertified (pair, sample) couples written to the outputs (entry
+        by entry, samples ascending), and where to resume: (``todo.size``, 0) when the
         walk is done, else the place after the last couple written (the outputs were
         full). A walk resumed there goes on exactly as if it had not stopped.
     """
@@ -464,7 +467,7 @@ def _walk(todo: np.ndarray, theta: np.ndarray, grid: tuple, kin: tuple, cache: t
     axes, last, stats, ceiling = memory
     coarse, fine, keep, drop = params
     movers = m_joint.size
-    n, nv = knot_of.size, qk.shape[1]
+    nv = qk.shape[1]
     chain, share, base, base_turn, M, T, W, e, idx, out_p, out_s, out_b = scratch
     share[:] = 1.0
     base[:] = 0.0
@@ -601,19 +604,20 @@ def _walk(todo: np.ndarray, theta: np.ndarray, grid: tuple, kin: tuple, cache: t
                 acc += weights[p, v] * min(1.0, share[v] + turned) * moved
         return acc
 
-    def reach(p: int, s: int, target: float, rate: float) -> tuple[int, float]:
+    def reach(p: int, s: int, end: int, target: float, rate: float) -> tuple[int, float]:
         """First sample after s at which pair p's gap can have changed by target [m]
-        (the number of samples if none), and the motion per sample seen on the way
+        (``end``, the end of the stretch walked, if none before), and the motion per
+        sample seen on the way
         [m] (the next call's first guess; 0: none). The bound never decreases along
         the grid and grows about linearly: the first probe is where ``rate`` (the last
         call's) says the target is reached (without one, the next sample), each next
         one interpolated from what the last ones found (extrapolated, overshooting a
         little, until the target is bracketed), every third one halves the bracket.
-        Invariant: motion(lo) < target; motion(hi) >= target, or hi is the number of
-        samples and its motion unknown (inf)."""
+        Invariant: motion(lo) < target; motion(hi) >= target, or hi is ``end`` and its
+        motion unknown (inf)."""
         along(s)
-        lo, hi, m_lo, m_hi, count = s, n, 0.0, np.inf, 0
-        probe = s + 1 if rate <= 0.0 else min(max(s + int(target / rate), s + 1), n - 1)
+        lo, hi, m_lo, m_hi, count = s, end, 0.0, np.inf, 0
+        probe = s + 1 if rate <= 0.0 else min(max(s + int(target / rate), s + 1), end - 1)
         while hi - lo > 1:
             m = motion(p, probe)
             if m >= target:
@@ -639,10 +643,10 @@ def _walk(todo: np.ndarray, theta: np.ndarray, grid: tuple, kin: tuple, cache: t
     cap = out_p.size
     count = 0
     for t in range(t0, todo.size):
-        p = todo[t]
-        s = s0 if t == t0 else 0
+        p, end = todo[t], stop[t]
+        s = s0 if t == t0 else first[t]
         rate = 0.0
-        while s < n:
+        while s < end:
             th = max(theta[p], ceiling[0] - drop) if tracked[p] and drop >= 0.0 else theta[p]
             Sa, Sb = shapes(p, s)
             # The cheap bounds first, the finer ones only where those are not enough.
@@ -672,7 +676,7 @@ def _walk(todo: np.ndarray, theta: np.ndarray, grid: tuple, kin: tuple, cache: t
                     last[p] = bound
             if bound > th:
                 set_shares(p, s, n0, n1, n2)
-                s, rate = reach(p, s, bound - th, rate)
+                s, rate = reach(p, s, end, bound - th, rate)
                 continue
             out_p[count] = p
             out_s[count] = s

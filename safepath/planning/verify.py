@@ -50,7 +50,7 @@ from ._verify_bounds import (
     undominated,
 )
 
-__all__ = ["FclVerifier", "VerifyResult", "check_verifiable"]
+__all__ = ["FclVerifier", "StagedVerifier", "VerifyResult", "check_verifiable"]
 
 Pair = tuple[str, str]
 #: Margin kept between the clearance walk's threshold and the tolerance [m], so that
@@ -136,7 +136,11 @@ class FclVerifier:
 
     def _set_pairs(self, allowed: Iterable[AllowedContact]) -> None:
         """The pairs to check and what each must keep."""
-        self._pairs = self._pair_list(self.robot, self._held, allowed)
+        self._use_pairs(self._pair_list(self.robot, self._held, allowed))
+
+    def _use_pairs(self, pairs: list[tuple[int, int, bool, float]]) -> None:
+        """Check ``pairs`` (see :meth:`_pair_list`): what each must keep."""
+        self._pairs = pairs
         self._theta = self._thresholds(self._scene, self._margin, self.enforce_margin)
         # The layer certifies a pair allowed to touch only where it is apart: in
         # contact, FCL's penetration depth decides.
@@ -247,9 +251,17 @@ class FclVerifier:
         """
         q = np.asarray(q, dtype=float)
         grid = self._grid(q)
-        run = _Run(self, q, grid, self._layer.cache(grid.samples), known)
-        left = run.walk(np.arange(len(self._pairs)), self._bound_theta,
-                        drop=self.resolution / 2 - _SLACK)
+        everywhere = (np.zeros(len(self._pairs), dtype=np.int64),
+                      np.full(len(self._pairs), grid.samples, dtype=np.int64))
+        return self._check(t, q, grid, np.arange(len(self._pairs)), everywhere, steps, known)
+
+    def _check(self, t: np.ndarray, q: np.ndarray, grid: Grid, todo: np.ndarray,
+               stretches: tuple[np.ndarray, np.ndarray], steps: Sequence[str] | None,
+               known: float) -> VerifyResult:
+        """:meth:`verify` on ``grid``, each pair of ``todo`` on its stretch of samples
+        (first, after the last); a pair may come more than once."""
+        run = _Run(self, q, grid, self._layer.cache(grid.samples), known, (todo, stretches))
+        left = run.walk(todo, self._bound_theta, stretches, drop=self.resolution / 2 - _SLACK)
         fail_at, bad = run.safety(*left)
         if bad:
             k = int(grid.knot_of[fail_at])
@@ -268,15 +280,100 @@ class FclVerifier:
                             int(run.memory.stats[0]))
 
 
+class StagedVerifier:
+    """Verifiers of one world state that differ only in their allowed contacts, as one
+    check of a trajectory whose consecutive stretches each follow one of them.
+
+    A route's piece often crosses steps that allow different contacts (a finger may
+    touch the vial in one, must keep its margin in the next). Checked as one, the piece
+    is cut into one grid (the same samples as its stretches' grids together: the grid
+    cuts every knot interval on its own), each pair is walked once along the stretches
+    where its rules hold (a pair whose rules are the same in two consecutive stages is
+    walked across their boundary, its bound carried over), and the knot two stages
+    share is judged under both, as when each stage is verified on its own.
+
+    Args:
+        stages: Verifiers made with :meth:`FclVerifier.with_allowed` from one another
+            (the same robot, bodies, environment, resolution and margins).
+
+    Raises:
+        ValueError: Stages that are not of one world state and resolution.
+    """
+
+    def __init__(self, stages: Sequence[FclVerifier]) -> None:
+        first = stages[0]
+        for v in stages[1:]:
+            if (v._movers is not first._movers or v._env is not first._env
+                    or v.resolution != first.resolution
+                    or v.enforce_margin != first.enforce_margin
+                    or v._margin != first._margin):
+                raise ValueError("staged verifiers must be of one world state, resolution "
+                                 "and margin (made with FclVerifier.with_allowed)")
+        union: dict[tuple[int, int, bool, float], int] = {}
+        for v in stages:
+            for pair in v._pairs:
+                union.setdefault(pair, len(union))
+        if len(stages) == 1:
+            self._joined = first
+        else:
+            self._joined = copy.copy(first)
+            self._joined._use_pairs(list(union))
+            self._joined._layer = self._joined._conservative_layer()
+        member = np.zeros((len(union), len(stages)), dtype=np.bool_)
+        for k, v in enumerate(stages):
+            member[[union[pair] for pair in v._pairs], k] = True
+        # Each pair's runs of consecutive stages it belongs to: (pair, first stage, last).
+        runs = [(u, a, b) for u in range(len(union))
+                for a, b in _true_runs(member[u])]
+        self._todo, self._from, self._to = (np.array([r[k] for r in runs], dtype=np.int64)
+                                            for k in range(3))
+        self.verifiers = tuple(stages)
+
+    def verify(self, t: np.ndarray, q: np.ndarray, starts: Sequence[int], *,
+               steps: Sequence[str] | None = None, known: float = float("inf")
+               ) -> VerifyResult:
+        """Check a timed trajectory, stage ``k`` from knot ``starts[k]`` to knot
+        ``starts[k + 1]`` (both included; the last stage to the last knot), as
+        :meth:`FclVerifier.verify` checks each stretch with its stage's verifier.
+
+        Raises:
+            VerificationError: As :meth:`FclVerifier.verify`; the first failing sample
+                in time.
+            ValueError: ``starts`` not one per stage, from knot 0, not descending.
+        """
+        q = np.asarray(q, dtype=float)
+        begin = np.asarray(starts, dtype=np.int64)
+        if (begin.size != len(self.verifiers) or begin[0] != 0 or np.any(np.diff(begin) < 0)
+                or begin[-1] >= len(q)):
+            raise ValueError(f"stage starts {list(starts)}: one per stage "
+                             f"({len(self.verifiers)}), from knot 0, not descending, before knot "
+                             f"{len(q)}")
+        joined = self._joined
+        grid = joined._grid(q)
+        # The sample at each knot (the last of its interval), and each stage's stretch.
+        at = np.searchsorted(grid.knot_of, np.append(begin, len(q) - 1), side="right") - 1
+        first, stop = at[:-1][self._from], at[1:][self._to] + 1
+        return joined._check(t, q, grid, self._todo, (first, stop), steps, known)
+
+
+def _true_runs(flags: np.ndarray) -> list[tuple[int, int]]:
+    """(first, last) index of every run of True in ``flags``."""
+    edges = np.diff(np.concatenate(([0], flags.astype(np.int8), [0])))
+    return list(zip(np.flatnonzero(edges == 1).tolist(),
+                    (np.flatnonzero(edges == -1) - 1).tolist(), strict=True))
+
+
 class _Run:
     """The FCL side of one verification: places the bodies from the layer's pose cache
     and judges the pairs the layer could not certify."""
 
     def __init__(self, verifier: FclVerifier, q: np.ndarray, grid: Grid,
-                 cache: PoseCache, known: float = float("inf")) -> None:
+                 cache: PoseCache, known: float,
+                 entries: tuple[np.ndarray, tuple[np.ndarray, np.ndarray]]) -> None:
         import fcl
 
         self.v = verifier
+        self.entries = entries  # the pairs walked and their stretches
         self.q = q
         self.grid = grid
         self.cache = cache
@@ -291,11 +388,13 @@ class _Run:
         self._placed = [-1] * len(verifier._movers)
         self._dist_req = fcl.DistanceRequest()
 
-    def walk(self, todo: np.ndarray, theta: np.ndarray, drop: float = -1.0
+    def walk(self, todo: np.ndarray, theta: np.ndarray,
+             stretches: tuple[np.ndarray, np.ndarray], drop: float = -1.0
              ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """The layer's walk of pairs ``todo`` against thresholds ``theta`` [m]."""
+        """The layer's walk of pairs ``todo`` on their stretches against thresholds
+        ``theta`` [m]."""
         return self.v._layer.walk(todo, theta, self.q, self.grid, self.cache, self.memory,
-                                  drop)
+                                  drop, stretches)
 
     def _place(self, m: int, s: int) -> object:
         import fcl
@@ -381,9 +480,10 @@ class _Run:
                 self._measure(int(pairs[k]), int(samples[k]))
         if ceiling[0] >= self.min_clear - _SLACK:
             return
-        todo = v._clearance_pairs
+        todo, (first, stop) = self.entries
         theta = np.maximum(v._theta, self.min_clear - tol)
-        again = self.walk(todo[v._theta[todo] < self.min_clear - tol], theta)
+        redo = np.flatnonzero(v._tracked[todo] & (v._theta[todo] < self.min_clear - tol))
+        again = self.walk(todo[redo], theta, (first[redo], stop[redo]))
         for p, s in zip(*again[:2], strict=True):
             self._measure(int(p), int(s))
 

@@ -3,6 +3,7 @@ and the checkers and verifiers built for each such state."""
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from typing import TypeVar
 
@@ -12,7 +13,7 @@ from ..cell import Cell
 from ..collision import CollisionChecker
 from ..scene import AllowedContact
 from .options import PlanOptions
-from .verify import FclVerifier
+from .verify import FclVerifier, StagedVerifier
 
 __all__ = ["WorldState", "CheckerCache", "initial_world"]
 
@@ -58,6 +59,8 @@ class CheckerCache:
         # allowed contacts (the keys), never on the taught poses.
         self._checkers: dict[tuple, CollisionChecker] = cell.cache(("checkers", options.check))
         self._verifiers: dict[tuple, FclVerifier] = cell.cache(("verifiers", options.check))
+        self._staged: dict[tuple, StagedVerifier] = cell.cache(("staged verifiers",
+                                                                options.check))
 
     def checker(self, world: WorldState, allowed: tuple[AllowedContact, ...]) -> CollisionChecker:
         """The collision checker of ``world`` with the contacts ``allowed``."""
@@ -85,6 +88,15 @@ class CheckerCache:
                             resolution=opts.resolution, margin=opts.margin,
                             enforce_margin=opts.enforce_margin)
         return self._verifiers[key]
+
+    def stages(self, world: WorldState, allowed: Sequence[tuple[AllowedContact, ...]]
+               ) -> StagedVerifier:
+        """The verifiers of ``world`` with each of the contacts ``allowed``, as one check
+        of a trajectory that goes through them in this order."""
+        key = (world.key(), tuple(allowed))
+        if key not in self._staged:
+            self._staged[key] = StagedVerifier([self.verifier(world, a) for a in allowed])
+        return self._staged[key]
 
 
 def _of_state(made: dict[tuple, T], state: tuple) -> T | None:

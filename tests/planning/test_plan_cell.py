@@ -181,52 +181,57 @@ def test_dense_samples_stay_within_limits(bundled: Plans, name: str) -> None:
     assert (np.abs(qd) / robot.velocity_limits).max() <= 1 + INTERPOLATION_TOL
 
 
-def test_consecutive_steps_with_the_same_contacts_are_verified_in_one_call(
+def test_each_piece_is_verified_in_one_call_each_step_under_its_contacts(
         bundled_cell: Cell, monkeypatch: pytest.MonkeyPatch) -> None:
-    """The release check verifies consecutive steps of a piece that allow the same
-    contacts in one call, over the same knots, each knot named by its step; its smallest
-    clearance is the per-step calls' to within half the resolution."""
+    """The release check verifies each timed piece in one call: its consecutive steps
+    that allow the same contacts are one stage, each stage starts at the last knot of
+    the one before, each knot is named by its step; each stage's stretch passes its own
+    verifier alone, and the piece's clearance is theirs to within half the
+    resolution."""
     from safepath import plan_cell
-    from safepath.planning import FclVerifier, _chunks
+    from safepath.planning import _chunks
+    from safepath.planning.verify import StagedVerifier
 
-    pieces: list[tuple[object, ...]] = []
-    calls: list[tuple[FclVerifier, np.ndarray, list[str], float]] = []
-    verified, verify = _chunks._verified, FclVerifier.verify
+    pieces: list[tuple[object, list[int], list[str]]] = []
+    calls: list[tuple[StagedVerifier, np.ndarray, np.ndarray, list[int], list[str],
+                      float]] = []
+    verified, verify = _chunks._verified, StagedVerifier.verify
 
     def spy_verified(piece: object, seg_steps: list[int], segments: list[object],
-                     *args: object) -> object:
-        pieces.append((piece, seg_steps, segments))
-        return verified(piece, seg_steps, segments, *args)  # type: ignore[arg-type]
+                     world: object, cache: object, labels: list[str], *args: object
+                     ) -> object:
+        pieces.append((piece, seg_steps, labels))
+        return verified(piece, seg_steps, segments, world, cache, labels,  # type: ignore[arg-type]
+                        *args)
 
-    def spy_verify(self: FclVerifier, t: np.ndarray, q: np.ndarray, qd: np.ndarray,
+    def spy_verify(self: StagedVerifier, t: np.ndarray, q: np.ndarray, starts: list[int],
                    **kwargs: object) -> object:
-        calls.append((self, np.asarray(t), list(kwargs["steps"]), float(kwargs["known"])))
-        return verify(self, t, q, qd, **kwargs)  # type: ignore[arg-type]
+        calls.append((self, np.asarray(t), np.asarray(q), list(starts),
+                      list(kwargs["steps"]), float(kwargs["known"])))
+        return verify(self, t, q, starts, **kwargs)  # type: ignore[arg-type]
 
     monkeypatch.setattr(_chunks, "_verified", spy_verified)
-    monkeypatch.setattr(FclVerifier, "verify", spy_verify)
+    monkeypatch.setattr(StagedVerifier, "verify", spy_verify)
     plan_cell(bundled_cell)
     monkeypatch.undo()
-    steps_per_piece = [len(set(seg_steps[k] for k in piece.segment))  # type: ignore[attr-defined]
-                       for piece, seg_steps, _ in pieces]
-    assert len(calls) < sum(steps_per_piece)  # some steps were verified together
-    merged = [c for c in calls if len(set(c[2])) > 1]
-    assert merged
-    for verifier, t, names, known in merged:
-        piece = next(p for p, _, _ in pieces
-                     if len(p.t) >= len(t) and any(  # type: ignore[attr-defined]
-                         np.array_equal(p.t[i:i + len(t)], t)  # type: ignore[attr-defined]
-                         for i in range(len(p.t) - len(t) + 1)))  # type: ignore[attr-defined]
-        lo = next(i for i in range(len(piece.t)) if np.array_equal(piece.t[i:i + len(t)], t))
-        q, qd = piece.q[lo:lo + len(t)], piece.qd[lo:lo + len(t)]
-        whole = verify(verifier, t, q, qd, steps=names, known=known)
-        # The same knots one step at a time, as before.
-        cut = next(k for k in range(1, len(names)) if names[k] != names[k - 1])
-        assert len(set(names[cut:])) == 1  # each step's knots together, in order
-        parts = [verify(verifier, t[:cut], q[:cut], qd[:cut], known=known)]
-        parts.append(verify(verifier, t[cut - 1:], q[cut - 1:], qd[cut - 1:], known=known))
+    assert len(calls) == len(pieces)
+    assert any(len(c[0].verifiers) > 1 for c in calls)
+    assert any(len(set(c[4])) > len(c[0].verifiers) for c in calls)  # steps merged
+    for (staged, t, q, starts, names, known), (piece, seg_steps, labels) in zip(
+            calls, pieces, strict=True):
+        steps = np.asarray(seg_steps)[piece.segment]  # type: ignore[attr-defined]
+        np.testing.assert_array_equal(t, piece.t)  # type: ignore[attr-defined]
+        assert names == [labels[k] for k in steps]
+        whole = verify(staged, t, q, starts, known=known)
+        ends = [*starts[1:], len(t) - 1]
+        parts = [v.verify(t[a:b + 1], q[a:b + 1], q[a:b + 1], known=known)
+                 for v, a, b in zip(staged.verifiers, starts, ends, strict=True)]
+        for k, (a, b) in enumerate(zip(starts, ends, strict=True)):
+            # A stage is steps allowing the same contacts, from where the last ended.
+            own = set(steps[a + (k > 0):b + 1].tolist())
+            assert sorted(own) == list(range(min(own), max(own) + 1))
         best = min(p.min_clearance for p in parts)
-        assert abs(whole.min_clearance - best) <= verifier.resolution / 2 or (
+        assert abs(whole.min_clearance - best) <= staged.verifiers[0].resolution / 2 or (
             whole.min_clearance == best == float("inf"))
 
 

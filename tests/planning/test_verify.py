@@ -657,3 +657,81 @@ def test_verifiers_of_a_robot_share_its_bodies_and_see_them_change(detour_cell: 
     d, wd, _ = robot_bodies(robot)
     np.testing.assert_array_equal(wd, wc)
     np.testing.assert_array_equal(d[2].T, c[2].T)
+
+
+def _two_steps(bundled: Plans, a: str, b: str) -> tuple[np.ndarray, np.ndarray, int]:
+    """Knot times and positions of phase1's consecutive steps a and b, and the knot where
+    b's stage starts (a's last knot)."""
+    traj = bundled.trajectories["phase1"]
+    ia, ib = traj.steps.index(a), traj.steps.index(b)
+    sel = np.flatnonzero((traj.step_index == ia) | (traj.step_index == ib))
+    assert np.all(np.diff(sel) == 1)
+    start = int(np.argmax(traj.step_index[sel] == ib)) - 1
+    return traj.t[sel], traj.q[sel], start
+
+
+@pytest.mark.parametrize(("dz", "fails"), [(0.0, False), (0.003, True)],
+                         ids=["planned", "pressed-in"])
+def test_stages_are_judged_as_each_stage_alone_judges_its_stretch(
+        bundled: Plans, dz: float, fails: bool) -> None:
+    """The move to high2 (no contact allowed), then the line down to the plate (the vial
+    may touch it 1 mm deep), checked as one: as a dense check of each stretch under its
+    own stage's rules finds, the first failure in time, the clearance to within half a
+    resolution; under the first stage's rules alone the put-down fails."""
+    from safepath.planning.verify import StagedVerifier
+
+    cell = bundled.cell
+    t, q, start = _two_steps(bundled, STEP, "3 line low1")
+    scene = _raised(cell, "test_plate", dz)
+    resting = dict(initial_world(cell).resting)
+    first = FclVerifier(cell.robot, scene, held="vial", resting=resting)
+    second = first.with_allowed(cell.scene.contacts_at("low1"))
+    margins = _margins(cell, None, True)
+    stretches = [(first, slice(0, start + 1)), (second, slice(start, len(t)))]
+    dense = [(_dense(v, q[k], margins), t[k], v._grid(q[k])) for v, k in stretches]
+    failing = [(float(tk[g.knot_of[f]]), bad) for (f, bad, _), tk, g in dense if f is not None]
+    staged = StagedVerifier([first, second])
+    try:
+        result = staged.verify(t, q, [0, start], steps=["s"] * len(t))
+    except VerificationError as err:
+        assert failing, f"staged rejects what the stages' dense checks accept: {err}"
+        when = min(w for w, _ in failing)
+        assert err.time == when
+        assert set(err.pairs) == set().union(*(bad for w, bad in failing if w == when))
+        assert fails and ("vial", "test_plate") in err.pairs
+    else:
+        assert not failing and not fails
+        clearance = min(c for (_, _, c), _, _ in dense)
+        assert clearance - 1e-9 <= result.min_clearance <= clearance + first.resolution / 2
+        assert result.samples == sum(g.samples for _, _, g in dense) - 1  # the shared knot
+    # The first stage's rules on the whole: the vial must not touch the plate.
+    with pytest.raises(VerificationError):
+        first.verify(t, q, np.zeros_like(q))
+
+
+def test_a_pair_in_consecutive_stages_is_walked_across_their_boundary(bundled: Plans) -> None:
+    """Where two stages share a pair's rules, the pair is walked once across both: fewer
+    bounds than the stages checked one by one, the same judgement and clearance to
+    within half a resolution; stages from other world states, or starts not one per
+    stage from knot 0, are refused."""
+    from safepath.planning.verify import StagedVerifier
+
+    cell = bundled.cell
+    t, q, start = _two_steps(bundled, STEP, "3 line low1")
+    first = _verifier(cell)
+    second = first.with_allowed(cell.scene.contacts_at("low1"))
+    staged = StagedVerifier([first, second]).verify(t, q, [0, start])
+    alone = [first.verify(t[:start + 1], q[:start + 1], q[:start + 1]),
+             second.verify(t[start:], q[start:], q[start:])]
+    assert staged.bound_checks < sum(r.bound_checks for r in alone)
+    best = min(r.min_clearance for r in alone)
+    assert abs(staged.min_clearance - best) <= first.resolution / 2
+    # One stage is the verifier itself.
+    one = StagedVerifier([second]).verify(t[start:], q[start:], [0])
+    assert one == alone[1]
+    with pytest.raises(ValueError, match="one world state"):
+        StagedVerifier([first, _verifier(cell)])
+    with pytest.raises(ValueError, match="one per stage"):
+        StagedVerifier([first, second]).verify(t, q, [start, 0])
+    with pytest.raises(ValueError, match="one per stage"):
+        StagedVerifier([first, second]).verify(t, q, [0])
