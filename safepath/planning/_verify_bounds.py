@@ -532,7 +532,7 @@ class Layer:
         """World pose (3 x 4) of moving body ``m``'s geometry frame at sample ``s``: from
         the layer's joint poses, or pinocchio's where the layer never looked."""
         joint = int(self._kin[5][m])
-        T_joint_geom = np.vstack([self._kin[6][m], [0.0, 0.0, 0.0, 1.0]])
+        T_joint_geom = self._homogeneous[m]
         if joint == 0:
             return T_joint_geom[:3]
         if cache.jdone[s, joint]:
@@ -544,6 +544,13 @@ class Layer:
             pin.forwardKinematics(self._model, data, grid.state(q, s))
             T_world_joint = data.oMi[joint].homogeneous[:3]
         return np.asarray(T_world_joint @ T_joint_geom)
+
+    @functools.cached_property
+    def _homogeneous(self) -> np.ndarray:
+        """Each moving body's geometry frame in its joint frame, 4 x 4."""
+        out = np.zeros((self._kin[6].shape[0], 4, 4))
+        out[:, :3], out[:, 3, 3] = self._kin[6], 1.0
+        return out
 
     def bounds_at(self, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Every pair's lower bound at one state [m] (the finest the layer computes), and

@@ -342,16 +342,16 @@ class StagedVerifier:
             ValueError: ``starts`` not one per stage, from knot 0, not descending.
         """
         q = np.asarray(q, dtype=float)
-        begin = np.asarray(starts, dtype=np.int64)
-        if (begin.size != len(self.verifiers) or begin[0] != 0 or np.any(np.diff(begin) < 0)
-                or begin[-1] >= len(q)):
+        knots = [*map(int, starts), len(q) - 1]
+        if (len(knots) != len(self.verifiers) + 1 or knots[0] != 0
+                or any(b < a for a, b in itertools.pairwise(knots))):
             raise ValueError(f"stage starts {list(starts)}: one per stage "
-                             f"({len(self.verifiers)}), from knot 0, not descending, before knot "
-                             f"{len(q)}")
+                             f"({len(self.verifiers)}), from knot 0, not descending, before "
+                             f"knot {len(q)}")
         joined = self._joined
         grid = joined._grid(q)
         # The sample at each knot (the last of its interval), and each stage's stretch.
-        at = np.searchsorted(grid.knot_of, np.append(begin, len(q) - 1), side="right") - 1
+        at = np.searchsorted(grid.knot_of, knots, side="right") - 1
         first, stop = at[:-1][self._from], at[1:][self._to] + 1
         return joined._check(t, q, grid, self._todo, (first, stop), steps, known)
 
@@ -447,8 +447,10 @@ class _Run:
         """Judge with FCL every couple the walk left whose bound does not clear its
         pair's threshold, in sample order; return the first failing sample and the
         pairs failing there (none: the number of samples)."""
-        fail_at, bad = self.grid.samples, []
+        fail_at, bad = self.grid.samples, list[int]()
         judge = np.flatnonzero(bounds <= self.v._bound_theta[pairs])
+        if not judge.size:
+            return fail_at, bad
         for k in judge[np.lexsort((pairs[judge], samples[judge]))]:
             s, p = int(samples[k]), int(pairs[k])
             if s > fail_at:
