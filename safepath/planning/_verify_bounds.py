@@ -405,6 +405,15 @@ class WalkMemory:
         return self.axes, self.last, self.stats, self.ceiling
 
 
+def _pair_arrays(pairs: list[tuple[int, int, bool]], weights: np.ndarray,
+                 clearance: np.ndarray) -> tuple[np.ndarray, ...]:
+    """The pairs as the kernel takes them (see :class:`Layer`)."""
+    return (np.array([a for a, _, _ in pairs], dtype=np.int64),
+            np.array([b for _, b, _ in pairs], dtype=np.int64),
+            np.array([e for _, _, e in pairs], dtype=np.bool_),
+            np.ascontiguousarray(weights, dtype=float), np.asarray(clearance, dtype=np.bool_))
+
+
 class Layer:
     """Lower bounds on the distance of every checked pair, on a whole grid at once.
 
@@ -436,16 +445,20 @@ class Layer:
         self._env_pose = np.array([np.asarray(T)[:3] for T in T_world_env]).reshape(-1, 3, 4)
         # The kernels' shape and vertex tables; bodies first.
         self._shapes, self._hulls = _shape_table(movers + env)
-        self._pairs = (np.array([a for a, _, _ in pairs], dtype=np.int64),
-                       np.array([b for _, b, _ in pairs], dtype=np.int64),
-                       np.array([e for _, _, e in pairs], dtype=np.bool_),
-                       np.ascontiguousarray(weights, dtype=float),
-                       np.asarray(clearance, dtype=np.bool_))
+        self._pairs = _pair_arrays(pairs, weights, clearance)
 
     def with_clearance(self, clearance: np.ndarray) -> Layer:
         """This layer with other pairs counting for the clearance (the same pairs)."""
         out = copy.copy(self)
         out._pairs = (*self._pairs[:4], np.asarray(clearance, dtype=np.bool_))
+        return out
+
+    def with_pairs(self, pairs: list[tuple[int, int, bool]], weights: np.ndarray,
+                   clearance: np.ndarray) -> Layer:
+        """This layer (the same bodies, environment objects and their tables) for other
+        pairs (arguments as the constructor's)."""
+        out = copy.copy(self)
+        out._pairs = _pair_arrays(pairs, weights, clearance)
         return out
 
     def cache(self, samples: int) -> PoseCache:

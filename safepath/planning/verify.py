@@ -124,14 +124,14 @@ class FclVerifier:
 
     def with_allowed(self, allowed: Iterable[AllowedContact]) -> FclVerifier:
         """This verifier with other allowed contacts (the same robot, scene, world state,
-        resolution and margins): its bodies and, for the same pairs, its layer's tables
-        are taken from this one (to be used in the same thread); the pairs and what each
-        must keep are made anew. Judges as a new verifier does (tested)."""
+        resolution and margins): its bodies and its layer's tables are taken from this
+        one (to be used in the same thread); the pairs, their weights and what each must
+        keep are made anew. Judges as a new verifier does (tested)."""
         new = copy.copy(self)
         new._set_pairs(allowed)
         same = [p[:3] for p in new._pairs] == [p[:3] for p in self._pairs]
         new._layer = (self._layer.with_clearance(new._tracked) if same
-                      else new._conservative_layer())
+                      else new._conservative_layer(self._layer))
         return new
 
     def _set_pairs(self, allowed: Iterable[AllowedContact]) -> None:
@@ -161,15 +161,18 @@ class FclVerifier:
             (margin_of[self._env[j].name] if env and enforce_margin else 0.0)
             for _, j, env, depth in self._pairs], dtype=float)
 
-    def _conservative_layer(self) -> Layer:
-        """The layer that bounds every pair's distance from below (``_verify_bounds``)."""
+    def _conservative_layer(self, like: Layer | None = None) -> Layer:
+        """The layer that bounds every pair's distance from below (``_verify_bounds``);
+        made from ``like``'s tables if given (a layer of the same bodies and
+        environment)."""
         joints = [b.joint for b in self._movers]
         pairs = [(i, j, env) for i, j, env, _ in self._pairs]
+        weights = pair_weights(self.robot.model, joints, self._weights, pairs)
+        if like is not None:
+            return like.with_pairs(pairs, weights, self._tracked)
         return Layer(self.robot.model, joints, [b.T for b in self._movers],
                      [b.spec for b in self._movers], [b.T for b in self._env],
-                     [b.spec for b in self._env], pairs,
-                     pair_weights(self.robot.model, joints, self._weights, pairs),
-                     self._tracked,
+                     [b.spec for b in self._env], pairs, weights, self._tracked,
                      self._joint_tables)
 
     def _pair_list(self, robot: Robot, held: str | None, allowed: Iterable[AllowedContact]
@@ -309,24 +312,25 @@ class StagedVerifier:
                     or v._margin != first._margin):
                 raise ValueError("staged verifiers must be of one world state, resolution "
                                  "and margin (made with FclVerifier.with_allowed)")
-        union: dict[tuple[int, int, bool, float], int] = {}
-        for v in stages:
-            for pair in v._pairs:
-                union.setdefault(pair, len(union))
+        # Every pair (with what it must keep) of any stage, in the order first seen.
+        union = {pair: u for u, pair in enumerate(
+            dict.fromkeys(itertools.chain.from_iterable(v._pairs for v in stages)))}
         if len(stages) == 1:
             self._joined = first
         else:
             self._joined = copy.copy(first)
             self._joined._use_pairs(list(union))
-            self._joined._layer = self._joined._conservative_layer()
+            self._joined._layer = self._joined._conservative_layer(first._layer)
         member = np.zeros((len(union), len(stages)), dtype=np.bool_)
         for k, v in enumerate(stages):
             member[[union[pair] for pair in v._pairs], k] = True
-        # Each pair's runs of consecutive stages it belongs to: (pair, first stage, last).
-        runs = [(u, a, b) for u in range(len(union))
-                for a, b in _true_runs(member[u])]
-        self._todo, self._from, self._to = (np.array([r[k] for r in runs], dtype=np.int64)
-                                            for k in range(3))
+        # Each pair's runs of consecutive stages it belongs to, pair by pair: the pair,
+        # its first stage and its last.
+        padded = np.zeros((len(union), len(stages) + 2), dtype=np.int8)
+        padded[:, 1:-1] = member
+        edges = np.diff(padded, axis=1)
+        self._todo, self._from = (a.astype(np.int64) for a in np.nonzero(edges == 1))
+        self._to = np.nonzero(edges == -1)[1].astype(np.int64) - 1
         self.verifiers = tuple(stages)
 
     def verify(self, t: np.ndarray, q: np.ndarray, starts: Sequence[int], *,
@@ -354,13 +358,6 @@ class StagedVerifier:
         at = np.searchsorted(grid.knot_of, knots, side="right") - 1
         first, stop = at[:-1][self._from], at[1:][self._to] + 1
         return joined._check(t, q, grid, self._todo, (first, stop), steps, known)
-
-
-def _true_runs(flags: np.ndarray) -> list[tuple[int, int]]:
-    """(first, last) index of every run of True in ``flags``."""
-    edges = np.diff(np.concatenate(([0], flags.astype(np.int8), [0])))
-    return list(zip(np.flatnonzero(edges == 1).tolist(),
-                    (np.flatnonzero(edges == -1) - 1).tolist(), strict=True))
 
 
 class _Run:
