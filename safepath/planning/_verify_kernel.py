@@ -397,6 +397,20 @@ def grid(q: np.ndarray, weights: np.ndarray, resolution: float
     return knot_of, frac, step, cum
 
 
+@_kernel
+def _motion(kind: int, value: float, x: float, y: float, z: float
+            ) -> tuple[float, float, float, float, float, float, float, float, float]:
+    """A joint's own rotation (row-major): about the unit axis (x, y, z) by ``value``
+    [rad] (Rodrigues), or none for a prismatic joint."""
+    if kind == PRISMATIC:
+        return 1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0
+    co, si = math.cos(value), math.sin(value)
+    t = 1.0 - co
+    return (co + t * x * x, t * x * y - si * z, t * x * z + si * y,
+            t * x * y + si * z, co + t * y * y, t * y * z - si * x,
+            t * x * z - si * y, t * y * z + si * x, co + t * z * z)
+
+
 @njit(cache=True)
 def certify(todo: np.ndarray, first: np.ndarray, stop: np.ndarray, theta: np.ndarray,
             grid: tuple, kin: tuple, cache: tuple, pairs: tuple, world: tuple, memory: tuple,
@@ -488,23 +502,29 @@ def _walk(todo: np.ndarray, first: np.ndarray, stop: np.ndarray, theta: np.ndarr
             value = qk[0, col] if knot == 0 else (
                 qk[knot - 1, col] + frac[s] * (qk[knot, col] - qk[knot - 1, col]))
             x, y, z = axis[k, 0], axis[k, 1], axis[k, 2]
-            if kind[k] == PRISMATIC:
-                m00, m01, m02, m10, m11, m12, m20, m21, m22 = 1., 0., 0., 0., 1., 0., 0., 0., 1.
-                t0, t1, t2 = x * value, y * value, z * value
-            else:
-                co, si = math.cos(value), math.sin(value)
-                t = 1.0 - co
-                m00, m01, m02 = co + t * x * x, t * x * y - si * z, t * x * z + si * y
-                m10, m11, m12 = t * x * y + si * z, co + t * y * y, t * y * z - si * x
-                m20, m21, m22 = t * x * z - si * y, t * y * z + si * x, co + t * z * z
-                t0 = t1 = t2 = 0.0
-            for i in range(3):
-                M[i, 0] = place[k, i, 0] * m00 + place[k, i, 1] * m10 + place[k, i, 2] * m20
-                M[i, 1] = place[k, i, 0] * m01 + place[k, i, 1] * m11 + place[k, i, 2] * m21
-                M[i, 2] = place[k, i, 0] * m02 + place[k, i, 1] * m12 + place[k, i, 2] * m22
-                M[i, 3] = (place[k, i, 0] * t0 + place[k, i, 1] * t1 + place[k, i, 2] * t2
-                           + place[k, i, 3])
             p = parent[k]
+            if kind[k] != PRISMATIC and x == 0.0 and y == 0.0 and z == 1.0:
+                # The usual joint: a turn about its own z (the general case below, with
+                # the zeros left out).
+                co, si = math.cos(value), math.sin(value)
+                for i in range(3):
+                    M[i, 0] = place[k, i, 0] * co + place[k, i, 1] * si
+                    M[i, 1] = place[k, i, 1] * co - place[k, i, 0] * si
+                    M[i, 2] = place[k, i, 2]
+                    M[i, 3] = place[k, i, 3]
+            else:
+                m00, m01, m02, m10, m11, m12, m20, m21, m22 = _motion(kind[k], value, x, y, z)
+                t0, t1, t2 = (x * value, y * value, z * value) if kind[k] == PRISMATIC \
+                    else (0.0, 0.0, 0.0)
+                for i in range(3):
+                    M[i, 0] = (place[k, i, 0] * m00 + place[k, i, 1] * m10
+                               + place[k, i, 2] * m20)
+                    M[i, 1] = (place[k, i, 0] * m01 + place[k, i, 1] * m11
+                               + place[k, i, 2] * m21)
+                    M[i, 2] = (place[k, i, 0] * m02 + place[k, i, 1] * m12
+                               + place[k, i, 2] * m22)
+                    M[i, 3] = (place[k, i, 0] * t0 + place[k, i, 1] * t1
+                               + place[k, i, 2] * t2 + place[k, i, 3])
             for i in range(3):
                 for c2 in range(4):
                     if p == 0:

@@ -735,3 +735,23 @@ def test_a_pair_in_consecutive_stages_is_walked_across_their_boundary(bundled: P
         StagedVerifier([first, second]).verify(t, q, [start, 0])
     with pytest.raises(ValueError, match="one per stage"):
         StagedVerifier([first, second]).verify(t, q, [0])
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_the_layers_own_kinematics_place_the_bodies_as_pinocchio_does(
+        bundled_cell: Cell, seed: int) -> None:
+    """The layer's forward kinematics (a turn about a joint's own z written out, any
+    other axis by Rodrigues) place every body where pinocchio does: a random toy arm
+    (z, x and an unaligned axis) and the Ned3 Pro (z axes)."""
+    rng = np.random.default_rng(seed)
+    robot, scene = _toy_arm(rng), _toy_scene(rng)
+    for verifier in (FclVerifier(robot, scene), _verifier(bundled_cell)):
+        model = verifier.robot.model
+        data = model.createData()
+        for _ in range(5):
+            q = pin.randomConfiguration(model)
+            _, poses = verifier._layer.bounds_at(q)
+            pin.forwardKinematics(model, data, q)
+            for m, body in enumerate(verifier._movers[:len(poses)]):
+                want = (data.oMi[body.joint].homogeneous @ body.T)[:3]
+                np.testing.assert_allclose(poses[m], want, atol=1e-12)
