@@ -173,11 +173,30 @@ class CollisionChecker:
         the movers after it, then the environment."""
         contact_links = set(self.robot.tool.contact_links) if self.robot.tool else set()
         allowed = self._expand_allowed(contact_links)
-        touched = {n for key in allowed for n in key}  # names in an allowed contact
+        candidates = self.__dict__.get("_candidates")
+        if candidates is None:  # one world state's, shared with its other allowed contacts
+            candidates = self._candidates = self._candidate_pairs(gmodel, n_robot, held_idx,
+                                                                  contact_links)
+        keys, pairs = candidates
+        if not allowed:
+            return list(pairs)
+        out = []
+        for key, (a, b, _) in zip(keys, pairs, strict=True):
+            depth = allowed.get(key, 0.0)
+            if depth is not None:
+                out.append((a, b, depth))
+        return out
+
+    def _candidate_pairs(self, gmodel: pin.GeometryModel, n_robot: int, held_idx: int | None,
+                         contact_links: set[str]
+                         ) -> tuple[list[tuple[str, str]], list[tuple[int, int, float]]]:
+        """The pairs to check where no contact is allowed (see :meth:`_pair_list`), and
+        the names of each (sorted)."""
         names, env = self._names, self._env
         joint = [int(g.parentJoint) for g in gmodel.geometryObjects]
         self_pairs = self.robot.allowed_self_pairs
         movers = list(range(n_robot)) + ([held_idx] if held_idx is not None else [])
+        keys: list[tuple[str, str]] = []
         pairs: list[tuple[int, int, float]] = []
         for ia, a in enumerate(movers):
             na = names[a]
@@ -185,26 +204,21 @@ class CollisionChecker:
                 nb = names[b]
                 if na == nb or joint[a] == joint[b]:
                     continue
+                key = (na, nb) if na < nb else (nb, na)
                 if b == held_idx:
                     if na in contact_links:
                         continue  # the jaws hold it
-                elif ((na, nb) if na < nb else (nb, na)) in self_pairs:
+                elif key in self_pairs:
                     continue
-                depth = (allowed.get((na, nb) if na < nb else (nb, na), 0.0)
-                         if na in touched and nb in touched else 0.0)
-                if depth is not None:
-                    pairs.append((a, b, depth))
+                keys.append(key)
+                pairs.append((a, b, 0.0))
             if joint[a] == 0:
                 continue  # both fixed to the world
-            if na not in touched:
-                pairs.extend((a, e, 0.0) for e in env)
-                continue
             for e in env:
                 ne = names[e]
-                depth = allowed.get((na, ne) if na <= ne else (ne, na), 0.0)
-                if depth is not None:
-                    pairs.append((a, e, depth))
-        return pairs
+                keys.append((na, ne) if na <= ne else (ne, na))
+                pairs.append((a, e, 0.0))
+        return keys, pairs
 
     def _pair_margins(self) -> list[float]:
         """Each pair's safety margin [m]: the options' override, or the scene's margin

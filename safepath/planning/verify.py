@@ -24,6 +24,7 @@ starts, naming the object.
 from __future__ import annotations
 
 import copy
+import functools
 import itertools
 from collections.abc import Iterable, Sequence
 from dataclasses import dataclass
@@ -136,30 +137,34 @@ class FclVerifier:
 
     def _set_pairs(self, allowed: Iterable[AllowedContact]) -> None:
         """The pairs to check and what each must keep."""
-        self._use_pairs(self._pair_list(self.robot, self._held, allowed))
+        self._use_pairs(self._pair_list(allowed))
 
     def _use_pairs(self, pairs: list[tuple[int, int, bool, float]]) -> None:
         """Check ``pairs`` (see :meth:`_pair_list`): what each must keep."""
         self._pairs = pairs
-        self._theta = self._thresholds(self._scene, self._margin, self.enforce_margin)
+        table = np.array(pairs, dtype=float).reshape(-1, 4)
+        env, depth = table[:, 2] != 0.0, table[:, 3]
+        self._theta = self._thresholds(table[:, 1].astype(np.int64), env, depth)
         # The layer certifies a pair allowed to touch only where it is apart: in
         # contact, FCL's penetration depth decides.
-        self._bound_theta = np.where([d > 0.0 for *_, d in self._pairs], 0.0, self._theta)
-        self._tracked = np.array([env and depth == 0.0 for _, _, env, depth in self._pairs],
-                                 dtype=np.bool_).reshape(-1)
+        self._bound_theta = np.where(depth > 0.0, 0.0, self._theta)
+        self._tracked = env & (depth == 0.0)
         self._clearance_pairs = np.flatnonzero(self._tracked)
 
-    def _thresholds(self, scene: Scene | None, margin: float | None, enforce_margin: bool
+    def _thresholds(self, other: np.ndarray, env: np.ndarray, depth: np.ndarray
                     ) -> np.ndarray:
-        """What each pair must keep: its signed distance must not fall below this [m]
-        (minus the allowed depth of a contact, the object's margin if enforced, else 0)."""
-        margin_of = {b.name: (margin if margin is not None else
-                              (scene.margin_for(b.name) if scene else 0.0))
-                     for b in self._env}
-        return np.array([
-            -depth if depth > 0.0 else
-            (margin_of[self._env[j].name] if env and enforce_margin else 0.0)
-            for _, j, env, depth in self._pairs], dtype=float)
+        """What each pair (its second body or object ``other``, whether that is an
+        environment object, its allowed depth [m]) must keep: its signed distance must
+        not fall below this [m] (minus the allowed depth of a contact, the object's
+        margin if enforced, else 0)."""
+        scene, margin = self._scene, self._margin
+        keep = np.zeros(depth.size)
+        if self.enforce_margin and self._env:
+            margins = np.array([margin if margin is not None else
+                                (scene.margin_for(b.name) if scene else 0.0)
+                                for b in self._env], dtype=float)
+            keep = np.where(env, margins[np.where(env, other, 0)], 0.0)
+        return np.where(depth > 0.0, -depth, keep)
 
     def _conservative_layer(self, like: Layer | None = None) -> Layer:
         """The layer that bounds every pair's distance from below (``_verify_bounds``);
@@ -175,14 +180,32 @@ class FclVerifier:
                      [b.spec for b in self._env], pairs, weights, self._tracked,
                      self._joint_tables)
 
-    def _pair_list(self, robot: Robot, held: str | None, allowed: Iterable[AllowedContact]
+    def _pair_list(self, allowed: Iterable[AllowedContact]
                    ) -> list[tuple[int, int, bool, float]]:
         """(mover, mover or environment object, is environment, allowed depth [m]) of
-        every pair to check: not on the same joint, not an allowed self pair, not the
-        held object against the jaws, not allowed to touch at any depth."""
-        contact_links = set(robot.tool.contact_links) if robot.tool else set()
+        every pair to check: the candidates (:meth:`_candidates`) not allowed to touch
+        at any depth, with the depth each is allowed to."""
+        contact_links = set(self.robot.tool.contact_links) if self.robot.tool else set()
         depth = _allowed_depths(allowed, contact_links)
-        named = {n for key in depth for n in key}  # names in an allowed contact
+        keys, pairs = self._candidates
+        if not depth:
+            return list(pairs)
+        out = []
+        for key, (i, j, env, _) in zip(keys, pairs, strict=True):
+            d = depth.get(key, 0.0)
+            if d is not None:
+                out.append((i, j, env, d))
+        return out
+
+    @functools.cached_property
+    def _candidates(self) -> tuple[list[Pair], list[tuple[int, int, bool, float]]]:
+        """The pairs to check where no contact is allowed, and each one's names (sorted):
+        not on the same joint, not an allowed self pair, not the held object against the
+        jaws; every moving body against every environment object. Made once for a
+        world state (its verifiers for other allowed contacts share it)."""
+        robot, held = self.robot, self._held
+        contact_links = set(robot.tool.contact_links) if robot.tool else set()
+        keys: list[Pair] = []
         pairs: list[tuple[int, int, bool, float]] = []
         names = [b.name for b in self._movers]
         joints = [b.joint for b in self._movers]
@@ -197,21 +220,15 @@ class FclVerifier:
                 continue
             if not is_held and key in self_pairs:
                 continue
-            d = depth.get(key, 0.0) if a in named and b in named else 0.0
-            if d is not None:
-                pairs.append((i, j, False, d))
-        env_names = [e.name for e in self._env]
+            keys.append(key)
+            pairs.append((i, j, False, 0.0))
         for i, a in enumerate(names):
             if joints[i] == 0:
                 continue
-            if a not in named:
-                pairs.extend((i, j, True, 0.0) for j in range(len(env_names)))
-                continue
-            for j, e in enumerate(env_names):
-                d = depth.get((a, e) if a <= e else (e, a), 0.0)
-                if d is not None:
-                    pairs.append((i, j, True, d))
-        return pairs
+            for j, e in enumerate(self._env):
+                keys.append((a, e.name) if a <= e.name else (e.name, a))
+                pairs.append((i, j, True, 0.0))
+        return keys, pairs
 
     def _grid(self, q: np.ndarray) -> Grid:
         """The resolution grid of knots ``q`` (also used by the tests' dense check)."""
