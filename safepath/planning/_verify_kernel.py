@@ -525,15 +525,17 @@ def _walk(todo: np.ndarray, first: np.ndarray, stop: np.ndarray, theta: np.ndarr
                                + place[k, i, 2] * m22)
                     M[i, 3] = (place[k, i, 0] * t0 + place[k, i, 1] * t1
                                + place[k, i, 2] * t2 + place[k, i, 3])
-            for i in range(3):
-                for c2 in range(4):
-                    if p == 0:
+            if p == 0:
+                for i in range(3):
+                    for c2 in range(4):
                         jpose[s, k, i, c2] = M[i, c2]
-                    else:
-                        jpose[s, k, i, c2] = (jpose[s, p, i, 0] * M[0, c2]
-                                              + jpose[s, p, i, 1] * M[1, c2]
-                                              + jpose[s, p, i, 2] * M[2, c2]
-                                              + (jpose[s, p, i, 3] if c2 == 3 else 0.0))
+            else:
+                for i in range(3):
+                    a0, a1, a2 = jpose[s, p, i, 0], jpose[s, p, i, 1], jpose[s, p, i, 2]
+                    for c2 in range(3):
+                        jpose[s, k, i, c2] = a0 * M[0, c2] + a1 * M[1, c2] + a2 * M[2, c2]
+                    jpose[s, k, i, 3] = (a0 * M[0, 3] + a1 * M[1, 3] + a2 * M[2, 3]
+                                         + jpose[s, p, i, 3])
             jdone[s, k] = True
 
     def placed_body(k: int, s: int, m: int) -> tuple:
@@ -542,15 +544,17 @@ def _walk(todo: np.ndarray, first: np.ndarray, stop: np.ndarray, theta: np.ndarr
         j = m_joint[m]
         if j > 0 and not jdone[s, j]:
             joint_pose(s, j)
-        for i in range(3):
-            for c in range(4):
-                if j == 0:
+        if j == 0:
+            for i in range(3):
+                for c in range(4):
                     T[i, c] = m_place[m, i, c]
-                else:
-                    T[i, c] = (jpose[s, j, i, 0] * m_place[m, 0, c]
-                               + jpose[s, j, i, 1] * m_place[m, 1, c]
-                               + jpose[s, j, i, 2] * m_place[m, 2, c]
-                               + (jpose[s, j, i, 3] if c == 3 else 0.0))
+        else:
+            for i in range(3):
+                a0, a1, a2 = jpose[s, j, i, 0], jpose[s, j, i, 1], jpose[s, j, i, 2]
+                for c in range(3):
+                    T[i, c] = a0 * m_place[m, 0, c] + a1 * m_place[m, 1, c] + a2 * m_place[m, 2, c]
+                T[i, 3] = (a0 * m_place[m, 0, 3] + a1 * m_place[m, 1, 3]
+                           + a2 * m_place[m, 2, 3] + jpose[s, j, i, 3])
         c0, c1, c2 = shp[k, CENTRE], shp[k, CENTRE + 1], shp[k, CENTRE + 2]
         return (shp[k, KIND], shp[k, PAR], shp[k, PAR + 1], shp[k, PAR + 2], shp[k, RADIUS],
                 T[0, 3] + T[0, 0] * c0 + T[0, 1] * c1 + T[0, 2] * c2,
@@ -587,12 +591,15 @@ def _walk(todo: np.ndarray, first: np.ndarray, stop: np.ndarray, theta: np.ndarr
             if weights[p, v] == 0.0:
                 continue
             j = joint_of[v]
-            u0 = (jpose[s, j, 0, 0] * axis[j, 0] + jpose[s, j, 0, 1] * axis[j, 1]
-                  + jpose[s, j, 0, 2] * axis[j, 2])
-            u1 = (jpose[s, j, 1, 0] * axis[j, 0] + jpose[s, j, 1, 1] * axis[j, 1]
-                  + jpose[s, j, 1, 2] * axis[j, 2])
-            u2 = (jpose[s, j, 2, 0] * axis[j, 0] + jpose[s, j, 2, 1] * axis[j, 1]
-                  + jpose[s, j, 2, 2] * axis[j, 2])
+            if axis[j, 0] == 0.0 and axis[j, 1] == 0.0 and axis[j, 2] == 1.0:
+                u0, u1, u2 = jpose[s, j, 0, 2], jpose[s, j, 1, 2], jpose[s, j, 2, 2]
+            else:
+                u0 = (jpose[s, j, 0, 0] * axis[j, 0] + jpose[s, j, 0, 1] * axis[j, 1]
+                      + jpose[s, j, 0, 2] * axis[j, 2])
+                u1 = (jpose[s, j, 1, 0] * axis[j, 0] + jpose[s, j, 1, 1] * axis[j, 1]
+                      + jpose[s, j, 1, 2] * axis[j, 2])
+                u2 = (jpose[s, j, 2, 0] * axis[j, 0] + jpose[s, j, 2, 1] * axis[j, 1]
+                      + jpose[s, j, 2, 2] * axis[j, 2])
             if kind[j] == PRISMATIC:
                 share[v] = abs(n0 * u0 + n1 * u1 + n2 * u2)
             else:
