@@ -398,6 +398,18 @@ def grid(q: np.ndarray, weights: np.ndarray, resolution: float
 
 
 @_kernel
+def _basis(x: float, y: float, z: float) -> int:
+    """0, 1 or 2 if (x, y, z) is the unit x, y or z axis, else -1."""
+    if y == 0.0 and z == 0.0 and x == 1.0:
+        return 0
+    if x == 0.0 and z == 0.0 and y == 1.0:
+        return 1
+    if x == 0.0 and y == 0.0 and z == 1.0:
+        return 2
+    return -1
+
+
+@_kernel
 def _motion(kind: int, value: float, x: float, y: float, z: float
             ) -> tuple[float, float, float, float, float, float, float, float, float]:
     """A joint's own rotation (row-major): about the unit axis (x, y, z) by ``value``
@@ -503,14 +515,17 @@ def _walk(todo: np.ndarray, first: np.ndarray, stop: np.ndarray, theta: np.ndarr
                 qk[knot - 1, col] + frac[s] * (qk[knot, col] - qk[knot - 1, col]))
             x, y, z = axis[k, 0], axis[k, 1], axis[k, 2]
             p = parent[k]
-            if kind[k] != PRISMATIC and x == 0.0 and y == 0.0 and z == 1.0:
-                # The usual joint: a turn about its own z (the general case below, with
-                # the zeros left out).
+            along = _basis(x, y, z) if kind[k] != PRISMATIC else -1
+            if along >= 0:
+                # The usual joints: a turn about the joint's own x, y or z (the general
+                # case below, with the zeros left out): columns a and b of the
+                # placement turn into each other, c = ``along`` stays.
                 co, si = math.cos(value), math.sin(value)
+                a, b = (along + 1) % 3, (along + 2) % 3
                 for i in range(3):
-                    M[i, 0] = place[k, i, 0] * co + place[k, i, 1] * si
-                    M[i, 1] = place[k, i, 1] * co - place[k, i, 0] * si
-                    M[i, 2] = place[k, i, 2]
+                    M[i, a] = place[k, i, a] * co + place[k, i, b] * si
+                    M[i, b] = place[k, i, b] * co - place[k, i, a] * si
+                    M[i, along] = place[k, i, along]
                     M[i, 3] = place[k, i, 3]
             else:
                 m00, m01, m02, m10, m11, m12, m20, m21, m22 = _motion(kind[k], value, x, y, z)
@@ -591,8 +606,9 @@ def _walk(todo: np.ndarray, first: np.ndarray, stop: np.ndarray, theta: np.ndarr
             if weights[p, v] == 0.0:
                 continue
             j = joint_of[v]
-            if axis[j, 0] == 0.0 and axis[j, 1] == 0.0 and axis[j, 2] == 1.0:
-                u0, u1, u2 = jpose[s, j, 0, 2], jpose[s, j, 1, 2], jpose[s, j, 2, 2]
+            along = _basis(axis[j, 0], axis[j, 1], axis[j, 2])
+            if along >= 0:  # the pose's own axis: its column
+                u0, u1, u2 = jpose[s, j, 0, along], jpose[s, j, 1, along], jpose[s, j, 2, along]
             else:
                 u0 = (jpose[s, j, 0, 0] * axis[j, 0] + jpose[s, j, 0, 1] * axis[j, 1]
                       + jpose[s, j, 0, 2] * axis[j, 2])

@@ -421,15 +421,16 @@ def test_a_walk_that_fills_its_outputs_resumes_where_it_stopped(
         assert verifier.verify(t, q, qd) == one_go
 
 
-def _toy_arm(rng: np.random.Generator) -> Robot:
-    """A random three-joint arm (turn, tilt, spin), with a box off the spin axis and a
-    capsule along the tilted link."""
+def _toy_arm(rng: np.random.Generator, joints: list[object] | None = None) -> Robot:
+    """A random three-joint arm (turn, tilt, spin, or ``joints``), with a box off the
+    spin axis and a capsule along the tilted link."""
     model = pin.Model()
     geometry = pin.GeometryModel()
     parent, placement = 0, pin.SE3.Identity()
     spin = rng.normal(size=3)
-    for k, joint in enumerate([pin.JointModelRZ(), pin.JointModelRX(),
-                               pin.JointModelRevoluteUnaligned(spin / np.linalg.norm(spin))]):
+    for k, joint in enumerate(joints or [
+            pin.JointModelRZ(), pin.JointModelRX(),
+            pin.JointModelRevoluteUnaligned(spin / np.linalg.norm(spin))]):
         parent = model.addJoint(parent, joint, placement, f"j{k}")
         model.lowerPositionLimit[k], model.upperPositionLimit[k] = -np.pi, np.pi
         frame = model.addFrame(pin.Frame(f"link{k}", parent, pin.SE3.Identity(),
@@ -455,14 +456,18 @@ def _toy_scene(rng: np.random.Generator) -> Scene:
     return Scene("toy", "toy", objects, margin=0.0)
 
 
-@pytest.mark.parametrize("seed", range(16))
-def test_random_arms_are_judged_as_a_dense_check_judges_them(seed: int) -> None:
-    """Random arms, obstacles and joint paths: collisions found alike, and, for a path
-    free of them, margins a tenth of a millimetre on either side of its dense clearance
-    judged alike. The bounds, the kinematics and the steps they allow must never skip a
-    failing sample."""
+@pytest.mark.parametrize(("seed", "axes"), [(k, "z-x-any") for k in range(16)]
+                         + [(k, "y-x-z") for k in range(8)])
+def test_random_arms_are_judged_as_a_dense_check_judges_them(seed: int, axes: str) -> None:
+    """Random arms (a turn, a tilt and a spin about an unaligned axis; or about y, x and
+    z), obstacles and joint paths: collisions found alike, and, for a path free of them,
+    margins a tenth of a millimetre on either side of its dense clearance judged alike.
+    The bounds, the kinematics and the steps they allow must never skip a failing
+    sample."""
     rng = np.random.default_rng(seed)
-    robot, scene = _toy_arm(rng), _toy_scene(rng)
+    joints = ([pin.JointModelRY(), pin.JointModelRX(), pin.JointModelRZ()]
+              if axes == "y-x-z" else None)
+    robot, scene = _toy_arm(rng, joints), _toy_scene(rng)
     q = np.cumsum(rng.normal(0.0, 0.6, (6, 3)), axis=0)
     t = np.arange(len(q), dtype=float)
     zero = dict.fromkeys(scene.objects, 0.0)
@@ -740,12 +745,14 @@ def test_a_pair_in_consecutive_stages_is_walked_across_their_boundary(bundled: P
 @pytest.mark.parametrize("seed", range(4))
 def test_the_layers_own_kinematics_place_the_bodies_as_pinocchio_does(
         bundled_cell: Cell, seed: int) -> None:
-    """The layer's forward kinematics (a turn about a joint's own z written out, any
-    other axis by Rodrigues) place every body where pinocchio does: a random toy arm
-    (z, x and an unaligned axis) and the Ned3 Pro (z axes)."""
+    """The layer's forward kinematics (a turn about a joint's own x, y or z written out,
+    any other axis by Rodrigues) place every body where pinocchio does: random toy arms
+    (z, x and an unaligned axis; y, x and z) and the Ned3 Pro (z axes)."""
     rng = np.random.default_rng(seed)
     robot, scene = _toy_arm(rng), _toy_scene(rng)
-    for verifier in (FclVerifier(robot, scene), _verifier(bundled_cell)):
+    other = _toy_arm(rng, [pin.JointModelRY(), pin.JointModelRX(), pin.JointModelRZ()])
+    for verifier in (FclVerifier(robot, scene), FclVerifier(other, scene),
+                     _verifier(bundled_cell)):
         model = verifier.robot.model
         data = model.createData()
         for _ in range(5):
