@@ -115,8 +115,7 @@ class CollisionChecker:
         """The pairs of the allowed contacts, their margins and coal's security margins;
         coal's side of the checker and the sphere layer are left to be made when first
         needed (coal's pairs are added to the model on the first exact query)."""
-        held_idx = self._gmodel.ngeoms - 1 if self.held is not None else None  # added last
-        pairs = self._pair_list(self._gmodel, self.robot.collision_model.ngeoms, held_idx)
+        pairs = self._pair_list()
         self._pairs = [(a, b) for a, b, _ in pairs]
         self._pair_names = [(self._names[a], self._names[b]) for a, b in self._pairs]
         self._pairs_added = False
@@ -165,19 +164,14 @@ class CollisionChecker:
         return self._add(gmodel, self.held, tcp.parentJoint, self.robot.tcp_frame_id,
                          T_joint_obj, scene.objects[self.held])
 
-    def _pair_list(self, gmodel: pin.GeometryModel, n_robot: int, held_idx: int | None
-                   ) -> list[tuple[int, int, float]]:
+    def _pair_list(self) -> list[tuple[int, int, float]]:
         """(a, b, allowed depth [m]) of every pair to check: movers (robot and held
         object) against each other and against the environment, without the pairs that
         are never checked or allowed to touch at any depth. In the order: for each mover,
         the movers after it, then the environment."""
         contact_links = set(self.robot.tool.contact_links) if self.robot.tool else set()
         allowed = self._expand_allowed(contact_links)
-        candidates = self.__dict__.get("_candidates")
-        if candidates is None:  # one world state's, shared with its other allowed contacts
-            candidates = self._candidates = self._candidate_pairs(gmodel, n_robot, held_idx,
-                                                                  contact_links)
-        keys, pairs = candidates
+        keys, pairs = self._candidates
         if not allowed:
             return list(pairs)
         out = []
@@ -187,11 +181,14 @@ class CollisionChecker:
                 out.append((a, b, depth))
         return out
 
-    def _candidate_pairs(self, gmodel: pin.GeometryModel, n_robot: int, held_idx: int | None,
-                         contact_links: set[str]
-                         ) -> tuple[list[tuple[str, str]], list[tuple[int, int, float]]]:
+    @functools.cached_property
+    def _candidates(self) -> tuple[list[tuple[str, str]], list[tuple[int, int, float]]]:
         """The pairs to check where no contact is allowed (see :meth:`_pair_list`), and
-        the names of each (sorted)."""
+        the names of each (sorted). Made once for a world state (its checkers for other
+        allowed contacts share it)."""
+        gmodel, n_robot = self._gmodel, self.robot.collision_model.ngeoms
+        held_idx = gmodel.ngeoms - 1 if self.held is not None else None  # added last
+        contact_links = set(self.robot.tool.contact_links) if self.robot.tool else set()
         names, env = self._names, self._env
         joint = [int(g.parentJoint) for g in gmodel.geometryObjects]
         self_pairs = self.robot.allowed_self_pairs

@@ -149,7 +149,6 @@ class FclVerifier:
         # contact, FCL's penetration depth decides.
         self._bound_theta = np.where(depth > 0.0, 0.0, self._theta)
         self._tracked = env & (depth == 0.0)
-        self._clearance_pairs = np.flatnonzero(self._tracked)
 
     def _thresholds(self, other: np.ndarray, env: np.ndarray, depth: np.ndarray
                     ) -> np.ndarray:
@@ -485,7 +484,7 @@ class _Run:
         against FCL's minimum.
         """
         v, tol, ceiling = self.v, self.v.resolution / 2, self.memory.ceiling
-        if v._clearance_pairs.size == 0:
+        if not v._tracked.any():
             return
         if ceiling[1] >= 0:
             self._measure(int(ceiling[1]), int(ceiling[2]))
