@@ -770,16 +770,18 @@ def certify_polyline(P, n, lo, hi, fb, ib, unsure_seg, unsure_idx, max_unsure): 
 
 
 @njit(cache=True, nogil=True)
-def certify_segment(q0, q1, fb, ib, skip_start, skip_end, max_unsure):  # noqa: N803
+def certify_segment(q0, q1, fb, ib, skip_start, skip_end, unsure_idx):  # noqa: N803
     """One straight segment, as :func:`certify_polyline` walks it, with what its caller
     would otherwise do in Python around it (the planners' edge check: ~60 % of its time
     went there): the limits at both ends, the grid count from the displacement weights
     and the resolution, states 0 (unless ``skip_start``) to n (n - 1 with ``skip_end``).
+    The walk stops once it has left ``len(unsure_idx)`` states undecided, their grid
+    indices written there in the order found.
 
     Returns:
         (status, index, evaluated, unsure, n): OUTSIDE with index 0 (start) or 1 (end);
         COLLIDES with the colliding grid index; UNSURE or FREE as certify_polyline, with
-        ``unsure`` undecided states found (the caller then takes the general way).
+        ``unsure`` undecided states found (FREE: all of them; UNSURE: the walk stopped).
     """
     if not _within_limits(q0, fb, ib):
         return OUTSIDE, 0, 0, 0, 0
@@ -796,8 +798,7 @@ def certify_segment(q0, q1, fb, ib, skip_start, skip_end, max_unsure):  # noqa: 
     counts = np.full(1, n, dtype=np.int64)
     lo = np.full(1, 1 if skip_start else 0, dtype=np.int64)
     hi = np.full(1, n - 1 if skip_end else n, dtype=np.int64)
-    seg = np.empty(max(max_unsure, 1), dtype=np.int64)  # the walk stops at max_unsure
-    idx = np.empty(max(max_unsure, 1), dtype=np.int64)
-    status, _, i, evaluated, unsure = certify_polyline(P, counts, lo, hi, fb, ib, seg, idx,
-                                                       max_unsure)
+    seg = np.empty(max(unsure_idx.shape[0], 1), dtype=np.int64)
+    status, _, i, evaluated, unsure = certify_polyline(P, counts, lo, hi, fb, ib, seg,
+                                                       unsure_idx, unsure_idx.shape[0])
     return status, i, evaluated, unsure, n

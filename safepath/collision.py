@@ -512,22 +512,31 @@ class CollisionChecker:
     def _certify_segment(self, q0: np.ndarray, q1: np.ndarray, check_ends: bool,
                          check_start: bool | None, details: bool) -> SegmentReport:
         """:meth:`check_segment` with the sphere layer: limits, grid count and the walk
-        in one kernel call (the planners' common case); where some state needs coal, the
-        general polyline way walks the same grid again (the walk is deterministic)."""
+        in one kernel call (the planners' common case). The states it leaves undecided
+        go to coal; when the walk stopped at its first few undecided states and coal
+        finds them free, the general polyline way walks the whole grid again (the walk
+        is deterministic: it finds the same states first)."""
         layer = self.layer
         assert layer is not None
         skip_start = check_start is False or (not check_ends and not check_start)
+        found = np.empty(_EARLY_UNSURE, dtype=np.int64)
         status, i, evaluated, unsure, n = layer.certify_segment(
-            q0, q1, skip_start, not check_ends, _EARLY_UNSURE)
+            q0, q1, skip_start, not check_ends, found)
         if status == OUTSIDE:
             return self._outside(q1 if i else q0, float(i))
-        if status == FREE and unsure == 0:
-            return SegmentReport(True, evaluated)
         if status == COLLIDES:
             return self._failure(q0 + (i / n) * (q1 - q0), i / n, evaluated, details)
-        return self._certify(np.vstack([q0, q1]), np.array([n]),
-                             np.array([1 if skip_start else 0]),
-                             np.array([n if check_ends else n - 1]), details)
+        if unsure == 0:
+            return SegmentReport(True, evaluated)
+        P = np.vstack([q0, q1])
+        counts = np.array([n])
+        early = self._exact_grid(P, counts, np.zeros(unsure, dtype=np.int64), found[:unsure],
+                                 details, evaluated)
+        if not early.valid or status == FREE:
+            return early
+        return self._certify(P, counts, np.array([1 if skip_start else 0]),
+                             np.array([n if check_ends else n - 1]), details,
+                             checked=unsure, evaluated=evaluated)
 
     def _outside(self, q: np.ndarray, fraction: float) -> SegmentReport:
         """The report of a motion whose state ``q`` (at ``fraction``) is outside the
@@ -576,32 +585,37 @@ class CollisionChecker:
         return self._check_states(np.vstack(chunks), fractions, details)
 
     def _certify(self, P: np.ndarray, counts: np.ndarray, lo: np.ndarray, hi: np.ndarray,
-                 details: bool) -> SegmentReport:
+                 details: bool, checked: int = 0, evaluated: int = 0) -> SegmentReport:
         """Grid states ``lo[k]..hi[k]`` of every segment of the polyline ``P`` (segment
         ``k`` cut into ``counts[k]`` steps): certified by the sphere layer where it can,
         the rest checked exactly by coal in one batch. ``fraction`` of a failure is
-        measured along the whole polyline."""
+        measured along the whole polyline. ``checked``: the walk's first undecided
+        states already found free by coal (an earlier walk of the same grid, which
+        evaluated ``evaluated`` states)."""
         layer = self.layer
         assert layer is not None
         span = max(1, len(P) - 1)
-        # A blocked segment usually shows its first undecided states near the obstacle:
-        # check a few exactly before certifying the rest.
-        status, k, i, evaluated, useg, uidx = layer.certify(P, counts, lo, hi, _EARLY_UNSURE)
-        done = 0  # undecided states already checked by coal
+        status = UNSURE
+        if not checked:
+            # A blocked segment usually shows its first undecided states near the
+            # obstacle: check a few exactly before certifying the rest.
+            status, k, i, evaluated, useg, uidx = layer.certify(P, counts, lo, hi,
+                                                                _EARLY_UNSURE)
+            if status == UNSURE:
+                early = self._exact_grid(P, counts, useg, uidx, details, evaluated)
+                if not early.valid:
+                    return early
+                checked = len(useg)
         if status == UNSURE:
-            early = self._exact_grid(P, counts, useg, uidx, details, evaluated)
-            if not early.valid:
-                return early
-            done = len(useg)
             # The walk is deterministic: it finds the same undecided states first again.
             status, k, i, again, useg, uidx = layer.certify(P, counts, lo, hi)
             evaluated += again
         if status == COLLIDES:
             q = P[k] + (i / counts[k]) * (P[k + 1] - P[k])
             return self._failure(q, (k + i / counts[k]) / span, evaluated, details)
-        if len(useg) == done:
+        if len(useg) == checked:
             return SegmentReport(True, evaluated)
-        return self._exact_grid(P, counts, useg[done:], uidx[done:], details, evaluated)
+        return self._exact_grid(P, counts, useg[checked:], uidx[checked:], details, evaluated)
 
     def _exact_grid(self, P: np.ndarray, counts: np.ndarray, seg: np.ndarray,
                     idx: np.ndarray, details: bool, evaluated: int) -> SegmentReport:

@@ -135,17 +135,21 @@ class SphereLayer:
         return int(status), int(k), int(i), int(evaluated), seg[:m], idx[:m]
 
     def certify_segment(self, q0: np.ndarray, q1: np.ndarray, skip_start: bool,
-                        skip_end: bool, max_unsure: int) -> tuple[int, int, int, int, int]:
+                        skip_end: bool, unsure_idx: np.ndarray
+                        ) -> tuple[int, int, int, int, int]:
         """Limits, grid count and certification of one segment in one kernel call (see
-        ``certify_segment`` in the kernels).
+        ``certify_segment`` in the kernels). The walk stops once ``len(unsure_idx)``
+        (at least 1) states are left undecided; their grid indices are written to
+        ``unsure_idx`` (int64), in the order found.
 
         Returns:
             (status, index, evaluated, unsure, states): status OUTSIDE (index 0: the
-            start, 1: the end), COLLIDES (at grid index), UNSURE or FREE (``unsure``
-            states left undecided); the segment is cut into ``states`` steps.
+            start, 1: the end), COLLIDES (at grid index), UNSURE (the walk stopped) or
+            FREE (``unsure`` states left undecided); the segment is cut into ``states``
+            steps.
         """
         return _kernels().certify_segment(q0, q1, self.F, self.I, skip_start, skip_end,
-                                          max_unsure)  # type: ignore[no-any-return]
+                                          unsure_idx)  # type: ignore[no-any-return]
 
     @property
     def fits(self) -> list[SphereFit]:

@@ -65,7 +65,7 @@ ENTRIES: dict[str, Entry] = {
     "fast_classify_many": Entry(_FAST, "classify_many", (F2, F1, I1, I1), "void"),
     "fast_certify_polyline": Entry(_FAST, "certify_polyline",
                                    (F2, I1, I1, I1, F1, I1, I1, I1, INT), "UniTuple(i8, 5)"),
-    "fast_certify_segment": Entry(_FAST, "certify_segment", (F1, F1, F1, I1, BOOL, BOOL, INT),
+    "fast_certify_segment": Entry(_FAST, "certify_segment", (F1, F1, F1, I1, BOOL, BOOL, I1),
                                   "UniTuple(i8, 5)"),
     # The release check's bounds (safepath.planning._verify_bounds).
     "verify_certify": Entry(
