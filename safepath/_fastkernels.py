@@ -83,9 +83,13 @@ W_FIXED = 141
 #: Blocks of ``wf``: world bounding-sphere centres of the movers (ng, 3); two placed sphere
 #: sets (ns, 5) each; per pair, the last direction GJK found (3: the next state's first
 #: guess) and the clearance budget of the last evaluation; |u| (dof); per mover and joint,
-#: its distance to the joint's axis (DL) and how fast that can grow (CC) (ng, dof).
-WI_CW, WI_BUFA, WI_BUFB, WI_WARM, WI_ABSU, WI_DL, WI_CC, WI_BUDGET, WI_HINT = range(9)
-WI_HEADER = 9
+#: its distance to the joint's axis (DL) and how fast that can grow (CC) (ng, dof);
+#: per pair, the stretch of the segment being walked that its last evaluation certified
+#: (centre and half-width in units of ``t``; a negative width: none) (npairs, 2); per
+#: mover, 1 once its DL row is measured at the state being evaluated, else 0 (ng).
+(WI_CW, WI_BUFA, WI_BUFB, WI_WARM, WI_ABSU, WI_DL, WI_CC, WI_BUDGET, WI_CERT, WI_DLOK,
+ WI_HINT) = range(11)
+WI_HEADER = 11
 
 
 @njit(cache=True, nogil=True)
@@ -93,9 +97,10 @@ def _workspace(ib):
     """Fresh scratch (Rw, pw, wf, wi) for the checker packed in ``ib``."""
     nj, ng, ns, npairs, dof = ib[H_NJ], ib[H_NG], ib[H_NS], ib[H_NP], ib[H_DOF]
     wi = np.empty(WI_HEADER + 2 * npairs, dtype=np.int64)
-    sizes = (3 * ng, 5 * ns, 5 * ns, 3 * npairs, dof, ng * dof, ng * dof, npairs)
+    sizes = (3 * ng, 5 * ns, 5 * ns, 3 * npairs, dof, ng * dof, ng * dof, npairs,
+             2 * npairs, ng)
     o = W_FIXED
-    for i in range(8):
+    for i in range(10):
         wi[i] = o
         o += sizes[i]
     wi[WI_HINT] = WI_HEADER
@@ -475,13 +480,16 @@ def _pair_collides(k, fb, ib, eps, Rw, pw, wf):  # noqa: N803
 
 
 @_helper
-def _evaluate(q, fb, ib, Rw, pw, wf, wi, rates, want_radius, need):  # noqa: N803
-    """(status, radius) of one state inside the limits. With ``want_radius``, radius is
-    the largest ``h`` such that every state ``q + t u`` with ``|t| < h`` is certainly
-    valid, ``rates[k]`` bounding how fast pair ``k`` can close per unit ``t`` (and wf's
-    WI_ABSU block filled by ``_pair_rates``, WI_CC by ``_axis_growth``), or some radius of at least
-    ``need`` when that is all the caller can use (pairs whose closing-rate radius
-    reaches ``need`` skip the finer local radius)."""
+def _evaluate(q, fb, ib, Rw, pw, wf, wi, rates, want_radius, need, t):  # noqa: N803
+    """(status, radius) of one state inside the limits. With ``want_radius``, ``q`` is
+    the state at ``t`` of a segment walked along ``u`` and radius is the largest ``h``
+    such that every state ``q + t' u`` with ``|t'| < h`` is certainly valid,
+    ``rates[k]`` bounding how fast pair ``k`` can close per unit ``t`` (and wf's
+    WI_ABSU block filled by ``_pair_rates``, WI_CC by ``_axis_growth``), or some radius
+    of at least ``need`` when that is all the caller can use: pairs whose closing-rate
+    radius reaches ``need`` skip the finer local radius, and a pair is not evaluated at
+    all when the stretch an earlier state of the segment certified for it (wf's WI_CERT
+    block, which this updates) covers ``need`` either side of ``t``."""
     _fk(q, fb, ib, Rw, pw, wf)
     oc = ib[H_C]
     refine, free_eps, proof_eps = fb[oc + C_REFINE], fb[oc + C_FREE_EPS], fb[oc + C_PROOF_EPS]
@@ -497,13 +505,21 @@ def _evaluate(q, fb, ib, Rw, pw, wf, wi, rates, want_radius, need):  # noqa: N80
         for r in range(3):
             wf[ocw + 3 * m + r] = (Rw[j, r, 0] * x + Rw[j, r, 1] * y + Rw[j, r, 2] * z
                                    + pw[j, r])
+    odlok = wi[WI_DLOK]
     if want_radius:
-        for m in range(ib[H_NG]):
-            _axis_distances(m, fb, ib, Rw, pw, wf, ocw, odl)
+        for m in range(ib[H_NG]):  # measured when a pair first needs them
+            wf[odlok + m] = 0.0
     unsure = False
     radius = 1e300
-    oe, oer = ib[H_E], ib[H_ER]
+    oe, oer, ocert = ib[H_E], ib[H_ER], wi[WI_CERT]
     for k in range(ib[H_NP]):
+        if want_radius:
+            # Free for every state within ``need`` of this one: its bound is no limit.
+            c, w = wf[ocert + 2 * k], wf[ocert + 2 * k + 1]
+            if t - need > c - w and t + need < c + w:
+                if need < radius:
+                    radius = need
+                continue
         a, b, is_env = ib[op_ + 4 * k], ib[op_ + 4 * k + 1], ib[op_ + 4 * k + 2]
         sm = max(fb[of_ + k], 0.0)
         cax, cay, caz = wf[ocw + 3 * a], wf[ocw + 3 * a + 1], wf[ocw + 3 * a + 2]
@@ -534,14 +550,24 @@ def _evaluate(q, fb, ib, Rw, pw, wf, wi, rates, want_radius, need):  # noqa: N80
                 return COLLIDES, 0.0
             unsure = True
             continue
-        if want_radius:
-            wf[obud + k] = budget
-        if want_radius and rates[k] > 0.0:
+        if not want_radius:
+            continue
+        wf[obud + k] = budget
+        h = 1e300  # a pair the segment does not move stays free along all of it
+        if rates[k] > 0.0:
             h = budget / rates[k]
             if h < need:
+                if wf[odlok + a] == 0.0:
+                    _axis_distances(a, fb, ib, Rw, pw, wf, ocw, odl)
+                    wf[odlok + a] = 1.0
+                if is_env == 0 and wf[odlok + b] == 0.0:
+                    _axis_distances(b, fb, ib, Rw, pw, wf, ocw, odl)
+                    wf[odlok + b] = 1.0
                 h = max(h, _local_radius(k, a, b, budget, ib, wf, odl, occ, oabs))
             if h < radius:
                 radius = h
+        wf[ocert + 2 * k] = t
+        wf[ocert + 2 * k + 1] = h * (1.0 - 1e-12)
     if unsure:
         return UNSURE, 0.0
     return FREE, radius
@@ -617,7 +643,7 @@ def classify(q, fb, ib):  # noqa: N803
     if not _within_limits(q, fb, ib):
         return COLLIDES
     Rw, pw, wf, wi = _workspace(ib)
-    status, _ = _evaluate(q, fb, ib, Rw, pw, wf, wi, wf, False, 0.0)
+    status, _ = _evaluate(q, fb, ib, Rw, pw, wf, wi, wf, False, 0.0, 0.0)
     return status
 
 
@@ -629,7 +655,7 @@ def classify_many(Q, fb, ib, out):  # noqa: N803
         if not _within_limits(Q[i], fb, ib):
             out[i] = COLLIDES
             continue
-        out[i], _ = _evaluate(Q[i], fb, ib, Rw, pw, wf, wi, wf, False, 0.0)
+        out[i], _ = _evaluate(Q[i], fb, ib, Rw, pw, wf, wi, wf, False, 0.0, 0.0)
 
 
 @_helper
@@ -721,6 +747,9 @@ def certify_polyline(P, n, lo, hi, fb, ib, unsure_seg, unsure_idx, max_unsure): 
         if hi[k] < lo[k]:
             continue
         _axis_growth(fb, ib, wf, wi)  # for this segment's evaluations
+        ocert = wi[WI_CERT]
+        for p in range(npairs):  # no pair certified along this segment yet
+            wf[ocert + 2 * p + 1] = -1.0
         nk = n[k]
         first = True
         head, tail = 0, 1
@@ -734,7 +763,7 @@ def certify_polyline(P, n, lo, hi, fb, ib, unsure_seg, unsure_idx, max_unsure): 
                 qs[j] = P[k, j] + t * u[j]
             # A radius covering the rest of [a, b] is all this walk can use.
             need = (max(mid - a, b - mid) + 0.5) / nk
-            status, radius = _evaluate(qs, fb, ib, Rw, pw, wf, wi, rates, True, need)
+            status, radius = _evaluate(qs, fb, ib, Rw, pw, wf, wi, rates, True, need, t)
             evaluated += 1
             if status == COLLIDES:
                 return COLLIDES, k, mid, evaluated, n_unsure
