@@ -25,7 +25,7 @@ import math
 import numpy as np
 
 from ._aot import njit
-from ._gjk import HULL, distance_lower_bound
+from ._gjk import HULL, distance_lower_bound, distance_upper_bound
 
 #: How the helpers are compiled (see the module doc).
 _helper = njit(cache=True, nogil=True, _nrt=False)
@@ -352,6 +352,27 @@ def _gjk_pair(fb, ib, k, a, b, is_env, Rw, pw, wf, wi, low, high):  # noqa: N803
 
 
 @_helper
+def _gjk_overlap(fb, ib, k, a, b, is_env, Rw, pw, wf, wi, goal):  # noqa: N803
+    """GJK's upper bound [m] on the signed distance of pair ``k``'s shapes (negative: they
+    overlap at least that deep), searched until it is below ``goal``."""
+    ogi = ib[H_GI]
+    ka, kb = _place_pair(fb, ib, a, b, is_env, Rw, pw, wf)
+    va0, va1 = ib[ogi + GIW * a + 6], ib[ogi + GIW * a + 7]
+    vb0 = vb1 = 0
+    if is_env == 0:
+        vb0, vb1 = ib[ogi + GIW * b + 6], ib[ogi + GIW * b + 7]
+    ow, oh = wi[WI_WARM] + 3 * k, wi[WI_HINT] + 2 * k
+    return distance_upper_bound(ka, wf[W_RA:W_RA + 9].reshape((3, 3)), wf[W_PA:W_PA + 3],
+                                wf[W_DA:W_DA + 3], va0, va1, kb,
+                                wf[W_RB:W_RB + 9].reshape((3, 3)), wf[W_PB:W_PB + 3],
+                                wf[W_DB:W_DB + 3], vb0, vb1, fb, ib[H_V], ib, ib[H_AP],
+                                ib[H_AI], wi[oh:oh + 2], wf[ow:ow + 3],
+                                wf[W_S:W_S + 12].reshape((4, 3)), wf[W_SA:W_SA + 3],
+                                wf[W_SB:W_SB + 3], wf[W_GV:W_GV + 3], wf[W_TMP:W_TMP + 3],
+                                goal)
+
+
+@_helper
 def _pair_bound(k, fb, ib, Rw, pw, wf, wi, enough):  # noqa: N803
     """Lower bound [m] on the distance of pair ``k`` finer than its bounding spheres
     (placed in wf's WI_CW block by the caller): the separating-axis bound of two
@@ -440,9 +461,11 @@ def _place_spheres(fb, ib, m, Rw, pw, ox, oy, oz, orad, wf, out):  # noqa: N803
 
 
 @_helper
-def _pair_collides(k, fb, ib, eps, Rw, pw, wf):  # noqa: N803
+def _pair_collides(k, fb, ib, eps, Rw, pw, wf, wi):  # noqa: N803
     """Whether pair ``k`` is certainly closer than its margin: an inner sphere reaches
-    that close, or (two boxes, no margin) the complete separating-axis test fails."""
+    that close, (two boxes, no margin) the complete separating-axis test fails, or (two
+    exact shapes: primitives or convex hulls) GJK's upper bound on their signed distance
+    is below it."""
     op, of = ib[H_PI] + 4 * k, ib[H_P] + k
     a, b, is_env, proof = ib[op], ib[op + 1], ib[op + 2], ib[op + 3]
     if proof == 0:
@@ -461,7 +484,9 @@ def _pair_collides(k, fb, ib, eps, Rw, pw, wf):  # noqa: N803
             if (_env_sdist3(fb, ib, b, wf[t1], wf[t1 + 1], wf[t1 + 2]) - fb[oS + 4 * s + 3]
                     < sm - eps):
                 return True
-        return False
+        # An object measured by the box around it (ENV_BOX_ONLY_OUTER) proves nothing.
+        return (ka != SPHERES_ONLY and ib[ib[H_EI] + b] != ENV_BOX_ONLY_OUTER
+                and _gjk_overlap(fb, ib, k, a, b, 1, Rw, pw, wf, wi, sm - eps) < sm - eps)
     jb = ib[ogi + GIW * b]
     kb = ib[ogi + GIW * b + 5]
     if (sm == 0.0 and ka == ENV_BOX and kb == ENV_BOX
@@ -476,7 +501,8 @@ def _pair_collides(k, fb, ib, eps, Rw, pw, wf):  # noqa: N803
                           + (wf[t1 + 2] - wf[t2 + 2]) ** 2) - rs - fb[oS + 4 * t + 3]
             if d < sm - eps:
                 return True
-    return False
+    return (ka != SPHERES_ONLY and kb != SPHERES_ONLY
+            and _gjk_overlap(fb, ib, k, a, b, 0, Rw, pw, wf, wi, sm - eps) < sm - eps)
 
 
 @_helper
@@ -546,7 +572,7 @@ def _evaluate(q, fb, ib, Rw, pw, wf, wi, rates, want_radius, need, t):  # noqa: 
             budget = max(coarse, _pair_bound(k, fb, ib, Rw, pw, wf, wi,
                                              refine + free_eps)) - sm - free_eps
         if budget <= 0.0:
-            if _pair_collides(k, fb, ib, proof_eps, Rw, pw, wf):
+            if _pair_collides(k, fb, ib, proof_eps, Rw, pw, wf, wi):
                 return COLLIDES, 0.0
             unsure = True
             continue

@@ -267,6 +267,71 @@ def distance_lower_bound(ka, Ra, pa, da, va0, va1, kb, Rb, pb, db, vb0, vb1,  # 
     return lb
 
 
+@_inlined
+def _depth_inside(S):  # noqa: N803
+    """How far [m] the origin lies inside the tetrahedron S[0:4] (which holds it): its
+    smallest distance to a face plane; 0 for a degenerate tetrahedron."""
+    depth = 1e300
+    faces = ((0, 1, 2, 3), (0, 2, 3, 1), (0, 3, 1, 2), (1, 3, 2, 0))
+    for f in faces:
+        i, j, k, o = f[0], f[1], f[2], f[3]
+        ab0, ab1, ab2 = S[j, 0] - S[i, 0], S[j, 1] - S[i, 1], S[j, 2] - S[i, 2]
+        ac0, ac1, ac2 = S[k, 0] - S[i, 0], S[k, 1] - S[i, 1], S[k, 2] - S[i, 2]
+        n0, n1, n2 = ab1 * ac2 - ab2 * ac1, ab2 * ac0 - ab0 * ac2, ab0 * ac1 - ab1 * ac0
+        nn = math.sqrt(n0 * n0 + n1 * n1 + n2 * n2)
+        if nn < 1e-300:
+            return 0.0
+        # The face's normal away from the opposite vertex: the origin's depth is S[i]'s
+        # height along it.
+        if (S[o, 0] - S[i, 0]) * n0 + (S[o, 1] - S[i, 1]) * n1 + (S[o, 2] - S[i, 2]) * n2 > 0.0:
+            nn = -nn
+        d = (S[i, 0] * n0 + S[i, 1] * n1 + S[i, 2] * n2) / nn
+        if d < depth:
+            depth = d
+    return max(depth, 0.0)
+
+
+@_helper
+def distance_upper_bound(ka, Ra, pa, da, va0, va1, kb, Rb, pb, db, vb0, vb1,  # noqa: N803
+                         fb, ov, ib, oap, oai, hint, warm, S, sa, sb, v, tmp, goal):
+    """An upper bound [m] on the signed distance between shapes A and B (negative: they
+    overlap, at least that deep), searched until it is below ``goal`` or GJK shows no
+    bound below ``goal`` exists (then some bound at least ``goal`` is returned).
+
+    Every point GJK's simplex holds is a point of the shapes' difference A - B (each
+    from the exact support functions), so the distance of the simplex's closest point to
+    the origin bounds the shapes' distance from above; a tetrahedron holding the origin
+    lies inside A - B, and the origin's depth in it bounds the overlap from below.
+    Arguments as :func:`distance_lower_bound`.
+    """
+    v[0], v[1], v[2] = warm[0], warm[1], warm[2]
+    if _dot(v, v) < 1e-18:
+        v[0], v[1], v[2] = pa[0] - pb[0], pa[1] - pb[1], pa[2] - pb[2]
+        if _dot(v, v) < 1e-18:
+            v[0] = 1.0
+    ub = 1e300
+    n = 0
+    for _ in range(MAX_ITER):
+        vn = math.sqrt(_dot(v, v))
+        if vn < 1e-12:
+            break
+        hint[0] = support(ka, Ra, pa, da, fb, ov, va0, va1, ib, oap, oai, hint[0],
+                          -v[0], -v[1], -v[2], sa)
+        hint[1] = support(kb, Rb, pb, db, fb, ov, vb0, vb1, ib, oap, oai, hint[1],
+                          v[0], v[1], v[2], sb)
+        w0, w1, w2 = sa[0] - sb[0], sa[1] - sb[1], sa[2] - sb[2]
+        if (v[0] * w0 + v[1] * w1 + v[2] * w2) / vn >= goal:
+            return max(ub, goal)  # a lower bound of at least goal: no proof below it
+        S[n, 0], S[n, 1], S[n, 2] = w0, w1, w2
+        n = _closest(S, n + 1, v, tmp)
+        if n == 4:
+            return -_depth_inside(S)
+        ub = min(ub, math.sqrt(_dot(v, v)))
+        if ub < goal:
+            return ub
+    return ub
+
+
 def hull_tables(points: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """A convex shape's hull as :func:`support` reads it: its vertices (the extreme
     points, rows [m]), and its edges as neighbour lists (``ptr`` (vertices + 1), ``idx``:

@@ -9,8 +9,10 @@ A :class:`SphereLayer` is built from a :class:`~safepath.collision.CollisionChec
   of the true ones; pairs of primitives are refined by separating axes, pairs with a
   convex hull (mesh links) by GJK on the hull's own vertices (:mod:`safepath._gjk`),
   both lower bounds too;
-* ``COLLIDES``: outside the joint limits, or an inner sphere (inside a shape) is closer
-  to another shape than the margin. Certain too;
+* ``COLLIDES``: outside the joint limits, an inner sphere (inside a shape) is closer
+  to another shape than the margin, or GJK's upper bound on the signed distance of two
+  exact shapes (primitives, convex hulls) is below it (:mod:`safepath._gjk`). Certain
+  too;
 * ``UNSURE``: anything else; the exact coal check decides.
 
 So the checker's answers do not change; only the time to reach them does. For a
