@@ -82,11 +82,12 @@ W_AXES, W_S, W_SA, W_SB, W_GV, W_M, W_T = 36, 108, 120, 123, 126, 129, 138
 W_FIXED = 141
 #: Blocks of ``wf``: world bounding-sphere centres of the movers (ng, 3); two placed sphere
 #: sets (ns, 5) each; per pair, the last direction GJK found (3: the next state's first
-#: guess) and the clearance budget of the last evaluation; |u| (dof); per mover and joint,
-#: its distance to the joint's axis (DL) and how fast that can grow (CC) (ng, dof);
-#: per pair, the stretch of the segment being walked that its last evaluation certified
-#: (centre and half-width in units of ``t``; a negative width: none) (npairs, 2); per
-#: mover, 1 once its DL row is measured at the state being evaluated, else 0 (ng).
+#: guess); |u| (dof); per mover and joint, its distance to the joint's axis (DL) and how
+#: fast that can grow (CC) (ng, dof); per pair, the polyline walk's ledger: the most
+#: clearance budget [m] an evaluated state leaves at the end of the segment being walked
+#: (npairs); per pair, the stretch of that segment it is certified along (centre and
+#: half-width in units of ``t``; a negative width: none) (npairs, 2); per mover, 1 once
+#: its DL row is measured at the state being evaluated, else 0 (ng).
 (WI_CW, WI_BUFA, WI_BUFB, WI_WARM, WI_ABSU, WI_DL, WI_CC, WI_BUDGET, WI_CERT, WI_DLOK,
  WI_HINT) = range(11)
 WI_HEADER = 11
@@ -578,7 +579,9 @@ def _evaluate(q, fb, ib, Rw, pw, wf, wi, rates, want_radius, need, t):  # noqa: 
             continue
         if not want_radius:
             continue
-        wf[obud + k] = budget
+        left = budget - rates[k] * (1.0 - t)  # at the segment's end
+        if left > wf[obud + k]:
+            wf[obud + k] = left
         h = 1e300  # a pair the segment does not move stays free along all of it
         if rates[k] > 0.0:
             h = budget / rates[k]
@@ -738,19 +741,20 @@ def certify_polyline(P, n, lo, hi, fb, ib, unsure_seg, unsure_idx, max_unsure): 
     """
     npairs, dof = ib[H_NP], ib[H_DOF]
     Rw, pw, wf, wi = _workspace(ib)
-    obud = wi[WI_BUDGET]
+    obud, ocert = wi[WI_BUDGET], wi[WI_CERT]
     rates = np.empty(npairs)
     u = np.empty(dof)
     qs = np.empty(dof)
     n_unsure = 0
     evaluated = 0
-    # Carry: the pair budgets [m] of an evaluated state whose certificate reached the end
-    # of its segment, and how much each pair may have closed since (its rate times the
-    # path walked, segment by segment): later segments within every budget are
-    # certified without an evaluation of their own (short chords of a sampled curve).
-    carry = False
-    carried = np.empty(npairs)
-    spent = np.empty(npairs)
+    # The ledger (wf's WI_BUDGET block): per pair, the most clearance budget [m] left at
+    # the start of the segment by any state evaluated before it (its budget less what
+    # the path since may have closed: the pair's rate times the path walked, segment by
+    # segment), none (<= 0) yet. A pair within its budget over a whole segment is not
+    # evaluated there; a segment within every pair's is certified without an evaluation
+    # (short chords of a sampled curve).
+    for p in range(npairs):
+        wf[obud + p] = -1.0
     # FIFO of disjoint, non-empty index ranges still to cover (coarse to fine), made once
     # for the longest segment: a segment's live ranges and the two it adds fit in it.
     room = 3
@@ -762,22 +766,30 @@ def certify_polyline(P, n, lo, hi, fb, ib, unsure_seg, unsure_idx, max_unsure): 
         for j in range(dof):
             u[j] = P[k + 1, j] - P[k, j]
         _pair_rates(u, fb, ib, wf, wi, rates)
-        if carry:
+        whole = hi[k] < lo[k]  # no state of this segment to check
+        if not whole:
+            whole = True
             for p in range(npairs):
-                spent[p] += rates[p]
-                if spent[p] >= carried[p]:
-                    carry = False
+                if wf[obud + p] - rates[p] <= 0.0:
+                    whole = False
                     break
-            if carry:
-                continue
-        if hi[k] < lo[k]:
+        if whole:
+            for p in range(npairs):
+                wf[obud + p] -= rates[p]
             continue
+        # Each pair starts certified from the segment's start as far as its budget
+        # lasts; the ledger becomes what that budget leaves at the segment's end (the
+        # evaluations below raise it).
+        for p in range(npairs):
+            left = wf[obud + p]
+            width = -1.0
+            if left > 0.0:
+                width = 1e300 if rates[p] == 0.0 else left / rates[p] * (1.0 - 1e-12)
+            wf[ocert + 2 * p] = 0.0
+            wf[ocert + 2 * p + 1] = width
+            wf[obud + p] = left - rates[p]
         _axis_growth(fb, ib, wf, wi)  # for this segment's evaluations
-        ocert = wi[WI_CERT]
-        for p in range(npairs):  # no pair certified along this segment yet
-            wf[ocert + 2 * p + 1] = -1.0
         nk = n[k]
-        first = True
         head, tail = 0, 1
         qlo[0], qhi[0] = lo[k], hi[k]
         while head < tail:
@@ -798,18 +810,12 @@ def certify_polyline(P, n, lo, hi, fb, ib, unsure_seg, unsure_idx, max_unsure): 
                 # Grid states with |i - mid| / nk < radius are certified.
                 reach = radius * nk * (1.0 - 1e-12)
                 m = nk if reach >= nk else max(int(math.ceil(reach)) - 1, 0)
-                if first and mid + m >= hi[k]:
-                    carry = True
-                    for p in range(npairs):
-                        carried[p] = wf[obud + p]
-                        spent[p] = rates[p] * (nk - mid) / nk
             else:
                 unsure_seg[n_unsure] = k
                 unsure_idx[n_unsure] = mid
                 n_unsure += 1
                 if n_unsure >= max_unsure:
                     return UNSURE, k, mid, evaluated, n_unsure
-            first = False
             if tail + 2 > room:
                 live = tail - head
                 qlo[:live] = qlo[head:tail].copy()
