@@ -94,8 +94,7 @@ class CollisionChecker:
         if self._layer_built and self._layer is not None and new._pairs == self._pairs:
             new._layer = self._layer.with_security(new._security)
             new._layer_built = True
-            new._classify = new._layer.kernel("classify")
-            new._F, new._I = new._layer.F, new._layer.I
+            new._bind_kernels()
         return new
 
     def _build(self) -> None:
@@ -126,6 +125,7 @@ class CollisionChecker:
         self._layer: SphereLayer | None = None
         self._layer_built = False
         self._classify: Any = None
+        self._segment: Any = None
 
     def _robot_part(self) -> tuple[tuple[str, ...], np.ndarray]:
         """What every checker of the robot takes from it: the link of each geometry, and
@@ -381,9 +381,15 @@ class CollisionChecker:
             except ValueError as exc:
                 log.info("no sphere layer (%s): every check is exact", exc)
         if self._layer is not None:
-            # Bound once: the single-state query is the planners' innermost call.
-            self._classify = self._layer.kernel("classify")
-            self._F, self._I = self._layer.F, self._layer.I
+            self._bind_kernels()
+
+    def _bind_kernels(self) -> None:
+        """The layer's single-state and segment kernels and tables, bound once: they are
+        the planners' innermost calls."""
+        assert self._layer is not None
+        self._classify = self._layer.kernel("classify")
+        self._segment = self._layer.kernel("certify_segment")
+        self._F, self._I = self._layer.F, self._layer.I
 
     # -- single states ---------------------------------------------------------------------
     def is_valid(self, q: np.ndarray) -> bool:
@@ -468,8 +474,22 @@ class CollisionChecker:
 
     def segment_is_valid(self, q0: np.ndarray, q1: np.ndarray, *,
                          check_ends: bool = True) -> bool:
-        """Whether the straight segment is valid at the checker's resolution."""
-        return self.check_segment(q0, q1, check_ends=check_ends, details=False).valid
+        """Whether the straight segment is valid at the checker's resolution (as
+        :meth:`check_segment`, without a report: the planners' edge check)."""
+        if not self._layer_built:
+            self._bind_layer()
+        if self._segment is None:
+            return self.check_segment(q0, q1, check_ends=check_ends, details=False).valid
+        q0 = np.asarray(q0, dtype=float)
+        q1 = np.asarray(q1, dtype=float)
+        found = np.empty(_EARLY_UNSURE, dtype=np.int64)
+        walk = self._segment(q0, q1, self._F, self._I, not check_ends, not check_ends, found)
+        status, unsure = walk[0], walk[3]
+        if status == FREE and unsure == 0:
+            return True
+        if status == COLLIDES or status == OUTSIDE:
+            return False
+        return self._settle(q0, q1, check_ends, not check_ends, walk, found, False).valid
 
     def check_segment(self, q0: Any, q1: Any, *, check_ends: bool = True,
                       check_start: bool | None = None, details: bool = True) -> SegmentReport:
@@ -520,8 +540,15 @@ class CollisionChecker:
         assert layer is not None
         skip_start = check_start is False or (not check_ends and not check_start)
         found = np.empty(_EARLY_UNSURE, dtype=np.int64)
-        status, i, evaluated, unsure, n = layer.certify_segment(
-            q0, q1, skip_start, not check_ends, found)
+        walk = layer.certify_segment(q0, q1, skip_start, not check_ends, found)
+        return self._settle(q0, q1, check_ends, skip_start, walk, found, details)
+
+    def _settle(self, q0: np.ndarray, q1: np.ndarray, check_ends: bool, skip_start: bool,
+                walk: tuple[int, int, int, int, int], found: np.ndarray, details: bool
+                ) -> SegmentReport:
+        """The report of a segment from its one-call walk (``walk``: what the kernel
+        returned; ``found``: the grid indices of the states it left undecided)."""
+        status, i, evaluated, unsure, n = walk
         if status == OUTSIDE:
             return self._outside(q1 if i else q0, float(i))
         if status == COLLIDES:

@@ -300,7 +300,8 @@ def test_pair_weights_are_the_mask_sums_of_the_bodies_weights(cell: Cell,
 def test_one_call_segments_report_as_the_polyline_walk(cell: Cell, panda_cell: Cell) -> None:
     """check_segment's one-call way (limits, grid count and walk inside the kernel) reports
     what the general polyline walk reports: verdict, states evaluated, where it fails,
-    for every choice of checked ends; an end outside the limits is named."""
+    for every choice of checked ends; an end outside the limits is named. The planners'
+    segment_is_valid gives the same verdict."""
     # The held vial's allowed contacts leave states to coal (no proof below a negative
     # margin): the way where coal checks what the one call left undecided.
     checkers = [(cell, CollisionChecker(cell.robot, cell.scene)), (cell, cell.checker(held=True)),
@@ -320,6 +321,8 @@ def test_one_call_segments_report_as_the_polyline_walk(cell: Cell, panda_cell: C
             for ends, start in ((True, None), (False, None), (False, True), (True, False)):
                 a = checker.check_segment(q0, q1, check_ends=ends, check_start=start,
                                           details=False)
+                if start is None:  # the planners' edge check: the verdict alone
+                    assert checker.segment_is_valid(q0, q1, check_ends=ends) == a.valid
                 if trial % 10 == 9:
                     assert not a.valid and a.fraction == 1.0 and a.limit_violation
                     outcomes.add("outside")
