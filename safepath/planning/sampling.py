@@ -173,6 +173,17 @@ def shortcut(checker: CollisionChecker, path: list[np.ndarray], rng: np.random.G
     then tries ``iterations`` random shortcuts between points on two segments, checking
     only those that would shorten the path by at least ``min_gain`` of its length
     (joint-space Euclidean length).
+
+    Every edge of the result is checked as it stands. A shortcut also keeps parts of the
+    two segments it joins: new edges, whose grid states their segment's check did not
+    cover (a state between two free grid states may collide). Most are cut again by
+    later shortcuts, so the parts left at the end are checked then; should one fail, the
+    shortcuts are made again from the same draws, each kept only if its parts pass.
+
+    The draws of all iterations are made at once (four uniforms each: the two segments
+    and the points on them), and the gains of all draws left are measured at once on the
+    current path: Python steps only through the draws worth a check, and measures again
+    after each accepted shortcut.
     """
     pts = [p.copy() for p in path]
     # Greedy vertex removal.
@@ -182,25 +193,57 @@ def shortcut(checker: CollisionChecker, path: list[np.ndarray], rng: np.random.G
             del pts[i + 1]
         else:
             i += 1
-    lengths = _lengths(pts)
-    for _ in range(iterations):
-        if len(pts) < 3:
-            break
-        a, b = sorted(rng.choice(len(pts) - 1, size=2, replace=False))
-        if a == b:
-            continue
-        ta, tb = rng.random(), rng.random()
-        qa = pts[a] + ta * (pts[a + 1] - pts[a])
-        qb = pts[b] + tb * (pts[b + 1] - pts[b])
+    draws = rng.random((iterations, 4))
+    out, checked = _shortcuts(checker, pts, draws, min_gain, eager=False)
+    if all(checked[i] or checker.segment_is_valid(out[i], out[i + 1], check_ends=False)
+           for i in range(len(out) - 1)):
+        return out
+    return _shortcuts(checker, pts, draws, min_gain, eager=True)[0]
+
+
+def _shortcuts(checker: CollisionChecker, pts: list[np.ndarray], draws: np.ndarray,
+               min_gain: float, eager: bool) -> tuple[list[np.ndarray], list[bool]]:
+    """The random shortcuts of :func:`shortcut` (one row of ``draws`` per iteration), and
+    per edge of the result whether it was checked as it stands. ``eager``: a shortcut is
+    kept only if the kept parts of its two segments pass too."""
+    checked = [True] * (len(pts) - 1)
+    k, iterations = 0, len(draws)  # draws used
+    while k < iterations and len(pts) >= 3:
+        P = np.asarray(pts)  # noqa: N806
+        lengths = _lengths(pts)
+        ends = np.concatenate([[0.0], np.cumsum(lengths)])
+        # Two different segments, the lower first, and a point on each.
+        D = draws[k:]  # noqa: N806
+        m = len(lengths)
+        s1 = np.minimum((D[:, 0] * m).astype(np.int64), m - 1)
+        s2 = np.minimum((D[:, 1] * (m - 1)).astype(np.int64), m - 2)
+        s2 += s2 >= s1
+        a, b = np.minimum(s1, s2), np.maximum(s1, s2)
+        ta, tb = D[:, 2], D[:, 3]
+        qa = P[a] + ta[:, None] * (P[a + 1] - P[a])
+        qb = P[b] + tb[:, None] * (P[b + 1] - P[b])
         if min_gain > 0.0:
-            replaced = ((1.0 - ta) * lengths[a] + float(np.sum(lengths[a + 1:b]))
-                        + tb * lengths[b])
-            if replaced - float(np.linalg.norm(qb - qa)) < min_gain * float(np.sum(lengths)):
+            replaced = (1.0 - ta) * lengths[a] + (ends[b] - ends[a + 1]) + tb * lengths[b]
+            gain = replaced - np.linalg.norm(qb - qa, axis=1)
+            worth = np.flatnonzero(gain >= min_gain * ends[-1])
+        else:
+            worth = np.arange(len(D))
+        for j in worth.tolist():
+            if not checker.segment_is_valid(qa[j], qb[j], check_ends=True):
                 continue
-        if checker.segment_is_valid(qa, qb, check_ends=True):
-            pts = _without_repeats(pts[: a + 1] + [qa, qb] + pts[b + 1:])
-            lengths = _lengths(pts)
-    return pts
+            aj, bj = int(a[j]), int(b[j])
+            if eager and not (
+                    checker.segment_is_valid(pts[aj], qa[j], check_ends=False)
+                    and checker.segment_is_valid(qb[j], pts[bj + 1], check_ends=False)):
+                continue
+            pts, checked = _without_repeats(
+                pts[: aj + 1] + [qa[j].copy(), qb[j].copy()] + pts[bj + 1:],
+                checked[:aj] + [eager, True, eager] + checked[bj + 1:])
+            k += j + 1
+            break
+        else:
+            break  # no draw left is worth a check, or none passed
+    return pts, checked
 
 
 def _lengths(pts: list[np.ndarray]) -> np.ndarray:
@@ -209,14 +252,23 @@ def _lengths(pts: list[np.ndarray]) -> np.ndarray:
     return np.linalg.norm(np.diff(np.asarray(pts), axis=0), axis=1)
 
 
-def _without_repeats(pts: list[np.ndarray], tol: float = 1e-9) -> list[np.ndarray]:
+def _without_repeats(pts: list[np.ndarray], checked: list[bool], tol: float = 1e-9
+                     ) -> tuple[list[np.ndarray], list[bool]]:
     """The polyline without points closer than ``tol`` to the one before; the ends are
     kept exactly (a shortcut point that came within ``tol`` of the goal gives way to
-    it: repeated shortcuts onto the last segment shrink it that far)."""
-    out = [p for k, p in enumerate(pts) if k == 0 or np.max(np.abs(p - pts[k - 1])) > tol]
+    it: repeated shortcuts onto the last segment shrink it that far). ``checked`` (per
+    edge) follows: an edge that a dropped point changed counts as not checked."""
+    out, flags = [pts[0]], []
+    for k in range(1, len(pts)):
+        if np.max(np.abs(pts[k] - pts[k - 1])) > tol:
+            # The edge from the point kept last: edge k - 1 itself if that is pts[k - 1].
+            flags.append(checked[k - 1] and out[-1] is pts[k - 1])
+            out.append(pts[k])
     if out[-1] is not pts[-1]:  # the goal was dropped for the point just before it
         if len(out) > 1:
             out[-1] = pts[-1]
+            flags[-1] = False
         else:
             out.append(pts[-1])
-    return out
+            flags.append(False)
+    return out, flags
