@@ -50,6 +50,7 @@ from .._aot import njit
 _kernel = njit(cache=True, _nrt=False)
 
 BOX, SPHERE, CYLINDER, CAPSULE, HULL = 0, 1, 2, 3, 4
+APPROX = 3
 REVOLUTE, PRISMATIC = 1, 2
 #: Columns of the shape table.
 KIND, PAR, CENTRE, RADIUS = 0, 1, 4, 7
@@ -670,6 +671,8 @@ def _walk(todo: np.ndarray, first: np.ndarray, stop: np.ndarray, theta: np.ndarr
             count += 1
             if hi - lo <= 1:
                 break
+            if m_hi != np.inf and (hi - lo) * APPROX <= lo - s:
+                return lo + 1, m_lo / (lo - s)
             if m_hi == np.inf:
                 slope = m_lo / (lo - s)
                 ahead = 2 * (lo - s) if slope <= 0.0 else int(1.1 * (target - m_lo) / slope) + 1
