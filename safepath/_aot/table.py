@@ -74,11 +74,11 @@ ENTRIES: dict[str, Entry] = {
          (F2, F2, F2, F2, F2, I1, F1),  # grid
          (I1, F3, I1, F2, I1, I1, F3, I1),  # kin
          (B2, F4),  # cache
-         (I1, I1, B1, F2, B1),  # pairs
+         (I1, I1, B1, F2, B1, B2),  # pairs
          (F2, F3, _HULLS),  # world
          (F2, F1, I1, F1),  # memory
          (FLOAT, FLOAT, FLOAT, FLOAT),  # params
-         (I1, F1, F1, F1, F2, F2, F2, F2, I1, I1, I1, F1),  # scratch and outputs
+         (I1, F1, F1, F1, F1, F2, F2, F2, F2, I1, I1, I1, F1),  # scratch and outputs
          INT, INT),  # where to start
         "UniTuple(i8, 3)"),
     "verify_grid": Entry(_VERIFY, "grid", (F2, F2, FLOAT), f"Tuple(({I1}, {F1}, {F2}, {F2}))"),

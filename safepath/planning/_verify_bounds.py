@@ -4,7 +4,9 @@ Everything here is the verifier's own code, written from the robot's and the sce
 data (joint placements and axes, collision geometry), never the planner's checker:
 
 * :func:`motion_weights` and :func:`pair_weights` bound how far a unit of each joint's
-  motion moves a body's points, and so how much it can change a pair's distance;
+  motion moves a body's points, and so how much it can change a pair's distance (the
+  walk tightens them with the body's distance to the joint's axis where it takes a
+  bound, plus what the joints between them move it since);
 * :class:`Grid` cuts the knots so that no robot point moves more than the resolution
   between two samples, and accumulates the joints' motion along it;
 * :class:`Layer` walks every pair along that grid with lower bounds on the distance
@@ -406,12 +408,27 @@ class WalkMemory:
 
 
 def _pair_arrays(pairs: list[tuple[int, int, bool]], weights: np.ndarray,
-                 clearance: np.ndarray) -> tuple[np.ndarray, ...]:
-    """The pairs as the kernel takes them (see :class:`Layer`)."""
-    return (np.array([a for a, _, _ in pairs], dtype=np.int64),
-            np.array([b for _, b, _ in pairs], dtype=np.int64),
-            np.array([e for _, _, e in pairs], dtype=np.bool_),
-            np.ascontiguousarray(weights, dtype=float), np.asarray(clearance, dtype=np.bool_))
+                 clearance: np.ndarray, kin: tuple[np.ndarray, ...]) -> tuple[np.ndarray, ...]:
+    """The pairs as the kernel takes them (see :class:`Layer`), with, per pair and
+    velocity index, whether the joint moves body b and not body a (``kin``: the layer's
+    kinematic tables)."""
+    a = np.array([a for a, _, _ in pairs], dtype=np.int64)
+    b = np.array([b for _, b, _ in pairs], dtype=np.int64)
+    env = np.array([e for _, _, e in pairs], dtype=np.bool_)
+    parents, m_joint, joint_of = kin[0], kin[5], kin[7]
+    carried = np.zeros((parents.size, joint_of.size), dtype=np.bool_)  # joint -> its chain
+    v_of = np.full(parents.size, -1)
+    v_of[joint_of] = np.arange(joint_of.size)
+    for j in range(1, parents.size):
+        carried[j] = carried[parents[j]]
+        if v_of[j] >= 0:
+            carried[j, v_of[j]] = True
+    moves_b = np.zeros((a.size, joint_of.size), dtype=np.bool_)
+    if a.size:
+        mover_b = np.where(env, 0, b)  # an environment index is no body's
+        moves_b = (~env[:, None] & carried[m_joint[mover_b]] & ~carried[m_joint[a]])
+    return (a, b, env, np.ascontiguousarray(weights, dtype=float),
+            np.asarray(clearance, dtype=np.bool_), np.ascontiguousarray(moves_b))
 
 
 class Layer:
@@ -445,12 +462,13 @@ class Layer:
         self._env_pose = np.array([np.asarray(T)[:3] for T in T_world_env]).reshape(-1, 3, 4)
         # The kernels' shape and vertex tables; bodies first.
         self._shapes, self._hulls = _shape_table(movers + env)
-        self._pairs = _pair_arrays(pairs, weights, clearance)
+        self._pairs = _pair_arrays(pairs, weights, clearance, self._kin)
 
     def with_clearance(self, clearance: np.ndarray) -> Layer:
         """This layer with other pairs counting for the clearance (the same pairs)."""
         out = copy.copy(self)
-        out._pairs = (*self._pairs[:4], np.asarray(clearance, dtype=np.bool_))
+        out._pairs = (*self._pairs[:4], np.asarray(clearance, dtype=np.bool_),
+                      self._pairs[5])
         return out
 
     def with_pairs(self, pairs: list[tuple[int, int, bool]], weights: np.ndarray,
@@ -458,7 +476,7 @@ class Layer:
         """This layer (the same bodies, environment objects and their tables) for other
         pairs (arguments as the constructor's)."""
         out = copy.copy(self)
-        out._pairs = _pair_arrays(pairs, weights, clearance)
+        out._pairs = _pair_arrays(pairs, weights, clearance, self._kin)
         return out
 
     def cache(self, samples: int) -> PoseCache:
@@ -535,7 +553,7 @@ class Layer:
         thread)."""
         nv, room = self._upstream.shape[0], _ROOM
         return (np.empty(self._kin[0].size, dtype=np.int64), np.empty(nv), np.empty(nv),
-                np.empty(nv), np.empty((3, 4)), np.empty((3, 4)), np.empty((4, 3)),
+                np.empty(nv), np.empty(nv), np.empty((3, 4)), np.empty((3, 4)), np.empty((4, 3)),
                 np.empty((3, 3)), np.empty(4, dtype=np.int64),
                 np.empty(room, dtype=np.int64), np.empty(room, dtype=np.int64),
                 np.empty(room))

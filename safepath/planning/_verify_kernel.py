@@ -50,6 +50,10 @@ from .._aot import njit
 _kernel = njit(cache=True, _nrt=False)
 
 BOX, SPHERE, CYLINDER, CAPSULE, HULL = 0, 1, 2, 3, 4
+#: A step's search for the first sample its bound does not certify stops once it has that
+#: sample within a 1/APPROX share of the step (the step then ends at the last sample it
+#: knows certified): pinning it down to the sample costs more motion probes than the
+#: few extra bounds save.
 APPROX = 3
 REVOLUTE, PRISMATIC = 1, 2
 #: Columns of the shape table.
@@ -459,7 +463,8 @@ def _walk(todo: np.ndarray, first: np.ndarray, stop: np.ndarray, theta: np.ndarr
             placement in it (3 x 4)) of every body; the joint of every velocity index.
         cache: (joint done, joint pose) by sample.
         pairs: (body a, body or environment object b, b is environment, motion weights,
-            counts for the clearance) of every pair.
+            counts for the clearance) of every pair, and per pair and velocity index
+            whether the joint moves body b (else a, or neither: weight 0).
         world: (shape table: the bodies' rows, then the environment objects'; world
             pose of every environment object (3 x 4); the hull tables: vertices,
             neighbour starts, neighbour rows, climbs' starts (see :func:`support`)).
@@ -473,8 +478,8 @@ def _walk(todo: np.ndarray, first: np.ndarray, stop: np.ndarray, theta: np.ndarr
             negative, a clearance pair's threshold is the ceiling minus drop [m], if
             higher than its own).
 
-        scratch: (chain (joints, int), share, base, base_turn (dof each), M, T (3 x 4
-            each), GJK's W (4 x 3), e (3 x 3) and idx (4, int); the outputs: pair
+        scratch: (chain (joints, int), share, base, base_turn, reach_ (dof each), M, T
+            (3 x 4 each), GJK's W (4 x 3), e (3 x 3) and idx (4, int); the outputs: pair
             (int), sample (int) and bound of every uncertified couple, as long as the
             room they have).
         t0, s0: Where to start: the walk of ``todo[t0]`` at sample ``s0`` (0,
@@ -489,13 +494,13 @@ def _walk(todo: np.ndarray, first: np.ndarray, stop: np.ndarray, theta: np.ndarr
     cum, step, cum_turn, step_turn, qk, knot_of, frac = grid
     parent, place, kind, axis, iq, m_joint, m_place, joint_of = kin
     jdone, jpose = cache
-    pair_a, pair_b, pair_env, weights, tracked = pairs
+    pair_a, pair_b, pair_env, weights, tracked, moves_b = pairs
     shp, env_pose, hulls = world
     axes, last, stats, ceiling = memory
     coarse, fine, keep, drop = params
     movers = m_joint.size
     nv = qk.shape[1]
-    chain, share, base, base_turn, M, T, W, e, idx, out_p, out_s, out_b = scratch
+    chain, share, base, base_turn, reach_, M, T, W, e, idx, out_p, out_s, out_b = scratch
     share[:] = 1.0
     base[:] = 0.0
     base_turn[:] = 0.0
@@ -600,9 +605,13 @@ def _walk(todo: np.ndarray, first: np.ndarray, stop: np.ndarray, theta: np.ndarr
             return placed_body(a, s, a), placed_env(movers + b, b)
         return placed_body(a, s, a), placed_body(b, s, b)
 
-    def set_shares(p: int, s: int, n0: float, n1: float, n2: float) -> None:
-        """|n x u| (revolute) or |n . u| (prismatic) at sample s for every joint that
-        moves pair p, u being the joint's axis in the world (see ``motion``)."""
+    def set_shares(p: int, s: int, n0: float, n1: float, n2: float, Sa: tuple, Sb: tuple
+                   ) -> None:
+        """For every joint that moves pair p, at sample s: |n x u| (revolute) or |n . u|
+        (prismatic), u being the joint's axis in the world (see ``motion``), and how far
+        the points of the body it moves lie from its axis (``reach_``: the body's
+        bounding sphere's centre's distance plus its radius; a prismatic joint: its
+        weight)."""
         for v in range(nv):
             if weights[p, v] == 0.0:
                 continue
@@ -619,9 +628,15 @@ def _walk(todo: np.ndarray, first: np.ndarray, stop: np.ndarray, theta: np.ndarr
                       + jpose[s, j, 2, 2] * axis[j, 2])
             if kind[j] == PRISMATIC:
                 share[v] = abs(n0 * u0 + n1 * u1 + n2 * u2)
+                reach_[v] = weights[p, v]
             else:
                 c0, c1, c2 = n1 * u2 - n2 * u1, n2 * u0 - n0 * u2, n0 * u1 - n1 * u0
                 share[v] = math.sqrt(c0 * c0 + c1 * c1 + c2 * c2)
+                S = Sb if moves_b[p, v] else Sa
+                d0, d1, d2 = (S[5] - jpose[s, j, 0, 3], S[6] - jpose[s, j, 1, 3],
+                              S[7] - jpose[s, j, 2, 3])
+                c0, c1, c2 = d1 * u2 - d2 * u1, d2 * u0 - d0 * u2, d0 * u1 - d1 * u0
+                reach_[v] = math.sqrt(c0 * c0 + c1 * c1 + c2 * c2) + S[4]
 
     def along(s: int) -> None:
         """base, base_turn: the joints' accumulated motion and upstream turning at s."""
@@ -638,27 +653,45 @@ def _walk(todo: np.ndarray, first: np.ndarray, stop: np.ndarray, theta: np.ndarr
         |n x u| stays below its value at s plus a (and below 1). A prismatic joint
         moves points along u: |n . u| instead. Between two bodies, joints that move
         both leave their distance alone (their weight is zero; taking n in the frame
-        they move keeps the argument, and the turning counted is only more)."""
+        they move keeps the argument, and the turning counted is only more).
+
+        r is at most the joint's weight for the body it moves, and at most the body's
+        reach from the axis at s (``reach_``) plus what the joints between the two
+        have moved its points since (each by its weight times its motion: they change
+        the body's distance to the axis, the joints upstream move both alike). Those
+        joints come after it in velocity order (a joint's children follow it), so one
+        pass from the last joint adds them up, per body."""
         k, f = knot_of[i], frac[i]
-        acc = 0.0
-        for v in range(nv):
-            if weights[p, v] != 0.0 and k > 0:
-                moved = cum[k - 1, v] + f * step[k, v] - base[v]
-                turned = cum_turn[k - 1, v] + f * step_turn[k, v] - base_turn[v]
-                acc += weights[p, v] * min(1.0, share[v] + turned) * moved
+        if k == 0:
+            return 0.0
+        acc = grown_a = grown_b = 0.0
+        for v in range(nv - 1, -1, -1):
+            w = weights[p, v]
+            if w == 0.0:
+                continue
+            moved = cum[k - 1, v] + f * step[k, v] - base[v]
+            turned = cum_turn[k - 1, v] + f * step_turn[k, v] - base_turn[v]
+            if moves_b[p, v]:
+                r = min(w, reach_[v] + grown_b)
+                grown_b += w * moved
+            else:
+                r = min(w, reach_[v] + grown_a)
+                grown_a += w * moved
+            acc += r * min(1.0, share[v] + turned) * moved
         return acc
 
     def reach(p: int, s: int, end: int, target: float, rate: float) -> tuple[int, float]:
-        """First sample after s at which pair p's gap can have changed by target [m]
-        (``end``, the end of the stretch walked, if none before), and the motion per
-        sample seen on the way
-        [m] (the next call's first guess; 0: none). The bound never decreases along
-        the grid and grows about linearly: the first probe is where ``rate`` (the last
-        call's) says the target is reached (without one, the next sample), each next
-        one interpolated from what the last ones found (extrapolated, overshooting a
-        little, until the target is bracketed), every third one halves the bracket.
-        Invariant: motion(lo) < target; motion(hi) >= target, or hi is ``end`` and its
-        motion unknown (inf)."""
+        """A sample after s up to which pair p's gap cannot have changed by target [m]
+        (the first at which it can, ``end`` (the end of the stretch walked) if none
+        before, or one close before it: see APPROX), and the motion per sample seen on
+        the way [m] (the next call's first guess; 0: none). The bound never decreases
+        along the grid and grows about linearly: the first probe is where ``rate`` (the
+        last call's) says the target is reached (without one, the next sample), each
+        next one interpolated from what the last ones found (extrapolated, overshooting
+        a little, until the target is bracketed), every third one halves the bracket;
+        once the bracket is within a 1/APPROX share of the step, the sample after its
+        low end is returned. Invariant: motion(lo) < target; motion(hi) >= target, or
+        hi is ``end`` and its motion unknown (inf)."""
         along(s)
         lo, hi, m_lo, m_hi, count = s, end, 0.0, np.inf, 0
         probe = s + 1 if rate <= 0.0 else min(max(s + int(target / rate), s + 1), end - 1)
@@ -721,7 +754,7 @@ def _walk(todo: np.ndarray, first: np.ndarray, stop: np.ndarray, theta: np.ndarr
                     axes[p, 0], axes[p, 1], axes[p, 2], axes[p, 3] = n0, n1, n2, 1.0
                     last[p] = bound
             if bound > th:
-                set_shares(p, s, n0, n1, n2)
+                set_shares(p, s, n0, n1, n2, Sa, Sb)
                 s, rate = reach(p, s, end, bound - th, rate)
                 continue
             out_p[count] = p

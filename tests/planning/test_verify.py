@@ -481,6 +481,53 @@ def test_random_arms_are_judged_as_a_dense_check_judges_them(seed: int, axes: st
             assert isinstance(out, VerificationError) == (excess > 0)
 
 
+def _reaching_arm(tip: float) -> Robot:
+    """A turn about z, then a slide along the turned x (0 to 0.6 m) carrying a ball of
+    radius ``tip`` at its end: the ball's distance to the turn's axis grows with the
+    slide."""
+    model = pin.Model()
+    geometry = pin.GeometryModel()
+    turn = model.addJoint(0, pin.JointModelRZ(), pin.SE3.Identity(), "turn")
+    slide = model.addJoint(turn, pin.JointModelPX(), pin.SE3.Identity(), "slide")
+    model.lowerPositionLimit[:] = [-np.pi, 0.0]
+    model.upperPositionLimit[:] = [np.pi, 0.6]
+    frame = model.addFrame(pin.Frame("hand", slide, pin.SE3.Identity(), pin.FrameType.BODY))
+    geometry.addGeometryObject(pin.GeometryObject(
+        "hand_0", slide, frame, pin.SE3(np.eye(3), np.array([0.05, 0.0, 0.0])),
+        coal.Sphere(tip)))
+    return Robot(name="reach", model=model, collision_model=geometry, visual_model=None,
+                 velocity_limits=np.ones(2), acceleration_limits=np.ones(2),
+                 tcp_frame="hand")
+
+
+@pytest.mark.parametrize("turn", [0.3, 0.8, 1.4])
+def test_a_body_sliding_away_from_an_axis_is_judged_as_a_dense_check_judges_it(
+        turn: float) -> None:
+    """The motion bound counts a body's distance to a joint's axis at the sample its
+    bound was taken (plus how far the joints between them move it since), not the
+    joint's weight: a ball sliding out while the arm turns sweeps ever faster towards a
+    wall it comes closest to at the end. Margins a tenth of a millimetre on either side
+    of the dense clearance are judged alike (a third of that distance steps past the
+    closest sample: checked)."""
+    robot = _reaching_arm(0.02)
+    T = np.eye(4)
+    T[:3, 3] = [0.0, 0.65 * np.sin(turn) + 0.02 + 0.025 + 0.01, 0.0]  # a wall across y,
+    # 1 cm from the ball at the end of the turn
+    scene = Scene("wall", "reach", {"wall": SceneObject("wall", Shape("box", (2.0, 0.05, 0.2)),
+                                                        T)}, margin=0.0)
+    s = np.linspace(0.0, 1.0, 40)[:, None]
+    q = np.hstack([turn * s, 0.6 * s ** 3])  # the slide mostly at the end
+    t = np.arange(len(q), dtype=float)
+    zero = {"wall": 0.0}
+    first, _, clearance = _dense(FclVerifier(robot, scene, margin=0.0), q, zero)
+    assert first is None and clearance < 0.011
+    for excess in (1e-4, -1e-4):
+        margin = clearance + excess
+        out = _assert_same_as_dense(FclVerifier(robot, scene, margin=margin), t, q,
+                                    {"wall": margin})
+        assert isinstance(out, VerificationError) == (excess > 0)
+
+
 def test_a_hull_is_bounded_by_its_own_vertices() -> None:
     """A Panda link's hull against a box, apart: the bound is within a millimetre of
     coal's distance (a hull is measured as itself, not as its bounding box), and never
