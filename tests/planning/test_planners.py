@@ -111,6 +111,9 @@ def test_the_default_range_follows_the_joint_ranges() -> None:
     assert 0.6 < ranges["ned3pro"] < ranges["panda"] < ranges["ur5"] < 1.2
     # Joints that turn twice round count as one turn: doubling them changes nothing.
     assert default_range(2 * ur5.lower, 2 * ur5.upper) == ranges["ur5"]
+    # RRTConnect's two trees take steps twice as long.
+    for name, r in robots.items():
+        assert default_range(r.lower, r.upper, "RRTConnect") == pytest.approx(2 * ranges[name])
 
 
 @pytest.mark.parametrize(("field", "value"), [
