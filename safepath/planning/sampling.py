@@ -56,7 +56,10 @@ class PlannerOptions:
         shortcut_iterations: Random shortcut attempts after planning.
         shortcut_min_gain: A shortcut is checked only if it would shorten the path by at
             least this share of its length (checking is what a shortcut costs; the many
-            that would gain little are not worth it).
+            that would gain little are not worth it). On the Panda set (24 problems x 3
+            seeds, 2026-11-25) 2 % against 1 % took planning, smoothing and timing from
+            a median 8.9 to 8.3 ms; the motions' mean duration stayed 2.27 s (median
+            2.12 -> 2.16 s).
 
     The optimizing planners (``RRTstar``, ``InformedRRTstar``, ``AORRTC``,
     ``SORRTstar``) keep improving their path until ``time_limit`` runs out; the others
@@ -72,7 +75,7 @@ class PlannerOptions:
     seed: int = 0
     range: float | None = None
     shortcut_iterations: int = 100
-    shortcut_min_gain: float = 0.01
+    shortcut_min_gain: float = 0.02
 
     def __post_init__(self) -> None:
         check_names([self.planner], PLANNERS, path=None, key="planner", what="planner")
@@ -177,7 +180,7 @@ def _seed_ompl(seed: int) -> None:
 
 
 def shortcut(checker: CollisionChecker, path: list[np.ndarray], rng: np.random.Generator, *,
-             iterations: int = 100, min_gain: float = 0.01) -> list[np.ndarray]:
+             iterations: int = 100, min_gain: float = 0.02) -> list[np.ndarray]:
     """Shorten a valid polyline by random shortcuts, each checked at full resolution.
 
     First removes every vertex whose neighbours see each other (greedy, from the start),

@@ -106,7 +106,7 @@ def main() -> None:
     write_result(out, {
         "peer": "safepath", "version": safepath.__version__,
         "settings": {"planner": "PlanOptions() defaults: OMPL RRTConnect, time_limit 2 s, "
-                                "100 shortcut attempts (min gain 1 %), TOPPRA, FCL release check",
+                                "100 shortcut attempts (min gain 2 %), TOPPRA, FCL release check",
                      "margin": "scene margin enforced while planning (cell: 10 mm; "
                                "panda: 0)",
                      "seed": "problem seed"},
