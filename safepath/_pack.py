@@ -51,15 +51,61 @@ class _RobotPart:
 
 
 def _robot_part(robot: Robot, options: LayerOptions) -> _RobotPart:
-    """The robot's joints and shapes, made by the first checker of the robot."""
+    """The robot's joints and shapes, made by the first checker of the robot (or read
+    from the disk cache, :mod:`safepath._partcache`, where a process made them before)."""
+    from . import _partcache
+    from .spheres import _fit_key
 
     def make() -> _RobotPart:
         model, geoms = robot.model, robot.collision_model.geometryObjects
         J, Ji = _joints(model)
-        return _RobotPart(J, Ji, [_mover(model, g, options, robot.lower, robot.upper)
-                                  for g in geoms])
+        name = _partcache.key([
+            "sphere layer robot part", repr(options), J, Ji,
+            np.array([model.joints[j].idx_v for j in range(1, model.njoints)]),
+            robot.lower, robot.upper,
+            *((int(g.parentJoint), g.placement.homogeneous.tobytes(),
+               _fit_key(g.geometry, options.cell)) for g in geoms)])
+
+        def fresh() -> dict[str, np.ndarray]:
+            movers = [_mover(model, g, options, robot.lower, robot.upper) for g in geoms]
+            return _flat(J, Ji, movers)
+
+        return _unflat(_partcache.load_or_make(name, fresh))
 
     return robot.derived(("sphere layer", options), make)
+
+
+#: The arrays of a mover in the disk cache's entries, by suffix.
+_MOVER_ARRAYS = ("oc", "or", "ic", "ir", "row", "spheres", "hull", "degree", "neighbours",
+                 "weights", "chain", "ints")
+
+
+def _flat(J: np.ndarray, Ji: np.ndarray, movers: list[_Mover]  # noqa: N803
+          ) -> dict[str, np.ndarray]:
+    """A robot part as named arrays (see :func:`_unflat`)."""
+    out = {"J": J, "Ji": Ji, "count": np.array([len(movers)], dtype=np.int64)}
+    for i, m in enumerate(movers):
+        f = m.fit
+        values = (f.outer_centers, f.outer_radii, f.inner_centers, f.inner_radii, m.row,
+                  m.spheres, m.hull, m.degree, m.neighbours, m.weights, m.chain,
+                  np.array([m.joint, m.kind, m.n_outer], dtype=np.int64))
+        out.update({f"{i}.{name}": v for name, v in zip(_MOVER_ARRAYS, values, strict=True)})
+    return out
+
+
+def _unflat(a: dict[str, np.ndarray]) -> _RobotPart:
+    """The robot part of :func:`_flat`'s arrays, its fits read-only (every checker of
+    the robot shares them)."""
+    movers = []
+    for i in range(int(a["count"][0])):
+        oc, orad, ic, irad, row, spheres, hull, degree, neighbours, weights, chain, ints = (
+            a[f"{i}.{name}"] for name in _MOVER_ARRAYS)
+        fit = SphereFit(oc, orad, ic, irad)
+        for array in (oc, orad, ic, irad):
+            array.flags.writeable = False
+        movers.append(_Mover(fit, row, int(ints[0]), int(ints[1]), spheres, int(ints[2]),
+                             hull, degree, neighbours, weights, chain))
+    return _RobotPart(a["J"], a["Ji"], movers)
 
 
 def _joints(model: pin.Model) -> tuple[np.ndarray, np.ndarray]:

@@ -1,0 +1,103 @@
+"""The disk cache of what the sphere layer makes from a robot alone (``safepath._partcache``):
+an entry read back is the part made afresh, bit for bit; a damaged entry is ignored with a
+warning and made again; other options or geometry are another entry; ``SAFEPATH_CACHE=0``
+writes nothing."""
+
+from __future__ import annotations
+
+import logging
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from safepath import CollisionChecker, _pack, _partcache
+from safepath.cell import Cell
+from safepath.fastcheck import LayerOptions
+
+
+def _arrays(part: _pack._RobotPart) -> dict[str, np.ndarray]:
+    return _pack._flat(part.J, part.Ji, part.movers)
+
+
+def _made(cell: Cell, options: LayerOptions) -> _pack._RobotPart:
+    cell.robot._derived.clear()  # nothing kept in memory: the disk or a fresh fit
+    return _pack._robot_part(cell.robot, options)
+
+
+def test_a_part_read_back_is_the_part_made(cell: Cell, tmp_path: Path,
+                                           monkeypatch: pytest.MonkeyPatch) -> None:
+    monkeypatch.setenv(_partcache.ENV, str(tmp_path))
+    options = LayerOptions()
+    made = _made(cell, options)
+    entries = list((tmp_path / "robot-parts").glob("*.part"))
+    assert len(entries) == 1
+    fresh_layer = CollisionChecker(cell.robot, cell.scene).layer
+    read = _made(cell, options)
+    assert read is not made
+    a, b = _arrays(made), _arrays(read)
+    assert a.keys() == b.keys()
+    for name in a:
+        assert a[name].dtype == b[name].dtype and a[name].shape == b[name].shape, name
+        np.testing.assert_array_equal(a[name], b[name], err_msg=name)
+    assert not read.movers[0].fit.outer_centers.flags.writeable  # shared, read-only
+    # The layer's buffers from the part read back are those of the part made.
+    read_layer = CollisionChecker(cell.robot, cell.scene).layer
+    assert fresh_layer is not None and read_layer is not None
+    np.testing.assert_array_equal(fresh_layer.F, read_layer.F)
+    np.testing.assert_array_equal(fresh_layer.I, read_layer.I)
+
+
+@pytest.mark.parametrize("damage", ["garbage", "truncated", "flipped"])
+def test_a_damaged_entry_is_ignored_with_a_warning_and_made_again(
+        cell: Cell, tmp_path: Path, monkeypatch: pytest.MonkeyPatch,
+        caplog: pytest.LogCaptureFixture, damage: str) -> None:
+    monkeypatch.setenv(_partcache.ENV, str(tmp_path))
+    options = LayerOptions()
+    made = _arrays(_made(cell, options))
+    (entry,) = (tmp_path / "robot-parts").glob("*.part")
+    raw = entry.read_bytes()
+    if damage == "garbage":
+        entry.write_bytes(b"not a cache entry")
+    elif damage == "truncated":
+        entry.write_bytes(raw[: len(raw) // 2])
+    else:  # one byte of an array changed: the digest tells
+        entry.write_bytes(raw[:-9] + bytes([raw[-9] ^ 0x10]) + raw[-8:])
+    with caplog.at_level(logging.WARNING, logger="safepath._partcache"):
+        again = _arrays(_made(cell, options))
+    assert any("ignored" in r.getMessage() and entry.name in r.getMessage()
+               for r in caplog.records)
+    for name in made:
+        np.testing.assert_array_equal(made[name], again[name], err_msg=name)
+    assert _partcache._decode(entry.read_bytes()).keys() == made.keys()  # written anew
+
+
+def test_other_options_or_geometry_are_another_entry(cell: Cell, tmp_path: Path,
+                                                     monkeypatch: pytest.MonkeyPatch) -> None:
+    monkeypatch.setenv(_partcache.ENV, str(tmp_path))
+    folder = tmp_path / "robot-parts"
+    _made(cell, LayerOptions())
+    _made(cell, LayerOptions(cell=0.03))
+    assert len(list(folder.glob("*.part"))) == 2
+    geom = cell.robot.collision_model.geometryObjects[3]
+    placement = geom.placement.copy()
+    try:
+        moved = placement.copy()
+        moved.translation = placement.translation + np.array([0.0, 0.0, 0.01])
+        geom.placement = moved
+        part = _made(cell, LayerOptions())
+        assert len(list(folder.glob("*.part"))) == 3
+        np.testing.assert_allclose(part.movers[3].row[13:16] - placement.translation,
+                                   [0.0, 0.0, 0.01], atol=1e-12)
+    finally:
+        geom.placement = placement
+        cell.robot._derived.clear()
+
+
+def test_no_disk_cache_when_turned_off(cell: Cell, tmp_path: Path,
+                                       monkeypatch: pytest.MonkeyPatch) -> None:
+    monkeypatch.setenv(_partcache.ENV, "0")
+    assert _partcache.folder() is None
+    monkeypatch.setenv("XDG_CACHE_HOME", str(tmp_path))
+    _made(cell, LayerOptions())
+    assert not any(tmp_path.rglob("*.part"))
