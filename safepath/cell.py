@@ -227,7 +227,6 @@ def load_cell(folder: str | Path) -> Cell:
     poses = load_poses(poses_path, robot) if poses_path.exists() else {}
     cell = Cell(robot, scene, poses, folder=folder, poses_path=poses_path)
     _load_planning_code()
-    _prepare_robot(robot)
     return cell
 
 
@@ -244,21 +243,6 @@ def _load_planning_code() -> None:
     if _aot.compiled() is not None:
         for name in _aot.PLANNING_MODULES:
             importlib.import_module(name)
-
-
-def _prepare_robot(robot: Robot) -> None:
-    """Make (or read from the disk cache, :mod:`safepath._partcache`) what the collision
-    checkers' sphere layer takes from the robot alone (sphere fits, hull tables, reach
-    per joint: ~2 ms read, ~4 ms made for the Ned3 Pro), as loading the robot's meshes
-    is part of loading it: a loaded cell's first plan pays for planning. A shape the
-    layer cannot fit is left to its checkers (they stay exact)."""
-    from ._pack import _robot_part
-    from .fastcheck import LayerOptions
-
-    try:
-        _robot_part(robot, LayerOptions())
-    except ValueError:
-        pass
 
 
 def _check_scene_against(robot: Robot, scene: Scene, poses: Mapping[str, np.ndarray]) -> None:
