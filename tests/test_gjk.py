@@ -76,27 +76,29 @@ def _tables(*shapes: object) -> tuple[np.ndarray, np.ndarray, list[tuple[int, in
     return np.concatenate([v.ravel() for v in verts]), ib, rows
 
 
-def _bound(ka: int, Ra: np.ndarray, pa: np.ndarray, da: np.ndarray, kb: int,
-           Rb: np.ndarray, pb: np.ndarray, db: np.ndarray, hulls: list,
-           low: float = -1e300, high: float = 1e300) -> float:
+def _search(bound: object, ka: int, Ra: np.ndarray, pa: np.ndarray, da: np.ndarray,
+            kb: int, Rb: np.ndarray, pb: np.ndarray, db: np.ndarray, hulls: list,
+            *limits: float) -> float:
+    """``bound`` (a GJK search of ``safepath._gjk``) on shapes A and B, the hulls among
+    them in ``hulls``, with fresh hints and scratch, searched to ``limits``."""
     fb, ib, rows = _tables(*hulls)
     (va0, va1), (vb0, vb1) = (rows + [(0, 0), (0, 0)])[:2]
     scratch = [np.empty((4, 3)), np.empty(3), np.empty(3), np.empty(3), np.empty(3)]
     n_ptr = rows[-1][1] + 1
-    return distance_lower_bound(ka, Ra, pa, da, va0, va1, kb, Rb, pb, db, vb0, vb1, fb, 0,
-                                ib, 0, n_ptr, np.full(2, -1, dtype=np.int64), np.zeros(3),
-                                *scratch, low, high)
+    return bound(ka, Ra, pa, da, va0, va1, kb, Rb, pb, db, vb0, vb1, fb, 0,  # type: ignore[operator, no-any-return]
+                 ib, 0, n_ptr, np.full(2, -1, dtype=np.int64), np.zeros(3), *scratch,
+                 *limits)
+
+
+def _bound(ka: int, Ra: np.ndarray, pa: np.ndarray, da: np.ndarray, kb: int,
+           Rb: np.ndarray, pb: np.ndarray, db: np.ndarray, hulls: list,
+           low: float = -1e300, high: float = 1e300) -> float:
+    return _search(distance_lower_bound, ka, Ra, pa, da, kb, Rb, pb, db, hulls, low, high)
 
 
 def _upper(ka: int, Ra: np.ndarray, pa: np.ndarray, da: np.ndarray, kb: int,
            Rb: np.ndarray, pb: np.ndarray, db: np.ndarray, hulls: list, goal: float) -> float:
-    fb, ib, rows = _tables(*hulls)
-    (va0, va1), (vb0, vb1) = (rows + [(0, 0), (0, 0)])[:2]
-    scratch = [np.empty((4, 3)), np.empty(3), np.empty(3), np.empty(3), np.empty(3)]
-    n_ptr = rows[-1][1] + 1
-    return distance_upper_bound(ka, Ra, pa, da, va0, va1, kb, Rb, pb, db, vb0, vb1, fb, 0,
-                                ib, 0, n_ptr, np.full(2, -1, dtype=np.int64), np.zeros(3),
-                                *scratch, goal)
+    return _search(distance_upper_bound, ka, Ra, pa, da, kb, Rb, pb, db, hulls, goal)
 
 
 def _signed_distance(a: object, Ta: coal.Transform3s, b: object, Tb: coal.Transform3s

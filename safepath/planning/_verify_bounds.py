@@ -292,6 +292,20 @@ def joint_tables(model: pin.Model) -> tuple[np.ndarray, ...]:
             upstream)
 
 
+def _chains(parents: np.ndarray, joint_of: np.ndarray) -> np.ndarray:
+    """Per joint, the velocity indices of the joints that carry it (itself and its
+    ancestors): (joints, dof) bool, from each joint's parent (a parent before its
+    children) and each velocity index's joint."""
+    v_of = np.full(len(parents), -1)
+    v_of[joint_of] = np.arange(len(joint_of))
+    carried = np.zeros((len(parents), len(joint_of)), dtype=np.bool_)
+    for j in range(1, len(parents)):
+        carried[j] = carried[parents[j]]
+        if v_of[j] >= 0:
+            carried[j, v_of[j]] = True
+    return carried
+
+
 def pair_weights(model: pin.Model, joints: list[int], weights: np.ndarray,
                  pairs: list[tuple[int, int, bool]]) -> np.ndarray:
     """Per pair and joint, a bound on how much a unit of that joint's motion changes the
@@ -301,10 +315,10 @@ def pair_weights(model: pin.Model, joints: list[int], weights: np.ndarray,
     that moves both (a common ancestor) moves them as one rigid piece and leaves their
     distance alone; every other joint moves one of them relative to the other.
     """
-    carried = np.zeros((model.njoints, model.nv), dtype=np.bool_)  # joint -> its chain
+    joint_of = np.zeros(model.nv, dtype=np.int64)
     for j in range(1, model.njoints):
-        carried[j] = carried[model.parents[j]]
-        carried[j, model.joints[j].idx_v] = True
+        joint_of[model.joints[j].idx_v] = j
+    carried = _chains(np.asarray(model.parents), joint_of)
     a = np.array([p[0] for p in pairs], dtype=np.int64)
     b = np.array([p[1] for p in pairs], dtype=np.int64)
     env = np.array([p[2] for p in pairs], dtype=np.bool_)
@@ -415,14 +429,8 @@ def _pair_arrays(pairs: list[tuple[int, int, bool]], weights: np.ndarray,
     a = np.array([a for a, _, _ in pairs], dtype=np.int64)
     b = np.array([b for _, b, _ in pairs], dtype=np.int64)
     env = np.array([e for _, _, e in pairs], dtype=np.bool_)
-    parents, m_joint, joint_of = kin[0], kin[5], kin[7]
-    carried = np.zeros((parents.size, joint_of.size), dtype=np.bool_)  # joint -> its chain
-    v_of = np.full(parents.size, -1)
-    v_of[joint_of] = np.arange(joint_of.size)
-    for j in range(1, parents.size):
-        carried[j] = carried[parents[j]]
-        if v_of[j] >= 0:
-            carried[j, v_of[j]] = True
+    m_joint, joint_of = kin[5], kin[7]
+    carried = _chains(kin[0], joint_of)
     moves_b = np.zeros((a.size, joint_of.size), dtype=np.bool_)
     if a.size:
         mover_b = np.where(env, 0, b)  # an environment index is no body's
