@@ -19,7 +19,7 @@ from __future__ import annotations
 import copy
 import functools
 import logging
-from collections.abc import Iterable, Mapping, Sequence
+from collections.abc import Callable, Iterable, Mapping, Sequence
 from dataclasses import replace
 from typing import Any
 
@@ -84,14 +84,15 @@ class CollisionChecker:
         made anew. Answers as ``clone(allowed=...)`` does (tested): a planner needs one
         per step's allowed contacts in each world state."""
         new = copy.copy(self)
-        for name in ("_gdata", "_broad", "_dist_gdata", "_F", "_I"):
+        for name in ("_gdata", "_broad", "_dist_gdata", "_F", "_I", "_pair_names"):
             new.__dict__.pop(name, None)  # coal's side and the layer: this checker's own
         new.allowed = tuple(allowed)
         new._gmodel = self._gmodel.copy()
         new._gmodel.removeAllCollisionPairs()
         new._names = list(self._names)
         new._set_pairs()
-        if self._layer_built and self._layer is not None and new._pairs == self._pairs:
+        if (self._layer_built and self._layer is not None
+                and np.array_equal(new._pairs, self._pairs)):
             new._layer = self._layer.with_security(new._security)
             new._layer_built = True
             new._bind_kernels()
@@ -102,7 +103,7 @@ class CollisionChecker:
         coal requests, step by step."""
         gmodel = self.robot.collision_model.copy()
         gmodel.removeAllCollisionPairs()  # loaders may have added their own
-        links, self._own_reach = self.robot.derived("checker", self._robot_part)
+        links, self._own_reach = robot_part(self.robot)
         self._names: list[str] = list(links)
         self._env = self._add_environment(gmodel)
         self._add_held(gmodel)
@@ -114,26 +115,18 @@ class CollisionChecker:
         """The pairs of the allowed contacts, their margins and coal's security margins;
         coal's side of the checker and the sphere layer are left to be made when first
         needed (coal's pairs are added to the model on the first exact query)."""
-        pairs = self._pair_list()
-        self._pairs = [(a, b) for a, b, _ in pairs]
-        self._pair_names = [(self._names[a], self._names[b]) for a, b in self._pairs]
+        rows, depth = self._pair_list()
+        candidates, _, margins = self._candidates
+        self._pairs = candidates[rows]  # (geometry a, geometry b) per pair
         self._pairs_added = False
         self._data = self.robot.model.createData()
-        self._pair_margin = self._pair_margins()
-        self._set_requests([depth for *_, depth in pairs])
+        self._pair_margin = margins[rows]
+        self._set_requests(depth)
         self._pool: Any = None  # coal's batch broad phase
         self._layer: SphereLayer | None = None
         self._layer_built = False
         self._classify: Any = None
         self._segment: Any = None
-
-    def _robot_part(self) -> tuple[tuple[str, ...], np.ndarray]:
-        """What every checker of the robot takes from it: the link of each geometry, and
-        per joint how far its own geometry reaches from its origin [m]."""
-        robot = self.robot
-        geoms = robot.collision_model.geometryObjects
-        reach = _reach_into(np.zeros(robot.model.njoints), geoms)
-        return tuple(map(robot.geometry_link, range(len(geoms)))), reach
 
     def _add_environment(self, gmodel: pin.GeometryModel) -> list[int]:
         """Add the scene's objects (movable ones where they rest, the held one left out);
@@ -164,28 +157,35 @@ class CollisionChecker:
         return self._add(gmodel, self.held, tcp.parentJoint, self.robot.tcp_frame_id,
                          T_joint_obj, scene.objects[self.held])
 
-    def _pair_list(self) -> list[tuple[int, int, float]]:
-        """(a, b, allowed depth [m]) of every pair to check: movers (robot and held
-        object) against each other and against the environment, without the pairs that
-        are never checked or allowed to touch at any depth. In the order: for each mover,
-        the movers after it, then the environment."""
+    def _pair_list(self) -> tuple[np.ndarray, np.ndarray]:
+        """The pairs to check, as rows of :attr:`_candidates`, and the depth [m] each
+        is allowed to touch by: the candidates without those allowed to touch at any
+        depth."""
         contact_links = set(self.robot.tool.contact_links) if self.robot.tool else set()
         allowed = self._expand_allowed(contact_links)
-        keys, pairs = self._candidates
-        if not allowed:
-            return list(pairs)
-        out = []
-        for key, (a, b, _) in zip(keys, pairs, strict=True):
-            depth = allowed.get(key, 0.0)
-            if depth is not None:
-                out.append((a, b, depth))
-        return out
+        candidates, rows_of, _ = self._candidates
+        keep = np.ones(len(candidates), dtype=bool)
+        depth = np.zeros(len(candidates))
+        for key, d in allowed.items():
+            at = rows_of.get(key)
+            if at is None:
+                continue  # never checked
+            if d is None:
+                keep[at] = False
+            else:
+                depth[at] = d
+        rows = np.flatnonzero(keep)
+        return rows, depth[rows]
 
     @functools.cached_property
-    def _candidates(self) -> tuple[list[tuple[str, str]], list[tuple[int, int, float]]]:
-        """The pairs to check where no contact is allowed (see :meth:`_pair_list`), and
-        the names of each (sorted). Made once for a world state (its checkers for other
-        allowed contacts share it)."""
+    def _candidates(self) -> tuple[np.ndarray, dict[Pair, list[int]], np.ndarray]:
+        """The pairs to check where no contact is allowed, as (geometry a, geometry b)
+        rows; the rows of each pair of names (sorted); and each pair's safety margin
+        [m] (the options' override, or the scene's margin of the environment object
+        in it). In the order: for each mover (robot and held object), the movers after
+        it, then the environment; without the pairs never checked (on one joint, an
+        allowed self pair, the held object against the jaws). Made once for a world
+        state (its checkers for other allowed contacts share it)."""
         gmodel, n_robot = self._gmodel, self.robot.collision_model.ngeoms
         held_idx = gmodel.ngeoms - 1 if self.held is not None else None  # added last
         contact_links = set(self.robot.tool.contact_links) if self.robot.tool else set()
@@ -193,8 +193,17 @@ class CollisionChecker:
         joint = [int(g.parentJoint) for g in gmodel.geometryObjects]
         self_pairs = self.robot.allowed_self_pairs
         movers = list(range(n_robot)) + ([held_idx] if held_idx is not None else [])
-        keys: list[tuple[str, str]] = []
-        pairs: list[tuple[int, int, float]] = []
+        rows_of: dict[Pair, list[int]] = {}
+        pairs: list[tuple[int, int]] = []
+        # The margin of a pair is that of its environment object, else of its first body.
+        margin_of = self._margins()
+        margins: list[float] = []
+
+        def add(key: Pair, a: int, b: int, margin: float) -> None:
+            rows_of.setdefault(key, []).append(len(pairs))
+            pairs.append((a, b))
+            margins.append(margin)
+
         for ia, a in enumerate(movers):
             na = names[a]
             for b in movers[ia + 1:]:
@@ -207,44 +216,39 @@ class CollisionChecker:
                         continue  # the jaws hold it
                 elif key in self_pairs:
                     continue
-                keys.append(key)
-                pairs.append((a, b, 0.0))
+                add(key, a, b, margin_of(na))
             if joint[a] == 0:
                 continue  # both fixed to the world
             for e in env:
                 ne = names[e]
-                keys.append((na, ne) if na <= ne else (ne, na))
-                pairs.append((a, e, 0.0))
-        return keys, pairs
+                add((na, ne) if na <= ne else (ne, na), a, e, margin_of(ne))
+        return (np.array(pairs, dtype=np.int64).reshape(-1, 2), rows_of,
+                np.array(margins, dtype=float))
 
-    def _pair_margins(self) -> list[float]:
-        """Each pair's safety margin [m]: the options' override, or the scene's margin
-        of the environment object in it."""
-        scene, env_set = self.scene, set(self._env)
-        margin_default = (self.options.margin if self.options.margin is not None
-                          else (scene.margin if scene else 0.0))
-        if self.options.margin is not None or scene is None:
-            return [margin_default] * len(self._pairs)
+    def _margins(self) -> Callable[[str], float]:
+        """The safety margin [m] of an object or link by name: the options' override,
+        or the scene's."""
+        scene, override = self.scene, self.options.margin
+        if override is not None or scene is None:
+            value = override if override is not None else 0.0
+            return lambda name: value
+        return functools.cache(scene.margin_for)
+
+    @functools.cached_property
+    def _pair_names(self) -> list[Pair]:
+        """The names of each pair checked (for reports)."""
         names = self._names
-        of_name: dict[str, float] = {}
-        margins = []
-        for a, b in self._pairs:
-            name = names[b] if b in env_set else names[a]
-            margin = of_name.get(name)
-            if margin is None:
-                margin = of_name[name] = scene.margin_for(name)
-            margins.append(margin)
-        return margins
+        return [(names[a], names[b]) for a, b in self._pairs.tolist()]
 
-    def _set_requests(self, depths: list[float]) -> None:
-        """Each pair's security margin for coal (minus the allowed depth, or the margin
-        where enforced; coal's requests get it when first needed) and the distance pairs."""
+    def _set_requests(self, depth: np.ndarray) -> None:
+        """Each pair's security margin for coal (minus the allowed ``depth``, or the
+        margin where enforced; coal's requests get it when first needed) and the distance
+        pairs."""
         is_env = np.zeros(self._gmodel.ngeoms, dtype=bool)
         is_env[self._env] = True
-        ab = np.array(self._pairs, dtype=np.int64).reshape(-1, 2)
+        ab = self._pairs
         across = is_env[ab[:, 0]] != is_env[ab[:, 1]]  # a mover and the environment
-        depth = np.array(depths, dtype=float)
-        margin = np.array(self._pair_margin, dtype=float)
+        margin = self._pair_margin
         self._security = np.where(depth != 0.0, -depth, np.where(
             across & self.options.enforce_margin, margin, 0.0))
         # Distances: robot (and held object) against the environment, not allowed ones.
@@ -255,7 +259,7 @@ class CollisionChecker:
         """The robot's, the scene's and the held object's geometry, with the pairs checked
         (coal's side of the checker; see :attr:`pairs` for their names)."""
         if not self._pairs_added:
-            for a, b in self._pairs:
+            for a, b in self._pairs.tolist():
                 self._gmodel.addCollisionPair(pin.CollisionPair(a, b))
             self._pairs_added = True
         return self._gmodel
@@ -455,7 +459,7 @@ class CollisionChecker:
         margin_of: dict[Pair, float] = {}
         for k in self._dist_pairs:
             name = self._pair_names[k]
-            margin_of[name] = max(margin_of.get(name, 0.0), self._pair_margin[k])
+            margin_of[name] = max(margin_of.get(name, 0.0), float(self._pair_margin[k]))
         for p, d in dists:
             if d < clearance:
                 clearance, closest = d, p
@@ -692,6 +696,38 @@ def _bisection_order(n: int, check_ends: bool) -> list[int]:
         queue.append((lo, mid))
         queue.append((mid, hi))
     return out
+
+
+def robot_part(robot: Robot) -> tuple[tuple[str, ...], np.ndarray]:
+    """What every checker of ``robot`` takes from it, made once per robot: the link of
+    each geometry, and per joint how far its own geometry reaches from its origin [m]."""
+    def make() -> tuple[tuple[str, ...], np.ndarray]:
+        geoms = robot.collision_model.geometryObjects
+        reach = _reach_into(np.zeros(robot.model.njoints), geoms)
+        return tuple(map(robot.geometry_link, range(len(geoms)))), reach
+
+    return robot.derived("checker", make)
+
+
+def prepare_robot(robot: Robot) -> None:
+    """Make what every collision checker of ``robot`` takes from the robot alone: its
+    links and reach, and, where the kernels are compiled ahead of time, its sphere
+    layer's part (sphere fits, hull tables: read from the disk cache,
+    :mod:`safepath._partcache`, where a process made them before). Without them the
+    part waits for the first check, which imports numba anyway. A shape the layer
+    cannot fit is left to the checkers (they stay exact)."""
+    from . import _aot
+
+    robot_part(robot)
+    if _aot.compiled() is None:
+        return
+    from ._pack import _robot_part
+    from .fastcheck import LayerOptions
+
+    try:
+        _robot_part(robot, LayerOptions())
+    except ValueError:
+        pass
 
 
 def _reach_into(reach: np.ndarray, geoms: Any) -> np.ndarray:
