@@ -1,7 +1,8 @@
 """The disk cache of what the sphere layer makes from a robot alone (``safepath._partcache``):
 an entry read back is the part made afresh, bit for bit; a damaged entry is ignored with a
 warning and made again; other options or geometry are another entry; ``SAFEPATH_CACHE=0``
-writes nothing."""
+writes nothing; ``load_cell`` makes (or reads) it, and what the checkers and verifiers
+take from the robot, before the first plan."""
 
 from __future__ import annotations
 
@@ -101,3 +102,21 @@ def test_no_disk_cache_when_turned_off(cell: Cell, tmp_path: Path,
     monkeypatch.setenv("XDG_CACHE_HOME", str(tmp_path))
     _made(cell, LayerOptions())
     assert not any(tmp_path.rglob("*.part"))
+
+
+def test_load_cell_prepares_what_the_checkers_and_verifiers_take_from_the_robot() -> None:
+    # A loaded cell's first plan pays for planning: the robot's links and reach, the
+    # verifier's shapes and (with the kernels built) the sphere layer's part are made
+    # by load_cell, and the cell's checkers and verifiers use those, not new ones.
+    from safepath import _aot, load_cell
+    from safepath.planning import FclVerifier
+
+    cell = load_cell("quality_check_cell")
+    made = dict(cell.robot._derived)
+    kinds = {key if isinstance(key, str) else key[0] for key in made}
+    assert {"checker", "verifier"} <= kinds
+    assert ("sphere layer" in kinds) is (_aot.compiled() is not None)
+    checker = CollisionChecker(cell.robot, cell.scene, held="vial")
+    assert checker.layer is not None
+    FclVerifier(cell.robot, cell.scene, held="vial")
+    assert all(cell.robot._derived[key][2] is value[2] for key, value in made.items())
