@@ -25,16 +25,19 @@ caches in use are those of compiled code: Python bytecode (``__pycache__/*.pyc``
 installed package has them; the children run without ``PYTHONDONTWRITEBYTECODE`` unless
 ``--no-bytecode`` is given, which measures every import compiled from source), the
 kernels compiled ahead of time (user cache) or numba's compiled kernels
-(``*.nbi``/``*.nbc`` in ``__pycache__`` or ``NUMBA_CACHE_DIR``), plus the operating
-system's file cache. ``--warmup`` runs (default 1, not counted)
-fill them first, so the figures are those of an installed copy, not of the first run
-after an install (which also compiles the numba kernels, several seconds).
+(``*.nbi``/``*.nbc`` in ``__pycache__`` or ``NUMBA_CACHE_DIR``), the operating system's
+file cache, and one of derived geometry: the sphere layer's robot part (sphere fits and
+hull tables, ``$SAFEPATH_CACHE/robot-parts``, read by ``load_cell``); ``--no-part-cache``
+turns that one off in the children (``SAFEPATH_CACHE=0``: every process fits them).
+``--warmup`` runs (default 1, not counted) fill them first, so the figures are those of
+an installed copy, not of the first run after an install (which also compiles the numba
+kernels, several seconds).
 
 Targets, printed with the results: ``import safepath`` <= 0.3 s, the ``plan`` process
 <= 1.0 s, first ``plan_cell`` <= 2 x the second.
 
 Run: ``.venv/bin/python benchmarks/cold_start.py [--runs 7] [--warmup 1] [--jit]
-[--no-bytecode]``.
+[--no-bytecode] [--no-part-cache]``.
 """
 
 from __future__ import annotations
@@ -147,6 +150,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser.add_argument("--no-bytecode", action="store_true",
                         help="children neither read nor write Python bytecode caches (every "
                              "import compiled from source)")
+    parser.add_argument("--no-part-cache", action="store_true",
+                        help="children fit the robot's spheres afresh (SAFEPATH_CACHE=0)")
     args = parser.parse_args(argv)
     if args.runs < 1 or args.warmup < 0:
         parser.error("--runs must be at least 1 and --warmup at least 0")
@@ -156,6 +161,8 @@ def main(argv: Sequence[str] | None = None) -> int:
         ENV["PYTHONDONTWRITEBYTECODE"] = "1"
         empty = tempfile.TemporaryDirectory(prefix="safepath-nopyc-")  # removed at exit
         ENV["PYTHONPYCACHEPREFIX"] = empty.name
+    if args.no_part_cache:
+        ENV["SAFEPATH_CACHE"] = "0"
 
     command = plan_command()
     print(f"cold_start: python {platform.python_version()} on {platform.machine()}, "
@@ -166,6 +173,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     print(f"kernels: {child(_STATUS).strip()}")
     print("Python bytecode: " + ("off (every import compiled from source)" if args.no_bytecode
                                  else "cached in __pycache__ (as installed)"))
+    print("robot parts (sphere fits): " + ("fitted in every process (SAFEPATH_CACHE=0)"
+                                           if args.no_part_cache else "disk cache"))
     for _ in range(args.warmup):
         plan_process(command)
         child(_FIRST_SECOND, str(CELL_DIR))
