@@ -78,7 +78,7 @@ ENTRIES: dict[str, Entry] = {
          (F2, F3, _HULLS),  # world
          (F2, F1, I1, F1),  # memory
          (FLOAT, FLOAT, FLOAT, FLOAT),  # params
-         (I1, F1, F1, F1, F1, F2, F2, F2, F2, I1, I1, I1, F1),  # scratch and outputs
+         (I1, F1, F1, F2, F2, I1, I1, I1, F1),  # scratch and outputs
          INT, INT),  # where to start
         "UniTuple(i8, 3)"),
     "verify_grid": Entry(_VERIFY, "grid", (F2, F2, FLOAT), f"Tuple(({I1}, {F1}, {F2}, {F2}))"),

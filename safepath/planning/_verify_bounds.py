@@ -561,8 +561,7 @@ class Layer:
         thread)."""
         nv, room = self._upstream.shape[0], _ROOM
         return (np.empty(self._kin[0].size, dtype=np.int64), np.empty(nv), np.empty(nv),
-                np.empty(nv), np.empty(nv), np.empty((3, 4)), np.empty((3, 4)), np.empty((4, 3)),
-                np.empty((3, 3)), np.empty(4, dtype=np.int64),
+                np.empty((4, 3)), np.empty((3, 3)), np.empty(4, dtype=np.int64),
                 np.empty(room, dtype=np.int64), np.empty(room, dtype=np.int64),
                 np.empty(room))
 

@@ -7,7 +7,11 @@ function it compiles, so a walk compiled here never runs with stale geometry hel
 from another file. Plain loops, no ``np.dot`` or ``@``. The geometric helpers take floats
 and tuples of floats only, and the array work of the walk sits in closures inside
 :func:`certify`: a numba helper that takes arrays pays their reference counting on every
-call, which costs more than most of these helpers' work.
+call, which costs more than most of these helpers' work. The small helpers that take
+placed shapes (:func:`support`, :func:`gap`, ...) are inlined where they are called
+(numba's ``inline="always"``): a call copies both shapes' 17 floats and the hull tables
+onto the stack, which cost more than the helper's own arithmetic (the walk took ~12 %
+less time inlined). Inlining changes no operation, so no result.
 
 The walk is compiled without numba's reference counting (``_nrt=False``): it allocates
 nothing, its scratch and output buffers come from the caller, and a reference count on
@@ -48,6 +52,9 @@ from .._aot import njit
 
 #: How every function here but the entry points is compiled (see the module doc).
 _kernel = njit(cache=True, _nrt=False)
+#: How the small helpers that take placed shapes are compiled: inlined where they are
+#: called (see the module doc).
+_inline = njit(cache=True, _nrt=False, inline="always")
 
 BOX, SPHERE, CYLINDER, CAPSULE, HULL = 0, 1, 2, 3, 4
 #: A step's search for the first sample its bound does not certify stops once it has that
@@ -65,14 +72,14 @@ KIND, PAR, CENTRE, RADIUS = 0, 1, 4, 7
 # the shape's axis j).
 
 
-@_kernel
+@_inline
 def _dots(S: tuple, n0: float, n1: float, n2: float) -> tuple[float, float, float]:
     """n along each of the shape's axes."""
     return (n0 * S[8] + n1 * S[11] + n2 * S[14], n0 * S[9] + n1 * S[12] + n2 * S[15],
             n0 * S[10] + n1 * S[13] + n2 * S[16])
 
 
-@_kernel
+@_inline
 def _axis(S: tuple, j: int) -> tuple[float, float, float]:
     """The shape's axis j in the world."""
     if j == 0:
@@ -112,7 +119,7 @@ def _hull_top(S: tuple, H: tuple, a0: float, a1: float, a2: float) -> tuple[floa
         k = top
 
 
-@_kernel
+@_inline
 def support(S: tuple, H: tuple, n0: float, n1: float, n2: float) -> float:
     """How far the shape's projection on the unit axis n reaches beyond its centre along
     n [m] (half its width, but for a hull: ``H`` holds the hulls' vertices about their
@@ -133,7 +140,7 @@ def support(S: tuple, H: tuple, n0: float, n1: float, n2: float) -> float:
     return S[2] * u + S[1]  # type: ignore[no-any-return]
 
 
-@_kernel
+@_inline
 def _support_point(S: tuple, H: tuple, n0: float, n1: float, n2: float
                    ) -> tuple[float, float, float]:
     """A point of the shape furthest along n: GJK's search only, the bounds use
@@ -172,7 +179,7 @@ def _support_point(S: tuple, H: tuple, n0: float, n1: float, n2: float
     return x0, x1, x2
 
 
-@_kernel
+@_inline
 def gap(Sa: tuple, Sb: tuple, H: tuple, n0: float, n1: float, n2: float) -> float:
     """Gap between the shapes' projections on the unit axis n [m]."""
     d0, d1, d2 = Sb[5] - Sa[5], Sb[6] - Sa[6], Sb[7] - Sa[7]
@@ -183,7 +190,7 @@ def gap(Sa: tuple, Sb: tuple, H: tuple, n0: float, n1: float, n2: float) -> floa
             - support(Sb, H, -n0, -n1, -n2))
 
 
-@_kernel
+@_inline
 def sphere_bound(Sa: tuple, Sb: tuple) -> tuple[float, float, float, float]:
     """Distance between the bounding spheres [m] (never above the gap along the line
     between the centres), and that line's direction."""
@@ -194,7 +201,7 @@ def sphere_bound(Sa: tuple, Sb: tuple) -> tuple[float, float, float, float]:
     return dist - Sa[4] - Sb[4], d0 / dist, d1 / dist, d2 / dist
 
 
-@_kernel
+@_inline
 def _own_axes(S: tuple) -> tuple[int, int]:
     """The shape's axes worth trying: (first, count)."""
     kind = int(S[0])
@@ -428,14 +435,70 @@ def _motion(kind: int, value: float, x: float, y: float, z: float
             t * x * z - si * y, t * y * z + si * x, co + t * z * z)
 
 
+@_kernel
+def _turned(p0: float, p1: float, p2: float, along: int, co: float, si: float
+            ) -> tuple[float, float, float]:
+    """A row (p0, p1, p2) of a joint's placement times its turn about its own axis
+    ``along`` (0, 1 or 2) by the angle of cosine ``co`` and sine ``si``: the other two
+    columns turn into each other."""
+    if along == 0:
+        return p0, p1 * co + p2 * si, p2 * co - p1 * si
+    if along == 1:
+        return p0 * co - p2 * si, p1, p2 * co + p0 * si
+    return p0 * co + p1 * si, p1 * co - p0 * si, p2
+
+
+@_kernel
+def _placed_row(p0: float, p1: float, p2: float, p3: float, r00: float, r01: float,
+                r02: float, r10: float, r11: float, r12: float, r20: float, r21: float,
+                r22: float, t0: float, t1: float, t2: float
+                ) -> tuple[float, float, float, float]:
+    """A row (p0, p1, p2, p3) of a joint's placement times its motion (rotation r,
+    row-major, and shift t)."""
+    return (p0 * r00 + p1 * r10 + p2 * r20, p0 * r01 + p1 * r11 + p2 * r21,
+            p0 * r02 + p1 * r12 + p2 * r22, p0 * t0 + p1 * t1 + p2 * t2 + p3)
+
+
+@_kernel
+def _pose_row(a0: float, a1: float, a2: float, a3: float, m00: float, m01: float,
+              m02: float, m03: float, m10: float, m11: float, m12: float, m13: float,
+              m20: float, m21: float, m22: float, m23: float
+              ) -> tuple[float, float, float, float]:
+    """A row (a0, a1, a2, a3) of a pose times the pose m (3 x 4, row-major)."""
+    return (a0 * m00 + a1 * m10 + a2 * m20, a0 * m01 + a1 * m11 + a2 * m21,
+            a0 * m02 + a1 * m12 + a2 * m22, a0 * m03 + a1 * m13 + a2 * m23 + a3)
+
+
 @njit(cache=True)
 def certify(todo: np.ndarray, first: np.ndarray, stop: np.ndarray, theta: np.ndarray,
             grid: tuple, kin: tuple, cache: tuple, pairs: tuple, world: tuple, memory: tuple,
             params: tuple, scratch: tuple, t0: int, s0: int) -> tuple[int, int, int]:
     """Walk every pair in ``todo`` along its stretch of the grid with the lower bound
-    (see :func:`_walk`, which it calls)."""
-    return _walk(todo, first, stop, theta, grid, kin, cache, pairs,  # type: ignore[no-any-return]
-                 world, memory, params, scratch, t0, s0)
+    (see :func:`_walk`, which it calls).
+
+    The joints' accumulated motion and upstream turning are interpolated to every sample
+    here, once per walk: a step's search reads them for every joint at every probe
+    (three probes per step, on average), and did the same interpolation each time."""
+    cum, step, cum_turn, step_turn, qk, knot_of, frac = grid
+    at, at_turn = _accumulated(cum, step, knot_of, frac), _accumulated(cum_turn, step_turn,
+                                                                       knot_of, frac)
+    return _walk(todo, first, stop, theta,  # type: ignore[no-any-return]
+                 (at, at_turn, qk, knot_of, frac), kin, cache, pairs, world, memory, params,
+                 scratch, t0, s0)
+
+
+@njit(cache=True)
+def _accumulated(cum: np.ndarray, step: np.ndarray, knot_of: np.ndarray, frac: np.ndarray
+                 ) -> np.ndarray:
+    """The accumulated sum ``cum`` (knots x dof) of the steps ``step`` into every knot,
+    at every sample (samples x dof; zero at the first knot's): the same expression the
+    walk evaluated at each probe, so the same numbers."""
+    out = np.empty((knot_of.size, cum.shape[1]))
+    for s in range(knot_of.size):
+        k = knot_of[s]
+        for v in range(cum.shape[1]):
+            out[s, v] = 0.0 if k == 0 else cum[k - 1, v] + frac[s] * step[k, v]
+    return out
 
 
 @_kernel
@@ -455,10 +518,10 @@ def _walk(todo: np.ndarray, first: np.ndarray, stop: np.ndarray, theta: np.ndarr
         first, stop: The stretch of the grid each entry of ``todo`` walks: samples
             ``first`` to ``stop`` - 1.
         theta: Threshold of every pair [m].
-        grid: (accumulated joint motion |dq| at every knot (knots x dof), its step
-            into every knot, the same for the turning of the revolute joints upstream
-            of each joint, knot positions [rad], knot of every sample, fraction of its
-            interval). Samples move linearly between knots.
+        grid: (accumulated joint motion |dq| at every sample (samples x dof), the
+            same for the turning of the revolute joints upstream of each joint, knot
+            positions [rad], knot of every sample, fraction of its interval). Samples
+            move linearly between knots.
         kin: (parent, placement (3 x 4), kind, axis, q index) of every joint; (joint,
             placement in it (3 x 4)) of every body; the joint of every velocity index.
         cache: (joint done, joint pose) by sample.
@@ -478,10 +541,9 @@ def _walk(todo: np.ndarray, first: np.ndarray, stop: np.ndarray, theta: np.ndarr
             negative, a clearance pair's threshold is the ceiling minus drop [m], if
             higher than its own).
 
-        scratch: (chain (joints, int), share, base, base_turn, reach_ (dof each), M, T
-            (3 x 4 each), GJK's W (4 x 3), e (3 x 3) and idx (4, int); the outputs: pair
-            (int), sample (int) and bound of every uncertified couple, as long as the
-            room they have).
+        scratch: (chain (joints, int), share, reach_ (dof each), GJK's W (4 x 3), e
+            (3 x 3) and idx (4, int); the outputs: pair (int), sample (int) and bound of
+            every uncertified couple, as long as the room they have).
         t0, s0: Where to start: the walk of ``todo[t0]`` at sample ``s0`` (0,
             ``first[0]``: from the beginning; else where the last call stopped).
 
@@ -491,7 +553,7 @@ def _walk(todo: np.ndarray, first: np.ndarray, stop: np.ndarray, theta: np.ndarr
         walk is done, else the place after the last couple written (the outputs were
         full). A walk resumed there goes on exactly as if it had not stopped.
     """
-    cum, step, cum_turn, step_turn, qk, knot_of, frac = grid
+    at, at_turn, qk, knot_of, frac = grid
     parent, place, kind, axis, iq, m_joint, m_place, joint_of = kin
     jdone, jpose = cache
     pair_a, pair_b, pair_env, weights, tracked, moves_b = pairs
@@ -500,14 +562,15 @@ def _walk(todo: np.ndarray, first: np.ndarray, stop: np.ndarray, theta: np.ndarr
     coarse, fine, keep, drop = params
     movers = m_joint.size
     nv = qk.shape[1]
-    chain, share, base, base_turn, reach_, M, T, W, e, idx, out_p, out_s, out_b = scratch
+    chain, share, reach_, W, e, idx, out_p, out_s, out_b = scratch
     share[:] = 1.0
-    base[:] = 0.0
-    base_turn[:] = 0.0
 
     def joint_pose(s: int, j: int) -> None:
         """jpose[s, j] (and its missing ancestors) = parent's pose * placement * the
-        joint's own motion (a rotation about its axis or a shift along it)."""
+        joint's own motion (a rotation about its axis or a shift along it). The
+        placement times the motion is kept in locals, and the parent's pose read
+        before the joint's is written: through arrays, every write to the pose could
+        overwrite what the next product reads, and would be read back."""
         count, k = 0, j
         while k > 0 and not jdone[s, k]:
             chain[count] = k
@@ -524,39 +587,46 @@ def _walk(todo: np.ndarray, first: np.ndarray, stop: np.ndarray, theta: np.ndarr
             along = _basis(x, y, z) if kind[k] != PRISMATIC else -1
             if along >= 0:
                 # The usual joints: a turn about the joint's own x, y or z (the general
-                # case below, with the zeros left out): columns a and b of the
-                # placement turn into each other, c = ``along`` stays.
+                # case below, with the zeros left out).
                 co, si = math.cos(value), math.sin(value)
-                a, b = (along + 1) % 3, (along + 2) % 3
-                for i in range(3):
-                    M[i, a] = place[k, i, a] * co + place[k, i, b] * si
-                    M[i, b] = place[k, i, b] * co - place[k, i, a] * si
-                    M[i, along] = place[k, i, along]
-                    M[i, 3] = place[k, i, 3]
+                m00, m01, m02 = _turned(place[k, 0, 0], place[k, 0, 1], place[k, 0, 2],
+                                        along, co, si)
+                m10, m11, m12 = _turned(place[k, 1, 0], place[k, 1, 1], place[k, 1, 2],
+                                        along, co, si)
+                m20, m21, m22 = _turned(place[k, 2, 0], place[k, 2, 1], place[k, 2, 2],
+                                        along, co, si)
+                m03, m13, m23 = place[k, 0, 3], place[k, 1, 3], place[k, 2, 3]
             else:
-                m00, m01, m02, m10, m11, m12, m20, m21, m22 = _motion(kind[k], value, x, y, z)
+                r00, r01, r02, r10, r11, r12, r20, r21, r22 = _motion(kind[k], value, x, y, z)
                 t0, t1, t2 = (x * value, y * value, z * value) if kind[k] == PRISMATIC \
                     else (0.0, 0.0, 0.0)
-                for i in range(3):
-                    M[i, 0] = (place[k, i, 0] * m00 + place[k, i, 1] * m10
-                               + place[k, i, 2] * m20)
-                    M[i, 1] = (place[k, i, 0] * m01 + place[k, i, 1] * m11
-                               + place[k, i, 2] * m21)
-                    M[i, 2] = (place[k, i, 0] * m02 + place[k, i, 1] * m12
-                               + place[k, i, 2] * m22)
-                    M[i, 3] = (place[k, i, 0] * t0 + place[k, i, 1] * t1
-                               + place[k, i, 2] * t2 + place[k, i, 3])
+                m00, m01, m02, m03 = _placed_row(place[k, 0, 0], place[k, 0, 1], place[k, 0, 2],
+                                                 place[k, 0, 3], r00, r01, r02, r10, r11, r12,
+                                                 r20, r21, r22, t0, t1, t2)
+                m10, m11, m12, m13 = _placed_row(place[k, 1, 0], place[k, 1, 1], place[k, 1, 2],
+                                                 place[k, 1, 3], r00, r01, r02, r10, r11, r12,
+                                                 r20, r21, r22, t0, t1, t2)
+                m20, m21, m22, m23 = _placed_row(place[k, 2, 0], place[k, 2, 1], place[k, 2, 2],
+                                                 place[k, 2, 3], r00, r01, r02, r10, r11, r12,
+                                                 r20, r21, r22, t0, t1, t2)
             if p == 0:
-                for i in range(3):
-                    for c2 in range(4):
-                        jpose[s, k, i, c2] = M[i, c2]
+                jpose[s, k, 0, 0], jpose[s, k, 0, 1], jpose[s, k, 0, 2] = m00, m01, m02
+                jpose[s, k, 1, 0], jpose[s, k, 1, 1], jpose[s, k, 1, 2] = m10, m11, m12
+                jpose[s, k, 2, 0], jpose[s, k, 2, 1], jpose[s, k, 2, 2] = m20, m21, m22
+                jpose[s, k, 0, 3], jpose[s, k, 1, 3], jpose[s, k, 2, 3] = m03, m13, m23
             else:
-                for i in range(3):
-                    a0, a1, a2 = jpose[s, p, i, 0], jpose[s, p, i, 1], jpose[s, p, i, 2]
-                    for c2 in range(3):
-                        jpose[s, k, i, c2] = a0 * M[0, c2] + a1 * M[1, c2] + a2 * M[2, c2]
-                    jpose[s, k, i, 3] = (a0 * M[0, 3] + a1 * M[1, 3] + a2 * M[2, 3]
-                                         + jpose[s, p, i, 3])
+                r0 = _pose_row(jpose[s, p, 0, 0], jpose[s, p, 0, 1], jpose[s, p, 0, 2],
+                               jpose[s, p, 0, 3], m00, m01, m02, m03, m10, m11, m12, m13,
+                               m20, m21, m22, m23)
+                r1 = _pose_row(jpose[s, p, 1, 0], jpose[s, p, 1, 1], jpose[s, p, 1, 2],
+                               jpose[s, p, 1, 3], m00, m01, m02, m03, m10, m11, m12, m13,
+                               m20, m21, m22, m23)
+                r2 = _pose_row(jpose[s, p, 2, 0], jpose[s, p, 2, 1], jpose[s, p, 2, 2],
+                               jpose[s, p, 2, 3], m00, m01, m02, m03, m10, m11, m12, m13,
+                               m20, m21, m22, m23)
+                jpose[s, k, 0, 0], jpose[s, k, 0, 1], jpose[s, k, 0, 2], jpose[s, k, 0, 3] = r0
+                jpose[s, k, 1, 0], jpose[s, k, 1, 1], jpose[s, k, 1, 2], jpose[s, k, 1, 3] = r1
+                jpose[s, k, 2, 0], jpose[s, k, 2, 1], jpose[s, k, 2, 2], jpose[s, k, 2, 3] = r2
             jdone[s, k] = True
 
     def placed_body(k: int, s: int, m: int) -> tuple:
@@ -565,24 +635,27 @@ def _walk(todo: np.ndarray, first: np.ndarray, stop: np.ndarray, theta: np.ndarr
         j = m_joint[m]
         if j > 0 and not jdone[s, j]:
             joint_pose(s, j)
+        p00, p01, p02, p03 = m_place[m, 0, 0], m_place[m, 0, 1], m_place[m, 0, 2], m_place[m, 0, 3]
+        p10, p11, p12, p13 = m_place[m, 1, 0], m_place[m, 1, 1], m_place[m, 1, 2], m_place[m, 1, 3]
+        p20, p21, p22, p23 = m_place[m, 2, 0], m_place[m, 2, 1], m_place[m, 2, 2], m_place[m, 2, 3]
         if j == 0:
-            for i in range(3):
-                for c in range(4):
-                    T[i, c] = m_place[m, i, c]
+            t0, t1, t2 = (p00, p01, p02, p03), (p10, p11, p12, p13), (p20, p21, p22, p23)
         else:
-            for i in range(3):
-                a0, a1, a2 = jpose[s, j, i, 0], jpose[s, j, i, 1], jpose[s, j, i, 2]
-                for c in range(3):
-                    T[i, c] = a0 * m_place[m, 0, c] + a1 * m_place[m, 1, c] + a2 * m_place[m, 2, c]
-                T[i, 3] = (a0 * m_place[m, 0, 3] + a1 * m_place[m, 1, 3]
-                           + a2 * m_place[m, 2, 3] + jpose[s, j, i, 3])
+            t0 = _pose_row(jpose[s, j, 0, 0], jpose[s, j, 0, 1], jpose[s, j, 0, 2],
+                           jpose[s, j, 0, 3], p00, p01, p02, p03, p10, p11, p12, p13, p20,
+                           p21, p22, p23)
+            t1 = _pose_row(jpose[s, j, 1, 0], jpose[s, j, 1, 1], jpose[s, j, 1, 2],
+                           jpose[s, j, 1, 3], p00, p01, p02, p03, p10, p11, p12, p13, p20,
+                           p21, p22, p23)
+            t2 = _pose_row(jpose[s, j, 2, 0], jpose[s, j, 2, 1], jpose[s, j, 2, 2],
+                           jpose[s, j, 2, 3], p00, p01, p02, p03, p10, p11, p12, p13, p20,
+                           p21, p22, p23)
         c0, c1, c2 = shp[k, CENTRE], shp[k, CENTRE + 1], shp[k, CENTRE + 2]
         return (shp[k, KIND], shp[k, PAR], shp[k, PAR + 1], shp[k, PAR + 2], shp[k, RADIUS],
-                T[0, 3] + T[0, 0] * c0 + T[0, 1] * c1 + T[0, 2] * c2,
-                T[1, 3] + T[1, 0] * c0 + T[1, 1] * c1 + T[1, 2] * c2,
-                T[2, 3] + T[2, 0] * c0 + T[2, 1] * c1 + T[2, 2] * c2,
-                T[0, 0], T[0, 1], T[0, 2], T[1, 0], T[1, 1], T[1, 2],
-                T[2, 0], T[2, 1], T[2, 2])
+                t0[3] + t0[0] * c0 + t0[1] * c1 + t0[2] * c2,
+                t1[3] + t1[0] * c0 + t1[1] * c1 + t1[2] * c2,
+                t2[3] + t2[0] * c0 + t2[1] * c1 + t2[2] * c2,
+                t0[0], t0[1], t0[2], t1[0], t1[1], t1[2], t2[0], t2[1], t2[2])
 
     def placed_env(k: int, b: int) -> tuple:
         """Shape k placed as environment object b."""
@@ -638,20 +711,13 @@ def _walk(todo: np.ndarray, first: np.ndarray, stop: np.ndarray, theta: np.ndarr
                 c0, c1, c2 = d1 * u2 - d2 * u1, d2 * u0 - d0 * u2, d0 * u1 - d1 * u0
                 reach_[v] = math.sqrt(c0 * c0 + c1 * c1 + c2 * c2) + S[4]
 
-    def along(s: int) -> None:
-        """base, base_turn: the joints' accumulated motion and upstream turning at s."""
-        k = knot_of[s]
-        for v in range(nv):
-            base[v] = 0.0 if k == 0 else cum[k - 1, v] + frac[s] * step[k, v]
-            base_turn[v] = 0.0 if k == 0 else cum_turn[k - 1, v] + frac[s] * step_turn[k, v]
-
-    def motion(p: int, i: int) -> float:
-        """Bound on how much pair p's gap along its axis n can change from sample s
-        (``along(s)``) to i [m]. A revolute joint turning by dq moves a point at r from
-        its axis by at most r dq, perpendicular to the axis u, so along n by at most
-        r dq |n x u|; while the joints upstream turn by a, u turns by at most a, so
-        |n x u| stays below its value at s plus a (and below 1). A prismatic joint
-        moves points along u: |n . u| instead. Between two bodies, joints that move
+    def motion(p: int, s: int, i: int) -> float:
+        """Bound on how much pair p's gap along its axis n can change from sample s to
+        i [m]. A revolute joint turning by dq moves a point at r from its axis by at
+        most r dq, perpendicular to the axis u, so along n by at most r dq |n x u|;
+        while the joints upstream turn by a, u turns by at most a, so |n x u| stays
+        below its value at s plus a (and below 1). A prismatic joint moves points
+        along u: |n . u| instead. Between two bodies, joints that move
         both leave their distance alone (their weight is zero; taking n in the frame
         they move keeps the argument, and the turning counted is only more).
 
@@ -661,17 +727,16 @@ def _walk(todo: np.ndarray, first: np.ndarray, stop: np.ndarray, theta: np.ndarr
         the body's distance to the axis, the joints upstream move both alike). Those
         joints come after it in velocity order (a joint's children follow it), so one
         pass from the last joint adds them up, per body."""
-        k, f = knot_of[i], frac[i]
-        if k == 0:
-            return 0.0
         acc = grown_a = grown_b = 0.0
+        w_p, b_p, at_i, at_s = weights[p], moves_b[p], at[i], at[s]
+        turn_i, turn_s = at_turn[i], at_turn[s]
         for v in range(nv - 1, -1, -1):
-            w = weights[p, v]
+            w = w_p[v]
             if w == 0.0:
                 continue
-            moved = cum[k - 1, v] + f * step[k, v] - base[v]
-            turned = cum_turn[k - 1, v] + f * step_turn[k, v] - base_turn[v]
-            if moves_b[p, v]:
+            moved = at_i[v] - at_s[v]
+            turned = turn_i[v] - turn_s[v]
+            if b_p[v]:
                 r = min(w, reach_[v] + grown_b)
                 grown_b += w * moved
             else:
@@ -692,11 +757,10 @@ def _walk(todo: np.ndarray, first: np.ndarray, stop: np.ndarray, theta: np.ndarr
         once the bracket is within a 1/APPROX share of the step, the sample after its
         low end is returned. Invariant: motion(lo) < target; motion(hi) >= target, or
         hi is ``end`` and its motion unknown (inf)."""
-        along(s)
         lo, hi, m_lo, m_hi, count = s, end, 0.0, np.inf, 0
         probe = s + 1 if rate <= 0.0 else min(max(s + int(target / rate), s + 1), end - 1)
         while hi - lo > 1:
-            m = motion(p, probe)
+            m = motion(p, s, probe)
             if m >= target:
                 hi, m_hi = probe, m
             else:
