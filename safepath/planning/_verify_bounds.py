@@ -307,7 +307,7 @@ def _chains(parents: np.ndarray, joint_of: np.ndarray) -> np.ndarray:
 
 
 def pair_weights(model: pin.Model, joints: list[int], weights: np.ndarray,
-                 pairs: list[tuple[int, int, bool]]) -> np.ndarray:
+                 pairs: list[tuple[int, int, bool]] | np.ndarray) -> np.ndarray:
     """Per pair and joint, a bound on how much a unit of that joint's motion changes the
     pair's distance [m/rad] or [m/m]: (pairs, dof).
 
@@ -319,9 +319,7 @@ def pair_weights(model: pin.Model, joints: list[int], weights: np.ndarray,
     for j in range(1, model.njoints):
         joint_of[model.joints[j].idx_v] = j
     carried = _chains(np.asarray(model.parents), joint_of)
-    a = np.array([p[0] for p in pairs], dtype=np.int64)
-    b = np.array([p[1] for p in pairs], dtype=np.int64)
-    env = np.array([p[2] for p in pairs], dtype=np.bool_)
+    a, b, env = _pair_columns(pairs)
     body_joint = np.asarray(joints, dtype=np.int64).reshape(-1)
     w = np.asarray(weights, dtype=float).reshape(len(body_joint), model.nv)
     if not len(a):
@@ -421,14 +419,20 @@ class WalkMemory:
         return self.axes, self.last, self.stats, self.ceiling
 
 
-def _pair_arrays(pairs: list[tuple[int, int, bool]], weights: np.ndarray,
+def _pair_columns(pairs: list[tuple[int, int, bool]] | np.ndarray
+                  ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Body a, body or environment object b and whether b is the environment, of each
+    pair of ``pairs``: (a, b, is environment) triples, or their rows in an array."""
+    table = np.asarray(pairs, dtype=float).reshape(-1, 3)
+    return table[:, 0].astype(np.int64), table[:, 1].astype(np.int64), table[:, 2] != 0.0
+
+
+def _pair_arrays(pairs: list[tuple[int, int, bool]] | np.ndarray, weights: np.ndarray,
                  clearance: np.ndarray, kin: tuple[np.ndarray, ...]) -> tuple[np.ndarray, ...]:
     """The pairs as the kernel takes them (see :class:`Layer`), with, per pair and
     velocity index, whether the joint moves body b and not body a (``kin``: the layer's
     kinematic tables)."""
-    a = np.array([a for a, _, _ in pairs], dtype=np.int64)
-    b = np.array([b for _, b, _ in pairs], dtype=np.int64)
-    env = np.array([e for _, _, e in pairs], dtype=np.bool_)
+    a, b, env = _pair_columns(pairs)
     m_joint, joint_of = kin[5], kin[7]
     carried = _chains(kin[0], joint_of)
     moves_b = np.zeros((a.size, joint_of.size), dtype=np.bool_)
@@ -449,7 +453,8 @@ class Layer:
         movers: Shape of each moving body.
         T_world_env: World placement of each environment object (4 x 4).
         env: Shape of each environment object.
-        pairs: (mover, mover or environment object, is environment) of each pair.
+        pairs: (mover, mover or environment object, is environment) of each pair (triples
+            or the rows of an array).
         weights: Motion weights of each pair (:func:`pair_weights`).
         clearance: Whether each pair counts for the clearance.
         tables: :func:`joint_tables` of ``model`` (read only; shared by the robot's
@@ -458,7 +463,7 @@ class Layer:
 
     def __init__(self, model: pin.Model, joints: list[int], T_joint_geom: list[np.ndarray],
                  movers: list[ShapeSpec], T_world_env: list[np.ndarray],
-                 env: list[ShapeSpec], pairs: list[tuple[int, int, bool]],
+                 env: list[ShapeSpec], pairs: list[tuple[int, int, bool]] | np.ndarray,
                  weights: np.ndarray, clearance: np.ndarray,
                  tables: tuple[np.ndarray, ...]) -> None:
         self._model = model
@@ -479,7 +484,7 @@ class Layer:
                       self._pairs[5])
         return out
 
-    def with_pairs(self, pairs: list[tuple[int, int, bool]], weights: np.ndarray,
+    def with_pairs(self, pairs: list[tuple[int, int, bool]] | np.ndarray, weights: np.ndarray,
                    clearance: np.ndarray) -> Layer:
         """This layer (the same bodies, environment objects and their tables) for other
         pairs (arguments as the constructor's)."""

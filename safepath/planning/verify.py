@@ -130,7 +130,7 @@ class FclVerifier:
         keep are made anew. Judges as a new verifier does (tested)."""
         new = copy.copy(self)
         new._set_pairs(allowed)
-        same = [p[:3] for p in new._pairs] == [p[:3] for p in self._pairs]
+        same = np.array_equal(new._table[:, :3], self._table[:, :3])
         new._layer = (self._layer.with_clearance(new._tracked) if same
                       else new._conservative_layer(self._layer))
         return new
@@ -139,10 +139,10 @@ class FclVerifier:
         """The pairs to check and what each must keep."""
         self._use_pairs(self._pair_list(allowed))
 
-    def _use_pairs(self, pairs: list[tuple[int, int, bool, float]]) -> None:
-        """Check ``pairs`` (see :meth:`_pair_list`): what each must keep."""
-        self._pairs = pairs
-        table = np.array(pairs, dtype=float).reshape(-1, 4)
+    def _use_pairs(self, table: np.ndarray) -> None:
+        """Check the pairs of ``table`` (see :meth:`_pair_list`): what each must keep."""
+        self._table = table
+        self._pair_rows: list[tuple[int, int, bool, float]] | None = None
         env, depth = table[:, 2] != 0.0, table[:, 3]
         self._theta = self._thresholds(table[:, 1].astype(np.int64), env, depth)
         # The layer certifies a pair allowed to touch only where it is apart: in
@@ -156,21 +156,34 @@ class FclVerifier:
         environment object, its allowed depth [m]) must keep: its signed distance must
         not fall below this [m] (minus the allowed depth of a contact, the object's
         margin if enforced, else 0)."""
-        scene, margin = self._scene, self._margin
         keep = np.zeros(depth.size)
         if self.enforce_margin and self._env:
-            margins = np.array([margin if margin is not None else
-                                (scene.margin_for(b.name) if scene else 0.0)
-                                for b in self._env], dtype=float)
-            keep = np.where(env, margins[np.where(env, other, 0)], 0.0)
+            keep = np.where(env, self._env_margins[np.where(env, other, 0)], 0.0)
         return np.where(depth > 0.0, -depth, keep)
+
+    @functools.cached_property
+    def _env_margins(self) -> np.ndarray:
+        """Each environment object's margin [m]: the override, else the scene's."""
+        scene, margin = self._scene, self._margin
+        return np.array([margin if margin is not None else
+                         (scene.margin_for(b.name) if scene else 0.0)
+                         for b in self._env], dtype=float)
+
+    @property
+    def _pairs(self) -> list[tuple[int, int, bool, float]]:
+        """(mover, mover or environment object, is environment, allowed depth [m]) of
+        every pair checked, made from the table when first asked for."""
+        if self._pair_rows is None:
+            self._pair_rows = [(int(i), int(j), bool(env), float(depth))
+                               for i, j, env, depth in self._table.tolist()]
+        return self._pair_rows
 
     def _conservative_layer(self, like: Layer | None = None) -> Layer:
         """The layer that bounds every pair's distance from below (``_verify_bounds``);
         made from ``like``'s tables if given (a layer of the same bodies and
         environment)."""
         joints = [b.joint for b in self._movers]
-        pairs = [(i, j, env) for i, j, env, _ in self._pairs]
+        pairs = self._table[:, :3]
         weights = pair_weights(self.robot.model, joints, self._weights, pairs)
         if like is not None:
             return like.with_pairs(pairs, weights, self._tracked)
@@ -179,36 +192,46 @@ class FclVerifier:
                      [b.spec for b in self._env], pairs, weights, self._tracked,
                      self._joint_tables)
 
-    def _pair_list(self, allowed: Iterable[AllowedContact]
-                   ) -> list[tuple[int, int, bool, float]]:
+    def _pair_list(self, allowed: Iterable[AllowedContact]) -> np.ndarray:
         """(mover, mover or environment object, is environment, allowed depth [m]) of
-        every pair to check: the candidates (:meth:`_candidates`) not allowed to touch
-        at any depth, with the depth each is allowed to."""
+        every pair to check, as rows: the candidates (:meth:`_candidates`) not allowed to
+        touch at any depth, with the depth each is allowed to."""
         contact_links = set(self.robot.tool.contact_links) if self.robot.tool else set()
         depth = _allowed_depths(allowed, contact_links)
-        keys, pairs = self._candidates
+        table, rows_of = self._candidates
         if not depth:
-            return list(pairs)
-        out = []
-        for key, (i, j, env, _) in zip(keys, pairs, strict=True):
-            d = depth.get(key, 0.0)
-            if d is not None:
-                out.append((i, j, env, d))
-        return out
+            return table
+        table = table.copy()
+        keep = np.ones(len(table), dtype=bool)
+        for key, d in depth.items():
+            at = rows_of.get(key)
+            if at is None:
+                continue  # never checked
+            if d is None:
+                keep[at] = False
+            else:
+                table[at, 3] = d
+        return table[keep]
 
     @functools.cached_property
-    def _candidates(self) -> tuple[list[Pair], list[tuple[int, int, bool, float]]]:
-        """The pairs to check where no contact is allowed, and each one's names (sorted):
-        not on the same joint, not an allowed self pair, not the held object against the
-        jaws; every moving body against every environment object. Made once for a
-        world state (its verifiers for other allowed contacts share it)."""
+    def _candidates(self) -> tuple[np.ndarray, dict[Pair, list[int]]]:
+        """The pairs to check where no contact is allowed, as rows (mover, mover or
+        environment object, is environment, 0), and the rows of each pair of names
+        (sorted): not on the same joint, not an allowed self pair, not the held object
+        against the jaws; every moving body against every environment object. Made once
+        for a world state (its verifiers for other allowed contacts share it)."""
         robot, held = self.robot, self._held
         contact_links = set(robot.tool.contact_links) if robot.tool else set()
-        keys: list[Pair] = []
+        rows_of: dict[Pair, list[int]] = {}
         pairs: list[tuple[int, int, bool, float]] = []
         names = [b.name for b in self._movers]
         joints = [b.joint for b in self._movers]
         self_pairs = robot.allowed_self_pairs
+
+        def add(key: Pair, i: int, j: int, env: bool) -> None:
+            rows_of.setdefault(key, []).append(len(pairs))
+            pairs.append((i, j, env, 0.0))
+
         for i, j in itertools.combinations(range(len(names)), 2):
             a, b = names[i], names[j]
             if a == b or joints[i] == joints[j]:
@@ -219,15 +242,13 @@ class FclVerifier:
                 continue
             if not is_held and key in self_pairs:
                 continue
-            keys.append(key)
-            pairs.append((i, j, False, 0.0))
+            add(key, i, j, False)
         for i, a in enumerate(names):
             if joints[i] == 0:
                 continue
             for j, e in enumerate(self._env):
-                keys.append((a, e.name) if a <= e.name else (e.name, a))
-                pairs.append((i, j, True, 0.0))
-        return keys, pairs
+                add((a, e.name) if a <= e.name else (e.name, a), i, j, True)
+        return np.array(pairs, dtype=float).reshape(-1, 4), rows_of
 
     def _grid(self, q: np.ndarray) -> Grid:
         """The resolution grid of knots ``q`` (also used by the tests' dense check)."""
@@ -270,9 +291,9 @@ class FclVerifier:
         """
         q = np.asarray(q, dtype=float)
         grid = self._grid(q)
-        everywhere = (np.zeros(len(self._pairs), dtype=np.int64),
-                      np.full(len(self._pairs), grid.samples, dtype=np.int64))
-        return self._check(t, q, grid, np.arange(len(self._pairs)), everywhere, steps, known)
+        n = len(self._table)
+        everywhere = (np.zeros(n, dtype=np.int64), np.full(n, grid.samples, dtype=np.int64))
+        return self._check(t, q, grid, np.arange(n), everywhere, steps, known)
 
     def _check(self, t: np.ndarray, q: np.ndarray, grid: Grid, todo: np.ndarray,
                stretches: tuple[np.ndarray, np.ndarray], steps: Sequence[str] | None,
@@ -328,21 +349,26 @@ class StagedVerifier:
                     or v._margin != first._margin):
                 raise ValueError("staged verifiers must be of one world state, resolution "
                                  "and margin (made with FclVerifier.with_allowed)")
-        # Every pair (with what it must keep) of any stage, in the order first seen.
-        union = {pair: u for u, pair in enumerate(
-            dict.fromkeys(itertools.chain.from_iterable(v._pairs for v in stages)))}
+        # Every pair (with what it must keep) of any stage, in the order first seen, and
+        # the stages each belongs to.
+        rows = np.concatenate([v._table for v in stages])
+        _, first_at, union_of = np.unique(_row_keys(rows), return_index=True,
+                                          return_inverse=True)
+        order = np.argsort(first_at)
+        position = np.empty_like(order)
+        position[order] = np.arange(len(order))
         if len(stages) == 1:
             self._joined = first
         else:
             self._joined = copy.copy(first)
-            self._joined._use_pairs(list(union))
+            self._joined._use_pairs(rows[first_at[order]])
             self._joined._layer = self._joined._conservative_layer(first._layer)
-        member = np.zeros((len(union), len(stages)), dtype=np.bool_)
-        for k, v in enumerate(stages):
-            member[[union[pair] for pair in v._pairs], k] = True
+        stage_of = np.repeat(np.arange(len(stages)), [len(v._table) for v in stages])
+        member = np.zeros((len(order), len(stages)), dtype=np.bool_)
+        member[position[union_of.reshape(-1)], stage_of] = True
         # Each pair's runs of consecutive stages it belongs to, pair by pair: the pair,
         # its first stage and its last.
-        padded = np.zeros((len(union), len(stages) + 2), dtype=np.int8)
+        padded = np.zeros((len(order), len(stages) + 2), dtype=np.int8)
         padded[:, 1:-1] = member
         edges = np.diff(padded, axis=1)
         self._todo, self._from = (a.astype(np.int64) for a in np.nonzero(edges == 1))
@@ -390,7 +416,7 @@ class _Run:
         self.q = q
         self.grid = grid
         self.cache = cache
-        self.memory = WalkMemory.empty(len(verifier._pairs))
+        self.memory = WalkMemory.empty(len(verifier._table))
         self.checked: set[int] = set()
         self.pair_checks = 0
         # A clearance known from elsewhere is what this one must beat: the walk holds the
@@ -501,6 +527,15 @@ class _Run:
         again = self.walk(todo[redo], theta, (first[redo], stop[redo]))
         for p, s in zip(*again[:2], strict=True):
             self._measure(int(p), int(s))
+
+
+def _row_keys(rows: np.ndarray) -> np.ndarray:
+    """One integer per pair row (mover, mover or environment object, is environment,
+    allowed depth), equal for equal rows only."""
+    i, j, env = (rows[:, c].astype(np.int64) for c in range(3))
+    _, depth = np.unique(rows[:, 3], return_inverse=True)
+    bodies = int(max(i.max(initial=0), j.max(initial=0))) + 1
+    return ((i * bodies + j) * 2 + env) * (int(depth.max(initial=0)) + 1) + depth.reshape(-1)
 
 
 def _allowed_depths(allowed: Iterable[AllowedContact], contact_links: set[str]
