@@ -219,6 +219,29 @@ def _closest(S, n, v, tmp):  # noqa: N803
     return out
 
 
+@_inlined
+def _first_direction(v, warm, pa, pb):
+    """GJK's first search direction ``v``: ``warm`` (the pair's last one), else the line
+    between the shapes' centres ``pa``, ``pb``, else x."""
+    v[0], v[1], v[2] = warm[0], warm[1], warm[2]
+    if _dot(v, v) < 1e-18:
+        v[0], v[1], v[2] = pa[0] - pb[0], pa[1] - pb[1], pa[2] - pb[2]
+        if _dot(v, v) < 1e-18:
+            v[0] = 1.0
+
+
+@_inlined
+def _difference_support(ka, Ra, pa, da, va0, va1, kb, Rb, pb, db, vb0, vb1,  # noqa: N803
+                        fb, ov, ib, oap, oai, hint, v, sa, sb):
+    """The support point of A - B towards -v (A's towards -v in ``sa``, B's towards v in
+    ``sb``; ``hint`` updated), as (x, y, z): both searches' step."""
+    hint[0] = support(ka, Ra, pa, da, fb, ov, va0, va1, ib, oap, oai, hint[0],
+                      -v[0], -v[1], -v[2], sa)
+    hint[1] = support(kb, Rb, pb, db, fb, ov, vb0, vb1, ib, oap, oai, hint[1],
+                      v[0], v[1], v[2], sb)
+    return sa[0] - sb[0], sa[1] - sb[1], sa[2] - sb[2]
+
+
 @_helper
 def distance_lower_bound(ka, Ra, pa, da, va0, va1, kb, Rb, pb, db, vb0, vb1,  # noqa: N803
                          fb, ov, ib, oap, oai, hint, warm, S, sa, sb, v, tmp, low, high):
@@ -233,11 +256,7 @@ def distance_lower_bound(ka, Ra, pa, da, va0, va1, kb, Rb, pb, db, vb0, vb1,  # 
     (2,) the hull vertices where the support searches of A and B start (updated). Hulls
     are given as in :func:`support`. S (4,3), sa, sb, v, tmp (3,) are scratch.
     """
-    v[0], v[1], v[2] = warm[0], warm[1], warm[2]
-    if _dot(v, v) < 1e-18:
-        v[0], v[1], v[2] = pa[0] - pb[0], pa[1] - pb[1], pa[2] - pb[2]
-        if _dot(v, v) < 1e-18:
-            v[0] = 1.0
+    _first_direction(v, warm, pa, pb)
     lb = -1e300
     ub = 1e300
     n = 0
@@ -245,12 +264,8 @@ def distance_lower_bound(ka, Ra, pa, da, va0, va1, kb, Rb, pb, db, vb0, vb1,  # 
         vn = math.sqrt(_dot(v, v))
         if vn < 1e-12:
             break
-        # Support of A - B towards -v.
-        hint[0] = support(ka, Ra, pa, da, fb, ov, va0, va1, ib, oap, oai, hint[0],
-                          -v[0], -v[1], -v[2], sa)
-        hint[1] = support(kb, Rb, pb, db, fb, ov, vb0, vb1, ib, oap, oai, hint[1],
-                          v[0], v[1], v[2], sb)
-        w0, w1, w2 = sa[0] - sb[0], sa[1] - sb[1], sa[2] - sb[2]
+        w0, w1, w2 = _difference_support(ka, Ra, pa, da, va0, va1, kb, Rb, pb, db, vb0, vb1,
+                                         fb, ov, ib, oap, oai, hint, v, sa, sb)
         gap = (v[0] * w0 + v[1] * w1 + v[2] * w2) / vn
         if gap > lb:
             lb = gap
@@ -304,22 +319,15 @@ def distance_upper_bound(ka, Ra, pa, da, va0, va1, kb, Rb, pb, db, vb0, vb1,  # 
     lies inside A - B, and the origin's depth in it bounds the overlap from below.
     Arguments as :func:`distance_lower_bound`.
     """
-    v[0], v[1], v[2] = warm[0], warm[1], warm[2]
-    if _dot(v, v) < 1e-18:
-        v[0], v[1], v[2] = pa[0] - pb[0], pa[1] - pb[1], pa[2] - pb[2]
-        if _dot(v, v) < 1e-18:
-            v[0] = 1.0
+    _first_direction(v, warm, pa, pb)
     ub = 1e300
     n = 0
     for _ in range(MAX_ITER):
         vn = math.sqrt(_dot(v, v))
         if vn < 1e-12:
             break
-        hint[0] = support(ka, Ra, pa, da, fb, ov, va0, va1, ib, oap, oai, hint[0],
-                          -v[0], -v[1], -v[2], sa)
-        hint[1] = support(kb, Rb, pb, db, fb, ov, vb0, vb1, ib, oap, oai, hint[1],
-                          v[0], v[1], v[2], sb)
-        w0, w1, w2 = sa[0] - sb[0], sa[1] - sb[1], sa[2] - sb[2]
+        w0, w1, w2 = _difference_support(ka, Ra, pa, da, va0, va1, kb, Rb, pb, db, vb0, vb1,
+                                         fb, ov, ib, oap, oai, hint, v, sa, sb)
         if (v[0] * w0 + v[1] * w1 + v[2] * w2) / vn >= goal:
             return max(ub, goal)  # a lower bound of at least goal: no proof below it
         S[n, 0], S[n, 1], S[n, 2] = w0, w1, w2

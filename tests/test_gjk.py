@@ -101,6 +101,24 @@ def _upper(ka: int, Ra: np.ndarray, pa: np.ndarray, da: np.ndarray, kb: int,
     return _search(distance_upper_bound, ka, Ra, pa, da, kb, Rb, pb, db, hulls, goal)
 
 
+def _random_pair(hulls: list, other: int, rng: np.random.Generator, trial: int,
+                 partner: int, spread: float) -> tuple:
+    """Hull ``trial`` (cycling) of ``hulls`` against hull ``partner`` or a random primitive
+    of kind ``other``, both turned at random and placed within ``spread`` [m] of the
+    origin: (hull a, shape b, b's dimensions, the hulls the search reads, Ra, pa, Rb,
+    pb)."""
+    ha = hulls[trial % len(hulls)]
+    if other == HULL:
+        hb = hulls[partner]
+        shape_b, db, both = hb, np.zeros(3), [ha, hb]
+    else:
+        shape_b, db = _primitive(other, rng)
+        both = [ha]
+    Ra, Rb = _random_rotation(rng), _random_rotation(rng)
+    pa, pb = rng.uniform(-spread, spread, 3), rng.uniform(-spread, spread, 3)
+    return ha, shape_b, db, both, Ra, pa, Rb, pb
+
+
 def _signed_distance(a: object, Ta: coal.Transform3s, b: object, Tb: coal.Transform3s
                      ) -> float:
     """coal's distance, negative by the penetration depth where the shapes overlap."""
@@ -114,16 +132,9 @@ def test_upper_bound_is_above_coal_and_proves_overlaps(hulls: list, other: int) 
     rng = np.random.default_rng(23 + other)
     overlaps = proven = near = 0
     for trial in range(600):
-        ha = hulls[trial % len(hulls)]
-        if other == HULL:
-            hb = hulls[(trial * 5 + 1) % len(hulls)]
-            shape_b, db, both = hb, np.zeros(3), [ha, hb]
-        else:
-            shape_b, db = _primitive(other, rng)
-            both = [ha]
-        Ra, Rb = _random_rotation(rng), _random_rotation(rng)
         spread = 0.08 if other == HULL else 0.15  # two links: mostly apart otherwise
-        pa, pb = rng.uniform(-spread, spread, 3), rng.uniform(-spread, spread, 3)
+        ha, shape_b, db, both, Ra, pa, Rb, pb = _random_pair(
+            hulls, other, rng, trial, (trial * 5 + 1) % len(hulls), spread)
         true = _signed_distance(ha, coal.Transform3s(Ra, pa), shape_b,
                                 coal.Transform3s(Rb, pb))
         goal = 0.0 if trial % 2 else 0.01  # a contact, and a 10 mm margin
@@ -145,15 +156,8 @@ def test_bound_is_below_coal_and_tight_when_apart(hulls: list, other: int) -> No
     rng = np.random.default_rng(11 + other)
     apart = tight = 0
     for trial in range(400):
-        ha = hulls[trial % len(hulls)]
-        if other == HULL:
-            hb = hulls[(trial * 7 + 3) % len(hulls)]
-            shape_b, db, both = hb, np.zeros(3), [ha, hb]
-        else:
-            shape_b, db = _primitive(other, rng)
-            both = [ha]
-        Ra, Rb = _random_rotation(rng), _random_rotation(rng)
-        pa, pb = rng.uniform(-0.25, 0.25, 3), rng.uniform(-0.25, 0.25, 3)
+        ha, shape_b, db, both, Ra, pa, Rb, pb = _random_pair(
+            hulls, other, rng, trial, (trial * 7 + 3) % len(hulls), 0.25)
         true = _coal_distance(ha, coal.Transform3s(Ra, pa), shape_b, coal.Transform3s(Rb, pb))
         lb = _bound(HULL, Ra, pa, np.zeros(3), other, Rb, pb, db, both)
         assert lb <= true + 1e-9, (trial, lb, true)
