@@ -2,11 +2,13 @@
 
 from __future__ import annotations
 
+import glob
 import math
 import os
+import secrets
 import shutil
-import tempfile
-from collections.abc import Iterable, Iterator, Mapping
+import stat
+from collections.abc import Callable, Iterable, Iterator, Mapping
 from contextlib import contextmanager
 from pathlib import Path
 from typing import IO, Any
@@ -20,8 +22,8 @@ try:  # libyaml's parser: about 7x faster than PyYAML's own on the cell's files
 except ImportError:  # pragma: no cover - PyYAML built without libyaml
     from yaml import SafeLoader as _SafeBase  # type: ignore[assignment]
 
-__all__ = ["read_yaml", "atomic_write", "atomic_write_text", "get_key", "as_float",
-           "as_vector", "as_str", "check_names", "check_keys"]
+__all__ = ["read_yaml", "atomic_write", "atomic_write_text", "leftover_temporaries", "get_key",
+           "as_float", "as_vector", "as_str", "check_names", "check_keys"]
 
 
 class _DuplicateKey(Exception):
@@ -139,25 +141,38 @@ def as_str(value: Any, *, path: Path | None, key: str,
 
 
 @contextmanager
-def atomic_write(path: str | Path, *, mode: str = "w", backup: bool = False) -> Iterator[IO[Any]]:
+def atomic_write(path: str | Path, *, mode: str = "w", backup: bool = False,
+                 before_replace: Callable[[Path], None] | None = None) -> Iterator[IO[Any]]:
     """Write a file so that it is either wholly replaced or left untouched.
 
-    The content goes to a temporary file in the same folder, is flushed to disk, and
-    only then renamed over ``path``. With ``backup``, the previous file is kept as
-    ``path~`` (copied before the rename). On any exception the temporary file is
-    removed and ``path`` is unchanged.
+    The content goes to a temporary file ``.<name>.<random>.tmp`` in the same folder, is
+    flushed to disk, and only then renamed over ``path``. The new file keeps the mode
+    (and, where allowed, the owner and group) of the one it replaces; a new file gets
+    the mode the umask gives. With ``backup``, the previous file is kept as ``path~``
+    (copied before the rename). On an exception the temporary file is removed and
+    ``path`` is unchanged; a process killed meanwhile leaves the temporary file behind
+    (see :func:`leftover_temporaries`).
+
+    Args:
+        path: The file to replace.
+        mode: ``"w"`` (text, UTF-8) or ``"wb"``.
+        backup: Keep the previous file as ``path~``.
+        before_replace: Called with the temporary file once it holds the whole new
+            content on disk, before anything is renamed (a write-ahead log goes there).
     """
     path = Path(path)
     folder = path.parent if str(path.parent) else Path(".")
     folder.mkdir(parents=True, exist_ok=True)
-    fd, tmp_name = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=folder)
-    tmp = Path(tmp_name)
+    fd, tmp = _create_temporary(path)
     try:
+        _keep_mode_and_owner(fd, path)
         encoding = None if "b" in mode else "utf-8"
         with os.fdopen(fd, mode, encoding=encoding) as handle:
             yield handle
             handle.flush()
             os.fsync(handle.fileno())
+        if before_replace is not None:
+            before_replace(tmp)
         if backup and path.exists():
             shutil.copy2(path, path.with_name(path.name + "~"))
         os.replace(tmp, path)
@@ -166,15 +181,53 @@ def atomic_write(path: str | Path, *, mode: str = "w", backup: bool = False) -> 
         raise
 
 
+def leftover_temporaries(path: str | Path) -> list[Path]:
+    """Temporary files of :func:`atomic_write` for ``path`` left by killed writers (and
+    by a write in progress: remove them only while no one writes ``path``)."""
+    path = Path(path)
+    folder = path.parent if str(path.parent) else Path(".")
+    return sorted(folder.glob(f".{glob.escape(path.name)}.*.tmp"))
+
+
+def _create_temporary(path: Path) -> tuple[int, Path]:
+    """A new temporary file beside ``path``, created with the umask's mode (mkstemp's
+    0600 would be kept by the rename)."""
+    for _ in range(100):
+        tmp = path.with_name(f".{path.name}.{secrets.token_hex(4)}.tmp")
+        try:
+            return os.open(tmp, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o666), tmp
+        except FileExistsError:
+            continue
+    raise FileExistsError(f"no free temporary name beside {path}")
+
+
+def _keep_mode_and_owner(fd: int, path: Path) -> None:
+    """Give the temporary file ``fd`` the mode of ``path`` (if it exists), and its owner
+    and group where this process may (a robot process running as another user or
+    group must still read the file after it is replaced)."""
+    try:
+        st = path.stat()
+    except FileNotFoundError:
+        return
+    os.fchmod(fd, stat.S_IMODE(st.st_mode))
+    for uid in (st.st_uid, -1):
+        try:
+            os.fchown(fd, uid, st.st_gid)
+            return
+        except PermissionError:
+            continue
+
+
 def atomic_write_text(path: str | Path, text: str, *, backup: bool = False,
-                      error: type[InputError] = InputError) -> None:
+                      error: type[InputError] = InputError,
+                      before_replace: Callable[[Path], None] | None = None) -> None:
     """Atomically replace ``path`` with ``text`` (see :func:`atomic_write`).
 
     Raises:
         InputError: The file cannot be written (``path`` is left as it was).
     """
     try:
-        with atomic_write(path, backup=backup) as handle:
+        with atomic_write(path, backup=backup, before_replace=before_replace) as handle:
             handle.write(text)
     except OSError as exc:
         raise error(f"cannot write file ({exc.strerror or exc})", path=path) from None

@@ -14,15 +14,20 @@ Layouts read:
 A file may hold both (a nested file to which the recorder appended lines). A pose may
 also be given as a TCP pose (position, orientation quaternion (x, y, z, w), optional
 frame, and the ``seed:`` pose the inverse kinematics starts from, given before it), solved
-when the file is read: see :mod:`safepath.tcp_targets`. Saving always writes the nested
-layout, atomically, keeping the previous file as ``poses.yaml~``.
+when the file is read: see :mod:`safepath.tcp_targets`. Saving updates the file in place
+(round-trip YAML: comments, key order, layout and unchanged values kept; changed values
+at full double precision), atomically, keeping its mode and the previous file as
+``poses.yaml~``.
 """
 
 from __future__ import annotations
 
+import io
+import logging
 import re
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -32,6 +37,8 @@ from .robot import Robot
 from .tcp_targets import is_cartesian, parse_cartesian, solve_target
 
 __all__ = ["load_poses", "save_poses", "dump_poses", "POSE_NAME"]
+
+log = logging.getLogger(__name__)
 
 #: What a pose name may be: a letter or underscore, then letters, digits, ``_`` or ``-``.
 POSE_NAME = re.compile(r"^[A-Za-z_][A-Za-z0-9_\-]*$")
@@ -127,20 +134,36 @@ def dump_poses(poses: Mapping[str, Sequence[float] | np.ndarray]) -> str:
     """The nested YAML text of ``poses``, with every value at full double precision."""
     lines = ["poses:"]
     for name, q in poses.items():
-        values = ", ".join(repr(float(v)) for v in np.asarray(q, dtype=float))
+        values = ", ".join(_float_text(v) for v in np.asarray(q, dtype=float))
         lines.append(f"  {name}: [{values}]")
     return "\n".join(lines) + "\n"
 
 
 def save_poses(path: str | Path, poses: Mapping[str, Sequence[float] | np.ndarray],
-               robot: Robot, *, backup: bool = True) -> None:
-    """Validate and atomically write ``poses`` in the nested layout.
+               robot: Robot, *, backup: bool = True,
+               before_replace: Callable[[Path], None] | None = None) -> None:
+    """Validate ``poses`` and atomically write them to ``path``.
 
-    The previous file, if any, is kept as ``<path>~`` when ``backup`` is true. When
-    validation or writing fails, the file on disk is left as it was.
+    An existing file that loads is updated in place: its comments, its key order, its
+    layout (nested or flat) and the text of every value that does not change are kept;
+    a changed value is written at full double precision, a pose not in ``poses`` is
+    removed, a new one is added under ``poses:``. A file that does not load, or no
+    file, is written whole in the nested layout. The file keeps its mode (see
+    :func:`safepath._io.atomic_write`); the previous file, if any, is kept as
+    ``<path>~`` when ``backup`` is true. When validation or writing fails, the file on
+    disk is left as it was.
+
+    Args:
+        path: The poses file.
+        poses: Every pose the file is to hold [rad].
+        robot: Gives the joint count and limits every pose is checked against.
+        backup: Keep the previous file as ``<path>~``.
+        before_replace: Called with the temporary file holding the new text, once it is
+            on disk and before it replaces ``path`` (the review session's save log).
 
     Raises:
-        PoseError: A pose is malformed or outside the limits (nothing is written).
+        PoseError: A pose is malformed or outside the limits, or the file cannot be
+            written (nothing is written).
     """
     path = Path(path)
     checked = {}
@@ -148,4 +171,96 @@ def save_poses(path: str | Path, poses: Mapping[str, Sequence[float] | np.ndarra
         if not POSE_NAME.match(str(name)):
             raise PoseError(f"'{name}' is not a valid pose name", path=path, key=str(name))
         checked[str(name)] = robot.as_joint_vector(q, name=f"poses.{name}", path=path)
-    atomic_write_text(path, dump_poses(checked), backup=backup, error=PoseError)
+    text = _updated_text(path, checked, robot)
+    atomic_write_text(path, dump_poses(checked) if text is None else text, backup=backup,
+                      error=PoseError, before_replace=before_replace)
+
+
+def _updated_text(path: Path, poses: dict[str, np.ndarray], robot: Robot) -> str | None:
+    """The text of ``path`` with ``poses`` written into it (round-trip YAML), or None when
+    there is no poses file to keep (missing, or it does not load)."""
+    try:
+        text = path.read_text(encoding="utf-8")
+        current = load_poses(path, robot)
+    except FileNotFoundError:
+        return None
+    except (OSError, UnicodeDecodeError, PoseError) as exc:
+        log.warning("%s does not load (%s): it is replaced whole, the old file kept as "
+                    "the backup", path, exc)
+        return None
+    from ruamel.yaml.comments import CommentedMap
+
+    yaml = _round_trip_yaml()
+    data = yaml.load(text)
+    if not isinstance(data, CommentedMap):  # an empty file
+        return None
+    _merge(data, current, poses)
+    out = io.StringIO()
+    yaml.dump(data, out)
+    return out.getvalue()
+
+
+def _merge(data: Any, current: dict[str, np.ndarray], poses: dict[str, np.ndarray]) -> None:
+    """Make the round-trip document ``data`` (whose poses are ``current``) hold ``poses``,
+    touching only what changes."""
+    from ruamel.yaml.comments import CommentedMap
+
+    nested = data.get("poses") if isinstance(data.get("poses"), dict) else None
+
+    def home(name: str) -> Any:
+        return nested if nested is not None and name in nested else data
+
+    for name in current:
+        if name not in poses:
+            del home(name)[name]
+    for name, q in poses.items():
+        if name not in current:
+            if nested is None:
+                data["poses"] = nested = CommentedMap()
+            nested[name] = _flow_list(q)
+        elif not np.array_equal(current[name], q):
+            node = home(name)[name]
+            if isinstance(node, list) and len(node) == len(q):
+                for i, v in enumerate(q):  # values that stay keep their text
+                    if float(node[i]) != float(v):
+                        node[i] = float(v)
+            else:  # a TCP pose edited in joint space
+                home(name)[name] = _flow_list(q)
+
+
+def _round_trip_yaml() -> Any:
+    """A ruamel round-trip YAML that writes floats as PyYAML reads them back."""
+    from ruamel.yaml import YAML
+    from ruamel.yaml.representer import RoundTripRepresenter
+
+    class Representer(RoundTripRepresenter):
+        pass
+
+    Representer.add_representer(
+        float, lambda r, v: r.represent_scalar("tag:yaml.org,2002:float", _float_text(v)))
+    yaml = YAML()
+    yaml.Representer = Representer
+    yaml.width = 1 << 16  # a pose stays on its line
+    yaml.preserve_quotes = True
+    return yaml
+
+
+def _flow_list(q: np.ndarray) -> Any:
+    from ruamel.yaml.comments import CommentedSeq
+
+    seq = CommentedSeq(float(v) for v in q)
+    seq.fa.set_flow_style()
+    return seq
+
+
+def _float_text(v: float) -> str:
+    """``repr`` of ``v`` (the shortest text that reads back to the same double), with the
+    mantissa's dot and the exponent's sign that YAML 1.1 (PyYAML) needs to read a float:
+    ``1e-07`` would read back as a string."""
+    text = repr(float(v))
+    if "e" in text:
+        mantissa, exponent = text.split("e")
+        mantissa = mantissa if "." in mantissa else mantissa + ".0"
+        exponent = exponent if exponent[0] in "+-" else "+" + exponent
+        text = f"{mantissa}e{exponent}"
+    return text

@@ -15,6 +15,16 @@ The log, ``poses.log`` beside ``poses.yaml``, gets one JSON object per line and 
 ``{"from": [...], "to": [...]}`` in [rad], null for a pose added or removed) and
 ``check`` (pose name -> the live check at save time: ``valid``, ``margin_ok``,
 ``clearance_mm``, ``collisions``), and ``insist`` (saved in collision on purpose).
+
+The log is written ahead: a save writes the new file's text to a temporary file beside
+it (``.poses.yaml.<random>.tmp``, flushed to disk), then appends its log line (flushed to
+disk), and only then renames the temporary file over ``poses.yaml``. So a process killed
+at any instant leaves one of: the file unchanged and no line (a leftover temporary file,
+removed at the next start or save); the line written and the file not yet replaced (the
+next start or save finishes the rename from the temporary file, whose hash the line
+names); or both done. The file never changes without its line. If the rename fails
+(a full disk, a permission), a line ``{"time", "client", "file", "undone": <time of the
+save's line>, "reason"}`` withdraws the save's line.
 """
 
 from __future__ import annotations
@@ -24,6 +34,7 @@ import hashlib
 import json
 import logging
 import os
+import shutil
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from datetime import datetime, timezone
@@ -32,6 +43,7 @@ from typing import Any
 
 import numpy as np
 
+from .._io import leftover_temporaries
 from ..cell import Cell
 from ..errors import ConfigError, PoseError, SafepathError
 from ..poses import load_poses, save_poses
@@ -42,6 +54,8 @@ log = logging.getLogger(__name__)
 
 #: Name of the save log beside the poses file.
 LOG_NAME = "poses.log"
+#: How much of the log's end is read to find its last line [bytes].
+_TAIL = 1 << 20
 
 
 @dataclass(frozen=True)
@@ -140,6 +154,11 @@ class PosesStore:
         #: The poses file, or None: the cell was built in Python without one.
         self.path: Path | None = cell.poses_path
         self.log_path = None if self.path is None else self.path.with_name(LOG_NAME)
+        if self.path is not None and self.log_path is not None \
+                and leftover_temporaries(self.path):
+            with open(self.log_path, "a", encoding="utf-8") as log_file:
+                fcntl.flock(log_file, fcntl.LOCK_EX)
+                self._recover()
         # The cell's own poses are the version in force while there is no file.
         self._initial = {k: np.array(q) for k, q in cell.poses.items()} \
             if self.path is None or not self.path.exists() else None
@@ -194,8 +213,10 @@ class PosesStore:
             raise ConfigError("not saved: the cell was built in Python without a poses "
                               "file; build it with Cell(..., poses_path=PATH) to save its "
                               "poses to PATH", key="poses_path")
+        self.path.parent.mkdir(parents=True, exist_ok=True)
         with open(self.log_path, "a", encoding="utf-8") as log_file:
             fcntl.flock(log_file, fcntl.LOCK_EX)
+            self._recover()
             current = self.read()
             if current.digest != base.digest:
                 changes = differences(base.poses, current.poses)
@@ -204,20 +225,61 @@ class PosesStore:
                 raise PosesChanged(f"not saved: {self.path.name} changed since it was loaded "
                                    f"({what}); reload it to merge pose by pose",
                                    path=self.path, changes=changes, conflicts=[])
-            save_poses(self.path, poses, self.robot, backup=True)
-            new = self.read()
             entry = {
-                "time": datetime.now(timezone.utc).isoformat(timespec="milliseconds"),
-                "client": client, "file": self.path.name,
-                "sha256_before": base.digest, "sha256_after": new.digest,
-                "changes": {c.pose: c.to_json() for c in differences(base.poses, new.poses)},
+                "time": _now(), "client": client, "file": self.path.name,
+                "sha256_before": base.digest, "sha256_after": "",
+                "changes": {c.pose: c.to_json() for c in differences(
+                    base.poses, {k: np.asarray(q, dtype=float) for k, q in poses.items()})},
                 "check": dict(checks), "insist": insist,
             }
-            log_file.write(json.dumps(entry) + "\n")
-            log_file.flush()
-            os.fsync(log_file.fileno())
+
+            def write_ahead(tmp: Path) -> None:
+                entry["sha256_after"] = _digest(tmp.read_bytes())
+                _fsync_folder(tmp.parent)  # the temporary file's name is on disk too
+                _append(log_file, entry)
+
+            try:
+                save_poses(self.path, poses, self.robot, backup=True,
+                           before_replace=write_ahead)
+            except SafepathError as exc:
+                if entry["sha256_after"]:  # logged, then the rename failed
+                    _append(log_file, {"time": _now(), "client": client,
+                                       "file": self.path.name, "undone": entry["time"],
+                                       "reason": str(exc)})
+                raise
+            _fsync_folder(self.path.parent)
+            new = self.read()
         log.info("%s saved by %s", self.path, client)
         return new
+
+    def _recover(self) -> None:
+        """Finish a save killed between its log line and its rename; remove the temporary
+        files of saves killed before their line, and a torn last line. (Under the log's
+        lock: no save of this file is under way.)"""
+        assert self.path is not None and self.log_path is not None
+        leftovers = leftover_temporaries(self.path)
+        if not leftovers:
+            return
+        last = _last_entry(self.log_path)
+        on_disk = _digest(self._bytes())
+        for tmp in leftovers:
+            logged = (last is not None and on_disk == last.get("sha256_before")
+                      and on_disk != last.get("sha256_after")
+                      and _digest(tmp.read_bytes()) == last.get("sha256_after"))
+            if logged:
+                assert last is not None
+                if self.path.exists():
+                    shutil.copy2(self.path, self.path.with_name(self.path.name + "~"))
+                os.replace(tmp, self.path)
+                _fsync_folder(self.path.parent)
+                on_disk = str(last["sha256_after"])
+                log.warning("%s: finished the save logged at %s by %s (the saving process "
+                            "stopped before replacing the file)", self.path,
+                            last.get("time"), last.get("client"))
+            else:
+                tmp.unlink(missing_ok=True)
+                log.info("%s: removed %s, left by a save that stopped before its log line",
+                         self.path, tmp.name)
 
     def _bytes(self) -> bytes | None:
         if self.path is None:
@@ -230,3 +292,47 @@ class PosesStore:
 
 def _digest(raw: bytes | None) -> str:
     return "" if raw is None else hashlib.sha256(raw).hexdigest()
+
+
+def _now() -> str:
+    return datetime.now(timezone.utc).isoformat(timespec="milliseconds")
+
+
+def _append(log_file: Any, entry: dict[str, Any]) -> None:
+    """One line on the log, on disk before this returns."""
+    log_file.write(json.dumps(entry) + "\n")
+    log_file.flush()
+    os.fsync(log_file.fileno())
+
+
+def _fsync_folder(folder: Path) -> None:
+    """Put a folder's entries (a new or renamed file's name) on disk."""
+    fd = os.open(folder, os.O_RDONLY)
+    try:
+        os.fsync(fd)
+    finally:
+        os.close(fd)
+
+
+def _last_entry(log_path: Path) -> dict[str, Any] | None:
+    """The log's last whole line, parsed; a torn last line (a kill while it was written,
+    before its save renamed anything) is cut off first."""
+    try:
+        with open(log_path, "rb+") as handle:
+            size = handle.seek(0, os.SEEK_END)
+            handle.seek(max(0, size - _TAIL))
+            tail = handle.read()
+            if tail and not tail.endswith(b"\n"):
+                keep = tail.rfind(b"\n") + 1
+                handle.truncate(size - len(tail) + keep)
+                tail = tail[:keep]
+    except FileNotFoundError:
+        return None
+    lines = tail.splitlines()
+    if not lines:
+        return None
+    try:
+        entry = json.loads(lines[-1])
+    except ValueError:
+        return None
+    return entry if isinstance(entry, dict) else None
