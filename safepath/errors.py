@@ -20,11 +20,13 @@ __all__ = [
     "PoseError",
     "RobotNotFound",
     "FrameNotFound",
+    "RobotNotSupported",
     "CollisionError",
     "PlanningError",
     "PlannerTimeout",
     "IKError",
     "TimingError",
+    "ExecutedLimitError",
     "VerificationError",
     "TrajectoryError",
     "RosError",
@@ -47,7 +49,12 @@ def unknown_name(what: str, name: str, known: Iterable[str]) -> str:
         known: The names that would have worked.
     """
     names = [str(k) for k in known]
-    close = difflib.get_close_matches(str(name), names, n=3, cutoff=0.6)
+    # Compared case-blind ('UR5' finds 'ur5'), the known spelling given back.
+    lowered: dict[str, str] = {}
+    for known_name in names:
+        lowered.setdefault(known_name.lower(), known_name)
+    close = [lowered[c] for c in difflib.get_close_matches(str(name).lower(), list(lowered),
+                                                           n=3, cutoff=0.6)]
     if close:
         hint = "did you mean " + " or ".join(f"'{c}'" for c in close) + "?"
     elif not names:
@@ -137,6 +144,22 @@ class FrameNotFound(InputError):
         super().__init__(unknown_name("frame", name, self.frames), path=path, key=key)
 
 
+class RobotNotSupported(ConfigError):
+    """A valid robot description that is not an arm safepath plans for: a floating base,
+    continuous joints, joints of several DoF, or no joint left to plan.
+
+    Attributes:
+        robot: The robot's name or file.
+        joints: The joints at fault.
+    """
+
+    def __init__(self, reason: str, *, robot: str, joints: Sequence[str] = (),
+                 path: str | Path | None = None, key: str | None = None):
+        self.robot = robot
+        self.joints = list(joints)
+        super().__init__(reason, path=path, key=key)
+
+
 class CollisionError(SafepathError):
     """A state that must be valid is not (in collision or outside the joint limits).
 
@@ -192,6 +215,21 @@ class IKError(PlanningError):
 
 class TimingError(SafepathError):
     """Time parameterisation failed or its result breaks a limit."""
+
+
+class ExecutedLimitError(TimingError):
+    """The motion a trajectory controller executes from a goal's points would break a joint
+    limit (speed, acceleration or jerk); the goal is never sent.
+
+    Attributes:
+        key: The quantity over its limit (``velocity``, ``acceleration`` or ``jerk``).
+        ratio: Its largest ratio to the limit.
+    """
+
+    def __init__(self, reason: str, *, key: str | None = None, ratio: float = float("nan")):
+        super().__init__(reason)
+        self.key = key
+        self.ratio = ratio
 
 
 class VerificationError(SafepathError):

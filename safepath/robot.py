@@ -6,9 +6,9 @@ from a robot folder or an ``example-robot-data`` name, or directly from Pinocchi
 
 from __future__ import annotations
 
+import copy
 import threading
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Literal, TypeVar
 
@@ -17,29 +17,25 @@ import pinocchio as pin
 
 from ._locked import LockedJoint
 from .errors import ConfigError, FrameNotFound, PoseError
+from .tool import ToolSpec, check_tool
 from .trajectory_controller import TrajectoryController
 
 T = TypeVar("T")
 
-__all__ = ["Robot", "ToolSpec", "adjacent_link_pairs", "joint_motion", "is_prismatic"]
+__all__ = ["Robot", "ToolSpec", "adjacent_link_pairs", "frame_id", "joint_motion",
+           "is_prismatic"]
 
-@dataclass(frozen=True)
-class ToolSpec:
-    """The tool mounted on the flange.
+#: Time in which a joint may go from rest to its full acceleration [s], for robots whose
+#: vendor publishes no jerk limits: ``jerk = acceleration / JERK_RAMP_TIME``. 50 ms is a
+#: 20 Hz acceleration bandwidth, well inside what servo and stepper drives follow (see
+#: ``robots/ned3pro/README.md``).
+JERK_RAMP_TIME = 0.05
 
-    Attributes:
-        name: Human-readable tool name.
-        tool_id: Vendor tool id (Niryo: 11 for Gripper 1).
-        contact_links: Links allowed to touch a grasped object.
-        open_width: Inner jaw distance fully open [m].
-        closed_width: Inner jaw distance fully closed [m].
-    """
 
-    name: str
-    tool_id: int
-    contact_links: tuple[str, ...]
-    open_width: float
-    closed_width: float
+def derived_jerk_limits(acceleration_limits: Sequence[float] | np.ndarray) -> np.ndarray:
+    """Jerk limits [rad/s^3] derived from acceleration limits [rad/s^2] when no vendor
+    publishes any: full acceleration reached in :data:`JERK_RAMP_TIME`."""
+    return np.asarray(acceleration_limits, dtype=float) / JERK_RAMP_TIME
 
 
 class Robot:
@@ -63,6 +59,7 @@ class Robot:
         velocity_limits: Sequence[float] | np.ndarray,
         acceleration_limits: Sequence[float] | np.ndarray,
         tcp_frame: str,
+        jerk_limits: Sequence[float] | np.ndarray | None = None,
         tool: ToolSpec | None = None,
         allowed_self_pairs: Sequence[tuple[str, str]] = (),
         source: Path | None = None,
@@ -84,11 +81,16 @@ class Robot:
         self.upper = np.array(model.upperPositionLimit, dtype=float)
         self.velocity_limits = np.asarray(velocity_limits, dtype=float)
         self.acceleration_limits = np.asarray(acceleration_limits, dtype=float)
+        #: Joint jerk limits [rad/s^3]: the robot folder's ``jerk_limits`` (vendor numbers
+        #: where published), else :func:`derived_jerk_limits` of the acceleration limits.
+        self.jerk_limits = (derived_jerk_limits(self.acceleration_limits)
+                            if jerk_limits is None else np.asarray(jerk_limits, dtype=float))
         if model.nq != model.nv or model.nq != len(self.joint_names):
             raise ConfigError("only arms of revolute/prismatic 1-DoF joints are supported",
                               path=source, key="urdf")
         for label, arr in (("velocity_limits", self.velocity_limits),
-                           ("acceleration_limits", self.acceleration_limits)):
+                           ("acceleration_limits", self.acceleration_limits),
+                           ("jerk_limits", self.jerk_limits)):
             if arr.shape != (self.dof,) or not np.all(np.isfinite(arr)) or np.any(arr <= 0):
                 raise ConfigError(f"need {self.dof} finite positive values, got {arr.tolist()}",
                                   path=source, key=label)
@@ -96,8 +98,8 @@ class Robot:
             raise FrameNotFound(tcp_frame, [f.name for f in model.frames], path=source,
                                 key="tcp_frame")
         self.tcp_frame = tcp_frame
-        self.tcp_frame_id = model.getFrameId(tcp_frame)
-        self.tool = tool
+        self.tcp_frame_id = frame_id(model, tcp_frame)
+        self.tool = None if tool is None else check_tool(tool, model, path=source)
         self.allowed_self_pairs = frozenset(tuple(sorted(p)) for p in allowed_self_pairs)
         if controller is not None:
             controller.check_joints(self.joint_names)
@@ -159,8 +161,21 @@ class Robot:
         geom = self.collision_model.geometryObjects[geom_index]
         return str(self.model.frames[geom.parentFrame].name)
 
+    def with_tool(self, tool: ToolSpec | None) -> Robot:
+        """A copy of this robot holding ``tool`` (the models and the shared parts made from
+        its shapes are the same objects: nothing is loaded again).
+
+        Raises:
+            FrameNotFound: A contact link the robot does not have.
+        """
+        other = copy.copy(self)
+        other.tool = None if tool is None else check_tool(tool, self.model, path=self.source)
+        return other
+
     def __repr__(self) -> str:
-        return f"Robot({self.name!r}, dof={self.dof}, tcp={self.tcp_frame!r})"
+        locked = [j.name for j in self.locked_joints if j.follows is None]
+        held = f", locked={locked}" if locked else ""
+        return f"Robot({self.name!r}, dof={self.dof}, tcp={self.tcp_frame!r}{held})"
 
     # -- poses ---------------------------------------------------------------------------
     def as_joint_vector(self, q: Any, *, name: str = "q", path: Path | None = None,
@@ -216,7 +231,18 @@ class Robot:
     def _frame_id(self, frame: str) -> int:
         if not self.model.existFrame(frame):
             raise FrameNotFound(frame, [f.name for f in self.model.frames])
-        return int(self.model.getFrameId(frame))
+        return frame_id(self.model, frame)
+
+
+def frame_id(model: pin.Model, name: str) -> int:
+    """The id of frame ``name`` of ``model`` (which has it): the link's own frame when a
+    fixed joint bears the same name (URDFs may name both alike; Pinocchio then refuses
+    to choose)."""
+    ids = [i for i, f in enumerate(model.frames) if f.name == name]
+    if len(ids) > 1:
+        bodies = [i for i in ids if model.frames[i].type == pin.FrameType.BODY]
+        ids = bodies or ids
+    return ids[0]
 
 
 JointKind = Literal["revolute", "prismatic"]
@@ -254,15 +280,30 @@ def is_prismatic(model: pin.Model, j: int) -> bool:
 
 
 def adjacent_link_pairs(model: pin.Model, geom: pin.GeometryModel) -> list[tuple[str, str]]:
-    """Link pairs whose geometry hangs on the same or on parent/child joints."""
+    """Link pairs that touch at the joint between them: never self-checked.
+
+    Two links are adjacent when their geometry hangs on the same joint (links joined by
+    fixed joints) or on a joint and its parent, as MoveIt's setup assistant counts them;
+    a joint that carries no geometry is looked through (its child is adjacent to the
+    nearest ancestor that carries geometry).
+    """
     links: dict[str, int] = {}
     for g in geom.geometryObjects:
         links[model.frames[g.parentFrame].name] = g.parentJoint
+    carrying = set(links.values())
+
+    def shown_parent(j: int) -> int:
+        j = model.parents[j]
+        while j > 0 and j not in carrying:
+            j = model.parents[j]
+        return j
+
     out = []
     names = sorted(links)
     for i, a in enumerate(names):
         for b in names[i + 1:]:
             ja, jb = links[a], links[b]
-            if ja == jb or model.parents[ja] == jb or model.parents[jb] == ja:
+            if ja == jb or (ja > 0 and shown_parent(ja) == jb) \
+                    or (jb > 0 and shown_parent(jb) == ja):
                 out.append((a, b))
     return out

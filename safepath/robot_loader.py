@@ -6,7 +6,8 @@ TCP frame, the tool), the computed list of link pairs that never need checking, 
 optionally a ``controller.yaml`` (its ROS 2 trajectory controller, see
 :mod:`safepath.trajectory_controller`). Robots of ``example-robot-data`` (``ur5``,
 ``panda``, ...) load by name too; a bundled folder of the same name that holds only a
-``controller.yaml`` adds their controller settings.
+``controller.yaml`` adds their controller settings. A URDF file loads alone too
+(:mod:`safepath._bare_urdf`), with the limits it lacks given as arguments.
 """
 
 from __future__ import annotations
@@ -20,11 +21,14 @@ from typing import Any
 import numpy as np
 import pinocchio as pin
 
-from ._io import as_float, as_str, as_vector, check_keys, get_key, read_mapping, read_yaml
+from ._bare_urdf import Given, vector_argument
+from ._io import as_str, as_vector, get_key, read_mapping, read_yaml
+from ._joint_roles import refuse_non_arm
 from ._locked import TRAVEL, lock_joints, read_mimics
 from ._paths import ROBOTS_DIR
 from .errors import ConfigError, FrameNotFound, RobotNotFound
-from .robot import Robot, ToolSpec, adjacent_link_pairs
+from .robot import Robot, adjacent_link_pairs, frame_id
+from .tool import ToolSpec, check_tool, read_tool
 from .trajectory_controller import FILE_NAME as CONTROLLER_FILE
 from .trajectory_controller import TrajectoryController, read_controller
 
@@ -33,8 +37,7 @@ __all__ = ["ROBOTS_DIR", "load_robot", "robot_names"]
 log = logging.getLogger(__name__)
 
 _ROBOT_KEYS = ("name", "urdf", "joints", "locked_joints", "velocity_limits",
-               "acceleration_limits", "tcp_frame", "tool", "allowed_collisions")
-_TOOL_KEYS = ("name", "id", "contact_links", "open_width", "closed_width")
+               "acceleration_limits", "jerk_limits", "tcp_frame", "tool", "allowed_collisions")
 
 
 def robot_names() -> list[str]:
@@ -52,8 +55,11 @@ def _erd_names() -> list[str]:
 
 
 def load_robot(name_or_path: str | Path, *, acceleration_limits: Sequence[float] | None = None,
-               locked_joints: Mapping[str, float | str] | None = None) -> Robot:
-    """Load a robot by name (``"ned3pro"``, ``"ur5"``, ``"panda"``) or robot-folder path.
+               jerk_limits: Sequence[float] | None = None,
+               locked_joints: Mapping[str, float | str] | None = None,
+               velocity_limits: Sequence[float] | None = None,
+               tcp_frame: str | None = None, tool: ToolSpec | None = None) -> Robot:
+    """Load a robot by name (``"ned3pro"``, ``"ur5"``, ``"panda"``), robot folder or URDF.
 
     Joints that the URDF moves but safepath does not plan (fingers: the Panda's
     ``panda_finger_joint1``, the Gen3 Lite's ``right_finger_bottom_joint``) are *locked*:
@@ -61,25 +67,46 @@ def load_robot(name_or_path: str | Path, *, acceleration_limits: Sequence[float]
     whole travel: the collision geometry of the links it moves then encloses every place
     they can take, so a path stays collision-free whatever the gripper does. Joints that
     mimic another (URDF ``<mimic>``) follow it. :attr:`Robot.locked_joints` tells what
-    was chosen.
+    was chosen. Without a ``robot.yaml`` (a URDF file, an example-robot-data name),
+    gripper joints are found by name (``finger``, ``gripper``, ``jaw``, ...) and locked.
+
+    A description that is not a fixed-base arm of bounded 1-DoF joints (a floating base,
+    continuous joints) is refused with :class:`~safepath.errors.RobotNotSupported` naming
+    the joints; no joint is ever dropped.
 
     Args:
         name_or_path: A folder under ``robots/``, a path to a robot folder or its
-            ``robot.yaml``, or an ``example-robot-data`` name (its controller settings
-            from ``robots/<name>/controller.yaml`` when there is one).
+            ``robot.yaml``, an ``example-robot-data`` name (its controller settings
+            from ``robots/<name>/controller.yaml`` when there is one), or a ``.urdf``
+            file alone (see :mod:`safepath._bare_urdf`: ``acceleration_limits`` are then
+            required).
+        velocity_limits: Override the velocity limits [rad/s or m/s] (required for a URDF
+            whose ``<limit velocity>`` is zero).
         acceleration_limits: Override the acceleration limits [rad/s^2].
+        jerk_limits: Override the jerk limits [rad/s^3] (default: the folder's
+            ``jerk_limits``, else derived from the acceleration limits, see
+            :func:`safepath.robot.derived_jerk_limits`).
         locked_joints: ``{joint: position [rad or m] or "travel"}`` for locked joints,
             e.g. ``{"panda_finger_joint1": 0.04}`` (Panda fingers open).
+        tcp_frame: Override the TCP frame (default: the folder's ``tcp_frame``, else a
+            usual TCP name, else the chain's last link).
+        tool: The tool that holds objects (:class:`~safepath.ToolSpec`), instead of the
+            folder's ``tool`` (default: none for a URDF or an example-robot-data name).
 
     Raises:
-        RobotNotFound: The name is neither a folder nor an example-robot-data robot.
-        ConfigError: The robot files are malformed (names file and key), or a locked
-            joint is unknown, not lockable, or given a value outside its limits.
+        RobotNotFound: The name is neither a folder nor an example-robot-data robot
+            (names the closest, in any case).
+        RobotNotSupported: Not a fixed-base arm of bounded 1-DoF joints.
+        ConfigError: The robot files are malformed (names file and key), a limit is
+            missing (names the argument that gives it), or a locked joint is unknown,
+            not lockable, or given a value outside its limits.
     """
     text = str(name_or_path)
     candidate = Path(text)
     if candidate.name == "robot.yaml":
         candidate = candidate.parent
+    given = Given(velocity_limits=velocity_limits, acceleration_limits=acceleration_limits,
+                  tcp_frame=tcp_frame, tool=tool, locked_joints=locked_joints)
     if candidate.is_dir() and (candidate / "robot.yaml").exists():
         robot = _load_folder(candidate, locked_joints)
     elif candidate.is_dir() and (candidate / CONTROLLER_FILE).is_file() \
@@ -87,32 +114,60 @@ def load_robot(name_or_path: str | Path, *, acceleration_limits: Sequence[float]
         # A folder that only adds controller settings to an example-robot-data arm.
         from ._erd import load_erd
 
-        robot = load_erd(candidate.name, controller_path=candidate / CONTROLLER_FILE,
-                         locked_joints=locked_joints)
+        robot = load_erd(candidate.name, given, controller_path=candidate / CONTROLLER_FILE)
+    elif candidate.is_file() and candidate.suffix.lower() == ".urdf":
+        from ._bare_urdf import load_urdf
+
+        robot = load_urdf(candidate, given)
     elif (ROBOTS_DIR / text / "robot.yaml").exists():
         robot = _load_folder(ROBOTS_DIR / text, locked_joints)
     elif text in _erd_names():
         from ._erd import load_erd
 
-        robot = load_erd(text, controller_path=_bundled_controller(text),
-                         locked_joints=locked_joints)
+        robot = load_erd(text, given, controller_path=_bundled_controller(text))
+    elif candidate.is_dir():
+        urdfs = sorted(candidate.glob("*.urdf"))
+        alone = (f"; to load a URDF alone, give its file: load_robot('{urdfs[0]}', "
+                 "acceleration_limits=[...])") if urdfs else ""
+        raise ConfigError(f"not a robot folder (no robot.yaml){alone}", path=candidate)
     elif candidate.exists():
-        raise ConfigError("not a robot folder (no robot.yaml)", path=candidate)
+        raise ConfigError("not a robot folder, robot.yaml or .urdf file", path=candidate)
     else:
         raise RobotNotFound(text, robot_names())
-    if acceleration_limits is not None:
-        acc = np.asarray(acceleration_limits, dtype=float)
-        if acc.shape != (robot.dof,) or not np.all(np.isfinite(acc)) or np.any(acc <= 0):
+    _override(robot, velocity_limits=velocity_limits, acceleration_limits=acceleration_limits,
+              tcp_frame=tcp_frame, tool=tool)
+    if jerk_limits is not None:
+        jerk = np.asarray(jerk_limits, dtype=float)
+        if jerk.shape != (robot.dof,) or not np.all(np.isfinite(jerk)) or np.any(jerk <= 0):
             raise ConfigError(f"need {robot.dof} finite positive values, got "
-                              f"{np.asarray(acceleration_limits).tolist()}",
-                              key="acceleration_limits")
-        robot.acceleration_limits = acc
+                              f"{np.asarray(jerk_limits).tolist()}", key="jerk_limits")
+        robot.jerk_limits = jerk
     robot.reference = str(Path(text).resolve()) if Path(text).exists() else text
     return robot
 
 
+def _override(robot: Robot, *, velocity_limits: Sequence[float] | None,
+              acceleration_limits: Sequence[float] | None, tcp_frame: str | None,
+              tool: ToolSpec | None) -> None:
+    """Apply the arguments of :func:`load_robot` that replace what the files say."""
+    if velocity_limits is not None:
+        robot.velocity_limits = vector_argument(velocity_limits, robot.dof,
+                                                key="velocity_limits")
+    if acceleration_limits is not None:
+        robot.acceleration_limits = vector_argument(acceleration_limits, robot.dof,
+                                                    key="acceleration_limits")
+    if tcp_frame is not None:
+        if not robot.model.existFrame(tcp_frame):
+            raise FrameNotFound(tcp_frame, [f.name for f in robot.model.frames],
+                                key="tcp_frame")
+        robot.tcp_frame, robot.tcp_frame_id = tcp_frame, frame_id(robot.model, tcp_frame)
+    if tool is not None:
+        robot.tool = check_tool(tool, robot.model)
+
+
 #: What a user may change on a loaded robot, carried to the process that loads it again.
-CARRIED = ("name", "lower", "upper", "velocity_limits", "acceleration_limits", "tcp_frame",
+CARRIED = ("name", "lower", "upper", "velocity_limits", "acceleration_limits", "jerk_limits",
+           "tcp_frame",
            "tcp_frame_id", "tool", "allowed_self_pairs", "controller")
 
 
@@ -133,8 +188,11 @@ def _reduce_robot(robot: Robot) -> tuple[Any, ...]:
 def _load_again(reference: str, locked: dict[str, float | str] | None,
                 carried: dict[str, Any]) -> Robot:
     """The robot of ``reference`` loaded again, with the values it was sent with."""
-    robot = load_robot(reference, locked_joints=locked)
-    for key in ("lower", "upper", "velocity_limits", "acceleration_limits"):
+    robot = load_robot(reference, locked_joints=locked,
+                       velocity_limits=carried["velocity_limits"],
+                       acceleration_limits=carried["acceleration_limits"],
+                       tcp_frame=carried["tcp_frame"])
+    for key in ("lower", "upper", "velocity_limits", "acceleration_limits", "jerk_limits"):
         value = np.array(carried[key], dtype=float)
         if value.shape != (robot.dof,):
             raise ConfigError(f"need {robot.dof} values, got {value.tolist()}", key=key)
@@ -179,6 +237,7 @@ def _load_folder(folder: Path, locked_values: Mapping[str, float | str] | None =
     locked_names = get_key(spec, "locked_joints", path=spec_path, default=[]) or []
     if not isinstance(locked_names, list) or not all(isinstance(j, str) for j in locked_names):
         raise ConfigError("expected a list of joint names", path=spec_path, key="locked_joints")
+    refuse_non_arm(full, robot=name, path=urdf, planned=joints)
     model_joints = list(full.names[1:])
     if joints != [j for j in model_joints if j not in locked_names]:
         raise ConfigError(f"joints {joints} and locked_joints {locked_names} are not the "
@@ -193,25 +252,30 @@ def _load_folder(folder: Path, locked_values: Mapping[str, float | str] | None =
                     key="velocity_limits")
     acc = as_vector(get_key(spec, "acceleration_limits", path=spec_path), n, path=spec_path,
                     key="acceleration_limits")
+    jerk = None if spec.get("jerk_limits") is None else as_vector(
+        spec["jerk_limits"], n, path=spec_path, key="jerk_limits")
     tcp = as_str(get_key(spec, "tcp_frame", path=spec_path), path=spec_path, key="tcp_frame")
-    tool = _parse_tool(spec.get("tool"), spec_path, full)
-    pairs: list[tuple[str, str]] = []
+    tool = None if spec.get("tool") is None else check_tool(
+        read_tool(spec["tool"], path=spec_path), full, path=spec_path)
+    # Links that touch at their joints are never checked, with or without a pairs file.
+    pairs = adjacent_link_pairs(full, geom)
     pairs_file = spec.get("allowed_collisions")
     pairs_path = folder / "allowed_collisions.yaml"
     if pairs_file is not None:
         pairs_path = folder / as_str(pairs_file, path=spec_path, key="allowed_collisions")
         if pairs_path.exists():
-            pairs = _read_pairs(pairs_path, full)
+            pairs += _read_pairs(pairs_path, full)
         else:
-            log.warning("%s: allowed_collisions file %s missing; only adjacent links skipped",
-                        spec_path, pairs_path.name)
-            pairs = adjacent_link_pairs(full, geom)
+            log.warning("%s: allowed_collisions file %s missing; only adjacent links skipped "
+                        "(write it with `safepath robot-pairs %s`)", spec_path,
+                        pairs_path.name, folder)
     controller: TrajectoryController | None = None
     if (folder / CONTROLLER_FILE).is_file():
         controller = read_controller(folder / CONTROLLER_FILE, model_joints)
         _check_gripper_joint(controller, unlocked)
     return Robot(name=name, model=full, collision_model=geom, visual_model=visual,
-                 velocity_limits=vel, acceleration_limits=acc, tcp_frame=tcp, tool=tool,
+                 velocity_limits=vel, acceleration_limits=acc, jerk_limits=jerk,
+                 tcp_frame=tcp, tool=tool,
                  allowed_self_pairs=pairs, source=spec_path, urdf_path=urdf,
                  allowed_collisions_path=pairs_path, controller=controller,
                  locked_joints=locked)
@@ -239,31 +303,6 @@ def _check_gripper_joint(controller: TrajectoryController, model: pin.Model) -> 
         raise ConfigError(f"[{g_low:g}, {g_high:g}] {unit} exceeds the URDF's limits of "
                           f"'{gripper.joint}' [{low:g}, {high:g}] {unit}",
                           key="gripper.position_range", **where)
-
-
-def _parse_tool(raw: Any, path: Path, model: pin.Model) -> ToolSpec | None:
-    if raw is None:
-        return None
-    if not isinstance(raw, dict):
-        raise ConfigError("expected a mapping", path=path, key="tool")
-    check_keys(raw, _TOOL_KEYS, path=path, prefix="tool")
-    links = get_key(raw, "contact_links", path=path, prefix="tool")
-    if not isinstance(links, list):
-        raise ConfigError("expected a list of link names", path=path, key="tool.contact_links")
-    for link in links:
-        if not model.existFrame(str(link)):
-            raise FrameNotFound(str(link), [f.name for f in model.frames], path=path,
-                                key="tool.contact_links")
-    open_w = as_float(get_key(raw, "open_width", path=path, prefix="tool"), path=path,
-                      key="tool.open_width", positive=True)
-    closed_w = as_float(get_key(raw, "closed_width", path=path, prefix="tool"), path=path,
-                        key="tool.closed_width", non_negative=True)
-    tool_id = get_key(raw, "id", path=path, prefix="tool")
-    if not isinstance(tool_id, int):
-        raise ConfigError(f"expected an integer, got {tool_id!r}", path=path, key="tool.id")
-    return ToolSpec(name=str(raw.get("name", "tool")), tool_id=tool_id,
-                    contact_links=tuple(str(x) for x in links), open_width=open_w,
-                    closed_width=closed_w)
 
 
 def _read_pairs(path: Path, model: pin.Model) -> list[tuple[str, str]]:

@@ -1,9 +1,11 @@
 """Timed joint trajectories: the library's output.
 
 A :class:`Trajectory` holds dense knots (time, position, velocity, acceleration), the
-route step every knot belongs to, and the gripper events. Between knots it is
-interpolated with cubic Hermite polynomials on position and velocity (and linearly on
-acceleration), so it can be sampled at any rate. It exports to JSON (lossless) and
+route step every knot belongs to, and the gripper events. Between knots it is joined
+as a trajectory controller joins a goal's points: a quintic polynomial per joint matching
+position, velocity and acceleration at both knots (:mod:`safepath.execution`), so that
+what :meth:`Trajectory.sample` gives at any instant is what the robot executes when the
+knots are sent as a goal's points. It exports to JSON (lossless) and
 CSV, and reports its duration per step.
 """
 
@@ -146,28 +148,22 @@ class Trajectory:
     # -- sampling --------------------------------------------------------------------------
     def sample(self, times: Sequence[float] | np.ndarray
                ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """Positions, velocities and accelerations at ``times`` [s] (clamped to the ends)."""
+        """Positions, velocities and accelerations at ``times`` [s] (clamped to the ends),
+        on the quintic join of the knots (what a controller executes from them)."""
+        from .execution import join
+
         ts = np.clip(np.asarray(times, dtype=float), self.t[0], self.t[-1])
         if self.t.size == 1:
             n = ts.size
             return (np.repeat(self.q, n, 0), np.repeat(self.qd, n, 0), np.repeat(self.qdd, n, 0))
-        k = interval_index(self.t, ts, self.t.size - 1)
-        t0, t1 = self.t[k], self.t[k + 1]
-        h = (t1 - t0)[:, None]
-        s = ((ts - t0) / (t1 - t0))[:, None]
-        p0, p1 = self.q[k], self.q[k + 1]
-        m0, m1 = self.qd[k] * h, self.qd[k + 1] * h
-        s2, s3 = s * s, s * s * s
-        q = ((2 * s3 - 3 * s2 + 1) * p0 + (s3 - 2 * s2 + s) * m0
-             + (-2 * s3 + 3 * s2) * p1 + (s3 - s2) * m1)
-        dq = ((6 * s2 - 6 * s) * p0 + (3 * s2 - 4 * s + 1) * m0
-              + (-6 * s2 + 6 * s) * p1 + (3 * s2 - 2 * s) * m1) / h
-        a0, a1 = self.qdd[k], self.qdd[k + 1]
-        ddq = a0 + s * (a1 - a0)
-        return q, dq, ddq
+        q, qd, qdd, _ = join(self.t, self.q, self.qd, self.qdd, ts)
+        return q, qd, qdd
 
     def resample(self, period: float) -> Trajectory:
-        """The same trajectory with knots every ``period`` [s] (and the final knot).
+        """The same trajectory sampled every ``period`` [s] (and at the final knot).
+
+        The samples lie on this trajectory's motion, but their own quintic join is not
+        that motion (the knots are not kept): use it to export or plot, not to send.
 
         Raises:
             TrajectoryError: ``period`` is not positive and finite.

@@ -7,7 +7,9 @@ folder as ``controller.yaml`` (``robots/ned3pro/controller.yaml``)::
     joint_names: [joint_1, joint_2, joint_3, joint_4, joint_5, joint_6]
     goal_tolerance: [0.002, 0.001, 0.001, 0.03, 0.03, 0.03]   # [rad], or null
     goal_time_tolerance: 1.0                                 # [s]
-    period: 0.04                                             # [s] between points
+    period: 0.04                                             # [s] largest between points
+    interpolation: quintic                                   # how it joins points
+    cycle: 0.04                                              # [s] its update period
     joint_state_rate: 50.0                                   # [Hz] of /joint_states
     gripper:                                                 # optional: robots with one
       action: /my_gripper_controller/gripper_cmd             # control_msgs/GripperCommand
@@ -39,13 +41,15 @@ from typing import Any, Literal
 from ._io import as_float, as_str, as_vector, check_keys, get_key, read_mapping
 from ._paths import ROBOTS_DIR
 from .errors import ConfigError, InputError
+from .execution import INTERPOLATIONS
 
 __all__ = ["GripperController", "TrajectoryController", "controller_for", "read_controller"]
 
 #: The file in a robot folder.
 FILE_NAME = "controller.yaml"
 _KEYS = ("follow_joint_trajectory_action", "joint_names", "goal_tolerance",
-         "goal_time_tolerance", "period", "joint_state_rate", "gripper")
+         "goal_time_tolerance", "period", "joint_state_rate", "interpolation", "cycle",
+         "gripper")
 _GRIPPER_KEYS = ("action", "joint", "unit", "position_range", "open_position",
                  "closed_position", "max_effort")
 #: ros2_controllers' conventional name of a joint trajectory controller's action.
@@ -141,8 +145,15 @@ class TrajectoryController:
         goal_tolerance: Final position tolerance per joint [rad], or None to leave the
             controller's own.
         goal_time_tolerance: Time allowed after the trajectory's end to reach the goal [s].
-        period: Time between the points of a ``JointTrajectory`` [s].
+        period: Largest time between the points of a ``JointTrajectory`` [s] (goals send
+            every knot of a trajectory, and more points where knots are farther apart).
         joint_state_rate: Rate of ``/joint_states`` written into bags [Hz].
+        interpolation: How the controller joins points (``quintic``: position, velocity
+            and acceleration matched at both ends, ros2_control's
+            ``joint_trajectory_controller`` when points carry all three; ``cubic``;
+            ``linear``): the motion goals are checked as (:mod:`safepath.execution`).
+        cycle: The controller's update period [s]: how often it samples the joined
+            motion and commands the joints (the twin runs it at this rate).
         gripper: The gripper's ``GripperCommand`` controller (None: no such gripper).
         source: The file these settings came from (None: derived or built in Python).
     """
@@ -153,6 +164,8 @@ class TrajectoryController:
     goal_time_tolerance: float = 1.0
     period: float = 0.01
     joint_state_rate: float = 50.0
+    interpolation: str = "quintic"
+    cycle: float = 0.001
     gripper: GripperController | None = None
     source: Path | None = field(default=None, compare=False)
 
@@ -175,8 +188,11 @@ class TrajectoryController:
                 raise ConfigError(f"expected {len(names)} finite tolerances >= 0 [rad], got "
                                   f"{list(self.goal_tolerance)}", key="goal_tolerance", **where)
             object.__setattr__(self, "goal_tolerance", tol)
+        if self.interpolation not in INTERPOLATIONS:
+            raise ConfigError(f"expected one of {list(INTERPOLATIONS)}, got "
+                              f"{self.interpolation!r}", key="interpolation", **where)
         for key, low in (("goal_time_tolerance", 0.0), ("period", None),
-                         ("joint_state_rate", None)):
+                         ("joint_state_rate", None), ("cycle", None)):
             value = getattr(self, key)
             ok = isinstance(value, (int, float)) and not isinstance(value, bool) \
                 and math.isfinite(value) and (value >= low if low is not None else value > 0)
@@ -235,7 +251,11 @@ def read_controller(path: str | Path, joint_names: Sequence[str] | None = None
     numbers: dict[str, Any] = {
         key: as_float(data[key], path=path, key=key, positive=key != "goal_time_tolerance",
                       non_negative=True)
-        for key in ("goal_time_tolerance", "period", "joint_state_rate") if key in data}
+        for key in ("goal_time_tolerance", "period", "joint_state_rate", "cycle")
+        if key in data}
+    if "interpolation" in data:
+        numbers["interpolation"] = as_str(data["interpolation"], path=path,
+                                          key="interpolation")
     gripper = _read_gripper(data["gripper"], path) if data.get("gripper") is not None else None
     spec = TrajectoryController(joint_names=tuple(raw_names),
                                 follow_joint_trajectory_action=action, goal_tolerance=tol,

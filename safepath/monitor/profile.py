@@ -16,6 +16,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..errors import TimingError
+from ..execution import LIMITS_KEY, robot_limits
 from ..robot import Robot
 from ..trajectory import Trajectory
 
@@ -167,6 +168,6 @@ class MonitoredPath:
         tr = self.traj
         knot = np.clip(np.searchsorted(tr.t, tau, side="right") - 1, 0, tr.t.size - 1)
         info = {"monitor": kind, "speed_scale": scale, "path_start": float(tau[0]),
-                "source_route": tr.route}
+                "source_route": tr.route, LIMITS_KEY: robot_limits(self.robot)}
         return Trajectory(tr.joint_names, t.copy(), q, v, a, tr.step_index[knot][:m],
                           tr.steps, (), tr.robot, tr.route, info)

@@ -17,6 +17,7 @@ import numpy as np
 
 from .._knots import interval_index
 from ..errors import PlanningError, VerificationError
+from ..execution import LIMITS_KEY, robot_limits
 from ..routes import Route, Step
 from ..scene import AllowedContact
 from ..trajectory import GripperEvent, Trajectory
@@ -224,4 +225,4 @@ def assemble(cell: Cell, route: Route, labels: list[str],
         events.append(GripperEvent(when, step.kind, labels[i], obj))  # type: ignore[arg-type]
     return Trajectory(cell.robot.joint_names, t, np.vstack(q_all), np.vstack(qd_all),
                       np.vstack(qdd_all), np.concatenate(idx_all), tuple(labels), tuple(events),
-                      cell.robot.name, route.name, {})
+                      cell.robot.name, route.name, {LIMITS_KEY: robot_limits(cell.robot)})

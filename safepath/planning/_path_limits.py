@@ -24,6 +24,9 @@ __all__ = ["TCP_STEP", "PathSpline", "PathLimits", "Points", "path_limits", "row
 
 #: Spacing of the points where the TCP's speed per path speed is computed [rad].
 TCP_STEP = 0.015
+#: Share of each joint's jerk limit left to the path's third derivative
+#: (``|q'''(s)| sdot^3``); the rest is for the changes of the path acceleration.
+JERK_SPEED_SHARE = 0.5
 
 
 class PathSpline(Protocol):
@@ -67,6 +70,7 @@ class PathLimits:
         s_way: Path parameter of the segment boundaries.
         vmax_seg: Velocity limits of each segment (segments, dof) [rad/s].
         amax_seg: Acceleration limits of each segment (segments, dof) [rad/s^2].
+        jmax_seg: Jerk limits of each segment (segments, dof) [rad/s^3].
     """
 
     grid: np.ndarray
@@ -74,6 +78,7 @@ class PathLimits:
     s_way: np.ndarray
     vmax_seg: np.ndarray
     amax_seg: np.ndarray
+    jmax_seg: np.ndarray
 
     def rows(self, factor: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """TOPP-RA's rows ``|a u + b x| <= c`` of each interval, with the acceleration
@@ -83,8 +88,8 @@ class PathLimits:
 
 
 def path_limits(robot: Robot, path: PathSpline, s_way: np.ndarray, scales: Sequence[float],
-                tcp_speeds: Sequence[float | None], *, speed_scale: float, grid_step: float
-                ) -> PathLimits:
+                tcp_speeds: Sequence[float | None], *, speed_scale: float, grid_step: float,
+                jerk_scale: float = 1.0) -> PathLimits:
     """TOPP-RA's grid along ``path`` and the limits there.
 
     Args:
@@ -95,6 +100,7 @@ def path_limits(robot: Robot, path: PathSpline, s_way: np.ndarray, scales: Seque
         tcp_speeds: TCP speed limit of each segment [m/s], or None.
         speed_scale: Global speed scale, in (0, 1].
         grid_step: Largest spacing of the gridpoints [rad].
+        jerk_scale: Fraction of the jerk limits (on top of the speed scales), in (0, 1].
     """
     grid = _grid(path.x, s_way, grid_step)
     seg_scales = np.asarray(scales, dtype=float) * speed_scale
@@ -105,13 +111,30 @@ def path_limits(robot: Robot, path: PathSpline, s_way: np.ndarray, scales: Seque
     seg_before = np.clip(np.searchsorted(s_way, grid, side="left") - 1, 0, last)
     scale_grid = np.minimum(seg_scales[seg_of_grid], seg_scales[seg_before])
     at_grid = _points(robot, path, grid, scale_grid)
+    at_grid = dataclasses.replace(at_grid, xmax=np.minimum(
+        at_grid.xmax, _jerk_xmax(robot, path, grid, scale_grid * jerk_scale)))
     if any(v is not None for v in tcp_speeds):
         v_seg = np.array([np.inf if v is None else v for v in tcp_speeds])
         v_grid = np.minimum(v_seg[seg_of_grid], v_seg[seg_before])
         at_grid = dataclasses.replace(at_grid, xmax=np.minimum(
             at_grid.xmax, _tcp_xmax(robot, path, s_way, grid, v_grid)))
     return PathLimits(grid, at_grid, s_way, seg_scales[:, None] * robot.velocity_limits,
-                      seg_scales[:, None] * robot.acceleration_limits)
+                      seg_scales[:, None] * robot.acceleration_limits,
+                      (seg_scales * jerk_scale)[:, None] * robot.jerk_limits)
+
+
+def _jerk_xmax(robot: Robot, path: PathSpline, grid: np.ndarray, scale: np.ndarray
+               ) -> np.ndarray:
+    """Bound on ``x`` at ``grid`` that keeps the path's third-derivative term of every
+    joint's jerk, ``|q'''_j(s)| sdot^3``, within :data:`JERK_SPEED_SHARE` of its limit
+    (``q'''`` of the pieces on both sides of a gridpoint)."""
+    eps = 1e-9 * max(1.0, float(grid[-1]))
+    d3 = np.maximum(np.abs(path(grid, 3)), np.abs(path(np.maximum(grid - eps, 0.0), 3)))
+    jmax = JERK_SPEED_SHARE * scale[:, None] * robot.jerk_limits
+    with np.errstate(divide="ignore"):
+        sd = np.min(np.where(d3 > 1e-12, (jmax / np.maximum(d3, 1e-300)) ** (1.0 / 3.0),
+                             np.inf), axis=1)
+    return np.minimum(sd, np.sqrt(_topp.X_CAP)) ** 2
 
 
 def _tcp_xmax(robot: Robot, path: PathSpline, s_way: np.ndarray, grid: np.ndarray,

@@ -68,7 +68,7 @@ class CubicPath:
         return _solve_tridiagonal(ab[2, :-1], ab[1], ab[0, 1:], b)
 
     def __call__(self, s: np.ndarray | float, nu: int = 0) -> np.ndarray:
-        """Values (``nu`` = 0) or their first or second derivative at ``s``: (len(s), d),
+        """Values (``nu`` = 0) or their first, second or third derivative at ``s``: (len(s), d),
         or (d,) for a scalar ``s``."""
         s_arr = np.asarray(s, dtype=float)
         flat = np.atleast_1d(s_arr)
@@ -83,8 +83,10 @@ class CubicPath:
             out = m + t * (2.0 * c2 + 3.0 * t * c3)
         elif nu == 2:
             out = 2.0 * c2 + 6.0 * t * c3
+        elif nu == 3:
+            out = np.broadcast_to(6.0 * c3, (flat.size, c3.shape[-1])).copy()
         else:
-            raise ValueError(f"nu must be 0, 1 or 2, got {nu}")
+            raise ValueError(f"nu must be 0, 1, 2 or 3, got {nu}")
         return out[0] if s_arr.ndim == 0 else out
 
 

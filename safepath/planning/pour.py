@@ -33,6 +33,7 @@ import numpy as np
 import pinocchio as pin
 
 from ..errors import ConfigError, IKError, PlanningError
+from ..execution import LIMITS_KEY, robot_limits
 from ..trajectory import Trajectory
 from .cartesian import LineOptions, solve_ik
 from .timing import PathSpline, TimingOptions, spline_path, time_path
@@ -321,7 +322,8 @@ def _plan(cell: Cell, q_start: np.ndarray, parts: list[tuple[PoseCurve, int, flo
     result = verifier.verify(t, q, qd, steps=[names[i] for i in step_index])
     traj = Trajectory(robot.joint_names, t, q, qd, qdd, step_index, tuple(names),
                       robot=robot.name, route="+".join(names),
-                      info={"min_clearance": result.min_clearance, "time_stretch": stretch})
+                      info={"min_clearance": result.min_clearance, "time_stretch": stretch,
+                            LIMITS_KEY: robot_limits(robot)})
     tilt = np.array([tilt_of(T[:3, :3], axis) for T in T_knots])
     return PourMotion(traj, path, s, tilt, pos_err, ang_err, v_tcp, w_cup, result)
 

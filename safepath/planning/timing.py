@@ -26,9 +26,10 @@ import numpy as np
 
 from .._knots import interval_index
 from ..errors import TimingError
+from ..execution import interval_ratios
 from ..robot import Robot
-from . import _topp
-from ._path_limits import PathLimits, PathSpline, path_limits, row_max
+from . import _smooth, _topp
+from ._path_limits import PathLimits, PathSpline, path_limits
 from ._spline import CubicPath
 
 __all__ = ["TimingOptions", "TimedPiece", "PathSpline", "spline_path", "time_path",
@@ -42,7 +43,8 @@ log = logging.getLogger(__name__)
 RETIME_ABOVE = 1e-3
 #: Margin the final stretch leaves below every limit (relative), so that the released
 #: ratios stay <= 1.0 however they are rounded.
-_SLACK = 1e-9
+_SLACK = 1e-6
+_NS = 1_000_000_000
 
 
 @dataclass(frozen=True)
@@ -60,14 +62,24 @@ class TimingOptions:
             the remaining excess is removed by stretching time.
         blend_radii: Blend radii tried at via points, largest first [rad]; 0 passes
             through the via pose exactly.
+        jerk_scale: Fraction of the jerk limits, in (0, 1] (on top of ``speed_scale``
+            and the steps' speeds, which scale every limit).
+        jerk_window: The first moving average's width as a fraction of the one that
+            spreads the profile's largest acceleration swing within the jerk limits, in
+            (0, 1]: shorter is faster, the tightening and stretch then make up the rest.
+        jerk_smoothing: Width of the second moving average, in knot periods (at least):
+            the jerk then changes over several knots, which the quintic join follows.
     """
 
     speed_scale: float = 1.0
     knot_period: float = 0.004
     spacing: float = 0.06
     grid_step: float = 0.005
-    retries: int = 2
+    retries: int = 3
     blend_radii: tuple[float, ...] = (0.6, 0.3, 0.1, 0.0)
+    jerk_scale: float = 1.0
+    jerk_window: float = 1.0
+    jerk_smoothing: float = 3.0
 
     def __post_init__(self) -> None:
         from ..errors import ConfigError
@@ -82,6 +94,13 @@ class TimingOptions:
             raise ConfigError(f"grid_step must be > 0, got {self.grid_step}", key="grid_step")
         if self.retries < 1:
             raise ConfigError(f"retries must be >= 1, got {self.retries}", key="retries")
+        for key in ("jerk_scale", "jerk_window"):
+            value = getattr(self, key)
+            if not 0 < value <= 1:
+                raise ConfigError(f"{key} must lie in (0, 1], got {value}", key=key)
+        if not self.jerk_smoothing >= 1:
+            raise ConfigError(f"jerk_smoothing must be >= 1 [knot periods], got "
+                              f"{self.jerk_smoothing}", key="jerk_smoothing")
 
 
 @dataclass(frozen=True)
@@ -153,37 +172,54 @@ def spline_path(waypoints: Sequence[np.ndarray], spacing: float, *,
 
 @dataclass(frozen=True)
 class _Run:
-    """One TOPP-RA run sampled at the knots (positions left out until released).
+    """One timing: TOPP-RA, smoothed, sampled at the knots, and its executed peaks.
 
     Attributes:
         t: Knot times [s].
         s: Path parameter of each knot.
+        q: Positions [rad].
         qd: Velocities [rad/s].
         qdd: Accelerations [rad/s^2].
         segment: Input segment of each knot.
-        v_ratio: Per knot, the largest |qd| / vmax (of its segment).
-        a_ratio: Per knot, the largest |qdd| / amax.
+        ratios: Per interval between knots, the largest speed, acceleration and jerk
+            ratio of the quintic join (3, knots - 1).
+        smoothed: The smoothed profile (maps knot times back to the profile's path).
     """
 
     t: np.ndarray
     s: np.ndarray
+    q: np.ndarray
     qd: np.ndarray
     qdd: np.ndarray
     segment: np.ndarray
-    v_ratio: np.ndarray
-    a_ratio: np.ndarray
+    ratios: np.ndarray
+    smoothed: _smooth.Smoothed
+
+    @property
+    def stretch(self) -> float:
+        """The time stretch that brings every ratio to just below 1 (at least 1)."""
+        v, a, j = (float(r.max()) if r.size else 0.0 for r in self.ratios)
+        return _stretch(v, a, j)
 
     @property
     def stretched(self) -> float:
         """Its duration once stretched to meet every limit [s]."""
-        return float(self.t[-1]) * _stretch(float(self.v_ratio.max()),
-                                            float(self.a_ratio.max()))
+        return float(self.t[-1]) * self.stretch
 
 
 def time_path(robot: Robot, path: PathSpline, s_way: np.ndarray, *, scales: Sequence[float],
               tcp_speeds: Sequence[float | None], options: TimingOptions = TimingOptions(),
               step: str | None = None) -> TimedPiece:
-    """Time a spline path rest to rest, every knot within the limits.
+    """Time a spline path rest to rest, jerk-limited, within the limits as executed.
+
+    TOPP-RA's profile is smoothed by two moving averages (:mod:`._smooth`), sampled every
+    ``options.knot_period``, and the quintic join of the knots (how a trajectory
+    controller executes them, :mod:`safepath.execution`) is checked against the joint
+    speed, acceleration and jerk limits on every interval. Where it exceeds one, the
+    limits along the part of the path that interval averaged are tightened and the path
+    is timed again (``options.retries`` runs in all); what is left is removed by
+    stretching time uniformly, which scales the quintic join exactly (speeds by ``1/k``,
+    accelerations by ``1/k^2``, jerks by ``1/k^3``).
 
     Args:
         robot: Limits and kinematics.
@@ -195,88 +231,164 @@ def time_path(robot: Robot, path: PathSpline, s_way: np.ndarray, *, scales: Sequ
         step: Step name for errors.
 
     Raises:
-        TimingError: TOPP-RA found no feasible timing, or a knot would break a limit.
+        TimingError: TOPP-RA found no feasible timing, or the released knots' quintic join
+            would break a limit.
     """
     where = f" (step '{step}')" if step else ""
     limits = path_limits(robot, path, s_way, scales, tcp_speeds,
-                         speed_scale=options.speed_scale, grid_step=options.grid_step)
-    # Knots between gridpoints may still exceed a limit a little: tighten the limits only
-    # around those knots and time again, and keep the run that is fastest once stretched
-    # to meet every limit.
-    factor = np.ones(limits.grid.size)
+                         speed_scale=options.speed_scale, grid_step=options.grid_step,
+                         jerk_scale=options.jerk_scale)
+    f_acc = np.ones(limits.grid.size)
+    f_x = np.ones(limits.grid.size)
     best: _Run | None = None
+    tau_a: float | None = None
     for attempt in range(options.retries):
-        run = _time_once(path, limits, factor, options.knot_period, where)
+        run = _time_once(path, limits, f_acc, f_x, options, tau_a, where)
+        tau_a = run.smoothed.tau_a
         if best is None or run.stretched < best.stretched:
             best = run
-        per_knot = np.maximum(run.v_ratio, run.a_ratio)
-        ratio = float(per_knot.max())
-        if ratio <= 1.0 + RETIME_ABOVE or attempt + 1 == options.retries:
+        worst = float(run.ratios.max()) if run.ratios.size else 0.0
+        if worst <= 1.0 + RETIME_ABOVE or attempt + 1 == options.retries:
             break
         log.debug("timing attempt %d exceeds limits by %.3f %%; tightening locally", attempt,
-                  (ratio - 1) * 100)
-        _tighten(factor, limits.grid, run.s, per_knot)
+                  (worst - 1) * 100)
+        _tighten(f_acc, f_x, limits.grid, run)
     assert best is not None  # options.retries >= 1
-    return _release(best, path, limits, where)
+    return _release(best, limits, options, where)
 
 
-def _time_once(path: PathSpline, limits: PathLimits, factor: np.ndarray, knot_period: float,
-               where: str) -> _Run:
-    """One TOPP-RA run with the limits scaled by ``factor`` per gridpoint, sampled at knots."""
-    x = _topp.solve(limits.grid, limits.at_grid.xmax * factor ** 2, *limits.rows(factor))
+def _time_once(path: PathSpline, limits: PathLimits, f_acc: np.ndarray, f_x: np.ndarray,
+               options: TimingOptions, tau_a: float | None, where: str) -> _Run:
+    """One TOPP-RA run with the acceleration limits scaled by ``f_acc`` and the squared
+    speed bounds by ``f_x`` per gridpoint, smoothed, sampled at knots and checked."""
+    x = _topp.solve(limits.grid, limits.at_grid.xmax * f_x, *limits.rows(f_acc))
     if x is None:
         raise TimingError("TOPP-RA found no feasible timing" + where)
     profile = _topp.parametrize(limits.grid, x)
-    duration = profile.duration
-    if not (np.isfinite(duration) and duration > 0):
-        raise TimingError(f"TOPP-RA gave a duration of {duration} s" + where)
-    n = max(2, int(np.ceil(duration / knot_period)) + 1)
-    t = np.linspace(0.0, duration, n)
-    s, sd, sdd = _topp.evaluate(profile, t)
-    ps, pss = path(s, 1), path(s, 2)
+    if not (np.isfinite(profile.duration) and profile.duration > 0):
+        raise TimingError(f"TOPP-RA gave a duration of {profile.duration} s" + where)
+    if tau_a is None:
+        tau_a = _jerk_window(profile, path, limits, options)
+    tau_b = max(options.jerk_smoothing * options.knot_period, 0.15 * tau_a)
+    sm = _smooth.smooth(profile, tau_a, tau_b)
+    duration = sm.duration
+    n = max(2, int(np.ceil(duration / options.knot_period)) + 1)
+    # Knots a whole number of nanoseconds apart: a goal carries its times in integer
+    # nanoseconds, and the quintic join of knots 4 ms apart is sensitive to a 1 ns shift
+    # (its jerk by ~0.2 %). The last knot may come a few ns after the motion's end (at rest).
+    t = _ns_grid(n, int(np.ceil(duration / (n - 1) * _NS)))
+    s, sd, sdd, _ = _smooth.evaluate(sm, t)
+    ps = path(s, 1)
     qd = ps * sd[:, None]
-    qdd = pss * (sd ** 2)[:, None] + ps * sdd[:, None]
+    qdd = path(s, 2) * (sd ** 2)[:, None] + ps * sdd[:, None]
     qd[0] = qd[-1] = 0.0  # at rest (not -0.0)
+    qdd[0] = qdd[-1] = 0.0
+    q = path(s)
     segment = interval_index(limits.s_way, s, limits.vmax_seg.shape[0])
-    return _Run(t, s, qd, qdd, segment, *_knot_ratios(qd, qdd, segment, limits))
+    ratios = np.array(_interval_ratios(t, q, qd, qdd, segment, limits))
+    return _Run(t, s, q, qd, qdd, segment, ratios, sm)
 
 
-def _knot_ratios(qd: np.ndarray, qdd: np.ndarray, segment: np.ndarray, limits: PathLimits
-                 ) -> tuple[np.ndarray, np.ndarray]:
-    """Per knot, the largest |qd|/vmax and the largest |qdd|/amax (of its segment)."""
-    return (row_max(np.abs(qd) / limits.vmax_seg[segment]),
-            row_max(np.abs(qdd) / limits.amax_seg[segment]))
+def _jerk_window(profile: _topp.Profile, path: PathSpline, limits: PathLimits,
+                 options: TimingOptions) -> float:
+    """Width of the first moving average [s]: the shortest over which no joint's
+    acceleration along TOPP-RA's profile changes by more than its jerk limit times the
+    width (the average spreads every change over the width), times
+    ``options.jerk_window``."""
+    dt = options.knot_period / 2
+    t = np.arange(0.0, profile.duration, dt)
+    s, sd, u = _smooth.profile_state(profile, t)
+    seg = interval_index(limits.s_way, s, limits.jmax_seg.shape[0])
+    acc = (path(s, 1) * u[:, None] + path(s, 2) * (sd ** 2)[:, None]) / limits.jmax_seg[seg]
+    # At rest (zero acceleration) before and after: the first and last changes count.
+    f = np.vstack([np.zeros((1, acc.shape[1])), acc, np.zeros((1, acc.shape[1]))])
+    hi = max(1, int(np.ceil(2.0 * float(np.abs(f).max()) / dt)))
+
+    def fits(m: int) -> bool:
+        return float(np.abs(f[m:] - f[:-m]).max()) <= m * dt if m < f.shape[0] else True
+
+    lo = 1
+    if not fits(hi):
+        hi = f.shape[0]
+    while lo < hi:  # the smallest shift that fits (bisection)
+        mid = (lo + hi) // 2
+        if fits(mid):
+            hi = mid
+        else:
+            lo = mid + 1
+    return max(lo * dt * options.jerk_window, options.knot_period)
 
 
-def _tighten(factor: np.ndarray, grid: np.ndarray, s: np.ndarray, per_knot: np.ndarray
-             ) -> None:
-    """Scale the limits down around every knot over a limit (in place), by its excess."""
-    over = per_knot > 1.0
-    g = np.searchsorted(grid, s[over])
-    target = 1.0 / (per_knot[over] * (1.0 + RETIME_ABOVE / 4))
-    for offset in range(-2, 3):
-        np.minimum.at(factor, np.clip(g + offset, 0, grid.size - 1), target)
+def _interval_ratios(t: np.ndarray, q: np.ndarray, qd: np.ndarray, qdd: np.ndarray,
+                     segment: np.ndarray, limits: PathLimits
+                     ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Per knot interval, the quintic join's largest speed, acceleration and jerk ratio
+    (limits of the smaller-scaled of its two knots' segments)."""
+    seg = np.where(limits.vmax_seg[segment[:-1], 0] <= limits.vmax_seg[segment[1:], 0],
+                   segment[:-1], segment[1:])
+    return interval_ratios(t, q, qd, qdd, vmax=limits.vmax_seg[seg],
+                           amax=limits.amax_seg[seg], jmax=limits.jmax_seg[seg])
 
 
-def _stretch(v_peak: float, a_peak: float) -> float:
+def _tighten(f_acc: np.ndarray, f_x: np.ndarray, grid: np.ndarray, run: _Run) -> None:
+    """Tighten the limits (in place) along the part of the path each interval over a limit
+    averaged: its window of the profile, ``tau_a + tau_b`` before it to its end. Each
+    gridpoint takes the largest excess of the windows over it, once."""
+    v, a, j = run.ratios
+    sm = run.smoothed
+    over = np.flatnonzero(run.ratios.max(axis=0) > 1.0)
+    if over.size == 0:
+        return
+    width = sm.tau_a + sm.tau_b
+    s_lo = _smooth.profile_s(sm.profile, run.t[over] - width)
+    s_hi = _smooth.profile_s(sm.profile, run.t[over + 1])
+    g_lo = np.clip(np.searchsorted(grid, s_lo, side="right") - 1, 0, grid.size - 1)
+    g_hi = np.clip(np.searchsorted(grid, s_hi, side="left") + 1, 1, grid.size)
+    pad = 1.0 + RETIME_ABOVE
+    # Acceleration and jerk scale with the path acceleration; speed with sqrt(x), the
+    # jerk's speed terms with x^(3/2).
+    acc = 1.0 / (np.maximum(np.maximum(a[over], j[over]), 1.0) * pad)
+    xs = np.minimum(1.0 / np.maximum(v[over], 1.0) ** 2,
+                    1.0 / np.maximum(j[over], 1.0) ** (2.0 / 3.0)) / pad
+    t_acc = np.ones(grid.size)
+    t_x = np.ones(grid.size)
+    for lo, hi, fa, fx in zip(g_lo, g_hi, acc, xs, strict=True):
+        t_acc[lo:hi] = np.minimum(t_acc[lo:hi], fa)
+        t_x[lo:hi] = np.minimum(t_x[lo:hi], fx)
+    f_acc *= t_acc
+    f_x *= t_x
+
+
+def _ns_grid(n: int, step_ns: int) -> np.ndarray:
+    """``n`` times [s] from 0, ``step_ns`` nanoseconds apart (exact in nanoseconds)."""
+    return np.arange(n, dtype=np.int64) * step_ns / _NS
+
+
+def _stretch(v_peak: float, a_peak: float, j_peak: float = 0.0) -> float:
     """The time stretch that brings the peak ratios to just below 1 (at least 1)."""
-    return max(1.0, v_peak / (1.0 - _SLACK), float(np.sqrt(a_peak / (1.0 - _SLACK))))
+    return max(1.0, v_peak / (1.0 - _SLACK), float(np.sqrt(a_peak / (1.0 - _SLACK))),
+               float(np.cbrt(j_peak / (1.0 - _SLACK))))
 
 
-def _release(run: _Run, path: PathSpline, limits: PathLimits, where: str) -> TimedPiece:
-    """The run stretched in time just enough that every knot is within its limits, checked."""
-    k = _stretch(float(run.v_ratio.max()), float(run.a_ratio.max()))
+def _release(run: _Run, limits: PathLimits, options: TimingOptions, where: str) -> TimedPiece:
+    """The run stretched in time just enough that its knots' quintic join is within every
+    limit, checked."""
+    k = run.stretch
     t, qd, qdd = run.t, run.qd, run.qdd
-    v_ratio, a_ratio = run.v_ratio, run.a_ratio
     if k > 1.0:
+        # The stretched knots stay on whole nanoseconds: k is rounded up to that.
+        step_ns = round(float(t[1] - t[0]) * _NS)
+        stretched_ns = int(np.ceil(step_ns * k))
+        k = stretched_ns / step_ns
         log.debug("timing up to %.4f %% over a limit; stretching time by %.6f",
-                  (max(float(v_ratio.max()), float(a_ratio.max())) - 1) * 100, k)
-        t, qd, qdd = t * k, qd / k, qdd / (k * k)
-        v_ratio, a_ratio = _knot_ratios(qd, qdd, run.segment, limits)
-    worst = max(float(v_ratio.max()), float(a_ratio.max()))
+                  (float(run.ratios.max()) - 1) * 100, k)
+        t, qd, qdd = _ns_grid(t.size, stretched_ns), qd / k, qdd / (k * k)
+    ratios = _interval_ratios(t, run.q, qd, qdd, run.segment, limits)
+    worst = max((float(r.max()) for r in ratios), default=0.0)
     if not worst <= 1.0:  # also NaN
-        raise TimingError(f"a timed knot is at {worst!r} of its limit" + where)
-    return TimedPiece(t, path(run.s), qd, qdd, run.s, run.segment)
+        raise TimingError(f"the quintic join of the timed knots is at {worst!r} of a limit"
+                          + where)
+    return TimedPiece(t, run.q, qd, qdd, run.s, run.segment)
 
 
 def rest_to_rest_time(delta: np.ndarray, vmax: np.ndarray, amax: np.ndarray) -> float:

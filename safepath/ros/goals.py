@@ -8,7 +8,9 @@ such a file get settings derived from their joint names.
 
 * :func:`follow_joint_trajectory_goal` for the arm's trajectory controller
   (``control_msgs/FollowJointTrajectory``), on any robot. The controller keeps our timing,
-  so the velocity and acceleration limits that safepath verified are the ones executed.
+  the goal's points are the trajectory's knots, and the motion the controller makes of
+  them (its quintic join) is checked against the speed, acceleration and jerk limits
+  before the goal is returned.
 * :func:`robot_move_goal` for Niryo's arm commander (``RobotMove`` with
   ``EXECUTE_FULL_TRAJ``): the robot keeps the path but re-times it itself.
   ``EXECUTE_RAW_TRAJ`` is not offered: on the robot it reads a field that
@@ -36,6 +38,7 @@ import numpy as np
 from .._io import check_names
 from .._knots import interval_index
 from ..errors import InputError, TrajectoryError
+from ..execution import check_executed, limits_of
 from ..trajectory import GripperEvent, Trajectory
 from ..trajectory_controller import TrajectoryController, controller_for
 from .messages import Backend, MessageFactory, message_factory
@@ -131,22 +134,68 @@ def _period_ns(period: float) -> int:
 
 
 def _points(traj: Trajectory, period: float | None, robot_joint_names: Sequence[str] | None,
-            controller: TrajectoryController | None) -> _Points:
-    """Sample ``traj`` every ``period`` [s] from its start, plus its exact final knot."""
-    if period is None or robot_joint_names is None:
-        spec = controller_of(traj, controller)
-        period = spec.period if period is None else period
-        robot_joint_names = spec.joint_names if robot_joint_names is None else robot_joint_names
+            controller: TrajectoryController | None,
+            limits: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None) -> _Points:
+    """The goal's points: every knot of ``traj`` (times from its start), and where two
+    knots are more than ``period`` [s] apart, points of the quintic between them (which
+    joins them into the same quintic), in the controller's joint order; then the motion
+    the controller executes from them is checked against the joint limits."""
+    spec = controller_of(traj, controller)
+    period = spec.period if period is None else period
+    robot_joint_names = spec.joint_names if robot_joint_names is None else robot_joint_names
     period_ns = _period_ns(period)
     traj = _validated(traj)
     names, cols = _robot_columns(traj, robot_joint_names)
-    end_ns = round((traj.t[-1] - traj.t[0]) * _NS)
-    # Integer nanoseconds: the grid is exact and the final time is not duplicated.
-    time_ns = np.append(np.arange(0, end_ns, period_ns, dtype=np.int64), np.int64(end_ns))
-    q, qd, qdd = traj.sample(traj.t[0] + time_ns / _NS)
-    q[0], qd[0], qdd[0] = traj.q[0], traj.qd[0], traj.qdd[0]
-    q[-1], qd[-1], qdd[-1] = traj.q[-1], traj.qd[-1], traj.qdd[-1]
-    return _Points(names, time_ns, q[:, cols], qd[:, cols], qdd[:, cols])
+    rel = traj.t - traj.t[0]
+    gaps = np.diff(rel)
+    extra = np.maximum(np.ceil(gaps * _NS / period_ns - 1e-9).astype(np.int64) - 1, 0)
+    if traj.t.size > 1 and extra.any():
+        frac = [np.arange(1, e + 1) / (e + 1) for e in extra]
+        inserted = np.concatenate([rel[k] + gaps[k] * f for k, f in enumerate(frac)])
+        times = np.sort(np.concatenate([rel, inserted]))
+        q, qd, qdd = traj.sample(traj.t[0] + times)
+        keep = np.isin(times, rel)
+        q[keep], qd[keep], qdd[keep] = traj.q, traj.qd, traj.qdd
+    else:
+        times, q, qd, qdd = rel, traj.q, traj.qd, traj.qdd
+    # Integer nanoseconds, as the message carries them.
+    time_ns = np.round(times * _NS).astype(np.int64)
+    if time_ns.size > 1 and np.any(np.diff(time_ns) <= 0):
+        raise TrajectoryError("two points less than 1 ns apart", key="t")
+    pts = _Points(names, time_ns, q[:, cols], qd[:, cols], qdd[:, cols])
+    _check_executed(traj, pts, spec, limits, cols)
+    return pts
+
+
+def _check_executed(traj: Trajectory, pts: _Points, spec: TrajectoryController,
+                    limits: tuple[np.ndarray, np.ndarray, np.ndarray] | None,
+                    cols: list[int]) -> None:
+    """Check the motion ``spec``'s controller executes from ``pts`` against the limits the
+    trajectory was timed under (``limits``, else its ``info["limits"]``)."""
+    limits = limits if limits is not None else limits_of(traj.info, traj.dof)
+    if limits is None:
+        raise TrajectoryError(
+            "the trajectory records no joint limits (info['limits']) to check the motion "
+            "the controller executes against; pass limits=robot", key="limits")
+    vmax, amax, jmax = (np.asarray(x, dtype=float)[cols] for x in limits)
+    check_executed(pts.time_ns / _NS, pts.q, pts.qd, pts.qdd, velocity_limits=vmax,
+                   acceleration_limits=amax, jerk_limits=jmax,
+                   interpolation=spec.interpolation,  # type: ignore[arg-type]
+                   what=f"goal of '{traj.route or traj.robot or 'trajectory'}'")
+
+
+def _limits(limits: Any) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
+    """``limits=`` of the goal builders: a robot (anything with velocity, acceleration and
+    jerk limits), or None for the trajectory's own ``info["limits"]``."""
+    if limits is None:
+        return None
+    try:
+        return (np.asarray(limits.velocity_limits, dtype=float),
+                np.asarray(limits.acceleration_limits, dtype=float),
+                np.asarray(limits.jerk_limits, dtype=float))
+    except AttributeError:
+        raise TrajectoryError(f"expected a robot (velocity, acceleration and jerk limits), "
+                              f"got {type(limits).__name__}", key="limits") from None
 
 
 def _duration(f: MessageFactory, time_ns: int) -> Any:
@@ -171,38 +220,41 @@ def _build_joint_trajectory(f: MessageFactory, pts: _Points, stamp_ns: int) -> A
 def joint_trajectory(traj: Trajectory, *, period: float | None = None,
                      robot_joint_names: Sequence[str] | None = None,
                      controller: TrajectoryController | None = None, stamp_ns: int = 0,
-                     backend: Backend = "auto") -> Any:
-    """``trajectory_msgs/msg/JointTrajectory`` sampled from ``traj``.
+                     limits: Any = None, backend: Backend = "auto") -> Any:
+    """``trajectory_msgs/msg/JointTrajectory`` of ``traj``'s knots.
 
     Points carry positions [rad], velocities [rad/s], accelerations [rad/s^2] and
-    ``time_from_start`` (rounded to the nanosecond), every ``period`` from the start and
-    at the exact final knot. Columns come in the controller's joint order, whatever the
-    order in ``traj``.
+    ``time_from_start`` (rounded to the nanosecond): every knot of ``traj``, so that the
+    controller's quintic join of the points (position, velocity and acceleration matched
+    at both ends, as ros2_control's ``joint_trajectory_controller`` joins them) is the
+    trajectory's own motion, the one safepath verified. Where two knots are more than
+    ``period`` apart, points of that quintic are added (they join into the same quintic).
+    Columns come in the controller's joint order, whatever the order in ``traj``.
 
-    The spacing is the robot's (its ``controller.yaml``). The Ned3 Pro's, 0.04 s, is one
-    point per cycle of its 25 Hz joint trajectory controller, which joins consecutive
-    points with quintic splines matching position, velocity and acceleration at both
-    ends: every spline spans a single cycle between two states of our own trajectory, so
-    what the controller samples is our motion (our timing, hence the limits safepath
-    verified) up to a negligible spline error. Sparser points would let the controller's
-    spline, not our collision-checked path, decide where the arm is in between.
+    Before the message is built, the motion the controller executes from these points is
+    checked at every instant (:func:`safepath.execution.check_executed`: speed on a >= 1
+    kHz grid with a bound between samples, acceleration and jerk exactly) against the
+    joint limits the trajectory was timed under; nothing over a limit is ever returned.
 
     Args:
         traj: The timed trajectory.
-        period: Time between points [s]; default: the controller's.
+        period: Largest time between points [s]; default: the controller's.
         robot_joint_names: The controller's joint names; default: the controller's.
         controller: The robot's trajectory controller; default: the one of the robot
             ``traj`` names (see :func:`controller_of`).
         stamp_ns: ``header.stamp`` [ns]; 0 asks the controller to start on receipt.
+        limits: The robot whose velocity, acceleration and jerk limits the executed
+            motion is checked against; default: the trajectory's ``info["limits"]``.
         backend: ``auto``, ``rosbags`` or ``rclpy`` (see
             :func:`safepath.ros.messages.message_factory`).
 
     Raises:
         TrajectoryError: Joint names that do not match the robot's, times not strictly
-            increasing, non-finite values, or a period that is not > 0.
+            increasing, non-finite values, a period that is not > 0, or no limits.
+        ExecutedLimitError: The controller's join of the points would break a limit.
         RosError: ``backend='rclpy'`` without a ROS 2 installation.
     """
-    pts = _points(traj, period, robot_joint_names, controller)
+    pts = _points(traj, period, robot_joint_names, controller, _limits(limits))
     return _build_joint_trajectory(message_factory(backend, _JT_TYPES), pts, stamp_ns)
 
 
@@ -212,7 +264,7 @@ def follow_joint_trajectory_goal(
         goal_tolerance: Sequence[float] | None | Literal["controller"] = "controller",
         goal_time_tolerance: float | None = None,
         controller: TrajectoryController | None = None, stamp_ns: int = 0,
-        backend: Backend = "auto") -> Any:
+        limits: Any = None, backend: Backend = "auto") -> Any:
     """``control_msgs/action/FollowJointTrajectory_Goal`` for the arm's trajectory controller.
 
     Send it to the controller's ``follow_joint_trajectory_action``
@@ -221,7 +273,7 @@ def follow_joint_trajectory_goal(
 
     Args:
         traj: The timed trajectory.
-        period: Time between points [s] (see :func:`joint_trajectory`).
+        period: Largest time between points [s] (see :func:`joint_trajectory`).
         robot_joint_names: The controller's joint names; default: the controller's.
         goal_tolerance: Final position tolerance per controller joint [rad]; None sends
             none (the controller's own apply); default: the robot's ``controller.yaml``.
@@ -229,6 +281,8 @@ def follow_joint_trajectory_goal(
             the controller's.
         controller: The robot's trajectory controller; default: the one of the robot
             ``traj`` names (see :func:`controller_of`).
+        limits: The robot whose limits the executed motion is checked against (see
+            :func:`joint_trajectory`); default: the trajectory's ``info["limits"]``.
         stamp_ns: ``trajectory.header.stamp`` [ns]: the clock time of the trajectory's
             t = 0 (0: start on receipt). A stamp in the past makes the controller join the
             trajectory where it is by then (how a stop replaces a running motion).
@@ -239,7 +293,7 @@ def follow_joint_trajectory_goal(
         RosError: ``backend='rclpy'`` without control_msgs.
     """
     spec = controller_of(traj, controller)
-    pts = _points(traj, period, robot_joint_names, spec)
+    pts = _points(traj, period, robot_joint_names, spec, _limits(limits))
     if isinstance(goal_tolerance, str):
         if goal_tolerance != "controller":
             raise TrajectoryError(f"expected tolerances [rad], None or 'controller', got "

@@ -28,6 +28,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from ..errors import InputError
+from ..execution import LIMITS_KEY, robot_limits
 from ..trajectory import Trajectory
 
 if TYPE_CHECKING:
@@ -200,6 +201,7 @@ class PourStopper:
         return Trajectory(traj.joint_names, tt, q, qd, qdd, np.zeros(tt.size, dtype=int),
                           ("stop",), (), traj.robot, f"{traj.route}:stop",
                           {"time_offset": float(traj.t[k0]), "brake_at": float(traj.t[kb]),
+                           LIMITS_KEY: robot_limits(self.robot),
                            "s_rest": float(s[-1])})
 
     def until(self, stop: Trajectory) -> Trajectory:
@@ -233,7 +235,8 @@ class PourStopper:
         traj = self.motion.trajectory
         return Trajectory(traj.joint_names, piece.t, piece.q, piece.qd, piece.qdd,
                           np.zeros(piece.t.size, dtype=int), ("return",), (), traj.robot,
-                          f"{traj.route}:return", {"s_from": s_rest})
+                          f"{traj.route}:return",
+                          {"s_from": s_rest, LIMITS_KEY: robot_limits(self.robot)})
 
     def _back_piece(self, s_rest: float) -> tuple[TimedPiece, float]:
         from ..planning.timing import time_path

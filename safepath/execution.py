@@ -1,0 +1,288 @@
+"""How a trajectory controller executes a goal's points, and the check of that motion.
+
+A robot does not run safepath's samples: its trajectory controller joins the points of a
+``JointTrajectory`` and follows the result. ros2_control's ``joint_trajectory_controller``
+(``joint_trajectory_controller/trajectory.cpp``, ``interpolate_between_points``) joins
+two points per joint with
+
+* a **quintic** polynomial matching position, velocity and acceleration at both ends when
+  every point carries all three (what safepath sends),
+* a **cubic** matching position and velocity when points carry no accelerations,
+* a **linear** ramp when they carry positions only.
+
+The ROS 1 ``joint_trajectory_controller`` behind Niryo's
+``/niryo_robot_follow_joint_trajectory_controller`` (``QuinticSplineSegment``) and
+ros2_kortex's (ros2_control's) join points the same way. Each robot's ``controller.yaml``
+names its interpolation (:attr:`safepath.trajectory_controller.TrajectoryController
+.interpolation`).
+
+:func:`executed_peaks` finds, per joint, the largest speed, acceleration and jerk of
+that joined motion: acceleration and jerk exactly (the jerk of a quintic is a quadratic,
+its acceleration a cubic: their extremes are at the ends or where the next derivative
+vanishes), speed on a grid of at least ``rate`` samples per second and per interval, plus
+a bound of what a peak between two samples can add (``|jerk| dt^2 / 8``), so every
+figure is an upper bound of the motion at every instant. :func:`check_executed` raises
+:class:`~safepath.errors.ExecutedLimitError` when one is over its limit.
+
+A quintic on an interval, restricted to part of it, is the quintic through its own
+values at the part's ends: inserting points sampled from the joined motion changes
+nothing (:func:`join` gives their values), which is how goals keep at most the
+controller's point spacing without leaving the verified motion.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Literal
+
+import numpy as np
+
+from .errors import ExecutedLimitError
+
+__all__ = ["Interpolation", "INTERPOLATIONS", "ExecutedPeaks", "join", "executed_peaks",
+           "interval_ratios", "check_executed", "CHECK_RATE", "LIMITS_KEY", "limits_info",
+           "limits_of", "robot_limits"]
+
+Interpolation = Literal["quintic", "cubic", "linear"]
+#: The ways a controller joins points, as ``controller.yaml`` names them.
+INTERPOLATIONS: tuple[str, ...] = ("quintic", "cubic", "linear")
+#: Samples per second at which the speed is evaluated between points (at least).
+CHECK_RATE = 1000.0
+
+
+def _coefficients(t: np.ndarray, q: np.ndarray, qd: np.ndarray, qdd: np.ndarray,
+                  interpolation: Interpolation) -> tuple[np.ndarray, np.ndarray]:
+    """Per interval and joint, the polynomial's coefficients ``c0..c5`` (N-1, dof, 6) in the
+    time from the interval's start, and the intervals' lengths (N-1,) [s]."""
+    T = np.diff(t)[:, None]  # noqa: N806
+    p0, p1 = q[:-1], q[1:]
+    c = np.zeros((T.shape[0], q.shape[1], 6))
+    c[..., 0] = p0
+    if interpolation == "linear":
+        c[..., 1] = (p1 - p0) / T
+        return c, T[:, 0]
+    v0, v1 = qd[:-1], qd[1:]
+    c[..., 1] = v0
+    if interpolation == "cubic":
+        h = p1 - p0
+        c[..., 2] = (3 * h - (2 * v0 + v1) * T) / T ** 2
+        c[..., 3] = (-2 * h + (v0 + v1) * T) / T ** 3
+        return c, T[:, 0]
+    a0, a1 = qdd[:-1], qdd[1:]
+    c[..., 2] = a0 / 2
+    h = p1 - p0 - v0 * T - a0 * T * T / 2
+    dv = v1 - v0 - a0 * T
+    da = a1 - a0
+    c[..., 3] = (10 * h - 4 * dv * T + da * T * T / 2) / T ** 3
+    c[..., 4] = (-15 * h + 7 * dv * T - da * T * T) / T ** 4
+    c[..., 5] = (6 * h - 3 * dv * T + da * T * T / 2) / T ** 5
+    return c, T[:, 0]
+
+
+def _eval(c: np.ndarray, tau: np.ndarray, nu: int) -> np.ndarray:
+    """The ``nu``-th derivative of the polynomials ``c`` (..., 6) at ``tau`` (broadcast)."""
+    out = np.zeros(np.broadcast_shapes(c.shape[:-1], tau.shape))
+    for k in range(5, nu - 1, -1):
+        factor = float(np.prod(np.arange(k - nu + 1, k + 1))) if nu else 1.0
+        out = out * tau + factor * c[..., k]
+    return out
+
+
+def join(t: np.ndarray, q: np.ndarray, qd: np.ndarray, qdd: np.ndarray, times: np.ndarray,
+         *, interpolation: Interpolation = "quintic"
+         ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """The motion a controller executes from points ``(t, q, qd, qdd)``, at ``times`` [s].
+
+    Args:
+        t: Point times [s], strictly increasing (N,).
+        q, qd, qdd: Positions [rad], velocities [rad/s], accelerations [rad/s^2] (N, dof).
+        times: Where to evaluate [s]; clamped to ``[t[0], t[-1]]``.
+        interpolation: How the controller joins points.
+
+    Returns:
+        Positions, velocities, accelerations and jerks [rad/s^3] at ``times``.
+    """
+    t = np.asarray(t, dtype=float)
+    q = np.atleast_2d(np.asarray(q, dtype=float))
+    times = np.clip(np.asarray(times, dtype=float), t[0], t[-1])
+    if t.size == 1:
+        rest = np.repeat(q, times.size, 0)
+        zero = np.zeros_like(rest)
+        return rest, np.repeat(np.atleast_2d(qd), times.size, 0), \
+            np.repeat(np.atleast_2d(qdd), times.size, 0), zero
+    c, _ = _coefficients(t, q, np.atleast_2d(qd), np.atleast_2d(qdd), interpolation)
+    k = np.clip(np.searchsorted(t, times, side="right") - 1, 0, t.size - 2)
+    tau = (times - t[k])[:, None]
+    ck = c[k]
+    return tuple(_eval(ck, tau, nu) for nu in range(4))  # type: ignore[return-value]
+
+
+@dataclass(frozen=True)
+class ExecutedPeaks:
+    """The largest speed, acceleration and jerk of an executed motion, per joint.
+
+    Attributes:
+        velocity: Per joint, an upper bound of ``|v|`` at every instant [rad/s].
+        acceleration: Per joint, the largest ``|a|`` [rad/s^2] (exact).
+        jerk: Per joint, the largest ``|j|`` [rad/s^3] (exact; the jerk of one interval,
+            each interval's polynomial on its own).
+        where: For velocity, acceleration and jerk, the time [s] of the worst ratio
+            (filled in by :func:`check_executed`; NaN here).
+        rate: Samples per second at which speeds were evaluated.
+        interpolation: How the points were joined.
+    """
+
+    velocity: np.ndarray
+    acceleration: np.ndarray
+    jerk: np.ndarray
+    rate: float
+    interpolation: str
+
+    def ratios(self, vmax: np.ndarray, amax: np.ndarray, jmax: np.ndarray
+               ) -> tuple[float, float, float]:
+        """The largest peak / limit of speed, acceleration and jerk."""
+        return (float(np.max(self.velocity / vmax)), float(np.max(self.acceleration / amax)),
+                float(np.max(self.jerk / jmax)))
+
+
+def _interval_peaks(c: np.ndarray, T: np.ndarray, rate: float  # noqa: N803
+                    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Per interval and joint: bound of |v|, exact max |a| and |j| (N-1, dof) each."""
+    # Jerk: a quadratic; its extremes at the ends and at its vertex.
+    ends = [np.zeros_like(T), T]
+    j_cand = [np.abs(_eval(c, e[:, None], 3)) for e in ends]
+    with np.errstate(divide="ignore", invalid="ignore"):
+        vertex = -c[..., 4] * 24.0 / (120.0 * c[..., 5])
+    inside = np.isfinite(vertex) & (vertex > 0) & (vertex < T[:, None])
+    j_cand.append(np.where(inside, np.abs(_eval(c, np.where(inside, vertex, 0.0), 3)), 0.0))
+    j_peak = np.max(j_cand, axis=0)
+    # Acceleration: a cubic; its extremes at the ends and where the jerk vanishes.
+    a_cand = [np.abs(_eval(c, e[:, None], 2)) for e in ends]
+    qa, qb, qc = 60.0 * c[..., 5], 24.0 * c[..., 4], 6.0 * c[..., 3]
+    disc = qb * qb - 4.0 * qa * qc
+    with np.errstate(divide="ignore", invalid="ignore"):
+        sq = np.sqrt(np.maximum(disc, 0.0))
+        roots = [(-qb + sq) / (2.0 * qa), (-qb - sq) / (2.0 * qa),
+                 np.where(qb != 0.0, -qc / qb, np.nan)]
+    for r, valid in zip(roots, (disc >= 0, disc >= 0, qa == 0), strict=True):
+        ok = valid & np.isfinite(r) & (r > 0) & (r < T[:, None])
+        a_cand.append(np.where(ok, np.abs(_eval(c, np.where(ok, r, 0.0), 2)), 0.0))
+    a_peak = np.max(a_cand, axis=0)
+    # Speed: sampled at >= rate per second (at least 4 samples an interval); a peak between
+    # samples dt apart adds at most |jerk| dt^2 / 8 (the acceleration vanishes there).
+    m = max(4, int(np.ceil(float(T.max()) * rate)) + 1)
+    frac = np.linspace(0.0, 1.0, m)
+    tau = T[:, None, None] * frac[None, None, :]
+    v = np.abs(_eval(c[:, :, None, :], tau, 1)).max(axis=2)
+    dt = T / (m - 1)
+    v_peak = v + j_peak * (dt[:, None] ** 2) / 8.0
+    return v_peak, a_peak, j_peak
+
+
+def executed_peaks(t: np.ndarray, q: np.ndarray, qd: np.ndarray, qdd: np.ndarray, *,
+                   interpolation: Interpolation = "quintic", rate: float = CHECK_RATE
+                   ) -> ExecutedPeaks:
+    """The peaks of the motion a controller executes from points ``(t, q, qd, qdd)``.
+
+    Args:
+        t: Point times [s], strictly increasing.
+        q, qd, qdd: Positions [rad], velocities [rad/s], accelerations [rad/s^2] (N, dof).
+        interpolation: How the controller joins points.
+        rate: Least number of speed samples per second [Hz].
+    """
+    c, T = _coefficients(np.asarray(t, dtype=float), np.atleast_2d(q), np.atleast_2d(qd),  # noqa: N806
+                         np.atleast_2d(qdd), interpolation)
+    dof = np.atleast_2d(q).shape[1]
+    if T.size == 0:
+        z = np.zeros(dof)
+        return ExecutedPeaks(np.abs(np.atleast_2d(qd)[0]), np.abs(np.atleast_2d(qdd)[0]), z,
+                             rate, interpolation)
+    v, a, j = _interval_peaks(c, T, rate)
+    return ExecutedPeaks(v.max(axis=0), a.max(axis=0), j.max(axis=0), rate, interpolation)
+
+
+def interval_ratios(t: np.ndarray, q: np.ndarray, qd: np.ndarray, qdd: np.ndarray, *,
+                    vmax: np.ndarray, amax: np.ndarray, jmax: np.ndarray,
+                    interpolation: Interpolation = "quintic", rate: float = CHECK_RATE
+                    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Per interval between points, the largest speed, acceleration and jerk ratio to the
+    limits (each (N-1,)); limits may be per interval (N-1, dof) or per joint (dof,)."""
+    c, T = _coefficients(np.asarray(t, dtype=float), q, qd, qdd, interpolation)  # noqa: N806
+    v, a, j = _interval_peaks(c, T, rate)
+    return (np.max(v / vmax, axis=1), np.max(a / amax, axis=1), np.max(j / jmax, axis=1))
+
+
+def check_executed(t: np.ndarray, q: np.ndarray, qd: np.ndarray, qdd: np.ndarray, *,
+                   velocity_limits: np.ndarray, acceleration_limits: np.ndarray,
+                   jerk_limits: np.ndarray, interpolation: Interpolation = "quintic",
+                   rate: float = CHECK_RATE, what: str = "goal") -> tuple[float, float, float]:
+    """Check that the motion a controller executes from the points stays within the limits.
+
+    Returns:
+        The largest speed, acceleration and jerk ratio to the limits (each <= 1).
+
+    Raises:
+        ExecutedLimitError: A ratio is over 1 (or not finite), naming ``what``, the
+            quantity, the joint column and the time.
+    """
+    t = np.asarray(t, dtype=float)
+    q, qd, qdd = (np.atleast_2d(np.asarray(x, dtype=float)) for x in (q, qd, qdd))
+    if t.size < 2:
+        peaks = executed_peaks(t, q, qd, qdd, interpolation=interpolation, rate=rate)
+        ratios = peaks.ratios(velocity_limits, acceleration_limits, jerk_limits)
+    else:
+        c, T = _coefficients(t, q, qd, qdd, interpolation)  # noqa: N806
+        per = _interval_peaks(c, T, rate)
+        ratios = (0.0, 0.0, 0.0)
+        names = ("velocity", "acceleration", "jerk")
+        out = []
+        for name, values, lim in zip(names, per, (velocity_limits, acceleration_limits,
+                                                  jerk_limits), strict=True):
+            r = values / lim
+            worst = float(np.max(r))
+            if not worst <= 1.0:  # also NaN
+                k, col = np.unravel_index(int(np.nanargmax(np.where(np.isfinite(r), r,
+                                                                        np.inf))), r.shape)
+                raise ExecutedLimitError(
+                    f"{what}: the {interpolation} join of its points reaches "
+                    f"{worst:.4f}x the {name} limit of joint column {int(col)} between "
+                    f"t = {t[k]:.4f} and {t[k + 1]:.4f} s", key=name, ratio=worst)
+            out.append(worst)
+        ratios = (out[0], out[1], out[2])
+    return ratios
+
+
+#: The key of :attr:`safepath.Trajectory.info` holding the joint limits a trajectory was
+#: timed under (what its goals are checked against).
+LIMITS_KEY = "limits"
+
+
+def limits_info(velocity: np.ndarray, acceleration: np.ndarray, jerk: np.ndarray
+                ) -> dict[str, list[float]]:
+    """The joint limits, as a trajectory's ``info["limits"]`` records them (JSON lists)."""
+    return {"velocity": [float(v) for v in velocity],
+            "acceleration": [float(v) for v in acceleration],
+            "jerk": [float(v) for v in jerk]}
+
+
+def limits_of(info: dict, dof: int) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
+    """The joint limits a trajectory's ``info`` records (velocity, acceleration, jerk), or
+    None when it records none or they are malformed."""
+    raw = info.get(LIMITS_KEY)
+    if not isinstance(raw, dict):
+        return None
+    try:
+        out = tuple(np.asarray(raw[k], dtype=float) for k in ("velocity", "acceleration",
+                                                               "jerk"))
+    except (KeyError, TypeError, ValueError):
+        return None
+    if any(a.shape != (dof,) or not np.all(np.isfinite(a)) or np.any(a <= 0) for a in out):
+        return None
+    return out  # type: ignore[return-value]
+
+
+def robot_limits(robot: object) -> dict[str, list[float]]:
+    """A robot's joint limits as a trajectory's ``info["limits"]`` records them: what its
+    goals are checked against (:func:`safepath.ros.joint_trajectory`)."""
+    return limits_info(robot.velocity_limits, robot.acceleration_limits,  # type: ignore[attr-defined]
+                       robot.jerk_limits)  # type: ignore[attr-defined]
