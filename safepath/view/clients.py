@@ -6,6 +6,13 @@ own robot (client-scoped nodes that shadow the shared robot for that page alone,
 the other pages keep watching the playback). Whether it may change anything is asked
 of the session's :class:`~safepath.view.access.Access` on every action, server side:
 a disabled button is a courtesy, not the check.
+
+A page saves in two steps: "Save poses" checks the edits and shows every value that
+would change, at full precision; "Confirm save" writes exactly those values, and is
+refused if anything changed in between (an edit that reached the server late, another
+page's save). The reviewer has seen every value written: viser's page sends its updates
+through one 50 ms throttle that keeps only the latest message, so a value typed just
+before a click can be dropped, and the confirmation is where that shows.
 """
 
 from __future__ import annotations
@@ -14,9 +21,11 @@ import functools
 import logging
 from collections.abc import Callable
 from concurrent.futures import Future
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+import numpy as np
 import viser
 
 from ..cell import Cell
@@ -28,7 +37,7 @@ from .panel import NO_POSE, build_edit_panel
 from .scene_nodes import PoseFrames
 from .stage import Stage
 
-__all__ = ["ClientEditor", "client_address", "guard"]
+__all__ = ["ClientEditor", "PendingSave", "client_address", "guard"]
 
 log = logging.getLogger(__name__)
 
@@ -63,6 +72,48 @@ def guard(fn: Callable[[Any], object], report: Callable[[str], None]) -> Callabl
     return callback
 
 
+@dataclass(frozen=True)
+class PendingSave:
+    """A save shown to a page, waiting for "Confirm save".
+
+    Attributes:
+        base: Digest of the poses file version the edits were made on.
+        poses: Every pose the save would write [rad].
+        insist: Whether a pose in collision would be saved on purpose.
+        summary: What the page shows: every value that would change, at full precision.
+    """
+
+    base: str
+    poses: dict[str, np.ndarray] = field(repr=False)
+    insist: bool
+    summary: str
+
+    def matches(self, base: str, poses: dict[str, np.ndarray], insist: bool) -> bool:
+        """Whether a save of ``poses`` now would write exactly what was shown."""
+        return (base == self.base and insist == self.insist and poses.keys() ==
+                self.poses.keys() and all(np.array_equal(poses[k], self.poses[k])
+                                          for k in poses))
+
+
+def describe_save(saved: dict[str, np.ndarray], poses: dict[str, np.ndarray],
+                  joint_names: tuple[str, ...] | list[str], *, insist: bool) -> str:
+    """Markdown: each value a save of ``poses`` over ``saved`` would change, written as
+    it would be saved (the shortest text of the double) [rad]."""
+    lines = []
+    for name, q in poses.items():
+        before = saved.get(name)
+        moved = [j for j in range(len(q)) if before is None or q[j] != before[j]]
+        parts = [f"{joint_names[j]} = {float(q[j])!r}"
+                 + ("" if before is None else f" (was {float(before[j]):.7g})")
+                 for j in moved]
+        if parts:
+            lines.append(f"- **{name}**: {', '.join(parts)} rad")
+    what = "\n".join(lines) or "- no value changes"
+    on_purpose = "\n\nsaved **in collision on purpose** (I insist)" if insist else ""
+    return (f"**Would save** (check the values, then press Confirm save):\n\n{what}"
+            f"{on_purpose}")
+
+
 class ClientEditor:
     """One page's editing (see the module docstring). The session calls every method
     under its lock; the page's callbacks take ``lock`` themselves.
@@ -95,6 +146,7 @@ class ClientEditor:
         self._lock = lock
         self._save, self._replan, self._reload = save, replan, reload
         self._stage: Stage | None = None
+        self._pending: PendingSave | None = None
         self.widgets = build_edit_panel(client.gui, cell.robot, list(edits.base.poses),
                                         token=access.required)
         gizmo = client.scene.add_transform_controls("/edit/tcp", scale=0.12,
@@ -139,26 +191,31 @@ class ClientEditor:
     def set_joint(self, j: int, value: float) -> PoseStatus:
         """Edit joint ``j`` of the selected pose."""
         self._check("edit poses")
+        self._drop_pending()
         return self.editor.set_joint(j, value)
 
     def set_joints(self, q: Any) -> PoseStatus:
         """Edit the selected pose to ``q`` [rad]."""
         self._check("edit poses")
+        self._drop_pending()
         return self.editor.set_joints(q)
 
     def drag_tcp(self, wxyz: Any, position: Any) -> PoseStatus:
         """Edit the selected pose from a TCP gizmo drag."""
         self._check("edit poses")
+        self._drop_pending()
         return self.editor.drag_tcp(wxyz, position)
 
     def reset_pose(self) -> PoseStatus:
         """Drop the edit of the selected pose."""
         self._check("edit poses")
+        self._drop_pending()
         return self.editor.reset_pose()
 
     def take_saved(self) -> PoseStatus:
         """Conflict on the selected pose: drop this page's edit."""
         self._check("resolve conflicts")
+        self._drop_pending()
         status = self.edits.take_saved(self.editor.selected())
         self.refresh()
         return status
@@ -166,14 +223,52 @@ class ClientEditor:
     def keep_mine(self) -> PoseStatus:
         """Conflict on the selected pose: keep this page's edit over the saved version."""
         self._check("resolve conflicts")
+        self._drop_pending()
         status = self.edits.keep_mine(self.editor.selected())
         self.refresh()
         return status
 
-    def save(self, *, insist: bool = False) -> Path:
-        """Save this page's edits (see :meth:`ReviewSession.save_edits`)."""
+    def save(self, *, insist: bool = False) -> PendingSave:
+        """Check this page's edits and show what a save would write; nothing is written
+        until :meth:`confirm_save`.
+
+        Raises:
+            AccessDenied: The page is read-only.
+            SafepathError: Nothing is edited.
+            PosesChanged: An edit is in conflict.
+            OutsideLimits: An edited pose is outside the joint limits.
+            CollisionError: An edited pose collides and ``insist`` is false.
+        """
         self._check("save poses")
-        return self._save(self.edits, self.address, insist)
+        self._drop_pending()
+        poses, _ = self.edits.to_save(insist=insist)
+        summary = describe_save(self.edits.base.poses, poses, self.cell.robot.joint_names,
+                                insist=insist)
+        self._pending = PendingSave(self.edits.base.digest, poses, insist, summary)
+        self.widgets.to_save.content = summary
+        self.update_access()
+        return self._pending
+
+    def confirm_save(self) -> Path:
+        """Write what :meth:`save` showed (see :meth:`ReviewSession.save_edits`).
+
+        Raises:
+            AccessDenied: The page is read-only.
+            SafepathError: No save was shown, or the poses changed since it was shown
+                (nothing is written: press Save poses again).
+        """
+        self._check("save poses")
+        pending = self._pending
+        self._drop_pending()
+        if pending is None:
+            raise SafepathError("not saved: press Save poses first, to see what would be "
+                                "saved")
+        poses, _ = self.edits.to_save(insist=pending.insist)
+        if not pending.matches(self.edits.base.digest, poses, pending.insist):
+            raise SafepathError("not saved: the poses changed after Save poses showed them "
+                                "(a late edit, or another save); check them and press Save "
+                                "poses again")
+        return self._save(self.edits, self.address, pending.insist)
 
     def replan(self) -> Future[Any]:
         """Re-plan the routes with this page's poses (edits applied)."""
@@ -183,6 +278,7 @@ class ClientEditor:
     def reload(self) -> None:
         """Read the poses file again (every page moves onto it)."""
         self._check("reload poses.yaml")
+        self._drop_pending()
         self._reload(self.address)
 
     def review(self) -> None:
@@ -194,8 +290,15 @@ class ClientEditor:
         self.update_access()
 
     # -- display ----------------------------------------------------------------------------
+    @property
+    def pending(self) -> PendingSave | None:
+        """The save shown and waiting for its confirmation, if any."""
+        return self._pending
+
     def refresh(self) -> None:
-        """Show the current edits and conflicts (after a save, a reload, a rebase)."""
+        """Show the current edits and conflicts (after a save, a reload, a rebase); a
+        save waiting for its confirmation is dropped (the poses it showed moved on)."""
+        self._drop_pending()
         for name in [n for n in self.frames.frames if n not in self.edits.edits]:
             self.frames.remove(name)
         for name in self.edits.edits:
@@ -208,13 +311,14 @@ class ClientEditor:
         may_edit = self.may_edit
         pose = self.editor.pose
         self.widgets.enable(may_edit=may_edit, editing=pose is not None,
-                            conflict=pose is not None and pose in self.edits.conflicts)
+                            conflict=pose is not None and pose in self.edits.conflicts,
+                            pending=self._pending is not None)
         # A read-only page looks at a pose without the gizmo it could not drag.
         self.editor.set_gizmo_visible(may_edit and bool(self.widgets.gizmo_enabled.value))
         lines = []
         if not may_edit:
-            lines.append("**read-only**: enter the edit token (printed on the server "
-                         "console) to edit and save poses")
+            lines.append(f"**read-only**: enter the edit token ({self.access.where}) to "
+                         "edit and save poses")
         elif self.access.required:
             lines.append(f"editing unlocked for this page ({self.address})")
         if self.edits.conflicts:
@@ -239,6 +343,13 @@ class ClientEditor:
     # -- internals --------------------------------------------------------------------------
     def _check(self, what: str) -> None:
         self.access.check(self.client_id, self.address, what)
+
+    def _drop_pending(self) -> None:
+        """Forget a save shown for confirmation (the edits it showed change)."""
+        if self._pending is not None:
+            self._pending = None
+            self.widgets.to_save.content = ""
+            self.widgets.confirm.visible = False
 
     def _own_stage(self) -> Stage:
         if self._stage is None:
@@ -272,5 +383,6 @@ class ClientEditor:
         on(w.keep_mine, lambda e: self.keep_mine(), button=True)
         on(w.replan, lambda e: self.replan(), button=True)
         on(w.save, lambda e: self.save(insist=bool(w.insist.value)), button=True)
+        on(w.confirm, lambda e: self.confirm_save(), button=True)
         on(w.reload, lambda e: self.reload(), button=True)
         on(gizmo, lambda e: self.drag_tcp(e.target.wxyz, e.target.position))

@@ -11,6 +11,7 @@ it, holding the object, each with the contacts allowed at that pose.
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -22,7 +23,29 @@ from ..errors import CollisionError, PoseError, SafepathError
 from ..planning import solve_ik
 from .store import PoseChange, PosesChanged, PosesSnapshot
 
-__all__ = ["PoseStatus", "PoseEdits"]
+__all__ = ["OutsideLimits", "PoseStatus", "PoseEdits"]
+
+
+class OutsideLimits(PoseError):
+    """A save refused because an edited pose is outside the joint limits: it is never
+    clamped into them (the reviewer would save a pose they did not see checked).
+
+    The message starts with "not saved:", as every refused save's does.
+
+    Attributes:
+        pose: The pose.
+        q: Its joint vector as edited [rad].
+    """
+
+    def __init__(self, violation: str, *, path: Path | None, pose: str, q: np.ndarray) -> None:
+        super().__init__(violation, path=path, key=pose)
+        self.pose = pose
+        self.q = q.copy()
+
+    def __str__(self) -> str:
+        where = f" ({self.path.name}, key '{self.key}')" if self.path is not None else ""
+        return (f"not saved: pose {self.pose}{where}: {self.reason}; type a value inside "
+                "the limits")
 
 
 @dataclass(frozen=True)
@@ -218,6 +241,8 @@ class PoseEdits:
         Raises:
             SafepathError: Nothing is edited.
             PosesChanged: An edit is in conflict (names the poses and what changed).
+            OutsideLimits: An edited pose is outside the joint limits (names the joint
+                and its value; ``insist`` does not override it).
             CollisionError: An edited pose is in collision and ``insist`` is false.
         """
         if not self.edits:
@@ -231,6 +256,10 @@ class PoseEdits:
                                f"keep yours, pose by pose", path=self.cell.poses_file(),
                                changes=changes, conflicts=list(self.conflicts))
         statuses = [self.status(n) for n in self.edits]
+        for s in statuses:  # never clamped into the limits: refused, the value named
+            violation = self.cell.robot.limit_violation(s.q)
+            if violation is not None:
+                raise OutsideLimits(violation, path=self.cell.poses_path, pose=s.pose, q=s.q)
         bad = [s for s in statuses if s.collisions]
         if bad and not insist:
             pairs = [p for s in bad for p in s.collisions]

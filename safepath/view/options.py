@@ -32,7 +32,9 @@ class ViewOptions:
             made up when the host is not loopback. Given, it is needed on loopback too.
         allow_anonymous_edit: Every page may edit and save without a token, whatever
             the host (for a trusted lab network).
-        token_attempts: Wrong tokens allowed per client host and minute.
+        token_attempts: Wrong tokens allowed per page and minute.
+        token_host_attempts: Wrong tokens allowed per client host (all its pages) and
+            minute.
         replan_on_save: Re-plan the routes a save affects (else they are marked stale).
     """
 
@@ -47,6 +49,7 @@ class ViewOptions:
     token: str | None = None
     allow_anonymous_edit: bool = False
     token_attempts: int = 5
+    token_host_attempts: int = 20
     replan_on_save: bool = True
 
     def __post_init__(self) -> None:
@@ -65,6 +68,9 @@ class ViewOptions:
         if not 1 <= self.token_attempts <= 100:
             raise InputError(f"token_attempts must be in [1, 100], got {self.token_attempts}",
                              key="token_attempts")
+        if not self.token_attempts <= self.token_host_attempts <= 1000:
+            raise InputError(f"token_host_attempts must be in [token_attempts, 1000], got "
+                             f"{self.token_host_attempts}", key="token_host_attempts")
         if self.backend not in ("auto", "process", "runtime"):
             raise InputError(f"backend must be 'auto', 'process' or 'runtime', got "
                              f"{self.backend!r}", key="backend")

@@ -20,12 +20,16 @@ import viser
 
 from ..robot import Robot
 
-__all__ = ["NO_ROUTE", "NO_POSE", "Panel", "EditPanel", "build_panel", "build_edit_panel",
-           "clearance_plot_data", "speed_plot_data"]
+__all__ = ["NO_ROUTE", "NO_POSE", "JOINT_DECIMALS", "Panel", "EditPanel", "build_panel",
+           "build_edit_panel", "clearance_plot_data", "speed_plot_data"]
 
 #: Dropdown entries meaning "nothing selected".
 NO_ROUTE = "(no plan yet)"
 NO_POSE = "(review routes)"
+#: Decimals a joint box shows and takes [rad]: 0.1 urad, finer than any encoder.
+JOINT_DECIMALS = 7
+#: Step of a joint box's arrow keys [rad].
+JOINT_STEP = 0.001
 
 _JOINT_COLORS = ("#e63946", "#f4a261", "#2a9d8f", "#264653", "#8338ec", "#3a86ff",
                  "#ff006e", "#8ac926")
@@ -74,12 +78,17 @@ class EditPanel:
     replan: Any
     insist: Any
     save: Any
+    to_save: Any
+    confirm: Any
     reload: Any
 
-    def enable(self, *, may_edit: bool, editing: bool, conflict: bool) -> None:
-        """Enable what the page may use now."""
+    def enable(self, *, may_edit: bool, editing: bool, conflict: bool,
+               pending: bool = False) -> None:
+        """Enable what the page may use now (``pending``: a save waits for its
+        confirmation)."""
         for handle in (*self.joints, self.reset):
             handle.disabled = not (may_edit and editing)
+        self.confirm.visible = may_edit and pending
         for handle in (self.take_saved, self.keep_mine):
             handle.disabled = not (may_edit and conflict)
         for handle in (self.replan, self.save, self.reload, self.insist):
@@ -157,11 +166,7 @@ def build_edit_panel(gui: Any, robot: Robot, poses: list[str], *, token: bool
         unlock = gui.add_button("Unlock editing") if token else None
         pose = gui.add_dropdown("Pose", [NO_POSE, *poses], initial_value=NO_POSE)
         pose_state = gui.add_markdown("Pick a pose to edit it.")
-        joints = [gui.add_slider(f"{name} [rad]", min=float(robot.lower[j]),
-                                 max=float(robot.upper[j]), step=0.001,
-                                 initial_value=float(np.clip(0.0, robot.lower[j],
-                                                             robot.upper[j])),
-                                 disabled=True)
+        joints = [_joint_box(gui, name, float(robot.lower[j]), float(robot.upper[j]))
                   for j, name in enumerate(robot.joint_names)]
         gizmo_enabled = gui.add_checkbox("TCP gizmo", True,
                                          hint="Drag the TCP; the joints follow by IK")
@@ -172,8 +177,21 @@ def build_edit_panel(gui: Any, robot: Robot, poses: list[str], *, token: bool
                                    hint="Conflict: save your edit over the saved version")
         replan = gui.add_button("Re-plan affected routes")
         insist = gui.add_checkbox("I insist (save even in collision)", False)
-        save = gui.add_button("Save poses")
+        save = gui.add_button("Save poses", hint="Shows what would be saved; then confirm")
+        to_save = gui.add_markdown("")
+        confirm = gui.add_button("Confirm save", color="red", visible=False,
+                                 hint="Write the values shown above to the poses file")
         reload = gui.add_button("Reload poses.yaml",
                                 hint="Read the file again; your edits of other poses stay")
     return EditPanel(access_note, token_field, unlock, pose, pose_state, joints, gizmo_enabled,
-                     reset, take_saved, keep_mine, replan, insist, save, reload)
+                     reset, take_saved, keep_mine, replan, insist, save, to_save, confirm,
+                     reload)
+
+
+def _joint_box(gui: Any, name: str, lower: float, upper: float) -> Any:
+    """A joint's number box: no bounds (never clamped in the page), 7 decimals."""
+    box = gui.add_number(f"{name} [rad]", 0.0, step=JOINT_STEP, disabled=True,
+                         hint=f"limits [{lower:.3f}, {upper:.3f}] rad: a value outside them "
+                              "is shown and refused, never clamped")
+    box.precision = JOINT_DECIMALS  # viser derives 3 decimals from the step
+    return box

@@ -95,7 +95,9 @@ class ReviewSession:
             opts.token is not None or not is_loopback(opts.host))
         #: The token that unlocks editing (None: editing is open to every page).
         self.token = (opts.token or new_token()) if needs_token else None
-        self.access = Access(self.token, attempts=opts.token_attempts)
+        self.access = Access(self.token, given=opts.token is not None,
+                             attempts=opts.token_attempts,
+                             host_attempts=opts.token_host_attempts)
         self._lock = threading.RLock()
         self._stop = threading.Event()
         self._thread: threading.Thread | None = None

@@ -222,6 +222,14 @@ def page_text(browser: Browser) -> str:
     return str(browser.js("document.body.innerText") or "")
 
 
+def save_and_confirm(browser: Browser) -> None:
+    """Press Save poses, then Confirm save once the page shows what would be saved."""
+    assert browser.click_button("Save poses")
+    wait_for(lambda: button_disabled(browser, "Confirm save") is False, 15.0,
+             f"no confirmation after Save poses: {page_text(browser)[-400:]}")
+    assert browser.click_button("Confirm save")
+
+
 def log_lines(cell: Path) -> list[dict[str, Any]]:
     """The save log's entries."""
     path = cell / "poses.log"
@@ -293,14 +301,14 @@ def test_two_pages_need_the_token_and_lose_no_edit(tmp_path: Path, cell_copy: Pa
             qa = pa.set_joint(0, float(q0[0]) + 0.05).q
             pb.edit_pose("safe")
             qb = pb.set_joint(5, float(pb.edits.q("safe")[5]) + 0.05).q
-        assert a.click_button("Save poses")
+        save_and_confirm(a)
         wait_for(lambda: len(log_lines(cell_copy)) == 1, 15.0, "page a's save did not land")
         # Page b sees the new poses: its base moved on, and the page says who saved.
         wait_for(lambda: np.array_equal(pb.edits.base.poses["high1"], qa), 10.0,
                  "page b's poses did not move on")
         wait_for(lambda: f"saved by {pa.address}" in page_text(b), 10.0,
                  "page b was not told about page a's save")
-        assert b.click_button("Save poses")
+        save_and_confirm(b)
         wait_for(lambda: len(log_lines(cell_copy)) == 2, 15.0, "page b's save did not land")
         saved = load_poses(poses_file, session.cell.robot)
         assert np.array_equal(saved["high1"], qa) and np.array_equal(saved["safe"], qb)
@@ -318,7 +326,7 @@ def test_two_pages_need_the_token_and_lose_no_edit(tmp_path: Path, cell_copy: Pa
             qa_low = pa.set_joint(0, float(q_low[0]) + 0.02).q
             pb.edit_pose("low1")
             qb_low = pb.set_joint(0, float(q_low[0]) - 0.02).q
-        assert a.click_button("Save poses")
+        save_and_confirm(a)
         wait_for(lambda: len(log_lines(cell_copy)) == 3, 15.0, "page a's save did not land")
         wait_for(lambda: "low1" in pb.edits.conflicts, 10.0, "no conflict on page b")
         wait_for(lambda: "conflict" in page_text(b), 10.0, "page b shows no conflict")
@@ -332,7 +340,7 @@ def test_two_pages_need_the_token_and_lose_no_edit(tmp_path: Path, cell_copy: Pa
                  "no way to keep the edit")
         assert b.click_button("Keep my edit")
         wait_for(lambda: "low1" not in pb.edits.conflicts, 10.0, "keep mine did nothing")
-        assert b.click_button("Save poses")
+        save_and_confirm(b)
         wait_for(lambda: len(log_lines(cell_copy)) == 4, 15.0, "the kept edit was not saved")
         assert np.array_equal(load_poses(poses_file, session.cell.robot)["low1"], qb_low)
         # Every page shows the saved poses: the shared pose frame moved to it.
@@ -420,5 +428,113 @@ def test_the_fingers_whole_travel_hulls_are_drawn(browser: Browser) -> None:
             "out.push(o.geometry.attributes.position.count); }); return out; })()")
         for hull in hulls.values():
             assert hull.num_points in counts
+    finally:
+        session.stop()
+
+
+def click(browser: Browser, label: str) -> None:
+    """Click the button ``label`` with the mouse, as a user does: the focus moves to it
+    first (a box being typed in loses it), then the click."""
+    xy = browser.js(
+        "(() => { const b = [...document.querySelectorAll('button')]"
+        f".find(b => b.textContent.trim() === {json.dumps(label)});"
+        " if (!b) return null; b.scrollIntoView({block: 'center'});"
+        " const r = b.getBoundingClientRect(); return [r.x + r.width / 2, r.y + r.height / 2];"
+        " })()")
+    assert xy is not None, f"no button {label!r} in the page"
+    for kind in ("mouseMoved", "mousePressed", "mouseReleased"):
+        browser.call("Input.dispatchMouseEvent", type=kind, x=xy[0], y=xy[1], button="left",
+                     clickCount=1)
+
+
+# viser labels an input with <label for=uuid> (its text broken by <wbr> tags).
+_BOX = ("(text => { const l = [...document.querySelectorAll('label')]"
+        ".find(l => l.textContent.trim() === text);"
+        " return l ? document.getElementById(l.htmlFor) : null; })")
+
+
+def box(browser: Browser, label: str) -> dict[str, Any] | None:
+    """The number box labelled ``label``: its text and whether it is disabled."""
+    return browser.js(  # type: ignore[no-any-return]
+        f"(() => {{ const e = {_BOX}({json.dumps(label)});"
+        " return e ? {value: e.value, disabled: e.disabled} : null; })()")
+
+
+def type_in_box(browser: Browser, label: str, text: str) -> None:
+    """Type ``text`` over the content of the number box ``label`` (keyboard input)."""
+    assert browser.js(
+        f"(() => {{ const e = {_BOX}({json.dumps(label)}); if (!e) return false;"
+        " e.scrollIntoView({block: 'center'}); e.focus(); e.select(); return true; })()")
+    browser.call("Input.insertText", text=text)
+
+
+def test_joint_boxes_refuse_out_of_limit_values_keep_precision_and_follow_rights(
+        browser: Browser, cell_copy: Path) -> None:
+    """Issue 30, in the page: a read-only page's joint boxes are disabled and its prompt
+    says where the token comes from; a value typed outside the limits is neither clamped
+    nor saved (the refusal starts "not saved:"), even when the click that takes the
+    focus is "Save poses"; a typed 1.4318 is saved as 1.4318, after the page showed it."""
+    token = "review-token-42"
+    session = ReviewSession(cell_copy, options=ViewOptions(
+        port=0, token=token, plan_on_start=False, replan_on_save=False)).start()
+    poses_file = cell_copy / "poses.yaml"
+    original = poses_file.read_bytes()
+    try:
+        browser.call("Page.navigate", url=session.url)
+        wait_for(lambda: len(session.clients) == 1, 30.0, "the page never connected")
+        wait_for(lambda: button_disabled(browser, "Save poses") is not None, 30.0,
+                 "the page never showed its edit folder")
+        (page,) = session.clients.values()
+        with session._lock:
+            page.edit_pose("low1")
+        q0 = page.edits.q("low1")
+        wait_for(lambda: (box(browser, "joint_1 [rad]") or {}).get("value") == "1.4017786",
+                 10.0, "the joint boxes do not show low1 at 7 decimals")
+
+        # Read-only: every joint box is disabled, and the prompt says where the token
+        # comes from (it was given, not printed on the console).
+        assert all(box(browser, f"joint_{j} [rad]")["disabled"] for j in range(1, 7))
+        text = page_text(browser)
+        assert "the token this session was started with" in text
+        assert "printed on the server console" not in text
+        assert type_into(browser, "Unlock editing", token)
+        wait_for(lambda: page.widgets.token.value == token, 10.0, "typing failed")
+        click(browser, "Unlock editing")
+        wait_for(lambda: not box(browser, "joint_2 [rad]")["disabled"], 10.0,
+                 "the joint boxes stayed disabled after the unlock")
+
+        # Outside the limits: shown as typed, refused at Save, never clamped to 0.44.
+        type_in_box(browser, "joint_2 [rad]", "5")
+        wait_for(lambda: page.edits.q("low1")[1] == 5.0, 10.0, "the typed 5 did not arrive")
+        wait_for(lambda: "outside limits" in page_text(browser), 10.0,
+                 "the page does not say the pose is outside the limits")
+        click(browser, "Save poses")  # takes the focus from the box
+        wait_for(lambda: any(m.startswith("not saved: pose low1") for m in page.messages),
+                 10.0, f"the save was not refused: {page.messages}")
+        refusal = next(m for m in page.messages if m.startswith("not saved: pose low1"))
+        assert "joint_2 = 5.00000 rad is outside its limits" in refusal
+        wait_for(lambda: "not saved: pose low1" in page_text(browser), 10.0,
+                 "the page does not show the refusal")
+        time.sleep(0.5)  # a clamp on blur would have arrived by now
+        assert page.edits.q("low1")[1] == 5.0 and box(browser, "joint_2 [rad]")["value"] == "5"
+        assert poses_file.read_bytes() == original and log_lines(cell_copy) == []
+        assert button_disabled(browser, "Confirm save") is None  # nothing to confirm
+
+        # Full precision: 1.4318 typed is shown before saving, then saved, as typed.
+        click(browser, "Reset pose")
+        wait_for(lambda: np.array_equal(page.edits.q("low1"), q0), 10.0, "reset failed")
+        type_in_box(browser, "joint_1 [rad]", "1.4318")
+        wait_for(lambda: page.edits.q("low1")[0] == 1.4318, 10.0,
+                 f"typed 1.4318, the server has {page.edits.q('low1')[0]!r}")
+        click(browser, "Save poses")
+        wait_for(lambda: "joint_1 = 1.4318 (was 1.401779)" in page_text(browser), 10.0,
+                 "the page does not show what would be saved")
+        assert poses_file.read_bytes() == original  # not before the confirmation
+        click(browser, "Confirm save")
+        wait_for(lambda: len(log_lines(cell_copy)) == 1, 15.0, "the confirmed save did not land")
+        (entry,) = log_lines(cell_copy)
+        assert entry["changes"]["low1"]["to"][0] == 1.4318 and entry["check"]["low1"]["valid"]
+        from safepath import load_poses
+        assert load_poses(poses_file, session.cell.robot)["low1"][0] == 1.4318
     finally:
         session.stop()

@@ -13,11 +13,12 @@ import sys
 import time
 from collections.abc import Callable, Iterator
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pytest
 
-from safepath import InputError, load_poses
+from safepath import InputError, SafepathError, load_poses
 from safepath.poses import dump_poses
 from safepath.view import ReviewSession, ViewOptions
 from safepath.view.access import Access, AccessDenied
@@ -64,14 +65,21 @@ def test_the_token_is_needed_beyond_loopback_or_when_given(cell_dir: Path) -> No
 
 def test_wrong_tokens_are_refused_and_rate_limited() -> None:
     now = [0.0]
-    access = Access("right-token", attempts=3, window=60.0, clock=lambda: now[0])
+    access = Access("right-token", attempts=3, host_attempts=5, window=60.0,
+                    clock=lambda: now[0])
     for left in (2, 1, 0):
         with pytest.raises(AccessDenied, match=f"wrong token \\({left} more"):
             access.unlock(1, "guess", host="10.0.0.5", address="10.0.0.5:4000")
-    # The right token from the same host is not even checked until the window passed.
-    with pytest.raises(AccessDenied, match="too many wrong tokens from 10.0.0.5") as info:
-        access.unlock(1, "right-token", host="10.0.0.5", address="10.0.0.5:4001")
+    # The right token from that page is not even checked until the window passed.
+    with pytest.raises(AccessDenied, match="too many wrong tokens from this page") as info:
+        access.unlock(1, "right-token", host="10.0.0.5", address="10.0.0.5:4000")
     assert info.value.retry_after == pytest.approx(60.0) and not access.may_edit(1)
+    # Another page of the same host still may try; the host's ceiling counts them all.
+    for left in (1, 0):
+        with pytest.raises(AccessDenied, match=f"wrong token \\({left} more"):
+            access.unlock(3, "guess", host="10.0.0.5", address="10.0.0.5:4001")
+    with pytest.raises(AccessDenied, match="too many wrong tokens from 10.0.0.5 \\(all its"):
+        access.unlock(4, "right-token", host="10.0.0.5", address="10.0.0.5:4002")
     # Another host is not affected; the page it unlocks is the only one unlocked.
     access.unlock(2, "right-token", host="10.0.0.6", address="10.0.0.6:4000")
     assert access.may_edit(2) and not access.may_edit(1)
@@ -82,6 +90,108 @@ def test_wrong_tokens_are_refused_and_rate_limited() -> None:
     assert access.may_edit(1)
     access.forget(1)
     assert not access.may_edit(1)
+
+
+@pytest.fixture()
+def raw_pages() -> Iterator[Callable[[ReviewSession], Any]]:
+    """Open pages on a session as viser's client does (a websocket, then its first camera
+    message), without a browser; each is the session's ClientEditor for it."""
+    import msgspec
+    import viser
+    from websockets.sync.client import connect
+
+    sockets = []
+
+    def new_page(session: ReviewSession) -> Any:
+        known = set(session.clients)
+        sock = connect(f"ws://127.0.0.1:{session.port}", max_size=None,
+                       subprotocols=[f"viser-v{viser.__version__}"],  # type: ignore[list-item]
+                       open_timeout=10)
+        sockets.append(sock)
+        sock.send(msgspec.msgpack.encode({
+            "type": "ViewerCameraMessage", "wxyz": [1.0, 0.0, 0.0, 0.0],
+            "position": [1.0, 1.0, 1.0], "fov": 1.0, "near": 0.01, "far": 100.0,
+            "image_height": 600, "image_width": 800, "look_at": [0.0, 0.0, 0.0],
+            "up_direction": [0.0, 0.0, 1.0]}))
+        wait_for(lambda: set(session.clients) - known, 10.0, "the page never connected")
+        (new,) = set(session.clients) - known
+        return session.clients[new]
+
+    yield new_page
+    for sock in sockets:
+        sock.close()
+
+
+def test_a_page_guessing_tokens_locks_out_itself_not_its_host(
+        cell_copy: Path, raw_pages: Callable[[ReviewSession], Any]) -> None:
+    """Pages from one host: the one that guesses is locked out, the others still
+    unlock; past the host's ceiling, a new page of that host is refused too."""
+    token = "review-token-42"
+    session = ReviewSession(cell_copy, options=ViewOptions(
+        port=0, token=token, token_attempts=3, token_host_attempts=5, plan_on_start=False,
+        replan_on_save=False)).start()
+    try:
+        guesser, other = raw_pages(session), raw_pages(session)
+        assert guesser.host == other.host == "127.0.0.1"
+        assert "the token this session was started with" in guesser.widgets.access_note.content
+        for _ in range(3):
+            with pytest.raises(AccessDenied, match="wrong token"), session._lock:
+                guesser.unlock("not-the-token")
+        with pytest.raises(AccessDenied, match="from this page"), session._lock:
+            guesser.unlock(token)
+        with session._lock:
+            other.unlock(token)  # the host is not locked out by one page
+        assert other.may_edit and not guesser.may_edit
+        third = raw_pages(session)
+        for _ in range(2):  # the host's 4th and 5th wrong tokens
+            with pytest.raises(AccessDenied, match="wrong token"), session._lock:
+                third.unlock("not-the-token")
+        fourth = raw_pages(session)  # a reload is a new page: the host's ceiling holds
+        with pytest.raises(AccessDenied, match="from 127.0.0.1 \\(all its pages\\)"), \
+                session._lock:
+            fourth.unlock(token)
+        assert not fourth.may_edit
+    finally:
+        session.stop()
+
+
+def test_a_page_saves_only_what_it_showed(cell_copy: Path,
+                                          raw_pages: Callable[[ReviewSession], Any]) -> None:
+    """Save poses shows every value that would change; Confirm save writes exactly
+    those, and is refused once anything changed after they were shown."""
+    session = ReviewSession(cell_copy, options=ViewOptions(
+        port=0, plan_on_start=False, replan_on_save=False)).start()
+    try:
+        page, other = raw_pages(session), raw_pages(session)
+        with session._lock:
+            page.edit_pose("low1")
+            page.set_joint(0, 1.4318)
+            shown = page.save()
+        assert "**low1**: joint_1 = 1.4318 (was 1.401779) rad" in shown.summary
+        assert page.widgets.to_save.content == shown.summary and page.widgets.confirm.visible
+        assert not (cell_copy / "poses.log").exists()  # nothing written yet
+        with session._lock:  # an edit arriving after the values were shown
+            page.set_joint(0, 1.4319)
+        assert page.pending is None and not page.widgets.confirm.visible
+        with pytest.raises(SafepathError, match="not saved: press Save poses first"), \
+                session._lock:
+            page.confirm_save()
+        with session._lock:
+            page.save()
+            other.edit_pose("safe")
+            q = other.set_joint(5, float(other.edits.q("safe")[5]) + 0.01).q
+            other.save()
+            other.confirm_save()  # another page's save moves the base on
+        assert page.pending is None
+        with pytest.raises(SafepathError, match="press Save poses first"), session._lock:
+            page.confirm_save()
+        with session._lock:
+            page.save()
+            page.confirm_save()
+        saved = load_poses(cell_copy / "poses.yaml", session.cell.robot)
+        assert saved["low1"][0] == 1.4319 and np.array_equal(saved["safe"], q)
+    finally:
+        session.stop()
 
 
 def test_an_external_edit_is_not_overwritten(session: ReviewSession, cell_copy: Path) -> None:
