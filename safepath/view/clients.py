@@ -365,7 +365,7 @@ class ClientEditor:
                     try:
                         fn(event)
                     except SafepathError:
-                        self.refresh()  # put a refused slider or gizmo back
+                        self.refresh()  # put a refused joint box or gizmo back
                         raise
             callback = guard(locked, lambda text: self.say(text, error=True))
             (handle.on_click if button else handle.on_update)(callback)
@@ -374,8 +374,8 @@ class ClientEditor:
             on(w.unlock, lambda e: self.unlock(str(w.token.value)), button=True)
         on(w.pose, lambda e: self.review() if e.target.value == NO_POSE
            else self.edit_pose(e.target.value))
-        for j, slider in enumerate(w.joints):
-            on(slider, functools.partial(
+        for j, joint_box in enumerate(w.joints):
+            on(joint_box, functools.partial(
                 lambda j, e: self.set_joint(j, float(e.target.value)), j))
         on(w.gizmo_enabled, lambda e: self.update_access())
         on(w.reset, lambda e: self.reset_pose(), button=True)

@@ -1,5 +1,5 @@
 """One editor of taught poses in the review session: pick a pose, move it with joint
-sliders or the TCP gizmo (inverse kinematics), see its live check, save it.
+boxes or the TCP gizmo (inverse kinematics), see its live check, save it.
 
 A :class:`PoseEditor` holds its own :class:`~safepath.view.edits.PoseEdits` and draws
 the pose being edited on a :class:`~safepath.view.stage.Stage`, moves a TCP gizmo and
@@ -147,8 +147,8 @@ class PoseEditor:
             enabled = self.widgets is None or bool(self.widgets.gizmo_enabled.value)
             self.gizmo.visible = enabled
         if self.widgets is not None:
-            for slider, v in zip(self.widgets.joints, status.q, strict=True):
-                slider.value = float(v)
+            for joint_box, v in zip(self.widgets.joints, status.q, strict=True):
+                joint_box.value = float(v)
             mark = "" if status.pose not in self.edits.edits else " (edited, not saved)"
             self.widgets.pose_state.content = (f"**{status.pose}**{mark}\n\n"
                                                f"{status.summary()}")

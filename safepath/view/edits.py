@@ -1,7 +1,7 @@
 """Edits of taught poses: live checks, inverse kinematics for TCP drags, saving.
 
 No GUI and no file here: a :class:`~safepath.view.editor.PoseEditor` drives
-:class:`PoseEdits` from its sliders and its TCP gizmo and shows the :class:`PoseStatus`
+:class:`PoseEdits` from its joint boxes and its TCP gizmo and shows the :class:`PoseStatus`
 it returns; the session writes what :meth:`PoseEdits.to_save` gives through a
 :class:`~safepath.view.store.PosesStore`. A pose is checked as
 ``safepath check`` does: with the gripper empty and, where the scene's grasp allows
