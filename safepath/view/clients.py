@@ -88,11 +88,11 @@ class PendingSave:
     insist: bool
     summary: str
 
-    def matches(self, base: str, poses: dict[str, np.ndarray], insist: bool) -> bool:
-        """Whether a save of ``poses`` now would write exactly what was shown."""
-        return (base == self.base and insist == self.insist and poses.keys() ==
-                self.poses.keys() and all(np.array_equal(poses[k], self.poses[k])
-                                          for k in poses))
+    def matches(self, base: str, poses: dict[str, np.ndarray]) -> bool:
+        """Whether a save of ``poses`` over version ``base`` writes exactly what was
+        shown."""
+        return (base == self.base and poses.keys() == self.poses.keys()
+                and all(np.array_equal(poses[k], self.poses[k]) for k in poses))
 
 
 def describe_save(saved: dict[str, np.ndarray], poses: dict[str, np.ndarray],
@@ -264,7 +264,7 @@ class ClientEditor:
             raise SafepathError("not saved: press Save poses first, to see what would be "
                                 "saved")
         poses, _ = self.edits.to_save(insist=pending.insist)
-        if not pending.matches(self.edits.base.digest, poses, pending.insist):
+        if not pending.matches(self.edits.base.digest, poses):
             raise SafepathError("not saved: the poses changed after Save poses showed them "
                                 "(a late edit, or another save); check them and press Save "
                                 "poses again")

@@ -185,7 +185,16 @@ def test_a_page_saves_only_what_it_showed(cell_copy: Path,
         assert page.pending is None
         with pytest.raises(SafepathError, match="press Save poses first"), session._lock:
             page.confirm_save()
+        with session._lock:  # the edit buffer changed by a path that shows nothing
+            page.save()
+            q_low = page.edits.q("low1")
+            q_low[1] += 0.01
+            page.edits.set("low1", q_low)
+        with pytest.raises(SafepathError, match="changed after Save poses showed them"), \
+                session._lock:
+            page.confirm_save()
         with session._lock:
+            page.edits.set("low1", q_low - np.array([0, 0.01, 0, 0, 0, 0]))
             page.save()
             page.confirm_save()
         saved = load_poses(cell_copy / "poses.yaml", session.cell.robot)
