@@ -31,13 +31,20 @@ demo: $(STAMP) kernels
 	$(BIN)/safepath check scenes/quality_check_cell
 	$(BIN)/safepath plan scenes/quality_check_cell --out out/quality_check_cell
 
-lint: $(STAMP)
-	$(BIN)/ruff check safepath tests benchmarks examples
-	$(BIN)/mypy safepath
+RUFF := $(BIN)/ruff check safepath tests benchmarks examples
+MYPY := $(BIN)/mypy safepath
 
-## Lint, type-check and run the whole test suite.
-test: $(STAMP) kernels browser lint
-	$(BIN)/pytest -q
+lint: $(STAMP)
+	$(RUFF)
+	$(MYPY)
+
+## Lint, type-check and run the project's tests, then print the wall time they took.
+## (The peers' smoke test, which installs their venvs, runs only in `make bench-peers`.)
+test: $(STAMP) kernels browser
+	@start=$$(date +%s); status=0; \
+	{ $(RUFF) && $(MYPY) && $(BIN)/pytest -q; } || status=$$?; \
+	echo "make test: lint, type check and tests took $$(( $$(date +%s) - start )) s wall"; \
+	exit $$status
 
 ## Speed figures (each script prints its own).
 bench: $(STAMP) kernels
@@ -47,8 +54,10 @@ bench: $(STAMP) kernels
 	$(BIN)/python benchmarks/runtime_recovery.py
 	$(BIN)/python benchmarks/cold_start.py
 
-## Side-by-side run against mplib, pyroboplan, roboplan (creates their own venvs).
+## Side-by-side run against mplib, pyroboplan, roboplan (creates their own venvs, ~2 GB
+## under benchmarks/results/envs), after its smoke test.
 bench-peers: $(STAMP)
+	SAFEPATH_PEERS_SMOKE=1 $(BIN)/pytest -q tests/test_peers_smoke.py
 	$(BIN)/python benchmarks/peers/run.py
 
 view: $(STAMP)

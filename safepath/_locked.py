@@ -140,9 +140,21 @@ def lock_joints(model: pin.Model, geoms: Sequence[pin.GeometryModel], arm_joints
     geoms = list(geoms)
     if travel:
         _cover_travel(model, geoms[0], q, travel, mimics)
-    reduced, reduced_geoms = pin.buildReducedModel(
-        model, geoms, [model.getJointId(n) for n in locked_names], q)
-    return reduced, list(reduced_geoms), tuple(locked)
+    reduced, reduced_geoms = _reduce(model, geoms, locked_names, q, path=path, key=key)
+    return reduced, reduced_geoms, tuple(locked)
+
+
+def _reduce(model: pin.Model, geoms: Sequence[pin.GeometryModel], locked: Sequence[str],
+            q: np.ndarray, *, path: Path | None, key: str
+            ) -> tuple[pin.Model, list[pin.GeometryModel]]:
+    """Pinocchio's reduced model with ``locked`` held at ``q``; its errors re-raised."""
+    try:
+        reduced, reduced_geoms = pin.buildReducedModel(
+            model, list(geoms), [model.getJointId(n) for n in locked], q)
+    except (ValueError, RuntimeError) as exc:  # Pinocchio's, e.g. a link named as a joint
+        raise ConfigError(f"Pinocchio cannot lock joints {list(locked)} "
+                          f"({str(exc).splitlines()[0]})", path=path, key=key) from None
+    return reduced, list(reduced_geoms)
 
 
 def _cover_travel(model: pin.Model, geom: pin.GeometryModel, q: np.ndarray,

@@ -25,6 +25,7 @@ from .robot_loader import load_robot
 from .routes import Route, check_routes, load_routes
 from .scene import Scene
 from .scene_loader import load_scene
+from .tool import check_tool
 
 __all__ = ["Cell", "PoseCheck", "load_cell", "check_poses"]
 
@@ -34,9 +35,11 @@ class Cell:
     """A robot in its scene, with its taught poses and routes.
 
     Everything is checked when the cell is made, whether in Python or by
-    :func:`load_cell`: every pose against the robot (joint count, finite, inside the
-    limits), the scene's grasp and allowed contacts against the poses and the tool, the
-    routes against the poses and objects.
+    :func:`load_cell`: the robot is the one the scene includes, every pose against the
+    robot (joint count, finite, inside the limits), the scene's grasp and allowed contacts
+    against the poses and the tool, the routes against the poses and objects. A scene
+    with its own tool (:attr:`Scene.tool`) gives it to the cell's robot:
+    :attr:`robot` is then a copy of the robot given, holding that tool.
 
     Attributes:
         robot: The robot the scene includes.
@@ -49,8 +52,9 @@ class Cell:
     Raises:
         PoseError: A pose with a bad name, the wrong joint count, a non-finite value or a
             value outside the joint limits.
-        ConfigError: A grasp or contact at an unknown pose, an object the tool cannot
-            hold, a route naming an unknown pose or object.
+        ConfigError: A robot that is not the scene's, a grasp or contact at an unknown
+            pose, a grasp without a tool, an object the tool cannot hold, a route naming
+            an unknown pose or object.
     """
 
     robot: Robot
@@ -75,6 +79,10 @@ class Cell:
                             f"{type(self.poses).__name__}", path=self.poses_path, key="poses")
         self.folder = None if self.folder is None else Path(self.folder)
         self.poses_path = None if self.poses_path is None else Path(self.poses_path)
+        _check_robot_is_the_scenes(self.robot, self.scene)
+        if self.scene.tool is not None and self.scene.tool != self.robot.tool:
+            check_tool(self.scene.tool, self.robot.model, path=self.scene.path)
+            self.robot = self.robot.with_tool(self.scene.tool)
         poses: dict[str, np.ndarray] = {}
         for name, q in self.poses.items():
             if not isinstance(name, str) or not POSE_NAME.match(name):
@@ -134,6 +142,7 @@ class Cell:
         if self.folder is None:
             raise ConfigError("the cell has no routes (give Cell(..., routes=...))",
                               key="routes")
+        self._check_poses_file()
         return load_routes(self.folder, poses=list(self.poses),
                            objects=list(self.scene.objects))
 
@@ -152,9 +161,17 @@ class Cell:
             PoseError: No pose of that name (lists the known ones).
         """
         if name not in self.poses:
+            self._check_poses_file()
             raise PoseError(unknown_name("pose", name, self.poses), path=self.poses_path,
                             key=name)
         return self.poses[name]
+
+    def _check_poses_file(self) -> None:
+        """Refuse to look a pose up in a poses file that does not exist, naming it."""
+        if not self.poses and self.poses_path is not None and not self.poses_path.exists():
+            raise PoseError("file not found: the cell has no taught poses (write them "
+                            "there, see docs/your_own_robot_and_cell.md)",
+                            path=self.poses_path)
 
     def checker(self, *, held: bool = False, at: str | None = None,
                 options: CheckOptions | None = None) -> CollisionChecker:
@@ -217,7 +234,7 @@ def load_cell(folder: str | Path) -> Cell:
         folder = scene.path.parent
     relative = folder / scene.robot
     try:
-        robot = load_robot(relative if relative.is_dir() else scene.robot,
+        robot = load_robot(relative if relative.exists() else scene.robot,
                            locked_joints=scene.locked_joints)
     except ConfigError as exc:
         if exc.path is not None or not (exc.key or "").startswith("locked_joints"):
@@ -274,16 +291,38 @@ def _check_scene_against(robot: Robot, scene: Scene, poses: Mapping[str, np.ndar
                     what="pose")
 
 
+def _check_robot_is_the_scenes(robot: Robot, scene: Scene) -> None:
+    """The robot is the one ``scene.robot`` names: by its name, or by the folder, file or
+    example-robot-data name it was loaded from."""
+    given = Path(scene.robot)
+    asked = {given.name, given.stem} | ({given.parent.name} if given.name == "robot.yaml"
+                                        else set())
+    known = {robot.name}
+    if robot.reference is not None:
+        ref = Path(robot.reference)
+        known |= {ref.name, ref.stem} | ({ref.parent.name} if ref.name == "robot.yaml"
+                                         else set())
+    if not asked & known:
+        raise ConfigError(f"the scene includes robot '{scene.robot}' but the cell's robot is "
+                          f"'{robot.name}' (loaded from {robot.reference or 'Python'})",
+                          path=scene.path, key="robot")
+
+
 def _check_fits(robot: Robot, scene: Scene) -> None:
     if scene.grasp is None:
         return
     obj = scene.objects[scene.grasp.object]
     if robot.tool is None:
-        raise ConfigError(f"robot '{robot.name}' has no tool to hold '{obj.name}'",
-                          path=scene.path, key="grasp")
+        raise ConfigError(
+            f"robot '{robot.name}' has no tool to hold '{obj.name}': give the links that "
+            "touch a held object in scene.yaml or robot.yaml (tool: {contact_links: "
+            "[...]}), or load_robot(..., tool=ToolSpec(contact_links=(...)))",
+            path=scene.path, key="grasp")
+    tool = robot.tool
+    if tool.open_width is None or tool.closed_width is None:
+        return  # the tool gives no widths: nothing to check the object against
     width = 2 * obj.shape.size[0] if obj.shape.kind in ("cylinder", "sphere", "capsule") \
         else min(obj.shape.size[:2])
-    tool = robot.tool
     if not (tool.closed_width < width < tool.open_width):
         raise ConfigError(
             f"'{obj.name}' is {width * 1000:.1f} mm wide; {tool.name} grips objects between "

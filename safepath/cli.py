@@ -10,6 +10,7 @@ import argparse
 import logging
 import sys
 from collections.abc import Callable, Sequence
+from pathlib import Path
 
 from .errors import SafepathError
 
@@ -69,19 +70,30 @@ def cmd_check(args: argparse.Namespace) -> int:
 
 
 def cmd_robot_pairs(args: argparse.Namespace) -> int:
-    """Regenerate a robot folder's allowed self-collision pairs."""
+    """Regenerate a robot folder's allowed self-collision pairs, and name the file in its
+    robot.yaml if it does not yet (or say how, with --no-wire)."""
     from .robot_loader import load_robot
-    from .self_collision import write_allowed_pairs
+    from .self_collision import wire_allowed_pairs, write_allowed_pairs
 
-    robot = load_robot(args.robot)
-    target = robot.allowed_collisions_path
-    if target is None:
-        raise SafepathError(f"'{args.robot}' is not a robot folder; nothing to write")
+    bare = Path(args.robot).suffix.lower() == ".urdf"
+    robot = None if bare else load_robot(args.robot)
+    target = None if robot is None else robot.allowed_collisions_path
+    if robot is None or target is None or robot.source is None \
+            or robot.source.name != "robot.yaml":
+        raise SafepathError(
+            f"'{args.robot}' is not a robot folder (no robot.yaml), so there is no file to "
+            "write the pairs into and none would read it; adjacent links are skipped "
+            "already. Make a robot folder (robot.yaml next to the URDF, see "
+            "docs/your_own_robot_and_cell.md), then run this on it")
     stats = write_allowed_pairs(robot, target, samples=args.samples, seed=args.seed)
     counts: dict[str, int] = {}
     for s in stats:
         counts[s.reason] = counts.get(s.reason, 0) + 1
     print(f"wrote {target}: " + ", ".join(f"{v} {k}" for k, v in sorted(counts.items())))
+    line = f"allowed_collisions: {target.name}"
+    if wire_allowed_pairs(robot.source, target, write=not args.no_wire):
+        print(f"added `{line}` to {robot.source}" if not args.no_wire else
+              f"not read yet: add `{line}` to {robot.source}")
     return 0
 
 
@@ -121,6 +133,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("robot", help="robot folder or name (e.g. robots/ned3pro)")
     p.add_argument("--samples", type=int, default=100_000)
     p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--no-wire", action="store_true",
+                   help="do not add `allowed_collisions:` to robot.yaml (say how instead)")
     p.set_defaults(func=cmd_robot_pairs)
 
     p = sub.add_parser("build-kernels",

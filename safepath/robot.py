@@ -6,7 +6,6 @@ from a robot folder or an ``example-robot-data`` name, or directly from Pinocchi
 
 from __future__ import annotations
 
-import copy
 import threading
 from collections.abc import Callable, Sequence
 from pathlib import Path
@@ -168,7 +167,8 @@ class Robot:
         Raises:
             FrameNotFound: A contact link the robot does not have.
         """
-        other = copy.copy(self)
+        other = Robot.__new__(Robot)  # not copy.copy: a robot pickles as its reference
+        other.__dict__.update(self.__dict__)
         other.tool = None if tool is None else check_tool(tool, self.model, path=self.source)
         return other
 

@@ -2,7 +2,8 @@
 
 ``scene.yaml`` names the robot (it is included, never copied), the objects of the
 cell with their placement in the world frame, the default safety margin, the object
-the gripper may hold, and the contacts that are allowed on purpose (a vial standing
+the gripper may hold (and, optionally, the tool that holds it, for a robot whose own
+description has none), and the contacts that are allowed on purpose (a vial standing
 on its conveyor), each restricted to the taught poses where it happens.
 """
 
@@ -19,6 +20,7 @@ import pinocchio as pin
 
 from ._io import as_float, check_names
 from .errors import ConfigError
+from .tool import ToolSpec
 
 __all__ = ["Shape", "SceneObject", "AllowedContact", "Grasp", "Scene", "placement", "SIZE_KEYS"]
 
@@ -234,6 +236,8 @@ class Scene:
         locked_joints: Positions of the robot's locked joints (fingers) in this cell,
             ``{joint: value [rad or m] or "travel"}``; a joint not named covers its whole
             travel (see :func:`safepath.load_robot`).
+        tool: The tool on the robot's flange in this cell (its contact links hold the
+            grasped object), instead of the robot's own; None: the robot's.
     """
 
     name: str
@@ -244,9 +248,13 @@ class Scene:
     grasp: Grasp | None = None
     path: Path | None = None
     locked_joints: Mapping[str, float | str] = field(default_factory=dict)
+    tool: ToolSpec | None = None
 
     def __post_init__(self) -> None:
         where = {"path": self.path}
+        if self.tool is not None and not isinstance(self.tool, ToolSpec):
+            raise ConfigError(f"expected a safepath.ToolSpec, got {type(self.tool).__name__}",
+                              key="tool", **where)
         for key in ("name", "robot"):
             value = getattr(self, key)
             if not isinstance(value, str) or not value:

@@ -20,11 +20,12 @@ from ._io import (
 )
 from .errors import ConfigError
 from .scene import SIZE_KEYS, AllowedContact, Grasp, Scene, SceneObject, Shape, placement
+from .tool import read_tool
 
 __all__ = ["load_scene"]
 
 _SCENE_KEYS = ("name", "robot", "margin", "objects", "grasp", "allowed_contacts", "note",
-               "locked_joints")
+               "locked_joints", "tool")
 _OBJECT_KEYS = ("shape", "size", "radius", "length", "xyz", "rpy", "margin", "movable",
                 "color", "note")
 _CONTACT_KEYS = ("between", "at", "max_depth", "reason")
@@ -61,9 +62,10 @@ def load_scene(path: str | Path) -> Scene:
     if not isinstance(locked, dict):
         raise ConfigError("expected a mapping {joint: position or 'travel'}", path=path,
                           key="locked_joints")
+    tool = None if data.get("tool") is None else read_tool(data["tool"], path=path)
     return Scene(name=name, robot=robot, objects=objects, margin=margin,
                  allowed_contacts=contacts, grasp=grasp, path=path,
-                 locked_joints={str(k): v for k, v in locked.items()})
+                 locked_joints={str(k): v for k, v in locked.items()}, tool=tool)
 
 
 def _parse_object(name: str, raw: Any, path: Path) -> SceneObject:

@@ -3,15 +3,19 @@ through the same code path as ``python benchmarks/peers/run.py``.
 
 Each peer runs in its own venv under ``benchmarks/results/envs/``: reused when cached,
 created otherwise (on a fresh machine about 1-4 min for the three, most of it
-pyroboplan's drake wheel and its toppra source build; with the envs cached the test
-takes about 30 s). A peer that cannot be installed must be reported as such, with the
-reason; the test fails if a planner is silently missing.
+pyroboplan's drake wheel and its toppra source build, about 2 GB; with the envs cached
+the test takes about 30 s). A peer that cannot be installed must be reported as such, with
+the reason; the test fails if a planner is silently missing.
+
+Opt-in: it runs only with ``SAFEPATH_PEERS_SMOKE=1`` (set by ``make bench-peers``), so that
+``make test`` runs the project's own tests and installs nothing.
 """
 
 from __future__ import annotations
 
 import importlib.util
 import json
+import os
 import sys
 from pathlib import Path
 from types import ModuleType
@@ -20,6 +24,12 @@ import pytest
 
 REPO = Path(__file__).resolve().parents[1]
 PEERS_DIR = REPO / "benchmarks" / "peers"
+#: The variable that runs this module (``make bench-peers`` sets it).
+OPT_IN = "SAFEPATH_PEERS_SMOKE"
+
+pytestmark = pytest.mark.skipif(
+    os.environ.get(OPT_IN) != "1",
+    reason=f"installs the peers' venvs (~2 GB): set {OPT_IN}=1 or run `make bench-peers`")
 
 
 def _load_run() -> ModuleType:
