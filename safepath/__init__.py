@@ -21,6 +21,7 @@ from .errors import (
     PlanningError,
     PoseError,
     RobotNotFound,
+    RobotNotSupported,
     RosError,
     SafepathError,
     TimingError,
@@ -42,10 +43,11 @@ from .planning import (
     plan_route,
 )
 from .poses import dump_poses, load_poses, save_poses
-from .robot import Robot, ToolSpec
+from .robot import Robot
 from .robot_loader import load_robot, robot_names
 from .scene import AllowedContact, Grasp, Scene, SceneObject, Shape, placement
 from .scene_loader import load_scene
+from .tool import ToolSpec
 from .trajectory import GripperEvent, Trajectory, load_trajectory
 from .trajectory_controller import TrajectoryController
 
@@ -80,6 +82,7 @@ __all__ = [
     "PoseError",
     "Robot",
     "RobotNotFound",
+    "RobotNotSupported",
     "RosError",
     "SafepathError",
     "Scene",
