@@ -24,6 +24,8 @@ def test_every_python_block_of_the_page_runs() -> None:
         "assert set(trajectories) == {'over_the_wall', 'back'}\n"
         "assert goal.goal_tolerance == [] or len(goal.goal_tolerance) == 0\n"
         "assert bag.is_dir() and set(panda_plans) == {'left_to_right'}\n"
+        "assert arm.dof == 4 and arm_motion.duration > 0\n"
+        "assert held_cell.robot.tool == franka_hand and carried.duration > 0\n"
         "print('page ok')\n")
     env = {**os.environ, "PYTHONPATH": str(ROOT) + os.pathsep + os.environ.get("PYTHONPATH", "")}
     result = subprocess.run([sys.executable, "-c", script], cwd=ROOT, env=env,
