@@ -2,12 +2,15 @@
 
 What a URDF says is taken from it: the joints (gripper joints locked, see
 :mod:`safepath._joint_roles`), the position and velocity limits, the collision shapes, the
-links that touch at their joints (never self-checked). What it cannot say must be given as
+links that touch at their joints (never self-checked); mesh shapes are replaced by their
+convex hulls (which enclose them), as for example-robot-data's robots, and ``package://``
+meshes are looked for in the folders above the URDF. What it cannot say must be given as
 arguments, or the load is refused with a :class:`ConfigError` naming the key and how to
 give it: acceleration limits always (``acceleration_limits=``), velocity limits when the
 URDF's are zero (``velocity_limits=``). The TCP is the chain's last link unless
-``tcp_frame=`` names another frame. For more (a tool, a controller, sampled self-collision
-pairs) write a robot folder: ``robot.yaml`` next to the URDF.
+``tcp_frame=`` names another frame; a tool is given with ``tool=``. For more (a
+controller, sampled self-collision pairs) write a robot folder: ``robot.yaml`` next to the
+URDF.
 """
 
 from __future__ import annotations

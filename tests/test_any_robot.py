@@ -368,3 +368,16 @@ def test_a_cell_refuses_another_robot_than_its_scenes() -> None:
 def test_a_robot_name_in_another_case_gets_the_right_one() -> None:
     with pytest.raises(RobotNotFound, match="did you mean 'ur5'"):
         load_robot("UR5")
+
+
+def test_a_bare_urdf_robot_with_a_tool_travels_to_a_worker() -> None:
+    import pickle
+
+    tool = ToolSpec(contact_links=("finger", "link4"))
+    robot = load_robot(ARM_URDF, acceleration_limits=ARM_ACC, velocity_limits=[1, 1, 1, 1],
+                       tool=tool)
+    again = pickle.loads(pickle.dumps(robot))  # loaded again from its URDF
+    assert again.joint_names == robot.joint_names and again.tool == tool
+    np.testing.assert_allclose(again.acceleration_limits, ARM_ACC)
+    np.testing.assert_allclose(again.velocity_limits, 1.0)
+    assert again.model is not robot.model
