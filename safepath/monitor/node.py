@@ -199,6 +199,7 @@ class MonitorNodeCore:
         self._next = 0
         self._held: str | None = None
         self._started = False
+        self._held_back = False  # a part completed while the kill was latched
 
     def configure(self, *, planner: Any = None) -> None:
         """Load the cell, build the monitor, plan the route (with ``planner``, a
@@ -277,12 +278,21 @@ class MonitorNodeCore:
         """Timer: silence must stop the robot even without callbacks."""
         if self.state != "active" or self.monitor is None:
             return []
-        return self._commands(self.monitor.tick(now))
+        out = self._commands(self.monitor.tick(now))
+        if self._held_back and not self.monitor.last.latched:
+            self._held_back = False
+            out += self._advance(now)
+        return out
 
     def on_motion_done(self, now: float) -> list[Command]:
         """The latest goal succeeded and the monitor's motion is complete: the next
-        gripper action or motion."""
+        gripper action or motion. While the kill switch is latched nothing starts (a kill
+        just before a motion's end must not be followed by the next action); the next
+        part waits for :meth:`reset`, and the first tick after it starts it."""
         if self.state != "active":
+            return []
+        if self.monitor is not None and self.monitor.last.latched:
+            self._held_back = True
             return []
         return self._advance(now)
 

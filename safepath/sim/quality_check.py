@@ -1,0 +1,445 @@
+"""The quality-check cell's twin: :class:`~safepath.ros.QualityCheckController` closed loop.
+
+The cell's own state machine decides; everything around it is simulated on one clock:
+vials arriving on the conveyor (:class:`~safepath.sim.conveyor.Conveyor`), the IR
+sensor, the verdict service with its latency, time-outs and malformed answers
+(:class:`~safepath.sim.conveyor.VerdictService`), and the robot
+(:class:`~safepath.sim.twin.RobotTwin`: MuJoCo physics, its trajectory controller
+executing the ``FollowJointTrajectory`` goals the library emits, the gripper executing
+Niryo ``Tool`` goals). The node's timer ticks every ``tick`` (time-outs), events are
+handled at the physics step they fall in.
+
+Two architectures run on the same twin:
+
+* ``safepath``: the planned, blended motions and a verdict service answering each
+  request (the rewritten node of ``examples/ros2/quality_check_node.py``);
+* ``sequential``: the seed's: every route step rest to rest
+  (:func:`~safepath.sim.stop_and_go.stop_and_go`), the verdict read from the test zone's
+  publications every 5 s; the same state machine sequences the cell, so the difference
+  is the architecture, not the bookkeeping.
+
+:func:`run_quality_check` is a plain function of ``(cell, seed, params)``: a process pool
+(:func:`safepath.sim.sweep.run_many`) or a cluster engine maps it over seeds and
+parameters, and a seed gives the same run.
+"""
+
+from __future__ import annotations
+
+import functools
+import heapq
+import json
+import math
+import time
+from collections import Counter
+from dataclasses import dataclass, field, replace
+from pathlib import Path
+from typing import TYPE_CHECKING, Any, Literal
+
+import numpy as np
+
+from ..errors import InputError
+from .arm import CANCELED, ArmResult
+from .clearance import ClearanceMeter, ExecutedClearance, MotionWorld
+from .conveyor import Conveyor, VerdictService, Vial
+from .twin import GripperResult, RobotTwin, TwinOptions
+
+if TYPE_CHECKING:
+    from ..cell import Cell
+    from ..ros.controller import Command, ControllerOptions, CycleReport
+    from ..trajectory import Trajectory
+
+__all__ = ["QualityCheckParams", "QualityCheckRun", "run_quality_check", "ARCHITECTURES"]
+
+Architecture = Literal["safepath", "sequential"]
+ARCHITECTURES: tuple[str, ...] = ("safepath", "sequential")
+
+
+def _controller_options() -> ControllerOptions:
+    from ..ros.controller import ControllerOptions
+
+    return ControllerOptions()
+
+
+@dataclass(frozen=True, kw_only=True)
+class QualityCheckParams:
+    """One run of the quality-check twin.
+
+    Attributes:
+        duration: Simulated time [s].
+        architecture: ``safepath`` or ``sequential`` (see the module docstring).
+        arrival_interval: Mean time between vials put on the belt [s] (exponential).
+        belt_speed: Conveyor speed [m/s].
+        belt_length: Distance a vial rides to the sensor [m].
+        vial_spacing: Least distance between vials on the belt [m].
+        p_unsafe: Probability that a vial is unsafe.
+        verdict: The test zone's service (its ``period`` is set to 5 s for the
+            sequential architecture unless given).
+        controller: The state machine's route names and time-outs.
+        twin: How the robot is simulated.
+        tick: Period of the node's timer [s].
+        conveyor_latency: Answer time of the conveyor service [s].
+    """
+
+    duration: float = 300.0
+    architecture: Architecture = "safepath"
+    arrival_interval: float = 10.0
+    belt_speed: float = 0.05
+    belt_length: float = 0.40
+    vial_spacing: float = 0.03
+    p_unsafe: float = 0.3
+    verdict: VerdictService = field(default_factory=VerdictService)
+    controller: ControllerOptions = field(default_factory=_controller_options)
+    twin: TwinOptions = field(default_factory=TwinOptions)
+    tick: float = 0.01
+    conveyor_latency: float = 0.05
+
+    def __post_init__(self) -> None:
+        if self.architecture not in ARCHITECTURES:
+            raise InputError(f"expected one of {list(ARCHITECTURES)}, got "
+                             f"{self.architecture!r}", key="architecture")
+        for key in ("duration", "arrival_interval", "belt_speed", "belt_length",
+                    "vial_spacing", "tick", "conveyor_latency"):
+            value = getattr(self, key)
+            if isinstance(value, bool) or not isinstance(value, (int, float)) \
+                    or not math.isfinite(value) or value <= 0:
+                raise InputError(f"expected a finite number > 0, got {value!r}", key=key)
+        if not 0 <= self.p_unsafe <= 1:
+            raise InputError(f"expected a probability, got {self.p_unsafe!r}", key="p_unsafe")
+
+
+@dataclass(frozen=True)
+class QualityCheckRun:
+    """What one run of the twin did.
+
+    Attributes:
+        seed: The run's seed.
+        architecture: Its architecture.
+        duration: Simulated time [s].
+        wall_time: Computation time of the simulation [s] (planning and the clearance
+            check excluded, each given apart).
+        clearance_time: Computation time of the executed-clearance check [s].
+        vials_arrived: Vials put on the belt.
+        cycles: The controller's cycle reports, in order.
+        packaging: Vials placed on the packaging line.
+        rejected: Vials dropped into the reject bin.
+        unsafe_packaged: Unsafe vials placed on the packaging line (must be 0).
+        reasons: How often each verdict reason occurred.
+        faults: The controller's faults, in words.
+        robot_idle: Time the arm had no goal [s].
+        conveyor_idle: Time the belt stood still [s].
+        tracking: Largest |commanded - executed| position per joint while goals ran [rad].
+        speed_ratio: Largest |executed speed| / limit per joint.
+        contact_steps: Physics steps in which the arm touched the cell (MuJoCo).
+        clearance: Executed clearance against the cell (safepath's checker).
+        margin: The cell's safety margin [m].
+        joint_names: Joint order of ``tracking`` and ``speed_ratio``.
+        record: The bag's material (``/joint_states`` as executed, goals, reports),
+            when asked for.
+    """
+
+    seed: int
+    architecture: str
+    duration: float
+    wall_time: float
+    clearance_time: float
+    vials_arrived: int
+    cycles: tuple[CycleReport, ...]
+    packaging: int
+    rejected: int
+    unsafe_packaged: int
+    reasons: dict[str, int]
+    faults: tuple[str, ...]
+    robot_idle: float
+    conveyor_idle: float
+    tracking: np.ndarray
+    speed_ratio: np.ndarray
+    contact_steps: int
+    clearance: ExecutedClearance
+    margin: float
+    joint_names: tuple[str, ...]
+    record: Any = field(default=None, repr=False)
+
+    @property
+    def vials_per_minute(self) -> float:
+        """Vials handled (cycles completed) per simulated minute."""
+        return len(self.cycles) / (self.duration / 60.0)
+
+    @property
+    def cycle_times(self) -> np.ndarray:
+        """Object seen -> back at the conveyor, per cycle [s]."""
+        return np.array([c.cycle_time for c in self.cycles])
+
+    @property
+    def real_time_factor(self) -> float:
+        """Simulated time per computation time (simulation only)."""
+        return self.duration / self.wall_time if self.wall_time > 0 else math.inf
+
+
+@functools.lru_cache(maxsize=4)
+def _planned(scene: str, architecture: str) -> tuple[Cell, dict[str, Trajectory]]:
+    """The cell and its routes as the architecture runs them (planned once per process)."""
+    from .. import PlanOptions, load_cell, plan_cell
+    from .stop_and_go import stop_and_go
+
+    cell = load_cell(scene)
+    trajs = plan_cell(cell, PlanOptions())
+    if architecture == "sequential":
+        trajs = {name: stop_and_go(cell, traj) for name, traj in trajs.items()}
+    return cell, trajs
+
+
+@dataclass
+class _Motion:
+    goal_id: int
+    start: float
+    end: float
+    traj: Trajectory
+    world: MotionWorld
+
+
+@dataclass
+class _Record:
+    goals: list[tuple[float, str, Any]] = field(default_factory=list)
+    events: list[tuple[float, dict[str, Any]]] = field(default_factory=list)
+    time: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    q: np.ndarray = field(default_factory=lambda: np.zeros((0, 0)))
+    qd: np.ndarray = field(default_factory=lambda: np.zeros((0, 0)))
+    joint_names: tuple[str, ...] = ()
+
+
+class _Cell:
+    """One run's state: the controller, the twin and the cell around them."""
+
+    def __init__(self, cell: Cell, trajs: dict[str, Trajectory], seed: int,
+                 params: QualityCheckParams) -> None:
+        from ..ros.controller import QualityCheckController
+
+        self.cell, self.trajs, self.params = cell, trajs, params
+        self.ctl = QualityCheckController(params.controller)
+        opts = params.controller
+        start = trajs[opts.phase1_route].q[0]
+        self.twin = RobotTwin(cell.robot, cell.scene, start, options=params.twin)
+        self.conveyor = Conveyor(params.belt_length, params.belt_speed, params.vial_spacing,
+                                 params.arrival_interval, params.p_unsafe,
+                                 rng=np.random.default_rng([seed, 1]))
+        self.verdict = params.verdict
+        if params.architecture == "sequential" and self.verdict.period is None:
+            self.verdict = replace(self.verdict, period=5.0)
+        self.verdict_rng = np.random.default_rng([seed, 2])
+        self.events: list[tuple[float, int, str, Any]] = []
+        self._seq = 0
+        self.grippers: dict[int, Any] = {}
+        self.motions: list[_Motion] = []
+        self.vial: Vial | None = None
+        self.world = MotionWorld(None, None)
+        self.sensor = False
+        self.robot_idle = 0.0
+        self.faults: list[str] = []
+        self.reports: list[CycleReport] = []
+        self.record = _Record()
+
+    # -- commands --------------------------------------------------------------------
+    def schedule(self, when: float, kind: str, payload: Any) -> None:
+        self._seq += 1
+        heapq.heappush(self.events, (when, self._seq, kind, payload))
+
+    def dispatch(self, commands: list[Command]) -> None:
+        from ..ros import controller as c
+
+        for cmd in commands:
+            if isinstance(cmd, c.SetConveyor):
+                self.conveyor.commanded = cmd.running
+                self.schedule(self.twin.now + self.params.conveyor_latency, "result",
+                              (cmd.goal_id, True, ""))
+            elif isinstance(cmd, c.MoveArm):
+                self._move(cmd)
+            elif isinstance(cmd, c.ActuateGripper):
+                self._grip(cmd)
+            elif isinstance(cmd, c.RequestVerdict):
+                answer = self.verdict.answer(self.vial, self.twin.now, self.verdict_rng)
+                if answer.text is not None:
+                    self.schedule(self.twin.now + answer.latency, "verdict",
+                                  (cmd.request_id, answer.text))
+            elif isinstance(cmd, c.CancelGoal):
+                self.twin.cancel_arm_goal(cmd.goal_id)
+            elif isinstance(cmd, c.CycleReport):
+                self.reports.append(cmd)
+                self.record.events.append((self.twin.now, {"type": "cycle", **{
+                    k: getattr(cmd, k) for k in ("cycle", "verdict", "reason", "route",
+                                                 "cycle_time")}}))
+            elif isinstance(cmd, c.Fault):
+                self.faults.append(cmd.reason)
+                self.record.events.append((self.twin.now, {"type": "fault",
+                                                           "reason": cmd.reason}))
+
+    def _move(self, cmd: Any) -> None:
+        from ..ros import follow_joint_trajectory_goal
+
+        goal = follow_joint_trajectory_goal(cmd.trajectory, controller=self.cell.robot.controller,
+                                            backend="rosbags")
+        self.record.goals.append((self.twin.now, "arm", goal))
+        self.motions.append(_Motion(cmd.goal_id, self.twin.now, math.inf, cmd.trajectory,
+                                    self.world))
+        rejected = self.twin.send_arm_goal(goal, cmd.goal_id)
+        if rejected is not None:
+            self.schedule(self.twin.now, "result", (cmd.goal_id, False, rejected.error_string))
+
+    def _grip(self, cmd: Any) -> None:
+        from ..ros import tool_goal
+
+        goal = tool_goal(cmd.event.action, tool_id=self.cell.robot.tool.tool_id
+                         if self.cell.robot.tool and self.cell.robot.tool.tool_id is not None
+                         else 11, backend="rosbags")
+        self.record.goals.append((self.twin.now, "tool", goal))
+        self.grippers[cmd.goal_id] = cmd
+        rejected = self.twin.send_gripper_goal(goal, cmd.goal_id)
+        if rejected is not None:
+            self.schedule(self.twin.now, "result", (cmd.goal_id, False, rejected.message))
+
+    # -- events ----------------------------------------------------------------------
+    def on_gripper(self, result: GripperResult) -> None:
+        cmd = self.grippers.pop(result.goal_id)
+        opts = self.params.controller
+        now = self.twin.now
+        grasp = self.cell.scene.grasp
+        obj = grasp.object if grasp is not None else None
+        if result.action == "close":
+            if cmd.route == opts.phase1_route:
+                self.vial = self.conveyor.pick(now)
+            self.world = MotionWorld(obj, None)
+        else:
+            T_world_tcp = self.cell.robot.frame_pose(self.twin.q).homogeneous  # noqa: N806
+            rest = T_world_tcp @ grasp.T_tcp_object if grasp is not None else None
+            self.world = MotionWorld(None, rest)
+            if cmd.route != opts.phase1_route and self.vial is not None:
+                where = "packaging" if cmd.route == opts.safe_route else "reject"
+                self.vial.placed = (where, now)
+                self.vial = None
+        self.dispatch(self.ctl.on_goal_result(result.goal_id, result.success, result.message,
+                                              now))
+
+    def on_arm(self, result: ArmResult) -> None:
+        for motion in reversed(self.motions):
+            if motion.goal_id == result.goal_id:
+                motion.end = result.time
+                break
+        if result.error_code == CANCELED:
+            return
+        self.dispatch(self.ctl.on_goal_result(result.goal_id, result.success,
+                                              result.error_string, self.twin.now))
+
+    def step(self, until: float) -> None:
+        before = self.twin.now
+        results = self.twin.advance(until)
+        now = self.twin.now
+        dt = now - before
+        if self.twin.arm.active is None and not self.grippers:
+            self.robot_idle += dt
+        self.conveyor.advance(now, dt)
+        for result in results:
+            if isinstance(result, GripperResult):
+                self.on_gripper(result)
+            else:
+                self.on_arm(result)
+        while self.events and self.events[0][0] <= now + 1e-12:
+            _, _, kind, payload = heapq.heappop(self.events)
+            if kind == "result":
+                goal_id, success, message = payload
+                self.dispatch(self.ctl.on_goal_result(goal_id, success, message, now))
+            else:
+                request_id, text = payload
+                self.dispatch(self.ctl.on_verdict(text, now, request_id=request_id))
+        if self.conveyor.sensor != self.sensor:
+            self.sensor = self.conveyor.sensor
+            if self.sensor and self.world.held is None and self.world.resting is not None \
+                    and self.ctl.state.value == "idle":
+                self.world = MotionWorld(None, None)  # the new vial at its scene place
+            self.dispatch(self.ctl.on_sensor(self.sensor, now))
+        self.dispatch(self.ctl.on_tick(now))
+
+
+def _clearance(run: _Cell) -> ExecutedClearance:
+    """The executed states of every motion, checked in their world."""
+    rec = run.twin.recording
+    times = np.asarray(rec.time)
+    q = np.asarray(rec.q)
+    meter = ClearanceMeter(run.cell)
+    for motion in run.motions:
+        end = min(motion.end, times[-1])
+        sel = np.flatnonzero((times >= motion.start) & (times <= end))
+        if sel.size == 0:
+            continue
+        labels = [motion.traj.step_at(float(t - motion.start)) for t in times[sel]]
+        k = 0
+        while k < sel.size:
+            j = k
+            while j + 1 < sel.size and labels[j + 1] == labels[k]:
+                j += 1
+            meter.check(motion.traj.route, labels[k], motion.world, times[sel[k:j + 1]],
+                        q[sel[k:j + 1]])
+            k = j + 1
+    return meter.best
+
+
+def run_quality_check(cell: str | Path, seed: int, params: QualityCheckParams | None = None,
+                      *, record: bool = False) -> QualityCheckRun:
+    """Run the quality-check cell's twin (see the module docstring).
+
+    Args:
+        cell: The cell's scene folder (planned once per process and architecture).
+        seed: The run's seed: arrivals, vial classes and verdicts (the same seed gives
+            the same run).
+        params: The run's parameters.
+        record: Keep the material of a bag (:func:`safepath.sim.bag.write_run_bag`).
+
+    Raises:
+        InputError: Bad parameters or seed.
+        SafepathError: The cell cannot be loaded or planned.
+    """
+    params = params or QualityCheckParams()
+    if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or seed < 0:
+        raise InputError(f"expected an integer >= 0, got {seed!r}", key="seed")
+    loaded, trajs = _planned(str(cell), params.architecture)
+    run = _Cell(loaded, trajs, int(seed), params)
+    t0 = time.perf_counter()
+    for name in params.controller.routes:
+        run.dispatch(run.ctl.on_route_ready(name, trajs[name], 0.0))
+    while run.twin.now < params.duration - 1e-9 and not run.faults:
+        nxt = min(run.twin.now + params.tick, params.duration)
+        if run.events:
+            nxt = min(nxt, max(run.events[0][0], run.twin.now + run.twin.options.timestep))
+        run.step(nxt)
+    wall = time.perf_counter() - t0
+    t1 = time.perf_counter()
+    clearance = _clearance(run)
+    clearance_time = time.perf_counter() - t1
+    vials = run.conveyor.arrived
+    cycles = tuple(run.reports)
+    rec = run.twin.recording
+    material = None
+    if record:
+        run.record.time = np.asarray(rec.time)
+        run.record.q = np.asarray(rec.q)
+        run.record.qd = np.asarray(rec.qd)
+        run.record.joint_names = tuple(loaded.robot.joint_names)
+        material = run.record
+    return QualityCheckRun(
+        seed=int(seed), architecture=params.architecture, duration=run.twin.now,
+        wall_time=wall, clearance_time=clearance_time, vials_arrived=len(vials),
+        cycles=cycles,
+        packaging=sum(1 for v in vials if v.placed and v.placed[0] == "packaging"),
+        rejected=sum(1 for v in vials if v.placed and v.placed[0] == "reject"),
+        unsafe_packaged=sum(1 for v in vials if v.unsafe and v.placed
+                            and v.placed[0] == "packaging"),
+        reasons=dict(Counter(c.reason for c in cycles)), faults=tuple(run.faults),
+        robot_idle=run.robot_idle, conveyor_idle=run.conveyor.stopped_time,
+        tracking=rec.tracking.copy(), speed_ratio=rec.speed_ratio.copy(),
+        contact_steps=rec.contact_steps, clearance=clearance, margin=loaded.scene.margin,
+        joint_names=tuple(loaded.robot.joint_names), record=material)
+
+
+def events_json(run: QualityCheckRun) -> list[tuple[float, str]]:
+    """The run's recorded events as (time [s], JSON) pairs (for a bag)."""
+    if run.record is None:
+        return []
+    return [(t, json.dumps(e, sort_keys=True)) for t, e in run.record.events]
