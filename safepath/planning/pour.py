@@ -36,7 +36,7 @@ from ..errors import ConfigError, IKError, PlanningError
 from ..execution import LIMITS_KEY, robot_limits
 from ..trajectory import Trajectory
 from .cartesian import LineOptions, solve_ik
-from .timing import PathSpline, TimingOptions, spline_path, time_path
+from .timing import PathSpline, TimingOptions, spline_path, stretch_knots, time_path
 from .verify import FclVerifier, VerifyResult
 
 if TYPE_CHECKING:
@@ -286,8 +286,7 @@ def _plan(cell: Cell, q_start: np.ndarray, parts: list[tuple[PoseCurve, int, flo
                      options.max_angular_speed, np.inf)
     stretch = max(1.0, float(np.max(v_tcp / v_lim)), float(np.max(w_cup / w_lim)))
     if stretch > 1.0:  # knots between TOPP-RA's gridpoints: stretch time uniformly
-        stretch *= 1.0 + 1e-9
-        t, qd, qdd = t * stretch, qd / stretch, qdd / stretch ** 2
+        t, qd, qdd, stretch = stretch_knots(t, qd, qdd, stretch * (1.0 + 1e-9))
         v_tcp, w_cup = v_tcp / stretch, w_cup / stretch
     pos_err, ang_err = np.empty(len(t)), np.empty(len(t))
     # Dense polylines of the reference paths: chords of 1/4000 of a part stay within

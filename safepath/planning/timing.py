@@ -33,6 +33,7 @@ from ._path_limits import PathLimits, PathSpline, path_limits
 from ._spline import CubicPath
 
 __all__ = ["TimingOptions", "TimedPiece", "PathSpline", "spline_path", "time_path",
+           "stretch_knots",
            "rest_to_rest_time", "RETIME_ABOVE"]
 
 log = logging.getLogger(__name__)
@@ -350,13 +351,28 @@ def _tighten(f_acc: np.ndarray, f_x: np.ndarray, grid: np.ndarray, run: _Run) ->
     acc = 1.0 / (np.maximum(np.maximum(a[over], j[over]), 1.0) * pad)
     xs = np.minimum(1.0 / np.maximum(v[over], 1.0) ** 2,
                     1.0 / np.maximum(j[over], 1.0) ** (2.0 / 3.0)) / pad
+    # Every gridpoint of every window, at once.
+    count = np.maximum(g_hi - g_lo, 0)
+    window = np.repeat(np.arange(over.size), count)
+    point = g_lo[window] + np.arange(window.size) - np.repeat(np.cumsum(count) - count, count)
     t_acc = np.ones(grid.size)
     t_x = np.ones(grid.size)
-    for lo, hi, fa, fx in zip(g_lo, g_hi, acc, xs, strict=True):
-        t_acc[lo:hi] = np.minimum(t_acc[lo:hi], fa)
-        t_x[lo:hi] = np.minimum(t_x[lo:hi], fx)
+    np.minimum.at(t_acc, point, acc[window])
+    np.minimum.at(t_x, point, xs[window])
     f_acc *= t_acc
     f_x *= t_x
+
+
+def stretch_knots(t: np.ndarray, qd: np.ndarray, qdd: np.ndarray, k: float
+                  ) -> tuple[np.ndarray, np.ndarray, np.ndarray, float]:
+    """Evenly spaced knots slowed down by at least ``k`` >= 1: times times ``k'``, speeds
+    over ``k'``, accelerations over ``k'^2`` (their quintic join's jerks over ``k'^3``),
+    where ``k'`` is ``k`` rounded up so that the knots stay a whole number of nanoseconds
+    apart. Returns the new ``t, qd, qdd`` and ``k'``."""
+    step_ns = round(float(t[1] - t[0]) * _NS) if t.size > 1 else 1
+    stretched_ns = int(np.ceil(step_ns * k))
+    k = stretched_ns / step_ns
+    return _ns_grid(t.size, stretched_ns), qd / k, qdd / (k * k), k
 
 
 def _ns_grid(n: int, step_ns: int) -> np.ndarray:
@@ -376,13 +392,9 @@ def _release(run: _Run, limits: PathLimits, options: TimingOptions, where: str) 
     k = run.stretch
     t, qd, qdd = run.t, run.qd, run.qdd
     if k > 1.0:
-        # The stretched knots stay on whole nanoseconds: k is rounded up to that.
-        step_ns = round(float(t[1] - t[0]) * _NS)
-        stretched_ns = int(np.ceil(step_ns * k))
-        k = stretched_ns / step_ns
         log.debug("timing up to %.4f %% over a limit; stretching time by %.6f",
                   (float(run.ratios.max()) - 1) * 100, k)
-        t, qd, qdd = _ns_grid(t.size, stretched_ns), qd / k, qdd / (k * k)
+        t, qd, qdd, k = stretch_knots(t, qd, qdd, k)
     ratios = _interval_ratios(t, run.q, qd, qdd, run.segment, limits)
     worst = max((float(r.max()) for r in ratios), default=0.0)
     if not worst <= 1.0:  # also NaN

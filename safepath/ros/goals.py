@@ -28,6 +28,7 @@ with :func:`safepath.ros.messages.serialize`), native ``rclpy`` messages, or ``a
 from __future__ import annotations
 
 import dataclasses
+import functools
 import itertools
 import math
 from collections.abc import Mapping, Sequence
@@ -146,20 +147,21 @@ def _points(traj: Trajectory, period: float | None, robot_joint_names: Sequence[
     period_ns = _period_ns(period)
     traj = _validated(traj)
     names, cols = _robot_columns(traj, robot_joint_names)
-    rel = traj.t - traj.t[0]
-    gaps = np.diff(rel)
-    extra = np.maximum(np.ceil(gaps * _NS / period_ns - 1e-9).astype(np.int64) - 1, 0)
+    # Integer nanoseconds, as the message carries them.
+    knot_ns = np.round((traj.t - traj.t[0]) * _NS).astype(np.int64)
+    gaps = np.diff(knot_ns)
+    extra = np.maximum(-(-gaps // period_ns) - 1, 0)
     if traj.t.size > 1 and extra.any():
-        frac = [np.arange(1, e + 1) / (e + 1) for e in extra]
-        inserted = np.concatenate([rel[k] + gaps[k] * f for k, f in enumerate(frac)])
-        times = np.sort(np.concatenate([rel, inserted]))
-        q, qd, qdd = traj.sample(traj.t[0] + times)
-        keep = np.isin(times, rel)
+        # Inserted points on whole nanoseconds too, sampled from the knots' own quintic
+        # at exactly those times (which keeps the join what it was).
+        inserted = np.concatenate([knot_ns[k] + (np.arange(1, e + 1) * gaps[k]) // (e + 1)
+                                   for k, e in enumerate(extra)])
+        time_ns = np.sort(np.concatenate([knot_ns, inserted]))
+        q, qd, qdd = traj.sample(traj.t[0] + time_ns / _NS)
+        keep = np.isin(time_ns, knot_ns)
         q[keep], qd[keep], qdd[keep] = traj.q, traj.qd, traj.qdd
     else:
-        times, q, qd, qdd = rel, traj.q, traj.qd, traj.qdd
-    # Integer nanoseconds, as the message carries them.
-    time_ns = np.round(times * _NS).astype(np.int64)
+        time_ns, q, qd, qdd = knot_ns, traj.q, traj.qd, traj.qdd
     if time_ns.size > 1 and np.any(np.diff(time_ns) <= 0):
         raise TrajectoryError("two points less than 1 ns apart", key="t")
     pts = _Points(names, time_ns, q[:, cols], qd[:, cols], qdd[:, cols])
@@ -174,14 +176,34 @@ def _check_executed(traj: Trajectory, pts: _Points, spec: TrajectoryController,
     trajectory was timed under (``limits``, else its ``info["limits"]``)."""
     limits = limits if limits is not None else limits_of(traj.info, traj.dof)
     if limits is None:
+        limits = _bundled_limits(traj.robot, traj.joint_names)
+    if limits is None:
         raise TrajectoryError(
-            "the trajectory records no joint limits (info['limits']) to check the motion "
-            "the controller executes against; pass limits=robot", key="limits")
+            "the trajectory records no joint limits (info['limits']) and names no bundled "
+            "robot to check the motion the controller executes against; pass limits=robot",
+            key="limits")
     vmax, amax, jmax = (np.asarray(x, dtype=float)[cols] for x in limits)
     check_executed(pts.time_ns / _NS, pts.q, pts.qd, pts.qdd, velocity_limits=vmax,
                    acceleration_limits=amax, jerk_limits=jmax,
                    interpolation=spec.interpolation,  # type: ignore[arg-type]
                    what=f"goal of '{traj.route or traj.robot or 'trajectory'}'")
+
+
+@functools.lru_cache(maxsize=8)
+def _bundled_limits(robot: str, joint_names: tuple[str, ...]
+                    ) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
+    """The limits of the bundled or example-robot-data robot named ``robot`` (None when
+    there is none by that name, or its joints are not ``joint_names``)."""
+    from ..robot_loader import load_robot, robot_names
+
+    if not robot or robot not in robot_names():
+        return None
+    loaded = load_robot(robot)
+    if sorted(loaded.joint_names) != sorted(joint_names):
+        return None
+    cols = [loaded.joint_names.index(n) for n in joint_names]
+    return (loaded.velocity_limits[cols], loaded.acceleration_limits[cols],
+            loaded.jerk_limits[cols])
 
 
 def _limits(limits: Any) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:

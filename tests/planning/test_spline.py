@@ -31,7 +31,7 @@ def test_bad_input_is_refused() -> None:
     with pytest.raises(ValueError, match="increase"):
         CubicPath(np.array([0.0, 1.0, 1.0]), np.zeros((3, 2)))
     with pytest.raises(ValueError, match="nu"):
-        CubicPath(np.array([0.0, 1.0, 2.0]), np.zeros((3, 2)))(0.5, 3)
+        CubicPath(np.array([0.0, 1.0, 2.0]), np.zeros((3, 2)))(0.5, 4)
 
 
 def test_tridiagonal_solve_equals_lapack_bit_for_bit() -> None:

@@ -78,15 +78,21 @@ def test_sample_at_knots_returns_knots(bundled: Plans) -> None:
 def test_sample_between_knots_is_smooth() -> None:
     traj = _small()
     q, qd, qdd = traj.sample([0.25, 0.75])
-    # Cubic Hermite on (q, qd): positions between the knots, linear accelerations.
+    # The quintic join of the knots (a controller's): positions between the knots.
     assert 0.0 < q[0, 0] < 0.25 and 0.25 < q[1, 0] < 0.5
-    np.testing.assert_allclose(qdd[0], 0.5 * (traj.qdd[0] + traj.qdd[1]))
-    # Velocity is the derivative of position (central difference).
-    h = 1e-6
-    qp, _, _ = traj.sample([0.3 + h])
-    qm, _, _ = traj.sample([0.3 - h])
-    _, v, _ = traj.sample([0.3])
+    # Velocity and acceleration are the derivatives of position (central differences).
+    h = 1e-5
+    qp, vp, _ = traj.sample([0.3 + h])
+    qm, vm, _ = traj.sample([0.3 - h])
+    _, v, a = traj.sample([0.3])
     np.testing.assert_allclose((qp - qm) / (2 * h), v, atol=1e-6)
+    np.testing.assert_allclose((vp - vm) / (2 * h), a, atol=1e-5)
+    # Every knot's position, velocity and acceleration is matched from both sides.
+    for side in (-1e-9, 1e-9):
+        qs, vs, as_ = traj.sample([0.5 + side])
+        np.testing.assert_allclose(qs[0], traj.q[1], atol=1e-7)
+        np.testing.assert_allclose(vs[0], traj.qd[1], atol=1e-6)
+        np.testing.assert_allclose(as_[0], traj.qdd[1], atol=1e-5)
 
 
 def test_resample_keeps_the_ends(bundled: Plans) -> None:

@@ -36,7 +36,9 @@ GOAL = "control_msgs/action/GripperCommand_Goal"
 
 
 def gen3_route(events: bool = True) -> Trajectory:
-    """Two rest-to-rest quintic moves of the Gen3 Lite, closing at the middle stop."""
+    """Two rest-to-rest quintic moves of the Gen3 Lite, closing at the middle stop (faster
+    than the arm may move: the trajectory records limits 10x its own, for these message
+    tests)."""
     tau = np.linspace(0.0, 1.0, 21)
     s = 10 * tau**3 - 15 * tau**4 + 6 * tau**5
     ds = 30 * tau**2 - 60 * tau**3 + 30 * tau**4
@@ -48,8 +50,12 @@ def gen3_route(events: bool = True) -> Trajectory:
     t = np.concatenate([tau, 1.0 + tau[1:]])
     evs = (GripperEvent(0.0, "open", "start"), GripperEvent(1.0, "close", "grasp", "cup")) \
         if events else ()
+    robot = load_robot("gen3_lite")
+    fast = {"limits": {"velocity": (10 * robot.velocity_limits).tolist(),
+                       "acceleration": (10 * robot.acceleration_limits).tolist(),
+                       "jerk": (10 * robot.jerk_limits).tolist()}}
     return Trajectory(GEN3, t, q, qd, qdd, np.repeat([0, 1], [21, 20]), ("to_b", "to_c"),
-                      evs, "gen3_lite", "pick")
+                      evs, "gen3_lite", "pick", fast)
 
 
 def test_gen3_lite_controllers_come_from_its_folder() -> None:
@@ -195,9 +201,10 @@ def test_bag_with_goals(tmp_path: Path) -> None:
     (arm,) = bag.on(ARM_GOAL_TOPIC)
     assert arm.timestamp == start
     assert_same(arm.msg, follow_joint_trajectory_goal(traj, backend="rosbags"))
-    # 4 ms points (robots/gen3_lite/controller.yaml), in the controller's joint order.
+    # Points at most 4 ms apart (robots/gen3_lite/controller.yaml): every knot (50 ms
+    # apart) and 12 points of their quintic in between, in the controller's joint order.
     assert arm.msg.trajectory.joint_names == list(GEN3)
-    assert len(arm.msg.trajectory.points) == 2 * 250 + 1
+    assert len(arm.msg.trajectory.points) == 2 * 20 * 13 + 1
     grip = bag.on(GRIPPER_GOAL_TOPIC)
     assert [(m.timestamp - start, m.msg.command.position) for m in grip] == [
         (0, 0.0), (1_000_000_000, 0.8)]

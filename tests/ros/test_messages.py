@@ -50,7 +50,11 @@ NIRYO = "niryo_ned_ros2_interfaces"
 def quintic_route(route: str, poses: list[str], events: tuple[tuple[int, str], ...] = (), *,
                   seg_time: float = 0.6, knots: int = 13,
                   joint_names: tuple[str, ...] = NED_JOINT_NAMES) -> Trajectory:
-    """Rest-to-rest quintic moves through named poses; ``events``: (pose index, action)."""
+    """Rest-to-rest quintic moves through named poses; ``events``: (pose index, action).
+
+    Faster than the Ned3 Pro may move (these test messages, not timing): the trajectory
+    records limits of its own, 10x the robot's, which its goals are checked against.
+    """
     tau = np.linspace(0.0, 1.0, knots)
     s = 10 * tau**3 - 15 * tau**4 + 6 * tau**5
     ds = (30 * tau**2 - 60 * tau**3 + 30 * tau**4) / seg_time
@@ -68,7 +72,14 @@ def quintic_route(route: str, poses: list[str], events: tuple[tuple[int, str], .
                              object="vial") for i, action in events)
     return Trajectory(joint_names, np.concatenate(t), np.concatenate(q), np.concatenate(qd),
                       np.concatenate(qdd), np.concatenate(idx),
-                      tuple(f"to_{p}" for p in poses[1:]), evs, "ned3pro", route)
+                      tuple(f"to_{p}" for p in poses[1:]), evs, "ned3pro", route,
+                      {"limits": FAST_LIMITS})
+
+
+#: Limits 10x the Ned3 Pro's, which the test trajectories record (see quintic_route).
+FAST_LIMITS = {"velocity": [24.5, 10.47, 15.0, 40.76, 33.57, 50.36],
+               "acceleration": [43.63, 21.8, 43.63, 299.6, 262.15, 393.23],
+               "jerk": [872.6, 436.0, 872.6, 5992.0, 5243.0, 7864.6]}
 
 
 def phase1() -> Trajectory:
@@ -261,7 +272,9 @@ def test_joint_trajectory_samples_every_period_and_ends_exactly() -> None:
     msg = joint_trajectory(traj, backend="rosbags")
     assert msg.joint_names == list(NED_JOINT_NAMES)
     ns = [_seconds(p.time_from_start) for p in msg.points]
-    assert ns == [40_000_000 * k for k in range(60)] + [2_400_000_000]
+    # Every knot (50 ms apart), and one point between two knots: the controller's period
+    # is 40 ms at most.
+    assert ns == [25_000_000 * k for k in range(96)] + [2_400_000_000]
     assert msg.points[-1].time_from_start.sec == 2 and msg.points[-1].time_from_start.nanosec \
         == 400_000_000
     q, qd, qdd = traj.sample(np.array(ns[:-1]) / 1e9)
@@ -283,18 +296,21 @@ def test_time_from_start_is_rounded_to_the_nanosecond() -> None:
     traj = quintic_route("r", ["grip", "high1"], seg_time=1.2345678906)
     msg = joint_trajectory(traj, period=0.5, backend="rosbags")
     ends = [(p.time_from_start.sec, p.time_from_start.nanosec) for p in msg.points]
-    assert ends == [(0, 0), (0, 500_000_000), (1, 0), (1, 234_567_891)]
-    # A period that divides the duration does not duplicate the final point.
-    assert len(joint_trajectory(quintic_route("r", ["grip", "high1"], seg_time=0.12),
-                                backend="rosbags").points) == 4
+    # Every knot (a twelfth of the move apart), its time rounded to the nanosecond.
+    expected = [divmod(round(float(t) * 1e9), 1_000_000_000) for t in traj.t]
+    assert ends == expected and ends[-1] == (1, 234_567_891)
+    # Knots 20 ms apart, under the 40 ms period: the knots alone, the last not repeated.
+    assert len(joint_trajectory(quintic_route("r", ["grip", "high1"], seg_time=0.48,
+                                              knots=25), backend="rosbags").points) == 25
 
 
 def test_columns_follow_the_robot_order() -> None:
     traj = phase1()
     order = [5, 0, 3, 1, 4, 2]
+    limits = {k: [v[i] for i in order] for k, v in FAST_LIMITS.items()}
     shuffled = Trajectory(tuple(traj.joint_names[k] for k in order), traj.t, traj.q[:, order],
                           traj.qd[:, order], traj.qdd[:, order], traj.step_index, traj.steps,
-                          traj.events, traj.robot, traj.route)
+                          traj.events, traj.robot, traj.route, {"limits": limits})
     a = joint_trajectory(traj, backend="rosbags")
     b = joint_trajectory(shuffled, backend="rosbags")
     assert_same(a, b)
@@ -323,7 +339,8 @@ def test_joint_names_must_match_the_robot() -> None:
     with pytest.raises(TrajectoryError):
         joint_trajectory(five, backend="rosbags")
     # A robot without a controller file: its own joints, in its own order.
-    anonymous = dataclasses.replace(five, robot="")
+    anonymous = dataclasses.replace(five, robot="", info={"limits": {
+        k: v[:5] for k, v in FAST_LIMITS.items()}})
     assert joint_trajectory(anonymous, backend="rosbags").joint_names == list(
         NED_JOINT_NAMES[:5])
     with pytest.raises(TrajectoryError):
