@@ -131,6 +131,8 @@ class QualityCheckRun:
         speed_ratio: Largest |executed speed| / limit per joint.
         contact_steps: Physics steps in which the arm touched the cell (MuJoCo).
         clearance: Executed clearance against the cell (safepath's checker).
+        tcp_deviation: Largest distance between the executed and the commanded TCP
+            position while goals ran (at the record rate) [m]: the tracking allowance.
         margin: The cell's safety margin [m].
         joint_names: Joint order of ``tracking`` and ``speed_ratio``.
         record: The bag's material (``/joint_states`` as executed, goals, reports),
@@ -155,6 +157,7 @@ class QualityCheckRun:
     speed_ratio: np.ndarray
     contact_steps: int
     clearance: ExecutedClearance
+    tcp_deviation: float
     margin: float
     joint_names: tuple[str, ...]
     record: Any = field(default=None, repr=False)
@@ -381,6 +384,18 @@ def _clearance(run: _Cell) -> ExecutedClearance:
     return meter.best
 
 
+def _tcp_deviation(run: _Cell) -> float:
+    """Largest executed-vs-commanded TCP distance while goals ran [m]."""
+    rec = run.twin.recording
+    robot = run.cell.robot
+    worst = 0.0
+    for q, q_ref, moving in zip(rec.q, rec.q_ref, rec.moving, strict=True):
+        if moving:
+            worst = max(worst, float(np.linalg.norm(robot.tcp_position(q)
+                                                    - robot.tcp_position(q_ref))))
+    return worst
+
+
 def run_quality_check(cell: str | Path, seed: int, params: QualityCheckParams | None = None,
                       *, record: bool = False) -> QualityCheckRun:
     """Run the quality-check cell's twin (see the module docstring).
@@ -412,6 +427,7 @@ def run_quality_check(cell: str | Path, seed: int, params: QualityCheckParams | 
     wall = time.perf_counter() - t0
     t1 = time.perf_counter()
     clearance = _clearance(run)
+    deviation = _tcp_deviation(run)
     clearance_time = time.perf_counter() - t1
     vials = run.conveyor.arrived
     cycles = tuple(run.reports)
@@ -434,7 +450,8 @@ def run_quality_check(cell: str | Path, seed: int, params: QualityCheckParams | 
         reasons=dict(Counter(c.reason for c in cycles)), faults=tuple(run.faults),
         robot_idle=run.robot_idle, conveyor_idle=run.conveyor.stopped_time,
         tracking=rec.tracking.copy(), speed_ratio=rec.speed_ratio.copy(),
-        contact_steps=rec.contact_steps, clearance=clearance, margin=loaded.scene.margin,
+        contact_steps=rec.contact_steps, clearance=clearance,
+        tcp_deviation=deviation, margin=loaded.scene.margin,
         joint_names=tuple(loaded.robot.joint_names), record=material)
 
 

@@ -1,0 +1,91 @@
+"""A ROS 2 bag (MCAP) of a twin's run: what the simulated robot did, and what it was told.
+
+==============================  ==========================================  ====================
+topic                           type                                        one message
+==============================  ==========================================  ====================
+``/joint_states``               ``sensor_msgs/msg/JointState``              per record (executed)
+``/safepath/arm_goal``          ``control_msgs/action/FollowJointTrajectory_Goal``  per motion goal
+``/safepath/tool_goal``         ``niryo_ned_ros2_interfaces/action/Tool_Goal``  per gripper goal
+``/safepath/sim/events``        ``std_msgs/msg/String`` (JSON)              per cycle or fault
+==============================  ==========================================  ====================
+
+Stamps are the simulated clock from ``start_time_ns``.
+"""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from ..errors import RosError
+
+__all__ = ["write_run_bag", "JOINT_STATES", "ARM_GOALS", "TOOL_GOALS", "EVENTS"]
+
+JOINT_STATES = "/joint_states"
+ARM_GOALS = "/safepath/arm_goal"
+TOOL_GOALS = "/safepath/tool_goal"
+EVENTS = "/safepath/sim/events"
+_TYPES = {
+    JOINT_STATES: "sensor_msgs/msg/JointState",
+    ARM_GOALS: "control_msgs/action/FollowJointTrajectory_Goal",
+    TOOL_GOALS: "niryo_ned_ros2_interfaces/action/Tool_Goal",
+    EVENTS: "std_msgs/msg/String",
+}
+_NS = 1_000_000_000
+
+
+def write_run_bag(path: str | Path, record: Any, *, start_time_ns: int = 0) -> Path:
+    """Write the bag of a run recorded with ``record=True``.
+
+    Args:
+        path: The bag folder to create (must not exist).
+        record: ``QualityCheckRun.record``.
+        start_time_ns: Clock time of the run's start [ns].
+
+    Raises:
+        RosError: No record, ``path`` exists, or the bag cannot be written.
+    """
+    from rosbags.rosbag2 import StoragePlugin, Writer, WriterError
+
+    from ..ros.messages import serialize, typestore
+
+    if record is None:
+        raise RosError("the run kept no record: run it with record=True")
+    path = Path(path)
+    if path.exists():
+        raise RosError(f"{path} exists already, not overwriting")
+    types = typestore().types
+    rows: list[tuple[int, int, str, Any]] = []
+
+    def stamp(t: float) -> int:
+        return start_time_ns + round(t * _NS)
+
+    for t, q, qd in zip(record.time, record.q, record.qd, strict=True):
+        ns = stamp(float(t))
+        header = types["std_msgs/msg/Header"](
+            stamp=types["builtin_interfaces/msg/Time"](sec=ns // _NS, nanosec=ns % _NS),
+            frame_id="")
+        rows.append((ns, 2, JOINT_STATES, types["sensor_msgs/msg/JointState"](
+            header=header, name=list(record.joint_names),
+            position=np.asarray(q, dtype=np.float64), velocity=np.asarray(qd, dtype=np.float64),
+            effort=np.zeros(0))))
+    for t, kind, goal in record.goals:
+        rows.append((stamp(t), 0, ARM_GOALS if kind == "arm" else TOOL_GOALS, goal))
+    for t, event in record.events:
+        rows.append((stamp(t), 1, EVENTS, types["std_msgs/msg/String"](
+            data=json.dumps(event, sort_keys=True))))
+    rows.sort(key=lambda r: (r[0], r[1]))
+    try:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        with Writer(path, version=Writer.VERSION_LATEST,
+                    storage_plugin=StoragePlugin.MCAP) as writer:
+            conns = {topic: writer.add_connection(topic, msgtype, typestore=typestore())
+                     for topic, msgtype in _TYPES.items()}
+            for ns, _, topic, msg in rows:
+                writer.write(conns[topic], ns, serialize(msg, _TYPES[topic]))
+    except (WriterError, OSError) as exc:
+        raise RosError(f"cannot write bag {path}: {exc}") from None
+    return path

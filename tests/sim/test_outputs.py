@@ -1,0 +1,41 @@
+"""The twin's outputs: its bag, a process pool of runs, and a command line that stays light."""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+from pathlib import Path
+
+from safepath.ros import read_bag
+from safepath.sim.bag import ARM_GOALS, EVENTS, JOINT_STATES, TOOL_GOALS, write_run_bag
+from safepath.sim.quality_check import QualityCheckParams, run_quality_check
+from safepath.sim.sweep import run_many
+
+_SHORT = QualityCheckParams(duration=25.0, arrival_interval=2.0, belt_length=0.1)
+
+
+def test_a_run_bag_holds_the_executed_joint_states_and_goals(cell_dir: Path,
+                                                             tmp_path: Path) -> None:
+    run = run_quality_check(str(cell_dir), 5, _SHORT, record=True)
+    bag = read_bag(write_run_bag(tmp_path / "run", run.record))
+    states = bag.on(JOINT_STATES)
+    assert len(states) == len(run.record.time)
+    assert list(states[-1].msg.position) == list(run.record.q[-1])
+    assert len(bag.on(ARM_GOALS)) + len(bag.on(TOOL_GOALS)) == len(run.record.goals)
+    assert len(bag.on(EVENTS)) == len(run.cycles) and run.cycles
+
+
+def test_a_pool_of_runs_gives_what_the_runs_give_alone(cell_dir: Path) -> None:
+    pooled = run_many(cell_dir, [1, 2], _SHORT, workers=2)
+    alone = [run_quality_check(str(cell_dir), s, _SHORT) for s in (1, 2)]
+    assert [r.seed for r in pooled] == [1, 2]
+    assert [r.cycle_times.tolist() for r in pooled] == [r.cycle_times.tolist() for r in alone]
+
+
+def test_the_command_line_does_not_import_mujoco(repo_root: Path) -> None:
+    code = ("import sys\nfrom safepath.cli import _load_extra, build_parser\n_load_extra()\n"
+            "build_parser().parse_args(['sim', 'scenes/quality_check_cell'])\n"
+            "print('mujoco' in sys.modules)\n")
+    out = subprocess.run([sys.executable, "-c", code], cwd=repo_root, capture_output=True,
+                         text=True, check=True, timeout=120).stdout.strip()
+    assert out == "False"
