@@ -114,7 +114,13 @@ def join(t: np.ndarray, q: np.ndarray, qd: np.ndarray, qdd: np.ndarray, times: n
     k = np.clip(np.searchsorted(t, times, side="right") - 1, 0, t.size - 2)
     tau = (times - t[k])[:, None]
     ck = c[k]
-    return tuple(_eval(ck, tau, nu) for nu in range(4))  # type: ignore[return-value]
+    out = [_eval(ck, tau, nu) for nu in range(4)]
+    # At (and past) the ends: the end points themselves, not their polynomial's rounding.
+    for end, row in ((times <= t[0], 0), (times >= t[-1], -1)):
+        if end.any():
+            for arr, value in zip(out[:3], (q, qd, qdd), strict=True):
+                arr[end] = np.atleast_2d(value)[row]
+    return out[0], out[1], out[2], out[3]
 
 
 @dataclass(frozen=True)

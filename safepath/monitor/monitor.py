@@ -35,7 +35,7 @@ from typing import Any, Literal
 import numpy as np
 
 from ..cell import Cell
-from ..errors import InputError
+from ..errors import InputError, TimingError
 from ..trajectory import Trajectory
 from .elements import OBSTACLES, scene_arrays, to_elements
 from .observations import Counts, ObservationError
@@ -194,6 +194,14 @@ class Monitor:
                 timing = t
         return timing.state_at(time)
 
+    def _timing_at(self, time: float) -> Timing | None:
+        """The profile followed at monitor time ``time`` (None: no motion)."""
+        timing = self._timings[0] if self._timings else None
+        for t in self._timings:
+            if t.start <= time:
+                timing = t
+        return timing
+
     # -- inputs ----------------------------------------------------------------------
     def observe(self, observation: Any, now: float) -> Decision:
         """Take an observation (a :class:`Scan`, :class:`Cloud`, :class:`Obstacles`, or a
@@ -281,7 +289,12 @@ class Monitor:
         elements = _kernels.bucket(E, o.cell_size) if len(E) else (
             E, np.zeros((0, 4)), np.zeros(1, np.int64), np.zeros((0, 4)), np.zeros(1, np.int64))
         tau_l, r_l = self.state_at(now + o.command_latency)
-        a = assess(self._path, self._sweep, elements, age, tau_c, tau_l, r_l, o)
+        # A new profile starts from the raw profile half a width later (see
+        # MonitoredPath.march); that is what the assessment marches from.
+        current = self._timing_at(now + o.command_latency)
+        raw = current.raw_state(now + o.command_latency + self._path.width / 2) \
+            if current is not None else (tau_l, r_l)
+        a = assess(self._path, self._sweep, elements, age, tau_c, raw[0], raw[1], o)
         base = dict(separation_now=a.separation_now, separation_path=a.separation_path,
                     protective_distance=a.protective_distance,
                     separation_kept=a.separation_kept, stopping_time=a.stopping_time,
@@ -350,8 +363,18 @@ class Monitor:
               reason: str, base: dict[str, Any]) -> Decision:
         assert self._path is not None
         start = now + self.options.command_latency
-        timing = self._path.march(start, tau_l, r_l, scale, 0.0 if scale == 0 else np.inf)
-        traj = self._path.trajectory(timing, kind=kind, scale=scale)
+        try:
+            timing, traj = self._path.replacement(
+                start, scale, 0.0 if scale == 0 else np.inf, before=self._timing_at(start),
+                tau0=tau_l, r0=r_l, kind=kind)
+        except TimingError as exc:
+            # No re-timing from this state stays within the limits as the controller
+            # executes it (the motion is in a phase at its jerk limit): nothing is sent,
+            # the robot keeps its current goal, and the next decision tries again.
+            log.warning("monitor: %s not sent: %s", kind, exc)
+            self.stats["deferred"] = self.stats.get("deferred", 0) + 1
+            return Decision(now, kind, f"{reason}; deferred: no re-timing within the limits "
+                            f"as executed from this state ({exc})", self._scale, **base)
         self._timings = [t for t in self._timings if t.start < start][-1:] + [timing]
         self._scale = scale
         return Decision(now, kind, reason, scale, replacement=traj, replacement_start=start,

@@ -11,12 +11,13 @@ at every knot are within the robot's limits (checked before a timing is released
 
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass
 
 import numpy as np
 
 from ..errors import TimingError
-from ..execution import LIMITS_KEY, robot_limits
+from ..execution import LIMITS_KEY, interval_ratios, robot_limits
 from ..robot import Robot
 from ..trajectory import Trajectory
 
@@ -33,13 +34,24 @@ def _kernels():  # noqa: ANN202
 class Timing:
     """A speed profile along a path, started at ``start`` on the monitor's clock.
 
+    The *raw* profile is the greedy one (:meth:`MonitoredPath.march`): ``r`` piecewise
+    linear in time from ``start + lead`` on, following the profile ``before`` it until
+    then. The robot follows its centred moving average over ``width`` seconds (the
+    path parameter ``tau_f(t)`` is the raw one averaged over ``[t - width/2, t +
+    width/2]``): the path acceleration ``r'`` is then continuous and the jerk bounded,
+    a steady raw speed is followed as it is, and since the raw profile only changes
+    from ``start + width/2`` on, the followed one only changes from ``start`` on.
+
     Attributes:
-        start: Monitor time of the first knot [s].
-        tau: Path parameter of each knot [s].
-        x: Squared speed ``r^2`` at each knot.
-        u: Path acceleration ``dr/dt`` on the interval after each knot [1/s].
-        t: Time of each knot from ``start`` [s].
+        start: Monitor time of the first knot of the replacement [s].
+        tau: Path parameter of each raw knot [s].
+        x: Squared raw speed ``r^2`` at each raw knot.
+        u: Raw path acceleration ``dr/dt`` on the interval after each raw knot [1/s].
+        t: Time of each raw knot from ``start + lead`` [s].
         rest: Whether the profile ends at rest before the path's end.
+        lead: Where the raw knots start, after ``start`` [s] (half the width).
+        width: Width of the moving average [s] (0: the raw profile is followed).
+        before: The profile followed before this one (None: a steady speed).
     """
 
     start: float
@@ -48,30 +60,115 @@ class Timing:
     u: np.ndarray
     t: np.ndarray
     rest: bool
+    lead: float = 0.0
+    width: float = 0.0
+    before: Timing | None = None
 
     @property
     def end(self) -> float:
-        """Monitor time of the last knot [s]."""
-        return self.start + float(self.t[-1])
+        """Monitor time at which the followed profile ends [s]."""
+        return self.start + self.lead + float(self.t[-1]) + self.width / 2
+
+    def _raw(self, times: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray,
+                                                np.ndarray]:
+        """Raw ``tau``, ``r``, ``u`` and the integral of ``tau`` from the first raw knot
+        (negative before it) at monitor ``times``."""
+        dt_all = np.asarray(times, dtype=float) - (self.start + self.lead)
+        r_k = np.sqrt(self.x)
+        dt_k = np.diff(self.t)
+        cum = np.concatenate([[0.0], np.cumsum(self.tau[:-1] * dt_k + r_k[:-1] * dt_k ** 2 / 2
+                                               + self.u[:-1] * dt_k ** 3 / 6)])
+        k = np.clip(np.searchsorted(self.t, dt_all, side="right") - 1, 0, self.t.size - 1)
+        dt = dt_all - self.t[k]
+        last = k == self.t.size - 1
+        u = np.where(last, 0.0, self.u[k])
+        tau = self.tau[k] + r_k[k] * dt + u * dt * dt / 2
+        r = r_k[k] + u * dt
+        F = cum[k] + self.tau[k] * dt + r_k[k] * dt ** 2 / 2 + u * dt ** 3 / 6  # noqa: N806
+        early = dt_all < 0.0
+        if early.any():
+            if self.before is None:  # a steady speed before
+                d = dt_all[early]
+                tau[early] = self.tau[0] + r_k[0] * d
+                r[early], u[early] = r_k[0], 0.0
+                F[early] = self.tau[0] * d + r_k[0] * d * d / 2
+            else:
+                b_tau, b_r, b_u, b_F = self.before._raw(  # noqa: N806
+                    np.append(np.asarray(times, dtype=float)[early], self.start + self.lead))
+                tau[early], r[early], u[early] = b_tau[:-1], b_r[:-1], b_u[:-1]
+                F[early] = b_F[:-1] - b_F[-1]
+        return tau, r, u, F
+
+    def followed(self, times: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Path parameter [s], speed ``r`` and path acceleration ``r'`` [1/s] of the
+        followed (averaged) profile at monitor ``times``."""
+        times = np.asarray(times, dtype=float)
+        if self.width <= 0.0:
+            tau, r, u, _ = self._raw(times)
+        else:
+            h = self.width / 2
+            tau_hi, r_hi, _, f_hi = self._raw(times + h)
+            tau_lo, r_lo, _, f_lo = self._raw(times - h)
+            tau, r, u = ((f_hi - f_lo) / self.width, (tau_hi - tau_lo) / self.width,
+                         (r_hi - r_lo) / self.width)
+        # Rounding leaves speeds of ~1e-19 where the window lies at rest: zero them.
+        r = np.where(np.abs(r) < 1e-12, 0.0, r)
+        u = np.where(np.abs(u) < 1e-12, 0.0, u)
+        if self.rest:  # at rest once the window has passed the raw profile's end, exactly
+            done = times - self.width / 2 >= self.start + self.lead + float(self.t[-1])
+            tau[done], r[done], u[done] = self.tau[-1], 0.0, 0.0
+        # A profile that runs to the path's end is followed up to it.
+        return np.minimum(tau, self.tau[-1]), r, u
+
+    def raw_state(self, time: float) -> tuple[float, float]:
+        """Raw path parameter [s] and speed at monitor time ``time``."""
+        tau, r, _, _ = self._raw(np.array([time]))
+        return float(tau[0]), float(max(r[0], 0.0))
 
     def state_at(self, time: float) -> tuple[float, float]:
-        """Path parameter [s] and speed ``r`` at monitor time ``time`` (held after the
-        end)."""
-        dt_all = time - self.start
-        if dt_all <= 0.0:
-            return float(self.tau[0]), float(np.sqrt(self.x[0]))
-        k = int(np.searchsorted(self.t, dt_all, side="right") - 1)
-        if k >= self.t.size - 1:
-            return float(self.tau[-1]), float(np.sqrt(self.x[-1]))
-        dt = dt_all - float(self.t[k])
-        r0 = float(np.sqrt(self.x[k]))
-        u = float(self.u[k])
-        tau = float(self.tau[k]) + r0 * dt + 0.5 * u * dt * dt
-        return min(tau, float(self.tau[k + 1])), max(r0 + u * dt, 0.0)
+        """Path parameter [s] and speed ``r`` the robot follows at monitor time ``time``
+        (held after the end)."""
+        tau, r, _ = self.followed(np.array([time]))
+        if time >= self.end:
+            return float(tau[0]), 0.0 if self.rest else float(max(r[0], 0.0))
+        return float(tau[0]), float(max(r[0], 0.0))
+
+    def trimmed(self, keep_from: float) -> Timing:
+        """This profile without what lies before monitor time ``keep_from`` (its
+        ``before`` chain cut where no longer needed)."""
+        if self.before is None:
+            return self
+        if self.start + self.lead <= keep_from:
+            return dataclasses.replace(self, before=None)
+        return dataclasses.replace(self, before=self.before.trimmed(keep_from))
+
+
+#: Fractions of the acceleration limits a raw profile may use, tried in turn until the
+#: replacement is within every limit as executed (the averaging, the path's curvature and
+#: the verified motion's own jerk take the rest). The last, gentlest, is what the
+#: separation assessment assumes (:attr:`MonitoredPath.amax`): any of them stops sooner.
+BRAKE_SCALES = (0.9, 0.6)
+BRAKE_SCALE = BRAKE_SCALES[0]
+#: Delays [s] before braking tried last, at the gentlest scale, when braking at once
+#: would add too much jerk to the verified motion's own (a change of speed needs the
+#: motion's jerk headroom; a motion at its jerk limit has none until that phase ends).
+#: The assessment assumes the longest.
+BRAKE_DELAYS = (0.0, 0.02, 0.05)
+#: Fractions of the acceleration limits a speed-up may use, tried in turn: the first is
+#: the assessment's; a gentler speed-up is slower at every instant, so it stops sooner.
+SPEED_UP_SCALES = (0.6, 0.4, 0.25, 0.15, 0.1)
+#: Share of each joint's jerk limit left to the change of the path acceleration
+#: (``q'(tau) r''``); the rest is for the verified motion's own jerk and curvature terms.
+JERK_SHARE = 0.5
+#: Spacing of a replacement's knots [s] (whole nanoseconds).
+KNOT_NS = 4_000_000
 
 
 class MonitoredPath:
-    """A verified trajectory's knots as a path to re-time.
+    """A verified trajectory's motion as a path to re-time.
+
+    The path parameter is the trajectory's own time; its positions, velocities and
+    accelerations at a path parameter are the trajectory's (its knots' quintic join).
 
     Args:
         traj: The verified trajectory (one motion: no gripper event inside it).
@@ -81,7 +178,14 @@ class MonitoredPath:
     def __init__(self, traj: Trajectory, robot: Robot) -> None:
         self.traj = traj
         self.robot = robot
-        self.amax = robot.acceleration_limits * (1.0 - 1e-9)
+        #: The acceleration limits the separation assessment's profiles use.
+        self.amax = robot.acceleration_limits * BRAKE_SCALES[-1]
+        #: Width of the moving average every profile on this path is followed through
+        #: [s]: a change of the raw path acceleration from 0 to braking at
+        #: ``BRAKE_SCALE`` of the limits, spread over it, keeps ``q' r''`` within
+        #: ``JERK_SHARE`` of the jerk limits (at least three knots).
+        self.width = max(3 * KNOT_NS / 1e9, float(np.max(
+            BRAKE_SCALE * robot.acceleration_limits / (JERK_SHARE * robot.jerk_limits))))
 
     @property
     def end(self) -> float:
@@ -89,25 +193,9 @@ class MonitoredPath:
         return float(self.traj.t[-1])
 
     def sample(self, tau: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """Position, velocity and acceleration of the verified trajectory at ``tau``
-        (its own cubic Hermite interpolation, as :meth:`Trajectory.sample`)."""
-        tr = self.traj
-        t = tr.t
-        if t.size == 1 or tau <= t[0]:
-            return tr.q[0].copy(), tr.qd[0].copy(), tr.qdd[0].copy()
-        if tau >= t[-1]:
-            return tr.q[-1].copy(), tr.qd[-1].copy(), tr.qdd[-1].copy()
-        k = min(int(np.searchsorted(t, tau, side="right")) - 1, t.size - 2)
-        h = t[k + 1] - t[k]
-        s = (tau - t[k]) / h
-        s2, s3 = s * s, s * s * s
-        p0, p1, m0, m1 = tr.q[k], tr.q[k + 1], tr.qd[k] * h, tr.qd[k + 1] * h
-        q = ((2 * s3 - 3 * s2 + 1) * p0 + (s3 - 2 * s2 + s) * m0
-             + (-2 * s3 + 3 * s2) * p1 + (s3 - s2) * m1)
-        dq = ((6 * s2 - 6 * s) * p0 + (3 * s2 - 4 * s + 1) * m0
-              + (-6 * s2 + 6 * s) * p1 + (3 * s2 - 2 * s) * m1) / h
-        ddq = tr.qdd[k] + s * (tr.qdd[k + 1] - tr.qdd[k])
-        return q, dq, ddq
+        """Position, velocity and acceleration of the verified trajectory at ``tau``."""
+        q, qd, qdd = self.traj.sample([tau])
+        return q[0], qd[0], qdd[0]
 
     def grid(self, tau0: float) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         """Knots from ``tau0`` on: (tau, q, Q', Q''); the first is the state at ``tau0``."""
@@ -120,54 +208,102 @@ class MonitoredPath:
                 np.vstack([qdd0, tr.qdd[k:]]))
 
     def march(self, start: float, tau0: float, r0: float, scale: float, brake_after: float,
-              *, limit: int | None = None) -> Timing:
-        """A profile from path parameter ``tau0`` at speed ``r0``, toward speed
-        ``scale``, braking to rest from ``brake_after`` [s] on (``inf``: never).
+              *, limit: int | None = None, before: Timing | None = None,
+              accel_scale: float | None = None) -> Timing:
+        """A profile toward speed ``scale``, braking to rest from ``brake_after`` [s] on
+        (``inf``: never), followed from monitor time ``start`` on.
 
         Args:
-            start: Monitor time of the first knot [s].
-            tau0: Where it starts [s of the path].
-            r0: Speed there, in [0, 1].
+            start: Monitor time of the first knot of the followed profile [s].
+            tau0: Where the raw profile starts [s of the path], without ``before``.
+            r0: Its speed there, in [0, 1], without ``before``.
             scale: Target speed, in [0, 1].
-            brake_after: When braking begins, from ``start`` [s].
+            brake_after: When braking begins, from the raw profile's start [s].
             limit: Knots to consider at most (None: all).
+            before: The profile followed until then: the raw profile starts where its raw
+                profile is half a width after ``start`` (``tau0`` and ``r0`` unused).
+            accel_scale: Fraction of the acceleration limits the raw profile uses
+                (default: the assessment's, :attr:`amax`).
         """
+        lead = self.width / 2
+        if before is not None:
+            tau0, r0 = before.raw_state(start + lead)
+            before = before.trimmed(start - self.width)
         tau, _, qd, qdd = self.grid(tau0)
         if limit is not None:
             tau, qd, qdd = tau[:limit], qd[:limit], qdd[:limit]
         n = tau.size
         x, u, t = np.empty(n), np.empty(n), np.empty(n)
-        m, _, rest = _kernels().march(tau, qd, qdd, self.amax, r0 * r0, scale * scale,
+        amax = self.amax if accel_scale is None else self.robot.acceleration_limits * accel_scale
+        m, _, rest = _kernels().march(tau, qd, qdd, amax, r0 * r0, scale * scale,
                                       brake_after, x, u, t)
         at_end = m == n and (limit is None or limit >= n)
         return Timing(start, tau[:m].copy(), x[:m].copy(), u[:m].copy(), t[:m].copy(),
-                      bool(rest and not (at_end and x[m - 1] > 0)))
+                      bool(rest and not (at_end and x[m - 1] > 0)), lead, self.width, before)
 
-    def trajectory(self, timing: Timing, *, kind: str, scale: float) -> Trajectory:
-        """The timing as a trajectory starting at t = 0 (a replacement goal).
+    def replacement(self, start: float, scale: float, brake_after: float, *,
+                    before: Timing | None, tau0: float, r0: float, kind: str
+                    ) -> tuple[Timing, Trajectory]:
+        """The followed timing toward ``scale`` and its trajectory: the raw profile at
+        each of :data:`BRAKE_SCALES` in turn (then braking a little later,
+        :data:`BRAKE_DELAYS`), or for a speed-up each of :data:`SPEED_UP_SCALES`, the
+        first whose trajectory is within every limit as executed.
 
         Raises:
-            TimingError: A knot would exceed a velocity or acceleration limit.
+            TimingError: None is (naming the last excess).
         """
-        tau, q, qd, qdd = self.grid(float(timing.tau[0]))
-        m = timing.tau.size
-        q, qd, qdd = q[:m], qd[:m], qdd[:m]
-        r = np.sqrt(timing.x)[:, None]
-        v = qd * r
-        a = qdd * timing.x[:, None] + qd * timing.u[:, None]
-        if timing.rest or timing.tau[-1] >= self.end:
-            v[-1] = 0.0
-            a[-1] = 0.0
-        t = timing.t
-        if m > 1 and np.any(np.diff(t) <= 0):
-            raise TimingError("re-timed knots are not increasing in time")
-        vr = float(np.max(np.abs(v) / self.robot.velocity_limits)) if m else 0.0
-        ar = float(np.max(np.abs(a) / self.robot.acceleration_limits)) if m else 0.0
-        if not (vr <= 1.0 and ar <= 1.0):
-            raise TimingError(f"re-timed knot at {max(vr, ar)!r} of its limit")
+        current = before.state_at(start)[1] if before is not None else r0
+        if scale <= current:
+            tries = [(s, 0.0) for s in BRAKE_SCALES] + [(BRAKE_SCALES[-1], d)
+                                                         for d in BRAKE_DELAYS[1:]]
+        else:
+            tries = [(s, 0.0) for s in SPEED_UP_SCALES]
+        error: TimingError | None = None
+        for accel_scale, delay in tries:
+            timing = self.march(start, tau0, r0, scale, brake_after + delay, before=before,
+                                accel_scale=accel_scale)
+            try:
+                return timing, self.trajectory(timing, kind=kind, scale=scale)
+            except TimingError as exc:
+                error = exc
+        assert error is not None
+        raise error
+
+    def trajectory(self, timing: Timing, *, kind: str, scale: float) -> Trajectory:
+        """The followed timing as a trajectory starting at t = 0 (a replacement goal):
+        knots every 4 ms on the verified motion, speeds ``Q' r`` and accelerations
+        ``Q'' r^2 + Q' r'``, until it rests or reaches the path's end.
+
+        Raises:
+            TimingError: The knots' quintic join (as the controller executes them) would
+                exceed a speed, acceleration or jerk limit.
+        """
+        n = max(2, int(np.ceil((timing.end - timing.start) * 1e9 / KNOT_NS)) + 1)
+        t = np.arange(n, dtype=np.int64) * KNOT_NS / 1e9
+        tau, r, rd = timing.followed(timing.start + t)
+        done = np.flatnonzero(tau >= self.end - 1e-12)
+        if done.size:  # reaches the path's end: stop there
+            n = int(done[0]) + 1
+            t, tau, r, rd = t[:n], tau[:n], r[:n], rd[:n]
+        q, Qd, Qdd = self.traj.sample(tau)  # noqa: N806
+        v = Qd * r[:, None]
+        a = Qdd * (r * r)[:, None] + Qd * rd[:, None]
+        v[-1] = a[-1] = 0.0
+        if n > 1:
+            rv, ra, rj = interval_ratios(t, q, v, a, vmax=self.robot.velocity_limits,
+                                         amax=self.robot.acceleration_limits,
+                                         jmax=self.robot.jerk_limits)
+            peaks = (float(rv.max()), float(ra.max()), float(rj.max()))
+            if not max(peaks) <= 1.0:
+                k = int(np.argmax(np.maximum(np.maximum(rv, ra), rj)))
+                raise TimingError(
+                    f"re-timed motion at {max(peaks)!r} of a limit as executed ({kind} to "
+                    f"scale {scale:g}; speed, acceleration, jerk ratios "
+                    f"{peaks[0]:.3f}, {peaks[1]:.3f}, {peaks[2]:.3f}; at {t[k]:.3f} s)")
         tr = self.traj
         knot = np.clip(np.searchsorted(tr.t, tau, side="right") - 1, 0, tr.t.size - 1)
         info = {"monitor": kind, "speed_scale": scale, "path_start": float(tau[0]),
-                "source_route": tr.route, LIMITS_KEY: robot_limits(self.robot)}
-        return Trajectory(tr.joint_names, t.copy(), q, v, a, tr.step_index[knot][:m],
+                "path_tau": tau.tolist(), "source_route": tr.route,
+                LIMITS_KEY: robot_limits(self.robot)}
+        return Trajectory(tr.joint_names, t, q, v, a, tr.step_index[knot],
                           tr.steps, (), tr.robot, tr.route, info)

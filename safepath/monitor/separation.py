@@ -109,8 +109,9 @@ def assess(path: MonitoredPath, sweep: PathSweep, elements: tuple[np.ndarray, ..
         elements: Observed elements bucketed by :func:`_kernels.bucket`.
         age: Age of the oldest observation used [s].
         tau_c: Path parameter now [s].
-        tau_l: Path parameter when the controller acts (``now + T_cmd``) [s].
-        r_l: Speed then, in [0, 1].
+        tau_l: Raw path parameter where a new profile would start (half the path's
+            averaging width after ``now + T_cmd``) [s].
+        r_l: Raw speed there, in [0, 1].
         options: Monitor options.
     """
     o = options
@@ -125,7 +126,9 @@ def assess(path: MonitoredPath, sweep: PathSweep, elements: tuple[np.ndarray, ..
         m, b, _ = K.march(tau, qd, qdd, path.amax, r_l * r_l, scale * scale, brake_after,
                           bx, bu, bt)
         tb = float(bt[b]) if b >= 0 else float(bt[m - 1])
-        return float(tau[m - 1]), float(bt[m - 1]), tb
+        # The robot follows the raw profile averaged over the path's width: it starts
+        # half a width after the command and comes to rest half a width after it.
+        return float(tau[m - 1]), float(bt[m - 1]) + path.width, tb
 
     # The farthest any tested profile reaches: full speed, then braking.
     far, _, _ = end_of(1.0, o.stale_after)

@@ -14,6 +14,7 @@ from typing import Any
 
 import numpy as np
 import pytest
+from quintic_join import quintic_peaks as _quintic_peaks
 
 from safepath import (
     ConfigError,
@@ -37,7 +38,6 @@ from safepath.planning.timing import (
 from safepath.robot import Robot
 
 from .conftest import LIMIT_TOL, ROOT, Plans, dense_times
-from .test_executed_motion import _quintic_peaks
 
 PAIRS = [("high1", "high2"), ("high2", "safe"), ("safe", "unsafe"), ("grip", "low1")]
 
