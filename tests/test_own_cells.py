@@ -167,7 +167,7 @@ def test_runtime_planner_takes_a_cell_built_in_python(ur5_plans: dict) -> None:
         traj = planner.plan_route("over_the_wall", timeout=120.0).result(timeout=180.0)
     assert np.array_equal(traj.q, ur5_plans["over_the_wall"].q)  # same seed, same answer
     # A robot built in Python cannot reach a worker process: refused up front.
-    bare = safepath.Robot(name="copy", model=cell.robot.model,
+    bare = safepath.Robot(name="ur5", model=cell.robot.model,
                           collision_model=cell.robot.collision_model, visual_model=None,
                           velocity_limits=cell.robot.velocity_limits,
                           acceleration_limits=cell.robot.acceleration_limits,
