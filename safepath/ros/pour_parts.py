@@ -161,7 +161,7 @@ class PourStopper:
     def _stop_arrays(self, tau_now: float, tau_brake: float
                      ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray,
                                 int, int]:
-        from ..planning.stop import path_state
+        from ..monitor.profile import MonitoredPath
 
         motion, traj = self.motion, self.motion.trajectory
         t = traj.t
@@ -169,15 +169,24 @@ class PourStopper:
         kb = int(np.searchsorted(t, max(tau_brake, t[k0]), side="left"))
         if kb >= t.size - 1:  # the motion's own end comes first
             kb = t.size - 1
+            self._path_tau = t[k0:]
             return (t[k0:] - t[k0], motion.s[k0:], traj.q[k0:], traj.qd[k0:], traj.qdd[k0:],
                     k0, kb)
-        s, sd = path_state(motion.path, motion.s, traj.qd, t, float(t[kb]))
-        braking = self.planner.stop(s, sd, time=float(t[kb]))
-        return (np.concatenate([t[k0:kb + 1] - t[k0], t[kb] - t[k0] + braking.t[1:]]),
-                np.concatenate([motion.s[k0:kb + 1], braking.s[1:]]),
-                np.vstack([traj.q[k0:kb + 1], braking.q[1:]]),
-                np.vstack([traj.qd[k0:kb + 1], braking.qd[1:]]),
-                np.vstack([traj.qdd[k0:kb + 1], braking.qdd[1:]]), k0, kb)
+        # The motion's own time is the path parameter: the stop follows the motion at its
+        # own speed, then brakes along it, jerk-limited and checked as executed (the
+        # monitor's re-timing, :class:`safepath.monitor.profile.MonitoredPath`).
+        path = MonitoredPath(traj, self.robot)
+        lead = path.width / 2
+        _, stop = path.replacement(float(t[k0]), 0.0, max(float(t[kb] - t[k0]) - lead, 0.0),
+                                   before=None, tau0=float(t[k0]) + lead, r0=1.0,
+                                   kind="stop")
+        tau = np.asarray(stop.info["path_tau"])
+        s = np.interp(tau, t, motion.s)
+        q, qd, qdd = stop.q.copy(), stop.qd.copy(), stop.qdd.copy()
+        # The first knot is the motion's own knot k0 (the averaging rounds it by ~1e-15).
+        q[0], qd[0], qdd[0] = traj.q[k0], traj.qd[k0], traj.qdd[k0]
+        self._path_tau = np.concatenate([[t[k0]], tau[1:]])
+        return stop.t, s, q, qd, qdd, k0, kb
 
     def stop(self, tau_now: float, tau_brake: float) -> Trajectory:
         """The stop goal when the arm is at motion time ``tau_now`` [s] and braking may
@@ -202,6 +211,7 @@ class PourStopper:
                           ("stop",), (), traj.robot, f"{traj.route}:stop",
                           {"time_offset": float(traj.t[k0]), "brake_at": float(traj.t[kb]),
                            LIMITS_KEY: robot_limits(self.robot),
+                           "path_tau": np.asarray(self._path_tau).tolist(),
                            "s_rest": float(s[-1])})
 
     def until(self, stop: Trajectory) -> Trajectory:

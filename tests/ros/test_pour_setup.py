@@ -50,7 +50,7 @@ def test_params_file_pick_pour_place(setup: PourSetup) -> None:
     # What the node sends for them: ros2_kortex's open and closed positions.
     assert [gripper_command_goal(setup.cell.robot, g.action, backend="rosbags").command.position
             for g in grips] == [0.0, 0.8, 0.0]
-    assert abs(run.final_mass - 100.0) <= 2.0
+    assert abs(run.final_mass - 100.0) <= 3.5  # see test_pour_controller.POUR_TOLERANCE
     assert run.tilt[-1] < math.radians(5.0)  # the place route keeps the cup upright
 
 
