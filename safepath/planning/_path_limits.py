@@ -131,7 +131,7 @@ def _jerk_xmax(robot: Robot, path: PathSpline, grid: np.ndarray, scale: np.ndarr
     eps = 1e-9 * max(1.0, float(grid[-1]))
     d3 = np.maximum(np.abs(path(grid, 3)), np.abs(path(np.maximum(grid - eps, 0.0), 3)))
     jmax = JERK_SPEED_SHARE * scale[:, None] * robot.jerk_limits
-    with np.errstate(divide="ignore"):
+    with np.errstate(divide="ignore", over="ignore"):
         sd = np.min(np.where(d3 > 1e-12, (jmax / np.maximum(d3, 1e-300)) ** (1.0 / 3.0),
                              np.inf), axis=1)
     return np.minimum(sd, np.sqrt(_topp.X_CAP)) ** 2

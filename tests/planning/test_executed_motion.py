@@ -88,10 +88,15 @@ def test_goal_over_a_limit_is_refused(robots: dict[str, safepath.Robot]) -> None
     q = np.zeros((t.size, robot.dof))
     q[1:, 0] = np.cumsum(qd[:-1, 0] * 0.004 + acc[:-1] * 0.004 ** 2 / 2)
     qd[-1] = qdd[0] = qdd[-1] = 0.0
-    traj = Trajectory(robot.joint_names, t, q, qd, qdd, np.zeros(t.size, dtype=int),
-                      ("move",), robot=robot.name)
+    anonymous = Trajectory(robot.joint_names, t, q, qd, qdd, np.zeros(t.size, dtype=int),
+                           ("move",))
     with pytest.raises(safepath.errors.TrajectoryError, match="limits"):
-        joint_trajectory(traj, backend="rosbags")  # no limits recorded, none given
+        joint_trajectory(anonymous, backend="rosbags")  # no limits recorded, none given
     with pytest.raises(ExecutedLimitError) as info:
-        joint_trajectory(traj, limits=robot, backend="rosbags")
+        joint_trajectory(anonymous, limits=robot, backend="rosbags")
     assert info.value.key in ("acceleration", "jerk") and info.value.ratio > 1.0
+    # A trajectory naming a bundled robot is checked against that robot's limits.
+    named = Trajectory(robot.joint_names, t, q, qd, qdd, np.zeros(t.size, dtype=int),
+                       ("move",), robot=robot.name)
+    with pytest.raises(ExecutedLimitError):
+        joint_trajectory(named, backend="rosbags")
