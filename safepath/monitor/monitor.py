@@ -50,6 +50,10 @@ log = logging.getLogger(__name__)
 
 DecisionKind = Literal["continue", "slow", "stop", "resume", "replan"]
 
+#: A re-plan that found no way is asked again once a side of the obstacle's box moved
+#: more than this [m] (beyond the jitter of noisy points on the box's edges).
+REPLAN_MOVED = 0.03
+
 
 @dataclass(frozen=True)
 class ReplanRequest:
@@ -144,6 +148,7 @@ class Monitor:
         self._clear_since: float | None = None
         self._blocked_since: float | None = None
         self._replan_sent = False
+        self._replan_failed: tuple[ReplanRequest, str] | None = None
         self._last_stamp: dict[str, float] = {}
         self.last: Decision = Decision(0.0, "continue", "not started", 1.0)
         self.stats = {"out_of_order": 0, "stale": 0, "malformed": 0}
@@ -183,6 +188,7 @@ class Monitor:
         self._scale = scale
         self._blocked_since = None
         self._replan_sent = False
+        self._replan_failed = None
 
     def state_at(self, time: float) -> tuple[float, float]:
         """Path parameter [s] and speed scale ``r`` commanded at monitor time ``time``."""
@@ -252,6 +258,18 @@ class Monitor:
         T[:3, 3] = center
         self._scene = (np.append(kinds, 0), np.concatenate([Ts, T[None]]),
                        np.vstack([dims, np.asarray(size, dtype=float) / 2]))
+
+    def replan_failed(self, request: ReplanRequest, reason: str) -> None:
+        """A re-plan found no way (``reason``: the planner's why). The robot stays
+        stopped; its stop decisions say why, and a new request is made as soon as the
+        obstacle's box has moved (by more than :data:`REPLAN_MOVED` on any side) while
+        the robot is still blocked.
+
+        Args:
+            request: The request that failed.
+            reason: Why, in words (e.g. the ``PlanningError``'s message).
+        """
+        self._replan_failed = (request, str(reason))
 
     def reset(self) -> None:
         """Release the kill switch; motion resumes by the hold-time rule."""
@@ -333,6 +351,8 @@ class Monitor:
             if self._blocked_since is None:
                 self._blocked_since = now
             decision = self._stop(now, tau_l, r_l, why, base)
+            if self._replan_sent and self._replan_failed is not None and r_l == 0.0:
+                return self._retry(decision, now, tau_l, a, E)
             if (self._blocked_since is not None and not self._replan_sent
                     and now - self._blocked_since >= o.replan_after and r_l == 0.0):
                 self._replan_sent = True
@@ -340,6 +360,7 @@ class Monitor:
                                replan=self._request(now, tau_l, a, E))
             return decision
         self._blocked_since = None
+        self._replan_sent, self._replan_failed = False, None  # clear: a new block re-plans
         if a.scale < self._scale:
             self._clear_since = None
             return self._emit(now, tau_l, r_l, a.scale, "slow",
@@ -386,6 +407,25 @@ class Monitor:
         if self._scale == 0.0:
             return Decision(now, "stop", reason, 0.0, **base)
         return self._emit(now, tau_l, r_l, 0.0, "stop", reason, base)
+
+    def _retry(self, decision: Decision, now: float, tau: float, a: Assessment,
+               E: np.ndarray) -> Decision:  # noqa: N803
+        """Still blocked after a failed re-plan: ask again once the obstacle's box has
+        moved, else wait and say why."""
+        assert self._replan_failed is not None
+        failed, why = self._replan_failed
+        request = self._request(now, tau, a, E)
+        lo, hi = request.obstacle_center - request.obstacle_size / 2, \
+            request.obstacle_center + request.obstacle_size / 2
+        lo0, hi0 = failed.obstacle_center - failed.obstacle_size / 2, \
+            failed.obstacle_center + failed.obstacle_size / 2
+        if max(np.abs(lo - lo0).max(), np.abs(hi - hi0).max()) > REPLAN_MOVED:
+            self._replan_failed = None
+            return replace(decision, kind="replan",
+                           reason="the obstacle moved since the last re-plan found no way",
+                           replan=request)
+        return replace(decision, reason=f"{decision.reason}; waiting for the obstacle to "
+                       f"move: the last re-plan found no way ({why})")
 
     def _request(self, now: float, tau: float, a: Assessment, E: np.ndarray  # noqa: N803
                  ) -> ReplanRequest:

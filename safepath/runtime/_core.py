@@ -154,7 +154,7 @@ class Core:
     def _cache_key(self, kind: str, payload: dict[str, Any]) -> tuple[Any, ...] | None:
         """The cache key of a request's answer, without the poses version (the worker
         makes the same keys for what it sends, see ``_worker.Worker.run``)."""
-        if kind == "validate":
+        if kind in ("validate", "replan"):
             return None
         seed = payload["seed"] if payload["seed"] is not None else self.options.planner.seed
         if kind == "cell":

@@ -113,7 +113,7 @@ class Job:
 
     Attributes:
         id: Unique id (the worker echoes it).
-        kind: ``route``, ``cell`` or ``validate``.
+        kind: ``route``, ``cell``, ``replan`` or ``validate``.
         payload: Arguments for the worker.
         timeout: Time budget from the request [s], or None.
         deadline: ``time.monotonic()`` when the budget runs out, or None.

@@ -4,7 +4,8 @@ Protocol (pickled tuples over one duplex :class:`multiprocessing.connection.Conn
 
 caller -> worker
     ``("poses", version, overlay)``: plan with these poses from now on (no reply);
-    ``("job", job_id, kind, payload)``: ``kind`` is ``route``, ``cell`` or ``validate``;
+    ``("job", job_id, kind, payload)``: ``kind`` is ``route``, ``cell``, ``replan`` or
+    ``validate``;
     ``("stop",)``: exit.
 
 worker -> caller
@@ -143,6 +144,15 @@ class _Worker:
         entries[("cell", seed_used)] = planned
         return planned, entries
 
+    def replan(self, payload: dict[str, Any]) -> Any:
+        """Around the request's obstacle back to the route (not cached: every obstacle
+        is new)."""
+        from ..monitor.replan import replan
+
+        return replan(self.cell, payload["name"], payload["request"], held=payload["held"],
+                      margin=payload["margin"], options=self._options(payload["seed"]),
+                      world=payload["world"])
+
     def warm_up(self) -> dict[tuple[Any, ...], Any]:
         """Plan the cell once with the default seed, so that a worker is warm when it
         is first used (collision checkers and verifiers built, numba kernels loaded:
@@ -161,6 +171,8 @@ class _Worker:
             return self.plan_route(payload["name"], payload["seed"], payload["world"])
         if kind == "cell":
             return self.plan_cell(payload["seed"])
+        if kind == "replan":
+            return self.replan(payload), {}
         if kind == "validate":
             return self.validate(payload["poses"]), {}
         raise ValueError(f"unknown job kind '{kind}'")

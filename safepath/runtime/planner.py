@@ -148,6 +148,43 @@ class RuntimePlanner:
         payload = {"name": str(name), "seed": _seed(seed), "world": world}
         return self._core.submit("route", payload, _timeout(timeout), f"route '{name}'")
 
+    def replan(self, route: str, request: Any, *, held: str | None, margin: float,
+               world: WorldState | None = None, seed: int | None = None,
+               timeout: float | None = None) -> Future[Trajectory]:
+        """Plan around an extra obstacle: from a monitor's re-plan request (rest state,
+        obstacle box) back to route ``route``, as :func:`safepath.monitor.replan.replan`
+        does in this process, on a warm worker. Not cached (every request is new).
+
+        Args:
+            route: Route name in ``routes.yaml`` (a re-planned route's name is understood
+                as its original's).
+            request: A :class:`~safepath.monitor.ReplanRequest`.
+            held: Object held at the rest state, or None.
+            margin: Clearance the new path keeps from the obstacle box [m].
+            world: World state at the rest state (default: the scene's, with ``held``).
+            seed: Planner seed (default: the options' seed).
+            timeout: Time budget from this call [s], as in :meth:`plan_route`.
+
+        Returns:
+            A future of the trajectory; it fails with ``PlanningError`` saying why no way
+            was found (every way tried), or as :meth:`plan_route`'s.
+
+        Raises:
+            InputError: ``request`` is not a ReplanRequest, or ``world`` not a WorldState.
+        """
+        from ..monitor import ReplanRequest
+
+        if not isinstance(request, ReplanRequest):
+            raise InputError(f"request must be a ReplanRequest, got {type(request).__name__}",
+                             key="request")
+        if world is not None and not isinstance(world, WorldState):
+            raise InputError(f"world must be a WorldState, got {type(world).__name__}",
+                             key="world")
+        payload = {"name": str(route), "seed": _seed(seed), "world": world,
+                   "request": request, "held": held, "margin": float(margin)}
+        return self._core.submit("replan", payload, _timeout(timeout),
+                                 f"re-plan of route '{route}'")
+
     def plan_cell(self, *, seed: int | None = None, timeout: float | None = None
                   ) -> Future[dict[str, Trajectory]]:
         """Plan every route of the cell, like :func:`safepath.plan_cell`.
