@@ -1,20 +1,23 @@
 """ROS 2 bags (MCAP storage) of a cycle of trajectories, for review and replay.
 
 One bag holds a cycle: the trajectories in the order the robot runs them, back to
-back on one clock. Only standard ROS 2 types are used, so ``ros2 bag play``, Foxglove
-or PlotJuggler read it with no Niryo packages installed:
+back on one clock. Each trajectory runs as a node runs it: the motions between its
+gripper events (:func:`~safepath.ros.goals.split_at_gripper_events`), one message each,
+and each gripper event when the motion before it has ended. Only standard ROS 2 types
+are used, so ``ros2 bag play``, Foxglove or PlotJuggler read it with no Niryo packages
+installed:
 
 =======================  ==================================  ===============================
 topic                    type                                one message
 =======================  ==================================  ===============================
-``/safepath/trajectory`` ``trajectory_msgs/msg/JointTrajectory``  per trajectory, at its start
+``/safepath/trajectory`` ``trajectory_msgs/msg/JointTrajectory``  per motion, at its start
 ``/safepath/route``      ``std_msgs/msg/String`` (JSON)       per trajectory, at its start
 ``/safepath/gripper``    ``std_msgs/msg/String`` (JSON)       per gripper event, at its time
 ``/joint_states``        ``sensor_msgs/msg/JointState``       every 1/``joint_state_rate``
 =======================  ==================================  ===============================
 
 With ``goals=True`` the bag also holds the goals a node sends, as it would send them:
-``/safepath/arm_goal`` (``control_msgs/action/FollowJointTrajectory_Goal``, per trajectory,
+``/safepath/arm_goal`` (``control_msgs/action/FollowJointTrajectory_Goal``, per motion,
 at its start) and, for a robot whose ``controller.yaml`` has a ``gripper`` section,
 ``/safepath/gripper_goal`` (``control_msgs/action/GripperCommand_Goal``, per gripper event,
 at its time).
@@ -38,9 +41,14 @@ from rosbags.rosbag2 import Reader, ReaderError, StoragePlugin, Writer, WriterEr
 
 from .._knots import interval_index
 from ..errors import RosError, TrajectoryError
-from ..trajectory import Trajectory
+from ..trajectory import GripperEvent, Trajectory
 from ..trajectory_controller import TrajectoryController
-from .goals import controller_of, follow_joint_trajectory_goal, joint_trajectory
+from .goals import (
+    controller_of,
+    follow_joint_trajectory_goal,
+    joint_trajectory,
+    split_at_gripper_events,
+)
 from .gripper import gripper_command_goal
 from .messages import deserialize, serialize, typestore
 
@@ -148,34 +156,39 @@ def _cycle_records(trajs: Sequence[Trajectory], names: tuple[str, ...], period: 
                    spec: TrajectoryController, start_time_ns: int, goals: bool
                    ) -> tuple[list[tuple[int, int, str, Any]], list[int], int]:
     """Messages of the trajectories back to back: (time [ns], order, topic, message), the
-    start of each trajectory and the end of the cycle [ns from its start]."""
+    start of each trajectory and the end of the cycle [ns from its start].
+
+    Each trajectory runs as a node runs it (:func:`split_at_gripper_events`): one
+    ``JointTrajectory`` (and goal) per motion between gripper events, each event at the
+    end of the motion before it."""
     records: list[tuple[int, int, str, Any]] = []  # (time [ns], order, topic, message)
     starts_ns: list[int] = []
     clock_ns = 0
     for traj in trajs:
-        msg = joint_trajectory(traj, period=period, robot_joint_names=names,
-                               stamp_ns=start_time_ns + clock_ns, backend="rosbags")
         starts_ns.append(clock_ns)
-        t0 = start_time_ns + clock_ns
-        records.append((t0, 0, TRAJECTORY_TOPIC, msg))
-        records.append((t0, 1, ROUTE_TOPIC, _string(
+        records.append((start_time_ns + clock_ns, 1, ROUTE_TOPIC, _string(
             {"route": traj.route, "robot": traj.robot, "duration": traj.duration,
              "steps": traj.step_durations()})))
-        if goals:
-            records.append((t0, 1, ARM_GOAL_TOPIC, follow_joint_trajectory_goal(
-                traj, period=period, robot_joint_names=names, controller=spec,
-                backend="rosbags")))
-        for event in traj.events:
-            t_event = t0 + round((event.time - traj.t[0]) * _NS)
-            records.append((t_event, 2, GRIPPER_TOPIC,
-                            _string({"route": traj.route, "time": event.time,
-                                     "action": event.action, "step": event.step,
-                                     "object": event.object})))
-            if goals and spec.gripper is not None:
-                records.append((t_event, 2, GRIPPER_GOAL_TOPIC, gripper_command_goal(
-                    spec, event.action, backend="rosbags")))
-        last = msg.points[-1].time_from_start
-        clock_ns += last.sec * _NS + last.nanosec
+        for part in split_at_gripper_events(traj):
+            t_ns = start_time_ns + clock_ns
+            if isinstance(part, GripperEvent):
+                records.append((t_ns, 2, GRIPPER_TOPIC,
+                                _string({"route": traj.route, "time": part.time,
+                                         "action": part.action, "step": part.step,
+                                         "object": part.object})))
+                if goals and spec.gripper is not None:
+                    records.append((t_ns, 2, GRIPPER_GOAL_TOPIC, gripper_command_goal(
+                        spec, part.action, backend="rosbags")))
+                continue
+            msg = joint_trajectory(part, period=period, robot_joint_names=names,
+                                   stamp_ns=t_ns, backend="rosbags")
+            records.append((t_ns, 0, TRAJECTORY_TOPIC, msg))
+            if goals:
+                records.append((t_ns, 1, ARM_GOAL_TOPIC, follow_joint_trajectory_goal(
+                    part, period=period, robot_joint_names=names, controller=spec,
+                    backend="rosbags")))
+            last = msg.points[-1].time_from_start
+            clock_ns += last.sec * _NS + last.nanosec
     return records, starts_ns, clock_ns
 
 

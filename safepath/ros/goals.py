@@ -16,10 +16,11 @@ such a file get settings derived from their joint names.
   ``EXECUTE_RAW_TRAJ`` is not offered: on the robot it reads a field that
   ``JointTrajectory`` does not have and fails.
 
-Gripper events are not part of a trajectory message. :func:`split_at_gripper_events`
-cuts a trajectory at its (resting) gripper events so that a node can run motion,
-gripper, motion, ... each after the previous one has finished, and :func:`tool_goal`
-builds Niryo's gripper goals.
+Gripper events are not part of a trajectory message: the goal builders refuse a
+trajectory with an event strictly inside it (a ``TrajectoryError``; the controller would
+run through it). :func:`split_at_gripper_events` cuts a trajectory at its (resting)
+gripper events so that a node can run motion, gripper, motion, ... each after the
+previous one has finished, and :func:`tool_goal` builds Niryo's gripper goals.
 
 Every builder takes ``backend``: ``rosbags`` messages (always available, serialisable
 with :func:`safepath.ros.messages.serialize`), native ``rclpy`` messages, or ``auto``.
@@ -93,6 +94,24 @@ class _Points:
 def _validated(traj: Trajectory) -> Trajectory:
     """Re-run the Trajectory checks: its arrays may have been changed in place since."""
     return dataclasses.replace(traj)
+
+
+def _refuse_events_inside(traj: Trajectory) -> None:
+    """Refuse a trajectory with a gripper event strictly inside its time span.
+
+    A goal carries the arm's motion only: sent whole, the controller runs straight
+    through the event and the gripper never acts. Events at its very start or end are
+    fine (the node runs them before or after the goal).
+    """
+    t0, t1 = float(traj.t[0]), float(traj.t[-1])
+    for k, event in enumerate(sorted(traj.events, key=lambda e: e.time)):
+        if t0 + 1e-9 < event.time < t1 - 1e-9:
+            raise TrajectoryError(
+                f"gripper event '{event.action}' of step '{event.step}' at t={event.time:.3f} "
+                f"s lies inside route '{traj.route or traj.robot or 'trajectory'}' "
+                f"([{t0:.3f}, {t1:.3f}] s): one goal would run through it and the gripper "
+                "would never act; send the motions of split_at_gripper_events(traj) one "
+                "after another", key=f"events[{k}]")
 
 
 def controller_of(traj: Trajectory, controller: TrajectoryController | None = None
@@ -271,11 +290,14 @@ def joint_trajectory(traj: Trajectory, *, period: float | None = None,
             :func:`safepath.ros.messages.message_factory`).
 
     Raises:
-        TrajectoryError: Joint names that do not match the robot's, times not strictly
-            increasing, non-finite values, a period that is not > 0, or no limits.
+        TrajectoryError: A gripper event strictly inside ``traj`` (send the motions of
+            :func:`split_at_gripper_events`), joint names that do not match the robot's,
+            times not strictly increasing, non-finite values, a period that is not > 0,
+            or no limits.
         ExecutedLimitError: The controller's join of the points would break a limit.
         RosError: ``backend='rclpy'`` without a ROS 2 installation.
     """
+    _refuse_events_inside(traj)
     pts = _points(traj, period, robot_joint_names, controller, _limits(limits))
     return _build_joint_trajectory(message_factory(backend, _JT_TYPES), pts, stamp_ns)
 
@@ -311,9 +333,11 @@ def follow_joint_trajectory_goal(
         backend: ``auto``, ``rosbags`` or ``rclpy``.
 
     Raises:
-        TrajectoryError: Bad trajectory, period or tolerances.
+        TrajectoryError: A gripper event strictly inside ``traj`` (see
+            :func:`split_at_gripper_events`), a bad trajectory, period or tolerances.
         RosError: ``backend='rclpy'`` without control_msgs.
     """
+    _refuse_events_inside(traj)
     spec = controller_of(traj, controller)
     pts = _points(traj, period, robot_joint_names, spec, _limits(limits))
     if isinstance(goal_tolerance, str):
@@ -375,9 +399,11 @@ def robot_move_goal(traj: Trajectory, *, period: float | None = None,
     its collision check); prefer :func:`follow_joint_trajectory_goal`.
 
     Raises:
-        TrajectoryError: Bad trajectory or period.
+        TrajectoryError: A gripper event strictly inside ``traj``, a bad trajectory or
+            period.
         RosError: ``backend='rclpy'`` without niryo_ned_ros2_interfaces.
     """
+    _refuse_events_inside(traj)
     pts = _points(traj, period, robot_joint_names, controller)
     f = message_factory(backend, (*_JT_TYPES, f"{_NIRYO}/action/RobotMove_Goal",
                                   f"{_NIRYO}/msg/ArmMoveCommand", f"{_NIRYO}/msg/RPY",

@@ -21,7 +21,8 @@ from safepath.ros.bag import (
     read_bag,
     write_bag,
 )
-from safepath.ros.goals import joint_trajectory
+from safepath.ros.goals import joint_trajectory, split_at_gripper_events
+from safepath.trajectory import Trajectory
 
 from .test_messages import NED_JOINT_NAMES, assert_same, phase1, phase2
 
@@ -61,18 +62,25 @@ def test_bag_decodes_from_its_own_definitions(cycle_bag: Path) -> None:
                       ROUTE_TOPIC: "std_msgs/msg/String", GRIPPER_TOPIC: "std_msgs/msg/String",
                       JOINT_STATES_TOPIC: "sensor_msgs/msg/JointState"}
     total = phase1().duration + phase2("safe").duration  # 2.4 + 3.6 s
-    assert counts == {TRAJECTORY_TOPIC: 2, ROUTE_TOPIC: 2, GRIPPER_TOPIC: 4,
+    # One message per motion between gripper events: phase1 2 (events at 0 and 1.8 s of
+    # 2.4 s), phase2 3 (events at 0.6 and 1.8 s of 3.6 s).
+    assert counts == {TRAJECTORY_TOPIC: 5, ROUTE_TOPIC: 2, GRIPPER_TOPIC: 4,
                       JOINT_STATES_TOPIC: round(total * 50) + 1}
 
 
 def test_bag_contents(cycle_bag: Path) -> None:
     one, two = phase1(), phase2("safe")
     bag = read_bag(cycle_bag)
-    # Trajectories back to back on one clock, each as joint_trajectory() builds it.
+    # The motions between gripper events back to back on one clock, each as
+    # joint_trajectory() builds it (a whole route with an event inside is refused).
+    motions = [p for traj in (one, two) for p in split_at_gripper_events(traj)
+               if isinstance(p, Trajectory)]
     trajs = bag.on(TRAJECTORY_TOPIC)
-    assert [m.timestamp for m in trajs] == [START, START + _ns(one.duration)]
-    for m, traj in zip(trajs, (one, two), strict=True):
-        assert_same(m.msg, joint_trajectory(traj, stamp_ns=m.timestamp, backend="rosbags"))
+    assert [m.timestamp - START for m in trajs] == [0, _ns(1.8), _ns(2.4), _ns(3.0),
+                                                    _ns(4.2)]
+    for m, motion in zip(trajs, motions, strict=True):
+        assert_same(m.msg, joint_trajectory(motion, stamp_ns=m.timestamp, backend="rosbags"))
+    assert [m.timestamp for m in bag.on(ROUTE_TOPIC)] == [START, START + _ns(one.duration)]
     routes = [json.loads(m.msg.data) for m in bag.on(ROUTE_TOPIC)]
     assert [(r["route"], r["duration"]) for r in routes] == [("phase1", one.duration),
                                                             ("phase2_safe", two.duration)]

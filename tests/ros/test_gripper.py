@@ -198,17 +198,20 @@ def test_bag_with_goals(tmp_path: Path) -> None:
     bag = read_bag(path)
     assert bag.topics[ARM_GOAL_TOPIC] == "control_msgs/action/FollowJointTrajectory_Goal"
     assert bag.topics[GRIPPER_GOAL_TOPIC] == GOAL
-    (arm,) = bag.on(ARM_GOAL_TOPIC)
-    assert arm.timestamp == start
-    assert_same(arm.msg, follow_joint_trajectory_goal(traj, backend="rosbags"))
-    # Points at most 4 ms apart (robots/gen3_lite/controller.yaml): every knot (50 ms
-    # apart) and 12 points of their quintic in between, in the controller's joint order.
-    assert arm.msg.trajectory.joint_names == list(GEN3)
-    assert len(arm.msg.trajectory.points) == 2 * 20 * 13 + 1
+    # One goal per motion: the 'close' at 1 s cuts the route in two.
+    arms = bag.on(ARM_GOAL_TOPIC)
+    assert [m.timestamp - start for m in arms] == [0, 1_000_000_000]
+    motions = [s for s in split_at_gripper_events(traj) if isinstance(s, Trajectory)]
+    for arm, motion in zip(arms, motions, strict=True):
+        assert_same(arm.msg, follow_joint_trajectory_goal(motion, backend="rosbags"))
+        # Points at most 4 ms apart (robots/gen3_lite/controller.yaml): every knot (50 ms
+        # apart) and 12 points of their quintic in between, in the controller's order.
+        assert arm.msg.trajectory.joint_names == list(GEN3)
+        assert len(arm.msg.trajectory.points) == 20 * 13 + 1
     grip = bag.on(GRIPPER_GOAL_TOPIC)
     assert [(m.timestamp - start, m.msg.command.position) for m in grip] == [
         (0, 0.0), (1_000_000_000, 0.8)]
-    assert len(bag.on(GRIPPER_TOPIC)) == 2 and len(bag.on(TRAJECTORY_TOPIC)) == 1
+    assert len(bag.on(GRIPPER_TOPIC)) == 2 and len(bag.on(TRAJECTORY_TOPIC)) == 2
     # Without goals=True the bag is as before; a robot without a gripper section gets no
     # gripper goal topic.
     plain = read_bag(write_bag(tmp_path / "plain", [traj]))

@@ -87,6 +87,17 @@ def phase1() -> Trajectory:
                          ((0, "close"), (3, "open")))
 
 
+def motion1() -> Trajectory:
+    """phase1's motion without its gripper events (a goal refuses an event inside)."""
+    return quintic_route("phase1", ["grip", "high1", "high2", "low1", "high2"])
+
+
+def motion2() -> Trajectory:
+    """phase2_safe's motion without its gripper events."""
+    return quintic_route("phase2_safe", ["high2", "low1", "high2", "safe", "high2", "high1",
+                                         "grip"])
+
+
 def phase2(target: str) -> Trajectory:
     return quintic_route(f"phase2_{target}",
                          ["high2", "low1", "high2", target, "high2", "high1", "grip"],
@@ -268,7 +279,7 @@ def _seconds(duration: Any) -> int:
 
 
 def test_joint_trajectory_samples_every_period_and_ends_exactly() -> None:
-    traj = phase1()  # 4 x 0.6 s
+    traj = motion1()  # 4 x 0.6 s
     msg = joint_trajectory(traj, backend="rosbags")
     assert msg.joint_names == list(NED_JOINT_NAMES)
     ns = [_seconds(p.time_from_start) for p in msg.points]
@@ -305,7 +316,7 @@ def test_time_from_start_is_rounded_to_the_nanosecond() -> None:
 
 
 def test_columns_follow_the_robot_order() -> None:
-    traj = phase1()
+    traj = motion1()
     order = [5, 0, 3, 1, 4, 2]
     limits = {k: [v[i] for i in order] for k, v in FAST_LIMITS.items()}
     shuffled = Trajectory(tuple(traj.joint_names[k] for k in order), traj.t, traj.q[:, order],
@@ -323,12 +334,12 @@ def test_columns_follow_the_robot_order() -> None:
 @pytest.mark.parametrize("period", [0, -0.04, math.nan, math.inf, 1e-12, True, "0.04"])
 def test_bad_period_is_refused(period: Any) -> None:
     with pytest.raises(TrajectoryError) as info:
-        joint_trajectory(phase1(), period=period, backend="rosbags")
+        joint_trajectory(motion1(), period=period, backend="rosbags")
     assert info.value.key == "period"
 
 
 def test_joint_names_must_match_the_robot() -> None:
-    traj = phase1()
+    traj = motion1()
     wrong = dataclasses.replace(traj, joint_names=("a", "b", "c", "d", "e", "f"))
     for build in (joint_trajectory, follow_joint_trajectory_goal, robot_move_goal):
         with pytest.raises(TrajectoryError) as info:
@@ -349,7 +360,7 @@ def test_joint_names_must_match_the_robot() -> None:
 
 
 def test_non_finite_and_non_increasing_are_refused_by_constructor_and_builders() -> None:
-    traj = phase1()
+    traj = motion1()
     q = traj.q.copy()
     q[3, 1] = math.nan
     with pytest.raises(TrajectoryError):
@@ -359,12 +370,12 @@ def test_non_finite_and_non_increasing_are_refused_by_constructor_and_builders()
     with pytest.raises(TrajectoryError):
         dataclasses.replace(traj, t=t)
     # The arrays of a built Trajectory can still be changed in place: builders re-check.
-    broken = phase1()
+    broken = motion1()
     broken.qd[7, 2] = math.inf
     with pytest.raises(TrajectoryError) as info:
         joint_trajectory(broken, backend="rosbags")
     assert info.value.key == "qd"
-    late = phase1()
+    late = motion1()
     late.t[5] = late.t[4] - 0.01
     for build in (joint_trajectory, follow_joint_trajectory_goal, robot_move_goal):
         with pytest.raises(TrajectoryError) as info:
@@ -376,7 +387,7 @@ def test_non_finite_and_non_increasing_are_refused_by_constructor_and_builders()
 
 # -- goals -------------------------------------------------------------------------------------
 def test_follow_joint_trajectory_goal() -> None:
-    traj = phase2("safe")
+    traj = motion2()
     goal = follow_joint_trajectory_goal(traj, backend="rosbags")
     assert goal.__msgtype__ == "control_msgs/action/FollowJointTrajectory_Goal"
     assert_same(goal.trajectory, joint_trajectory(traj, backend="rosbags"))
@@ -398,7 +409,7 @@ def test_follow_joint_trajectory_goal() -> None:
 
 
 def test_robot_move_goal_is_a_full_trajectory_command() -> None:
-    traj = phase1()
+    traj = motion1()
     goal = robot_move_goal(traj, backend="rosbags")
     assert goal.__msgtype__ == f"{NIRYO}/action/RobotMove_Goal"
     assert goal.cmd.cmd_type == 11 == goal.cmd.EXECUTE_FULL_TRAJ
@@ -446,6 +457,23 @@ def test_split_at_gripper_events() -> None:
         "GripperEvent", "Trajectory", "GripperEvent"]
 
 
+def test_goals_refuse_a_gripper_event_inside() -> None:
+    """One goal through the 'open' at 1.8 s would never open the gripper: every builder
+    refuses it, naming the event and split_at_gripper_events; events at the ends are
+    fine, and so is each motion the split gives."""
+    traj = phase1()  # close at 0 s (its start), open at 1.8 s of 2.4 s
+    for build in (joint_trajectory, follow_joint_trajectory_goal, robot_move_goal):
+        with pytest.raises(TrajectoryError, match=r"'open' of step 'low1' at t=1\.800 s.*"
+                                                  r"split_at_gripper_events") as info:
+            build(traj, backend="rosbags")
+        assert info.value.key == "events[1]"
+    end_events = quintic_route("r", ["grip", "high1", "high2"], ((0, "open"), (2, "close")))
+    assert len(joint_trajectory(end_events, backend="rosbags").points) > 0
+    motions = [x for x in split_at_gripper_events(traj) if isinstance(x, Trajectory)]
+    assert [len(follow_joint_trajectory_goal(m, backend="rosbags").trajectory.points) > 0
+            for m in motions] == [True, True]
+
+
 def test_gripper_events_must_be_at_rest_and_inside() -> None:
     traj = phase1()
     moving = dataclasses.replace(traj, events=(GripperEvent(0.9, "close", "to_high2"),))
@@ -472,13 +500,13 @@ def test_rclpy_backend_without_ros_is_a_typed_error() -> None:
         pytest.skip("rclpy is installed")
     for build in (joint_trajectory, follow_joint_trajectory_goal, robot_move_goal):
         with pytest.raises(RosError, match="rclpy"):
-            build(phase1(), backend="rclpy")
+            build(motion1(), backend="rclpy")
     with pytest.raises(RosError):
         tool_goal("open", backend="rclpy")
     with pytest.raises(InputError):
-        joint_trajectory(phase1(), backend="ros1")  # type: ignore[arg-type]
+        joint_trajectory(motion1(), backend="ros1")  # type: ignore[arg-type]
     # auto falls back to rosbags messages
-    assert joint_trajectory(phase1()).__msgtype__ == "trajectory_msgs/msg/JointTrajectory"
+    assert joint_trajectory(motion1()).__msgtype__ == "trajectory_msgs/msg/JointTrajectory"
 
 
 class _FakeRosMessage:
@@ -508,7 +536,7 @@ def test_rclpy_branch_builds_native_classes(monkeypatch: pytest.MonkeyPatch) -> 
     _fake_package(monkeypatch, "std_msgs", "msg", ["Header"])
     _fake_package(monkeypatch, "builtin_interfaces", "msg", ["Time", "Duration"])
     assert message_factory("auto", ["trajectory_msgs/msg/JointTrajectory"]).backend == "rclpy"
-    traj = phase1()
+    traj = motion1()
     msg = joint_trajectory(traj, backend="auto")
     assert type(msg).__name__ == "JointTrajectory" and isinstance(msg, _FakeRosMessage)
     first = msg.points[0]

@@ -13,8 +13,9 @@ import numpy as np
 import pytest
 import yaml
 
-from safepath.errors import InputError
+from safepath.errors import InputError, TrajectoryError
 from safepath.planning.gravimetric import FlowModel
+from safepath.ros.goals import follow_joint_trajectory_goal, split_at_gripper_events
 from safepath.ros.gripper import gripper_command_goal
 from safepath.ros.pour_controller import PourState, SendArmGoal, SendGripperGoal
 from safepath.ros.pour_setup import PourParameters, PourSetup, build_pour
@@ -109,17 +110,27 @@ def test_bag_of_pick_pour_place_with_gripper_goals(setup: PourSetup, tmp_path: P
     sequence = [pick, stopper.until(stop), stop, back, place]
     start = 1_700_000_000 * 10**9
     bag = read_bag(write_bag(tmp_path / "pour", sequence, start_time_ns=start, goals=True))
+    # The pick as a node runs it (one goal through its 'close' would never close the
+    # gripper): a goal per motion between gripper events.
+    with pytest.raises(TrajectoryError, match="'close'.*split_at_gripper_events"):
+        follow_joint_trajectory_goal(pick)
+    motions = [m for traj in sequence for m in split_at_gripper_events(traj)
+               if isinstance(m, Trajectory)]
     arm = bag.on(ARM_GOAL_TOPIC)
-    assert len(arm) == 5
+    assert len(arm) == len(motions) == 2 + 3 + 2  # pick: open, close; the pour; place: open
     begins = np.cumsum([0] + [round(t.duration * 1e9) for t in sequence[:-1]])
-    assert [m.timestamp - start for m in arm] == list(begins)
-    for m, traj in zip(arm, sequence, strict=True):
+    starts = np.cumsum([0] + [round(m.duration * 1e9) for m in motions[:-1]])
+    assert np.abs(np.array([m.timestamp - start for m in arm]) - starts).max() <= 10
+    assert [arm[k].timestamp - start for k in (2, 3, 4, 5)] == list(begins[1:5])
+    for m, motion in zip(arm, motions, strict=True):
         pts = m.msg.trajectory.points
-        np.testing.assert_array_equal(pts[-1].positions, traj.q[-1])
-        assert m.msg.trajectory.joint_names == list(traj.joint_names)
+        np.testing.assert_array_equal(pts[-1].positions, motion.q[-1])
+        assert m.msg.trajectory.joint_names == list(motion.joint_names)
     grip = bag.on(GRIPPER_GOAL_TOPIC)
     expected = [(begins[0] + round(e.time * 1e9), e.action) for e in pick.events] + \
         [(begins[4] + round(e.time * 1e9), e.action) for e in place.events]
-    assert [(m.timestamp - start, "close" if m.msg.command.position == 0.8 else "open")
-            for m in grip] == expected
+    got = [(m.timestamp - start, "close" if m.msg.command.position == 0.8 else "open")
+           for m in grip]
+    assert [a for _, a in got] == [a for _, a in expected]
+    assert np.abs(np.array([t for t, _ in got]) - [t for t, _ in expected]).max() <= 10
     assert [m.msg.command.position for m in grip] == [0.0, 0.8, 0.0]
