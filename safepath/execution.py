@@ -154,16 +154,17 @@ class ExecutedPeaks:
 def _interval_peaks(c: np.ndarray, T: np.ndarray, rate: float  # noqa: N803
                     ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Per interval and joint: bound of |v|, exact max |a| and |j| (N-1, dof) each."""
+    Tc = T[:, None]  # noqa: N806
     # Jerk: a quadratic; its extremes at the ends and at its vertex.
-    ends = [np.zeros_like(T), T]
-    j_cand = [np.abs(_eval(c, e[:, None], 3)) for e in ends]
+    j0 = 6.0 * c[..., 3]
+    j1 = j0 + Tc * (24.0 * c[..., 4] + 60.0 * c[..., 5] * Tc)
     with np.errstate(divide="ignore", invalid="ignore"):
         vertex = -c[..., 4] * 24.0 / (120.0 * c[..., 5])
-    inside = np.isfinite(vertex) & (vertex > 0) & (vertex < T[:, None])
-    j_cand.append(np.where(inside, np.abs(_eval(c, np.where(inside, vertex, 0.0), 3)), 0.0))
-    j_peak = np.max(j_cand, axis=0)
+    inside = np.isfinite(vertex) & (vertex > 0) & (vertex < Tc)
+    jv = np.where(inside, _eval(c, np.where(inside, vertex, 0.0), 3), 0.0)
+    j_peak = np.maximum(np.maximum(np.abs(j0), np.abs(j1)), np.abs(jv))
     # Acceleration: a cubic; its extremes at the ends and where the jerk vanishes.
-    a_cand = [np.abs(_eval(c, e[:, None], 2)) for e in ends]
+    a_cands = [2.0 * c[..., 2], _eval(c, Tc, 2)]
     qa, qb, qc = 60.0 * c[..., 5], 24.0 * c[..., 4], 6.0 * c[..., 3]
     disc = qb * qb - 4.0 * qa * qc
     with np.errstate(divide="ignore", invalid="ignore"):
@@ -171,18 +172,37 @@ def _interval_peaks(c: np.ndarray, T: np.ndarray, rate: float  # noqa: N803
         roots = [(-qb + sq) / (2.0 * qa), (-qb - sq) / (2.0 * qa),
                  np.where(qb != 0.0, -qc / qb, np.nan)]
     for r, valid in zip(roots, (disc >= 0, disc >= 0, qa == 0), strict=True):
-        ok = valid & np.isfinite(r) & (r > 0) & (r < T[:, None])
-        a_cand.append(np.where(ok, np.abs(_eval(c, np.where(ok, r, 0.0), 2)), 0.0))
-    a_peak = np.max(a_cand, axis=0)
-    # Speed: sampled at >= rate per second (at least 4 samples an interval); a peak between
-    # samples dt apart adds at most |jerk| dt^2 / 8 (the acceleration vanishes there).
-    m = max(4, int(np.ceil(float(T.max()) * rate)) + 1)
-    frac = np.linspace(0.0, 1.0, m)
-    tau = T[:, None, None] * frac[None, None, :]
-    v = np.abs(_eval(c[:, :, None, :], tau, 1)).max(axis=2)
-    dt = T / (m - 1)
-    v_peak = v + j_peak * (dt[:, None] ** 2) / 8.0
+        ok = valid & np.isfinite(r) & (r > 0) & (r < Tc)
+        if ok.any():
+            a_cands.append(np.where(ok, _eval(c, np.where(ok, r, 0.0), 2), a_cands[0]))
+    a_all = np.stack(a_cands)
+    a_peak = np.abs(a_all).max(axis=0)
+    # Speed: where the acceleration keeps its sign the speed is monotone and peaks at an
+    # end; elsewhere it is sampled at >= rate per second (at least 4 samples), and a peak
+    # between samples dt apart adds at most |jerk| dt^2 / 8 (the acceleration vanishes).
+    v_peak = np.maximum(np.abs(c[..., 1]), np.abs(_eval(c, Tc, 1)))
+    turns = (a_all.min(axis=0) < 0.0) & (a_all.max(axis=0) > 0.0)
+    if turns.any():
+        k, joint = np.nonzero(turns)
+        ck, Tk = c[k, joint], T[k]  # noqa: N806
+        m = max(4, int(np.ceil(float(Tk.max()) * rate)) + 1)
+        tau = Tk[:, None] * np.linspace(0.0, 1.0, m)[None, :]
+        sampled = np.abs(_eval(ck[:, None, :], tau, 1)).max(axis=1)
+        v_peak[k, joint] = np.maximum(v_peak[k, joint],
+                                      sampled + j_peak[k, joint] * (Tk / (m - 1)) ** 2 / 8.0)
     return v_peak, a_peak, j_peak
+
+
+def _peaks_of(t: np.ndarray, q: np.ndarray, qd: np.ndarray, qdd: np.ndarray,
+              interpolation: Interpolation, rate: float
+              ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Per interval and joint: bound of |v|, max |a| and |j| (compiled for quintics)."""
+    if interpolation == "quintic":
+        from ._joinkernel import peaks
+
+        return peaks(t, q, qd, qdd, rate)
+    c, T = _coefficients(np.asarray(t, dtype=float), q, qd, qdd, interpolation)  # noqa: N806
+    return _interval_peaks(c, T, rate)
 
 
 def executed_peaks(t: np.ndarray, q: np.ndarray, qd: np.ndarray, qdd: np.ndarray, *,
@@ -196,14 +216,12 @@ def executed_peaks(t: np.ndarray, q: np.ndarray, qd: np.ndarray, qdd: np.ndarray
         interpolation: How the controller joins points.
         rate: Least number of speed samples per second [Hz].
     """
-    c, T = _coefficients(np.asarray(t, dtype=float), np.atleast_2d(q), np.atleast_2d(qd),  # noqa: N806
-                         np.atleast_2d(qdd), interpolation)
-    dof = np.atleast_2d(q).shape[1]
-    if T.size == 0:
-        z = np.zeros(dof)
-        return ExecutedPeaks(np.abs(np.atleast_2d(qd)[0]), np.abs(np.atleast_2d(qdd)[0]), z,
-                             rate, interpolation)
-    v, a, j = _interval_peaks(c, T, rate)
+    t = np.asarray(t, dtype=float)
+    q, qd, qdd = (np.atleast_2d(np.asarray(x, dtype=float)) for x in (q, qd, qdd))
+    if t.size < 2:
+        return ExecutedPeaks(np.abs(qd[0]), np.abs(qdd[0]), np.zeros(q.shape[1]), rate,
+                             interpolation)
+    v, a, j = _peaks_of(t, q, qd, qdd, interpolation, rate)
     return ExecutedPeaks(v.max(axis=0), a.max(axis=0), j.max(axis=0), rate, interpolation)
 
 
@@ -213,8 +231,7 @@ def interval_ratios(t: np.ndarray, q: np.ndarray, qd: np.ndarray, qdd: np.ndarra
                     ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Per interval between points, the largest speed, acceleration and jerk ratio to the
     limits (each (N-1,)); limits may be per interval (N-1, dof) or per joint (dof,)."""
-    c, T = _coefficients(np.asarray(t, dtype=float), q, qd, qdd, interpolation)  # noqa: N806
-    v, a, j = _interval_peaks(c, T, rate)
+    v, a, j = _peaks_of(t, q, qd, qdd, interpolation, rate)
     return (np.max(v / vmax, axis=1), np.max(a / amax, axis=1), np.max(j / jmax, axis=1))
 
 
@@ -237,8 +254,7 @@ def check_executed(t: np.ndarray, q: np.ndarray, qd: np.ndarray, qdd: np.ndarray
         peaks = executed_peaks(t, q, qd, qdd, interpolation=interpolation, rate=rate)
         ratios = peaks.ratios(velocity_limits, acceleration_limits, jerk_limits)
     else:
-        c, T = _coefficients(t, q, qd, qdd, interpolation)  # noqa: N806
-        per = _interval_peaks(c, T, rate)
+        per = _peaks_of(t, q, qd, qdd, interpolation, rate)
         ratios = (0.0, 0.0, 0.0)
         names = ("velocity", "acceleration", "jerk")
         out = []

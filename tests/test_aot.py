@@ -98,7 +98,7 @@ def test_table_signatures_are_the_ones_numba_infers() -> None:
 def recorded() -> dict[str, list[tuple[Any, ...]]]:
     """Arguments of real kernel calls: the bundled cell and the Panda cell planned (the
     first KEEP calls of every kernel, copied before the call: kernels write into some)."""
-    from safepath import _fastkernels
+    from safepath import _fastkernels, _joinkernel
     from safepath.monitor import _kernels as _monitor_kernels
     from safepath.planning import _ik_kernel, _topp, _verify_kernel
 
@@ -123,6 +123,9 @@ def recorded() -> dict[str, list[tuple[Any, ...]]]:
     kernels["backward"] = recorder("topp_backward", saved["backward"])
     kernels["forward"] = recorder("topp_forward", saved["forward"])
     kernels["tridiagonal"] = recorder("topp_tridiagonal", saved["tridiagonal"])
+    join = _joinkernel._kernels()
+    saved_join = dict(join)
+    join["peaks"] = recorder("join_peaks", saved_join["peaks"])
     try:
         for folder in (CELL, PANDA):
             cell = safepath.load_cell(folder)
@@ -133,6 +136,7 @@ def recorded() -> dict[str, list[tuple[Any, ...]]]:
         for module, function, value in patched:
             setattr(module, function, value)
         kernels.update(saved)
+        join.update(saved_join)
     return calls
 
 

@@ -53,6 +53,7 @@ _VERIFY = "safepath.planning._verify_kernel"
 _IK = "safepath.planning._ik_kernel"
 _TOPP = "safepath.planning._topp"
 _MONITOR = "safepath.monitor._kernels"
+_JOIN = "safepath._joinkernel"
 #: A placed shape of the verifier: a tuple of 17 floats.
 _SHAPE = "UniTuple(f8, 17)"
 #: The verifier's hull tables: vertices, neighbour starts, neighbour rows, climbs' starts.
@@ -112,12 +113,14 @@ ENTRIES: dict[str, Entry] = {
     "topp_backward": Entry(_TOPP, "_backward", (F1, F1, F2, F2, F2, F1, F1), INT),
     "topp_forward": Entry(_TOPP, "_forward", (F1, F1, F2, F2, F2, F1, F1, F1), "void"),
     "topp_tridiagonal": Entry(_TOPP, "_tridiagonal", (F1, F1, F1, F2), INT),
+    # The peaks of a controller's quintic join (safepath._joinkernel).
+    "join_peaks": Entry(_JOIN, "_peaks", (F1, F2, F2, F2, FLOAT, F2, F2, F2), "void"),
 }
 
 #: The modules whose source the ahead-of-time module is compiled from: it is used only
 #: while all of them are unchanged. Every kernel compiled through :func:`safepath._aot.njit`
 #: lives in one of them (tests/test_aot.py checks it); the cup's (a simulated scale, not
 #: on a planning path) uses numba directly.
-MODULES: tuple[str, ...] = (_FAST, "safepath._gjk", _VERIFY, _IK, _TOPP, _MONITOR)
+MODULES: tuple[str, ...] = (_FAST, "safepath._gjk", _VERIFY, _IK, _TOPP, _JOIN, _MONITOR)
 #: Those a plan calls (all but the monitor's).
-PLANNING_MODULES: tuple[str, ...] = (_FAST, "safepath._gjk", _VERIFY, _IK, _TOPP)
+PLANNING_MODULES: tuple[str, ...] = (_FAST, "safepath._gjk", _VERIFY, _IK, _TOPP, _JOIN)
