@@ -64,7 +64,8 @@ def cmd_plan(args: argparse.Namespace) -> int:
     bag = _write_outputs(out, trajectories, summary, Path(args.bag) if args.bag else None,
                          cycle, cell.robot.controller)
     header = (f"{'route':<15} {'steps':>5} {'plan[ms]':>9} {'motion[s]':>10} "
-              f"{'stop&go[s]':>11} {'ratio':>6} {'clearance[mm]':>14}  closest pair")
+              f"{'stop&go[s]':>11} {'ratio':>6} {'clearance[mm]':>14} {'bound[mm]':>10}  "
+              f"closest pair")
     print(f"cell {cell.scene.name}: {len(trajectories)} routes planned, timed and verified "
           f"in {wall * 1000:.0f} ms (seed {args.seed}, {args.planner})")
     print(header)
@@ -76,7 +77,8 @@ def cmd_plan(args: argparse.Namespace) -> int:
         ratio = f"{row['motion_time'] / base:>6.2f}" if base else f"{'-':>6}"
         print(f"{name:<15} {row['steps']:>5} {row['planning_time'] * 1000:>9.0f} "
               f"{row['motion_time']:>10.3f} {base_text} {ratio} "
-              f"{row['min_clearance'] * 1000:>14.1f}  {pair}")
+              f"{row['min_clearance'] * 1000:>14.1f} {row['clearance_bound'] * 1000:>10.1f}  "
+              f"{pair}")
     for line in _figure_lines(summary):
         print(line)
     print(f"wrote {len(trajectories)} trajectories (JSON, CSV) and summary.json to {out}")
@@ -92,6 +94,7 @@ def _summary_row(traj: Any) -> dict[str, Any]:
         "baseline_time": traj.info["baseline_duration"],
         "planning_time": traj.info["total_time"],
         "min_clearance": traj.info["min_clearance"],
+        "clearance_bound": traj.info["clearance_bound"],
         "closest_pair": traj.info["closest_pair"],
         "step_durations": traj.step_durations(),
         **{k: traj.info[k] for k in ("carried_tilt", "pours") if k in traj.info},

@@ -27,7 +27,7 @@ from ..trajectory import Trajectory
 from ._chunks import Segment, assemble, time_chunk, time_segments
 from ._pour_chunk import PourChunk, plan_pour_chunk
 from .cartesian import cartesian_line
-from .constraints import check_tilt, tilt_bound
+from .constraints import check_landing, check_tilt, tilt_bound
 from .options import PlanOptions
 from .sampling import plan_joint_path
 from .timing import TimedPiece
@@ -129,21 +129,30 @@ def _plan(cell: Cell, route: Route, world: WorldState, options: PlanOptions,
     labels = route.labels()
     paths = _plan_paths(cell, route, world, options, cache, labels)
     plan_time = time.perf_counter() - t_start
-    pieces, chunk_ends, min_clear, closest = _time_and_verify(cell, paths.chunks, options,
-                                                              cache, labels)
+    pieces, chunk_ends, min_clear, closest, deviation = _time_and_verify(
+        cell, paths.chunks, options, cache, labels)
     traj = assemble(cell, route, labels, pieces, chunk_ends, paths.actions)
     _check_position_limits(cell, traj)
     carried = check_tilt(cell, route, traj)  # orientation path constraints (max_tilt)
     if tilt_bound(route) is not None:
         traj.info["carried_tilt"] = {"max": carried, "bound": tilt_bound(route)}
+    landing = check_landing(cell, route, traj)  # pours land in their receptacles (into)
     pours = [c.figures for c in paths.chunks if isinstance(c, PourChunk)]
     if pours:
         traj.info["pours"] = {k: v for f in pours for k, v in f.items()}
+        for label, figures in landing.items():
+            traj.info["pours"][label]["landing"] = figures
     traj.info.update({
         "planning_time": plan_time,
         "shortcut_time": paths.shortcut_time,
         "total_time": time.perf_counter() - t_start,
         "min_clearance": min_clear,
+        # A lower bound of the clearance at every instant of the motion the controller
+        # executes: the verifier's samples are within half the resolution of its figure,
+        # every instant within half the resolution of a sample along the knots' straight
+        # joint segments, and the executed (quintic) motion within ``deviation`` of those.
+        "clearance_bound": min_clear - options.check.resolution - deviation,
+        "knot_deviation": deviation,
         "closest_pair": list(closest) if closest else None,
         "seed": options.planner.seed,
         "speed_scale": options.timing.speed_scale,
@@ -218,25 +227,43 @@ def _line_path(cell: Cell, checker: CollisionChecker, q: np.ndarray, goal: np.nd
 def _time_and_verify(cell: Cell, chunks: list[tuple[list[Segment], WorldState] | PourChunk],
                      options: PlanOptions, cache: CheckerCache, labels: list[str]
                      ) -> tuple[list[tuple[TimedPiece, list[int]]], list[float], float,
-                                Pair | None]:
+                                Pair | None, float]:
     """Time and verify chunk by chunk: the timed pieces (with the step of each knot),
-    when each chunk ends [s] (gripper events happen there), and the smallest clearance
-    the verifier found [m] with its pair."""
+    when each chunk ends [s] (gripper events happen there), the smallest clearance the
+    verifier found [m] with its pair, and the largest distance [m] a point of the robot or
+    held object may stray between two knots from where the knots' straight joint
+    segments put it (see :func:`_knot_deviation`)."""
     pieces: list[tuple[TimedPiece, list[int]]] = []
     chunk_ends: list[float] = []
     elapsed = 0.0
     min_clear, closest = float("inf"), None
+    deviation = 0.0
     for chunk in chunks:
         timed = [(chunk.piece, chunk.steps_of_knots, chunk.result)] \
             if isinstance(chunk, PourChunk) else time_chunk(cell, *chunk, options, cache, labels,
                                                             min_clear)
+        world = chunk.world if isinstance(chunk, PourChunk) else chunk[1]
+        weights = cache.checker(world, ()).displacement_weights
         for piece, steps_of_knots, result in timed:
             if result.min_clearance < min_clear:
                 min_clear, closest = result.min_clearance, result.closest_pair
             pieces.append((piece, steps_of_knots))
             elapsed += float(piece.t[-1])
+            deviation = max(deviation, _knot_deviation(cell, piece, weights))
         chunk_ends.append(elapsed)
-    return pieces, chunk_ends, min_clear, closest
+    return pieces, chunk_ends, min_clear, closest, deviation
+
+
+def _knot_deviation(cell: Cell, piece: TimedPiece, weights: np.ndarray) -> float:
+    """How far [m] a point of the robot (or held object) may be, between two knots of
+    ``piece``, from where the straight joint segment between them puts it: the knots'
+    quintic join keeps |q''_j| <= amax_j (checked), so it departs from the segment by at
+    most amax_j h^2 / 8 in joint j over an interval h long, and a point moves at most
+    ``weights_j`` [m/rad] per radian of joint j."""
+    if piece.t.size < 2:
+        return 0.0
+    h = float(np.max(np.diff(piece.t)))
+    return float(weights @ cell.robot.acceleration_limits) * h * h / 8.0
 
 
 def _baseline(cell: Cell, route: Route,
