@@ -10,6 +10,8 @@ acceleration and jerk limits.
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import numpy as np
 import pytest
 from quintic_join import quintic_peaks as _quintic_peaks
@@ -21,6 +23,7 @@ from safepath.planning.timing import TimingOptions, spline_path, time_path
 from safepath.ros import joint_trajectory
 from safepath.trajectory import Trajectory
 
+ROOT = Path(__file__).resolve().parents[2]
 ROBOTS = ("ned3pro", "gen3_lite", "panda", "ur5")
 PATHS_PER_ROBOT = 250  # 1,000 in all
 
@@ -100,3 +103,19 @@ def test_goal_over_a_limit_is_refused(robots: dict[str, safepath.Robot]) -> None
                        ("move",), robot=robot.name)
     with pytest.raises(ExecutedLimitError):
         joint_trajectory(named, backend="rosbags")
+
+
+def test_clearance_bound_holds_at_every_instant_as_executed() -> None:
+    """``info['clearance_bound']`` is below the clearance (coal, the planner's checker) of
+    the executed motion sampled every 2 ms, and close to it."""
+    cell = safepath.load_cell(ROOT / "scenes" / "quality_check_cell")
+    traj = safepath.plan(cell.robot, cell.scene, cell.pose("high1"), cell.pose("unsafe"))
+    bound = traj.info["clearance_bound"]
+    assert 0.0 < traj.info["knot_deviation"] < 1e-3
+    assert bound <= traj.info["min_clearance"] - traj.info["resolution"]
+    times = np.arange(0.0, traj.duration, 0.002)
+    q, _, _ = traj.sample(times)
+    checker = cell.checker()
+    clearance = np.array([checker.check(qk).clearance for qk in q])
+    assert clearance.min() >= bound
+    assert clearance.min() - bound < 0.005  # a bound, not a wild guess
