@@ -308,10 +308,24 @@ class MonitorNodeCore:
 
         if self.state != "active" or self.monitor is None:
             return []
+        if self.monitor.last.scale > 0.0:
+            # The obstacle left while the re-plan ran and the robot moves on along the old
+            # path: a motion planned from the rest state would start from a moving robot.
+            return []
         self.monitor.add_static_box(request.obstacle_center, request.obstacle_size)
         self.sequence = split_at_gripper_events(traj)
         self._next = 0
         return self._advance(now)
+
+    def on_replan_failed(self, request: ReplanRequest, reason: str, now: float
+                         ) -> list[Command]:
+        """A re-plan found no way (``reason``: the planner's why, e.g. the
+        ``PlanningError``'s message): the robot stays stopped, its decisions say why, and
+        the monitor asks again once the obstacle has moved
+        (:meth:`safepath.monitor.Monitor.replan_failed`)."""
+        if self.state == "active" and self.monitor is not None:
+            self.monitor.replan_failed(request, reason)
+        return []
 
     def _advance(self, now: float) -> list[Command]:
         assert self.monitor is not None

@@ -170,7 +170,8 @@ def test_example_monitor_node_compiles(tmp_path: Path) -> None:
                        doraise=True)
 
 
-def test_node_core_replans_around_an_obstacle_that_stays(cell_dir: Path) -> None:
+@pytest.mark.parametrize("found", [True, False])
+def test_node_core_replans_around_an_obstacle_that_stays(cell_dir: Path, found: bool) -> None:
     from safepath.monitor.node import Replan
     from safepath.monitor.replan import replan
     from safepath.monitor.simulation import lidar_scan
@@ -196,6 +197,15 @@ def test_node_core_replans_around_an_obstacle_that_stays(cell_dir: Path) -> None
             if isinstance(c, Replan):
                 request = c
     assert request is not None and request.held == "vial" and request.route == "phase1"
+    if not found:  # the planner found no way: stopped, saying why
+        assert core.on_replan_failed(request.request, "no way (test)", t) == []
+        t = round(t + 1 / 30, 6)
+        msg = scan_message(Scan(t, "laser", lidar_scan(obstacle, t, pose), -np.pi,
+                                2 * np.pi / 360, 0.05, 8.0))
+        published = [c for c in core.on_scan(msg, t) if not isinstance(c, Replan)]
+        decision = published[0].decision  # type: ignore[attr-defined]
+        assert decision.kind == "stop" and "no way (test)" in decision.reason
+        return
     traj = replan(core.monitor.cell, request.route, request.request,  # type: ignore[union-attr]
                   held=request.held, margin=request.margin)
     out = core.on_replanned(request.request, traj, t)
