@@ -22,7 +22,7 @@ from .errors import ConfigError, PoseError, unknown_name
 from .poses import POSE_NAME, load_poses
 from .robot import Robot
 from .robot_loader import load_robot
-from .routes import Route, check_routes, load_routes
+from .routes import Route, check_routes, load_cycle, load_routes
 from .scene import Scene
 from .scene_loader import load_scene
 from .tool import check_tool
@@ -145,6 +145,18 @@ class Cell:
         self._check_poses_file()
         return load_routes(self.folder, poses=list(self.poses),
                            objects=list(self.scene.objects))
+
+    def cycle(self) -> list[str] | None:
+        """The order one cycle of the cell runs its routes in: the ``cycle`` of
+        ``routes.yaml`` (checked against the routes), or None when there is none (routes
+        given in Python, or a file without one).
+
+        Raises:
+            ConfigError: A malformed or inconsistent ``cycle`` (names file and key).
+        """
+        if self.routes is not None or self.folder is None:
+            return None
+        return load_cycle(self.folder, self.route_table())
 
     def cache(self, key: Any) -> dict[Any, Any]:
         """A per-thread dictionary for objects built from this cell (collision checkers

@@ -24,6 +24,7 @@ __all__ = [
     "CollisionError",
     "PlanningError",
     "PlannerTimeout",
+    "PourLandingError",
     "IKError",
     "TimingError",
     "ExecutedLimitError",
@@ -196,6 +197,25 @@ class PlanningError(SafepathError):
 
 class PlannerTimeout(PlanningError):
     """The planner ran out of its time budget before finding a path."""
+
+
+class PourLandingError(PlanningError):
+    """A pour step's lip leaves its receptacle's opening: the pour lands outside.
+
+    Attributes:
+        receptacle: The scene object the step pours into.
+        time: Time of the first sample outside [s] (the route's clock).
+        lip: The lip's world position there [m].
+        overshoot: How far outside the opening the lip is there [m].
+    """
+
+    def __init__(self, reason: str, *, step: str, receptacle: str, time: float, lip: Any,
+                 overshoot: float):
+        self.receptacle = receptacle
+        self.time = time
+        self.lip = lip
+        self.overshoot = overshoot
+        super().__init__(reason, step=step)
 
 
 class IKError(PlanningError):

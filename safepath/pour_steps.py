@@ -8,6 +8,7 @@ Two step kinds extend the routes format (:mod:`safepath.routes`) for pouring::
       max_angular_speed: 0.5236   # back upright
     - circle: {center: [-0.03, 0.0], turns: 1}
       tcp_speed: 0.05             # TCP speed limit on the circle [m/s]
+      into: bowl                  # the pour lands in the bowl (checked)
 
 A ``tilt`` turns the TCP from its orientation at the step's start to a goal orientation
 (an absolute TCP quaternion ``orientation`` (x, y, z, w) in the world frame, or a turn by
@@ -19,7 +20,11 @@ circle about the point ``center`` [m] (world x, y offset from the TCP at the cir
 start), height and orientation held, within the step's ``tcp_speed``. A circle follows a
 tilt directly: the two are planned and timed as one continuous trajectory (the barista
 pour, :func:`safepath.planning.pour.plan_barista`); a tilt alone is
-:func:`safepath.planning.pour.plan_tilt`. Pour steps start and end at rest.
+:func:`safepath.planning.pour.plan_tilt`. Pour steps start and end at rest. ``into``
+names the receptacle (a scene object, a vertical cylinder or an upright box) the pour
+must land in: at every released sample of the step the cup's lip (the tilt's pivot, or
+for a circle the pivot of its tilt, carried with the cup) lies above the receptacle and
+within its opening (:func:`safepath.planning.constraints.check_landing`).
 """
 
 from __future__ import annotations
@@ -231,7 +236,7 @@ def parse_pour_step(raw: Mapping[str, Any], kind: str, *, path: Path | None, key
             value; names file and key.
     """
     extra = "max_angular_speed" if kind == "tilt" else "tcp_speed"
-    check_keys(raw, (kind, "speed", extra), path=path, prefix=key)
+    check_keys(raw, (kind, "speed", extra, "into"), path=path, prefix=key)
     speed = parse_speed(raw, defaults, path=path, key=key)
     bound = raw.get(extra, defaults.get(extra))
     if bound is None:

@@ -49,7 +49,8 @@ from .errors import ConfigError
 from .pour_steps import POUR_KINDS, Circle, Tilt, check_pour_fields, parse_pour_step, parse_speed
 from .tcp_targets import CartesianTarget, is_cartesian, parse_cartesian
 
-__all__ = ["Target", "Step", "Route", "load_routes", "check_routes", "after_chain"]
+__all__ = ["Target", "Step", "Route", "load_routes", "load_cycle", "check_cycle", "check_routes",
+           "after_chain"]
 
 StepKind = Literal["move", "line", "open", "close", "tilt", "circle"]
 _STEP_KINDS = ("move", "line", "open", "close", *POUR_KINDS)
@@ -123,6 +124,10 @@ class Step:
             :class:`~safepath.pour_steps.Circle`); None for the other kinds.
         max_angular_speed: Bound on the held cup's angular speed during a ``tilt``
             [rad/s] (required there; None elsewhere). A ``circle`` needs ``tcp_speed``.
+        into: The receptacle a ``tilt`` or ``circle`` pours into (a scene object), or
+            None: at every released sample of the step the cup's pouring lip (the
+            tilt's ``pivot``, carried by the cup) lies above the receptacle's opening
+            (:func:`safepath.planning.constraints.check_landing`).
     """
 
     kind: StepKind
@@ -134,9 +139,14 @@ class Step:
     max_tilt: float | None = None
     pour: Tilt | Circle | None = None
     max_angular_speed: float | None = None
+    into: str | None = None
 
     def __post_init__(self) -> None:
         check_names([self.kind], _STEP_KINDS, path=None, key="kind", what="step kind")
+        if self.into is not None and (self.kind not in POUR_KINDS
+                                      or not isinstance(self.into, str) or not self.into):
+            raise ConfigError(f"into names the receptacle of a tilt or circle step, got "
+                              f"{self.into!r} on a {self.kind} step", key="into")
         check_pour_fields(self.kind, self.pour, self.max_angular_speed, self.tcp_speed,
                           self.max_tilt)
         motion = self.kind in ("move", "line")
@@ -227,7 +237,7 @@ def load_routes(path: str | Path, *, poses: Sequence[str], objects: Sequence[str
     path = Path(path)
     if path.is_dir():
         path = path / "routes.yaml"
-    data = read_mapping(path, ("routes", "defaults"))
+    data = read_mapping(path, ("routes", "defaults", "cycle"))
     raw = get_key(data, "routes", path=path)
     if not isinstance(raw, dict) or not raw:
         raise ConfigError("expected a non-empty mapping of route names", path=path,
@@ -277,9 +287,69 @@ def check_routes(routes: Mapping[str, Route], *, poses: Sequence[str], objects: 
             if step.object is not None:
                 check_names([step.object], objects, path=None, key=f"{where}.{step.kind}",
                             what="object")
+            if step.into is not None:
+                check_names([step.into], objects, path=None, key=f"{where}.into",
+                            what="object")
         out[name] = route
     _check_chains(out, None)
     return out
+
+
+def load_cycle(path: str | Path, routes: Mapping[str, Route]) -> list[str] | None:
+    """The ``cycle`` of ``routes.yaml``: the routes in the order one cycle of the cell
+    runs them (e.g. ``[pick_cup, slow_pour, barista_pour, place_cup]``), or None when
+    the file gives none. Checked by :func:`check_cycle`.
+
+    Raises:
+        ConfigError: Not a list of route names, an unknown route, or a cycle that does
+            not hold together; names file and key.
+    """
+    path = Path(path)
+    if path.is_dir():
+        path = path / "routes.yaml"
+    raw = read_mapping(path, ("routes", "defaults", "cycle")).get("cycle")
+    if raw is None:
+        return None
+    if not isinstance(raw, list) or not raw:
+        raise ConfigError(f"expected a non-empty list of route names, got {raw!r}", path=path,
+                          key="cycle")
+    cycle = [as_str(name, path=path, key=f"cycle[{k}]") for k, name in enumerate(raw)]
+    check_cycle(routes, cycle, path=path)
+    return cycle
+
+
+def _held_after(routes: Mapping[str, Route], names: Sequence[str]) -> bool:
+    """Whether the gripper holds something after running ``names`` from the scene's
+    initial world."""
+    held = False
+    for name in names:
+        for step in routes[name].steps:
+            if step.kind in ("open", "close"):
+                held = step.kind == "close"
+    return held
+
+
+def check_cycle(routes: Mapping[str, Route], cycle: Sequence[str], *,
+                path: Path | None = None) -> None:
+    """Check that ``cycle`` runs as one repeating cycle of the cell: known routes, each
+    starting in the world the one before it leaves (the gripper holding something or
+    not, as its own ``after`` chain assumes), the first after the last.
+
+    Raises:
+        ConfigError: An unknown route, or a route that starts holding something the one
+            before it does not leave held (or the other way round); names the key.
+    """
+    for k, name in enumerate(cycle):
+        check_names([name], routes, path=path, key=f"cycle[{k}]", what="route")
+    for k in [*range(1, len(cycle)), 0]:  # the wrap (last to first) last
+        name, before = cycle[k], cycle[k - 1]
+        assumed = _held_after(routes, after_chain(routes, name)[:-1])
+        left = _held_after(routes, after_chain(routes, before))
+        if assumed != left:
+            state = {True: "holding the object", False: "with the gripper empty"}
+            raise ConfigError(f"route '{name}' starts {state[assumed]} (after "
+                              f"{routes[name].after or 'the scene'}), but '{before}' before it "
+                              f"in the cycle ends {state[left]}", path=path, key=f"cycle[{k}]")
 
 
 def after_chain(routes: Mapping[str, Route], name: str) -> list[str]:
@@ -379,7 +449,7 @@ def _parse_step(raw: Any, path: Path, key: str, poses: Sequence[str], objects: S
                           "circle", path=path, key=key)
     kind = kinds[0]
     if kind in POUR_KINDS:
-        return _pour_step(raw, kind, path, key, defaults)
+        return _pour_step(raw, kind, path, key, defaults, objects)
     check_keys(raw, (kind, "speed", "tcp_speed", "stop", "max_tilt"), path=path, prefix=key)
     speed = parse_speed(raw, defaults, path=path, key=key)
     tcp = raw.get("tcp_speed", defaults.get("tcp_speed"))
@@ -411,9 +481,13 @@ def _parse_step(raw: Any, path: Path, key: str, poses: Sequence[str], objects: S
 
 
 
-def _pour_step(raw: dict, kind: str, path: Path, key: str, defaults: Mapping[str, Any]
-               ) -> Step:
+def _pour_step(raw: dict, kind: str, path: Path, key: str, defaults: Mapping[str, Any],
+               objects: Sequence[str]) -> Step:
     pour, speed, bound = parse_pour_step(raw, kind, path=path, key=key, defaults=defaults)
+    into = raw.get("into")
+    if into is not None:
+        into = as_str(into, path=path, key=f"{key}.into")
+        check_names([into], objects, path=path, key=f"{key}.into", what="object")
     if isinstance(pour, Tilt):
-        return Step("tilt", None, None, speed, pour=pour, max_angular_speed=bound)
-    return Step("circle", None, None, speed, tcp_speed=bound, pour=pour)
+        return Step("tilt", None, None, speed, pour=pour, max_angular_speed=bound, into=into)
+    return Step("circle", None, None, speed, tcp_speed=bound, pour=pour, into=into)

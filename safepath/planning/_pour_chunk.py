@@ -155,4 +155,8 @@ def describe(figures: dict[str, dict[str, Any]]) -> list[str]:
                 f"{math.degrees(f['orientation_error']):.3f} deg); peak TCP speed "
                 f"{f['max_tcp_speed']:.4f} m/s (limit {f['tcp_speed_bound']:.3f}); cup "
                 f"angular speed <= {math.degrees(f['max_angular_speed']):.3f} deg/s")
+        if "landing" in f:
+            land = f["landing"]
+            lines[-1] += (f"; lands in '{land['into']}' (lip >= {land['margin'] * 1000:.1f} "
+                          f"mm inside its edge, >= {land['height'] * 1000:.0f} mm above it)")
     return lines

@@ -23,8 +23,9 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--speed", type=float, default=1.0, help="global speed scale in (0, 1]")
     p.add_argument("--route", action="append", default=None, help="plan only this route")
     p.add_argument("--bag", default=None,
-                   help="also write a ROS 2 bag (MCAP) of the cycle: every chain of routes "
-                        "(route, the routes that follow it, ...) back to back")
+                   help="also write a ROS 2 bag (MCAP) of the cycle: the routes in the order "
+                        "of routes.yaml's `cycle`, else every chain of routes (route, the "
+                        "routes that follow it, ...) back to back")
     p.set_defaults(func=cmd_plan)
 
 
@@ -60,7 +61,7 @@ def cmd_plan(args: argparse.Namespace) -> int:
     wall = time.perf_counter() - t0
     out = Path(args.out) if args.out else Path("out") / cell.scene.name
     summary = {name: _summary_row(traj) for name, traj in trajectories.items()}
-    cycle = [trajectories[name] for name in cycle_order(routes)] if args.bag else []
+    cycle = [trajectories[name] for name in _bag_order(cell, routes)] if args.bag else []
     bag = _write_outputs(out, trajectories, summary, Path(args.bag) if args.bag else None,
                          cycle, cell.robot.controller)
     header = (f"{'route':<15} {'steps':>5} {'plan[ms]':>9} {'motion[s]':>10} "
@@ -159,11 +160,20 @@ def _write_outputs(out: Path, trajectories: dict[str, Any], summary: dict[str, A
     return bag
 
 
-def cycle_order(routes: dict) -> list[str]:
-    from ..routes import after_chain
+def _bag_order(cell: Any, routes: dict) -> list[str]:
+    """The routes of the bag: the cell's ``cycle`` (routes.yaml) when every route of it
+    is planned, else every chain of the planned routes (:func:`cycle_order`)."""
+    cycle = cell.cycle()
+    if cycle is not None and all(name in routes for name in cycle):
+        return cycle
+    return cycle_order(routes)
 
+
+def cycle_order(routes: dict) -> list[str]:
     """Every chain of routes from a first route to a last one, back to back: for the
     quality-check cell, phase1, phase2_safe, phase1, phase2_unsafe."""
+    from ..routes import after_chain
+
     followed = {r.after for r in routes.values() if r.after is not None}
     order: list[str] = []
     for name in routes:

@@ -100,13 +100,13 @@ def test_the_barista_pour_is_a_route_step(cell: Cell, planned: dict[str, Traject
     on_circle = np.flatnonzero(traj.step_index == 1)
     assert on_circle.size > 100
     p = np.array([cell.robot.tcp_position(q) for q in traj.q[on_circle]])
-    # The circle: 3 cm about the point 3 cm towards the robot (world -x) from where the
-    # tilt (93 deg about world -x, about the lip) puts the TCP, at that height.
+    # The circle: 3 cm about the point 3 cm towards the bowl's axis (world -y) from where
+    # the tilt (93 deg about world -x, about the lip) puts the TCP, at that height.
     T0 = cell.robot.frame_pose(traj.q[0])
     pivot = T0.act(PIVOT_TCP)
     R1 = pin.exp3(np.array([-1.6232, 0.0, 0.0])) @ T0.rotation
     start = pivot + R1 @ T0.rotation.T @ (T0.translation - pivot)
-    center = start + np.array([-0.03, 0.0, 0.0])
+    center = start + np.array([0.0, -0.03, 0.0])
     off = np.hypot(np.hypot(p[:, 0] - center[0], p[:, 1] - center[1]) - 0.03,
                    p[:, 2] - center[2])
     assert off.max() <= 1e-3
@@ -125,6 +125,36 @@ def test_the_barista_pour_is_a_route_step(cell: Cell, planned: dict[str, Traject
     assert figures["tilt_error"] <= math.radians(1.0)
     assert figures["max_tcp_speed"] <= 0.05 and figures["tcp_speed_bound"] == 0.05
     assert tilt[-1] < math.radians(0.5)
+    # The pour lands in the bowl: the lip (carried by the cup) stays above the bowl and
+    # within its 70 mm radius of its axis on every sample of the three steps.
+    bowl = cell.scene.objects["bowl"].T_world_object[:3, 3]
+    lip = np.array([cell.robot.frame_pose(q).act(PIVOT_TCP) for q in traj.q])
+    from_axis = np.hypot(lip[:, 0] - bowl[0], lip[:, 1] - bowl[1])
+    assert from_axis.max() <= 0.036 and lip[:, 2].min() > bowl[2] + 0.03
+    assert figures["landing"]["into"] == "bowl"
+    assert figures["landing"]["margin"] == pytest.approx(
+        0.070 - from_axis[on_circle].max(), abs=1e-9)
+
+
+def test_a_pour_landing_outside_its_receptacle_is_refused(cell: Cell) -> None:
+    """The barista circle as it was (centre 3 cm towards the robot) carried the lip out
+    to 76 mm from the bowl's axis, 6 mm beyond its rim: refused, naming the step."""
+    from safepath.errors import PourLandingError
+
+    tilt = Tilt((0.035, 0.04, 0.0), axis=(-1, 0, 0), angle=1.6232)
+    route = Route("barista_wide", "above_bowl", (
+        Step("tilt", None, pour=tilt, max_angular_speed=0.3491, into="bowl"),
+        Step("circle", None, pour=Circle((-0.03, 0.0)), tcp_speed=0.05, into="bowl")))
+    with pytest.raises(PourLandingError, match="outside 'bowl'") as info:
+        plan_route(cell, route, world=WorldState(held="cup"))
+    assert info.value.step == "1 circle r30mm" and info.value.receptacle == "bowl"
+    assert 0.005 < info.value.overshoot < 0.0065
+    bowl = cell.scene.objects["bowl"].T_world_object[:3, 3]
+    assert np.hypot(*(info.value.lip[:2] - bowl[:2])) == pytest.approx(
+        0.070 + info.value.overshoot, abs=1e-9)
+    # into names a scene object, on pour steps only.
+    with pytest.raises(ConfigError, match="into"):
+        Step("move", Target("home"), into="bowl")
 
 
 def test_a_tilt_with_nothing_held_is_refused(cell: Cell) -> None:
@@ -165,15 +195,47 @@ def test_plan_writes_the_pours_like_any_route(tmp_path: Path,
     assert "tilt error <=" in circle and "(limit 0.050)" in circle
     assert "cup angular speed <=" in next(line for line in printed.splitlines()
                                          if line.startswith("slow_pour: 0 tilt"))
-    # The bag holds both chains back to back (pick and place; pick and the two pours).
+    # The bag is one cycle of the cell (routes.yaml's `cycle`): pick, the two pours, put
+    # the cup back; the gripper opens at the start, closes on the cup, opens at the end.
     contents = read_bag(bag)
     routes = [json.loads(m.msg.data)["route"] for m in contents.on("/safepath/route")]
-    assert routes == ["pick_cup", "place_cup", "pick_cup", "slow_pour", "barista_pour"]
+    assert routes == ["pick_cup", "slow_pour", "barista_pour", "place_cup"]
+    assert [json.loads(m.msg.data)["action"] for m in contents.on("/safepath/gripper")] == [
+        "open", "close", "open"]
+    states = contents.on("/joint_states")
+    home = load_cell(POURING).pose("home")
+    assert np.allclose(states[0].msg.position[:6], home, atol=1e-9)
+    assert np.allclose(states[-1].msg.position[:6], home, atol=1e-6)
+    # One message per motion between gripper events: pick 2, the pours 1 each, place 2.
     goals = contents.on("/safepath/trajectory")
-    assert len(goals) == 5
-    last = goals[3].msg.points[-1].time_from_start
+    assert len(goals) == 6
+    last = goals[2].msg.points[-1].time_from_start
     assert last.sec + last.nanosec * 1e-9 == pytest.approx(
         load_trajectory(out / "slow_pour.json").duration, abs=1e-3)
+
+
+def test_a_cycle_that_does_not_hold_together_is_refused(tmp_path: Path) -> None:
+    """A cycle naming an unknown route, or putting the cup down before the pours (the
+    pours then start holding a cup that is on the table), names the file and key."""
+    from safepath.routes import load_cycle
+
+    text = (POURING / "routes.yaml").read_text()
+    good = "cycle: [pick_cup, slow_pour, barista_pour, place_cup]"
+    assert good in text
+    cell = load_cell(POURING)
+    routes = cell.route_table()
+    for cycle, key, words in (
+            ("[pick_cup, place_cup, slow_pour, barista_pour]", "cycle[2]",
+             "'slow_pour' starts holding the object"),
+            ("[pick_cup, slow_pour, barista_pour]", "cycle[0]",
+             "'barista_pour' before it in the cycle ends holding"),
+            ("[pick_cup, slow_pur]", "cycle[1]", "did you mean 'slow_pour'")):
+        path = tmp_path / "routes.yaml"
+        path.write_text(text.replace(good, f"cycle: {cycle}"))
+        with pytest.raises(ConfigError, match=words) as info:
+            load_cycle(path, routes)
+        assert info.value.key == key and info.value.path == path
+    assert cell.cycle() == ["pick_cup", "slow_pour", "barista_pour", "place_cup"]
 
 
 def _write(tmp_path: Path, steps: list[Any]) -> Path:
@@ -212,6 +274,8 @@ TILT = {"axis": [-1, 0, 0], "angle": 1.0, "pivot": [0.035, 0.04, 0.0]}
      "routes.pour.steps[0].tilt.pivot", "1 mm"),
     ([{"tilt": TILT, "max_angular_speed": 0.1, "max_tilt": 0.1}],
      "routes.pour.steps[0].max_tilt", "unknown key"),
+    ([{"tilt": TILT, "max_angular_speed": 0.1, "into": "bowll"}],
+     "routes.pour.steps[0].into", "did you mean 'bowl'"),
     ([{"tilt": "upright", "max_angular_speed": 0.1}],
      "routes.pour.steps[0].tilt", "expected a mapping"),
     ([{"circle": {"center": [-0.03, 0]}, "tcp_speed": 0.05}],
