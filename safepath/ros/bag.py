@@ -16,6 +16,11 @@ topic                    type                                one message
 ``/joint_states``        ``sensor_msgs/msg/JointState``       every 1/``joint_state_rate``
 =======================  ==================================  ===============================
 
+``/joint_states`` holds the controller's joints and, for a robot whose ``controller.yaml``
+has a ``gripper`` section and a cycle with gripper events, its gripper joint (open or
+closed after each event, the other position before the first), so that RViz draws the
+fingers. The bag is stamped from ``start_time_ns`` (default: now).
+
 With ``goals=True`` the bag also holds the goals a node sends, as it would send them:
 ``/safepath/arm_goal`` (``control_msgs/action/FollowJointTrajectory_Goal``, per motion,
 at its start) and, for a robot whose ``controller.yaml`` has a ``gripper`` section,
@@ -31,6 +36,7 @@ import math
 import os
 import shutil
 import tempfile
+import time
 from collections.abc import Iterable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -115,13 +121,37 @@ def _string(data: dict[str, Any]) -> Any:
     return typestore().types["std_msgs/msg/String"](data=json.dumps(data, sort_keys=True))
 
 
+def _gripper_positions(trajs: Sequence[Trajectory], starts_ns: Sequence[int],
+                       spec: TrajectoryController, times: np.ndarray) -> np.ndarray | None:
+    """The gripper joint's position at ``times`` [ns from the cycle's start]: the open or
+    closed position of the last gripper event at or before each time; before the first
+    event, the other one (the gripper changes at each event). None for a cycle without
+    gripper events (nothing says whether the gripper is open)."""
+    assert spec.gripper is not None
+    grip = spec.gripper
+    where = {"open": grip.open_position, "close": grip.closed_position}
+    changes = sorted((start + round((e.time - traj.t[0]) * _NS), where[e.action])
+                     for traj, start in zip(trajs, starts_ns, strict=True) for e in traj.events)
+    if not changes:
+        return None
+    first = grip.closed_position if changes[0][1] == grip.open_position else grip.open_position
+    values = np.array([first] + [v for _, v in changes])
+    return values[np.searchsorted([t for t, _ in changes], times, side="right")]
+
+
 def _joint_states(trajs: Sequence[Trajectory], starts_ns: Sequence[int], total_ns: int,
-                  rate: float, names: tuple[str, ...], start_time_ns: int) -> list[tuple[int, Any]]:
-    """``/joint_states`` every 1/``rate`` over the whole cycle, from the true motion."""
+                  rate: float, names: tuple[str, ...], start_time_ns: int,
+                  spec: TrajectoryController) -> list[tuple[int, Any]]:
+    """``/joint_states`` every 1/``rate`` over the whole cycle, from the true motion; with
+    the gripper joint of ``spec``'s ``gripper`` section (RViz draws the fingers from it)."""
     types = typestore().types
     step_ns = round(_NS / rate)
     times = np.arange(0, total_ns + step_ns, step_ns, dtype=np.int64)
     which = interval_index(np.asarray(starts_ns), times, len(trajs))
+    fingers = _gripper_positions(trajs, starts_ns, spec, times) \
+        if spec.gripper is not None and spec.gripper.joint not in names else None
+    all_names = [*names, spec.gripper.joint] if fingers is not None and spec.gripper \
+        else list(names)
     out: list[tuple[int, Any]] = []
     for k, traj in enumerate(trajs):
         mine = times[which == k]
@@ -129,6 +159,10 @@ def _joint_states(trajs: Sequence[Trajectory], starts_ns: Sequence[int], total_n
             continue
         cols = [traj.joint_names.index(n) for n in names]
         q, qd, _ = traj.sample(traj.t[0] + (mine - starts_ns[k]) / _NS)
+        q, qd = q[:, cols], qd[:, cols]
+        if fingers is not None:
+            q = np.column_stack([q, fingers[which == k]])
+            qd = np.column_stack([qd, np.zeros(mine.size)])
         for j, t_ns in enumerate(mine):
             stamp_ns = start_time_ns + int(t_ns)
             header = types["std_msgs/msg/Header"](
@@ -136,8 +170,8 @@ def _joint_states(trajs: Sequence[Trajectory], starts_ns: Sequence[int], total_n
                                                            nanosec=stamp_ns % _NS),
                 frame_id="")
             out.append((stamp_ns, types["sensor_msgs/msg/JointState"](
-                header=header, name=list(names), position=q[j, cols].astype(np.float64),
-                velocity=qd[j, cols].astype(np.float64), effort=np.zeros(0))))
+                header=header, name=all_names, position=q[j].astype(np.float64),
+                velocity=qd[j].astype(np.float64), effort=np.zeros(0))))
     return out
 
 
@@ -195,8 +229,8 @@ def _cycle_records(trajs: Sequence[Trajectory], names: tuple[str, ...], period: 
 def write_bag(path: str | Path, trajectories: Iterable[Trajectory], *,
               joint_state_rate: float | None = None, period: float | None = None,
               robot_joint_names: Sequence[str] | None = None,
-              controller: TrajectoryController | None = None, start_time_ns: int = 0,
-              goals: bool = False) -> Path:
+              controller: TrajectoryController | None = None,
+              start_time_ns: int | None = None, goals: bool = False) -> Path:
     """Write a ROS 2 bag (MCAP) of a cycle; see the module docstring for its layout.
 
     Each trajectory starts where the previous one ends, on one clock from
@@ -215,7 +249,8 @@ def write_bag(path: str | Path, trajectories: Iterable[Trajectory], *,
         robot_joint_names: The controller's joint names; default: the controller's.
         controller: The robot's trajectory controller; default: the one of the robot
             the first trajectory names (see :func:`safepath.ros.goals.controller_of`).
-        start_time_ns: Clock time of the cycle's start [ns since the epoch].
+        start_time_ns: Clock time of the cycle's start [ns since the epoch]; default:
+            now (a bag stamped from 0 would read as 1970).
         goals: Also write the arm's ``FollowJointTrajectory`` goals and, for a robot with
             a ``gripper`` section in its ``controller.yaml``, the ``GripperCommand`` goals
             of its gripper events.
@@ -230,6 +265,13 @@ def write_bag(path: str | Path, trajectories: Iterable[Trajectory], *,
     """
     path = Path(path)
     trajs = list(trajectories)
+    if start_time_ns is None:
+        start_time_ns = time.time_ns()
+    if isinstance(start_time_ns, bool) or not isinstance(start_time_ns, (int, np.integer)) \
+            or start_time_ns < 0:
+        raise TrajectoryError(f"expected an integer >= 0 [ns since the epoch], got "
+                              f"{start_time_ns!r}", key="start_time_ns")
+    start_time_ns = int(start_time_ns)
     if not trajs:
         raise TrajectoryError("no trajectories to write", key="trajectories")
     spec = controller_of(trajs[0], controller)
@@ -248,7 +290,7 @@ def write_bag(path: str | Path, trajectories: Iterable[Trajectory], *,
     _check_joins(trajs, names)
     records += [(t, 3, JOINT_STATES_TOPIC, m) for t, m in
                 _joint_states(trajs, starts_ns, clock_ns, joint_state_rate, names,
-                              start_time_ns)]
+                              start_time_ns, spec)]
     records.sort(key=lambda r: (r[0], r[1]))
 
     if path.exists():

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import time
 from pathlib import Path
 
 import numpy as np
@@ -109,9 +110,17 @@ def test_bag_contents(cycle_bag: Path) -> None:
 
 
 def test_rate_and_start_time(tmp_path: Path) -> None:
-    path = write_bag(tmp_path / "slow", [phase1()], joint_state_rate=10.0)
+    path = write_bag(tmp_path / "slow", [phase1()], joint_state_rate=10.0, start_time_ns=0)
     states = read_bag(path).on(JOINT_STATES_TOPIC)
     assert [m.timestamp for m in states] == [100_000_000 * k for k in range(25)]
+    # Without a start time, the bag is stamped from now (not from 1970).
+    before = time.time_ns()
+    now = read_bag(write_bag(tmp_path / "now", [phase1()])).on(JOINT_STATES_TOPIC)
+    assert before <= now[0].timestamp <= time.time_ns()
+    assert now[0].msg.header.stamp.sec == now[0].timestamp // 10**9
+    with pytest.raises(TrajectoryError) as info:
+        write_bag(tmp_path / "neg", [phase1()], start_time_ns=-1)
+    assert info.value.key == "start_time_ns"
 
 
 def test_existing_path_is_never_overwritten(cycle_bag: Path) -> None:

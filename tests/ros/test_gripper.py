@@ -19,6 +19,7 @@ from safepath.ros.bag import (
     ARM_GOAL_TOPIC,
     GRIPPER_GOAL_TOPIC,
     GRIPPER_TOPIC,
+    JOINT_STATES_TOPIC,
     TRAJECTORY_TOPIC,
     read_bag,
     write_bag,
@@ -212,6 +213,13 @@ def test_bag_with_goals(tmp_path: Path) -> None:
     assert [(m.timestamp - start, m.msg.command.position) for m in grip] == [
         (0, 0.0), (1_000_000_000, 0.8)]
     assert len(bag.on(GRIPPER_TOPIC)) == 2 and len(bag.on(TRAJECTORY_TOPIC)) == 2
+    # /joint_states carries the finger joint (RViz draws the fingers): open (0.0) from the
+    # 'open' at 0 s, closed (0.8) from the 'close' at 1 s.
+    states = bag.on(JOINT_STATES_TOPIC)
+    assert all(m.msg.name == [*GEN3, "right_finger_bottom_joint"] for m in states)
+    finger = {m.timestamp - start: m.msg.position[-1] for m in states}
+    assert finger[0] == 0.0 and finger[990_000_000] == 0.0
+    assert finger[1_000_000_000] == 0.8 and finger[2_000_000_000] == 0.8
     # Without goals=True the bag is as before; a robot without a gripper section gets no
     # gripper goal topic.
     plain = read_bag(write_bag(tmp_path / "plain", [traj]))
