@@ -103,9 +103,9 @@ def evaluate(sm: Smoothed, t: np.ndarray) -> tuple[np.ndarray, ...]:
     """
     t = np.asarray(t, dtype=float)
     a, b = sm.tau_a, sm.tau_b
-    acc = _integrals(sm, t) - _integrals(sm, t - a) - _integrals(sm, t - b) \
-        + _integrals(sm, t - a - b)
-    acc /= a * b
+    n = t.size
+    out = _integrals(sm, np.concatenate([t, t - a, t - b, t - a - b]))
+    acc = (out[:, :n] - out[:, n:2 * n] - out[:, 2 * n:3 * n] + out[:, 3 * n:]) / (a * b)
     s, sd, sdd, sddd = acc[0], acc[1], acc[2], acc[3]
     end = sm.duration
     L = sm.profile.grid[-1]  # noqa: N806

@@ -242,8 +242,10 @@ def _time_and_verify(cell: Cell, chunks: list[tuple[list[Segment], WorldState] |
         timed = [(chunk.piece, chunk.steps_of_knots, chunk.result)] \
             if isinstance(chunk, PourChunk) else time_chunk(cell, *chunk, options, cache, labels,
                                                             min_clear)
-        world = chunk.world if isinstance(chunk, PourChunk) else chunk[1]
-        weights = cache.checker(world, ()).displacement_weights
+        # A point's motion per joint turn depends on the robot and what it holds, not on
+        # the allowed contacts: the chunk's own checker (the first step's) tells.
+        weights = (cache.checker(chunk.world, ()) if isinstance(chunk, PourChunk)
+                   else cache.checker(chunk[1], chunk[0][0].allowed)).displacement_weights
         for piece, steps_of_knots, result in timed:
             if result.min_clearance < min_clear:
                 min_clear, closest = result.min_clearance, result.closest_pair
