@@ -42,7 +42,9 @@ def _message_arrays(msg) -> tuple[np.ndarray, ...]:  # noqa: ANN001
 
 def _random_path(robot: safepath.Robot, rng: np.random.Generator) -> list[np.ndarray]:
     mid = (robot.lower + robot.upper) / 2
-    half = np.minimum((robot.upper - robot.lower) / 2, np.pi) * 0.5
+    # Moves of a few seconds on every robot (the Gen3 Lite's joints turn at 0.5 rad/s).
+    half = np.minimum(np.minimum((robot.upper - robot.lower) / 2, np.pi),
+                      1.5 * robot.velocity_limits) * 0.5
     n = int(rng.integers(2, 6))
     return [mid + half * rng.uniform(-1, 1, robot.dof) for _ in range(n)]
 
