@@ -11,8 +11,12 @@ import logging
 import sys
 from collections.abc import Callable, Sequence
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from .errors import SafepathError
+
+if TYPE_CHECKING:
+    from .cell import Cell
 
 __all__ = ["main"]
 
@@ -59,14 +63,27 @@ def cmd_check(args: argparse.Namespace) -> int:
                   + ", ".join(_fmt_pair(p) for p in rep.collisions[1:]))
     low = sum(1 for r in rows if r.report.valid and not r.report.margin_ok)
     print(f"{len(rows) - unsafe}/{len(rows)} states valid, {low} below margin")
-    if cell.folder is not None and (cell.folder / "routes.yaml").is_file():
-        routes = cell.route_table()  # a malformed routes.yaml: a ConfigError, exit 2
-        steps = sum(len(r.steps) for r in routes.values())
-        print(f"routes.yaml: {len(routes)} routes, {steps} steps valid "
-              f"({', '.join(routes)})")
-    if unsafe or (low and args.strict):
+    unreachable = _check_routes(cell)
+    if unsafe or unreachable or (low and args.strict):
         return EXIT_UNSAFE
     return 0
+
+
+def _check_routes(cell: Cell) -> int:
+    """Print what ``routes.yaml`` holds and one line per target inverse kinematics does
+    not reach (named by route and step, as ``plan`` would refuse it); how many."""
+    from .planning.reach import check_targets
+
+    if cell.folder is None or not (cell.folder / "routes.yaml").is_file():
+        return 0
+    routes = cell.route_table()  # a malformed routes.yaml: a ConfigError, exit 2
+    steps = sum(len(r.steps) for r in routes.values())
+    print(f"routes.yaml: {len(routes)} routes, {steps} steps valid "
+          f"({', '.join(routes)})")
+    unreachable = check_targets(cell, routes, path=cell.folder / "routes.yaml")
+    for target in unreachable:
+        print(f"unreachable: {target.error}")
+    return len(unreachable)
 
 
 def cmd_robot_pairs(args: argparse.Namespace) -> int:

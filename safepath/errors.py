@@ -183,16 +183,42 @@ class PlanningError(SafepathError):
     Attributes:
         step: Name or index of the route step that failed, if any.
         status: The planner's status string, if a planner ran.
+        route: Name of the route being planned, if known (see :meth:`in_route`).
+        path: The routes file the route comes from, or None (routes built in Python).
     """
 
-    def __init__(self, reason: str, *, step: str | None = None, status: str | None = None):
+    def __init__(self, reason: str, *, step: str | None = None, status: str | None = None,
+                 route: str | None = None, path: str | Path | None = None):
         self.step = step
         self.status = status
         self.reason = reason
-        msg = reason if step is None else f"step '{step}': {reason}"
-        if status:
-            msg += f" (planner status: {status})"
-        super().__init__(msg)
+        self.route = route
+        self.path = None if path is None else Path(path)
+        super().__init__(self._message())
+
+    def _message(self) -> str:
+        where = []
+        if self.path is not None:
+            where.append(str(self.path))
+        if self.route is not None:
+            where.append(f"route '{self.route}'")
+        if self.step is not None:
+            where.append(f"step '{self.step}'")
+        msg = f"{', '.join(where)}: {self.reason}" if where else self.reason
+        if self.status:
+            msg += f" (planner status: {self.status})"
+        return msg
+
+    def in_route(self, route: str, path: str | Path | None = None) -> PlanningError:
+        """Name the route (and the routes file it comes from) in this error, as the
+        planner of a route does for every error its steps raise; a route or file already
+        named is kept. Returns the error itself (same type, same evidence)."""
+        if self.route is None:
+            self.route = route
+        if self.path is None and path is not None:
+            self.path = Path(path)
+        self.args = (self._message(),)
+        return self
 
 
 class PlannerTimeout(PlanningError):

@@ -156,3 +156,21 @@ def test_check_pouring_cell(repo_root: Path, tmp_path: Path) -> None:
     assert bad.stdout == ""
     (line,) = bad.stderr.strip().splitlines()
     assert "poses.above_bowl.orientation" in line and "not a unit quaternion" in line
+
+
+def test_check_refuses_a_line_target_out_of_reach(repo_root: Path, cell_copy: Path) -> None:
+    # A TCP pose 2.6 m beyond the Ned3 Pro's reach, in the third route: the poses are
+    # all fine, but `plan` would refuse the route (issue 28: `check` said exit 0).
+    import yaml
+
+    routes = cell_copy / "routes.yaml"
+    data = yaml.safe_load(routes.read_text())
+    data["routes"]["phase2_unsafe"]["steps"][0] = {
+        "line": {"position": [3.0, 0.0, 0.2], "orientation": [0.0, 1.0, 0.0, 0.0]}}
+    routes.write_text(yaml.safe_dump(data, sort_keys=False))
+    result = run("check", str(cell_copy), cwd=repo_root)
+    assert result.returncode == 1, result.stdout + result.stderr
+    assert "12/12 states valid" in result.stdout
+    (line,) = [ln for ln in result.stdout.splitlines() if ln.startswith("unreachable")]
+    assert f"{routes}, route 'phase2_unsafe', step '0 line tcp(3.000,0.000,0.200)'" in line
+    assert "no inverse-kinematics solution" in line

@@ -110,9 +110,13 @@ def solve(checker: CollisionChecker, q_start: np.ndarray, q_goal: np.ndarray,
     log.info("OMPL %s: %s in %.3f s, %d attempt(s)", options.planner, text, elapsed,
              attempts)
     if not setup.haveExactSolutionPath():
-        if elapsed >= options.time_limit * 0.99 or "imeout" in text or "Approximate" in text:
-            raise PlannerTimeout(f"no path within {options.time_limit:g} s ({attempts} "
-                                 f"attempt(s))", step=step, status=text)
+        # Out of time also when the budget ran out before the first attempt (setting the
+        # problem up took it all): no planner ran, so nothing says the path does not exist.
+        if time.perf_counter() >= deadline or attempts == 0 or "imeout" in text \
+                or "Approximate" in text:
+            raise PlannerTimeout(f"ran out of time: no path within the time_limit of "
+                                 f"{options.time_limit:g} s ({attempts} attempt(s))",
+                                 step=step, status=text or "no time to run")
         raise PlanningError("no collision-free path found", step=step, status=text)
     if options.planner in OPTIMIZING and time.perf_counter() < deadline:
         objective.setCostThreshold(threshold)

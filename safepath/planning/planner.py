@@ -15,13 +15,14 @@ import logging
 import time
 from collections.abc import Mapping
 from dataclasses import dataclass, replace
+from pathlib import Path
 
 import numpy as np
 
 from ..cell import Cell
 from ..checks import Pair
 from ..collision import CollisionChecker
-from ..errors import IKError, PlanningError, TimingError
+from ..errors import IKError, PlanningError, SafepathError, TimingError
 from ..routes import Route, Step, after_chain
 from ..trajectory import Trajectory
 from ._chunks import Segment, assemble, time_chunk, time_segments
@@ -63,7 +64,9 @@ def plan_cell(cell: Cell, options: PlanOptions | None = None, *,
     Raises:
         ConfigError: The robot or the scene has geometry the independent verifier does
             not handle (before anything is planned), or ``routes.yaml`` is invalid.
-        PlanningError, TimingError, VerificationError: As :func:`plan_route`.
+        PlanningError, TimingError, VerificationError: As :func:`plan_route` (a
+            PlanningError names the route and the routes file, see
+            :meth:`~safepath.errors.PlanningError.in_route`).
     """
     options = options or PlanOptions()
     check_verifiable(cell.robot, cell.scene)
@@ -75,7 +78,7 @@ def plan_cell(cell: Cell, options: PlanOptions | None = None, *,
     for name in route_order(routes):
         route = routes[name]
         world = worlds[route.after].copy() if route.after else initial_world(cell)
-        traj, end_world = _plan(cell, route, world, options, cache)
+        traj, end_world = _plan_named(cell, route, world, options, cache)
         worlds[name] = end_world
         out[name] = traj
     return out
@@ -94,15 +97,40 @@ def plan_route(cell: Cell, route: Route, options: PlanOptions | None = None, *,
     Raises:
         ConfigError: The robot or the scene has geometry the independent verifier does
             not handle (before anything is planned).
-        PlanningError: A step cannot be planned (step, pose and reason).
+        PlanningError: A step cannot be planned (route, routes file when the route is the
+            cell's, step, pose and reason).
         TimingError: No timing within the limits.
         VerificationError: The timed result failed the independent re-check.
     """
     options = options or PlanOptions()
     check_verifiable(cell.robot, cell.scene)
-    traj, _ = _plan(cell, route, world.copy() if world else initial_world(cell), options,
-                    CheckerCache(cell, options))
+    traj, _ = _plan_named(cell, route, world.copy() if world else initial_world(cell),
+                          options, CheckerCache(cell, options))
     return traj
+
+
+def _plan_named(cell: Cell, route: Route, world: WorldState, options: PlanOptions,
+                cache: CheckerCache) -> tuple[Trajectory, WorldState]:
+    """:func:`_plan`, its planning errors naming the route and its routes file: in a cell
+    of several routes, a step's name alone does not say where it is."""
+    try:
+        return _plan(cell, route, world, options, cache)
+    except PlanningError as exc:
+        exc.in_route(route.name, _routes_file(cell, route))
+        raise
+
+
+def _routes_file(cell: Cell, route: Route) -> Path | None:
+    """The cell's ``routes.yaml`` if ``route`` is the route of that name in it, else None
+    (a route built in Python, or changed since it was read)."""
+    if cell.routes is not None or cell.folder is None:
+        return None
+    path = cell.folder / "routes.yaml"
+    try:
+        same = path.is_file() and cell.route_table().get(route.name) == route
+    except (SafepathError, ValueError):  # an unreadable file names nothing
+        return None
+    return path if same else None
 
 
 @dataclass
