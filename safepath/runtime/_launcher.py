@@ -104,6 +104,7 @@ class Launcher:
         self._cond = threading.Condition()
         self._ready: list[Loaded] = []
         self._waiters: list[Future[Loaded]] = []
+        self._warm_waiters: list[Future[None]] = []
         self._loading = 0
         self._healthy = False  # the last load succeeded: spares may be loaded
         self._closed = False
@@ -116,6 +117,28 @@ class Launcher:
         """Process ids of the loaded workers waiting to be used."""
         with self._cond:
             return tuple(w.proc.pid for w in self._ready if w.proc.pid is not None)
+
+    def warm(self) -> Future[None]:
+        """A future done once the spares are loaded (at once if they are), or once no
+        more will load: the last load failed, or the launcher is closed."""
+        future: Future[None] = Future()
+        with self._cond:
+            if not self._is_warm():
+                self._warm_waiters.append(future)
+                return future
+        future.set_result(None)
+        return future
+
+    def _is_warm(self) -> bool:
+        """Whether the spares are loaded or none will be (under _cond)."""
+        return self._closed or not self._healthy or len(self._ready) >= self._spares
+
+    def _take_warm_waiters(self) -> list[Future[None]]:
+        """The warm waiters to answer now, if the spares are warm (under _cond)."""
+        if not self._is_warm():
+            return []
+        waiters, self._warm_waiters = self._warm_waiters, []
+        return waiters
 
     def acquire(self) -> Loaded | BaseException:
         """A loaded worker (a spare if one is ready), or the error that stopped one from
@@ -143,9 +166,12 @@ class Launcher:
             self._closed = True
             spares, self._ready = self._ready, []
             waiters, self._waiters = self._waiters, []
+            warm = self._take_warm_waiters()
             threads = list(self._threads)
         for ticket in waiters:
             ticket.set_exception(WorkerError("the runtime planner is closed"))
+        for future in warm:
+            future.set_result(None)
         try:
             self._stop_w.send_bytes(b"!")
         except (OSError, ValueError):
@@ -193,6 +219,9 @@ class Launcher:
                 if ticket is None and isinstance(result, Loaded):
                     self._ready.append(result)
                 self._fill()
+            warm = self._take_warm_waiters()
+        for future in warm:
+            future.set_result(None)
         if self._closed and isinstance(result, Loaded):
             stop_worker(result, graceful=True)
         elif ticket is not None:

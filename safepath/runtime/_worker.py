@@ -97,13 +97,25 @@ class _Worker:
             self.version = version
 
     def validate(self, poses: Mapping[str, Any]) -> dict[str, np.ndarray]:
-        """The poses as joint vectors [rad], each checked like a taught pose."""
+        """The poses as joint vectors [rad], each checked like a taught pose, and
+        collision-free as ``safepath check`` checks it (gripper empty, and holding the
+        object where the scene says it may be held; the pose's allowed contacts apply)."""
         out: dict[str, np.ndarray] = {}
         for name, q in poses.items():
             check_names([name], self.base_poses, path=None, key=str(name), what="pose",
                         error=PoseError)
             out[name] = self.cell.robot.as_joint_vector(q, name=name)
+            self._check_free(str(name), out[name])
         return out
+
+    def _check_free(self, name: str, q: np.ndarray) -> None:
+        grasp = self.cell.scene.grasp
+        for held in (False, True) if grasp is not None and name in grasp.poses else (False,):
+            report = self.cell.checker(held=held, at=name).check(q)
+            if report.collisions:
+                pairs = ", ".join(f"{a} / {b}" for a, b in report.collisions)
+                holding = f" holding '{grasp.object}'" if held and grasp else ""
+                raise PoseError(f"pose '{name}' is in collision{holding}: {pairs}", key=name)
 
     # -- planning --------------------------------------------------------------------------
     def _options(self, seed: int | None) -> PlanOptions:

@@ -9,10 +9,11 @@ cell and its routes once and keeps them loaded; the caller's threads only send r
 and unpickle answers (about 1 ms for the three routes of the bundled cell).
 
 Lifecycle: the workers start in the background as soon as the planner is built (about
-1 s: imports, loading, warm-up), so the first plan is answered sooner; ``ready()``
-tells when they are loaded. Then one more, a warm spare, loads: a request that is
-cancelled or times out while it plans stops its worker (native code cannot be
-interrupted otherwise), and the spare takes its place at once while a new spare loads.
+1 s: imports, loading, warm-up), so the first plan is answered sooner. Then one more,
+a warm spare, loads: a request that is cancelled or times out while it plans stops its
+worker (native code cannot be interrupted otherwise), and the spare takes its place at
+once while a new spare loads. ``ready()`` tells when the workers and the spare are
+loaded (until the spare is, a stopped worker's replacement has to load first).
 Results are cached in this process (per poses, seed and world), so stopping a worker
 loses none, and a request the cache holds is answered without a worker. ``close()`` (or
 leaving a ``with`` block) cancels what is queued or running and stops the workers. A
@@ -205,14 +206,16 @@ class RuntimePlanner:
 
         The given poses replace those of the same name; the others are kept. Each is
         validated like a taught pose (known name, joint count, finite, inside the limits)
-        in a worker. A failed or cancelled update changes nothing. Requests made after
+        and checked collision-free as ``safepath check`` checks it, in a worker. A
+        failed or cancelled update changes nothing. Requests made after
         this call plan with the new poses; requests made before it do not.
 
         Args:
             poses: Joint vectors by pose name [rad].
 
         Returns:
-            A future that fails with ``PoseError`` (naming the pose) if a pose is invalid.
+            A future that fails with ``PoseError`` (naming the pose, and the colliding
+            pair for a pose in collision) if a pose is invalid.
 
         Raises:
             PoseError: ``poses`` is not a mapping.
@@ -224,8 +227,11 @@ class RuntimePlanner:
         return self._core.submit("validate", {"poses": copied}, None, "the pose update")
 
     def ready(self) -> Future[None]:
-        """A future that is done when every worker has loaded the cell (or failed to:
-        then it carries the load error, e.g. a ``ConfigError`` naming the file)."""
+        """A future that is done when every worker has loaded the cell and so has the
+        warm spare (with ``spare=True``), so that a request cancelled from then on is
+        replaced at once; or when a worker failed to load: then it carries the load
+        error, e.g. a ``ConfigError`` naming the file. After a cancelled or timed-out
+        request, ``ready()`` waits again for the new spare."""
         out: Future[None] = Future()
         loaded = [slot.loaded for slot in self._core.slots]
         lock = threading.Lock()
@@ -240,7 +246,8 @@ class RuntimePlanner:
                 if f.exception() is not None:
                     out.set_exception(f.exception())  # type: ignore[arg-type]
                     return
-            out.set_result(None)
+            # The spare loads after the workers (not competing with them for the CPUs).
+            self._core.launcher.warm().add_done_callback(lambda _: out.set_result(None))
 
         for f in loaded:
             f.add_done_callback(one_done)

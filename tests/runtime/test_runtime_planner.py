@@ -30,7 +30,6 @@ from safepath import (
     IKError,
     PlannerOptions,
     PlannerTimeout,
-    PlanningError,
     PlanOptions,
     PoseError,
     RobotNotFound,
@@ -152,26 +151,26 @@ def test_unknown_route_comes_back_as_config_error(planner: RuntimePlanner) -> No
     assert "phase1" in str(info.value)
 
 
-def test_colliding_pose_update_fails_the_plan_with_the_pair(
+def test_colliding_pose_update_is_refused_with_the_pair(
         planner: RuntimePlanner, cell: Cell, reference: dict[str, Trajectory]) -> None:
+    # Issue 28: a pose inside an obstacle was accepted silently (the plans then failed).
     bad = cell.pose("high2").copy()
     bad[1] -= 1.0  # shoulder forward: the forearm hits the camera post
     update = planner.update_poses({"high2": bad})
-    plan = planner.plan_route("phase1")  # asked after the update: must see it
-    update.result(timeout=LONG)
-    with pytest.raises(PlanningError) as info:
-        plan.result(timeout=LONG)
-    assert info.value.step == "2 move high2"
+    plan = planner.plan_route("phase1")  # asked after the update
+    with pytest.raises(PoseError) as info:
+        update.result(timeout=LONG)
+    assert info.value.key == "high2"
+    assert "pose 'high2' is in collision" in str(info.value)
     assert "forearm_link / camera_post" in str(info.value)
+    # A refused update changes nothing: the plan asked after it uses the taught pose.
+    assert_same(plan.result(timeout=LONG), reference["phase1"])
 
     with pytest.raises(PoseError, match="joint_1") as pose_info:
         planner.update_poses({"high2": [10.0, 0, 0, 0, 0, 0]}).result(timeout=LONG)
     assert pose_info.value.key == "high2"
     with pytest.raises(PoseError, match="unknown pose 'nope'"):
         planner.update_poses({"nope": cell.pose("high2")}).result(timeout=LONG)
-    # Failed updates change nothing: the colliding pose is still in use.
-    with pytest.raises(PlanningError, match="camera_post"):
-        planner.plan_route("phase1").result(timeout=LONG)
 
     planner.update_poses({"high2": cell.pose("high2")}).result(timeout=LONG)
     assert_same(planner.plan_route("phase1").result(timeout=LONG), reference["phase1"])
@@ -273,6 +272,22 @@ def test_cancel_while_planning_keeps_the_cache_and_swaps_in_the_spare(
     assert before.pids[0] not in after.pids + after.spares
 
 
+def test_ready_waits_for_the_warm_spare(slow: RuntimePlanner) -> None:
+    # Issue 28: ready() was done before the spare had loaded, so a fresh plan right
+    # after a cancel waited for a new worker to load (3.6-4.0 s against 1.06 s).
+    slow.ready().result(timeout=LONG)
+    spares = slow.stats().spares
+    assert len(spares) == 1  # no waiting here: ready() means the spare is loaded
+    future = slow.plan_cell(seed=23)
+    wait_for(lambda: slow.stats().busy == 1, "the worker to take the request")
+    assert future.cancel()
+    wait_for(lambda: slow.stats().pids == spares, "the spare to take over", 5.0)
+    # The new spare loads behind it (a few seconds): ready() waits for it again.
+    slow.ready().result(timeout=LONG)
+    after = slow.stats()
+    assert len(after.spares) == 1 and after.spares != spares
+
+
 def test_timeout_answers_at_its_deadline_and_keeps_the_cache(slow: RuntimePlanner) -> None:
     cached = slow.plan_route("phase1").result(timeout=LONG)
     wait_for(lambda: idle(slow), "the planner to be idle")
@@ -367,15 +382,16 @@ def test_four_threads_get_the_serial_results(blocked: RuntimePlanner,
 
     # A pose update reaches both workers before the requests made after it.
     high2 = blocked_cell.pose("high2")
-    bad = high2.copy()
-    bad[1] -= 1.0
-    blocked.update_poses({"high2": bad})
+    moved = high2.copy()
+    moved[0] += 0.05  # a free pose a little further round
+    blocked.update_poses({"high2": moved})
     later = [blocked.plan_route("phase1", seed=seed) for seed in (50, 51)]
     blocked.update_poses({"high2": high2})
     again = blocked.plan_route("phase1", seed=50)
     for future in later:
-        with pytest.raises(PlanningError, match="camera_post"):
-            future.result(timeout=LONG)
+        q = future.result(timeout=LONG).q
+        assert np.isclose(q, moved, atol=1e-9).all(axis=1).any()  # it goes through it
+        assert not np.isclose(q, high2, atol=1e-9).all(axis=1).any()
     assert_same(again.result(timeout=LONG), serial[50]["phase1"])
 
 
