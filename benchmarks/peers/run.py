@@ -104,11 +104,13 @@ def cell_job(work: Path, seeds: int) -> tuple[dict, dict]:
     return job, {"cell": cell, "steps": steps}
 
 
-def panda_job(work: Path, limit: int | None) -> tuple[dict, dict]:
-    """The Panda job and what verification needs."""
+def panda_job(work: Path, limit: int | None, seed: int | None = None) -> tuple[dict, dict]:
+    """The Panda job and what verification needs (``seed``: a freshly generated problem
+    set instead of the repository's ``panda_problems.json``)."""
     import safepath
 
-    data = json.loads(probs.PANDA_PROBLEMS.read_text())
+    data = json.loads(probs.PANDA_PROBLEMS.read_text()) if seed is None \
+        else probs.generate_panda_problems(seed=seed)
     if limit is not None:
         data = dict(data, problems=data["problems"][:limit])
     folder = probs.write_panda_cell(data, work / "panda_cell")
@@ -345,6 +347,8 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--peers", default="mplib,pyroboplan,roboplan")
     ap.add_argument("--cell-seeds", type=int, default=5, help="planner seeds on the cell")
     ap.add_argument("--limit", type=int, default=None, help="first N Panda problems only")
+    ap.add_argument("--panda-seed", type=int, default=None,
+                    help="generate a fresh Panda problem set from this seed")
     ap.add_argument("--no-install", action="store_true", help="use cached peer venvs only")
     ap.add_argument("--timeout", type=float, default=1500.0, help="per adapter run [s]")
     ap.add_argument("--out", type=Path, default=RESULTS / "peers.json")
@@ -380,7 +384,7 @@ def main(argv: list[str] | None = None) -> int:
             if set_name == "cell":
                 job, ctx = cell_job(work, args.cell_seeds)
             else:
-                job, ctx = panda_job(work, args.limit)
+                job, ctx = panda_job(work, args.limit, args.panda_seed)
             results: dict[str, Any] = {}
             for name in ("safepath", *peers):
                 if name not in pythons:
