@@ -19,9 +19,10 @@ names its interpolation (:attr:`safepath.trajectory_controller.TrajectoryControl
 :func:`executed_peaks` finds, per joint, the largest speed, acceleration and jerk of
 that joined motion: acceleration and jerk exactly (the jerk of a quintic is a quadratic,
 its acceleration a cubic: their extremes are at the ends or where the next derivative
-vanishes), speed on a grid of at least ``rate`` samples per second and per interval, plus
-a bound of what a peak between two samples can add (``|jerk| dt^2 / 8``), so every
-figure is an upper bound of the motion at every instant. :func:`check_executed` raises
+vanishes), speed at the ends, and where the acceleration changes sign inside an interval
+on a grid of at least ``rate`` samples per second plus a bound of what a peak between two
+samples can add (``|jerk| dt^2 / 8``), so every figure is an upper bound of the motion at
+every instant (compiled for quintics: :mod:`safepath._joinkernel`). :func:`check_executed` raises
 :class:`~safepath.errors.ExecutedLimitError` when one is over its limit.
 
 A quintic on an interval, restricted to part of it, is the quintic through its own
@@ -132,8 +133,6 @@ class ExecutedPeaks:
         acceleration: Per joint, the largest ``|a|`` [rad/s^2] (exact).
         jerk: Per joint, the largest ``|j|`` [rad/s^3] (exact; the jerk of one interval,
             each interval's polynomial on its own).
-        where: For velocity, acceleration and jerk, the time [s] of the worst ratio
-            (filled in by :func:`check_executed`; NaN here).
         rate: Samples per second at which speeds were evaluated.
         interpolation: How the points were joined.
     """
