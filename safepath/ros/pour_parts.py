@@ -8,10 +8,11 @@
   mass if braking began at a given moment: everything poured until then plus what the
   stop and the return upright pour (``still``, per unit gain). This is the decision rule
   of :func:`~safepath.planning.gravimetric.simulate_pour`, fed one reading at a time.
-* :class:`PourStopper`: the stop goal for a running tilt. It holds the tilt's own knots
-  from the present one to the braking point, then the fastest path-consistent braking
-  (:class:`~safepath.planning.stop.StopPlanner`): every sample is a state ``q(s)`` of the
-  verified path, within the joint limits, so the trajectory controller that receives it
+* :class:`PourStopper`: the stop goal for a running tilt. It follows the tilt from the
+  present knot to the braking point, then brakes along it, jerk-limited (the monitor's
+  re-timing, :class:`~safepath.monitor.profile.MonitoredPath`): every knot is a state of
+  the verified tilt, and the knots' quintic join (what the controller executes) is within
+  the speed, acceleration and jerk limits, so the trajectory controller that receives it
   (stamped with the clock time of its first knot) joins it where the arm is and never
   leaves the verified path. The return upright runs the same path backwards, timed by
   TOPP-RA. Both are re-checked by the independent FCL verifier before they are released
@@ -132,7 +133,7 @@ class PourStopper:
     def __init__(self, cell: Cell, motion: PourMotion, *,
                  return_angular_speed: float = math.radians(30.0),
                  timing: TimingOptions | None = None) -> None:
-        from ..planning.stop import StopPlanner
+        from ..monitor.profile import MonitoredPath
         from ..planning.timing import TimingOptions
         from ..planning.verify import FclVerifier
 
@@ -144,8 +145,8 @@ class PourStopper:
         held = cell.scene.grasp.object if cell.scene.grasp is not None else None
         self.verifier = FclVerifier(robot, cell.scene, held=held, resting={})
         traj = motion.trajectory
-        self.planner = StopPlanner(robot, motion.path,
-                                   timed=(traj.t, motion.s, traj.q, traj.qd, traj.qdd))
+        #: The tilt as a path to re-time: its own time is the path parameter (the stops).
+        self.path = MonitoredPath(traj, robot)
         # On a rotation about a fixed point the TCP speed is the angular speed times the
         # TCP's distance to it: the bound becomes a TCP speed limit, as in plan_tilt.
         turning = motion.angular_speed > 1e-6
@@ -161,8 +162,6 @@ class PourStopper:
     def _stop_arrays(self, tau_now: float, tau_brake: float
                      ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray,
                                 int, int]:
-        from ..monitor.profile import MonitoredPath
-
         motion, traj = self.motion, self.motion.trajectory
         t = traj.t
         k0 = int(np.clip(np.searchsorted(t, tau_now, side="right") - 1, 0, t.size - 2))
@@ -175,7 +174,7 @@ class PourStopper:
         # The motion's own time is the path parameter: the stop follows the motion at its
         # own speed, then brakes along it, jerk-limited and checked as executed (the
         # monitor's re-timing, :class:`safepath.monitor.profile.MonitoredPath`).
-        path = MonitoredPath(traj, self.robot)
+        path = self.path
         lead = path.width / 2
         _, stop = path.replacement(float(t[k0]), 0.0, max(float(t[kb] - t[k0]) - lead, 0.0),
                                    before=None, tau0=float(t[k0]) + lead, r0=1.0,
