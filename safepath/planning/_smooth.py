@@ -29,7 +29,7 @@ import numpy as np
 
 from ._topp import Profile
 
-__all__ = ["Smoothed", "smooth", "evaluate", "profile_s", "profile_state"]
+__all__ = ["Smoothed", "smooth", "evaluate"]
 
 
 @dataclass(frozen=True)
@@ -117,22 +117,3 @@ def evaluate(sm: Smoothed, t: np.ndarray) -> tuple[np.ndarray, ...]:
     s[start], sd[start], sdd[start], sddd[start] = 0.0, 0.0, 0.0, 0.0
     return s, sd, sdd, sddd
 
-
-def profile_s(profile: Profile, t: np.ndarray) -> np.ndarray:
-    """The unsmoothed profile's path parameter at times ``t`` [s] (clamped to its ends)."""
-    t = np.clip(np.asarray(t, dtype=float), 0.0, profile.t[-1])
-    k = np.clip(np.searchsorted(profile.t, t, side="right") - 1, 0, profile.u.size - 1)
-    tau = t - profile.t[k]
-    return np.minimum(profile.grid[k] + profile.sd[k] * tau + profile.u[k] * tau ** 2 / 2,
-                      profile.grid[-1])
-
-
-def profile_state(profile: Profile, t: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """The unsmoothed profile's path parameter, speed and acceleration at times ``t`` [s]
-    in ``[0, duration]``."""
-    t = np.clip(np.asarray(t, dtype=float), 0.0, profile.t[-1])
-    k = np.clip(np.searchsorted(profile.t, t, side="right") - 1, 0, profile.u.size - 1)
-    tau = t - profile.t[k]
-    s = np.minimum(profile.grid[k] + profile.sd[k] * tau + profile.u[k] * tau ** 2 / 2,
-                   profile.grid[-1])
-    return s, np.maximum(profile.sd[k] + profile.u[k] * tau, 0.0), profile.u[k]

@@ -298,7 +298,7 @@ def _jerk_window(profile: _topp.Profile, path: PathSpline, limits: PathLimits,
     ``options.jerk_window``."""
     dt = options.knot_period / 2
     t = np.arange(0.0, profile.duration, dt)
-    s, sd, u = _smooth.profile_state(profile, t)
+    s, sd, u = _topp.evaluate(profile, t)
     seg = interval_index(limits.s_way, s, limits.jmax_seg.shape[0])
     acc = (path(s, 1) * u[:, None] + path(s, 2) * (sd ** 2)[:, None]) / limits.jmax_seg[seg]
     # At rest (zero acceleration) before and after: the first and last changes count.
@@ -341,8 +341,9 @@ def _tighten(f_acc: np.ndarray, f_x: np.ndarray, grid: np.ndarray, run: _Run) ->
     if over.size == 0:
         return
     width = sm.tau_a + sm.tau_b
-    s_lo = _smooth.profile_s(sm.profile, run.t[over] - width)
-    s_hi = _smooth.profile_s(sm.profile, run.t[over + 1])
+    end = sm.profile.duration
+    s_lo = _topp.evaluate(sm.profile, np.clip(run.t[over] - width, 0.0, end))[0]
+    s_hi = _topp.evaluate(sm.profile, np.clip(run.t[over + 1], 0.0, end))[0]
     g_lo = np.clip(np.searchsorted(grid, s_lo, side="right") - 1, 0, grid.size - 1)
     g_hi = np.clip(np.searchsorted(grid, s_hi, side="left") + 1, 1, grid.size)
     pad = 1.0 + RETIME_ABOVE
