@@ -14,7 +14,7 @@ __all__ = ["CheckOptions", "StateReport", "SegmentReport", "Pair"]
 Pair = tuple[str, str]
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, kw_only=True)
 class CheckOptions:
     """Options of the collision checker.
 

@@ -50,7 +50,7 @@ FREE, COLLIDES, UNSURE = 0, 1, 2
 OUTSIDE = 3
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, kw_only=True)
 class LayerOptions:
     """Options of the sphere layer.
 

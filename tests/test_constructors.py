@@ -243,3 +243,30 @@ def test_robot_and_controller_files_refuse_unknown_keys(tmp_path: Any) -> None:
     controller.write_text(text)
     robot = load_robot(folder)
     assert robot.controller.source == controller and robot.reference == str(folder.resolve())
+
+
+def test_every_option_class_is_keyword_only() -> None:
+    """Options are built by name only (``PlannerOptions(seed=3)``): a positional call would
+    silently shift meaning when a field is added. Every ``*Options`` dataclass of the
+    library is found by walking its modules, so a new one is covered too."""
+    import dataclasses
+    import importlib
+    import pkgutil
+
+    import safepath
+
+    found = {}
+    for info in pkgutil.walk_packages(safepath.__path__, "safepath."):
+        if info.name.startswith("safepath._aot"):
+            continue  # the kernels' ahead-of-time build, not the library's API
+        module = importlib.import_module(info.name)
+        for name, value in vars(module).items():
+            if (name.endswith("Options") and isinstance(value, type)
+                    and dataclasses.is_dataclass(value) and value.__module__ == info.name):
+                found[f"{info.name}.{name}"] = value
+    assert len(found) >= 10, sorted(found)
+    positional = [name for name, cls in found.items()
+                  if any(f.init and not f.kw_only for f in dataclasses.fields(cls))]
+    assert positional == []
+    with pytest.raises(TypeError):
+        safepath.PlannerOptions("rrtconnect")  # type: ignore[misc]

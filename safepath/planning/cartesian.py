@@ -35,7 +35,7 @@ log = logging.getLogger(__name__)
 _DAMPING = 1e-6
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, kw_only=True)
 class LineOptions:
     """Options of Cartesian lines.
 

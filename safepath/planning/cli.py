@@ -54,7 +54,8 @@ def cmd_plan(args: argparse.Namespace) -> int:
         for name in args.route:
             keep.update(after_chain(routes, name))  # and the routes whose end it starts from
         routes = {k: v for k, v in routes.items() if k in keep}
-    options = PlanOptions(planner=PlannerOptions(args.planner, args.time_limit, args.seed),
+    options = PlanOptions(planner=PlannerOptions(planner=args.planner, time_limit=args.time_limit,
+                                                 seed=args.seed),
                           timing=TimingOptions(speed_scale=args.speed), baseline=True)
     t0 = time.perf_counter()
     trajectories = plan_cell(cell, options, routes=routes)

@@ -13,7 +13,7 @@ from .timing import TimingOptions
 __all__ = ["PlanOptions"]
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, kw_only=True)
 class PlanOptions:
     """Options of route planning (each part has its own options object).
 

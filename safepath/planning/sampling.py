@@ -41,7 +41,7 @@ RANGE_FRACTION = 1.0 / 15.0
 CONNECT_RANGE_FRACTION = 2.0 / 15.0
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, kw_only=True)
 class PlannerOptions:
     """Options of the sampling planner.
 

@@ -48,7 +48,7 @@ _SLACK = 1e-6
 _NS = 1_000_000_000
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, kw_only=True)
 class TimingOptions:
     """Options of the time parameterisation.
 

@@ -62,7 +62,7 @@ class CellState(enum.Enum):
     FAULT = "fault"
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, kw_only=True)
 class ControllerOptions:
     """Route names and time-outs of the cell.
 

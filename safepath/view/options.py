@@ -13,7 +13,7 @@ from .backend import BackendKind
 __all__ = ["ViewOptions"]
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, kw_only=True)
 class ViewOptions:
     """Options of a review session.
 
