@@ -56,10 +56,9 @@ class PlannerOptions:
         shortcut_iterations: Random shortcut attempts after planning.
         shortcut_min_gain: A shortcut is checked only if it would shorten the path by at
             least this share of its length (checking is what a shortcut costs; the many
-            that would gain little are not worth it). On the Panda set (24 problems x 3
-            seeds, 2026-11-25) 2 % against 1 % took planning, smoothing and timing from
-            a median 8.9 to 8.3 ms; the motions' mean duration stayed 2.27 s (median
-            2.12 -> 2.16 s).
+            that would gain little are not worth it: 2 % was chosen on the Panda set,
+            faster than 1 % with motions as long; ``benchmarks/panda_set.py --seeds 3``
+            measures it).
 
     The optimizing planners (``RRTstar``, ``InformedRRTstar``, ``AORRTC``,
     ``SORRTstar``) keep improving their path until ``time_limit`` runs out; the others
@@ -113,10 +112,9 @@ def default_range(lower: np.ndarray, upper: np.ndarray, planner: str = "RRT") ->
     detour problem of each: ``tests/planning/test_planners.py``).
 
     RRTConnect gets twice that: its trees grow towards each other, and an edge that
-    reaches further costs one longer check where two would be made. On the Panda set
-    (``benchmarks/peers``, 24 problems x 3 seeds, 2026-11-25) its planning, smoothing
-    and timing took a median 8.4-8.7 ms with it against 9.7-10.1 ms, the motions as
-    long (median 2.12 s against 2.14 s); three times the fifteenth went no faster.
+    reaches further costs one longer check where two would be made. On the Panda set it
+    plans, smooths and times faster with it, the motions as long, and three times the
+    fifteenth went no faster (``benchmarks/panda_set.py --seeds 3`` measures it).
 
     Args:
         lower: Lower joint position limits [rad or m].

@@ -10,7 +10,7 @@ the joint acceleration limits allow (the fastest braking: at each point the smal
 apart); :meth:`StopPlanner.stop` then integrates ``x = sdot^2`` over the grid (``dx/ds =
 2 sddot``, constant ``sddot`` between gridpoints, the TOPP-RA way) from the state at the
 event to rest, samples the result every ``knot_period`` and checks every sample against
-the limits. It takes a few milliseconds (``benchmarks/pour_stop.py`` prints the figure).
+the limits. It takes a few milliseconds (``benchmarks/pour.py`` prints the figure).
 """
 
 from __future__ import annotations
