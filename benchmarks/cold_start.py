@@ -152,6 +152,9 @@ def main(argv: Sequence[str] | None = None) -> int:
                              "import compiled from source)")
     parser.add_argument("--no-part-cache", action="store_true",
                         help="children fit the robot's spheres afresh (SAFEPATH_CACHE=0)")
+    parser.add_argument("--save", action="store_true",
+                        help="write the figures to benchmarks/results/cold_start.json and "
+                             "rewrite benchmarks/results/FIGURES.md")
     args = parser.parse_args(argv)
     if args.runs < 1 or args.warmup < 0:
         parser.error("--runs must be at least 1 and --warmup at least 0")
@@ -202,7 +205,23 @@ def main(argv: Sequence[str] | None = None) -> int:
     print(row("first / second plan_cell [ratio]", ratios, AIM_RATIO))
     print(row("first kernel call (load the kernels)", kernel))
     print(f"load average {load()} (after)")
+    if args.save:
+        save_figures(args, {"import": imports, "plan_process": plans, "load_cell": loads,
+                            "first_plan": first, "second_plan": second, "ratio": ratios})
     return 0
+
+
+def save_figures(args: argparse.Namespace, values: dict[str, list[float]]) -> None:
+    """Write the medians to ``benchmarks/results/cold_start.json`` (``_results.save``)."""
+    from _results import save
+
+    mode = ["JIT kernels" if args.jit else "compiled kernels",
+            "no bytecode cache" if args.no_bytecode else "bytecode cached",
+            "no robot-part cache" if args.no_part_cache else "robot-part cache"]
+    save("cold_start", {"runs": args.runs, "mode": mode,
+                        "aims": {"import": AIM_IMPORT, "plan_process": AIM_PLAN,
+                                 "ratio": AIM_RATIO},
+                        "median_s": {k: statistics.median(v) for k, v in values.items()}})
 
 
 if __name__ == "__main__":

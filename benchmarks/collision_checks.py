@@ -196,9 +196,13 @@ def main(argv: Sequence[str] | None = None) -> int:
                              "segments: n/100)")
     parser.add_argument("--seed", type=int, default=0, help="seed of all samples")
     parser.add_argument("--core", type=int, default=None, help="pin the process to this core")
+    parser.add_argument("--save", action="store_true",
+                        help="write the figures to benchmarks/results/collision_checks.json and "
+                             "rewrite benchmarks/results/FIGURES.md")
     args = parser.parse_args(argv)
     if args.n < 100:
         parser.error("--n must be at least 100")
+    load_before = os.getloadavg()[0] if hasattr(os, "getloadavg") else None
     where = pin_to_core(args.core)
     cell = load_cell(CELL_DIR)
     results = []
@@ -210,6 +214,15 @@ def main(argv: Sequence[str] | None = None) -> int:
           f"{checker.options.resolution * 1000:.0f} mm")
     print(f"{where}; seed {args.seed}, n {args.n}")
     print(report(results))
+    if args.save:
+        from _results import save
+
+        save("collision_checks", {
+            "n": args.n, "seed": args.seed, "aim_state_checks": TARGET_STATE_CHECKS,
+            "aim_grid_states": TARGET_EDGE_STATES,
+            "workloads": [{"gripper": r.gripper, "workload": r.workload, "count": r.count,
+                           "rate": r.rate, "cpu_rate": r.cpu_rate, "grid_rate": r.grid_rate}
+                          for r in results]}, load_before=load_before)
     return 0
 
 

@@ -241,6 +241,7 @@ def main() -> None:
     for call in (cell + rand)[:3]:  # warm the kernels
         _ours(call)
     report: dict[str, Any] = {"seed": args.seed, "random_per_robot": args.random,
+                              "when": time.strftime("%Y-%m-%d %H:%M UTC", time.gmtime()),
                               "load": os.getloadavg()[:2]}
     for label, calls in (("cell", cell), ("random", rand)):
         optimum = [_optimum(c["robot"], c) for c in calls]
@@ -275,7 +276,9 @@ def main() -> None:
               f"the version before ({args.before})")
     RESULTS.parent.mkdir(parents=True, exist_ok=True)
     RESULTS.write_text(json.dumps(report, indent=1) + "\n")
-    print(f"written to {RESULTS.relative_to(ROOT)}")
+    import figures  # benchmarks/figures.py, beside this script: the table the README links
+
+    print(f"written to {RESULTS.relative_to(ROOT)} and {figures.write()}")
 
 
 if __name__ == "__main__":

@@ -60,6 +60,9 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--seeds", type=int, default=1, help="seeds per problem")
     parser.add_argument("--seed", type=int, default=0, help="added to each problem's seed")
     parser.add_argument("--limit", type=int, default=None, help="first N problems only")
+    parser.add_argument("--save", action="store_true",
+                        help="write the figures to benchmarks/results/panda_set.json and "
+                             "rewrite benchmarks/results/FIGURES.md")
     args = parser.parse_args(argv)
     problems = json.loads((PEERS / "panda_problems.json").read_text())
     if args.limit is not None:
@@ -93,6 +96,14 @@ def main(argv: list[str] | None = None) -> int:
     print(_row("shortcutting", smooth))
     print(_row("plan + smooth + timing + verify", wall))
     print(_row("the same, CPU time", cpu))
+    if args.save:
+        from _results import save
+
+        save("panda_set", {"plans": len(wall), "seeds": args.seeds, **{
+            f"{name}_ms": {"median": statistics.median(v) * 1000,
+                           "p95": float(np.percentile(v, 95)) * 1000}
+            for name, v in (("search", search), ("smooth", smooth), ("chain", wall),
+                            ("cpu", cpu))}}, load_before=load)
     return 0
 
 

@@ -142,6 +142,9 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--runs", type=int, default=20, help="timed runs per outcome")
     parser.add_argument("--seed", type=int, default=0, help="planner seed")
+    parser.add_argument("--save", action="store_true",
+                        help="write the figures to benchmarks/results/plan_cycle.json and "
+                             "rewrite benchmarks/results/FIGURES.md")
     args = parser.parse_args(argv)
     if args.runs < 1:
         parser.error("--runs must be at least 1")
@@ -149,7 +152,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     cell = load_cell(CELL_DIR)
     routes = load_routes(cell.folder, poses=list(cell.poses), objects=list(cell.scene.objects))
     options = PlanOptions(planner=PlannerOptions(seed=args.seed))
-    load = f", load average {os.getloadavg()[0]:.1f}" if hasattr(os, "getloadavg") else ""
+    load_before = os.getloadavg()[0] if hasattr(os, "getloadavg") else None
+    load = f", load average {load_before:.1f}" if load_before is not None else ""
     print(f"plan_cycle: cell {cell.scene.name}, robot {cell.robot.name}, seed {args.seed}, "
           f"{args.runs} runs per outcome after 1 warm-up")
     print(f"python {platform.python_version()} on {platform.machine()}, "
@@ -233,6 +237,16 @@ def main(argv: Sequence[str] | None = None) -> int:
     for outcome in OUTCOMES:
         print(f"aim: cycle motion time <= {AIM_RATIO:.1f} x stop-and-go ({outcome} outcome): "
               f"{ratios[outcome]:.2f}, {met(ratios[outcome] <= AIM_RATIO)}")
+    if args.save:
+        from _results import save
+
+        save("plan_cycle", {
+            "runs": args.runs, "seed": args.seed, "aim_median_ms": AIM_WALL * 1000,
+            "aim_p95_ms": AIM_WALL_P95 * 1000, "aim_release_share": AIM_RELEASE,
+            "aim_motion_ratio": AIM_RATIO,
+            "outcomes": {o: {"median_ms": medians[o] * 1000, "p95_ms": p95s[o] * 1000,
+                             "release_share": shares[o], "motion_ratio": ratios[o]}
+                         for o in OUTCOMES}}, load_before=load_before)
     return 0
 
 

@@ -113,7 +113,8 @@ def main() -> None:
     load_before = os.getloadavg()
     clouds = cloud_times(args.clouds, args.points)
     replan = replan_latency(args.repeats)
-    result = {"load_before": load_before, "load_after": os.getloadavg(),
+    result = {"when": time.strftime("%Y-%m-%d %H:%M UTC", time.gmtime()),
+              "load_before": load_before, "load_after": os.getloadavg(),
               "cpus": os.cpu_count(), "replan": replan, "clouds": clouds}
     lat = replan["latency_ms"]
     print(f"load {load_before[0]:.2f} (1 min) on {os.cpu_count()} CPUs")
@@ -126,7 +127,9 @@ def main() -> None:
     out = Path(__file__).resolve().parent / "results" / "replan.json"
     out.parent.mkdir(exist_ok=True)
     out.write_text(json.dumps(result, indent=2) + "\n")
-    print(f"written {out}")
+    import figures  # benchmarks/figures.py, beside this script: the table the README links
+
+    print(f"written {out} and {figures.write()}")
 
 
 if __name__ == "__main__":

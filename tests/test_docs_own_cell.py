@@ -35,16 +35,17 @@ def test_every_python_block_of_the_page_runs() -> None:
     assert "/scaled_joint_trajectory_controller/follow_joint_trajectory" in result.stdout
 
 
-def test_readme_says_how_to_stop_a_pour_on_your_own_scale() -> None:
-    """The README's recipe names the calls as they are (issue 28): build_pour, start,
-    on_weight(mass, stamp, now), and says what ``stamp`` is."""
+def test_ros_page_says_how_to_stop_a_pour_on_your_own_scale() -> None:
+    """The ROS page's recipe (linked from the README) names the calls as they are
+    (issue 28): build_pour, start, on_weight(mass, stamp, now), and says what ``stamp`` is."""
     import inspect
 
     from safepath.ros import PourController
     from safepath.ros.pour_setup import PourSetup, build_pour
 
-    readme = (Path(__file__).resolve().parents[1] / "README.md").read_text()
-    section = readme.split("**Stopping a pour on your own scale**")[1].split("\n## ")[0]
+    assert "docs/ros.md" in (ROOT / "README.md").read_text()
+    page = (ROOT / "docs" / "ros.md").read_text()
+    section = page.split("**Stopping a pour on your own scale**")[1].split("\n## ")[0]
     assert "build_pour(PourParameters.from_mapping(" in section and callable(build_pour)
     assert "controller.on_weight(mass_g, stamp, now)" in section
     assert list(inspect.signature(PourController.on_weight).parameters) == [

@@ -408,6 +408,11 @@ def main(argv: list[str] | None = None) -> int:
     print(report.table(out))
     report.chart(out, args.chart)
     print(f"\nwrote {args.out} and {args.chart} in {out['wall_seconds']:.0f} s")
+    if args.out.resolve() == (RESULTS / "peers.json").resolve():
+        sys.path.insert(0, str(REPO / "benchmarks"))
+        import figures  # benchmarks/figures.py: the table the README links
+
+        print(f"and {figures.write()}")
     return 0
 
 

@@ -1,0 +1,257 @@
+"""The current benchmark figures as one table: ``benchmarks/results/FIGURES.md``.
+
+Reads the JSON files the benchmarks write into ``benchmarks/results/`` (each its latest
+saved run: ``collision_checks.py``, ``plan_cycle.py``, ``panda_set.py`` and
+``cold_start.py`` with ``--save``; ``executed_motion.py``, ``replan.py``, ``twin.py`` and
+``peers/run.py`` always) and writes one row per headline figure, with the command that
+measures it and when, on what and at which load it was measured; then the peer
+comparison's table from ``peers.json``. A benchmark without a results file gets a row
+saying how to measure it. Saving a benchmark (``_results.save``) runs this too.
+
+    .venv/bin/python benchmarks/figures.py [--results DIR] [--out FILE]
+"""
+
+from __future__ import annotations
+
+import argparse
+import importlib.util
+import json
+from collections.abc import Callable
+from pathlib import Path
+from typing import Any
+
+RESULTS = Path(__file__).resolve().parent / "results"
+
+Row = tuple[str, str]  # what, figure
+Reader = Callable[[dict[str, Any]], list[Row]]
+
+
+def _n(value: float) -> str:
+    return f"{value:,.0f}"
+
+
+def _span(values: list[float], fmt: str) -> str:
+    low, high = format(min(values), fmt), format(max(values), fmt)
+    return low if low == high else f"{low}-{high}"
+
+
+def _met(ok: bool) -> str:
+    return "met" if ok else "**not met**"
+
+
+def _collision_checks(d: dict[str, Any]) -> list[Row]:
+    single = [w for w in d["workloads"] if w["workload"].startswith("is_valid")]
+    grid = [w["grid_rate"] for w in d["workloads"] if w.get("grid_rate")]
+    low, high = min(w["rate"] for w in single), max(w["rate"] for w in single)
+    cpu = min(w["cpu_rate"] for w in single)
+    rows = [("single-state checks, Ned3 Pro in the cell (empty and holding the vial)",
+             f"{_n(low)}-{_n(high)} /s (aim ≥ {_n(d['aim_state_checks'])}, "
+             f"{_met(low >= d['aim_state_checks'])}; slowest per CPU second {_n(cpu)})")]
+    if grid:
+        rows.append(("grid states decided inside edge checks (2 mm grid)",
+                     f"{_n(min(grid))}-{_n(max(grid))} /s (aim ≥ {_n(d['aim_grid_states'])}, "
+                     f"{_met(min(grid) >= d['aim_grid_states'])})"))
+    return rows
+
+
+def _plan_cycle(d: dict[str, Any]) -> list[Row]:
+    out = d["outcomes"]
+    wall = ", ".join(f"{k} {v['median_ms']:.0f} / {v['p95_ms']:.0f} ms" for k, v in out.items())
+    ok = all(v["median_ms"] <= d["aim_median_ms"] and v["p95_ms"] <= d["aim_p95_ms"]
+             for v in out.values())
+    share = ", ".join(f"{k} {v['release_share']:.1%}" for k, v in out.items())
+    ratio = ", ".join(f"{k} {v['motion_ratio']:.2f}" for k, v in out.items())
+    return [
+        ("plan + time + verify the whole cycle, median / p95",
+         f"{wall} (aim {d['aim_median_ms']:.0f} / {d['aim_p95_ms']:.0f} ms, {_met(ok)}; "
+         f"{d['runs']} runs)"),
+        ("release check's share of the planning time", f"{share} (aim ≤ "
+         f"{d['aim_release_share']:.0%}, "
+         f"{_met(all(v['release_share'] <= d['aim_release_share'] for v in out.values()))})"),
+        ("cycle motion time over stop-and-go", f"{ratio} (aim ≤ {d['aim_motion_ratio']}, "
+         f"{_met(all(v['motion_ratio'] <= d['aim_motion_ratio'] for v in out.values()))})"),
+    ]
+
+
+def _panda_set(d: dict[str, Any]) -> list[Row]:
+    w, s, c = d["chain_ms"], d["search_ms"], d["cpu_ms"]
+    return [("Panda set: plan + smooth + timing + verify, median / p95 (wall; CPU)",
+             f"{w['median']:.1f} / {w['p95']:.1f} ms; CPU {c['median']:.1f} / "
+             f"{c['p95']:.1f} ms (path search {s['median']:.1f} / {s['p95']:.1f} ms; "
+             f"{d['plans']} plans)")]
+
+
+def _cold_start(d: dict[str, Any]) -> list[Row]:
+    m, aims = d["median_s"], d["aims"]
+    mode = ", ".join(d["mode"])
+    return [
+        (f"cold start ({mode}): `import safepath`; a `safepath plan` process",
+         f"{m['import']:.3f} s (aim {aims['import']}, {_met(m['import'] <= aims['import'])}); "
+         f"{m['plan_process']:.3f} s (aim {aims['plan_process']}, "
+         f"{_met(m['plan_process'] <= aims['plan_process'])})"),
+        ("cold start: `load_cell`; first vs second `plan_cell` in a new process",
+         f"{m['load_cell']:.3f} s; {m['first_plan']:.3f} vs {m['second_plan']:.3f} s, "
+         f"{m['ratio']:.2f}x (aim {aims['ratio']}x, {_met(m['ratio'] <= aims['ratio'])})"),
+    ]
+
+
+def _executed_motion(d: dict[str, Any]) -> list[Row]:
+    ours = d["random/safepath"]
+    cell = d["cell/safepath"]
+    over = ours["over_limit_paths"] + cell["over_limit_paths"]
+    paths = ours["paths"] + cell["paths"]
+    worst = " / ".join(f"{max(a, b):.4f}" for a, b in zip(
+        ours["worst_ratios_v_a_j"], cell["worst_ratios_v_a_j"], strict=True))
+    others = "; ".join(
+        f"{label} {' / '.join(f'{v:.4g}' for v in d[key]['worst_ratios_v_a_j'])}, "
+        f"{d[key]['over_limit_paths']} of {d[key]['paths']} over"
+        for key, label in (("random/toppra", "`toppra`"),
+                           ("random/safepath_before", "safepath before jerk limits"))
+        if key in d)
+    t = ours["time_over_optimum"]
+    rows = [("executed motion (the controller's quintic join): worst speed / acceleration / "
+             "jerk ratio to the limits",
+             f"safepath {worst}, {over} of {paths} paths over a limit"
+             + (f"; {others}" if others else "")),
+            ("motion time over the jerk-free TOPP-RA optimum (random paths), median / p95",
+             f"{t['median']:.2f} / {t['p95']:.2f}; the cells' paths "
+             f"{cell['time_over_optimum']['median']:.2f} / "
+             f"{cell['time_over_optimum']['p95']:.2f}")]
+    if "compute_vs_before" in d:
+        rows.append(("timing compute per random path",
+                     f"{ours['compute_ms_median']:.1f} ms, {d['compute_vs_before']:.1f}x "
+                     "the jerk-free timing before"))
+    return rows
+
+
+def _replan(d: dict[str, Any]) -> list[Row]:
+    r, c = d["replan"], d["clouds"]
+    return [("monitor re-plan, request to new trajectory on a warm worker",
+             f"median {r['latency_ms']['median']:.0f} ms, p90 {r['latency_ms']['p90']:.0f} ms "
+             f"({r['found']} of {r['requests']} boxes re-planned)"),
+            (f"monitor decision on {_n(c['points'])}-point clouds, CPU median / p99",
+             f"{c['cpu_ms']['median']:.2f} / {c['cpu_ms']['p99']:.2f} ms")]
+
+
+def _twin(d: dict[str, Any]) -> list[Row]:
+    runs = d["runs"]
+    ratio = [r["ratio_simulation"] for r in runs]
+    vpm = [r["vials_per_minute"] for r in runs]
+    return [("twin: simulated time over real time (physics, without the clearance check)",
+             f"{_span(ratio, '.0f')}x over {len(runs)} runs; "
+             f"{_span(vpm, 'g')} vials per minute")]
+
+
+def _peers(d: dict[str, Any]) -> list[Row]:
+    sp = d["summary"]["panda"]
+    ours, rp = sp["safepath"], sp.get("roboplan", {})
+    row = (f"safepath {ours['total']['median'] * 1000:.1f} / {ours['total']['p95'] * 1000:.0f} ms"
+           f", verified {ours['verified_rate']:.0%}")
+    if "total" in rp:
+        row += (f"; roboplan {rp['total']['median'] * 1000:.1f} / "
+                f"{rp['total']['p95'] * 1000:.0f} ms, verified {rp['verified_rate']:.0%} "
+                f"({rp['total']['median'] / ours['total']['median']:.1f}x safepath's median)")
+    return [("Panda set against other planners: plan + smooth + timing, median / p95", row)]
+
+
+def _peers_context(d: dict[str, Any]) -> dict[str, Any]:
+    m = d["machine"]
+    return {"when": m["date"], "machine": f"{m['cpu']}, {m['cores']} cores",
+            "load_before": m.get("load_average_1min_start"),
+            "load_after": m.get("load_average_1min_end")}
+
+
+def _legacy_context(d: dict[str, Any]) -> dict[str, Any]:
+    """Files written before ``_results.save``: what they say about their run."""
+    load = d.get("load") or d.get("load_before") or [None]
+    after = d.get("load_after") or [None]
+    return {"when": d.get("when"), "machine": d.get("machine"), "load_before": load[0],
+            "load_after": after[0]}
+
+
+#: Results file, command that writes it, its reader (in the table's order).
+SOURCES: list[tuple[str, str, Reader]] = [
+    ("collision_checks.json", "benchmarks/collision_checks.py --save", _collision_checks),
+    ("plan_cycle.json", "benchmarks/plan_cycle.py --save", _plan_cycle),
+    ("panda_set.json", "benchmarks/panda_set.py --save", _panda_set),
+    ("peers.json", "make bench-peers", _peers),
+    ("cold_start.json", "benchmarks/cold_start.py --save", _cold_start),
+    ("executed_motion.json", "benchmarks/executed_motion.py --random 40 --seed 23",
+     _executed_motion),
+    ("replan.json", "benchmarks/replan.py", _replan),
+    ("twin.json", "benchmarks/twin.py", _twin),
+]
+
+
+def _measured(ctx: dict[str, Any]) -> str:
+    parts = [str(ctx[k]) for k in ("when", "commit") if ctx.get(k)]
+    loads = [f"{ctx[k]:.1f}" for k in ("load_before", "load_after")
+             if isinstance(ctx.get(k), (int, float))]
+    if loads:
+        parts.append("load " + "-".join(dict.fromkeys(loads)))
+    return ", ".join(parts) or "-"
+
+
+def _peer_table(path: Path) -> str:
+    spec = importlib.util.spec_from_file_location(
+        "peer_report", Path(__file__).resolve().parent / "peers" / "report.py")
+    assert spec is not None and spec.loader is not None
+    report = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(report)
+    return str(report.table(json.loads(path.read_text())))
+
+
+def render(results: Path = RESULTS) -> str:
+    """The FIGURES.md text for the results files in ``results``."""
+    lines = ["# Benchmark figures",
+             "",
+             "Generated by `benchmarks/figures.py` from the JSON files in this folder, each "
+             "the latest saved run of the benchmark named in its row; do not edit by hand. "
+             "Speed figures depend on the machine and its load (stated per row); run a "
+             "command to measure them on yours.",
+             "",
+             "| what | figure | command | measured |",
+             "|---|---|---|---|"]
+    for name, command, read in SOURCES:
+        path = results / name
+        if not path.is_file():
+            lines.append(f"| `{name}` | not measured yet | `.venv/bin/python {command}` | - |"
+                         if not command.startswith("make") else
+                         f"| `{name}` | not measured yet | `{command}` | - |")
+            continue
+        data = json.loads(path.read_text())
+        ctx = data.get("context") or (_peers_context(data) if name == "peers.json"
+                                      else _legacy_context(data))
+        shown = command if command.startswith("make") else f".venv/bin/python {command}"
+        for what, figure in read(data):
+            lines.append(f"| {what} | {figure} | `{shown}` | {_measured(ctx)} |")
+    peers = results / "peers.json"
+    if peers.is_file():
+        lines += ["", "## Against other planners", "",
+                  "`make bench-peers`; method: [docs/peers.md](../../docs/peers.md). "
+                  f"Run of {_measured(_peers_context(json.loads(peers.read_text())))}. "
+                  "Ratios in brackets are the peer's figure over safepath's.", "",
+                  _peer_table(peers), "", "![safepath against its peers](peers.png)"]
+    return "\n".join(lines) + "\n"
+
+
+def write(results: Path = RESULTS, out: Path | None = None) -> Path:
+    """Write :func:`render` to ``out`` (default ``results/FIGURES.md``); returns the path."""
+    out = out or results / "FIGURES.md"
+    out.write_text(render(results))
+    return out
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Write the table; returns the exit status."""
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--results", type=Path, default=RESULTS, help="the results folder")
+    parser.add_argument("--out", type=Path, default=None,
+                        help="where to write the table (default: RESULTS/FIGURES.md)")
+    args = parser.parse_args(argv)
+    print(f"written to {write(args.results, args.out)}")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
