@@ -46,13 +46,15 @@ test: $(STAMP) kernels browser
 	echo "make test: lint, type check and tests took $$(( $$(date +%s) - start )) s wall"; \
 	exit $$status
 
-## Speed figures (each script prints its own).
+## Speed figures (each script prints its own; --save writes benchmarks/results/*.json and
+## the table benchmarks/results/FIGURES.md the README links).
 bench: $(STAMP) kernels
-	$(BIN)/python benchmarks/collision_checks.py
-	$(BIN)/python benchmarks/plan_cycle.py
-	$(BIN)/python benchmarks/runtime_heartbeat.py
+	$(BIN)/python benchmarks/collision_checks.py --save
+	$(BIN)/python benchmarks/plan_cycle.py --save
+	$(BIN)/python benchmarks/panda_set.py --save
+	$(BIN)/python benchmarks/runtime_heartbeat.py --save
 	$(BIN)/python benchmarks/runtime_recovery.py
-	$(BIN)/python benchmarks/cold_start.py
+	$(BIN)/python benchmarks/cold_start.py --save
 
 ## Side-by-side run against mplib, pyroboplan, roboplan (creates their own venvs, ~2 GB
 ## under benchmarks/results/envs), after its smoke test.

@@ -1,12 +1,14 @@
 """The current benchmark figures as one table: ``benchmarks/results/FIGURES.md``.
 
-Reads the JSON files the benchmarks write into ``benchmarks/results/`` (each its latest
-saved run: ``collision_checks.py``, ``plan_cycle.py``, ``panda_set.py`` and
-``cold_start.py`` with ``--save``; ``executed_motion.py``, ``replan.py``, ``twin.py`` and
-``peers/run.py`` always) and writes one row per headline figure, with the command that
-measures it and when, on what and at which load it was measured; then the peer
-comparison's table from ``peers.json``. A benchmark without a results file gets a row
-saying how to measure it. Saving a benchmark (``_results.save``) runs this too.
+Reads the JSON files the benchmarks write into ``benchmarks/results/``, each its latest
+saved run (``collision_checks.py``, ``plan_cycle.py``, ``panda_set.py``, ``cold_start.py``,
+``runtime_heartbeat.py`` and ``monitor.py`` with ``--save``; ``executed_motion.py``,
+``replan.py``, ``twin.py`` and ``peers/run.py`` always), and writes one row per headline
+figure, with the command that measures it and when, on what and at which load it was
+measured; then the peer comparison's table from ``peers.json``. A benchmark without a
+results file gets a row saying how to measure it. Saving a benchmark
+(``_results.save``), ``executed_motion.py``, ``replan.py`` and ``peers/run.py`` run this
+too.
 
     .venv/bin/python benchmarks/figures.py [--results DIR] [--out FILE]
 """
@@ -95,6 +97,33 @@ def _cold_start(d: dict[str, Any]) -> list[Row]:
     ]
 
 
+def _monitor(d: dict[str, Any]) -> list[Row]:
+    aim = f"aim {d['aim_median_ms']:.0f} / {d['aim_p99_ms']:.0f} ms"
+    rows = []
+    for kind, label in (("scan", "LaserScan 360 beams"), ("cloud", "PointCloud2 5,000 points")):
+        cpu, wall = d[f"{kind}_cpu_ms"], d[f"{kind}_wall_ms"]
+        ok = cpu["median"] <= d["aim_median_ms"] and cpu["p99"] <= d["aim_p99_ms"]
+        rows.append((f"monitor decision, {label}: CPU time of one core, median / p99 (wall)",
+                     f"{cpu['median']:.2f} / {cpu['p99']:.2f} ms ({aim}, {_met(ok)}; wall "
+                     f"{wall['median']:.2f} / {wall['p99']:.2f} ms; {d['decisions']} decisions)"))
+    if d.get("closest_mm"):
+        closest = " / ".join(f"{v:.0f}" for v in d["closest_mm"].values())
+        speeds = " / ".join(d["closest_mm"])
+        rows.append((f"monitor closed loop on phase 1, obstacle at {speeds} m/s: closest true "
+                     "approach (python-fcl)",
+                     f"{closest} mm (minimum separation {d['min_separation_mm']:.0f} mm)"))
+    return rows
+
+
+def _runtime_heartbeat(d: dict[str, Any]) -> list[Row]:
+    gaps = "; ".join(f"{name} {m['heartbeat_gap_max_ms']:.1f} ms"
+                     for name, m in d["modes"].items())
+    worker = next(iter(d["modes"].values()))["heartbeat_gap_max_ms"]
+    return [("largest heartbeat gap of a node while it plans",
+             f"{gaps} (aim {d['aim_gap_ms']:.0f} ms for the worker, "
+             f"{_met(worker <= d['aim_gap_ms'])}; {d['runs']} plans per mode)")]
+
+
 def _executed_motion(d: dict[str, Any]) -> list[Row]:
     ours = d["random/safepath"]
     cell = d["cell/safepath"]
@@ -176,6 +205,8 @@ SOURCES: list[tuple[str, str, Reader]] = [
     ("panda_set.json", "benchmarks/panda_set.py --save", _panda_set),
     ("peers.json", "make bench-peers", _peers),
     ("cold_start.json", "benchmarks/cold_start.py --save", _cold_start),
+    ("runtime_heartbeat.json", "benchmarks/runtime_heartbeat.py --save", _runtime_heartbeat),
+    ("monitor.json", "benchmarks/monitor.py --save", _monitor),
     ("executed_motion.json", "benchmarks/executed_motion.py --random 40 --seed 23",
      _executed_motion),
     ("replan.json", "benchmarks/replan.py", _replan),

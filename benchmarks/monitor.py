@@ -190,7 +190,12 @@ def main() -> None:
     parser.add_argument("--bag", type=Path, default=None,
                         help="write the first closed-loop run to this MCAP bag (replay: "
                              "python -m safepath.view.monitor_replay BAG)")
+    parser.add_argument("--save", action="store_true",
+                        help="write the figures to benchmarks/results/monitor.json and "
+                             "rewrite benchmarks/results/FIGURES.md")
     args = parser.parse_args()
+    load_before = os.getloadavg()[0]
+    saved: dict[str, dict[str, float]] = {}
     cell = load_cell(SCENE)
     routes = load_routes(SCENE / "routes.yaml", poses=list(cell.poses),
                          objects=list(cell.scene.objects))
@@ -208,11 +213,19 @@ def main() -> None:
             verdict = "met" if np.median(x) <= 5 and np.percentile(x, 99) <= 10 else "NOT met"
             print(f"  {label:26s} {name} n={x.size:4d}  median {np.median(x):6.2f}  p99 "
                   f"{np.percentile(x, 99):6.2f}  max {x.max():6.2f}  (aim 5 / 10: {verdict})")
+            saved[f"{kind}_{name.strip()}_ms"] = {"median": float(np.median(x)),
+                                                 "p99": float(np.percentile(x, 99))}
     print("closed loop, phase 1 (camera 30 Hz, v_h 1.6 m/s, C 0.05 m): closest true approach")
     for k, speed in enumerate(args.speeds):
         closest, kinds, el = closed_loop(cell, motions, speed, args.bag if k == 0 else None)
         print(f"  obstacle at {speed:4.2f} m/s: closest {closest * 1e3:6.1f} mm "
               f"(min separation 50 mm)  decisions median {np.median(el) * 1e3:.2f} ms: {kinds}")
+        saved.setdefault("closest_mm", {})[f"{speed:.2f}"] = closest * 1e3
+    if args.save:
+        from _results import save
+
+        save("monitor", {"decisions": args.decisions, "aim_median_ms": 5.0, "aim_p99_ms": 10.0,
+                         "min_separation_mm": 50.0, **saved}, load_before=load_before)
 
 
 if __name__ == "__main__":

@@ -143,6 +143,9 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser.add_argument("--workers", type=int, default=1, help="worker processes")
     parser.add_argument("--detour", nargs=2, metavar="POSE", default=None,
                         help="put a pillar halfway between two taught poses (OMPL plans)")
+    parser.add_argument("--save", action="store_true",
+                        help="write the figures to benchmarks/results/runtime_heartbeat.json "
+                             "and rewrite benchmarks/results/FIGURES.md")
     args = parser.parse_args(argv)
     with tempfile.TemporaryDirectory() as tmp:
         scene: Path = args.scene
@@ -150,11 +153,14 @@ def main(argv: Sequence[str] | None = None) -> int:
             scene = with_pillar(scene, args.detour[0], args.detour[1], Path(tmp))
         return benchmark(scene, args.runs, args.period, args.workers,
                          f"{args.scene.name}" + (" + pillar between " + " and ".join(args.detour)
-                                                 if args.detour else ""))
+                                                 if args.detour else ""), save=args.save)
 
 
-def benchmark(scene: Path, runs: int, period: float, workers: int, title: str) -> int:
-    """Measure and print; 1 if the two modes disagree."""
+def benchmark(scene: Path, runs: int, period: float, workers: int, title: str, *,
+              save: bool = False) -> int:
+    """Measure and print; 1 if the two modes disagree. ``save``: write the figures
+    (``_results.save``)."""
+    load_before = os.getloadavg()[0] if hasattr(os, "getloadavg") else None
     warm_seed = 10_000
     cell = load_cell(scene)
 
@@ -208,6 +214,15 @@ def benchmark(scene: Path, runs: int, period: float, workers: int, title: str) -
     print(f"a cached cell plan (3 trajectories, from the cache in this process): median"
           f" {ms(round_trip, 50):.1f} ms, max {max(round_trip) * 1000:.1f} ms")
     print(f"identical trajectories in both modes: {'yes' if identical else 'NO'}")
+    if save:
+        from _results import save as save_figures
+
+        save_figures("runtime_heartbeat", {
+            "scene": title, "runs": runs, "period_ms": period * 1000, "aim_gap_ms": 20.0,
+            "identical": identical, "modes": {
+                mode.name: {"heartbeat_gap_max_ms": max(g for _, g in mode.beats) * 1000,
+                            "latency_median_ms": ms(mode.latencies, 50)}
+                for mode in (worker, thread)}}, load_before=load_before)
     return 0 if identical else 1
 
 
