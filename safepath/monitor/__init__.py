@@ -5,7 +5,7 @@ a decision out every time (continue, slow, stop, resume, re-plan), with the rest
 path re-timed (never re-shaped) as a replacement trajectory within the robot's limits.
 The ROS 2 wiring (message conversion, bag recording) is in :mod:`safepath.monitor.ros`.
 
-It is not a certified safety function: see the README's safety model and its limits.
+It is not a certified safety function: ``docs/monitor.md`` states its safety model and its limits.
 """
 
 from __future__ import annotations
