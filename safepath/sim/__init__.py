@@ -6,7 +6,8 @@
   ``FollowJointTrajectory`` controller and gripper, physics at 1 kHz, one clock
   (:class:`RobotTwin`);
 * :mod:`~safepath.sim.quality_check`: the quality-check cell closed loop
-  (:func:`run_quality_check`), :mod:`~safepath.sim.sweep` many runs on a process pool,
+  (:func:`run_quality_check`); :mod:`~safepath.sim.pouring`: the pouring cell closed loop
+  (:func:`run_pouring`); :mod:`~safepath.sim.sweep` many runs on a process pool,
   :mod:`~safepath.sim.bag` a run's ROS 2 bag;
 * :mod:`~safepath.sim.monitor_loop`: the monitor node's core closed loop.
 
@@ -16,11 +17,14 @@ MuJoCo is imported only when a model is built, so importing this package stays l
 from __future__ import annotations
 
 from .model import RobotModel, ServoGains, build_robot_model
+from .pouring import PouringParams, PouringRun, run_pouring
 from .quality_check import QualityCheckParams, QualityCheckRun, run_quality_check
 from .sweep import run_many
 from .twin import RobotTwin, TwinOptions
 
 __all__ = [
+    "PouringParams",
+    "PouringRun",
     "QualityCheckParams",
     "QualityCheckRun",
     "RobotModel",
@@ -29,5 +33,6 @@ __all__ = [
     "TwinOptions",
     "build_robot_model",
     "run_many",
+    "run_pouring",
     "run_quality_check",
 ]

@@ -5,7 +5,8 @@ topic                           type                                        one 
 ==============================  ==========================================  ====================
 ``/joint_states``               ``sensor_msgs/msg/JointState``              per record (executed)
 ``/safepath/arm_goal``          ``control_msgs/action/FollowJointTrajectory_Goal``  per motion goal
-``/safepath/tool_goal``         ``niryo_ned_ros2_interfaces/action/Tool_Goal``  per gripper goal
+``/safepath/tool_goal``         ``niryo_ned_ros2_interfaces/action/Tool_Goal``  per Niryo tool goal
+``/safepath/gripper_goal``      ``control_msgs/action/GripperCommand_Goal``  per gripper goal
 ``/safepath/sim/events``        ``std_msgs/msg/String`` (JSON)              per cycle or fault
 ==============================  ==========================================  ====================
 
@@ -22,16 +23,19 @@ import numpy as np
 
 from ..errors import RosError
 
-__all__ = ["write_run_bag", "JOINT_STATES", "ARM_GOALS", "TOOL_GOALS", "EVENTS"]
+__all__ = ["write_run_bag", "JOINT_STATES", "ARM_GOALS", "TOOL_GOALS", "GRIPPER_GOALS",
+           "EVENTS"]
 
 JOINT_STATES = "/joint_states"
 ARM_GOALS = "/safepath/arm_goal"
 TOOL_GOALS = "/safepath/tool_goal"
+GRIPPER_GOALS = "/safepath/gripper_goal"
 EVENTS = "/safepath/sim/events"
 _TYPES = {
     JOINT_STATES: "sensor_msgs/msg/JointState",
     ARM_GOALS: "control_msgs/action/FollowJointTrajectory_Goal",
     TOOL_GOALS: "niryo_ned_ros2_interfaces/action/Tool_Goal",
+    GRIPPER_GOALS: "control_msgs/action/GripperCommand_Goal",
     EVENTS: "std_msgs/msg/String",
 }
 _NS = 1_000_000_000
@@ -42,7 +46,7 @@ def write_run_bag(path: str | Path, record: Any, *, start_time_ns: int = 0) -> P
 
     Args:
         path: The bag folder to create (must not exist).
-        record: ``QualityCheckRun.record``.
+        record: ``QualityCheckRun.record`` or ``PouringRun.record``.
         start_time_ns: Clock time of the run's start [ns].
 
     Raises:
@@ -73,7 +77,8 @@ def write_run_bag(path: str | Path, record: Any, *, start_time_ns: int = 0) -> P
             position=np.asarray(q, dtype=np.float64), velocity=np.asarray(qd, dtype=np.float64),
             effort=np.zeros(0))))
     for t, kind, goal in record.goals:
-        rows.append((stamp(t), 0, ARM_GOALS if kind == "arm" else TOOL_GOALS, goal))
+        topic = {"arm": ARM_GOALS, "tool": TOOL_GOALS, "gripper": GRIPPER_GOALS}[kind]
+        rows.append((stamp(t), 0, topic, goal))
     for t, event in record.events:
         rows.append((stamp(t), 1, EVENTS, types["std_msgs/msg/String"](
             data=json.dumps(event, sort_keys=True))))
@@ -82,8 +87,9 @@ def write_run_bag(path: str | Path, record: Any, *, start_time_ns: int = 0) -> P
         path.parent.mkdir(parents=True, exist_ok=True)
         with Writer(path, version=Writer.VERSION_LATEST,
                     storage_plugin=StoragePlugin.MCAP) as writer:
+            used = {r[2] for r in rows} | {JOINT_STATES, ARM_GOALS, EVENTS}
             conns = {topic: writer.add_connection(topic, msgtype, typestore=typestore())
-                     for topic, msgtype in _TYPES.items()}
+                     for topic, msgtype in _TYPES.items() if topic in used}
             for ns, _, topic, msg in rows:
                 writer.write(conns[topic], ns, serialize(msg, _TYPES[topic]))
     except (WriterError, OSError) as exc:

@@ -10,17 +10,21 @@ reaches, a free move none).
 
 from __future__ import annotations
 
+from collections.abc import Iterable
 from dataclasses import dataclass
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any, Protocol
 
 import numpy as np
 
 if TYPE_CHECKING:
     from ..cell import Cell
     from ..collision import CollisionChecker
+    from ..robot import Robot
     from ..scene import AllowedContact
+    from ..trajectory import Trajectory
 
-__all__ = ["ExecutedClearance", "MotionWorld", "allowed_by_step", "ClearanceMeter"]
+__all__ = ["ExecutedClearance", "MotionWorld", "allowed_by_step", "ClearanceMeter",
+           "ExecutedMotion", "executed_clearance", "tcp_deviation"]
 
 
 @dataclass(frozen=True)
@@ -41,7 +45,8 @@ class ExecutedClearance:
     """The smallest clearance of the executed motion.
 
     Attributes:
-        clearance: Smallest distance arm (and held vial) to the cell [m].
+        clearance: Smallest distance arm (and held vial) to the cell [m] (the contacts
+            allowed at the step being executed excluded, as the checker excludes them).
         pair: Its pair of names.
         time: When [s].
         states: Number of executed states checked.
@@ -99,7 +104,10 @@ class ClearanceMeter:
               q: np.ndarray) -> None:
         """Check executed states ``q`` (N, dof) at ``times`` [s], all in one step."""
         if route not in self._allowed:
-            self._allowed[route] = allowed_by_step(self.cell, route)
+            # A motion that is no route of the cell (a pour's tilt, stop or return, a
+            # monitor's replacement) allows no contact.
+            self._allowed[route] = allowed_by_step(self.cell, route) \
+                if route in self.cell.route_table() else {}
         head = step_label.split(" ", 1)[0]
         allowed = self._allowed[route].get(int(head), ()) if head.isdigit() else ()
         checker = self._checker(world, allowed)
@@ -110,3 +118,51 @@ class ClearanceMeter:
                 best = ExecutedClearance(d, pair, float(t), best.states)
         self.best = ExecutedClearance(best.clearance, best.pair, best.time,
                                       best.states + len(times))
+
+
+class ExecutedMotion(Protocol):
+    """A motion goal as it ran: sent at ``start``, over at ``end`` (inf: still running),
+    the trajectory sent, and the world it ran in."""
+
+    start: float
+    end: float
+    traj: Trajectory
+    world: MotionWorld
+
+
+def executed_clearance(cell: Cell, recording: Any, motions: Iterable[ExecutedMotion]
+                       ) -> ExecutedClearance:
+    """The recorded states (``recording``: a :class:`~safepath.sim.twin.Recording`) of
+    every motion, each checked in its world with the contacts its step allows."""
+    times = np.asarray(recording.time)
+    q = np.asarray(recording.q)
+    meter = ClearanceMeter(cell)
+    for motion in motions:
+        end = min(motion.end, times[-1])
+        sel = np.flatnonzero((times >= motion.start) & (times <= end))
+        if sel.size == 0:
+            continue
+        # The trajectory's own time: its stamp may lie after the goal was sent.
+        offset = getattr(motion, "t0", motion.start)
+        labels = [motion.traj.step_at(float(min(max(t - offset, 0.0), motion.traj.duration)))
+                  for t in times[sel]]
+        k = 0
+        while k < sel.size:
+            j = k
+            while j + 1 < sel.size and labels[j + 1] == labels[k]:
+                j += 1
+            meter.check(motion.traj.route, labels[k], motion.world, times[sel[k:j + 1]],
+                        q[sel[k:j + 1]])
+            k = j + 1
+    return meter.best
+
+
+def tcp_deviation(robot: Robot, recording: Any) -> float:
+    """Largest executed-vs-commanded TCP distance while goals ran [m] (the tracking
+    allowance of the executed clearance)."""
+    worst = 0.0
+    for q, q_ref, moving in zip(recording.q, recording.q_ref, recording.moving, strict=True):
+        if moving:
+            worst = max(worst, float(np.linalg.norm(robot.tcp_position(q)
+                                                    - robot.tcp_position(q_ref))))
+    return worst

@@ -14,8 +14,10 @@ def register(sub: argparse._SubParsersAction) -> None:
     """Add the ``sim`` command."""
     p = sub.add_parser("sim", help="run a cell's controller closed loop on simulated robot "
                                    "dynamics (MuJoCo) and print its figures")
-    p.add_argument("scene", help="scene folder (scenes/quality_check_cell)")
-    p.add_argument("--duration", type=float, default=300.0, help="simulated time [s]")
+    p.add_argument("scene", help="scene folder (scenes/quality_check_cell, "
+                                 "scenes/pouring_cell)")
+    p.add_argument("--duration", type=float, default=300.0,
+                   help="simulated time [s] (quality-check cell, obstacles)")
     p.add_argument("--seed", type=int, default=0, help="seed of the (first) run")
     p.add_argument("--runs", type=int, default=1, help="runs per architecture (seeds from "
                                                        "--seed), on a process pool")
@@ -24,6 +26,9 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help="mean time between vials put on the belt [s]")
     p.add_argument("--bag", default=None, help="write a ROS 2 bag (MCAP) of the first "
                                                "safepath run to this folder")
+    p.add_argument("--obstacles", action="store_true",
+                   help="run the monitor node's core with a moving body crossing the cell, "
+                        "seen by a simulated laser scanner and depth camera")
     p.set_defaults(func=cmd_sim)
 
 
@@ -40,17 +45,28 @@ def cmd_sim(args: argparse.Namespace) -> int:
     from ..cell import load_cell
     from ..errors import InputError
     from .bag import write_run_bag
+    from .pouring import pour_route_of
     from .quality_check import QualityCheckParams, run_quality_check
     from .sweep import run_many
 
     cell = load_cell(args.scene)
-    if cell.scene.name != "quality_check_cell":
-        raise InputError(f"the twin runs the quality-check cell only so far, not "
-                         f"'{cell.scene.name}'", key="scene")
     if args.bag and Path(args.bag).exists():
         raise InputError(f"{args.bag} exists already; choose a new bag path", key="--bag")
     if args.runs < 1:
         raise InputError(f"expected >= 1, got {args.runs}", key="--runs")
+    if args.obstacles:
+        from .obstacles import cmd_obstacles
+
+        return cmd_obstacles(args, cell)
+    if pour_route_of(cell) is not None:
+        return _cmd_pouring(args, cell)
+    from ..ros.controller import ControllerOptions
+
+    missing = [r for r in ControllerOptions().routes if r not in cell.route_table()]
+    if missing:
+        raise InputError(f"cell '{cell.scene.name}' has no pour (a route starting with a "
+                         f"tilt) and lacks the quality-check routes {missing}: the twin "
+                         "runs neither controller on it", key="scene")
     scene = str(cell.folder)
     runs: dict[str, list[Any]] = {}
     for arch in ("safepath", "sequential"):
@@ -121,3 +137,81 @@ def _print_architecture(arch: str, rs: list[Any], np: Any) -> None:
         print(f"  faults             {len(faults)}: {faults[0]}")
     print(f"  computation        {wall:.1f} s for {sim:.0f} s simulated "
           f"({sim / max(wall, 1e-9):.0f}x real time with the clearance check)")
+
+
+def _cmd_pouring(args: argparse.Namespace, cell: Any) -> int:
+    """Run the pouring twin over seeds and print its figures."""
+    import numpy as np
+
+    from .bag import write_run_bag
+    from .pouring import PouringParams, run_pouring
+    from .sweep import run_many
+
+    params = PouringParams()
+    scene = str(cell.folder)
+    if args.runs == 1:
+        rs = [run_pouring(scene, args.seed, params, record=bool(args.bag))]
+    else:
+        rs = run_many(scene, range(args.seed, args.seed + args.runs), params,
+                      workers=args.workers)
+    load = os.getloadavg()
+    first = rs[0]
+    print(f"twin of {cell.scene.name}: PourController closed loop, {args.runs} run(s) "
+          f"(seeds {args.seed}..{args.seed + args.runs - 1}); robot {cell.robot.name}, "
+          f"physics 1 kHz; scale every {params.period * 1000:g} ms, noise "
+          f"{params.noise:g} g, latency drawn in {params.latency_range[0]:g}-"
+          f"{params.latency_range[1]:g} s, fall time {params.fall_time:g} s, flow gain drawn "
+          f"in {params.gain_range[0]:g}-{params.gain_range[1]:g} g/s/rad^1.5 (the "
+          f"controller knows the latency, not the gain)")
+    _print_pouring(rs, np)
+    sim = sum(r.duration for r in rs)
+    wall = sum(r.wall_time for r in rs)
+    whole = sum(r.wall_time + r.clearance_time for r in rs)
+    print(f"  computation        {wall:.1f} s for {sim:.0f} s simulated "
+          f"({sim / max(wall, 1e-9):.1f}x real time; {sim / max(whole, 1e-9):.1f}x with "
+          f"the clearance check), load "
+          f"{load[0]:.2f} {load[1]:.2f} {load[2]:.2f} on {os.cpu_count()} CPUs")
+    if args.bag:
+        write_run_bag(args.bag, first.record)
+        print(f"wrote a ROS 2 bag of the first run to {args.bag}")
+    return 0
+
+
+def _print_pouring(rs: list[Any], np: Any) -> None:
+    masses = np.array([r.final_mass for r in rs])
+    errors = masses - rs[0].target
+    worst = rs[int(np.argmax(np.abs(errors)))]
+    within = sum(r.within_tolerance for r in rs)
+    names = rs[0].joint_names
+    tracking = np.max([r.tracking for r in rs], axis=0)
+    speed = np.max([r.speed_ratio for r in rs], axis=0)
+    clear = min(rs, key=lambda r: r.clearance.clearance)
+    allowance = max(r.tcp_deviation for r in rs)
+    margin = rs[0].margin
+    faults = [f for r in rs for f in r.faults]
+    std = masses.std(ddof=1) if len(masses) > 1 else 0.0
+    print(f"  final mass [g]     mean {masses.mean():.2f}  std {std:.2f}  min "
+          f"{masses.min():.2f}  max {masses.max():.2f}; worst {worst.final_mass:.2f} "
+          f"(seed {worst.seed}, gain {worst.gain:.1f}, latency {worst.latency:.3f} s); "
+          f"within {rs[0].target:g} +- {rs[0].tolerance:g} g: {within} of {len(rs)}")
+    done = sum(r.state == "done" for r in rs)
+    stops = sum("stop" in r.goals for r in rs)
+    print(f"  controller         {done} of {len(rs)} done, {stops} stopped on the scale, "
+          f"{len(faults)} fault(s)" + (f": {faults[0]}" if faults else ""))
+    print("  tracking [mrad]    " + "  ".join(f"{n} {1000 * e:.2f}"
+                                              for n, e in zip(names, tracking, strict=True)))
+    over = [n for n, s in zip(names, speed, strict=True) if s > 1.0]
+    print("  speed / limit      " + "  ".join(f"{n} {s:.4f}"
+                                              for n, s in zip(names, speed, strict=True))
+          + (f"  (OVER the limit: {', '.join(over)})" if over else "  (within the limits)"))
+    lim = min(r.limit_margin for r in rs)
+    print(f"  position limits    smallest distance to a limit {lim:.3f} rad "
+          f"({'within' if lim >= 0 else 'OVER'})")
+    c = clear.clearance
+    ok = c.clearance >= margin - allowance
+    pair = " / ".join(c.pair) if c.pair else "-"
+    print(f"  executed clearance {1000 * c.clearance:.1f} mm ({pair}, t = {c.time:.2f} s of "
+          f"seed {clear.seed}; {sum(r.clearance.states for r in rs)} states, cup held from "
+          f"the close to the open); margin {1000 * margin:.0f} mm, tracking allowance "
+          f"{1000 * allowance:.2f} mm (TCP): {'kept' if ok else 'NOT KEPT'}; MuJoCo "
+          f"contacts with the cell: {sum(r.contact_steps for r in rs)} steps")

@@ -231,8 +231,8 @@ def _check_robot(robot: Robot) -> None:
 
 
 def build_robot_model(robot: Robot, scene: Scene | None = None, *,
-                      gains: ServoGains | None = None, timestep: float = TIMESTEP
-                      ) -> RobotModel:
+                      gains: ServoGains | None = None, timestep: float = TIMESTEP,
+                      extra_world: str = "") -> RobotModel:
     """The robot (and the cell's static objects) as a MuJoCo model with position servos.
 
     Args:
@@ -240,6 +240,8 @@ def build_robot_model(robot: Robot, scene: Scene | None = None, *,
         scene: The cell, whose static objects become world geoms; None: the robot alone.
         gains: The servos' gains; default :class:`ServoGains()`.
         timestep: Physics timestep [s] (<= 1 ms).
+        extra_world: MJCF of further world bodies (e.g. a moving obstacle, a mocap
+            body), inserted in the ``worldbody`` as given.
 
     Raises:
         ConfigError: A joint that is not 1-DoF revolute or prismatic, or without an
@@ -275,7 +277,7 @@ def build_robot_model(robot: Robot, scene: Scene | None = None, *,
         '<compiler angle="radian" inertiafromgeom="false" autolimits="true"/>',
         f'<option timestep="{timestep:.10g}" integrator="implicitfast" gravity="0 0 -9.81"/>',
         f"<asset>{''.join(assets)}</asset>",
-        "<worldbody>", *geoms.get(0, []), *scene_geoms, bodies, "</worldbody>",
+        "<worldbody>", *geoms.get(0, []), *scene_geoms, bodies, extra_world, "</worldbody>",
         f"<actuator>{actuators}</actuator>",
         "</mujoco>"])
     try:

@@ -52,12 +52,15 @@ class MonitorTwin:
         core: A configured node core (its cell's robot is simulated).
         options: How the robot is simulated.
         tick: The node's timer period [s].
+        extra_world: MJCF of further world bodies (a moving obstacle:
+            :mod:`safepath.sim.obstacles`).
     """
 
     core: MonitorNodeCore
     options: TwinOptions = field(default_factory=TwinOptions)
     tick: float = 0.01
     issued: list[IssuedCommand] = field(default_factory=list)
+    extra_world: str = ""
 
     def __post_init__(self) -> None:
         from ..trajectory import Trajectory
@@ -69,7 +72,7 @@ class MonitorTwin:
             raise InputError("configure() the node core first", key="core")
         first = next(p for p in self.core.sequence if isinstance(p, Trajectory))
         self.twin = RobotTwin(monitor.cell.robot, monitor.cell.scene, first.q[0],
-                              options=self.options)
+                              options=self.options, extra_world=self.extra_world)
         self._goal_id = 0
         self._arm_goal: int | None = None
 

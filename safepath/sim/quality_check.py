@@ -39,7 +39,7 @@ import numpy as np
 
 from ..errors import InputError
 from .arm import CANCELED, ArmResult
-from .clearance import ClearanceMeter, ExecutedClearance, MotionWorld
+from .clearance import ExecutedClearance, MotionWorld, executed_clearance, tcp_deviation
 from .conveyor import Conveyor, VerdictService, Vial
 from .twin import GripperResult, RobotTwin, TwinOptions
 
@@ -363,37 +363,12 @@ class _Cell:
 
 def _clearance(run: _Cell) -> ExecutedClearance:
     """The executed states of every motion, checked in their world."""
-    rec = run.twin.recording
-    times = np.asarray(rec.time)
-    q = np.asarray(rec.q)
-    meter = ClearanceMeter(run.cell)
-    for motion in run.motions:
-        end = min(motion.end, times[-1])
-        sel = np.flatnonzero((times >= motion.start) & (times <= end))
-        if sel.size == 0:
-            continue
-        labels = [motion.traj.step_at(float(t - motion.start)) for t in times[sel]]
-        k = 0
-        while k < sel.size:
-            j = k
-            while j + 1 < sel.size and labels[j + 1] == labels[k]:
-                j += 1
-            meter.check(motion.traj.route, labels[k], motion.world, times[sel[k:j + 1]],
-                        q[sel[k:j + 1]])
-            k = j + 1
-    return meter.best
+    return executed_clearance(run.cell, run.twin.recording, run.motions)
 
 
 def _tcp_deviation(run: _Cell) -> float:
     """Largest executed-vs-commanded TCP distance while goals ran [m]."""
-    rec = run.twin.recording
-    robot = run.cell.robot
-    worst = 0.0
-    for q, q_ref, moving in zip(rec.q, rec.q_ref, rec.moving, strict=True):
-        if moving:
-            worst = max(worst, float(np.linalg.norm(robot.tcp_position(q)
-                                                    - robot.tcp_position(q_ref))))
-    return worst
+    return tcp_deviation(run.cell.robot, run.twin.recording)
 
 
 def run_quality_check(cell: str | Path, seed: int, params: QualityCheckParams | None = None,

@@ -1,7 +1,8 @@
 """Many runs of the twin in parallel, with a local process pool.
 
-:func:`run_many` maps :func:`~safepath.sim.quality_check.run_quality_check` (a plain,
-picklable function of ``(cell, seed, params)``) over seeds and parameter sets with
+:func:`run_many` maps :func:`~safepath.sim.quality_check.run_quality_check` or
+:func:`~safepath.sim.pouring.run_pouring` (plain, picklable functions of
+``(cell, seed, params)``; chosen by the parameters' type) over seeds and parameter sets with
 ``concurrent.futures.ProcessPoolExecutor``. A cluster user hands the same function and
 arguments to their engine's ``map`` (Dask, Ray, ...) instead; nothing here schedules.
 """
@@ -12,22 +13,26 @@ import os
 from collections.abc import Iterable, Sequence
 from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
+from typing import Any
 
 from ..errors import InputError
-from .quality_check import QualityCheckParams, QualityCheckRun, run_quality_check
+from .pouring import PouringParams, run_pouring
+from .quality_check import QualityCheckParams, run_quality_check
 
 __all__ = ["run_many"]
 
 
 def run_many(cell: str | Path, seeds: Iterable[int],
-             params: Sequence[QualityCheckParams] | QualityCheckParams | None = None, *,
-             workers: int | None = None) -> list[QualityCheckRun]:
+             params: Sequence[QualityCheckParams | PouringParams] | QualityCheckParams
+             | PouringParams | None = None, *, workers: int | None = None) -> list[Any]:
     """Every combination of ``params`` and ``seeds``, params-major, in that order.
 
     Args:
         cell: The cell's scene folder.
         seeds: The runs' seeds.
-        params: One parameter set or several (default: one default set).
+        params: One parameter set or several (default: one default set of the
+            quality-check cell): :class:`QualityCheckParams` run the quality-check twin,
+            :class:`PouringParams` the pouring twin.
         workers: Processes (default: the CPUs; 1 runs in this process).
 
     Raises:
@@ -44,6 +49,16 @@ def run_many(cell: str | Path, seeds: Iterable[int],
         raise InputError(f"expected an integer >= 1, got {workers!r}", key="workers")
     jobs = [(str(cell), seed, p) for p in sets for seed in seed_list]
     if workers == 1:
-        return [run_quality_check(*job) for job in jobs]
+        return [_run(*job) for job in jobs]
     with ProcessPoolExecutor(max_workers=min(workers, len(jobs))) as pool:
-        return list(pool.map(run_quality_check, *zip(*jobs, strict=True)))
+        return list(pool.map(_run, *zip(*jobs, strict=True)))
+
+
+def _run(cell: str, seed: int, params: QualityCheckParams | PouringParams) -> Any:
+    """One run, of the twin the parameters are for."""
+    if isinstance(params, PouringParams):
+        return run_pouring(cell, seed, params)
+    if isinstance(params, QualityCheckParams):
+        return run_quality_check(cell, seed, params)
+    raise InputError(f"expected QualityCheckParams or PouringParams, got "
+                     f"{type(params).__name__}", key="params")

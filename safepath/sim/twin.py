@@ -160,17 +160,18 @@ class RobotTwin:
         scene: The cell whose static objects the arm may touch (None: none).
         q_initial: Where the arm rests at time 0 [rad].
         options: Simulation options.
+        extra_world: MJCF of further world bodies (see :func:`build_robot_model`).
     """
 
     def __init__(self, robot: Robot, scene: Scene | None, q_initial: np.ndarray, *,
-                 options: TwinOptions | None = None) -> None:
+                 options: TwinOptions | None = None, extra_world: str = "") -> None:
         import mujoco
 
         self._mujoco = mujoco
         self.options = options = options or TwinOptions()
         self.robot = robot
         self.model = build_robot_model(robot, scene, gains=options.gains,
-                                       timestep=options.timestep)
+                                       timestep=options.timestep, extra_world=extra_world)
         q0 = robot.as_joint_vector(q_initial, name="q_initial")
         self.data = mujoco.MjData(self.model.model)
         self.data.qpos[self.model.qpos_index] = q0
