@@ -89,8 +89,8 @@ def _check_routes(cell: Cell) -> int:
 def cmd_robot_pairs(args: argparse.Namespace) -> int:
     """Regenerate a robot folder's allowed self-collision pairs, and name the file in its
     robot.yaml if it does not yet (or say how, with --no-wire)."""
+    from .collision import wire_allowed_pairs, write_allowed_pairs
     from .robot_loader import load_robot
-    from .self_collision import wire_allowed_pairs, write_allowed_pairs
 
     bare = Path(args.robot).suffix.lower() == ".urdf"
     robot = None if bare else load_robot(args.robot)

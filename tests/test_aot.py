@@ -98,7 +98,8 @@ def test_table_signatures_are_the_ones_numba_infers() -> None:
 def recorded() -> dict[str, list[tuple[Any, ...]]]:
     """Arguments of real kernel calls: the bundled cell and the Panda cell planned (the
     first KEEP calls of every kernel, copied before the call: kernels write into some)."""
-    from safepath import _fastkernels, _joinkernel
+    from safepath import _joinkernel
+    from safepath.collision import _kernels as _fastkernels
     from safepath.monitor import _kernels as _monitor_kernels
     from safepath.planning import _ik_kernel, _topp, _verify_kernel
 
@@ -142,7 +143,7 @@ def recorded() -> dict[str, list[tuple[Any, ...]]]:
 
 def _helpers(cell: safepath.Cell) -> None:
     """The kernels planning does not call but the API and the tests do, on real data."""
-    from safepath import _fastkernels
+    from safepath.collision import _kernels as _fastkernels
     from safepath.planning import _ik_kernel
     from safepath.planning.cartesian import _line_chain
 
@@ -246,14 +247,14 @@ def test_arguments_off_the_signature_run_the_jit_kernel_or_raise_when_strict(
 
 
 def test_a_build_of_other_sources_is_never_used(built: Build, tmp_path: Path) -> None:
-    """Editing a kernel module (here _gjk.py, which only _fastkernels compiles) changes
+    """Editing a kernel module (here _gjk.py, which only the sphere layer compiles) changes
     the key: the build is not found, whatever is in the cache."""
     copy_root = tmp_path / "safepath"
     shutil.copytree(_aot.PACKAGE, copy_root,
                     ignore=shutil.ignore_patterns("__pycache__", "*.so"))
     assert _aot.source_key(copy_root) == built.key
     assert _aot.find(copy_root)[0] == built.path
-    with open(copy_root / "_gjk.py", "a") as f:
+    with open(copy_root / "collision" / "_gjk.py", "a") as f:
         f.write("\n# edited after the build\n")
     stale_key = _aot.source_key(copy_root)
     assert stale_key != built.key

@@ -442,7 +442,7 @@ def test_a_few_states_are_judged_one_by_one_as_a_batch_judges_them(
     """States the sphere layer leaves to coal: a few go through the broad phase one by
     one, more through a batch pool. Both give the same first collision, where it lies
     and its pairs, and the same count of states checked."""
-    from safepath import collision
+    from safepath.collision import checker as collision
 
     checker = cell.checker(held=held)
     states = _random_states(robot, 24, seed=9)

@@ -16,9 +16,9 @@ import pytest
 
 from safepath import CheckOptions, CollisionChecker, load_cell, load_robot
 from safepath.cell import Cell
-from safepath.fastcheck import COLLIDES, FREE, UNSURE
+from safepath.collision import COLLIDES, FREE, UNSURE
+from safepath.collision.spheres import fit_spheres, surface_points
 from safepath.robot import Robot
-from safepath.spheres import fit_spheres, surface_points
 
 ROBOTS = ["ned3pro", "gen3_lite", "panda", "ur5"]
 
@@ -59,7 +59,7 @@ def test_a_fit_is_made_once_per_shape_and_never_handed_to_another() -> None:
     in any of those gets its own, equal to one made afresh, and enclosed."""
     import coal
 
-    from safepath import spheres
+    from safepath.collision import spheres
 
     box = coal.Box(0.1, 0.2, 0.3)
     first = fit_spheres(box)
@@ -117,7 +117,7 @@ def test_inner_spheres_lie_inside_their_shape(name: str) -> None:
 
 
 def test_kernel_kinematics_match_pinocchio(cell: Cell) -> None:
-    from safepath import _fastkernels as K
+    from safepath.collision import _kernels as K
 
     for robot in (cell.robot, load_robot("panda")):
         checker = CollisionChecker(robot)
@@ -269,7 +269,7 @@ def test_pair_weights_are_the_mask_sums_of_the_bodies_weights(cell: Cell,
     """The packed per-pair weights (what a joint step can close each pair by) are body a's
     weights where the pair's mask has bit 1 plus body b's where it has bit 2, for robot
     pairs, environment pairs and the held object's pairs."""
-    from safepath import _fastkernels as K  # noqa: N812
+    from safepath.collision import _layout as K  # noqa: N812
 
     checkers = [cell.checker(), cell.checker(held=True),
                 CollisionChecker(panda_cell.robot, panda_cell.scene)]

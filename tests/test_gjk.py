@@ -15,7 +15,7 @@ import numpy as np
 import pytest
 
 from safepath import load_robot
-from safepath._gjk import (
+from safepath.collision._gjk import (
     BOX,
     CAPSULE,
     CYLINDER,
@@ -79,7 +79,7 @@ def _tables(*shapes: object) -> tuple[np.ndarray, np.ndarray, list[tuple[int, in
 def _search(bound: object, ka: int, Ra: np.ndarray, pa: np.ndarray, da: np.ndarray,
             kb: int, Rb: np.ndarray, pb: np.ndarray, db: np.ndarray, hulls: list,
             *limits: float) -> float:
-    """``bound`` (a GJK search of ``safepath._gjk``) on shapes A and B, the hulls among
+    """``bound`` (a GJK search of ``safepath.collision._gjk``) on shapes A and B, the hulls among
     them in ``hulls``, with fresh hints and scratch, searched to ``limits``."""
     fb, ib, rows = _tables(*hulls)
     (va0, va1), (vb0, vb1) = (rows + [(0, 0), (0, 0)])[:2]
@@ -187,7 +187,7 @@ def test_search_stops_at_the_callers_thresholds(hulls: list) -> None:
 def test_edge_climbing_finds_the_farthest_vertex(hulls: list) -> None:
     """The support search climbs the hull's edges from any start: it must find the same
     farthest vertex as scanning them all."""
-    from safepath._gjk import _climb
+    from safepath.collision._gjk import _climb
 
     rng = np.random.default_rng(3)
     for shape in hulls:

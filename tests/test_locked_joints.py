@@ -15,7 +15,7 @@ import yaml
 
 from safepath import CollisionChecker, ConfigError, Robot, load_cell, load_robot
 from safepath.cell import Cell
-from safepath.spheres import surface_points
+from safepath.collision.spheres import surface_points
 
 REPO_ROOT = Path(__file__).resolve().parents[1]
 GEN3_URDF = REPO_ROOT / "robots" / "gen3_lite" / "gen3_lite.urdf"

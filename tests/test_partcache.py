@@ -1,4 +1,4 @@
-"""The disk cache of what the sphere layer makes from a robot alone (``safepath._partcache``):
+"""The disk cache of what the sphere layer makes from a robot alone (``collision._partcache``):
 an entry read back is the part made afresh, bit for bit; a damaged entry is ignored with a
 warning and made again; other options or geometry are another entry; ``SAFEPATH_CACHE=0``
 writes nothing; ``load_cell`` makes (or reads) it, and what the checkers and verifiers
@@ -12,9 +12,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from safepath import CollisionChecker, _pack, _partcache
+from safepath import CollisionChecker
 from safepath.cell import Cell
-from safepath.fastcheck import LayerOptions
+from safepath.collision import LayerOptions, _pack, _partcache
 
 
 def _arrays(part: _pack._RobotPart) -> dict[str, np.ndarray]:
@@ -64,7 +64,7 @@ def test_a_damaged_entry_is_ignored_with_a_warning_and_made_again(
         entry.write_bytes(raw[: len(raw) // 2])
     else:  # one byte of an array changed: the digest tells
         entry.write_bytes(raw[:-9] + bytes([raw[-9] ^ 0x10]) + raw[-8:])
-    with caplog.at_level(logging.WARNING, logger="safepath._partcache"):
+    with caplog.at_level(logging.WARNING, logger="safepath.collision._partcache"):
         again = _arrays(_made(cell, options))
     assert any("ignored" in r.getMessage() and entry.name in r.getMessage()
                for r in caplog.records)

@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 from safepath import Cell, Robot, load_poses
-from safepath.self_collision import compute_allowed_pairs
+from safepath.collision import compute_allowed_pairs
 
 REPO_ROOT = Path(__file__).resolve().parents[1]
 SHARED = REPO_ROOT.parent / "shared"

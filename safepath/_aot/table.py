@@ -36,7 +36,7 @@ class Entry(NamedTuple):
     """One exported kernel.
 
     Attributes:
-        module: The module that defines it (``safepath._fastkernels``).
+        module: The module that defines it (``safepath.collision._kernels``).
         function: Its name there.
         args: The argument types (a tuple of types for a tuple argument).
         result: The result type (``void``: none).
@@ -48,7 +48,10 @@ class Entry(NamedTuple):
     result: str
 
 
-_FAST = "safepath._fastkernels"
+_FAST = "safepath.collision._kernels"
+#: The sphere layer's helper kernels and the constants they compile in (its buffers' layout).
+_FAST_PARTS = ("safepath.collision._placement", "safepath.collision._pair_tests",
+               "safepath.collision._gjk", "safepath.collision._layout")
 _VERIFY = "safepath.planning._verify_kernel"
 _IK = "safepath.planning._ik_kernel"
 _TOPP = "safepath.planning._topp"
@@ -61,7 +64,7 @@ _HULLS = (F2, I1, I1, I1)
 
 #: Every exported kernel, by export name.
 ENTRIES: dict[str, Entry] = {
-    # The sphere layer (safepath.fastcheck.SphereLayer, safepath.collision).
+    # The sphere layer (safepath.collision.SphereLayer, safepath.collision.CollisionChecker).
     "fast_classify": Entry(_FAST, "classify", (F1, F1, I1), INT),
     "fast_classify_many": Entry(_FAST, "classify_many", (F2, F1, I1, I1), "void"),
     "fast_certify_polyline": Entry(_FAST, "certify_polyline",
@@ -121,6 +124,6 @@ ENTRIES: dict[str, Entry] = {
 #: while all of them are unchanged. Every kernel compiled through :func:`safepath._aot.njit`
 #: lives in one of them (tests/test_aot.py checks it); the cup's (a simulated scale, not
 #: on a planning path) uses numba directly.
-MODULES: tuple[str, ...] = (_FAST, "safepath._gjk", _VERIFY, _IK, _TOPP, _JOIN, _MONITOR)
+MODULES: tuple[str, ...] = (_FAST, *_FAST_PARTS, _VERIFY, _IK, _TOPP, _JOIN, _MONITOR)
 #: Those a plan calls (all but the monitor's).
-PLANNING_MODULES: tuple[str, ...] = (_FAST, "safepath._gjk", _VERIFY, _IK, _TOPP, _JOIN)
+PLANNING_MODULES: tuple[str, ...] = (_FAST, *_FAST_PARTS, _VERIFY, _IK, _TOPP, _JOIN)

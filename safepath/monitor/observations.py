@@ -314,7 +314,7 @@ class Obstacles:
         """World spheres (n, 4) that enclose the obstacles (boxes: a sphere fit)."""
         import coal
 
-        from ..spheres import fit_spheres
+        from ..collision.spheres import fit_spheres
 
         parts = [self.spheres]
         for T, size in self.boxes:

@@ -2,7 +2,7 @@
 
 A :class:`PathSweep` samples the states of a path so that no point of the robot (or of
 the object it holds) moves more than ``spacing`` between two consecutive samples, and
-places at every sample the outer spheres of :mod:`safepath.spheres` (which *enclose*
+places at every sample the outer spheres of :mod:`safepath.collision.spheres` (which *enclose*
 every link: a distance to them is a lower bound of the distance to the real robot).
 Between two samples every point of the robot stays within ``spacing`` of where it was
 at one of them, so the separation at any state in between is at least the smaller of
@@ -20,9 +20,9 @@ from dataclasses import dataclass
 import numpy as np
 import pinocchio as pin
 
+from ..collision.spheres import fit_spheres
 from ..robot import Robot
 from ..scene import Scene
-from ..spheres import fit_spheres
 
 __all__ = ["PathSweep", "RobotSpheres"]
 

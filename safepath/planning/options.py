@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 
-from ..checks import CheckOptions
+from ..collision import CheckOptions
 from .cartesian import LineOptions
 from .pour import PourOptions
 from .sampling import PlannerOptions

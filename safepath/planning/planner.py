@@ -20,8 +20,7 @@ from pathlib import Path
 import numpy as np
 
 from ..cell import Cell
-from ..checks import Pair
-from ..collision import CollisionChecker
+from ..collision import CollisionChecker, Pair
 from ..errors import IKError, PlanningError, SafepathError, TimingError
 from ..routes import Route, Step, after_chain
 from ..trajectory import Trajectory

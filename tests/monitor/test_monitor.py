@@ -7,10 +7,10 @@ import pytest
 from quintic_join import quintic_peaks as _quintic_peaks
 
 from safepath import Cell
+from safepath.collision.spheres import surface_points
 from safepath.errors import ConfigError, InputError
 from safepath.monitor import Cloud, MonitorOptions, ObservationError, Obstacles, Scan
 from safepath.monitor.sweep import PathSweep, RobotSpheres
-from safepath.spheres import surface_points
 
 from .conftest import CAMERA, Phase1, make_monitor
 

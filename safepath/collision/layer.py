@@ -1,17 +1,18 @@
 """The fast layer of the collision checker: spheres that decide most states, exactly.
 
-A :class:`SphereLayer` is built from a :class:`~safepath.collision.CollisionChecker`
-(same robot, scene, world state, pairs and margins) and answers, for a state:
+A :class:`SphereLayer` is built from what a :class:`~safepath.collision.CollisionChecker`
+mirrors to it (its :class:`~safepath.collision._pack.LayerSource`: same robot, scene,
+world state, pairs and margins) and answers, for a state:
 
 * ``FREE``: every checked pair is farther apart than its margin. Certain: the robot's
-  and held object's shapes are enclosed by their outer spheres (:mod:`safepath.spheres`)
+  and held object's shapes are enclosed by their outer spheres (:mod:`safepath.collision.spheres`)
   and the scene's primitives are measured exactly, so sphere distances are lower bounds
   of the true ones; pairs of primitives are refined by separating axes, pairs with a
-  convex hull (mesh links) by GJK on the hull's own vertices (:mod:`safepath._gjk`),
+  convex hull (mesh links) by GJK on the hull's own vertices (:mod:`safepath.collision._gjk`),
   both lower bounds too;
 * ``COLLIDES``: outside the joint limits, an inner sphere (inside a shape) is closer
   to another shape than the margin, or GJK's upper bound on the signed distance of two
-  exact shapes (primitives, convex hulls) is below it (:mod:`safepath._gjk`). Certain
+  exact shapes (primitives, convex hulls) is below it (:mod:`safepath.collision._gjk`). Certain
   too;
 * ``UNSURE``: anything else; the exact coal check decides.
 
@@ -32,67 +33,45 @@ The kernels are compiled with numba on first use (cached on disk afterwards).
 from __future__ import annotations
 
 import copy
-from dataclasses import dataclass
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 import numpy as np
 
-from ._pack import pack
+from . import _layout
+from ._layout import COLLIDES, FREE, OUTSIDE, UNSURE
+from ._pack import LayerSource, pack
+from .options import LayerOptions
 from .spheres import SphereFit
 
-if TYPE_CHECKING:
-    from .collision import CollisionChecker
-
-__all__ = ["SphereLayer", "FREE", "COLLIDES", "UNSURE", "LayerOptions"]
-
-FREE, COLLIDES, UNSURE = 0, 1, 2
-#: A segment with an end outside the joint limits (see SphereLayer.certify_segment).
-OUTSIDE = 3
-
-
-@dataclass(frozen=True, kw_only=True)
-class LayerOptions:
-    """Options of the sphere layer.
-
-    Attributes:
-        cell: Edge of the grid cells the outer spheres circumscribe [m].
-        refine: A pair whose bounding spheres are farther apart than its margin plus
-            this is not refined with its fine spheres when certifying segments [m].
-        free_eps: A pair counts as certainly free only beyond its margin plus this [m].
-        proof_eps: An inner sphere proves a collision only this far inside [m].
-    """
-
-    cell: float = 0.04
-    refine: float = 0.01
-    free_eps: float = 1e-6
-    proof_eps: float = 1e-5
+__all__ = ["SphereLayer", "FREE", "COLLIDES", "UNSURE", "OUTSIDE"]
 
 
 def _kernels() -> Any:
-    from . import _fastkernels
+    """The kernels, imported when first used (numba, or the build of :mod:`safepath._aot`)."""
+    from . import _kernels
 
-    return _fastkernels
+    return _kernels
 
 
 class SphereLayer:
     """Sphere-based certificates for one collision checker (see the module doc).
 
     Args:
-        checker: The exact checker whose pairs, margins and limits are mirrored.
+        source: What the exact checker mirrors: its geometry, pairs, margins and limits.
         options: Sphere fitting and tolerances.
 
     Raises:
         ValueError: A robot or held shape has no sphere fit (the caller stays exact).
     """
 
-    def __init__(self, checker: CollisionChecker, options: LayerOptions | None = None) -> None:
+    def __init__(self, source: LayerSource, options: LayerOptions | None = None) -> None:
         self.options = options or LayerOptions()
-        self.F, self.I, self._fits = pack(checker, self.options)
+        self.F, self.I, self._fits = pack(source, self.options)
 
     def with_security(self, security: np.ndarray) -> SphereLayer:
         """This layer for a checker with the same pairs and other security margins
         (other allowed contact depths): the tables copied, the margins replaced."""
-        K = _kernels()  # noqa: N806
+        K = _layout  # noqa: N806
         F, I_ = self.F.copy(), self.I.copy()
         n, at = int(I_[K.H_NP]), int(I_[K.H_P])
         F[at:at + n] = security
@@ -105,7 +84,7 @@ class SphereLayer:
     # -- queries ------------------------------------------------------------------------
     @staticmethod
     def kernel(name: str) -> Any:
-        """A compiled kernel of :mod:`safepath._fastkernels` by name."""
+        """A compiled kernel of :mod:`safepath.collision._kernels` by name."""
         return getattr(_kernels(), name)
 
     def classify(self, q: np.ndarray) -> int:

@@ -21,8 +21,8 @@ from pathlib import Path
 import numpy as np
 import pinocchio as pin
 
-from ._io import atomic_write_text, read_yaml
-from .robot import Robot, adjacent_link_pairs
+from .._io import atomic_write_text, read_yaml
+from ..robot import Robot, adjacent_link_pairs
 
 __all__ = ["PairStats", "compute_allowed_pairs", "write_allowed_pairs", "wire_allowed_pairs"]
 
@@ -128,7 +128,7 @@ def wire_allowed_pairs(spec_path: Path, pairs_path: Path, *, write: bool = True)
         ConfigError: ``robot.yaml`` is malformed, or names another pairs file.
         InputError: It cannot be written.
     """
-    from .errors import ConfigError
+    from ..errors import ConfigError
 
     spec = read_yaml(spec_path)
     named = spec.get("allowed_collisions") if isinstance(spec, dict) else None

@@ -26,13 +26,17 @@ from typing import Any
 import numpy as np
 import pinocchio as pin
 
-from .checks import CheckOptions, Pair, SegmentReport, StateReport
-from .errors import ConfigError
-from .fastcheck import COLLIDES, FREE, OUTSIDE, UNSURE, SphereLayer
-from .robot import Robot, is_prismatic
-from .scene import GRIPPER, AllowedContact, Scene, SceneObject
+from ..errors import ConfigError
+from ..robot import Robot, is_prismatic
+from ..scene import AllowedContact, Scene, SceneObject
+from ._pack import LayerSource
+from ._pairs import allowed_depths, allowed_rows, candidate_pairs
+from .layer import COLLIDES, FREE, OUTSIDE, UNSURE, SphereLayer
+from .options import CheckOptions
+from .prepare import reach_into, robot_part
+from .reports import Pair, SegmentReport, StateReport
 
-__all__ = ["CheckOptions", "StateReport", "SegmentReport", "CollisionChecker"]
+__all__ = ["CollisionChecker"]
 
 #: Undecided states checked exactly before a segment's certification goes on.
 _EARLY_UNSURE = 4
@@ -159,71 +163,26 @@ class CollisionChecker:
 
     def _pair_list(self) -> tuple[np.ndarray, np.ndarray]:
         """The pairs to check, as rows of :attr:`_candidates`, and the depth [m] each
-        is allowed to touch by: the candidates without those allowed to touch at any
-        depth."""
+        is allowed to touch by (see :func:`._pairs.allowed_rows`)."""
         contact_links = set(self.robot.tool.contact_links) if self.robot.tool else set()
-        allowed = self._expand_allowed(contact_links)
         candidates, rows_of, _ = self._candidates
-        keep = np.ones(len(candidates), dtype=bool)
-        depth = np.zeros(len(candidates))
-        for key, d in allowed.items():
-            at = rows_of.get(key)
-            if at is None:
-                continue  # never checked
-            if d is None:
-                keep[at] = False
-            else:
-                depth[at] = d
-        rows = np.flatnonzero(keep)
-        return rows, depth[rows]
+        return allowed_rows(len(candidates), rows_of,
+                            allowed_depths(self.allowed, contact_links))
 
     @functools.cached_property
     def _candidates(self) -> tuple[np.ndarray, dict[Pair, list[int]], np.ndarray]:
-        """The pairs to check where no contact is allowed, as (geometry a, geometry b)
-        rows; the rows of each pair of names (sorted); and each pair's safety margin
-        [m] (the options' override, or the scene's margin of the environment object
-        in it). In the order: for each mover (robot and held object), the movers after
-        it, then the environment; without the pairs never checked (on one joint, an
-        allowed self pair, the held object against the jaws). Made once for a world
-        state (its checkers for other allowed contacts share it)."""
+        """The pairs to check where no contact is allowed (see
+        :func:`._pairs.candidate_pairs`). Made once for a world state (its checkers for
+        other allowed contacts share it)."""
         gmodel, n_robot = self._gmodel, self.robot.collision_model.ngeoms
         held_idx = gmodel.ngeoms - 1 if self.held is not None else None  # added last
         contact_links = set(self.robot.tool.contact_links) if self.robot.tool else set()
-        names, env = self._names, self._env
-        joint = [int(g.parentJoint) for g in gmodel.geometryObjects]
-        self_pairs = self.robot.allowed_self_pairs
         movers = list(range(n_robot)) + ([held_idx] if held_idx is not None else [])
-        rows_of: dict[Pair, list[int]] = {}
-        pairs: list[tuple[int, int]] = []
-        # The margin of a pair is that of its environment object, else of its first body.
-        margin_of = self._margins()
-        margins: list[float] = []
-
-        def add(key: Pair, a: int, b: int, margin: float) -> None:
-            rows_of.setdefault(key, []).append(len(pairs))
-            pairs.append((a, b))
-            margins.append(margin)
-
-        for ia, a in enumerate(movers):
-            na = names[a]
-            for b in movers[ia + 1:]:
-                nb = names[b]
-                if na == nb or joint[a] == joint[b]:
-                    continue
-                key = (na, nb) if na < nb else (nb, na)
-                if b == held_idx:
-                    if na in contact_links:
-                        continue  # the jaws hold it
-                elif key in self_pairs:
-                    continue
-                add(key, a, b, margin_of(na))
-            if joint[a] == 0:
-                continue  # both fixed to the world
-            for e in env:
-                ne = names[e]
-                add((na, ne) if na <= ne else (ne, na), a, e, margin_of(ne))
-        return (np.array(pairs, dtype=np.int64).reshape(-1, 2), rows_of,
-                np.array(margins, dtype=float))
+        return candidate_pairs(
+            names=self._names, joints=[int(g.parentJoint) for g in gmodel.geometryObjects],
+            movers=movers, held=held_idx, environment=self._env,
+            contact_links=contact_links, self_pairs=self.robot.allowed_self_pairs,
+            margin_of=self._margins())
 
     def _margins(self) -> Callable[[str], float]:
         """The safety margin [m] of an object or link by name: the options' override,
@@ -318,20 +277,6 @@ class CollisionChecker:
         self._names.append(name)
         return int(idx)
 
-    def _expand_allowed(self, contact_links: set[str]) -> dict[Pair, float | None]:
-        out: dict[Pair, float | None] = {}
-        for contact in self.allowed:
-            sides = [sorted(contact_links) if n == GRIPPER else [n] for n in contact.between]
-            for a in sides[0]:
-                for b in sides[1]:
-                    key = (a, b) if a <= b else (b, a)
-                    prev = out.get(key, 0.0)
-                    if prev is None or contact.max_depth is None:
-                        out[key] = None
-                    else:
-                        out[key] = max(prev, contact.max_depth)
-        return out
-
     # -- facts -----------------------------------------------------------------------------
     @property
     def pairs(self) -> list[Pair]:
@@ -354,7 +299,7 @@ class CollisionChecker:
         nj = model.njoints
         # Reach of each joint's own geometry about its origin: the robot's, made once per
         # robot, then the rest (the held object; the environment is on no joint).
-        reach = _reach_into(self._own_reach.copy(), [
+        reach = reach_into(self._own_reach.copy(), [
             gmodel.geometryObjects[i]
             for i in range(self.robot.collision_model.ngeoms, gmodel.ngeoms)])
         # Propagate from the leaves: reach(i) >= |origin of child| + reach(child).
@@ -377,11 +322,20 @@ class CollisionChecker:
             self._bind_layer()
         return self._layer
 
+    def layer_source(self) -> LayerSource:
+        """What the sphere layer mirrors of this checker: its geometry, the environment's
+        shapes, the pairs and their security margins, the resolution and the
+        displacement weights."""
+        return LayerSource(robot=self.robot, geometry=self._gmodel, environment=self._env,
+                           pairs=self._pairs, security=self._security,
+                           resolution=self.options.resolution,
+                           displacement_weights=self.displacement_weights)
+
     def _bind_layer(self) -> None:
         self._layer_built = True
         if self.options.fast:
             try:
-                self._layer = SphereLayer(self)
+                self._layer = SphereLayer(self.layer_source())
             except ValueError as exc:
                 log.info("no sphere layer (%s): every check is exact", exc)
         if self._layer is not None:
@@ -696,66 +650,3 @@ def _bisection_order(n: int, check_ends: bool) -> list[int]:
         queue.append((lo, mid))
         queue.append((mid, hi))
     return out
-
-
-def robot_part(robot: Robot) -> tuple[tuple[str, ...], np.ndarray]:
-    """What every checker of ``robot`` takes from it, made once per robot: the link of
-    each geometry, and per joint how far its own geometry reaches from its origin [m]."""
-    def make() -> tuple[tuple[str, ...], np.ndarray]:
-        geoms = robot.collision_model.geometryObjects
-        reach = _reach_into(np.zeros(robot.model.njoints), geoms)
-        return tuple(map(robot.geometry_link, range(len(geoms)))), reach
-
-    return robot.derived("checker", make)
-
-
-def prepare_robot(robot: Robot) -> None:
-    """Make what every collision checker of ``robot`` takes from the robot alone: its
-    links and reach, and, where the kernels are compiled ahead of time, its sphere
-    layer's part (sphere fits, hull tables: read from the disk cache,
-    :mod:`safepath._partcache`, where a process made them before). Without them the
-    part waits for the first check, which imports numba anyway. A shape the layer
-    cannot fit is left to the checkers (they stay exact)."""
-    from . import _aot
-
-    robot_part(robot)
-    if _aot.compiled() is None:
-        return
-    from ._pack import _robot_part
-    from .fastcheck import LayerOptions
-
-    try:
-        _robot_part(robot, LayerOptions())
-    except ValueError:
-        pass
-
-
-def _reach_into(reach: np.ndarray, geoms: Any) -> np.ndarray:
-    """``reach`` (per joint [m]) raised to how far each geometry of ``geoms`` on a joint
-    reaches from that joint's origin."""
-    for g in geoms:
-        if g.parentJoint == 0:
-            continue
-        r = np.linalg.norm(g.placement.translation) + _bounding_radius(g.geometry)
-        reach[g.parentJoint] = max(reach[g.parentJoint], r)
-    return reach
-
-
-def _bounding_radius(geometry: Any) -> float:
-    import coal
-
-    if isinstance(geometry, coal.Box):
-        return float(np.linalg.norm(geometry.halfSide))
-    if isinstance(geometry, coal.Sphere):
-        return float(geometry.radius)
-    if isinstance(geometry, coal.Cylinder):
-        return float(np.hypot(geometry.radius, geometry.halfLength))
-    if isinstance(geometry, coal.Capsule):
-        return float(geometry.radius + geometry.halfLength)
-    if isinstance(geometry, coal.ConvexBase):
-        pts = np.asarray(geometry.points())
-        return float(np.max(np.linalg.norm(pts, axis=1)))
-    geometry.computeLocalAABB()
-    aabb = geometry.aabb_local
-    corner = np.maximum(np.abs(aabb.min_), np.abs(aabb.max_))
-    return float(np.linalg.norm(corner))

@@ -4,7 +4,7 @@ part), so that a new process's first plan does not fit them again (~4 ms for the
 Pro, its first plan's ~9 %).
 
 An entry is named by a digest of everything it is made from: the code that makes it (the
-sources of ``_pack``, ``spheres`` and ``_gjk``), the layer's options, the robot's
+sources of ``_pack``, ``_layout``, ``spheres`` and ``_gjk``), the layer's options, the robot's
 kinematics (joint placements, kinds, axes, limits) and every collision shape (its joint,
 placement, kind and dimensions, a mesh's or hull's points). Another robot, shape, option or
 version of that code is another entry, so a stale entry is never read; a missing one is
@@ -32,7 +32,7 @@ from typing import Any
 
 import numpy as np
 
-from ._digest import blake2b, sha256
+from .._digest import blake2b, sha256
 
 __all__ = ["load_or_make", "folder"]
 
@@ -41,7 +41,7 @@ log = logging.getLogger(__name__)
 ENV = "SAFEPATH_CACHE"
 MAGIC = b"SAFEPATH-PART-1\n"
 #: The modules whose code makes an entry (their sources are part of its name).
-_MAKERS = ("_pack.py", "spheres.py", "_gjk.py", "_partcache.py")
+_MAKERS = ("_pack.py", "_layout.py", "spheres.py", "_gjk.py", "_partcache.py")
 _DTYPES = {"f8": np.float64, "i8": np.int64, "b1": np.bool_}
 _code_digest: list[bytes] = []
 

@@ -1,5 +1,6 @@
-"""The flat buffers the sphere layer's kernels read (layout in :mod:`safepath._fastkernels`),
-built from a collision checker.
+"""The flat buffers the sphere layer's kernels read (layout in
+:mod:`safepath.collision._layout`), built from what a collision checker mirrors to its
+layer (a :class:`LayerSource`: geometry, pairs, margins; explicit inputs, no checker).
 
 What depends on the robot alone (its joints, and each of its shapes: sphere fit, hull
 tables, reach per joint, the joints that carry it) is made once per robot and options and
@@ -11,19 +12,43 @@ they differ only in the held object, the scene and the pairs.
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 import numpy as np
 import pinocchio as pin
 
-from .robot import Robot, is_prismatic
+from ..robot import Robot, is_prismatic
+from . import _layout as K  # noqa: N812  (constants only: imports no kernel)
+from .options import LayerOptions
 from .spheres import SphereFit, fit_spheres
 
-if TYPE_CHECKING:
-    from .collision import CollisionChecker
-    from .fastcheck import LayerOptions
+__all__ = ["LayerSource", "pack"]
 
-__all__ = ["pack"]
+
+@dataclass(frozen=True, kw_only=True)
+class LayerSource:
+    """What the sphere layer mirrors of one collision checker
+    (:meth:`safepath.collision.CollisionChecker.layer_source`).
+
+    Attributes:
+        robot: The robot.
+        geometry: The checker's geometry model: the robot's shapes, then the scene's and
+            the held object's.
+        environment: The geometry indices of the environment objects (the rest move).
+        pairs: The pairs checked, as rows of geometry indices (a, b) (pairs, 2).
+        security: Each pair's security margin [m] (negative: the depth it may touch by).
+        resolution: The checker's resolution [m].
+        displacement_weights: Per joint, how far [m] a unit step moves any point of the
+            robot or held object.
+    """
+
+    robot: Robot
+    geometry: pin.GeometryModel
+    environment: list[int]
+    pairs: np.ndarray
+    security: np.ndarray
+    resolution: float
+    displacement_weights: np.ndarray
 
 
 @dataclass(frozen=True)
@@ -52,7 +77,7 @@ class _RobotPart:
 
 def _robot_part(robot: Robot, options: LayerOptions) -> _RobotPart:
     """The robot's joints and shapes, made by the first checker of the robot (or read
-    from the disk cache, :mod:`safepath._partcache`, where a process made them before)."""
+    from the disk cache, :mod:`safepath.collision._partcache`, where a process made them before)."""
     from . import _partcache
     from .spheres import _fit_key
 
@@ -110,8 +135,6 @@ def _unflat(a: dict[str, np.ndarray]) -> _RobotPart:
 
 def _joints(model: pin.Model) -> tuple[np.ndarray, np.ndarray]:
     """Per joint: placement (9 + 3) and axis (3); parent, kind and q index."""
-    from . import _fastkernels as K  # noqa: N812  (constants only; compiles nothing)
-
     nj = model.njoints
     data = model.createData()
     pin.forwardKinematics(model, data, pin.neutral(model))
@@ -134,8 +157,7 @@ def _mover(model: pin.Model, geom: Any, options: LayerOptions, lower: np.ndarray
     """One moving shape's part of the buffers."""
     import coal
 
-    from . import _fastkernels as K  # noqa: N812
-    from ._gjk import hull_tables
+    from ._gjk import HULL, hull_tables
 
     T = geom.placement.homogeneous
     fit = fit_spheres(geom.geometry, cell=options.cell).transformed(T)
@@ -148,7 +170,7 @@ def _mover(model: pin.Model, geom: Any, options: LayerOptions, lower: np.ndarray
     if kind == K.SPHERES_ONLY and isinstance(geom.geometry, coal.ConvexBase):
         hull, ptr, neighbours = hull_tables(np.asarray(geom.geometry.points()))
         degree = np.diff(ptr)
-        kind = K.HULL
+        kind = HULL
     row = np.array([*c, r, *T[:3, :3].ravel(), *T[:3, 3], *dims], dtype=float)
     outer = np.column_stack([fit.outer_centers, fit.outer_radii])
     inner = np.column_stack([fit.inner_centers, fit.inner_radii])
@@ -162,38 +184,36 @@ def _mover(model: pin.Model, geom: Any, options: LayerOptions, lower: np.ndarray
                   neighbours, _weights(model, c, r, joint, lower, upper), chain)
 
 
-def pack(checker: CollisionChecker, options: LayerOptions
+def pack(source: LayerSource, options: LayerOptions
          ) -> tuple[np.ndarray, np.ndarray, list[SphereFit]]:
     """The flat buffers the kernels read, and the movers' sphere fits."""
-    from . import _fastkernels as K  # noqa: N812
-
-    robot = checker.robot
-    model, gmodel = robot.model, checker._gmodel
+    robot = source.robot
+    model, gmodel = robot.model, source.geometry
     n_robot = robot.collision_model.ngeoms
     part = _robot_part(robot, options)
-    env_set = set(checker._env)
+    env_set = set(source.environment)
     movers_idx = [i for i in range(gmodel.ngeoms) if i not in env_set]
     movers = [part.movers[g] if g < n_robot else
               _mover(model, gmodel.geometryObjects[g], options, robot.lower, robot.upper)
               for g in movers_idx]
     G, Gi, S_, V, AP, AI = _mover_blocks(movers)
-    E, Ei, ER = _environment(checker)
-    P, Pi = _pairs(checker, movers_idx)
+    E, Ei, ER = _environment(source)
+    P, Pi = _pairs(source, movers_idx)
     W = np.array([m.weights for m in movers]).reshape(len(movers), model.nv)
     chains = np.array([m.chain for m in movers]).reshape(len(movers), model.nv)
     PM = _pair_masks(chains, Pi)
     PW = _pair_weights(W, Pi, PM)
     L = np.concatenate([robot.lower, robot.upper])
     C = np.array([options.refine, options.free_eps, options.proof_eps,
-                  checker.options.resolution])
+                  source.resolution])
     blocks_f = [part.J.ravel(), G.ravel(), S_.ravel(), E.ravel(), P, W.ravel(), L, C,
-                V.ravel(), ER, checker.displacement_weights, PW.ravel()]
+                V.ravel(), ER, source.displacement_weights, PW.ravel()]
     blocks_i = [part.Ji.ravel(), Gi.ravel(), Ei, Pi.ravel(), PM.ravel(), AP, AI]
     f_off = np.cumsum([0] + [len(b) for b in blocks_f])
     i_off = K.HEADER + np.cumsum([0] + [len(b) for b in blocks_i])
     header = np.zeros(K.HEADER, dtype=np.int64)
     header[[K.H_NJ, K.H_NG, K.H_NS, K.H_NE, K.H_NP, K.H_DOF]] = (
-        model.njoints, len(movers), len(S_), len(checker._env), len(checker._pairs), model.nq)
+        model.njoints, len(movers), len(S_), len(source.environment), len(source.pairs), model.nq)
     header[[K.H_J, K.H_G, K.H_S, K.H_E, K.H_P, K.H_W, K.H_L, K.H_C, K.H_V, K.H_ER,
             K.H_DW, K.H_PW]] = f_off[:12]
     header[[K.H_JI, K.H_GI, K.H_EI, K.H_PI, K.H_PM, K.H_AP, K.H_AI]] = i_off[:7]
@@ -204,8 +224,6 @@ def pack(checker: CollisionChecker, options: LayerOptions
 
 def _mover_blocks(movers: list[_Mover]) -> tuple[np.ndarray, ...]:
     """G, Gi, the spheres, the hull vertices and the hulls' neighbour tables."""
-    from . import _fastkernels as K  # noqa: N812
-
     G = np.zeros((len(movers), K.GW))
     Gi = np.zeros((len(movers), K.GIW), dtype=np.int64)
     count = n_vertices = 0
@@ -229,16 +247,14 @@ def _mover_blocks(movers: list[_Mover]) -> tuple[np.ndarray, ...]:
     return G, Gi, S_, V, AP, AI
 
 
-def _environment(checker: CollisionChecker) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def _environment(source: LayerSource) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """World placement, dimensions and kind of each environment object, and the radius
     of a sphere about its centre that holds it."""
-    from . import _fastkernels as K  # noqa: N812
-
-    gmodel = checker._gmodel
-    E = np.zeros((len(checker._env), 15))
-    Ei = np.zeros(len(checker._env), dtype=np.int64)
-    ER = np.zeros(len(checker._env))
-    for e, g in enumerate(checker._env):
+    gmodel, env = source.geometry, source.environment
+    E = np.zeros((len(env), 15))
+    Ei = np.zeros(len(env), dtype=np.int64)
+    ER = np.zeros(len(env))
+    for e, g in enumerate(env):
         geom = gmodel.geometryObjects[g]
         shape = geom.geometry
         T = geom.placement.homogeneous.copy()
@@ -256,18 +272,18 @@ def _environment(checker: CollisionChecker) -> tuple[np.ndarray, np.ndarray, np.
     return E, Ei, ER
 
 
-def _pairs(checker: CollisionChecker, movers_idx: list[int]) -> tuple[np.ndarray, np.ndarray]:
+def _pairs(source: LayerSource, movers_idx: list[int]) -> tuple[np.ndarray, np.ndarray]:
     """Per pair: its security margin, and (mover, mover or environment object, is
     environment, margin >= 0), as the exact checker's pairs."""
-    n = checker._gmodel.ngeoms
+    n = source.geometry.ngeoms
     env_pos = np.full(n, -1, dtype=np.int64)
-    env_pos[checker._env] = np.arange(len(checker._env))
+    env_pos[source.environment] = np.arange(len(source.environment))
     mover_pos = np.full(n, -1, dtype=np.int64)
     mover_pos[movers_idx] = np.arange(len(movers_idx))
-    ab = np.array(checker._pairs, dtype=np.int64).reshape(-1, 2)
+    ab = np.array(source.pairs, dtype=np.int64).reshape(-1, 2)
     a, b = ab[:, 0], ab[:, 1]
     b_env, a_env = env_pos[b] >= 0, env_pos[a] >= 0
-    P = checker._security.astype(float)
+    P = source.security.astype(float)
     Pi = np.zeros((len(ab), 4), dtype=np.int64)
     Pi[:, 0] = np.where(a_env, mover_pos[b], mover_pos[a])
     Pi[:, 1] = np.where(b_env, env_pos[b], np.where(a_env, env_pos[a], mover_pos[b]))
@@ -278,8 +294,6 @@ def _pairs(checker: CollisionChecker, movers_idx: list[int]) -> tuple[np.ndarray
 
 def _holding_radius(kind: int, dims: np.ndarray) -> float:
     """Radius [m] of a sphere about a primitive's centre that holds it."""
-    from . import _fastkernels as K  # noqa: N812
-
     if kind in (K.ENV_BOX, K.ENV_BOX_ONLY_OUTER):
         return float(np.linalg.norm(dims))
     if kind == K.ENV_CYLINDER:
@@ -292,8 +306,6 @@ def _holding_radius(kind: int, dims: np.ndarray) -> float:
 def _primitive(shape: Any) -> tuple[int, np.ndarray]:
     """Kind code and dimensions [m] of a primitive the kernels measure exactly."""
     import coal
-
-    from . import _fastkernels as K  # noqa: N812
 
     if isinstance(shape, coal.Box):
         return K.ENV_BOX, np.asarray(shape.halfSide, dtype=float)

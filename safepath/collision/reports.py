@@ -1,4 +1,4 @@
-"""What collision checking is asked and answers: its options and its reports."""
+"""What collision checking answers: the report of a state and of a segment."""
 
 from __future__ import annotations
 
@@ -6,40 +6,10 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .errors import ConfigError
-
-__all__ = ["CheckOptions", "StateReport", "SegmentReport", "Pair"]
+__all__ = ["StateReport", "SegmentReport", "Pair"]
 
 #: A pair of names: robot links (``forearm_link``) or scene objects (``qc_conveyor``).
 Pair = tuple[str, str]
-
-
-@dataclass(frozen=True, kw_only=True)
-class CheckOptions:
-    """Options of the collision checker.
-
-    Attributes:
-        resolution: Largest motion of any robot point between two checked states of a
-            segment [m].
-        margin: Safety margin override for every object [m]; None keeps the scene's
-            default and per-object margins.
-        enforce_margin: Count a state closer to the environment than the margin as
-            invalid (planning does; pose checks only report it).
-        fast: Decide states with the sphere layer first (:mod:`safepath.fastcheck`);
-            answers are the same either way, False checks every state with coal.
-    """
-
-    resolution: float = 0.002
-    margin: float | None = None
-    enforce_margin: bool = False
-    fast: bool = True
-
-    def __post_init__(self) -> None:
-        if not np.isfinite(self.resolution) or self.resolution <= 0:
-            raise ConfigError(f"resolution must be > 0, got {self.resolution}",
-                              key="resolution")
-        if self.margin is not None and (not np.isfinite(self.margin) or self.margin < 0):
-            raise ConfigError(f"margin must be >= 0, got {self.margin}", key="margin")
 
 
 @dataclass(frozen=True)

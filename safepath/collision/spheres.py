@@ -1,6 +1,6 @@
 """Spheres fitted to collision shapes: outer sets that enclose a shape, inner sets inside it.
 
-The fast layer of the collision checker (:mod:`safepath.fastcheck`) answers most state
+The fast layer of the collision checker (:mod:`safepath.collision.layer`) answers most state
 queries with spheres instead of exact shapes. Its answers stay exact because
 
 * an **outer** set encloses the shape (every point of the shape lies in some sphere),
@@ -25,7 +25,7 @@ from typing import Any
 
 import numpy as np
 
-from ._digest import blake2b
+from .._digest import blake2b
 
 __all__ = ["SphereFit", "fit_spheres", "surface_points"]
 

@@ -1,6 +1,6 @@
 """Distance lower bounds between two placed convex shapes (numba; GJK's iteration).
 
-The sphere layer (:mod:`safepath._fastkernels`) uses this for convex hulls (the links of
+The sphere layer (:mod:`safepath.collision._kernels`) uses this for convex hulls (the links of
 robots with mesh geometry, e.g. example-robot-data's Panda), where a sphere covering
 overestimates the link by up to the covering's cell and leaves every state near an
 obstacle undecided.
@@ -13,13 +13,13 @@ points coal's hull is made of). Such a gap is a lower bound on the distance for 
 degenerate simplex can only stop the search early, giving a looser bound.
 
 numba's disk cache tracks only the file of the function it compiles: the kernels of
-:mod:`safepath._fastkernels` that call (and inline) these helpers keep their cached code
+:mod:`safepath.collision._kernels` that call (and inline) these helpers keep their cached code
 when only this file changes. After editing it in a source checkout, delete
-``safepath/__pycache__/_fastkernels*.nb*`` (an installed copy compiles afresh). Like the
+``safepath/collision/__pycache__/*.nb*`` (an installed copy compiles afresh). Like the
 helpers there, these are compiled without numba's reference counting (see
-:mod:`safepath._fastkernels`): no allocation, no array returned.
+:mod:`safepath.collision._kernels`): no allocation, no array returned.
 
-Shape kinds are those of :mod:`safepath._fastkernels` (box, cylinder, sphere, capsule,
+Shape kinds are those of :mod:`safepath.collision._layout` (box, cylinder, sphere, capsule,
 hull); a shape is (kind, world rotation ``R``, world position ``p``, dimensions ``d``,
 vertex rows ``v0:v1`` of the flat vertex block of ``fb`` starting at ``ov``, in the
 shape's own frame).
@@ -31,13 +31,13 @@ import math
 
 import numpy as np
 
-from ._aot import njit
+from .._aot import njit
 
 #: How these are compiled (see the module doc).
 _helper = njit(cache=True, nogil=True, _nrt=False)
 _inlined = njit(cache=True, nogil=True, _nrt=False, inline="always")
 
-# Same codes as safepath._fastkernels (kept here so that this module imports alone).
+# Same codes as safepath.collision._layout (kept here so that this module imports alone).
 BOX, CYLINDER, SPHERE, CAPSULE, BOX_ONLY_OUTER, HULL = 0, 1, 2, 3, 4, 5
 
 #: Absolute tolerance [m]: the search stops once the bound is this close to the distance

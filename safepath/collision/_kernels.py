@@ -1,0 +1,453 @@
+"""Numba kernels of the sphere layer (see :mod:`safepath.collision.layer`): a state's
+evaluation, its certificates along segments, and the entry points.
+
+Imported lazily: the first import compiles (or loads from numba's on-disk cache).
+All data of one checker travels in two flat buffers, ``fb`` (float64) and ``ib`` (int64),
+laid out as :mod:`safepath.collision._layout` says, by
+:func:`safepath.collision._pack.pack` (one call argument each keeps numba's dispatch
+cheap: the single-state API is called millions of times by planners). The kernels are
+split by step: kinematics and placement (:mod:`safepath.collision._placement`), the tests
+of one pair (:mod:`safepath.collision._pair_tests`, GJK in :mod:`safepath.collision._gjk`)
+and, here, a state's evaluation over all pairs and the certification of segments and
+polylines.
+
+Status codes: FREE (certainly valid), COLLIDES (certainly in collision or outside the
+limits), UNSURE (ask the exact checker).
+
+Reference counts: only the entry points (``classify``, ``classify_many``,
+``certify_polyline``, ``certify_segment`` and the ``_workspace`` they allocate) are
+compiled with numba's reference counting; every helper below them (here and in the
+modules named above) is compiled without it (``_nrt=False``): they allocate nothing and
+return no arrays, and the counts numba keeps on every array a helper is passed or slices
+took ~20 % of a planner's time on the Panda (``perf``: NRT_incref / NRT_decref). Such a
+helper must keep to that: no array allocation, no array returned, no array-to-array slice
+assignment.
+
+numba's disk cache tracks only the file of the function it compiles: after editing a
+helper module in a source checkout, delete ``safepath/collision/__pycache__/*.nb*``.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from .._aot import njit
+from ._layout import (
+    C_FREE_EPS,
+    C_PROOF_EPS,
+    C_REFINE,
+    C_RES,
+    COLLIDES,
+    FREE,
+    GIW,
+    GW,
+    H_C,
+    H_DOF,
+    H_DW,
+    H_E,
+    H_ER,
+    H_G,
+    H_GI,
+    H_J,
+    H_JI,
+    H_NG,
+    H_NJ,
+    H_NP,
+    H_NS,
+    H_P,
+    H_PI,
+    H_PM,
+    H_PW,
+    H_W,
+    JOINT_PRISMATIC,
+    OUTSIDE,
+    UNSURE,
+    W_FIXED,
+    WI_ABSU,
+    WI_BUDGET,
+    WI_CC,
+    WI_CERT,
+    WI_CW,
+    WI_DL,
+    WI_DLOK,
+    WI_HEADER,
+    WI_HINT,
+    WI_WARM,
+)
+from ._pair_tests import _env_sdist3, _pair_bound, _pair_collides
+from ._placement import _fk, _within_limits
+
+#: How the helpers are compiled (see the module doc).
+_helper = njit(cache=True, nogil=True, _nrt=False)
+_inlined = njit(cache=True, nogil=True, _nrt=False, inline="always")
+
+
+@njit(cache=True, nogil=True)
+def _workspace(ib):
+    """Fresh scratch (Rw, pw, wf, wi) for the checker packed in ``ib``."""
+    nj, ng, ns, npairs, dof = ib[H_NJ], ib[H_NG], ib[H_NS], ib[H_NP], ib[H_DOF]
+    wi = np.empty(WI_HEADER + 2 * npairs, dtype=np.int64)
+    sizes = (3 * ng, 5 * ns, 5 * ns, 3 * npairs, dof, ng * dof, ng * dof, npairs,
+             2 * npairs, ng)
+    o = W_FIXED
+    for i in range(10):
+        wi[i] = o
+        o += sizes[i]
+    wi[WI_HINT] = WI_HEADER
+    wi[WI_HEADER:] = -1
+    wf = np.empty(o)  # written before read, but for these blocks:
+    wf[wi[WI_WARM]:wi[WI_WARM] + 3 * npairs] = 0.0  # no direction yet
+    wf[wi[WI_DL]:wi[WI_BUDGET]] = 0.0  # DL, CC of joints that do not move a mover
+    return np.empty((nj, 3, 3)), np.empty((nj, 3)), wf, wi
+
+
+@_helper
+def _evaluate(q, fb, ib, Rw, pw, wf, wi, rates, want_radius, need, t):  # noqa: N803
+    """(status, radius) of one state inside the limits. With ``want_radius``, ``q`` is
+    the state at ``t`` of a segment walked along ``u`` and radius is the largest ``h``
+    such that every state ``q + t' u`` with ``|t'| < h`` is certainly valid,
+    ``rates[k]`` bounding how fast pair ``k`` can close per unit ``t`` (and wf's
+    WI_ABSU block filled by ``_pair_rates``, WI_CC by ``_axis_growth``), or some radius
+    of at least ``need`` when that is all the caller can use: pairs whose closing-rate
+    radius reaches ``need`` skip the finer local radius, and a pair is not evaluated at
+    all when the stretch an earlier state of the segment certified for it (wf's WI_CERT
+    block, which this updates) covers ``need`` either side of ``t``."""
+    _fk(q, fb, ib, Rw, pw, wf)
+    oc = ib[H_C]
+    refine, free_eps, proof_eps = fb[oc + C_REFINE], fb[oc + C_FREE_EPS], fb[oc + C_PROOF_EPS]
+    if not want_radius:
+        refine = 0.0
+    og, ogi, op_, of_ = ib[H_G], ib[H_GI], ib[H_PI], ib[H_P]
+    ocw, obud = wi[WI_CW], wi[WI_BUDGET]
+    odl, occ, oabs = wi[WI_DL], wi[WI_CC], wi[WI_ABSU]
+    # Bounding spheres of the movers, in the world.
+    for m in range(ib[H_NG]):
+        j = ib[ogi + GIW * m]
+        x, y, z = fb[og + GW * m], fb[og + GW * m + 1], fb[og + GW * m + 2]
+        for r in range(3):
+            wf[ocw + 3 * m + r] = (Rw[j, r, 0] * x + Rw[j, r, 1] * y + Rw[j, r, 2] * z
+                                   + pw[j, r])
+    odlok = wi[WI_DLOK]
+    if want_radius:
+        for m in range(ib[H_NG]):  # measured when a pair first needs them
+            wf[odlok + m] = 0.0
+    unsure = False
+    radius = 1e300
+    oe, oer, ocert = ib[H_E], ib[H_ER], wi[WI_CERT]
+    for k in range(ib[H_NP]):
+        if want_radius:
+            # Free for every state within ``need`` of this one: its bound is no limit.
+            c, w = wf[ocert + 2 * k], wf[ocert + 2 * k + 1]
+            if t - need > c - w and t + need < c + w:
+                if need < radius:
+                    radius = need
+                continue
+        a, b, is_env = ib[op_ + 4 * k], ib[op_ + 4 * k + 1], ib[op_ + 4 * k + 2]
+        sm = max(fb[of_ + k], 0.0)
+        cax, cay, caz = wf[ocw + 3 * a], wf[ocw + 3 * a + 1], wf[ocw + 3 * a + 2]
+        if is_env == 1:
+            if not want_radius:
+                # Broad phase: bounding spheres apart by more than the margin decide the
+                # pair (free) without measuring the object.
+                dx = cax - fb[oe + 15 * b + 9]
+                dy = cay - fb[oe + 15 * b + 10]
+                dz = caz - fb[oe + 15 * b + 11]
+                reach = fb[og + GW * a + 3] + fb[oer + b] + sm + free_eps
+                if dx * dx + dy * dy + dz * dz > reach * reach:
+                    continue
+            coarse = _env_sdist3(fb, ib, b, cax, cay, caz) - fb[og + GW * a + 3]
+        else:
+            dd = ((cax - wf[ocw + 3 * b]) ** 2 + (cay - wf[ocw + 3 * b + 1]) ** 2
+                  + (caz - wf[ocw + 3 * b + 2]) ** 2)
+            rr = fb[og + GW * a + 3] + fb[og + GW * b + 3]
+            if not want_radius and dd > (rr + sm + free_eps) ** 2:
+                continue
+            coarse = math.sqrt(dd) - rr
+        budget = coarse - sm - free_eps
+        if budget <= refine:
+            budget = max(coarse, _pair_bound(k, fb, ib, Rw, pw, wf, wi,
+                                             refine + free_eps)) - sm - free_eps
+        if budget <= 0.0:
+            if _pair_collides(k, fb, ib, proof_eps, Rw, pw, wf, wi):
+                return COLLIDES, 0.0
+            unsure = True
+            continue
+        if not want_radius:
+            continue
+        left = budget - rates[k] * (1.0 - t)  # at the segment's end
+        if left > wf[obud + k]:
+            wf[obud + k] = left
+        h = 1e300  # a pair the segment does not move stays free along all of it
+        if rates[k] > 0.0:
+            h = budget / rates[k]
+            if h < need:
+                if wf[odlok + a] == 0.0:
+                    _axis_distances(a, fb, ib, Rw, pw, wf, ocw, odl)
+                    wf[odlok + a] = 1.0
+                if is_env == 0 and wf[odlok + b] == 0.0:
+                    _axis_distances(b, fb, ib, Rw, pw, wf, ocw, odl)
+                    wf[odlok + b] = 1.0
+                h = max(h, _local_radius(k, a, b, budget, ib, wf, odl, occ, oabs))
+            if h < radius:
+                radius = h
+        wf[ocert + 2 * k] = t
+        wf[ocert + 2 * k + 1] = h * (1.0 - 1e-12)
+    if unsure:
+        return UNSURE, 0.0
+    return FREE, radius
+
+
+@_inlined
+def _axis_distances(m, fb, ib, Rw, pw, wf, ocw, odl):  # noqa: N803
+    """DL[m, v] (wf from ``odl``, rows of dof): how fast [m per unit of joint v] mover
+    ``m``'s points move when joint ``v`` alone moves, at the state placed in Rw, pw and
+    the bounding centres (wf from ``ocw``): the distance of its bounding sphere from the
+    joint's axis plus its radius (revolute), 1 (prismatic)."""
+    oj, oji, og, ogi = ib[H_J], ib[H_JI], ib[H_G], ib[H_GI]
+    dof = ib[H_DOF]
+    r_m = fb[og + GW * m + 3]
+    j = ib[ogi + GIW * m]
+    while j > 0:
+        v = ib[oji + 3 * j + 2]
+        if ib[oji + 3 * j + 1] == JOINT_PRISMATIC:
+            wf[odl + m * dof + v] = 1.0
+        else:
+            base = oj + 15 * j
+            ax, ay, az = fb[base + 12], fb[base + 13], fb[base + 14]
+            ux = Rw[j, 0, 0] * ax + Rw[j, 0, 1] * ay + Rw[j, 0, 2] * az
+            uy = Rw[j, 1, 0] * ax + Rw[j, 1, 1] * ay + Rw[j, 1, 2] * az
+            uz = Rw[j, 2, 0] * ax + Rw[j, 2, 1] * ay + Rw[j, 2, 2] * az
+            dx = wf[ocw + 3 * m] - pw[j, 0]
+            dy = wf[ocw + 3 * m + 1] - pw[j, 1]
+            dz = wf[ocw + 3 * m + 2] - pw[j, 2]
+            cx, cy, cz = dy * uz - dz * uy, dz * ux - dx * uz, dx * uy - dy * ux
+            wf[odl + m * dof + v] = math.sqrt(cx * cx + cy * cy + cz * cz) + r_m
+        j = ib[oji + 3 * j]
+
+
+@_inlined
+def _local_radius(k, a, b, budget, ib, wf, odl, occ, oabs):  # noqa: N803
+    """A radius (in units of ``t``) within which pair ``k`` cannot close by ``budget`` [m],
+    from the bodies' distances to the joint axes at this state (DL, see
+    ``_axis_distances``), which grow along the segment by at most CC per unit of ``t``
+    (wf from ``odl``, ``occ``; |u| from ``oabs``): the closing speed is at most
+    A + B |t|, so the radius solves A h + B h^2 / 2 = budget."""
+    dof, opm = ib[H_DOF], ib[H_PM] + k * ib[H_DOF]
+    A = B = 0.0
+    for v in range(dof):
+        au = wf[oabs + v]
+        if au == 0.0:
+            continue
+        mask = ib[opm + v]
+        if mask & 1:
+            A += au * wf[odl + a * dof + v]
+            B += au * wf[occ + a * dof + v]
+        if mask & 2:
+            A += au * wf[odl + b * dof + v]
+            B += au * wf[occ + b * dof + v]
+    if A <= 0.0:
+        return 0.0
+    if B <= 1e-12 * A:
+        return budget / A
+    return (math.sqrt(A * A + 2.0 * B * budget) - A) / B
+
+
+@njit(cache=True, nogil=True)
+def classify(q, fb, ib):  # noqa: N803
+    """Status of one state: FREE, COLLIDES (or outside the limits) or UNSURE."""
+    if not _within_limits(q, fb, ib):
+        return COLLIDES
+    Rw, pw, wf, wi = _workspace(ib)
+    status, _ = _evaluate(q, fb, ib, Rw, pw, wf, wi, wf, False, 0.0, 0.0)
+    return status
+
+
+@njit(cache=True, nogil=True)
+def classify_many(Q, fb, ib, out):  # noqa: N803
+    """Status of every row of ``Q`` into ``out``."""
+    Rw, pw, wf, wi = _workspace(ib)
+    for i in range(Q.shape[0]):
+        if not _within_limits(Q[i], fb, ib):
+            out[i] = COLLIDES
+            continue
+        out[i], _ = _evaluate(Q[i], fb, ib, Rw, pw, wf, wi, wf, False, 0.0, 0.0)
+
+
+@_helper
+def _pair_rates(u, fb, ib, wf, wi, rates):  # noqa: N803
+    """Per pair, a bound on how fast its two bodies approach per unit of ``t`` along
+    the joint-space direction ``u`` [m] (joints that carry both bodies leave their
+    distance alone: their H_PW weight is 0). Also wf's WI_ABSU block = |u|."""
+    dof, opw = ib[H_DOF], ib[H_PW]
+    oabs = wi[WI_ABSU]
+    for v in range(dof):
+        wf[oabs + v] = abs(u[v])
+    for k in range(ib[H_NP]):
+        row = opw + k * dof
+        r = 0.0
+        for v in range(dof):
+            r += fb[row + v] * wf[oabs + v]
+        rates[k] = r
+
+
+@_helper
+def _axis_growth(fb, ib, wf, wi):  # noqa: N803
+    """Per mover and joint, wf's WI_CC block: how fast the mover's distance to that
+    joint's axis can grow per unit of ``t`` along the direction whose |u| is in the
+    WI_ABSU block (the joints between the two move it, at most by their weights).
+    Only an evaluation with a radius reads it."""
+    dof, ow, oji, ogi = ib[H_DOF], ib[H_W], ib[H_JI], ib[H_GI]
+    oabs, occ = wi[WI_ABSU], wi[WI_CC]
+    for m in range(ib[H_NG]):
+        acc = 0.0
+        j = ib[ogi + GIW * m]
+        while j > 0:
+            v = ib[oji + 3 * j + 2]
+            wf[occ + m * dof + v] = 0.0 if ib[oji + 3 * j + 1] == JOINT_PRISMATIC else acc
+            acc += fb[ow + m * dof + v] * wf[oabs + v]
+            j = ib[oji + 3 * j]
+
+
+@njit(cache=True, nogil=True)
+def certify_polyline(P, n, lo, hi, fb, ib, unsure_seg, unsure_idx, max_unsure):  # noqa: N803
+    """Certify the grid states of a joint polyline.
+
+    Segment ``k`` of ``P`` (rows) is cut into ``n[k]`` equal steps; its grid states
+    ``lo[k]..hi[k]`` (0 = ``P[k]``, ``n[k]`` = ``P[k+1]``) must be valid. States are
+    visited coarse to fine (middle first); a state the spheres prove free certifies
+    its neighbours within its clearance radius, a state they cannot decide is written
+    to ``unsure_seg/unsure_idx`` for the exact checker. Every endpoint must lie inside
+    the limits (the caller checks them; the limit box is convex).
+
+    Returns:
+        (status, segment, index, evaluated, unsure): COLLIDES with the colliding grid
+        state; UNSURE when ``max_unsure`` undecided states were found (the walk stopped:
+        the exact checker should look at those first, a collision is often among them);
+        else FREE (no state left but the unsure ones).
+    """
+    npairs, dof = ib[H_NP], ib[H_DOF]
+    Rw, pw, wf, wi = _workspace(ib)
+    obud, ocert = wi[WI_BUDGET], wi[WI_CERT]
+    rates = np.empty(npairs)
+    u = np.empty(dof)
+    qs = np.empty(dof)
+    n_unsure = 0
+    evaluated = 0
+    # The ledger (wf's WI_BUDGET block): per pair, the most clearance budget [m] left at
+    # the start of the segment by any state evaluated before it (its budget less what
+    # the path since may have closed: the pair's rate times the path walked, segment by
+    # segment), none (<= 0) yet. A pair within its budget over a whole segment is not
+    # evaluated there; a segment within every pair's is certified without an evaluation
+    # (short chords of a sampled curve).
+    for p in range(npairs):
+        wf[obud + p] = -1.0
+    # FIFO of disjoint, non-empty index ranges still to cover (coarse to fine), made once
+    # for the longest segment: a segment's live ranges and the two it adds fit in it.
+    room = 3
+    for k in range(P.shape[0] - 1):
+        room = max(room, hi[k] - lo[k] + 3)
+    qlo = np.empty(room, dtype=np.int64)
+    qhi = np.empty(room, dtype=np.int64)
+    for k in range(P.shape[0] - 1):
+        for j in range(dof):
+            u[j] = P[k + 1, j] - P[k, j]
+        _pair_rates(u, fb, ib, wf, wi, rates)
+        whole = hi[k] < lo[k]  # no state of this segment to check
+        if not whole:
+            whole = True
+            for p in range(npairs):
+                if wf[obud + p] - rates[p] <= 0.0:
+                    whole = False
+                    break
+        if whole:
+            for p in range(npairs):
+                wf[obud + p] -= rates[p]
+            continue
+        # Each pair starts certified from the segment's start as far as its budget
+        # lasts; the ledger becomes what that budget leaves at the segment's end (the
+        # evaluations below raise it).
+        for p in range(npairs):
+            left = wf[obud + p]
+            width = -1.0
+            if left > 0.0:
+                width = 1e300 if rates[p] == 0.0 else left / rates[p] * (1.0 - 1e-12)
+            wf[ocert + 2 * p] = 0.0
+            wf[ocert + 2 * p + 1] = width
+            wf[obud + p] = left - rates[p]
+        _axis_growth(fb, ib, wf, wi)  # for this segment's evaluations
+        nk = n[k]
+        head, tail = 0, 1
+        qlo[0], qhi[0] = lo[k], hi[k]
+        while head < tail:
+            a, b = qlo[head], qhi[head]
+            head += 1
+            mid = (a + b) // 2
+            t = mid / nk
+            for j in range(dof):
+                qs[j] = P[k, j] + t * u[j]
+            # A radius covering the rest of [a, b] is all this walk can use.
+            need = (max(mid - a, b - mid) + 0.5) / nk
+            status, radius = _evaluate(qs, fb, ib, Rw, pw, wf, wi, rates, True, need, t)
+            evaluated += 1
+            if status == COLLIDES:
+                return COLLIDES, k, mid, evaluated, n_unsure
+            m = 0
+            if status == FREE:
+                # Grid states with |i - mid| / nk < radius are certified.
+                reach = radius * nk * (1.0 - 1e-12)
+                m = nk if reach >= nk else max(int(math.ceil(reach)) - 1, 0)
+            else:
+                unsure_seg[n_unsure] = k
+                unsure_idx[n_unsure] = mid
+                n_unsure += 1
+                if n_unsure >= max_unsure:
+                    return UNSURE, k, mid, evaluated, n_unsure
+            if tail + 2 > room:
+                live = tail - head
+                qlo[:live] = qlo[head:tail].copy()
+                qhi[:live] = qhi[head:tail].copy()
+                head, tail = 0, live
+            if a <= mid - m - 1:
+                qlo[tail], qhi[tail] = a, mid - m - 1
+                tail += 1
+            if mid + m + 1 <= b:
+                qlo[tail], qhi[tail] = mid + m + 1, b
+                tail += 1
+    return FREE, -1, -1, evaluated, n_unsure
+
+
+@njit(cache=True, nogil=True)
+def certify_segment(q0, q1, fb, ib, skip_start, skip_end, unsure_idx):  # noqa: N803
+    """One straight segment, as :func:`certify_polyline` walks it, with what its caller
+    would otherwise do in Python around it (the planners' edge check: ~60 % of its time
+    went there): the limits at both ends, the grid count from the displacement weights
+    and the resolution, states 0 (unless ``skip_start``) to n (n - 1 with ``skip_end``).
+    The walk stops once it has left ``len(unsure_idx)`` states undecided, their grid
+    indices written there in the order found.
+
+    Returns:
+        (status, index, evaluated, unsure, n): OUTSIDE with index 0 (start) or 1 (end);
+        COLLIDES with the colliding grid index; UNSURE or FREE as certify_polyline, with
+        ``unsure`` undecided states found (FREE: all of them; UNSURE: the walk stopped).
+    """
+    if not _within_limits(q0, fb, ib):
+        return OUTSIDE, 0, 0, 0, 0
+    if not _within_limits(q1, fb, ib):
+        return OUTSIDE, 1, 0, 0, 0
+    dof, odw = ib[H_DOF], ib[H_DW]
+    bound = 0.0
+    for j in range(dof):
+        bound += fb[odw + j] * abs(q1[j] - q0[j])
+    n = max(1, int(math.ceil(bound / fb[ib[H_C] + C_RES])))
+    P = np.empty((2, dof))
+    for j in range(dof):
+        P[0, j], P[1, j] = q0[j], q1[j]
+    counts = np.full(1, n, dtype=np.int64)
+    lo = np.full(1, 1 if skip_start else 0, dtype=np.int64)
+    hi = np.full(1, n - 1 if skip_end else n, dtype=np.int64)
+    seg = np.empty(max(unsure_idx.shape[0], 1), dtype=np.int64)
+    status, _, i, evaluated, unsure = certify_polyline(P, counts, lo, hi, fb, ib, seg,
+                                                       unsure_idx, unsure_idx.shape[0])
+    return status, i, evaluated, unsure, n

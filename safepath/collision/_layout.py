@@ -1,0 +1,76 @@
+"""The layout of the sphere layer's two flat buffers, read by its kernels.
+
+All data of one checker travels in two flat buffers, ``fb`` (float64) and ``ib`` (int64),
+laid out by :func:`safepath.collision._pack.pack` (one call argument each keeps numba's
+dispatch cheap: the single-state API is called millions of times by planners): an int
+header of block positions (H_*), the constants (C_*), the rows of the movers (GW, GIW
+wide) and of the environment objects, and the shape kinds. A kernel call's scratch
+(``wf``, ``wi``) is laid out here too (W_*, WI_*).
+
+Only constants: importing this module compiles nothing (the packer reads it).
+The kernels read these as compile-time constants; :mod:`safepath._aot` keys its
+builds on this file's source too.
+"""
+
+from __future__ import annotations
+
+FREE, COLLIDES, UNSURE = 0, 1, 2
+
+# Int header (positions in ib).
+H_NJ, H_NG, H_NS, H_NE, H_NP, H_DOF = 0, 1, 2, 3, 4, 5
+H_J, H_G, H_S, H_E, H_P, H_W, H_L, H_C = 6, 7, 8, 9, 10, 11, 12, 13
+H_JI, H_GI, H_EI, H_PI = 14, 15, 16, 17
+H_V = 18  # vertices of hull movers (x, y, z rows, each in its shape's frame)
+#: Per pair and joint (ints): bit 1 if the joint moves body a relative to body b (or
+#: to the world), bit 2 if it moves b relative to a (joints that carry both: 0).
+H_PM = 19
+#: Hull edges (ints): per vertex row, where its neighbours start in the H_AI block
+#: (rows + 1 entries), and the neighbours' rows.
+H_AP, H_AI = 20, 21
+#: Radius of a sphere about each environment object's centre that holds it (floats).
+H_ER = 22
+#: The checker's displacement weights (floats, dof): a joint step dq moves no point of
+#: the robot (or held object) more than sum(w |dq|) [m].
+H_DW = 23
+#: Per pair and joint (floats, pairs x dof): how fast the joint can close the pair [m per
+#: unit of the joint]: body a's weight where H_PM has bit 1, plus body b's where it has
+#: bit 2 (added in that order, as the masks would), else 0.
+H_PW = 24
+HEADER = 25
+# Constants (fb[ib[H_C] + k]); C_RES: the checker's resolution [m].
+C_REFINE, C_FREE_EPS, C_PROOF_EPS, C_RES = 0, 1, 2, 3
+#: Status of a segment whose start (index 0) or end (index 1) is outside the limits.
+OUTSIDE = 3
+
+ENV_BOX, ENV_CYLINDER, ENV_SPHERE, ENV_CAPSULE, ENV_BOX_ONLY_OUTER = 0, 1, 2, 3, 4
+#: Shape kinds of movers (same codes; HULL: a convex hull, measured by GJK on its
+#: vertices; SPHERES_ONLY: no primitive, spheres decide).
+SPHERES_ONLY = -1
+#: Widths of a mover's rows: floats (bounding centre 3, radius 1, rotation 9, position 3
+#: in the joint frame, dimensions 3) and ints (joint, outer start/end, inner start/end,
+#: kind, hull vertex start/end).
+GW, GIW = 19, 8
+JOINT_FIXED, JOINT_REVOLUTE, JOINT_PRISMATIC = 0, 1, 2
+
+#: Scratch of one kernel call: the joint frames ``Rw`` (nj, 3, 3) and ``pw`` (nj, 3), one
+#: float buffer ``wf`` and one int buffer ``wi``. Helpers take these four arrays, never a
+#: tuple of many: a numba call pays the reference counts (and copies the descriptors) of
+#: every array it is passed, ~10 ns each, and the per-pair helpers run millions of times a
+#: second. ``wf`` starts with fixed slots (W_*: two 3-vectors, two placed shapes, the
+#: separating-axis candidates, GJK's simplex and supports, a local joint placement); the
+#: per-checker blocks follow, where ``wi``'s header says (WI_*); ``wi`` then holds, per
+#: pair, the hull vertices where GJK's support searches start.
+W_TMP, W_TMP2, W_RA, W_PA, W_DA, W_RB, W_PB, W_DB = 0, 3, 6, 15, 18, 21, 30, 33
+W_AXES, W_S, W_SA, W_SB, W_GV, W_M, W_T = 36, 108, 120, 123, 126, 129, 138
+W_FIXED = 141
+#: Blocks of ``wf``: world bounding-sphere centres of the movers (ng, 3); two placed sphere
+#: sets (ns, 5) each; per pair, the last direction GJK found (3: the next state's first
+#: guess); |u| (dof); per mover and joint, its distance to the joint's axis (DL) and how
+#: fast that can grow (CC) (ng, dof); per pair, the polyline walk's ledger: the most
+#: clearance budget [m] an evaluated state leaves at the end of the segment being walked
+#: (npairs); per pair, the stretch of that segment it is certified along (centre and
+#: half-width in units of ``t``; a negative width: none) (npairs, 2); per mover, 1 once
+#: its DL row is measured at the state being evaluated, else 0 (ng).
+(WI_CW, WI_BUFA, WI_BUFB, WI_WARM, WI_ABSU, WI_DL, WI_CC, WI_BUDGET, WI_CERT, WI_DLOK,
+ WI_HINT) = range(11)
+WI_HEADER = 11

@@ -1,0 +1,366 @@
+"""Kernels of the sphere layer: the tests of one pair.
+
+Lower bounds on the distance of a pair of shapes at a placed state (signed distances of
+points to the scene's primitives, separating axes of two primitives, GJK on convex hulls
+through :mod:`safepath.collision._gjk`, fine sphere sets) and the proofs of a collision
+(inner spheres, the complete separating-axis test of two boxes, GJK's upper bound), for
+:mod:`safepath.collision._kernels`. Compiled without numba's reference counting (see
+there): no allocation, no array returned.
+
+numba's disk cache tracks only the file of the function it compiles: the kernels of
+:mod:`safepath.collision._kernels` that call (and inline) these helpers keep their cached
+code when only this file changes. After editing it in a source checkout, delete
+``safepath/collision/__pycache__/*.nb*`` (an installed copy compiles afresh; the kernels
+compiled ahead of time are keyed on every kernel module's source).
+"""
+
+from __future__ import annotations
+
+import math
+
+from .._aot import njit
+from ._gjk import HULL, distance_lower_bound, distance_upper_bound
+from ._layout import (
+    ENV_BOX,
+    ENV_BOX_ONLY_OUTER,
+    ENV_CAPSULE,
+    ENV_CYLINDER,
+    ENV_SPHERE,
+    GIW,
+    GW,
+    H_AI,
+    H_AP,
+    H_E,
+    H_EI,
+    H_G,
+    H_GI,
+    H_P,
+    H_PI,
+    H_S,
+    H_V,
+    SPHERES_ONLY,
+    W_AXES,
+    W_DA,
+    W_DB,
+    W_GV,
+    W_PA,
+    W_PB,
+    W_RA,
+    W_RB,
+    W_S,
+    W_SA,
+    W_SB,
+    W_TMP,
+    W_TMP2,
+    WI_BUFA,
+    WI_BUFB,
+    WI_CW,
+    WI_HINT,
+    WI_WARM,
+)
+from ._placement import _mover_frame, _place_spheres, _world
+
+#: How the helpers are compiled (see :mod:`safepath.collision._kernels`).
+_helper = njit(cache=True, nogil=True, _nrt=False)
+_inlined = njit(cache=True, nogil=True, _nrt=False, inline="always")
+
+
+@_helper
+def _env_sdist3(fb, ib, e, px, py, pz):  # noqa: N803
+    """Signed distance [m] from world point (px, py, pz) to environment object ``e`` (for
+    ENV_BOX_ONLY_OUTER: to a box that encloses it, a lower bound)."""
+    base = ib[H_E] + 15 * e
+    dx = px - fb[base + 9]
+    dy = py - fb[base + 10]
+    dz = pz - fb[base + 11]
+    # Local coordinates: R^T (p - t).
+    x = fb[base + 0] * dx + fb[base + 3] * dy + fb[base + 6] * dz
+    y = fb[base + 1] * dx + fb[base + 4] * dy + fb[base + 7] * dz
+    z = fb[base + 2] * dx + fb[base + 5] * dy + fb[base + 8] * dz
+    a, b, c = fb[base + 12], fb[base + 13], fb[base + 14]
+    kind = ib[ib[H_EI] + e]
+    if kind == ENV_BOX or kind == ENV_BOX_ONLY_OUTER:
+        qx, qy, qz = abs(x) - a, abs(y) - b, abs(z) - c
+        ox, oy, oz = max(qx, 0.0), max(qy, 0.0), max(qz, 0.0)
+        return math.sqrt(ox * ox + oy * oy + oz * oz) + min(max(qx, max(qy, qz)), 0.0)
+    if kind == ENV_CYLINDER:
+        dr = math.sqrt(x * x + y * y) - a
+        dzz = abs(z) - b
+        o1, o2 = max(dr, 0.0), max(dzz, 0.0)
+        return math.sqrt(o1 * o1 + o2 * o2) + min(max(dr, dzz), 0.0)
+    if kind == ENV_SPHERE:
+        return math.sqrt(x * x + y * y + z * z) - a
+    zc = min(max(z, -b), b)
+    return math.sqrt(x * x + y * y + (z - zc) * (z - zc)) - a
+
+
+@_inlined
+def _support(kind, wf, o, d, nx, ny, nz):  # noqa: N803
+    """Half extent [m] along unit n of a primitive placed in ``wf`` (rotation rows at
+    wf[o:o+9], dimensions at wf[d:d+3])."""
+    if kind == ENV_BOX or kind == ENV_BOX_ONLY_OUTER:
+        return (wf[d] * abs(wf[o] * nx + wf[o + 3] * ny + wf[o + 6] * nz)
+                + wf[d + 1] * abs(wf[o + 1] * nx + wf[o + 4] * ny + wf[o + 7] * nz)
+                + wf[d + 2] * abs(wf[o + 2] * nx + wf[o + 5] * ny + wf[o + 8] * nz))
+    if kind == ENV_SPHERE:
+        return wf[d]
+    c = wf[o + 2] * nx + wf[o + 5] * ny + wf[o + 8] * nz
+    if kind == ENV_CAPSULE:
+        return wf[d + 1] * abs(c) + wf[d]
+    return wf[d + 1] * abs(c) + wf[d] * math.sqrt(max(0.0, 1.0 - c * c))
+
+
+@_inlined
+def _primitive_axes(kind, wf, o, n):  # noqa: N803
+    """Append the own axes of the primitive whose rotation is at wf[o:o+9] (box: its three
+    face normals; cylinder, capsule: its z axis) to the candidate axes from row ``n``;
+    returns the new row count."""
+    if kind == ENV_BOX or kind == ENV_BOX_ONLY_OUTER:
+        for c in range(3):
+            x = W_AXES + 3 * n
+            wf[x], wf[x + 1], wf[x + 2] = wf[o + c], wf[o + 3 + c], wf[o + 6 + c]
+            n += 1
+    elif kind == ENV_CYLINDER or kind == ENV_CAPSULE:
+        x = W_AXES + 3 * n
+        wf[x], wf[x + 1], wf[x + 2] = wf[o + 2], wf[o + 5], wf[o + 8]
+        n += 1
+    return n
+
+
+@_inlined
+def _push_axis(wf, n, x, y, z):  # noqa: N803
+    """Append (x, y, z) normalised to the candidate axes unless it is ~0; the row count."""
+    norm = math.sqrt(x * x + y * y + z * z)
+    if norm > 1e-9:
+        o = W_AXES + 3 * n
+        wf[o], wf[o + 1], wf[o + 2] = x / norm, y / norm, z / norm
+        n += 1
+    return n
+
+
+@_helper
+def _sat_gap(ka, kb, wf):  # noqa: N803
+    """Lower bound [m] on the distance of the two convex primitives placed in ``wf`` (A at
+    W_RA, W_PA, W_DA; B at W_RB, W_PB, W_DB): the largest gap between their projections
+    over a set of separating-axis candidates (face normals, primitive axes, their cross
+    products, the centre line). For two boxes the 15 axes are complete: a bound < 0 then
+    means they intersect."""
+    na = _primitive_axes(ka, wf, W_RA, 0)
+    nb = _primitive_axes(kb, wf, W_RB, na)
+    n = nb
+    for i in range(na):
+        oi = W_AXES + 3 * i
+        for j in range(na, nb):
+            oj = W_AXES + 3 * j
+            n = _push_axis(wf, n, wf[oi + 1] * wf[oj + 2] - wf[oi + 2] * wf[oj + 1],
+                           wf[oi + 2] * wf[oj] - wf[oi] * wf[oj + 2],
+                           wf[oi] * wf[oj + 1] - wf[oi + 1] * wf[oj])
+    dx, dy, dz = wf[W_PB] - wf[W_PA], wf[W_PB + 1] - wf[W_PA + 1], wf[W_PB + 2] - wf[W_PA + 2]
+    n = _push_axis(wf, n, dx, dy, dz)
+    # Round shapes: the centre line's part across each axis.
+    for which in range(2):
+        kind = ka if which == 0 else kb
+        if kind == ENV_CYLINDER or kind == ENV_CAPSULE:
+            o = W_RA if which == 0 else W_RB
+            ax, ay, az = wf[o + 2], wf[o + 5], wf[o + 8]
+            t = dx * ax + dy * ay + dz * az
+            n = _push_axis(wf, n, dx - t * ax, dy - t * ay, dz - t * az)
+    best = -1e300
+    for i in range(n):
+        o = W_AXES + 3 * i
+        x, y, z = wf[o], wf[o + 1], wf[o + 2]
+        gap = (abs(dx * x + dy * y + dz * z)
+               - _support(ka, wf, W_RA, W_DA, x, y, z)
+               - _support(kb, wf, W_RB, W_DB, x, y, z))
+        if gap > best:
+            best = gap
+    return best
+
+
+@_helper
+def _place_pair(fb, ib, a, b, is_env, Rw, pw, wf):  # noqa: N803
+    """Place mover ``a``'s shape (W_RA, W_PA, W_DA) and environment object (``is_env``) or
+    mover ``b``'s shape (W_RB, W_PB, W_DB) in ``wf`` at the state of Rw, pw; returns their
+    kinds."""
+    og, ogi = ib[H_G], ib[H_GI]
+    ka = ib[ogi + GIW * a + 5]
+    _mover_frame(fb, ib, a, Rw, pw, wf, W_RA, W_PA)
+    for r in range(3):
+        wf[W_DA + r] = fb[og + GW * a + 16 + r]
+    if is_env == 1:
+        oe = ib[H_E] + 15 * b
+        kb = ib[ib[H_EI] + b]
+        for r in range(3):
+            wf[W_PB + r] = fb[oe + 9 + r]
+            wf[W_DB + r] = fb[oe + 12 + r]
+            for c in range(3):
+                wf[W_RB + 3 * r + c] = fb[oe + 3 * r + c]
+    else:
+        kb = ib[ogi + GIW * b + 5]
+        _mover_frame(fb, ib, b, Rw, pw, wf, W_RB, W_PB)
+        for r in range(3):
+            wf[W_DB + r] = fb[og + GW * b + 16 + r]
+    return ka, kb
+
+
+@_helper
+def _sat_pair(fb, ib, a, b, is_env, Rw, pw, wf):  # noqa: N803
+    """Separating-axis bound [m] between mover ``a``'s primitive and environment object
+    (``is_env``) or mover ``b``'s primitive, at the state of Rw, pw."""
+    ka, kb = _place_pair(fb, ib, a, b, is_env, Rw, pw, wf)
+    return _sat_gap(ka, kb, wf)
+
+
+@_helper
+def _gjk_pair(fb, ib, k, a, b, is_env, Rw, pw, wf, wi, low, high):  # noqa: N803
+    """GJK's distance lower bound [m] between mover ``a``'s shape and environment object
+    or mover ``b``'s (pair ``k``; its last direction warm-starts the search), searched
+    until it reaches ``high`` or the distance is known to be at most ``low``."""
+    ogi = ib[H_GI]
+    ka, kb = _place_pair(fb, ib, a, b, is_env, Rw, pw, wf)
+    va0, va1 = ib[ogi + GIW * a + 6], ib[ogi + GIW * a + 7]
+    vb0 = vb1 = 0
+    if is_env == 0:
+        vb0, vb1 = ib[ogi + GIW * b + 6], ib[ogi + GIW * b + 7]
+    ow, oh = wi[WI_WARM] + 3 * k, wi[WI_HINT] + 2 * k
+    return distance_lower_bound(ka, wf[W_RA:W_RA + 9].reshape((3, 3)), wf[W_PA:W_PA + 3],
+                                wf[W_DA:W_DA + 3], va0, va1, kb,
+                                wf[W_RB:W_RB + 9].reshape((3, 3)), wf[W_PB:W_PB + 3],
+                                wf[W_DB:W_DB + 3], vb0, vb1, fb, ib[H_V], ib, ib[H_AP],
+                                ib[H_AI], wi[oh:oh + 2], wf[ow:ow + 3],
+                                wf[W_S:W_S + 12].reshape((4, 3)), wf[W_SA:W_SA + 3],
+                                wf[W_SB:W_SB + 3], wf[W_GV:W_GV + 3], wf[W_TMP:W_TMP + 3],
+                                low, high)
+
+
+@_helper
+def _gjk_overlap(fb, ib, k, a, b, is_env, Rw, pw, wf, wi, goal):  # noqa: N803
+    """GJK's upper bound [m] on the signed distance of pair ``k``'s shapes (negative: they
+    overlap at least that deep), searched until it is below ``goal``."""
+    ogi = ib[H_GI]
+    ka, kb = _place_pair(fb, ib, a, b, is_env, Rw, pw, wf)
+    va0, va1 = ib[ogi + GIW * a + 6], ib[ogi + GIW * a + 7]
+    vb0 = vb1 = 0
+    if is_env == 0:
+        vb0, vb1 = ib[ogi + GIW * b + 6], ib[ogi + GIW * b + 7]
+    ow, oh = wi[WI_WARM] + 3 * k, wi[WI_HINT] + 2 * k
+    return distance_upper_bound(ka, wf[W_RA:W_RA + 9].reshape((3, 3)), wf[W_PA:W_PA + 3],
+                                wf[W_DA:W_DA + 3], va0, va1, kb,
+                                wf[W_RB:W_RB + 9].reshape((3, 3)), wf[W_PB:W_PB + 3],
+                                wf[W_DB:W_DB + 3], vb0, vb1, fb, ib[H_V], ib, ib[H_AP],
+                                ib[H_AI], wi[oh:oh + 2], wf[ow:ow + 3],
+                                wf[W_S:W_S + 12].reshape((4, 3)), wf[W_SA:W_SA + 3],
+                                wf[W_SB:W_SB + 3], wf[W_GV:W_GV + 3], wf[W_TMP:W_TMP + 3],
+                                goal)
+
+
+@_helper
+def _pair_bound(k, fb, ib, Rw, pw, wf, wi, enough):  # noqa: N803
+    """Lower bound [m] on the distance of pair ``k`` finer than its bounding spheres
+    (placed in wf's WI_CW block by the caller): the separating-axis bound of two
+    primitives, GJK's when one is a hull, or the fine spheres of a body that is no
+    primitive. A bound of ``enough`` (beyond the pair's margin) is sufficient for the
+    caller."""
+    op, of = ib[H_PI] + 4 * k, ib[H_P] + k
+    a, b, is_env = ib[op], ib[op + 1], ib[op + 2]
+    sm = max(fb[of], 0.0)
+    og, oS, ogi = ib[H_G], ib[H_S], ib[H_GI]
+    ka = ib[ogi + GIW * a + 5]
+    kb = ENV_BOX if is_env == 1 else ib[ogi + GIW * b + 5]
+    if ka != SPHERES_ONLY and kb != SPHERES_ONLY:
+        if ka == HULL or kb == HULL:
+            return _gjk_pair(fb, ib, k, a, b, is_env, Rw, pw, wf, wi, sm, sm + enough)
+        return _sat_pair(fb, ib, a, b, is_env, Rw, pw, wf)
+    ja = ib[ogi + GIW * a]
+    if is_env == 1:
+        best = 1e300
+        for s in range(ib[ogi + GIW * a + 1], ib[ogi + GIW * a + 2]):
+            _world(fb, oS + 4 * s, Rw, pw, ja, wf, W_TMP)
+            d = (_env_sdist3(fb, ib, b, wf[W_TMP], wf[W_TMP + 1], wf[W_TMP + 2])
+                 - fb[oS + 4 * s + 3])
+            if d < best:
+                best = d
+                if best - sm <= 0.0:
+                    return best
+        return best
+    ra, rb = fb[og + GW * a + 3], fb[og + GW * b + 3]
+    ocw = wi[WI_CW]
+    cbx, cby, cbz = wf[ocw + 3 * b], wf[ocw + 3 * b + 1], wf[ocw + 3 * b + 2]
+    ca0, ca1, ca2 = wf[ocw + 3 * a], wf[ocw + 3 * a + 1], wf[ocw + 3 * a + 2]
+    # Two sphere sets: place each once, bound each sphere against the other body's
+    # bounding sphere, take one real pair distance as an upper bound, and compare only
+    # the spheres whose bound beats it.
+    A, B = wi[WI_BUFA], wi[WI_BUFB]  # rows of 5 in wf
+    na = _place_spheres(fb, ib, a, Rw, pw, cbx, cby, cbz, rb, wf, A)
+    nb = _place_spheres(fb, ib, b, Rw, pw, ca0, ca1, ca2, ra, wf, B)
+    sa = 0
+    for i in range(1, na):
+        if wf[A + 5 * i + 4] < wf[A + 5 * sa + 4]:
+            sa = i
+    sb = 0
+    for i in range(1, nb):
+        if wf[B + 5 * i + 4] < wf[B + 5 * sb + 4]:
+            sb = i
+    i0, j0 = A + 5 * sa, B + 5 * sb
+    best = (math.sqrt((wf[i0] - wf[j0]) ** 2 + (wf[i0 + 1] - wf[j0 + 1]) ** 2
+                      + (wf[i0 + 2] - wf[j0 + 2]) ** 2) - wf[i0 + 3] - wf[j0 + 3])
+    for i in range(na):
+        i0 = A + 5 * i
+        if wf[i0 + 4] >= best:
+            continue
+        for j in range(nb):
+            j0 = B + 5 * j
+            if wf[j0 + 4] >= best:
+                continue
+            d = (math.sqrt((wf[i0] - wf[j0]) ** 2 + (wf[i0 + 1] - wf[j0 + 1]) ** 2
+                           + (wf[i0 + 2] - wf[j0 + 2]) ** 2) - wf[i0 + 3] - wf[j0 + 3])
+            if d < best:
+                best = d
+                if best - sm <= 0.0:
+                    return best
+    return best
+
+
+@_helper
+def _pair_collides(k, fb, ib, eps, Rw, pw, wf, wi):  # noqa: N803
+    """Whether pair ``k`` is certainly closer than its margin: an inner sphere reaches
+    that close, (two boxes, no margin) the complete separating-axis test fails, or (two
+    exact shapes: primitives or convex hulls) GJK's upper bound on their signed distance
+    is below it."""
+    op, of = ib[H_PI] + 4 * k, ib[H_P] + k
+    a, b, is_env, proof = ib[op], ib[op + 1], ib[op + 2], ib[op + 3]
+    if proof == 0:
+        return False
+    sm = fb[of]
+    oS, ogi = ib[H_S], ib[H_GI]
+    ja = ib[ogi + GIW * a]
+    ka = ib[ogi + GIW * a + 5]
+    t1, t2 = W_TMP, W_TMP2
+    if is_env == 1:
+        if (sm == 0.0 and ka == ENV_BOX and ib[ib[H_EI] + b] == ENV_BOX
+                and _sat_pair(fb, ib, a, b, 1, Rw, pw, wf) < -eps):
+            return True
+        for s in range(ib[ogi + GIW * a + 3], ib[ogi + GIW * a + 4]):
+            _world(fb, oS + 4 * s, Rw, pw, ja, wf, t1)
+            if (_env_sdist3(fb, ib, b, wf[t1], wf[t1 + 1], wf[t1 + 2]) - fb[oS + 4 * s + 3]
+                    < sm - eps):
+                return True
+        # An object measured by the box around it (ENV_BOX_ONLY_OUTER) proves nothing.
+        return (ka != SPHERES_ONLY and ib[ib[H_EI] + b] != ENV_BOX_ONLY_OUTER
+                and _gjk_overlap(fb, ib, k, a, b, 1, Rw, pw, wf, wi, sm - eps) < sm - eps)
+    jb = ib[ogi + GIW * b]
+    kb = ib[ogi + GIW * b + 5]
+    if (sm == 0.0 and ka == ENV_BOX and kb == ENV_BOX
+            and _sat_pair(fb, ib, a, b, 0, Rw, pw, wf) < -eps):
+        return True
+    for s in range(ib[ogi + GIW * a + 3], ib[ogi + GIW * a + 4]):
+        _world(fb, oS + 4 * s, Rw, pw, ja, wf, t1)
+        rs = fb[oS + 4 * s + 3]
+        for t in range(ib[ogi + GIW * b + 3], ib[ogi + GIW * b + 4]):
+            _world(fb, oS + 4 * t, Rw, pw, jb, wf, t2)
+            d = math.sqrt((wf[t1] - wf[t2]) ** 2 + (wf[t1 + 1] - wf[t2 + 1]) ** 2
+                          + (wf[t1 + 2] - wf[t2 + 2]) ** 2) - rs - fb[oS + 4 * t + 3]
+            if d < sm - eps:
+                return True
+    return (ka != SPHERES_ONLY and kb != SPHERES_ONLY
+            and _gjk_overlap(fb, ib, k, a, b, 0, Rw, pw, wf, wi, sm - eps) < sm - eps)

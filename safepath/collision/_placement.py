@@ -1,0 +1,143 @@
+"""Kernels of the sphere layer: kinematics and placement.
+
+Forward kinematics of the checker's joints into world frames, and the world placement of
+a mover's spheres and primitive frame (the rows :mod:`safepath.collision._layout`
+describes), for :mod:`safepath.collision._pair_tests` and
+:mod:`safepath.collision._kernels`. Compiled without numba's reference counting, like
+every helper of the layer (see :mod:`safepath.collision._kernels`): no allocation, no
+array returned.
+
+numba's disk cache tracks only the file of the function it compiles: the kernels of
+:mod:`safepath.collision._kernels` that call (and inline) these helpers keep their cached
+code when only this file changes. After editing it in a source checkout, delete
+``safepath/collision/__pycache__/*.nb*`` (an installed copy compiles afresh; the kernels
+compiled ahead of time are keyed on every kernel module's source).
+"""
+
+from __future__ import annotations
+
+import math
+
+from .._aot import njit
+from ._layout import (
+    GIW,
+    GW,
+    H_DOF,
+    H_G,
+    H_GI,
+    H_J,
+    H_JI,
+    H_L,
+    H_NJ,
+    H_S,
+    JOINT_FIXED,
+    JOINT_REVOLUTE,
+    W_M,
+    W_T,
+)
+
+#: How the helpers are compiled (see :mod:`safepath.collision._kernels`).
+_helper = njit(cache=True, nogil=True, _nrt=False)
+_inlined = njit(cache=True, nogil=True, _nrt=False, inline="always")
+
+
+@_helper
+def _fk(q, fb, ib, Rw, pw, wf):  # noqa: N803
+    """World rotation and position of every joint frame at ``q`` into Rw (nj,3,3), pw (nj,3)."""
+    nj = ib[H_NJ]
+    oj, oji = ib[H_J], ib[H_JI]
+    Rw[0, :, :] = 0.0
+    Rw[0, 0, 0] = Rw[0, 1, 1] = Rw[0, 2, 2] = 1.0
+    pw[0, :] = 0.0
+    M, t = W_M, W_T  # the local placement, rows of M at wf[M + 3 r]
+    for j in range(1, nj):
+        base = oj + 15 * j
+        parent = ib[oji + 3 * j]
+        kind = ib[oji + 3 * j + 1]
+        # Local placement (joint placement times the joint's own motion).
+        for r in range(3):
+            for c in range(3):
+                wf[M + 3 * r + c] = fb[base + 3 * r + c]
+            wf[t + r] = fb[base + 9 + r]
+        if kind != JOINT_FIXED:
+            x = q[ib[oji + 3 * j + 2]]
+            ax, ay, az = fb[base + 12], fb[base + 13], fb[base + 14]
+            if kind == JOINT_REVOLUTE:
+                c_, s_ = math.cos(x), math.sin(x)
+                v = 1.0 - c_
+                R00 = c_ + ax * ax * v
+                R01 = ax * ay * v - az * s_
+                R02 = ax * az * v + ay * s_
+                R10 = ay * ax * v + az * s_
+                R11 = c_ + ay * ay * v
+                R12 = ay * az * v - ax * s_
+                R20 = az * ax * v - ay * s_
+                R21 = az * ay * v + ax * s_
+                R22 = c_ + az * az * v
+                for r in range(3):
+                    m0, m1, m2 = wf[M + 3 * r], wf[M + 3 * r + 1], wf[M + 3 * r + 2]
+                    wf[M + 3 * r] = m0 * R00 + m1 * R10 + m2 * R20
+                    wf[M + 3 * r + 1] = m0 * R01 + m1 * R11 + m2 * R21
+                    wf[M + 3 * r + 2] = m0 * R02 + m1 * R12 + m2 * R22
+            else:
+                for r in range(3):
+                    wf[t + r] += (wf[M + 3 * r] * ax + wf[M + 3 * r + 1] * ay
+                                  + wf[M + 3 * r + 2] * az) * x
+        for r in range(3):
+            pw[j, r] = (Rw[parent, r, 0] * wf[t] + Rw[parent, r, 1] * wf[t + 1]
+                        + Rw[parent, r, 2] * wf[t + 2] + pw[parent, r])
+            for c in range(3):
+                Rw[j, r, c] = (Rw[parent, r, 0] * wf[M + c] + Rw[parent, r, 1] * wf[M + 3 + c]
+                               + Rw[parent, r, 2] * wf[M + 6 + c])
+
+
+@_inlined
+def _world(fb, s, Rw, pw, j, wf, o):  # noqa: N803
+    """World centre of the sphere/point at fb[s:s+3] (frame of joint ``j``) into wf[o:o+3]."""
+    x, y, z = fb[s], fb[s + 1], fb[s + 2]
+    for r in range(3):
+        wf[o + r] = Rw[j, r, 0] * x + Rw[j, r, 1] * y + Rw[j, r, 2] * z + pw[j, r]
+
+
+@_inlined
+def _mover_frame(fb, ib, m, Rw, pw, wf, oR, op):  # noqa: N803
+    """World rotation (rows at wf[oR:oR+9]) and position (wf[op:op+3]) of mover ``m``'s
+    primitive."""
+    og = ib[H_G] + GW * m
+    j = ib[ib[H_GI] + GIW * m]
+    for r in range(3):
+        wf[op + r] = (Rw[j, r, 0] * fb[og + 13] + Rw[j, r, 1] * fb[og + 14]
+                      + Rw[j, r, 2] * fb[og + 15] + pw[j, r])
+        for c in range(3):
+            wf[oR + 3 * r + c] = (Rw[j, r, 0] * fb[og + 4 + c] + Rw[j, r, 1] * fb[og + 7 + c]
+                                  + Rw[j, r, 2] * fb[og + 10 + c])
+
+
+@_helper
+def _place_spheres(fb, ib, m, Rw, pw, ox, oy, oz, orad, wf, out):  # noqa: N803
+    """World centres and radii of mover ``m``'s outer spheres into rows of 5 of ``wf`` from
+    ``out`` (x, y, z, r, lower bound of the distance to the sphere (ox, oy, oz, orad));
+    returns the count."""
+    oS, ogi = ib[H_S], ib[H_GI]
+    j = ib[ogi + GIW * m]
+    n = 0
+    for s in range(ib[ogi + GIW * m + 1], ib[ogi + GIW * m + 2]):
+        x, y, z = fb[oS + 4 * s], fb[oS + 4 * s + 1], fb[oS + 4 * s + 2]
+        wx = Rw[j, 0, 0] * x + Rw[j, 0, 1] * y + Rw[j, 0, 2] * z + pw[j, 0]
+        wy = Rw[j, 1, 0] * x + Rw[j, 1, 1] * y + Rw[j, 1, 2] * z + pw[j, 1]
+        wz = Rw[j, 2, 0] * x + Rw[j, 2, 1] * y + Rw[j, 2, 2] * z + pw[j, 2]
+        r = fb[oS + 4 * s + 3]
+        o = out + 5 * n
+        wf[o], wf[o + 1], wf[o + 2], wf[o + 3] = wx, wy, wz, r
+        wf[o + 4] = math.sqrt((wx - ox) ** 2 + (wy - oy) ** 2 + (wz - oz) ** 2) - r - orad
+        n += 1
+    return n
+
+
+@_helper
+def _within_limits(q, fb, ib):  # noqa: N803
+    dof, ol = ib[H_DOF], ib[H_L]
+    for i in range(dof):
+        if not (fb[ol + i] <= q[i] <= fb[ol + dof + i]):
+            return False
+    return True

@@ -1,0 +1,79 @@
+"""What every collision checker of a robot takes from the robot alone, made once per robot.
+
+The link of each geometry and, per joint, how far its own geometry reaches from its origin
+(:func:`robot_part`, for the checker's displacement bound), and the sphere layer's part
+of the robot (sphere fits, hull tables: :func:`safepath.collision._pack._robot_part`),
+both kept by the robot (:meth:`safepath.robot.Robot.derived`).
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+
+from ..robot import Robot
+from ._pack import _robot_part
+from .options import LayerOptions
+
+__all__ = ["robot_part", "prepare_robot", "reach_into"]
+
+
+def robot_part(robot: Robot) -> tuple[tuple[str, ...], np.ndarray]:
+    """What every checker of ``robot`` takes from it, made once per robot: the link of
+    each geometry, and per joint how far its own geometry reaches from its origin [m]."""
+    def make() -> tuple[tuple[str, ...], np.ndarray]:
+        geoms = robot.collision_model.geometryObjects
+        reach = reach_into(np.zeros(robot.model.njoints), geoms)
+        return tuple(map(robot.geometry_link, range(len(geoms)))), reach
+
+    return robot.derived("checker", make)
+
+
+def prepare_robot(robot: Robot) -> None:
+    """Make what every collision checker of ``robot`` takes from the robot alone: its
+    links and reach, and, where the kernels are compiled ahead of time, its sphere
+    layer's part (sphere fits, hull tables: read from the disk cache,
+    :mod:`safepath.collision._partcache`, where a process made them before). Without
+    them the part waits for the first check, which imports numba anyway. A shape the
+    layer cannot fit is left to the checkers (they stay exact)."""
+    from .. import _aot
+
+    robot_part(robot)
+    if _aot.compiled() is None:
+        return
+    try:
+        _robot_part(robot, LayerOptions())
+    except ValueError:
+        pass
+
+
+def reach_into(reach: np.ndarray, geoms: Any) -> np.ndarray:
+    """``reach`` (per joint [m]) raised to how far each geometry of ``geoms`` on a joint
+    reaches from that joint's origin."""
+    for g in geoms:
+        if g.parentJoint == 0:
+            continue
+        r = np.linalg.norm(g.placement.translation) + _bounding_radius(g.geometry)
+        reach[g.parentJoint] = max(reach[g.parentJoint], r)
+    return reach
+
+
+def _bounding_radius(geometry: Any) -> float:
+    import coal
+
+    if isinstance(geometry, coal.Box):
+        return float(np.linalg.norm(geometry.halfSide))
+    if isinstance(geometry, coal.Sphere):
+        return float(geometry.radius)
+    if isinstance(geometry, coal.Cylinder):
+        return float(np.hypot(geometry.radius, geometry.halfLength))
+    if isinstance(geometry, coal.Capsule):
+        return float(geometry.radius + geometry.halfLength)
+    if isinstance(geometry, coal.ConvexBase):
+        pts = np.asarray(geometry.points())
+        return float(np.max(np.linalg.norm(pts, axis=1)))
+    geometry.computeLocalAABB()
+    aabb = geometry.aabb_local
+    corner = np.maximum(np.abs(aabb.min_), np.abs(aabb.max_))
+    return float(np.linalg.norm(corner))
