@@ -106,7 +106,8 @@ def stage_clock() -> Iterator[dict[str, float]]:
     ``StagedVerifier``, the pour's through ``FclVerifier``; neither calls the other) for
     the duration of the ``with`` block only; the originals run unchanged.
     """
-    from safepath.planning import _chunks, verify
+    from safepath import verify
+    from safepath.planning import _chunks
 
     spent = {"timing": 0.0, "verification": 0.0}
 

@@ -283,12 +283,11 @@ def _prepare_robot(robot: Robot) -> None:
     first plan pays for planning. Planners make the same when first needed for a robot
     built in Python. A geometry the verifier does not handle is refused when planning
     (as for a cell built in Python), not here."""
-    from .collision import prepare_robot
-    from .planning._verify_bodies import robot_bodies
+    from . import collision, verify
 
-    prepare_robot(robot)
+    collision.prepare_robot(robot)
     try:
-        robot_bodies(robot)
+        verify.prepare_robot(robot)
     except ConfigError:
         pass
 

@@ -101,7 +101,8 @@ def recorded() -> dict[str, list[tuple[Any, ...]]]:
     from safepath import _joinkernel
     from safepath.collision import _kernels as _fastkernels
     from safepath.monitor import _kernels as _monitor_kernels
-    from safepath.planning import _ik_kernel, _topp, _verify_kernel
+    from safepath.planning import _ik_kernel, _topp
+    from safepath.verify import _kernel as _verify_kernel
 
     calls: dict[str, list[tuple[Any, ...]]] = {name: [] for name in ENTRIES}
     by_function = {(e.module, e.function): n for n, e in ENTRIES.items()}

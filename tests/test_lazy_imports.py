@@ -79,5 +79,5 @@ def test_load_cell_loads_the_release_check_and_the_built_kernels_but_not_numba(a
     built = aot == "1" and _aot.find()[0] is not None
     assert "fcl" in packages
     assert packages.isdisjoint({"numba", "llvmlite"})
-    assert ("safepath.planning._verify_kernel" in kernels) is built
+    assert ("safepath.verify._kernel" in kernels) is built
     assert ("safepath.planning._ik_kernel" in kernels) is built

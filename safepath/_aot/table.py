@@ -52,7 +52,8 @@ _FAST = "safepath.collision._kernels"
 #: The sphere layer's helper kernels and the constants they compile in (its buffers' layout).
 _FAST_PARTS = ("safepath.collision._placement", "safepath.collision._pair_tests",
                "safepath.collision._gjk", "safepath.collision._layout")
-_VERIFY = "safepath.planning._verify_kernel"
+_VERIFY = "safepath.verify._kernel"
+_VERIFY_DISTANCE = "safepath.verify._distance"
 _IK = "safepath.planning._ik_kernel"
 _TOPP = "safepath.planning._topp"
 _MONITOR = "safepath.monitor._kernels"
@@ -71,7 +72,7 @@ ENTRIES: dict[str, Entry] = {
                                    (F2, I1, I1, I1, F1, I1, I1, I1, INT), "UniTuple(i8, 5)"),
     "fast_certify_segment": Entry(_FAST, "certify_segment", (F1, F1, F1, I1, BOOL, BOOL, I1),
                                   "UniTuple(i8, 5)"),
-    # The release check's bounds (safepath.planning._verify_bounds).
+    # The release check's bounds (safepath.verify._bounds).
     "verify_certify": Entry(
         _VERIFY, "certify",
         (I1, I1, I1, F1,  # todo, its stretches, theta
@@ -86,9 +87,9 @@ ENTRIES: dict[str, Entry] = {
          INT, INT),  # where to start
         "UniTuple(i8, 3)"),
     "verify_grid": Entry(_VERIFY, "grid", (F2, F2, FLOAT), f"Tuple(({I1}, {F1}, {F2}, {F2}))"),
-    "verify_axis_bound": Entry(_VERIFY, "axis_bound", (_SHAPE, _SHAPE, _HULLS),
+    "verify_axis_bound": Entry(_VERIFY_DISTANCE, "axis_bound", (_SHAPE, _SHAPE, _HULLS),
                                "UniTuple(f8, 4)"),
-    "verify_gjk_bound": Entry(_VERIFY, "gjk_bound",
+    "verify_gjk_bound": Entry(_VERIFY_DISTANCE, "gjk_bound",
                               (_SHAPE, _SHAPE, _HULLS, FLOAT, FLOAT, FLOAT, FLOAT, BOOL, F2,
                                F2, I1),
                               "UniTuple(f8, 5)"),
@@ -124,6 +125,8 @@ ENTRIES: dict[str, Entry] = {
 #: while all of them are unchanged. Every kernel compiled through :func:`safepath._aot.njit`
 #: lives in one of them (tests/test_aot.py checks it); the cup's (a simulated scale, not
 #: on a planning path) uses numba directly.
-MODULES: tuple[str, ...] = (_FAST, *_FAST_PARTS, _VERIFY, _IK, _TOPP, _JOIN, _MONITOR)
+MODULES: tuple[str, ...] = (_FAST, *_FAST_PARTS, _VERIFY, _VERIFY_DISTANCE, _IK, _TOPP, _JOIN,
+                            _MONITOR)
 #: Those a plan calls (all but the monitor's).
-PLANNING_MODULES: tuple[str, ...] = (_FAST, *_FAST_PARTS, _VERIFY, _IK, _TOPP, _JOIN)
+PLANNING_MODULES: tuple[str, ...] = (_FAST, *_FAST_PARTS, _VERIFY, _VERIFY_DISTANCE, _IK, _TOPP,
+                                     _JOIN)

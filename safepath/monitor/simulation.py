@@ -70,7 +70,7 @@ class FclSeparation:
     def __init__(self, cell: Cell, held: str | None) -> None:
         import fcl
 
-        from ..planning.verify import _fcl_shape
+        from ..verify import fcl_shape
 
         robot = cell.robot
         self.robot = robot
@@ -78,13 +78,13 @@ class FclSeparation:
         for g in robot.collision_model.geometryObjects:
             if int(g.parentJoint) != 0:
                 self._bodies.append((int(g.parentJoint), g.placement.homogeneous,
-                                     fcl.CollisionObject(_fcl_shape(g.geometry))))
+                                     fcl.CollisionObject(fcl_shape(g.geometry))))
         if held is not None and cell.scene.grasp is not None:
             tcp = robot.model.frames[robot.tcp_frame_id]
             T = tcp.placement.homogeneous @ cell.scene.grasp.T_tcp_object
             shape = cell.scene.objects[held].shape.to_coal()
             self._bodies.append((int(tcp.parentJoint), T,
-                                 fcl.CollisionObject(_fcl_shape(shape))))
+                                 fcl.CollisionObject(fcl_shape(shape))))
         self._data = robot.model.createData()
 
     def __call__(self, q: np.ndarray, center: np.ndarray, radius: float) -> float:

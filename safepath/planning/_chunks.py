@@ -21,8 +21,8 @@ from ..execution import LIMITS_KEY, robot_limits
 from ..routes import Route, Step
 from ..scene import AllowedContact
 from ..trajectory import GripperEvent, Trajectory
+from ..verify import VerifyResult
 from .timing import TimedPiece, spline_path, time_path
-from .verify import VerifyResult
 
 if TYPE_CHECKING:
     from ..cell import Cell

@@ -13,6 +13,7 @@ import numpy as np
 
 from ..errors import PlanningError
 from ..pour_steps import Circle, Tilt
+from ..verify import VerifyResult
 from .pour import (
     PourMotion,
     PourWorld,
@@ -23,7 +24,6 @@ from .pour import (
     tilt_of,
 )
 from .timing import TimedPiece
-from .verify import VerifyResult
 
 if TYPE_CHECKING:
     from ..cell import Cell

@@ -24,6 +24,7 @@ from ..collision import CollisionChecker, Pair
 from ..errors import IKError, PlanningError, SafepathError, TimingError
 from ..routes import Route, Step, after_chain
 from ..trajectory import Trajectory
+from ..verify import check_verifiable
 from ._chunks import Segment, assemble, time_chunk, time_segments
 from ._pour_chunk import PourChunk, plan_pour_chunk
 from .cartesian import cartesian_line
@@ -31,7 +32,6 @@ from .constraints import check_landing, check_tilt, tilt_bound
 from .options import PlanOptions
 from .sampling import plan_joint_path
 from .timing import TimedPiece
-from .verify import check_verifiable
 from .world import CheckerCache, WorldState, initial_world
 
 __all__ = ["PlanOptions", "WorldState", "plan_route", "plan_cell", "route_order",

@@ -12,8 +12,8 @@ import numpy as np
 from ..cell import Cell
 from ..collision import CollisionChecker
 from ..scene import AllowedContact
+from ..verify import FclVerifier, StagedVerifier
 from .options import PlanOptions
-from .verify import FclVerifier, StagedVerifier
 
 __all__ = ["WorldState", "CheckerCache", "initial_world"]
 

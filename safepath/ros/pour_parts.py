@@ -135,7 +135,7 @@ class PourStopper:
                  timing: TimingOptions | None = None) -> None:
         from ..monitor.profile import MonitoredPath
         from ..planning.timing import TimingOptions
-        from ..planning.verify import FclVerifier
+        from ..verify import FclVerifier
 
         if not (math.isfinite(return_angular_speed) and return_angular_speed > 0):
             raise InputError(f"must be > 0 [rad/s], got {return_angular_speed!r}",

@@ -14,8 +14,8 @@ from quintic_join import quintic_peaks as _quintic_peaks
 from safepath import Cell, SafepathError, Trajectory
 from safepath.monitor.replan import replan
 from safepath.monitor.simulation import FclSeparation, MovingSphere, SimResult, simulate
-from safepath.planning.verify import FclVerifier
 from safepath.ros import split_at_gripper_events
+from safepath.verify import FclVerifier
 
 from .conftest import CAMERA, Phase1, make_monitor
 

@@ -190,7 +190,7 @@ def test_each_piece_is_verified_in_one_call_each_step_under_its_contacts(
     resolution."""
     from safepath import plan_cell
     from safepath.planning import _chunks
-    from safepath.planning.verify import StagedVerifier
+    from safepath.verify import StagedVerifier
 
     pieces: list[tuple[object, list[int], list[str]]] = []
     calls: list[tuple[StagedVerifier, np.ndarray, np.ndarray, list[int], list[str],

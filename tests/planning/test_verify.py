@@ -25,18 +25,18 @@ from scipy.spatial import ConvexHull
 from safepath import CheckOptions, ConfigError, VerificationError, plan_cell
 from safepath.cell import Cell
 from safepath.planning import FclVerifier, VerifyResult, initial_world
-from safepath.planning._verify_bodies import robot_bodies
-from safepath.planning._verify_bounds import (
+from safepath.planning.timing import TimedPiece, spline_path, time_path
+from safepath.robot import Robot
+from safepath.scene import AllowedContact, Scene, SceneObject, Shape
+from safepath.verify import check_verifiable, fcl_shape
+from safepath.verify._bodies import robot_bodies
+from safepath.verify._bounds import (
     Grid,
     bound_between,
     pair_weights,
     shape_spec,
     undominated,
 )
-from safepath.planning.timing import TimedPiece, spline_path, time_path
-from safepath.planning.verify import _fcl_shape, check_verifiable
-from safepath.robot import Robot
-from safepath.scene import AllowedContact, Scene, SceneObject, Shape
 
 from .conftest import Plans, object_released_at
 
@@ -342,7 +342,7 @@ def test_the_shape_bound_is_below_fcl_distance(kinds: tuple[str, str]) -> None:
     for _ in range(40):
         shapes = [_shape(kind, rng) for kind in kinds]
         poses = _pose_pair(rng, 0.0, 0.25)
-        objects = [fcl.CollisionObject(_fcl_shape(g), fcl.Transform(T[:3, :3], T[:3, 3]))
+        objects = [fcl.CollisionObject(fcl_shape(g), fcl.Transform(T[:3, :3], T[:3, 3]))
                    for g, T in zip(shapes, poses, strict=True)]
         bound = bound_between(shape_spec(shapes[0]), poses[0], shape_spec(shapes[1]), poses[1])
         if fcl.collide(*objects, fcl.CollisionRequest(), fcl.CollisionResult()):
@@ -394,7 +394,7 @@ def test_a_walk_that_fills_its_outputs_resumes_where_it_stopped(
     """The kernel writes the couples it leaves to buffers of fixed room and returns when
     they are full; resumed, the walk must go on as if it had not stopped: the same
     couples, bounds and result as in one go, whatever the room."""
-    from safepath.planning import _verify_bounds
+    from safepath.verify import _bounds as _verify_bounds
 
     t, q, qd = _step(bundled, STEP)
     verifier = _verifier(bundled.cell)
@@ -557,8 +557,8 @@ def test_a_hulls_support_climbs_to_the_largest_vertex_from_any_start() -> None:
     vertex: on the Panda's link hulls, for random directions, from random starts, it
     must reach the same value as the scan over all vertices."""
     from safepath import load_robot
-    from safepath.planning import _verify_kernel as kernel
-    from safepath.planning._verify_bounds import _climbing, _shape_table
+    from safepath.verify import _distance as kernel
+    from safepath.verify._bounds import _climbing, _shape_table
 
     specs = [shape_spec(g.geometry) for g in load_robot("panda").collision_model.geometryObjects
              if isinstance(g.geometry, coal.ConvexBase)]
@@ -730,7 +730,7 @@ def test_stages_are_judged_as_each_stage_alone_judges_its_stretch(
     may touch it 1 mm deep), checked as one: as a dense check of each stretch under its
     own stage's rules finds, the first failure in time, the clearance to within half a
     resolution; under the first stage's rules alone the put-down fails."""
-    from safepath.planning.verify import StagedVerifier
+    from safepath.verify import StagedVerifier
 
     cell = bundled.cell
     t, q, start = _two_steps(bundled, STEP, "3 line low1")
@@ -766,7 +766,7 @@ def test_a_pair_in_consecutive_stages_is_walked_across_their_boundary(bundled: P
     bounds than the stages checked one by one, the same judgement and clearance to
     within half a resolution; stages from other world states, or starts not one per
     stage from knot 0, are refused."""
-    from safepath.planning.verify import StagedVerifier
+    from safepath.verify import StagedVerifier
 
     cell = bundled.cell
     t, q, start = _two_steps(bundled, STEP, "3 line low1")

@@ -10,7 +10,7 @@ import numpy as np
 
 from ..robot import Robot
 from ..scene import Scene, Shape
-from ._verify_bounds import (
+from ._bounds import (
     ShapeSpec,
     joint_kind,
     joint_tables,
@@ -19,7 +19,8 @@ from ._verify_bounds import (
     unsupported_geometry,
 )
 
-__all__ = ["Body", "check_verifiable", "robot_bodies", "held_bodies", "environment_bodies"]
+__all__ = ["Body", "check_verifiable", "fcl_shape", "robot_bodies", "held_bodies",
+           "environment_bodies", "prepare_robot"]
 
 
 def _supported(geometry: object) -> bool:
@@ -48,7 +49,13 @@ def check_verifiable(robot: Robot, scene: Scene | None = None) -> None:
         joint_kind(robot.model, j)
 
 
-def _fcl_shape(geometry: object, name: str = "") -> object:
+def fcl_shape(geometry: object, name: str = "") -> object:
+    """The python-fcl shape of a coal collision geometry (a mesh: FCL's own BVH of its
+    triangles; ``name`` names it in the error).
+
+    Raises:
+        ConfigError: A geometry the verifier does not handle.
+    """
     import coal
     import fcl
 
@@ -99,7 +106,7 @@ def _body(name: str, joint: int, T: np.ndarray, geometry: object, label: str = "
 
     T = np.asarray(T, dtype=float)
     if shape is None:
-        shape = _fcl_shape(geometry, label or name)
+        shape = fcl_shape(geometry, label or name)
     obj = fcl.CollisionObject(shape, fcl.Transform(T[:3, :3], T[:3, 3]))
     return Body(name, joint, T, obj, spec or shape_spec(geometry, label or name))
 
@@ -117,7 +124,7 @@ def robot_bodies(robot: Robot) -> tuple[list[Body], np.ndarray, tuple[np.ndarray
 
     def make() -> tuple[list[Body], list[object], np.ndarray, tuple[np.ndarray, ...]]:
         geoms = list(robot.collision_model.geometryObjects)
-        shapes = [_fcl_shape(g.geometry, g.name) for g in geoms]
+        shapes = [fcl_shape(g.geometry, g.name) for g in geoms]
         bodies = [_body(robot.model.frames[g.parentFrame].name, int(g.parentJoint),
                         g.placement.homogeneous, g.geometry, g.name, shape)
                   for g, shape in zip(geoms, shapes, strict=True)]
@@ -130,6 +137,17 @@ def robot_bodies(robot: Robot) -> tuple[list[Body], np.ndarray, tuple[np.ndarray
     return [Body(b.name, b.joint, b.T, fcl.CollisionObject(
         shape, fcl.Transform(b.T[:3, :3], b.T[:3, 3])), b.spec)
         for b, shape in zip(bodies, shapes, strict=True)], weights, tables
+
+
+def prepare_robot(robot: Robot) -> None:
+    """Make what every verifier of ``robot`` takes from the robot alone (its FCL shapes,
+    layer shapes, motion weights and joint tables; kept by the robot), as loading a cell
+    does so that its first plan pays for planning only.
+
+    Raises:
+        ConfigError: A geometry or joint the verifier does not handle.
+    """
+    robot_bodies(robot)
 
 
 def held_bodies(robot: Robot, scene: Scene | None, held: str | None) -> list[Body]:
@@ -156,7 +174,7 @@ def environment_bodies(scene: Scene | None, held: str | None,
             made = _ENV_SHAPES.get(obj.shape)
             if made is None:
                 coal_shape = obj.shape.to_coal()
-                made = _ENV_SHAPES[obj.shape] = (_fcl_shape(coal_shape, obj.name),
+                made = _ENV_SHAPES[obj.shape] = (fcl_shape(coal_shape, obj.name),
                                                  shape_spec(coal_shape, obj.name))
                 while len(_ENV_SHAPES) > _ENV_KEPT:
                     del _ENV_SHAPES[next(iter(_ENV_SHAPES))]

@@ -10,7 +10,7 @@ data (joint placements and axes, collision geometry), never the planner's checke
 * :class:`Grid` cuts the knots so that no robot point moves more than the resolution
   between two samples, and accumulates the joints' motion along it;
 * :class:`Layer` walks every pair along that grid with lower bounds on the distance
-  (the numba kernel in ``_verify_kernel``), certifying what the bounds prove and
+  (the numba kernels in ``_kernel`` and ``_distance``), certifying what the bounds prove and
   handing the rest to FCL.
 """
 
@@ -128,7 +128,7 @@ def bound_between(a: ShapeSpec, T_world_a: np.ndarray, b: ShapeSpec,
     """The layer's finest lower bound on the signed distance between two shapes whose
     geometry frames are at ``T_world_a`` and ``T_world_b`` (4 x 4) [m] (the axis gaps,
     raised by GJK's directions): for tests and diagnostics."""
-    from . import _verify_kernel as shapes
+    from . import _distance as shapes
 
     table, hulls = _shape_table([a, b])
 
@@ -361,7 +361,7 @@ class Grid:
             weights: Motion weights of the bodies (:func:`motion_weights`).
             resolution: Largest motion between samples [m].
         """
-        from . import _verify_kernel as kernel
+        from . import _kernel as kernel
 
         return Grid(*kernel.grid(np.ascontiguousarray(q, dtype=float),
                                  np.ascontiguousarray(weights, dtype=float), float(resolution)))
@@ -533,7 +533,7 @@ class Layer:
                  cache: PoseCache, memory: WalkMemory, params: tuple[float, ...],
                  stretches: tuple[np.ndarray, np.ndarray] | None = None
                  ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        from . import _verify_kernel as kernel
+        from . import _kernel as kernel
 
         todo = np.ascontiguousarray(todo, dtype=np.int64)
         if stretches is None:

@@ -4,7 +4,7 @@ The verifier shares nothing with the planner's checker but the *data*: it builds
 own FCL shapes from the robot's collision geometry and the scene, derives its own list
 of pairs from the robot's allowed self-collision pairs, the tool's contact links and the
 allowed contacts, computes its own kinematics and its own conservative bounds
-(``_verify_bounds``, ``_verify_kernel``), and lets FCL (not coal)
+(``_bounds``, ``_kernel``, ``_distance``), and lets FCL (not coal)
 judge every sample those bounds cannot clear.
 
 Resolution guarantee: the timed trajectory is cut into a grid on which no point of the
@@ -34,14 +34,13 @@ import numpy as np
 from ..errors import VerificationError
 from ..robot import Robot
 from ..scene import GRIPPER, AllowedContact, Scene
-from ._verify_bodies import (
-    _fcl_shape,  # noqa: F401 - the monitor's simulation and the tests build shapes with it
+from ._bodies import (
     check_verifiable,
     environment_bodies,
     held_bodies,
     robot_bodies,
 )
-from ._verify_bounds import (
+from ._bounds import (
     Grid,
     Layer,
     PoseCache,
@@ -179,7 +178,7 @@ class FclVerifier:
         return self._pair_rows
 
     def _conservative_layer(self, like: Layer | None = None) -> Layer:
-        """The layer that bounds every pair's distance from below (``_verify_bounds``);
+        """The layer that bounds every pair's distance from below (``_bounds``);
         made from ``like``'s tables if given (a layer of the same bodies and
         environment)."""
         joints = [b.joint for b in self._movers]
