@@ -9,6 +9,8 @@ import numpy as np
 import pytest
 
 from safepath.errors import InputError
+from safepath.ros import read_bag
+from safepath.sim.bag import ARM_GOALS, JOINT_STATES, write_run_bag
 from safepath.sim.pouring import PouringParams, run_pouring
 
 #: The tilt alone (the cup held at the pour's start): the pick and place routes add
@@ -22,8 +24,8 @@ def pouring_dir(repo_root: Path) -> str:
 
 
 def test_the_pour_ends_within_the_tolerance_without_an_executed_violation(
-        pouring_dir: str) -> None:
-    run = run_pouring(pouring_dir, 3, _TILT)
+        pouring_dir: str, tmp_path: Path) -> None:
+    run = run_pouring(pouring_dir, 3, _TILT, record=True)
     assert run.state == "done" and not run.faults, run.faults
     # Stopped on the scale: the stop joined the running tilt, then back upright.
     assert run.goals == ("pour", "stop", "return")
@@ -39,6 +41,10 @@ def test_the_pour_ends_within_the_tolerance_without_an_executed_violation(
     # The return upright is timed at 0.9965 of joint_6's speed limit; the servo overshoots
     # it by 0.35 % (measured 1.00007 of the limit): within 0.1 %, and reported as over.
     assert run.speed_ratio.max() <= 1.001
+    # Its bag: the executed joint states and the three goals as sent.
+    bag = read_bag(write_run_bag(tmp_path / "pour", run.record))
+    assert len(bag.on(JOINT_STATES)) == len(run.record.time)
+    assert len(bag.on(ARM_GOALS)) == 3
 
 
 def test_a_kill_brakes_the_tilt_and_nothing_follows(pouring_dir: str) -> None:
