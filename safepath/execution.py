@@ -52,24 +52,34 @@ CHECK_RATE = 1000.0
 
 
 def _coefficients(t: np.ndarray, q: np.ndarray, qd: np.ndarray, qdd: np.ndarray,
-                  interpolation: Interpolation) -> tuple[np.ndarray, np.ndarray]:
+                  interpolation: Interpolation, k: np.ndarray | None = None
+                  ) -> tuple[np.ndarray, np.ndarray]:
     """Per interval and joint, the polynomial's coefficients ``c0..c5`` (N-1, dof, 6) in the
-    time from the interval's start, and the intervals' lengths (N-1,) [s]."""
-    T = np.diff(t)[:, None]  # noqa: N806
-    p0, p1 = q[:-1], q[1:]
+    time from the interval's start, and the intervals' lengths (N-1,) [s].
+
+    With ``k`` (interval indices, (M,)), those of the intervals ``k`` only (M, dof, 6) and
+    (M,): the same numbers as rows ``k`` of the whole (every operation is element-wise),
+    without computing every interval when a few are sampled.
+    """
+    if k is None:
+        T = np.diff(t)[:, None]  # noqa: N806
+        p0, p1 = q[:-1], q[1:]
+    else:
+        T = (t[k + 1] - t[k])[:, None]  # noqa: N806
+        p0, p1 = q[k], q[k + 1]
     c = np.zeros((T.shape[0], q.shape[1], 6))
     c[..., 0] = p0
     if interpolation == "linear":
         c[..., 1] = (p1 - p0) / T
         return c, T[:, 0]
-    v0, v1 = qd[:-1], qd[1:]
+    v0, v1 = (qd[:-1], qd[1:]) if k is None else (qd[k], qd[k + 1])
     c[..., 1] = v0
     if interpolation == "cubic":
         h = p1 - p0
         c[..., 2] = (3 * h - (2 * v0 + v1) * T) / T ** 2
         c[..., 3] = (-2 * h + (v0 + v1) * T) / T ** 3
         return c, T[:, 0]
-    a0, a1 = qdd[:-1], qdd[1:]
+    a0, a1 = (qdd[:-1], qdd[1:]) if k is None else (qdd[k], qdd[k + 1])
     c[..., 2] = a0 / 2
     h = p1 - p0 - v0 * T - a0 * T * T / 2
     dv = v1 - v0 - a0 * T
@@ -80,12 +90,17 @@ def _coefficients(t: np.ndarray, q: np.ndarray, qd: np.ndarray, qdd: np.ndarray,
     return c, T[:, 0]
 
 
+#: ``_FACTORS[nu][k]``: the factor of ``c_k`` in the ``nu``-th derivative, k! / (k - nu)!.
+_FACTORS = tuple(tuple(float(np.prod(np.arange(k - nu + 1, k + 1))) if nu else 1.0
+                       for k in range(6)) for nu in range(6))
+
+
 def _eval(c: np.ndarray, tau: np.ndarray, nu: int) -> np.ndarray:
     """The ``nu``-th derivative of the polynomials ``c`` (..., 6) at ``tau`` (broadcast)."""
     out = np.zeros(np.broadcast_shapes(c.shape[:-1], tau.shape))
+    factors = _FACTORS[nu]
     for k in range(5, nu - 1, -1):
-        factor = float(np.prod(np.arange(k - nu + 1, k + 1))) if nu else 1.0
-        out = out * tau + factor * c[..., k]
+        out = out * tau + factors[k] * c[..., k]
     return out
 
 
@@ -111,10 +126,13 @@ def join(t: np.ndarray, q: np.ndarray, qd: np.ndarray, qdd: np.ndarray, times: n
         zero = np.zeros_like(rest)
         return rest, np.repeat(np.atleast_2d(qd), times.size, 0), \
             np.repeat(np.atleast_2d(qdd), times.size, 0), zero
-    c, _ = _coefficients(t, q, np.atleast_2d(qd), np.atleast_2d(qdd), interpolation)
     k = np.clip(np.searchsorted(t, times, side="right") - 1, 0, t.size - 2)
     tau = (times - t[k])[:, None]
-    ck = c[k]
+    qd, qdd = np.atleast_2d(qd), np.atleast_2d(qdd)
+    if k.size < t.size - 1:  # fewer samples than intervals (a controller's step, say)
+        ck = _coefficients(t, q, qd, qdd, interpolation, k)[0]
+    else:
+        ck = _coefficients(t, q, qd, qdd, interpolation)[0][k]
     out = [_eval(ck, tau, nu) for nu in range(4)]
     # At (and past) the ends: the end points themselves, not their polynomial's rounding.
     for end, row in ((times <= t[0], 0), (times >= t[-1], -1)):
