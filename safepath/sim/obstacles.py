@@ -490,12 +490,17 @@ def cmd_obstacles(args: argparse.Namespace, cell: Cell) -> int:
     import os
 
     from ..monitor import MonitorOptions
+    from ..monitor.node import NodeParameters
 
     duration = min(args.duration, 60.0) if args.duration == 300.0 else args.duration
     runs = max(args.runs, 3)
     rng = np.random.default_rng(args.seed)
     opts = MonitorOptions()
-    print(f"obstacle twin of {cell.scene.name}: MonitorNodeCore closed loop, route phase1, "
+    table = cell.route_table()
+    route = NodeParameters(scene=str(cell.folder)).route
+    if route not in table:  # the node's default route, else the cell's first
+        route = next(iter(table))
+    print(f"obstacle twin of {cell.scene.name}: MonitorNodeCore closed loop, route {route}, "
           f"{duration:g} s simulated x {runs} runs (seeds {args.seed}..); a cylinder "
           f"(r 0.10 m, 0.8 m tall) crossing at 0.25-0.6 m/s past the base axis at "
           f"0.22-0.40 m; laser 20 Hz (271 beams, 270 deg, 1 cm noise, 20 ms latency), depth "
@@ -514,8 +519,8 @@ def cmd_obstacles(args: argparse.Namespace, cell: Cell) -> int:
             before_end = 0  # 5 ms before the first motion's end
         else:
             kill_at = float(rng.uniform(1.0, duration))
-        r = run_obstacles(str(cell.folder), seed, duration=duration, kill_at=kill_at,
-                          kill_before_end_of=before_end)
+        r = run_obstacles(str(cell.folder), seed, route=route, duration=duration,
+                          kill_at=kill_at, kill_before_end_of=before_end)
         latched = latched and not r.after_kill and r.moved_after_kill < 1e-3
         dec = ", ".join(f"{n} {v}" for n, v in sorted(r.decisions.items()))
         rp = ", ".join(s for _, s in r.replans) or "-"
