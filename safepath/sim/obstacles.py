@@ -218,6 +218,7 @@ class ObstacleTwin(MonitorTwin):
         self._seq = 0
         self.closest = math.inf
         self.closest_time = math.nan
+        self.closest_moving = math.inf
         self.scans = 0
         self.clouds = 0
         self.replans: list[tuple[float, str]] = []
@@ -239,6 +240,8 @@ class ObstacleTwin(MonitorTwin):
                                                                  1.0, None)))
         if best < self.closest:
             self.closest, self.closest_time = best, self.twin.now
+        if self.twin.arm.active is not None:
+            self.closest_moving = min(self.closest_moving, best)
 
     def _push(self, when: float, kind: str, payload: Any) -> None:
         self._seq += 1
@@ -399,6 +402,8 @@ class ObstacleRun:
         body: The moving body.
         closest: True closest approach arm - body [m].
         closest_time: When [s].
+        closest_moving: Closest approach while a motion goal ran [m] (the rest: the
+            body walking past an arm at rest).
         decisions: How often the decision changed to each kind.
         replans: Re-plans answered (``ok`` / ``failed``).
         kill_time: When the kill was pressed [s] (None: never).
@@ -418,6 +423,7 @@ class ObstacleRun:
     body: MovingBody
     closest: float
     closest_time: float
+    closest_moving: float
     decisions: dict[str, int]
     replans: tuple[tuple[float, str], ...]
     kill_time: float | None
@@ -478,7 +484,8 @@ def run_obstacles(cell: str, seed: int, *, route: str = "phase1", duration: floa
         late = q[times >= k + 1.0]
         moved = float(np.ptp(late, axis=0).max()) if late.shape[0] else 0.0
         ended = any(r.time > k and r.error_code == 0 for r in loop.twin.arm.results)
-    return ObstacleRun(int(seed), body, loop.closest, loop.closest_time, loop.decisions(),
+    return ObstacleRun(int(seed), body, loop.closest, loop.closest_time, loop.closest_moving,
+                       loop.decisions(),
                        tuple(loop.replans), loop.kill_time, after, moved, ended, loop.scans,
                        loop.clouds, loop.twin.now, wall,
                        loop.twin.recording.speed_ratio.copy())
@@ -506,10 +513,11 @@ def cmd_obstacles(args: argparse.Namespace, cell: Cell) -> int:
           f"0.22-0.40 m; laser 20 Hz (271 beams, 270 deg, 1 cm noise, 20 ms latency), depth "
           f"camera 15 Hz (48x36 rays, 5 mm noise, 40 ms latency), by mujoco.mj_multiRay; "
           f"monitor: approach speed {opts.approach_speed} m/s, C {opts.min_separation} m")
-    print("| seed | closest approach [mm] | at [s] | decisions | re-plans | kill [s] | "
+    print("| seed | closest approach [mm] | at [s] | while moving [mm] | decisions | "
+          "re-plans | kill [s] | "
           "motion ended after the kill | commands after the kill | moved after [mrad] | "
           "sim/real |")
-    print("|---|---|---|---|---|---|---|---|---|---|")
+    print("|---|---|---|---|---|---|---|---|---|---|---|")
     latched = True
     for k in range(runs):
         seed = args.seed + k
@@ -526,7 +534,8 @@ def cmd_obstacles(args: argparse.Namespace, cell: Cell) -> int:
         rp = ", ".join(s for _, s in r.replans) or "-"
         kt = "-" if r.kill_time is None else f"{r.kill_time:.3f}" + \
             (" (5 ms before a motion's end)" if before_end is not None else "")
-        print(f"| {seed} | {1000 * r.closest:.0f} | {r.closest_time:.2f} | {dec} | {rp} | "
+        print(f"| {seed} | {1000 * r.closest:.0f} | {r.closest_time:.2f} | "
+              f"{1000 * r.closest_moving:.0f} | {dec} | {rp} | "
               f"{kt} | {'yes' if r.motion_end_after_kill else 'no'} | "
               f"{', '.join(r.after_kill) or 'none'} | {1000 * r.moved_after_kill:.2f} | "
               f"{r.duration / max(r.wall_time, 1e-9):.1f}x |")
