@@ -3,7 +3,7 @@ against the jerk-free optimum, and the timing's compute time, with peers in the 
 
 Problem sets, drawn afresh from ``--seed`` (and the bundled cells' own paths):
 
-* ``cell``: every path :func:`safepath.planning.timing.time_path` times while planning the
+* ``cell``: every path :func:`safepath.timing.time_path` times while planning the
   bundled quality-check cell (Ned3 Pro) and pouring cell (Gen3 Lite), captured as they
   are timed (step speeds and TCP speed limits included);
 * ``random``: ``--random`` polylines per robot (Ned3 Pro, Gen3 Lite, Panda, UR5) of 2-5
@@ -52,9 +52,9 @@ import numpy as np
 
 import safepath
 from safepath.execution import executed_peaks
-from safepath.planning import _chunks, _path_limits, _topp
+from safepath.planning import _chunks
 from safepath.planning import pour as _pour
-from safepath.planning.timing import TimingOptions, spline_path, time_path
+from safepath.timing import TimingOptions, _path_limits, _topp, spline_path, time_path
 
 ROOT = Path(__file__).resolve().parents[1]
 ROBOTS = ("ned3pro", "gen3_lite", "panda", "ur5")

@@ -1,6 +1,6 @@
 """Time per TOPP-RA run: safepath's numba kernel against the ``toppra`` library, same paths.
 
-The paths are every :func:`safepath.planning.timing.time_path` call of one warm plan of the
+The paths are every :func:`safepath.timing.time_path` call of one warm plan of the
 bundled cell (captured while planning), plus random polylines of the Ned3 Pro. On each
 path, on the grid safepath gave toppra (0.015 rad steps), with the robot's limits
 (constant along the path, so that toppra's own constraint classes apply), it measures
@@ -9,7 +9,7 @@ path, on the grid safepath gave toppra (0.015 rad steps), with the robot's limit
 * ``toppra``: ``TOPPRA([JointVelocityConstraint, JointAccelerationConstraint
   (interpolation)], ParametrizeConstAccel).compute_trajectory`` and the evaluation of the
   path parameter at the knots (``_eval_params``), what safepath ran before;
-* ``ours``: the same steps with :mod:`safepath.planning._topp` (path derivatives on the
+* ``ours``: the same steps with :mod:`safepath.timing._topp` (path derivatives on the
   grid, constraint rows, backward and forward pass, parametrisation, knots);
 
 and prints the durations both find. Then, for the captured calls, the whole ``time_path``
@@ -43,9 +43,9 @@ from unittest import mock
 import numpy as np
 
 from safepath import Cell, PlanOptions, load_cell, load_routes, plan_cell
-from safepath.planning import _chunks, _topp
-from safepath.planning.timing import PathSpline, TimingOptions, spline_path
+from safepath.planning import _chunks
 from safepath.robot import Robot
+from safepath.timing import PathSpline, TimingOptions, _topp, spline_path
 
 ROOT = Path(__file__).resolve().parents[1]
 CELL_DIR = ROOT / "scenes" / "quality_check_cell"
@@ -174,7 +174,7 @@ def compare_runs(robot: Robot, cases: Sequence[Case], runs: int) -> None:
 
 def time_path_calls(cases: Sequence[Case], runs: int) -> None:
     """The whole time_path of each captured call."""
-    from safepath.planning.timing import time_path
+    from safepath.timing import time_path
 
     total = 0.0
     for case in cases:
@@ -229,7 +229,7 @@ COLD = textwrap.dedent("""
     numba.njit(lambda x: x + 1.0)(1.0)  # numba's own start-up, shared by every kernel
     t2 = time.perf_counter()
     import numpy as np
-    from safepath.planning import _topp
+    from safepath.timing import _topp
     t3 = time.perf_counter()
     grid = np.linspace(0.0, 1.0, 50)
     ones = np.ones((49, 2))

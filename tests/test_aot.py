@@ -68,7 +68,7 @@ def _same(a: Any, b: Any) -> bool:
 def test_every_kernel_module_is_hashed_and_every_entry_exists() -> None:
     import importlib
 
-    from safepath.planning import _topp
+    from safepath.timing import _topp
 
     for name in MODULES:
         importlib.import_module(name)
@@ -101,7 +101,8 @@ def recorded() -> dict[str, list[tuple[Any, ...]]]:
     from safepath import _joinkernel
     from safepath.collision import _kernels as _fastkernels
     from safepath.monitor import _kernels as _monitor_kernels
-    from safepath.planning import _ik_kernel, _topp
+    from safepath.planning import _ik_kernel
+    from safepath.timing import _topp
     from safepath.verify import _kernel as _verify_kernel
 
     calls: dict[str, list[tuple[Any, ...]]] = {name: [] for name in ENTRIES}

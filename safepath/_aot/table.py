@@ -55,7 +55,7 @@ _FAST_PARTS = ("safepath.collision._placement", "safepath.collision._pair_tests"
 _VERIFY = "safepath.verify._kernel"
 _VERIFY_DISTANCE = "safepath.verify._distance"
 _IK = "safepath.planning._ik_kernel"
-_TOPP = "safepath.planning._topp"
+_TOPP = "safepath.timing._topp"
 _MONITOR = "safepath.monitor._kernels"
 _JOIN = "safepath._joinkernel"
 #: A placed shape of the verifier: a tuple of 17 floats.
@@ -113,7 +113,7 @@ ENTRIES: dict[str, Entry] = {
                                     (F2, I1, F3, F2, F1, FLOAT, F1), "void"),
     "monitor_march": Entry(_MONITOR, "march", (F1, F2, F2, F1, FLOAT, FLOAT, FLOAT, F1, F1, F1),
                            "Tuple((i8, i8, b1))"),
-    # TOPP-RA's two passes (safepath.planning._topp).
+    # TOPP-RA's two passes (safepath.timing._topp).
     "topp_backward": Entry(_TOPP, "_backward", (F1, F1, F2, F2, F2, F1, F1), INT),
     "topp_forward": Entry(_TOPP, "_forward", (F1, F1, F2, F2, F2, F1, F1, F1), "void"),
     "topp_tridiagonal": Entry(_TOPP, "_tridiagonal", (F1, F1, F1, F2), INT),

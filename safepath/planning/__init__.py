@@ -1,13 +1,13 @@
 """Planning: routes of taught poses to verified, timed trajectories."""
 
 from ..routes import Route, Step, Target, load_routes
+from ..timing import TimingOptions
 from ..verify import FclVerifier, VerifyResult
 from .cartesian import LineOptions, cartesian_line, solve_ik
 from .motion import plan
 from .options import PlanOptions
 from .planner import plan_cell, plan_route
 from .sampling import PLANNERS, PlannerOptions, plan_joint_path
-from .timing import TimingOptions
 from .world import WorldState, initial_world
 
 __all__ = [

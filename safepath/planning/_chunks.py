@@ -20,9 +20,9 @@ from ..errors import PlanningError, VerificationError
 from ..execution import LIMITS_KEY, robot_limits
 from ..routes import Route, Step
 from ..scene import AllowedContact
+from ..timing import TimedPiece, spline_path, time_path
 from ..trajectory import GripperEvent, Trajectory
 from ..verify import VerifyResult
-from .timing import TimedPiece, spline_path, time_path
 
 if TYPE_CHECKING:
     from ..cell import Cell

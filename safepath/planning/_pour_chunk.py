@@ -13,6 +13,7 @@ import numpy as np
 
 from ..errors import PlanningError
 from ..pour_steps import Circle, Tilt
+from ..timing import TimedPiece
 from ..verify import VerifyResult
 from .pour import (
     PourMotion,
@@ -23,7 +24,6 @@ from .pour import (
     tilt_curve,
     tilt_of,
 )
-from .timing import TimedPiece
 
 if TYPE_CHECKING:
     from ..cell import Cell

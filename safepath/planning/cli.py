@@ -40,9 +40,9 @@ def cmd_plan(args: argparse.Namespace) -> int:
     from ..cell import load_cell
     from ..errors import ConfigError
     from ..routes import after_chain
+    from ..timing import TimingOptions
     from .planner import PlanOptions, plan_cell
     from .sampling import PlannerOptions
-    from .timing import TimingOptions
 
     if args.bag and Path(args.bag).exists():
         raise ConfigError(f"{args.bag} exists already; choose a new bag path", key="--bag")

@@ -5,10 +5,10 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 from ..collision import CheckOptions
+from ..timing import TimingOptions
 from .cartesian import LineOptions
 from .pour import PourOptions
 from .sampling import PlannerOptions
-from .timing import TimingOptions
 
 __all__ = ["PlanOptions"]
 

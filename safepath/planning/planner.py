@@ -23,6 +23,7 @@ from ..cell import Cell
 from ..collision import CollisionChecker, Pair
 from ..errors import IKError, PlanningError, SafepathError, TimingError
 from ..routes import Route, Step, after_chain
+from ..timing import TimedPiece
 from ..trajectory import Trajectory
 from ..verify import check_verifiable
 from ._chunks import Segment, assemble, time_chunk, time_segments
@@ -31,7 +32,6 @@ from .cartesian import cartesian_line
 from .constraints import check_landing, check_tilt, tilt_bound
 from .options import PlanOptions
 from .sampling import plan_joint_path
-from .timing import TimedPiece
 from .world import CheckerCache, WorldState, initial_world
 
 __all__ = ["PlanOptions", "WorldState", "plan_route", "plan_cell", "route_order",

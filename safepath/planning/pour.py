@@ -15,7 +15,7 @@ of the seed's 20 separate MoveIt moves:
 Each path is followed by inverse kinematics (waypoints every ``angle_step`` of rotation
 and ``path_step`` of TCP travel, each seeded from the last; a joint jump larger than
 ``max_joint_step`` is an :class:`~safepath.errors.IKError`), splined through the waypoints,
-timed by :func:`~safepath.planning.timing.time_path`, then every released sample is checked:
+timed by :func:`~safepath.timing.time_path`, then every released sample is checked:
 joint limits (by the timing), TCP and angular speed (a uniform time stretch removes any
 excess at the knots), distance to the reference path and tilt error (a
 :class:`~safepath.errors.PlanningError` beyond ``position_tolerance`` or
@@ -34,10 +34,10 @@ import pinocchio as pin
 
 from ..errors import ConfigError, IKError, PlanningError
 from ..execution import LIMITS_KEY, robot_limits
+from ..timing import PathSpline, TimingOptions, spline_path, stretch_knots, time_path
 from ..trajectory import Trajectory
 from ..verify import FclVerifier, VerifyResult
 from .cartesian import LineOptions, solve_ik
-from .timing import PathSpline, TimingOptions, spline_path, stretch_knots, time_path
 
 if TYPE_CHECKING:
     from ..cell import Cell

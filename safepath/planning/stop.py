@@ -21,7 +21,7 @@ import numpy as np
 
 from ..errors import TimingError
 from ..robot import Robot
-from .timing import PathSpline
+from ..timing import PathSpline
 
 __all__ = ["StopPlanner", "Stop", "path_state"]
 

@@ -34,10 +34,9 @@ from ..trajectory import Trajectory
 
 if TYPE_CHECKING:
     from ..cell import Cell
-    from ..planning._path_limits import PathSpline
     from ..planning.gravimetric import FlowModel
     from ..planning.pour import PourMotion
-    from ..planning.timing import TimedPiece, TimingOptions
+    from ..timing import PathSpline, TimedPiece, TimingOptions
 
 __all__ = ["MassPredictor", "PourStopper"]
 
@@ -134,7 +133,7 @@ class PourStopper:
                  return_angular_speed: float = math.radians(30.0),
                  timing: TimingOptions | None = None) -> None:
         from ..monitor.profile import MonitoredPath
-        from ..planning.timing import TimingOptions
+        from ..timing import TimingOptions
         from ..verify import FclVerifier
 
         if not (math.isfinite(return_angular_speed) and return_angular_speed > 0):
@@ -248,7 +247,7 @@ class PourStopper:
                           {"s_from": s_rest, LIMITS_KEY: robot_limits(self.robot)})
 
     def _back_piece(self, s_rest: float) -> tuple[TimedPiece, float]:
-        from ..planning.timing import time_path
+        from ..timing import time_path
 
         end = float(self.motion.path.x[-1])
         if not (math.isfinite(s_rest) and 1e-9 < s_rest <= end + 1e-12):

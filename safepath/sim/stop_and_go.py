@@ -3,7 +3,7 @@
 The seed's node sends one arm command per taught pose and waits for each to finish, so
 the arm stops at every pose. :func:`stop_and_go` turns a verified route into that motion:
 the same path (the route's own knots), cut where its steps meet, each piece timed rest
-to rest by safepath's timing (:func:`safepath.planning.timing.time_path`) at the step's
+to rest by safepath's timing (:func:`safepath.timing.time_path`) at the step's
 speed scale and TCP speed limit, the gripper events kept between the same pieces. It is
 the motion of ``safepath plan``'s stop-and-go column, as a trajectory the twin can run.
 """
@@ -44,7 +44,7 @@ def stop_and_go(cell: Cell, traj: Trajectory) -> Trajectory:
     Raises:
         TimingError: A piece cannot be timed.
     """
-    from ..planning.timing import TimingOptions, spline_path, time_path
+    from ..timing import TimingOptions, spline_path, time_path
 
     steps = cell.route_table()[traj.route].steps if traj.route else ()
     options = TimingOptions()

@@ -14,7 +14,7 @@ join of points a few milliseconds apart follows it closely. The motion stays on 
 (only ``s(t)`` changes), starts and ends at rest, and lasts ``tau_a + tau_b`` longer than
 the profile. Speeds and accelerations are averages of the profile's, so they keep within
 its limits where the limits change slowly along the path; where they do not, the caller
-tightens the limits there and solves again (:func:`safepath.planning.timing.time_path`).
+tightens the limits there and solves again (:func:`safepath.timing.time_path`).
 
 Everything is exact: ``s0`` is piecewise quadratic in time, so its first and second
 integrals are piecewise cubic and quartic, and the double average is a second difference

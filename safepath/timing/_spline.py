@@ -3,7 +3,7 @@
 The same spline as scipy's ``CubicSpline(x, y, bc_type="not-a-knot")`` (its slopes solve
 the same tridiagonal system), without importing ``scipy.interpolate``, which costs a
 new process several tenths of a second before its first plan. Evaluation follows
-:class:`~safepath.planning._path_limits.PathSpline`: ``path(s)``, ``path(s, 1)``,
+:class:`~safepath.timing._path_limits.PathSpline`: ``path(s)``, ``path(s, 1)``,
 ``path(s, 2)``, ``path.x``; outside ``[x[0], x[-1]]`` the end pieces extend.
 """
 

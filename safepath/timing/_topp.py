@@ -248,7 +248,7 @@ def _tridiagonal(dl: np.ndarray, d: np.ndarray, du: np.ndarray, b: np.ndarray) -
     """Solve the tridiagonal system (sub-diagonal ``dl``, diagonal ``d``, super-diagonal
     ``du``, n >= 3) for the right-hand sides ``b`` (n, k) in place, as LAPACK's ``dgtsv``
     does it (Gaussian elimination with partial pivoting), operation for operation: the
-    spline slopes' solve (:func:`safepath.planning._spline._solve_tridiagonal`). All four
+    spline slopes' solve (:func:`safepath.timing._spline._solve_tridiagonal`). All four
     arrays are overwritten; ``b`` holds the solution.
 
     Returns:

@@ -139,7 +139,7 @@ def spline_path(waypoints: Sequence[np.ndarray], spacing: float, *,
             instead of passing through it.
 
     Returns:
-        The spline (not-a-knot, :class:`~safepath.planning._spline.CubicPath`, scipy's
+        The spline (not-a-knot, :class:`~safepath.timing._spline.CubicPath`, scipy's
         ``CubicSpline`` without its import cost), the path parameter of each input
         waypoint (its closest point for cut corners), and the spline's interpolation
         parameters.

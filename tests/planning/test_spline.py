@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 from scipy.interpolate import CubicSpline
 
-from safepath.planning._spline import CubicPath
+from safepath.timing import CubicPath
 
 
 @pytest.mark.parametrize("n", [2, 3, 4, 5, 17, 300])
@@ -40,7 +40,7 @@ def test_tridiagonal_solve_equals_lapack_bit_for_bit() -> None:
     so that dropping scipy.linalg changed no trajectory."""
     from scipy.linalg import solve_banded
 
-    from safepath.planning._spline import _solve_tridiagonal
+    from safepath.timing._spline import _solve_tridiagonal
 
     rng = np.random.default_rng(11)
     pivoted = 0

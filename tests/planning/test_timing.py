@@ -27,15 +27,17 @@ from safepath import (
 )
 from safepath.cell import Cell
 from safepath.errors import TimingError
-from safepath.planning import _path_limits, _topp, timing
-from safepath.planning.timing import (
+from safepath.robot import Robot
+from safepath.timing import (
     PathSpline,
     TimedPiece,
+    _path_limits,
+    _topp,
     rest_to_rest_time,
     spline_path,
     time_path,
 )
-from safepath.robot import Robot
+from safepath.timing import path_timing as timing
 
 from .conftest import LIMIT_TOL, ROOT, Plans, dense_times
 
@@ -390,7 +392,7 @@ def test_timing_needs_neither_toppra_nor_numba_at_import() -> None:
 
     script = (
         "import sys\n"
-        "import safepath.planning.timing as timing\n"
+        "import safepath.timing as timing\n"
         "print('numba' in sys.modules, 'scipy' in sys.modules)\n"
         "from safepath import load_cell\n"
         f"cell = load_cell({str(ROOT / 'scenes' / 'quality_check_cell')!r})\n"

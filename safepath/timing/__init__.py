@@ -1,0 +1,41 @@
+"""Timing: time-optimal, jerk-limited timing of joint paths under the robot's limits.
+
+The layer after collision-checked paths and before the release check: a joint polyline
+becomes a cubic spline (:func:`spline_path`; the spline in ``_spline``), whose
+time-optimal timing under joint velocity and acceleration limits that vary along it
+(``_path_limits``) TOPP-RA finds (our numba kernel, ``_topp``); knots over a limit are
+tightened and timed again, the jerk is limited around them (``_smooth``), and what is
+left is removed by stretching time (:func:`time_path`, in :mod:`.path_timing`). No
+released knot exceeds a limit.
+
+Depends on the robot and its limits only: nothing here imports collision checking,
+planning or the release check.
+"""
+
+from __future__ import annotations
+
+from ._path_limits import PathLimits, PathSpline, path_limits
+from ._spline import CubicPath
+from .path_timing import (
+    RETIME_ABOVE,
+    TimedPiece,
+    TimingOptions,
+    rest_to_rest_time,
+    spline_path,
+    stretch_knots,
+    time_path,
+)
+
+__all__ = [
+    "RETIME_ABOVE",
+    "CubicPath",
+    "PathLimits",
+    "PathSpline",
+    "TimedPiece",
+    "TimingOptions",
+    "path_limits",
+    "rest_to_rest_time",
+    "spline_path",
+    "stretch_knots",
+    "time_path",
+]
