@@ -352,6 +352,16 @@ class _Pour:
         self.holding = not (params.pick_and_place and plan.before)
         self.world = MotionWorld(self.cup if self.holding else None, None)
         self.axis = cup_axis_in_tcp(cell)
+        # The cup's axis in the frame of the TCP's parent joint (a MuJoCo body: the bodies
+        # are the joint frames), for the tilt from MuJoCo's own kinematics.
+        import mujoco
+
+        frame = self.robot.model.frames[self.robot.tcp_frame_id]
+        parent = self.robot.model.names[int(frame.parentJoint)]
+        self._mujoco = mujoco
+        self._tcp_body = mujoco.mj_name2id(self.twin.model.model, mujoco.mjtObj.mjOBJ_BODY,
+                                           parent)
+        self._axis_in_body = np.asarray(frame.placement.rotation) @ self.axis
         self.rng = np.random.default_rng([truth.seed, 3])
         self.motions: list[_Motion] = []
         self.stamps: dict[int, float] = {}
@@ -367,11 +377,13 @@ class _Pour:
         self.tilt = self._tilt()
 
     def _tilt(self) -> float:
-        from ..planning.pour import tilt_of
 
         if not self.holding:
             return 0.0
-        return tilt_of(self.robot.frame_pose(self.twin.q).rotation, self.axis)
+        m, d = self.twin.model.model, self.twin.data
+        self._mujoco.mj_kinematics(m, d)  # at the current positions (mj_step's are before)
+        up = d.xmat[self._tcp_body].reshape(3, 3) @ self._axis_in_body
+        return math.acos(max(-1.0, min(1.0, float(up[2]))))
 
     # -- commands --------------------------------------------------------------------
     def dispatch(self, commands: list[Any]) -> None:
