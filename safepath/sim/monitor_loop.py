@@ -7,8 +7,9 @@ replacement stamped with the monitor's ``replacement_start``, so the controller 
 from the current time), a ``Gripper`` a gripper goal; goal results come back as
 ``on_motion_done`` / ``on_gripper_done``, the node's timer as ``on_tick``. A kill can be
 pressed at any simulated time (:meth:`MonitorTwin.run` ``kill_at``), e.g. just before a
-motion ends. Scans are not simulated here (no obstacle moves): the monitor's options
-should name no sensor, or it stops on their silence.
+motion ends. Scans are not simulated here: the monitor's options should name no sensor,
+or it stops on their silence; :class:`safepath.sim.obstacles.ObstacleTwin` adds a moving
+body and the sensors that see it.
 """
 
 from __future__ import annotations
@@ -78,7 +79,7 @@ class MonitorTwin:
 
     def _dispatch(self, commands: list[Any]) -> None:
         from ..monitor.node import Gripper, Publish, SendGoal
-        from ..ros import follow_joint_trajectory_goal, tool_goal
+        from ..ros import follow_joint_trajectory_goal, gripper_command_goal, tool_goal
 
         robot = self.twin.robot
         for cmd in commands:
@@ -100,7 +101,12 @@ class MonitorTwin:
             elif isinstance(cmd, Gripper):
                 self.issued.append(IssuedCommand(now, "gripper", cmd.event.action))
                 self._goal_id += 1
-                self.twin.send_gripper_goal(tool_goal(cmd.event.action, backend="rosbags"),
+                # The goal the robot's gripper takes: GripperCommand when its
+                # controller.yaml has a gripper section, else Niryo's Tool.
+                grip = gripper_command_goal(robot, cmd.event.action, backend="rosbags") \
+                    if robot.controller.gripper is not None \
+                    else tool_goal(cmd.event.action, backend="rosbags")
+                self.twin.send_gripper_goal(grip,
                                             self._goal_id)
 
     def run(self, duration: float, *, kill_at: float | None = None) -> None:
