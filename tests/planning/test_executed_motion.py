@@ -1,6 +1,6 @@
 """Property test: timed random paths, sent as goals, stay within every limit as executed.
 
-Random joint polylines on four robots are timed (:func:`safepath.planning.timing.time_path`),
+Random joint polylines on four robots are timed (:func:`safepath.timing.time_path`),
 turned into ``JointTrajectory`` messages (rosbags' message types), and the messages' own
 numbers are joined as ros2_control's joint_trajectory_controller joins them (a quintic
 per joint through position, velocity and acceleration), sampled at 1 kHz by an
@@ -19,8 +19,8 @@ from quintic_join import quintic_peaks as _quintic_peaks
 import safepath
 from safepath.errors import ExecutedLimitError
 from safepath.execution import robot_limits
-from safepath.planning.timing import TimingOptions, spline_path, time_path
 from safepath.ros import joint_trajectory
+from safepath.timing import TimingOptions, spline_path, time_path
 from safepath.trajectory import Trajectory
 
 ROOT = Path(__file__).resolve().parents[2]
