@@ -22,9 +22,11 @@ disk), and only then renames the temporary file over ``poses.yaml``. So a proces
 at any instant leaves one of: the file unchanged and no line (a leftover temporary file,
 removed at the next start or save); the line written and the file not yet replaced (the
 next start or save finishes the rename from the temporary file, whose hash the line
-names); or both done. The file never changes without its line. If the rename fails
-(a full disk, a permission), a line ``{"time", "client", "file", "undone": <time of the
-save's line>, "reason"}`` withdraws the save's line.
+names); or both done. The file never changes without its line, so one that follows the
+log sees a save's line an instant before the file changes: the save has landed once the
+file's hash is the line's ``sha256_after`` (the session tells its pages only then). If
+the rename fails (a full disk, a permission), a line ``{"time", "client", "file",
+"undone": <time of the save's line>, "reason"}`` withdraws the save's line.
 """
 
 from __future__ import annotations

@@ -25,6 +25,8 @@ import pytest
 from safepath import Cell, load_cell
 from safepath.view import ReviewSession, ViewOptions
 
+from .conftest import log_lines, saves_landed
+
 CHROMIUM = Path("/usr/bin/chromium")
 ARTIFACTS = Path(__file__).resolve().parents[1] / "artifacts"
 WIDTH, HEIGHT = 1280, 800
@@ -230,12 +232,6 @@ def save_and_confirm(browser: Browser) -> None:
     assert browser.click_button("Confirm save")
 
 
-def log_lines(cell: Path) -> list[dict[str, Any]]:
-    """The save log's entries."""
-    path = cell / "poses.log"
-    return [json.loads(line) for line in path.read_text().splitlines()] if path.exists() else []
-
-
 def test_two_pages_need_the_token_and_lose_no_edit(tmp_path: Path, cell_copy: Path,
                                                    plans_dir: Path) -> None:
     from safepath import load_poses
@@ -302,14 +298,14 @@ def test_two_pages_need_the_token_and_lose_no_edit(tmp_path: Path, cell_copy: Pa
             pb.edit_pose("safe")
             qb = pb.set_joint(5, float(pb.edits.q("safe")[5]) + 0.05).q
         save_and_confirm(a)
-        wait_for(lambda: len(log_lines(cell_copy)) == 1, 15.0, "page a's save did not land")
+        wait_for(lambda: saves_landed(cell_copy) == 1, 15.0, "page a's save did not land")
         # Page b sees the new poses: its base moved on, and the page says who saved.
         wait_for(lambda: np.array_equal(pb.edits.base.poses["high1"], qa), 10.0,
                  "page b's poses did not move on")
         wait_for(lambda: f"saved by {pa.address}" in page_text(b), 10.0,
                  "page b was not told about page a's save")
         save_and_confirm(b)
-        wait_for(lambda: len(log_lines(cell_copy)) == 2, 15.0, "page b's save did not land")
+        wait_for(lambda: saves_landed(cell_copy) == 2, 15.0, "page b's save did not land")
         saved = load_poses(poses_file, session.cell.robot)
         assert np.array_equal(saved["high1"], qa) and np.array_equal(saved["safe"], qb)
         first, second = log_lines(cell_copy)
@@ -327,7 +323,7 @@ def test_two_pages_need_the_token_and_lose_no_edit(tmp_path: Path, cell_copy: Pa
             pb.edit_pose("low1")
             qb_low = pb.set_joint(0, float(q_low[0]) - 0.02).q
         save_and_confirm(a)
-        wait_for(lambda: len(log_lines(cell_copy)) == 3, 15.0, "page a's save did not land")
+        wait_for(lambda: saves_landed(cell_copy) == 3, 15.0, "page a's save did not land")
         wait_for(lambda: "low1" in pb.edits.conflicts, 10.0, "no conflict on page b")
         wait_for(lambda: "conflict" in page_text(b), 10.0, "page b shows no conflict")
         assert b.click_button("Save poses")
@@ -341,7 +337,7 @@ def test_two_pages_need_the_token_and_lose_no_edit(tmp_path: Path, cell_copy: Pa
         assert b.click_button("Keep my edit")
         wait_for(lambda: "low1" not in pb.edits.conflicts, 10.0, "keep mine did nothing")
         save_and_confirm(b)
-        wait_for(lambda: len(log_lines(cell_copy)) == 4, 15.0, "the kept edit was not saved")
+        wait_for(lambda: saves_landed(cell_copy) == 4, 15.0, "the kept edit was not saved")
         assert np.array_equal(load_poses(poses_file, session.cell.robot)["low1"], qb_low)
         # Every page shows the saved poses: the shared pose frame moved to it.
         target = session.cell.robot.frame_pose(qb_low).translation
@@ -531,7 +527,7 @@ def test_joint_boxes_refuse_out_of_limit_values_keep_precision_and_follow_rights
                  "the page does not show what would be saved")
         assert poses_file.read_bytes() == original  # not before the confirmation
         click(browser, "Confirm save")
-        wait_for(lambda: len(log_lines(cell_copy)) == 1, 15.0, "the confirmed save did not land")
+        wait_for(lambda: saves_landed(cell_copy) == 1, 15.0, "the confirmed save did not land")
         (entry,) = log_lines(cell_copy)
         assert entry["changes"]["low1"]["to"][0] == 1.4318 and entry["check"]["low1"]["valid"]
         from safepath import load_poses

@@ -23,6 +23,8 @@ import pytest
 from safepath import load_poses
 from safepath.view import ReviewSession, ViewOptions
 
+from .conftest import saves_landed
+
 #: A session that neither plans at start nor after a save (the saves are the point).
 OPTIONS = ViewOptions(port=0, plan_on_start=False, replan_on_save=False)
 
@@ -215,3 +217,48 @@ def test_a_failed_rename_withdraws_its_log_line(session: ReviewSession, cell_cop
     assert poses_file.read_bytes() == before and leftovers(cell_copy) == []
     saved, undone = log_lines(cell_copy)
     assert undone["undone"] == saved["time"] and "No space left" in undone["reason"]
+    assert saves_landed(cell_copy) == 0
+
+
+def test_a_save_has_landed_when_the_file_is_replaced_not_when_its_line_appears(
+        session: ReviewSession, cell_copy: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """Two editors, two poses: the first save carries the other editor's edit over, and
+    its save writes it. The log is written ahead, so for an instant the second save's
+    line is on disk while ``poses.yaml`` is still the first save's version: a reader
+    that counts lines and reads the file at once finds the edit "lost" (the browser
+    test of two pages did, under load); nobody is told of the save before the file
+    holds it, and :func:`saves_landed` waits for the file."""
+    import safepath.view.store as store
+
+    poses_file = cell_copy / "poses.yaml"
+    robot = session.cell.robot
+    other = session.poses.new_editor()  # a page's edit buffer
+    q_high = session.edit_pose("high1").q.copy()
+    q_high[0] += 0.05
+    session.set_joints(q_high)
+    q_safe = other.q("safe")
+    q_safe[5] += 0.05
+    other.set("safe", q_safe)
+    session.save_poses()
+    assert saves_landed(cell_copy) == 1
+    assert np.array_equal(other.edits["safe"], q_safe)  # carried over the first save
+
+    at_line: dict[str, Any] = {}
+    append = store._append
+
+    def append_and_look(log_file: Any, entry: dict[str, Any]) -> None:
+        append(log_file, entry)
+        at_line.update(lines=len(log_lines(cell_copy)), landed=saves_landed(cell_copy),
+                       safe=load_poses(poses_file, robot)["safe"],
+                       told=[m for m in session.messages if "saved by 127.0.0.1:5" in m])
+
+    monkeypatch.setattr(store, "_append", append_and_look)
+    session.save_edits(other, "127.0.0.1:5")
+    # At its line: logged, the file not replaced yet, nobody told.
+    assert at_line["lines"] == 2 and at_line["landed"] == 1 and at_line["told"] == []
+    assert not np.array_equal(at_line["safe"], q_safe)
+    # Once the save returns: the file holds both edits, and every page is told.
+    saved = load_poses(poses_file, robot)
+    assert saves_landed(cell_copy) == 2
+    assert np.array_equal(saved["safe"], q_safe) and np.array_equal(saved["high1"], q_high)
+    assert any("saved by 127.0.0.1:5" in m for m in session.messages)
