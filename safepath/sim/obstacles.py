@@ -45,6 +45,8 @@ __all__ = ["MovingBody", "SensorRig", "ObstacleTwin", "ObstacleRun", "run_obstac
 
 #: Geom group of the moving body (the sensors' rays see this group only).
 BODY_GROUP = 3
+#: Distances arm - body are measured up to this [m] (farther: reported as this).
+_DIST_MAX = 10.0
 
 
 @dataclass(frozen=True)
@@ -237,7 +239,7 @@ class ObstacleTwin(MonitorTwin):
         best = math.inf
         for g in self._arm_geoms:
             best = min(best, float(self._mujoco.mj_geomDistance(m, d, g, self._body_geom,
-                                                                 1.0, None)))
+                                                                 _DIST_MAX, None)))
         if best < self.closest:
             self.closest, self.closest_time = best, self.twin.now
         if self.twin.arm.active is not None:
