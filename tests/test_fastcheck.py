@@ -29,8 +29,13 @@ def cell() -> Cell:
 
 
 def _inside_any(points: np.ndarray, centers: np.ndarray, radii: np.ndarray) -> np.ndarray:
-    d = np.linalg.norm(points[:, None, :] - centers[None, :, :], axis=2)
-    return np.any(d <= radii[None, :], axis=1)
+    """Whether each point lies in at least one sphere (64 points at a time: a fit has
+    thousands of spheres, and the whole points x spheres array would not stay in cache)."""
+    out = np.empty(len(points), dtype=bool)
+    for k in range(0, len(points), 64):
+        d = np.linalg.norm(points[k:k + 64, None, :] - centers[None, :, :], axis=2)
+        out[k:k + 64] = np.any(d <= radii[None, :], axis=1)
+    return out
 
 
 def _assert_enclosed(geometry: object, rng: np.random.Generator, label: str) -> None:
