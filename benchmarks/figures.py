@@ -166,9 +166,20 @@ def _twin(d: dict[str, Any]) -> list[Row]:
     runs = d["runs"]
     ratio = [r["ratio_simulation"] for r in runs]
     vpm = [r["vials_per_minute"] for r in runs]
-    return [("twin: simulated time over real time (physics, without the clearance check)",
-             f"{_span(ratio, '.0f')}x over {len(runs)} runs; "
-             f"{_span(vpm, 'g')} vials per minute")]
+    rows = [("quality-check twin: simulated over real time (without the clearance check); "
+             "vials per minute",
+             f"{_span(ratio, '.0f')}x over {len(runs)} runs; {_span(vpm, 'g')}")]
+    pour = d.get("pouring")
+    if pour and pour.get("runs"):
+        masses = [r["final_mass_g"] for r in pour["runs"]]
+        inside = sum(abs(m - pour["target_g"]) <= pour["tolerance_g"] for m in masses)
+        rows.append(("pouring twin: final masses (target ± tolerance)",
+                     f"{min(masses):.2f}-{max(masses):.2f} g over {len(masses)} pours, "
+                     f"{inside} of {len(masses)} within {pour['target_g']:g} ± "
+                     f"{pour['tolerance_g']:g} g; "
+                     f"{_span([r['ratio_simulation'] for r in pour['runs']], '.0f')}x real "
+                     "time"))
+    return rows
 
 
 def _peers(d: dict[str, Any]) -> list[Row]:
@@ -254,7 +265,13 @@ def render(results: Path = RESULTS) -> str:
         ctx = data.get("context") or (_peers_context(data) if name == "peers.json"
                                       else _legacy_context(data))
         shown = command if command.startswith("make") else f".venv/bin/python {command}"
-        for what, figure in read(data):
+        try:
+            rows = read(data)
+        except (KeyError, TypeError, ValueError, IndexError) as exc:
+            # A benchmark changed its file: say so in the table rather than fail the run.
+            rows = [(f"`{name}`", f"NOT UNDERSTOOD by benchmarks/figures.py "
+                                  f"({type(exc).__name__}: {exc}): update its reader")]
+        for what, figure in rows:
             lines.append(f"| {what} | {figure} | `{shown}` | {_measured(ctx)} |")
     peers = results / "peers.json"
     if peers.is_file():

@@ -32,6 +32,7 @@ def test_the_table_is_generated_from_the_results_files(tmp_path: Path) -> None:
         shutil.copy(path, tmp_path / path.name)
     text = _generate(tmp_path, tmp_path / "FIGURES.md")
     assert text.startswith("# Benchmark figures")
+    assert "NOT UNDERSTOOD" not in text, "a benchmark's results file changed: update its reader"
     for name in ("executed_motion.json", "peers.json", "replan.json", "twin.json"):
         if (tmp_path / name).exists():
             assert f"| `{name}` | not measured yet" not in text
@@ -57,6 +58,9 @@ def test_a_saved_run_becomes_a_row_and_a_missing_one_says_how(tmp_path: Path) ->
     assert "safe 0.90 (aim ≤ 0.7, **not met**)" in text
     assert ("| `collision_checks.json` | not measured yet | "
             "`.venv/bin/python benchmarks/collision_checks.py --save` |") in text
+    (tmp_path / "panda_set.json").write_text('{"plans": 3}')  # a file the reader cannot read
+    text = _generate(tmp_path, tmp_path / "FIGURES.md")
+    assert "| `panda_set.json` | NOT UNDERSTOOD by benchmarks/figures.py (KeyError" in text
 
 
 def test_the_readme_is_a_guide_not_a_log() -> None:
