@@ -26,7 +26,7 @@ one MuJoCo ``general`` actuator per joint (``gain kp``, ``bias -kp q - kd qd``, 
 ``q_ref + kd/kp qd_ref + qdd_ref / w^2``) plus MuJoCo's gravity compensation routed
 through the actuators (``actuatorgravcomp``), so the clamp bounds the total. The gains
 are stated in :class:`ServoGains`; they are a model of a stiff industrial servo, not
-the vendor's firmware (see the README's "The twin" for what this leaves out).
+the vendor's firmware (see docs/twin.md for what this leaves out).
 """
 
 from __future__ import annotations

@@ -81,7 +81,7 @@ class GripperResult:
 class GripperServer:
     """A gripper action server (``GripperCommand`` or Niryo ``Tool``), as a timed action.
 
-    The gripper's fingers are not simulated bodies (see the README's limits): a goal
+    The gripper's fingers are not simulated bodies (see docs/twin.md's limits): a goal
     succeeds ``duration`` after it arrives.
 
     Args:
