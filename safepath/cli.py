@@ -189,7 +189,7 @@ def main(argv: Sequence[str] | None = None) -> int:
 def _load_extra() -> None:
     import importlib
 
-    for name in ("safepath.planning.cli", "safepath.view.cli", "safepath.sim.cli"):
+    for name in ("safepath._plan_cli", "safepath.view.cli", "safepath.sim.cli"):
         try:
             module = importlib.import_module(name)
         except ModuleNotFoundError as exc:

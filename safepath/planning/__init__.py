@@ -5,9 +5,9 @@ from ..timing import TimingOptions
 from ..verify import FclVerifier, VerifyResult
 from .cartesian import LineOptions, cartesian_line, solve_ik
 from .motion import plan
-from .options import PlanOptions
+from .options import PLANNERS, PlannerOptions, PlanOptions
 from .planner import plan_cell, plan_route
-from .sampling import PLANNERS, PlannerOptions, plan_joint_path
+from .sampling import plan_joint_path
 from .world import WorldState, initial_world
 
 __all__ = [

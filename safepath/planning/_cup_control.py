@@ -13,16 +13,30 @@ from __future__ import annotations
 
 from collections.abc import Callable
 from dataclasses import dataclass
-from typing import TYPE_CHECKING
+from typing import Protocol
 
 import numpy as np
 
 from .cup import Cup
 
-if TYPE_CHECKING:
-    from .gravimetric import FlowModel
+__all__ = ["GAINS", "StopTable", "plan_stops", "decide", "Delays"]
 
-__all__ = ["GAINS", "StopTable", "plan_stops", "decide"]
+
+class Delays(Protocol):
+    """What :func:`decide` reads of the flow model (``gravimetric.FlowModel``), so that
+    this module imports nothing of the module that calls it."""
+
+    @property
+    def cup(self) -> Cup | None:
+        """The cup that empties."""
+
+    @property
+    def latency(self) -> float:
+        """Scale reading delay [s]."""
+
+    @property
+    def fall_time(self) -> float:
+        """Time from the lip to the bowl [s]."""
 
 #: The controller's grid of flow gains [g/s/rad^1.5] (log-spaced).
 GAINS = np.geomspace(5.0, 5000.0, 48)
@@ -58,7 +72,7 @@ def plan_stops(stop: StopFn, tilt_of_t: Callable[[float], float], duration: floa
     return StopTable(events, histories)
 
 
-def decide(model: FlowModel, t_motion: np.ndarray, tilt_motion: np.ndarray,
+def decide(model: Delays, t_motion: np.ndarray, tilt_motion: np.ndarray,
            readings: np.ndarray, stops: StopTable, target: float
            ) -> tuple[float | None, float]:
     """The controller on the motion's readings.

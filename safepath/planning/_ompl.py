@@ -28,7 +28,7 @@ from ..collision import CollisionChecker
 from ..errors import PlannerTimeout, PlanningError
 
 if TYPE_CHECKING:
-    from .sampling import PlannerOptions
+    from .options import PlannerOptions
 
 log = logging.getLogger(__name__)
 

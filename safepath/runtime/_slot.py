@@ -16,21 +16,49 @@ import signal
 import threading
 from concurrent.futures import Future
 from multiprocessing.connection import wait
-from typing import TYPE_CHECKING
+from typing import Any, Protocol
+
+import numpy as np
 
 from ._job import Job
-from ._launcher import Loaded, emit, stop_worker
+from ._launcher import Launcher, Loaded, emit, stop_worker
 from ._transport import WorkerError, decode_error
 
-if TYPE_CHECKING:
-    from ._core import Core
-
-__all__ = ["KEEP_POSES", "Slot"]
+__all__ = ["KEEP_POSES", "Slot", "SlotOwner"]
 
 log = logging.getLogger(__name__)
 
 #: Poses version of a job that plans nothing (the worker keeps its poses).
 KEEP_POSES = -1
+
+
+class SlotOwner(Protocol):
+    """What a slot needs of the planner that owns it (``runtime._core.Core``): jobs, pose
+    states, workers, the result cache and counters. The slot calls it back through
+    these alone, so this module imports nothing of its owner."""
+
+    closing: bool
+    #: The multiprocessing context the workers run in.
+    context: Any
+    launcher: Launcher
+
+    def next_job(self) -> Job | None:
+        """The next job to send, or None once the planner closes."""
+
+    def poses_for(self, job: Job) -> tuple[int, dict[str, np.ndarray]] | None:
+        """The poses version and poses ``job`` is planned with (None: closing)."""
+
+    def answer_from_cache(self, job: Job, version: int) -> bool:
+        """Whether the result cache answered ``job`` (its future is then set)."""
+
+    def remember(self, version: int, entries: dict[tuple[Any, ...], bytes]) -> None:
+        """Keep a worker's results for poses ``version`` in the result cache."""
+
+    def count(self, name: str) -> None:
+        """Count one event ``name`` (sent, completed, killed, ...)."""
+
+    def slot_exited(self) -> None:
+        """Called by a slot's thread as it ends."""
 
 
 class Slot:
@@ -41,7 +69,7 @@ class Slot:
         index: Slot number, for names.
     """
 
-    def __init__(self, core: Core, index: int) -> None:
+    def __init__(self, core: SlotOwner, index: int) -> None:
         self._core = core
         self.index = index
         self.worker: Loaded | None = None

@@ -1,0 +1,44 @@
+"""The layers are a contract (issue 26): import-linter checks the contracts of
+pyproject.toml's ``[tool.importlinter]`` over safepath's import graph.
+
+* no import runs up a layer (robot & scene -> collision | verify | timing -> cell ->
+  planning -> the applications);
+* collision, the release check and timing are independent of each other;
+* the release check (safepath.verify) imports nothing of the planner's collision code,
+  planning or timing: its geometry is its own;
+* no circle between the packages and modules of safepath, at any depth, imports made for
+  type checking included.
+
+The imports the contracts still ignore are listed there, each with why.
+"""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+def test_the_import_contracts_are_kept() -> None:
+    lint = Path(sys.executable).with_name("lint-imports")
+    assert lint.exists(), "import-linter is missing: pip install -e '.[dev]'"
+    run = subprocess.run([str(lint), "--no-cache"], cwd=ROOT, capture_output=True, text=True,
+                         timeout=300)
+    assert run.returncode == 0, run.stdout[-4000:] + run.stderr[-2000:]
+    assert "Contracts: 4 kept, 0 broken." in run.stdout, run.stdout[-2000:]
+
+
+def test_the_contracts_cover_the_layers_and_count_type_checking_imports() -> None:
+    tomllib = pytest.importorskip("tomllib")  # Python >= 3.11
+    config = tomllib.loads((ROOT / "pyproject.toml").read_text())["tool"]["importlinter"]
+    assert config["exclude_type_checking_imports"] is False
+    contracts = {c["id"]: c for c in config["contracts"]}
+    assert contracts["acyclic"]["ancestors"] == ["safepath"]
+    assert set(contracts["verify-stands-alone"]["forbidden_modules"]) >= {
+        "safepath.collision", "safepath.planning"}
+    assert "safepath.collision | safepath.verify | safepath.timing" in (
+        contracts["layers"]["layers"])
