@@ -11,6 +11,7 @@ the executed joints). Every step is ``DT``; used by the tests and
 
 from __future__ import annotations
 
+import bisect
 import time
 from dataclasses import dataclass, field
 
@@ -144,8 +145,13 @@ class PourSim:
     def read_scale(self) -> float:
         """What landed ``latency`` ago, plus noise."""
         truth = self.truth
-        landed = float(np.interp(self.now - truth.latency - truth.fall_time,
-                                 np.array(self.ts), np.array(self.out), left=0.0))
+        at = self.now - truth.latency - truth.fall_time
+        # np.interp on the two samples around ``at`` (ts rises): the same number as on
+        # every sample, without copying the whole record at every reading.
+        k = bisect.bisect_right(self.ts, at)
+        lo = max(k - 1, 0)
+        landed = float(np.interp(at, np.array(self.ts[lo:k + 1]), np.array(self.out[lo:k + 1]),
+                                 left=0.0))
         value = self.initial_mass + landed + float(self.rng.normal(0.0, truth.noise))
         self.readings.append((self.now, value))
         return value
