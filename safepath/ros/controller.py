@@ -16,6 +16,17 @@ threads and no clock inside, so every cycle can be replayed in a test.
     any --failed or overdue goal, failed planning--> FAULT: conveyor stopped, no motion
     FAULT --reset()--> IDLE (PLANNING while a route is missing)
 
+With ``ControllerOptions(belt_runs_while_working=True)`` the conveyor is restarted as soon
+as the picked vial has left the belt (the first phase-1 motion after the gripper closed
+has ended, the arm over the test plate) and keeps running while the robot works; when the
+next vial reaches the sensor during the cycle the conveyor is stopped at once (a command
+of its own, beside the arm's goal: the cell's belt also halts by itself under a vial at
+the sensor, ``scenes/quality_check_cell/README.md``), and the next cycle takes it. Before
+the gripper closes on the conveyor the sensor must report the vial (else FAULT). The
+routes are safe with a vial standing at the sensor while the arm works elsewhere
+(``docs/twin.md``); the pick's lift is the only motion that passes where the next vial
+would stand, and the belt stays stopped until it has ended.
+
 A route runs as the steps of :func:`~safepath.ros.goals.split_at_gripper_events`: each
 motion or gripper goal is sent only after the previous one succeeded. Only the exact
 verdict ``'safe'`` sends a vial to packaging.
@@ -74,6 +85,9 @@ class ControllerOptions:
         motion_timeout_margin: Time allowed beyond a motion's duration [s].
         gripper_timeout: Longest gripper action [s].
         conveyor_timeout: Longest conveyor service call [s].
+        belt_runs_while_working: Keep the conveyor running during the cycle, stopped only
+            while a vial stands at the sensor (see the module docstring); False: stopped
+            from the vial's detection to the arm's return, as the seed's node does.
     """
 
     phase1_route: str = "phase1"
@@ -83,8 +97,12 @@ class ControllerOptions:
     motion_timeout_margin: float = 5.0
     gripper_timeout: float = 5.0
     conveyor_timeout: float = 5.0
+    belt_runs_while_working: bool = False
 
     def __post_init__(self) -> None:
+        if not isinstance(self.belt_runs_while_working, bool):
+            raise InputError(f"expected True or False, got {self.belt_runs_while_working!r}",
+                             key="belt_runs_while_working")
         routes = (self.phase1_route, self.safe_route, self.unsafe_route)
         if not all(isinstance(r, str) and r for r in routes) or len(set(routes)) != 3:
             raise InputError(f"need three distinct route names, got {list(routes)}",
@@ -208,6 +226,8 @@ class QualityCheckController:
         self._object_present = False
         self._next_id = 0
         self._pending: _Pending | None = None
+        self._belt_goals: dict[int, _Pending] = {}  # conveyor stops sent beside the arm's goal
+        self._belt_commanded: bool | None = None
         self._queue: list[tuple[str, int, _Step]] = []
         self._cycles = 0
         self._cycle_start = 0.0
@@ -255,6 +275,15 @@ class QualityCheckController:
         self._object_present = bool(object_present)
         if self._state is CellState.IDLE and self._object_present:
             return self._begin_cycle(now)
+        if (self._object_present and self.options.belt_runs_while_working
+                and self._belt_commanded and self._state in (
+                    CellState.PHASE1, CellState.VERDICT, CellState.PHASE2)):
+            # the next vial reached the sensor while the robot works: stop the belt now
+            goal_id = self._new_id()
+            self._belt_goals[goal_id] = _Pending(goal_id, "conveyor", now,
+                                                 now + self.options.conveyor_timeout)
+            self._belt_commanded = False
+            return [SetConveyor(goal_id, running=False)]
         if object_present and self._state is not CellState.IDLE:
             logger.debug("object reading in state %s: not acted on", self._state.value)
         return []
@@ -286,6 +315,11 @@ class QualityCheckController:
     def on_goal_result(self, goal_id: int, success: bool, message: str,
                        now: float) -> list[Command]:
         """A conveyor, motion or gripper goal finished."""
+        side = self._belt_goals.pop(goal_id, None)
+        if side is not None:
+            if not success:
+                return self._fault(f"conveyor goal {goal_id} failed: {message}")
+            return []
         pending = self._pending
         if pending is None or pending.goal_id != goal_id or pending.kind == "verdict":
             logger.debug("result of goal %d ignored (not the one awaited)", goal_id)
@@ -300,6 +334,10 @@ class QualityCheckController:
 
     def on_tick(self, now: float) -> list[Command]:
         """Time passes: enforce the time-outs."""
+        for side in self._belt_goals.values():
+            if now >= side.deadline:
+                return self._fault(f"conveyor goal {side.goal_id} overdue "
+                                   f"({now - side.sent:.1f} s)")
         pending = self._pending
         if pending is None or now < pending.deadline:
             return []
@@ -342,6 +380,16 @@ class QualityCheckController:
         self._cycle_start = now
         self._motion_time = self._planned_time = self._verdict_time = 0.0
         self._queue = [("", 0, False)] + self._route(self.options.phase1_route)
+        if self.options.belt_runs_while_working:
+            # restart the belt once the motion carrying the vial off the belt has ended
+            steps = [step for _, _, step in self._queue]
+            close = next((k for k, step in enumerate(steps) if isinstance(step, GripperEvent)
+                          and step.action == "close"), None)
+            if close is not None:
+                lift = next((k for k in range(close + 1, len(steps))
+                             if isinstance(steps[k], Trajectory)), None)
+                if lift is not None:
+                    self._queue.insert(lift + 1, ("", 0, True))
         return self._next(now)
 
     def _route(self, name: str) -> list[tuple[str, int, _Step]]:
@@ -361,8 +409,15 @@ class QualityCheckController:
         if not self._queue:
             return self._phase_done(now)
         route, index, step = self._queue.pop(0)
-        goal_id = self._new_id()
         opts = self.options
+        if opts.belt_runs_while_working and self._state is CellState.PHASE1:
+            if step is True and self._object_present:
+                return self._next(now)  # a vial is at the sensor already: keep the belt still
+            if (isinstance(step, GripperEvent) and step.action == "close"
+                    and route == opts.phase1_route and not self._object_present):
+                return self._fault("the sensor reports no vial at the conveyor: the gripper "
+                                   "does not close")
+        goal_id = self._new_id()
         if isinstance(step, Trajectory):
             self._pending = _Pending(goal_id, "motion", now,
                                      now + step.duration + opts.motion_timeout_margin,
@@ -372,6 +427,7 @@ class QualityCheckController:
             self._pending = _Pending(goal_id, "gripper", now, now + opts.gripper_timeout)
             return [ActuateGripper(goal_id, route, index, step)]
         self._pending = _Pending(goal_id, "conveyor", now, now + opts.conveyor_timeout)
+        self._belt_commanded = step
         return [SetConveyor(goal_id, running=step)]
 
     def _phase_done(self, now: float) -> list[Command]:
@@ -400,6 +456,8 @@ class QualityCheckController:
             out.append(CancelGoal(self._pending.goal_id))
         self._state = CellState.FAULT
         self._pending = None
+        self._belt_goals = {}
+        self._belt_commanded = False
         self._queue = []
         out += [SetConveyor(self._new_id(), running=False), Fault(reason)]
         return out

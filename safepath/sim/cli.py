@@ -5,7 +5,7 @@ from __future__ import annotations
 import argparse
 import os
 from pathlib import Path
-from typing import Any
+from typing import Any, Literal
 
 __all__ = ["register"]
 
@@ -26,6 +26,9 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help="mean time between vials put on the belt [s]")
     p.add_argument("--bag", default=None, help="write a ROS 2 bag (MCAP) of the first "
                                                "safepath run to this folder")
+    p.add_argument("--belt-runs", action="store_true",
+                   help="quality-check cell: also run safepath with the belt running while "
+                        "the robot works (ControllerOptions(belt_runs_while_working=True))")
     p.add_argument("--obstacles", action="store_true",
                    help="run the monitor node's core with a moving body crossing the cell, "
                         "seen by a simulated laser scanner and depth camera")
@@ -69,23 +72,30 @@ def cmd_sim(args: argparse.Namespace) -> int:
                          "runs neither controller on it", key="scene")
     scene = str(cell.folder)
     runs: dict[str, list[Any]] = {}
-    for arch in ("safepath", "sequential"):
+    Arch = Literal["safepath", "sequential"]
+    variants: list[tuple[str, Arch, bool]] = [("safepath", "safepath", False)]
+    if getattr(args, "belt_runs", False):
+        variants = [("safepath, belt stopped during cycles", "safepath", False),
+                    ("safepath, belt running while the robot works", "safepath", True)]
+    sequential: tuple[str, Arch, bool] = ("sequential", "sequential", False)
+    for label, arch, belt in [*variants, sequential]:
         params = QualityCheckParams(duration=args.duration, architecture=arch,
-                                    arrival_interval=args.arrival)
+                                    arrival_interval=args.arrival,
+                                    controller=ControllerOptions(belt_runs_while_working=belt))
         if args.runs == 1:
-            runs[arch] = [run_quality_check(scene, args.seed, params,
-                                            record=bool(args.bag) and arch == "safepath")]
+            runs[label] = [run_quality_check(scene, args.seed, params,
+                                             record=bool(args.bag) and label == variants[0][0])]
         else:
-            runs[arch] = run_many(scene, range(args.seed, args.seed + args.runs), params,
-                                  workers=args.workers)
+            runs[label] = run_many(scene, range(args.seed, args.seed + args.runs), params,
+                                   workers=args.workers)
     load = os.getloadavg()
-    first = runs["safepath"][0]
+    first = runs[variants[0][0]][0]
     print(f"twin of {cell.scene.name}: {args.duration:g} s simulated x {args.runs} run(s) "
           f"per architecture, seed {args.seed}, a vial every {args.arrival:g} s on average; "
           f"physics {first.duration / max(first.wall_time, 1e-9):.0f}x real time "
           f"(load {load[0]:.2f} {load[1]:.2f} {load[2]:.2f}, {os.cpu_count()} CPUs)")
-    for arch, rs in runs.items():
-        _print_architecture(arch, rs, np)
+    for name, rs in runs.items():
+        _print_architecture(name, rs, np)
     if args.bag:
         write_run_bag(args.bag, first.record)
         print(f"wrote a ROS 2 bag of the first safepath run to {args.bag}")
@@ -135,6 +145,11 @@ def _print_architecture(arch: str, rs: list[Any], np: Any) -> None:
     faults = [f for r in rs for f in r.faults]
     if faults:
         print(f"  faults             {len(faults)}: {faults[0]}")
+    if any(r.belt_runs for r in rs):
+        print(f"  belt               moving with a vial at the sensor "
+              f"{sum(r.belt_moving_at_sensor for r in rs):.2f} s; picks with no vial at the "
+              f"sensor {sum(r.empty_picks for r in rs)}; {sum(r.waiting_motions for r in rs)} "
+              f"motions with the next vial waiting at the sensor (in the clearance check)")
     print(f"  computation        {wall:.1f} s for {sim:.0f} s simulated "
           f"({sim / max(wall, 1e-9):.0f}x real time with the clearance check)")
 

@@ -18,6 +18,12 @@ Two architectures run on the same twin:
   publications every 5 s; the same state machine sequences the cell, so the difference
   is the architecture, not the bookkeeping.
 
+``QualityCheckParams(controller=ControllerOptions(belt_runs_while_working=True))`` runs
+the ``safepath`` architecture with the belt running while the robot works: the next vial
+rides to the sensor during the cycle and waits there; every motion during which a vial
+stood at the sensor is checked against the cell with that vial in it
+(:func:`waiting_vial_cell`).
+
 :func:`run_quality_check` is a plain function of ``(cell, seed, params)``: a process pool
 (:func:`safepath.sim.sweep.run_many`) or a cluster engine maps it over seeds and
 parameters, and a seed gives the same run.
@@ -48,7 +54,8 @@ if TYPE_CHECKING:
     from ..ros.controller import Command, ControllerOptions, CycleReport
     from ..trajectory import Trajectory
 
-__all__ = ["QualityCheckParams", "QualityCheckRun", "run_quality_check", "ARCHITECTURES"]
+__all__ = ["QualityCheckParams", "QualityCheckRun", "run_quality_check", "ARCHITECTURES",
+           "WAITING_VIAL", "waiting_vial_cell"]
 
 Architecture = Literal["safepath", "sequential"]
 ARCHITECTURES: tuple[str, ...] = ("safepath", "sequential")
@@ -137,6 +144,17 @@ class QualityCheckRun:
         joint_names: Joint order of ``tracking`` and ``speed_ratio``.
         record: The bag's material (``/joint_states`` as executed, goals, reports),
             when asked for.
+        belt_runs: Whether the belt ran while the robot worked
+            (``ControllerOptions.belt_runs_while_working``).
+        empty_picks: Times the gripper closed on the conveyor with no vial at the sensor
+            (must be 0).
+        belt_moving_at_sensor: Time the belt moved while a vial stood at the sensor [s]
+            (must be 0: the cell's own stop).
+        belt_commanded_at_sensor: Time the belt was commanded to run while a vial stood
+            at the sensor [s] (the controller's stop on its way: one conveyor latency per
+            vial arriving during a cycle).
+        waiting_motions: Motion goals during which a vial stood at the sensor (checked
+            with it in the cell).
     """
 
     seed: int
@@ -161,6 +179,11 @@ class QualityCheckRun:
     margin: float
     joint_names: tuple[str, ...]
     record: Any = field(default=None, repr=False)
+    belt_runs: bool = False
+    empty_picks: int = 0
+    belt_moving_at_sensor: float = 0.0
+    belt_commanded_at_sensor: float = 0.0
+    waiting_motions: int = 0
 
     @property
     def vials_per_minute(self) -> float:
@@ -189,6 +212,50 @@ def _planned(scene: str, architecture: str) -> tuple[Cell, dict[str, Trajectory]
     if architecture == "sequential":
         trajs = {name: stop_and_go(cell, traj) for name, traj in trajs.items()}
     return cell, trajs
+
+
+#: The name of the vial waiting at the sensor in :func:`waiting_vial_cell`.
+WAITING_VIAL = "vial_waiting"
+
+
+@functools.lru_cache(maxsize=4)
+def _waiting_cell(scene: str) -> Cell:
+    from .. import load_cell
+
+    return waiting_vial_cell(load_cell(scene))
+
+
+def waiting_vial_cell(cell: Cell) -> Cell:
+    """``cell`` with a second vial standing at the sensor (:data:`WAITING_VIAL`, a static
+    copy of the grasped object at its scene placement, the vial's margin), the open jaws
+    allowed to straddle it where the grasp's object is picked from the conveyor (the
+    poses where the object meets the gripper and the conveyor: ``grip``).
+
+    Raises:
+        InputError: The cell has no grasped object.
+    """
+    import dataclasses
+
+    from ..scene import AllowedContact
+
+    scene = cell.scene
+    if scene.grasp is None:
+        raise InputError("the cell has no grasp: no vial to wait at the sensor", key="grasp")
+    vial = scene.objects[scene.grasp.object]
+    waiting = dataclasses.replace(vial, name=WAITING_VIAL, movable=False)
+    pick_poses = {p for c in scene.allowed_contacts if vial.name in c.between
+                  and "gripper" in c.between for p in c.at}
+    on_belt = {p for c in scene.allowed_contacts if vial.name in c.between
+               and "gripper" not in c.between for p in c.at
+               if any(o in c.between for o in ("qc_conveyor", "conveyor"))}
+    at = tuple(sorted(pick_poses & on_belt)) or tuple(sorted(pick_poses))
+    contacts = (*scene.allowed_contacts,
+                AllowedContact((WAITING_VIAL, "gripper"), at=at,
+                               reason="the open jaws arrive around the vial waiting at the "
+                                      "sensor, to pick it"))
+    new_scene = dataclasses.replace(scene, objects={**scene.objects, WAITING_VIAL: waiting},
+                                    allowed_contacts=contacts)
+    return dataclasses.replace(cell, scene=new_scene)
 
 
 @dataclass
@@ -236,6 +303,9 @@ class _Cell:
         self.vial: Vial | None = None
         self.world = MotionWorld(None, None)
         self.sensor = False
+        self.sensor_spans: list[list[float]] = []  # [on, off] of the IR sensor
+        self.empty_picks = 0
+        self.belt_moving_at_sensor = self.belt_commanded_at_sensor = 0.0
         self.robot_idle = 0.0
         self.faults: list[str] = []
         self.reports: list[CycleReport] = []
@@ -309,6 +379,8 @@ class _Cell:
         if result.action == "close":
             if cmd.route == opts.phase1_route:
                 self.vial = self.conveyor.pick(now)
+                if self.vial is None:
+                    self.empty_picks += 1
             self.world = MotionWorld(obj, None)
         else:
             T_world_tcp = self.cell.robot.frame_pose(self.twin.q).homogeneous  # noqa: N806
@@ -338,6 +410,9 @@ class _Cell:
         dt = now - before
         if self.twin.arm.active is None and not self.grippers:
             self.robot_idle += dt
+        if self.conveyor.sensor:
+            self.belt_moving_at_sensor += dt if self.conveyor.running else 0.0
+            self.belt_commanded_at_sensor += dt if self.conveyor.commanded else 0.0
         self.conveyor.advance(now, dt)
         for result in results:
             if isinstance(result, GripperResult):
@@ -354,6 +429,10 @@ class _Cell:
                 self.dispatch(self.ctl.on_verdict(text, now, request_id=request_id))
         if self.conveyor.sensor != self.sensor:
             self.sensor = self.conveyor.sensor
+            if self.sensor:
+                self.sensor_spans.append([now, math.inf])
+            elif self.sensor_spans:
+                self.sensor_spans[-1][1] = now
             if self.sensor and self.world.held is None and self.world.resting is not None \
                     and self.ctl.state.value == "idle":
                 self.world = MotionWorld(None, None)  # the new vial at its scene place
@@ -361,9 +440,26 @@ class _Cell:
         self.dispatch(self.ctl.on_tick(now))
 
 
+def _waiting_motions(run: _Cell) -> list[_Motion]:
+    """The motions during which a vial stood at the sensor (other than the one picked)."""
+    return [m for m in run.motions
+            if any(on < m.end and off > m.start for on, off in run.sensor_spans)]
+
+
 def _clearance(run: _Cell) -> ExecutedClearance:
-    """The executed states of every motion, checked in their world."""
-    return executed_clearance(run.cell, run.twin.recording, run.motions)
+    """The executed states of every motion, checked in their world (with the vial waiting
+    at the sensor in it while one stood there)."""
+    waiting = _waiting_motions(run)
+    ids = {id(m) for m in waiting}
+    others = [m for m in run.motions if id(m) not in ids]
+    best = executed_clearance(run.cell, run.twin.recording, others)
+    if not waiting:
+        return best
+    folder = run.cell.folder
+    cell = _waiting_cell(str(folder)) if folder is not None else waiting_vial_cell(run.cell)
+    more = executed_clearance(cell, run.twin.recording, waiting)
+    low = more if more.clearance < best.clearance else best
+    return ExecutedClearance(low.clearance, low.pair, low.time, best.states + more.states)
 
 
 def _tcp_deviation(run: _Cell) -> float:
@@ -427,7 +523,11 @@ def run_quality_check(cell: str | Path, seed: int, params: QualityCheckParams | 
         tracking=rec.tracking.copy(), speed_ratio=rec.speed_ratio.copy(),
         contact_steps=rec.contact_steps, clearance=clearance,
         tcp_deviation=deviation, margin=loaded.scene.margin,
-        joint_names=tuple(loaded.robot.joint_names), record=material)
+        joint_names=tuple(loaded.robot.joint_names), record=material,
+        belt_runs=params.controller.belt_runs_while_working, empty_picks=run.empty_picks,
+        belt_moving_at_sensor=run.belt_moving_at_sensor,
+        belt_commanded_at_sensor=run.belt_commanded_at_sensor,
+        waiting_motions=len(_waiting_motions(run)))
 
 
 def events_json(run: QualityCheckRun) -> list[tuple[float, str]]:

@@ -342,3 +342,93 @@ def test_options_are_checked() -> None:
 def test_example_node_compiles(tmp_path: Path) -> None:
     example = Path(__file__).parents[2] / "examples" / "ros2" / "quality_check_node.py"
     py_compile.compile(str(example), cfile=str(tmp_path / "node.pyc"), doraise=True)
+
+
+# -- the belt that keeps running while the robot works --------------------------------------
+def _belt_cell(**kwargs: object) -> SimCell:
+    ctrl = QualityCheckController(ControllerOptions(belt_runs_while_working=True))
+    cell = SimCell(ctrl, **kwargs)  # type: ignore[arg-type]
+    cell.start()
+    assert ctrl.state is CellState.IDLE and cell.conveyor is True
+    return cell
+
+
+def _timeline(cell: SimCell) -> list[str]:
+    out = []
+    for _, c in cell.commands:
+        if isinstance(c, SetConveyor):
+            out.append("run" if c.running else "stop")
+        elif isinstance(c, MoveArm):
+            out.append(f"{c.route}[{c.index}]")
+        elif isinstance(c, ActuateGripper):
+            out.append(c.event.action)
+    return out
+
+
+def test_belt_runs_while_the_robot_works() -> None:
+    cell = _belt_cell(verdicts=("safe", "unsafe"))
+    cell.sensor(True)
+    cell.run(3.0)  # the lift has ended (phase 1's first motion: 1.0 s)
+    assert cell.conveyor is True and cell.ctrl.state is CellState.PHASE1
+    # stop, pick, carry the vial off the belt, then restart the belt before the put-down
+    assert _timeline(cell)[:5] == ["run", "stop", "close", "phase1[1]", "run"]
+    cell.run(1.0)
+    # the next vial reaches the sensor while the robot works: stopped at once
+    n = len(cell.commands)
+    cell.sensor(True)
+    (stop,) = [c for _, c in cell.commands[n:]]
+    assert isinstance(stop, SetConveyor) and stop.running is False
+    assert cell.ctrl.state in (CellState.PHASE1, CellState.VERDICT, CellState.PHASE2)
+    cell.run(0.5)
+    assert cell.conveyor is False
+    cell.run(40.0)
+    assert [r.verdict for r in cell.of(CycleReport)] == ["safe", "unsafe"]
+    assert cell.placed == ["low1", "safe", "low1", "unsafe"]
+    # the second cycle starts at the first one's end, the belt confirmed stopped first
+    line = _timeline(cell)
+    picks = [k for k in range(len(line) - 1) if line[k:k + 2] == ["close", "phase1[1]"]]
+    assert len(picks) == 2
+    second = picks[1]
+    assert line[second - 1] == "stop" and line[second + 2] == "run"
+    assert cell.ctrl.state is CellState.IDLE and cell.conveyor is True
+    assert cell.of(Fault) == []
+
+
+def test_belt_is_not_restarted_while_a_vial_stands_at_the_sensor() -> None:
+    cell = _belt_cell(verdicts=("safe", "safe"))
+    cell.sensor(True)
+    cell.run(0.5)  # the lift is under way
+    assert cell.of(ActuateGripper)
+    cell.sensor(True)  # a vial at the sensor as the lift runs (a sensor report)
+    cell.run(20.0)
+    line = _timeline(cell)
+    # no restart after the lift: a vial stands at the sensor; the next cycle takes it
+    assert line[:4] == ["run", "stop", "close", "phase1[1]"] and line[4] == "open"
+    assert len(cell.of(CycleReport)) >= 1 and cell.of(Fault) == []
+
+
+def test_gripper_does_not_close_unless_the_sensor_reports_a_vial() -> None:
+    cell = _belt_cell(verdicts=("safe",))
+    cell.sensor(True)
+    cell.sensor(False)  # the vial was taken away before the belt's stop was confirmed
+    cell.run(5.0)
+    assert cell.ctrl.state is CellState.FAULT
+    assert cell.of(ActuateGripper) == [] and cell.of(MoveArm) == []
+    assert "no vial" in cell.of(Fault)[0].reason and cell.conveyor is False
+
+
+def test_belt_stop_that_is_never_confirmed_stops_the_cell() -> None:
+    cell = _belt_cell(verdicts=("safe",))
+    cell.sensor(True)
+    cell.run(4.0)
+    ctrl = cell.ctrl
+    (stop,) = ctrl.on_sensor(True, cell.now)  # sent, never answered
+    assert isinstance(stop, SetConveyor) and stop.running is False
+    out = ctrl.on_tick(cell.now + ctrl.options.conveyor_timeout + 0.01)
+    assert ctrl.state is CellState.FAULT and "overdue" in out[-1].reason  # type: ignore[union-attr]
+
+
+def test_belt_option_is_checked_and_off_by_default() -> None:
+    assert ControllerOptions().belt_runs_while_working is False
+    with pytest.raises(InputError):
+        ControllerOptions(belt_runs_while_working=1)  # type: ignore[arg-type]

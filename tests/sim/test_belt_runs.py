@@ -1,0 +1,112 @@
+"""The quality-check cell with the belt running while the robot works
+(``ControllerOptions(belt_runs_while_working=True)``): the routes with a vial waiting at
+the sensor, and a short closed-loop run against the belt stopped during cycles."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from safepath import Trajectory
+from safepath.cell import Cell
+from safepath.collision import CheckOptions, CollisionChecker
+from safepath.ros.controller import ControllerOptions
+from safepath.ros.goals import split_at_gripper_events
+from safepath.sim.clearance import allowed_by_step
+from safepath.sim.quality_check import (
+    WAITING_VIAL,
+    QualityCheckParams,
+    run_quality_check,
+    waiting_vial_cell,
+)
+from safepath.trajectory import GripperEvent
+
+
+def _distance_to_waiting_vial(cell: Cell, routes: dict[str, Trajectory]
+                              ) -> dict[tuple[str, int], float]:
+    """Per motion of each route: the smallest distance [m] of the arm (and the vial it
+    holds) to a vial standing at the sensor, with safepath's checker, every 10 ms of the
+    planned motion, in the world of the motion (vial held, or resting where released) and
+    with the contacts its step allows."""
+    wcell = waiting_vial_cell(cell)
+    grasp = cell.scene.grasp
+    assert grasp is not None
+    robot = wcell.robot
+    out: dict[tuple[str, int], float] = {}
+    for route in ("phase1", "phase2_safe", "phase2_unsafe"):
+        allowed = allowed_by_step(wcell, route)
+        held: str | None = None
+        rest = None if route == "phase1" else \
+            robot.frame_pose(cell.poses["low1"]).homogeneous @ grasp.T_tcp_object
+        last: Trajectory | None = None
+        for k, part in enumerate(split_at_gripper_events(routes[route])):
+            if isinstance(part, GripperEvent):
+                if part.action == "close":
+                    held = grasp.object
+                else:
+                    assert last is not None
+                    held = None
+                    rest = robot.frame_pose(last.q[-1]).homogeneous @ grasp.T_tcp_object
+                continue
+            last = part
+            times = np.append(np.arange(0.0, part.duration, 0.01), part.duration)
+            checkers: dict[tuple, CollisionChecker] = {}
+            best = np.inf
+            for t, q in zip(times, part.sample(times)[0], strict=True):
+                head = part.step_at(float(t)).split(" ", 1)[0]
+                step_allowed = allowed.get(int(head), ()) if head.isdigit() else ()
+                if step_allowed not in checkers:
+                    checkers[step_allowed] = CollisionChecker(
+                        robot, wcell.scene, held=held,
+                        resting={} if rest is None else {grasp.object: rest},
+                        allowed=step_allowed, options=CheckOptions())
+                for pair, d in checkers[step_allowed].distances(q):
+                    if WAITING_VIAL in pair:
+                        best = min(best, d)
+            out[(route, k)] = best
+    return out
+
+
+def test_routes_keep_the_margin_from_a_vial_waiting_at_the_sensor(
+        cell: Cell, routes: dict[str, Trajectory]) -> None:
+    dist = _distance_to_waiting_vial(cell, routes)
+    lift = ("phase1", 1)  # the motion carrying the picked vial off the belt
+    margin = waiting_vial_cell(cell).scene.margin_for(WAITING_VIAL)
+    others = {k: d for k, d in dist.items() if k != lift}
+    # every other motion keeps the vial's margin (5 mm) from it, by far: 41 mm measured
+    # (forearm_link, arriving at grip; the open jaws straddle it there on purpose)
+    assert min(others.values()) >= margin + 0.03, others
+    # the lift starts where the picked vial stood: no vial may wait there until it has
+    # ended, which is why the controller restarts the belt only after it
+    assert dist[lift] < 0
+
+
+def test_belt_running_handles_more_vials_and_keeps_the_cell_safe(cell_dir) -> None:
+    def run(belt: bool):  # noqa: ANN202
+        # a long belt (16 s from where vials are put on to the sensor) makes the
+        # difference show in a minute: stopped during cycles, the next vial rides it after
+        # each cycle; running, during the cycle
+        params = QualityCheckParams(duration=60.0, arrival_interval=3.0, belt_length=0.8,
+                                    controller=ControllerOptions(belt_runs_while_working=belt))
+        return run_quality_check(cell_dir, 0, params)
+
+    stopped, running = run(False), run(True)
+    for r in (stopped, running):
+        assert r.faults == () and r.unsafe_packaged == 0
+        assert r.empty_picks == 0  # no vial picked unless the sensor saw it
+        assert r.belt_moving_at_sensor == 0.0
+        assert r.clearance.clearance >= r.margin - r.tcp_deviation
+    assert running.belt_runs and not stopped.belt_runs
+    # the next vial waited at the sensor while the robot worked, and was in the check
+    assert running.waiting_motions > 0 and stopped.waiting_motions == 0
+    assert running.vials_per_minute > stopped.vials_per_minute
+    assert running.robot_idle < stopped.robot_idle
+    assert all(len(c.reason) > 0 for c in running.cycles)
+
+
+@pytest.mark.parametrize("value", [1, "yes", None])
+def test_belt_option_must_be_a_bool(value: object) -> None:
+    from safepath.errors import InputError
+
+    with pytest.raises(InputError):
+        ControllerOptions(belt_runs_while_working=value)  # type: ignore[arg-type]
