@@ -9,9 +9,9 @@ bowl:
   0.05 m/s): largest distance of the TCP from the circle and tilt error on the circle;
 * the path-consistent stop at ``--events`` moments of the slow tilt: computation time
   (median, 99th percentile, max) and braking time;
-* ``--runs`` simulated gravimetric pours (the cup of ``safepath.planning.cup``, its flow
+* ``--runs`` simulated gravimetric pours (the cup of ``safepath.cells.pouring.cup``, its flow
   gain drawn in 500-2000 g/s/rad^1.5, scale latency 0.05-0.3 s, 0.2 g noise;
-  ``safepath.planning.gravimetric``), each stopped on the scale and returned upright by a
+  ``safepath.cells.pouring.flow``), each stopped on the scale and returned upright by a
   planned, verified motion: the final masses, and in the same simulation the seed's two
   ways (20 separate steps to 115 deg, measured ~103 g; one move straight to 90 deg, their
   first version, measured 110-120 g), to which the cup's fill, repose and gain were
@@ -32,8 +32,8 @@ import numpy as np
 import pinocchio as pin
 
 from safepath import load_cell
-from safepath.planning.cup import Cup
-from safepath.planning.gravimetric import (
+from safepath.cells.pouring.cup import Cup
+from safepath.cells.pouring.flow import (
     FlowModel,
     plan_stops,
     simulate_pour,

@@ -1,10 +1,10 @@
 """The ROS-free pour controller, closed loop: final masses and decision times.
 
 On the Gen3 Lite pouring cell (``scenes/pouring_cell``), the slow tilt to 115 deg about the
-cup's lip (5 deg/s) is run by :class:`safepath.ros.pour_controller.PourController` inside
-the dry-run cell of :mod:`safepath.ros.pour_sim`: goals executed by their stamps, the stop
+cup's lip (5 deg/s) is run by :class:`safepath.cells.pouring.controller.PourController` inside
+the dry-run cell of :mod:`safepath.cells.pouring.dry_run`: goals executed by their stamps, the stop
 goal replacing the tilt, the return upright after it, and the simulated scale of
-``safepath.planning.gravimetric`` (flow gain 40-120 g/s/rad^1.5, scale latency 0.05-0.3 s,
+``safepath.cells.pouring.flow`` (flow gain 40-120 g/s/rad^1.5, scale latency 0.05-0.3 s,
 0.2 g noise) weighing what the cup pours at the tilt the arm really has. The controller
 knows the latency, not the gain. Printed per run: the final mass, when the stop was sent,
 the wall time of the reading's event call that computed the stop (what the node spends
@@ -26,11 +26,11 @@ import numpy as np
 import pinocchio as pin
 
 from safepath import load_cell
-from safepath.planning.gravimetric import FlowModel
+from safepath.cells.pouring.controller import PourController, SendArmGoal
+from safepath.cells.pouring.dry_run import PourSim, commands_of
+from safepath.cells.pouring.flow import FlowModel
+from safepath.cells.pouring.parts import PourStopper
 from safepath.planning.pour import PourOptions, plan_tilt
-from safepath.ros.pour_controller import PourController, SendArmGoal
-from safepath.ros.pour_parts import PourStopper
-from safepath.ros.pour_sim import PourSim, commands_of
 
 CELL = Path(__file__).resolve().parents[1] / "scenes" / "pouring_cell"
 LIP = np.array([0.0, 0.035, 0.04])  # the cup's lip from the upright TCP [m]

@@ -2,8 +2,8 @@
 """Gravimetric pour on a Kinova Gen3 Lite (or any robot with a controller.yaml): the
 safepath tilt, stopped on the scale's reading and brought back upright, run by a ROS 2 node.
 
-Every decision is taken by :class:`safepath.ros.pour_controller.PourController`, built from
-the node's parameters by :func:`safepath.ros.pour_setup.build_pour`; this file connects its
+Every decision is taken by :class:`safepath.cells.pouring.controller.PourController`, built from
+the node's parameters by :func:`safepath.cells.pouring.setup.build_pour`; this file connects its
 events and commands to ROS 2: the scale on ``/weight`` (``std_msgs/Float32``
 [g], as the seed's Arduino node publishes it), the arm's trajectory controller
 (FollowJointTrajectory, safepath's verified timing executed, each goal stamped with the
@@ -46,11 +46,11 @@ from sensor_msgs.msg import JointState
 from std_msgs.msg import Float32, String
 from std_srvs.srv import Trigger
 
+from safepath.cells.pouring.controller import PourCommand, SendArmGoal, SendGripperGoal
+from safepath.cells.pouring.setup import PourParameters, build_pour
 from safepath.errors import SafepathError
 from safepath.ros import goals, gripper_command_goal, gripper_of
 from safepath.ros.controller import CancelGoal
-from safepath.ros.pour_controller import PourCommand, SendArmGoal, SendGripperGoal
-from safepath.ros.pour_setup import PourParameters, build_pour
 
 _NS = 1_000_000_000
 

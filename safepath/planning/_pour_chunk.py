@@ -1,7 +1,8 @@
 """A route's pour steps (a ``tilt``, or a ``tilt`` and the ``circle`` after it) as one
 rest-to-rest piece of the route, planned, timed, checked and verified by
 :mod:`safepath.planning.pour` in the route's world, with the figures measured on its
-released samples."""
+released samples. It is how :func:`~safepath.planning.plan_cell` plans a route's pour
+steps, so it is the library's, not the pouring cell's (:mod:`safepath.cells.pouring`)."""
 
 from __future__ import annotations
 

@@ -20,6 +20,12 @@ joint limits (by the timing), TCP and angular speed (a uniform time stretch remo
 excess at the knots), distance to the reference path and tilt error (a
 :class:`~safepath.errors.PlanningError` beyond ``position_tolerance`` or
 ``angle_tolerance``), collisions (the cell's checker), and the independent FCL verifier.
+
+These are planning primitives, not the pouring cell's application: a route's ``tilt`` and
+``circle`` steps (:mod:`safepath.pour_steps`) are planned with them inside
+:func:`~safepath.planning.plan_cell`, so they stay below it. What the pouring cell does with
+them (the flow model, the scale, the controller that stops the tilt) is
+:mod:`safepath.cells.pouring`.
 """
 
 from __future__ import annotations

@@ -12,13 +12,15 @@ return the native ``rclpy`` message classes instead (``backend="auto"``).
   section of the robot's ``controller.yaml`` (the Gen3 Lite under ros2_kortex).
 * :mod:`safepath.ros.bag`: write and read a ROS 2 bag (MCAP) of a cycle.
 * :mod:`safepath.ros.controller`: the quality-check cell's state machine, ROS-free.
-* :mod:`safepath.ros.pour_controller`: the gravimetric pour's state machine, ROS-free
-  (:mod:`~safepath.ros.pour_setup` builds it from the pour node's parameters,
-  :mod:`~safepath.ros.pour_sim` dry-runs it on a simulated cell and scale).
+* The pouring cell's state machine (:class:`PourController` and its commands) is an
+  application of this package and lives in :mod:`safepath.cells.pouring`; its names are
+  still importable from here, loaded on first use.
 * :mod:`safepath.ros.messages`: the type store and CDR (de)serialisation.
 """
 
 from __future__ import annotations
+
+from typing import TYPE_CHECKING
 
 from .bag import BagContents, BagMessage, read_bag, write_bag
 from .controller import (
@@ -48,14 +50,30 @@ from .goals import (
 )
 from .gripper import gripper_command_goal, gripper_command_goals, gripper_of
 from .messages import deserialize, message_factory, serialize, typestore
-from .pour_controller import (
-    PourController,
-    PourControllerOptions,
-    PourReport,
-    PourState,
-    SendArmGoal,
-    SendGripperGoal,
-)
+
+if TYPE_CHECKING:
+    from ..cells.pouring.controller import (
+        PourController,
+        PourControllerOptions,
+        PourReport,
+        PourState,
+        SendArmGoal,
+        SendGripperGoal,
+    )
+
+#: The pouring cell's names kept importable from here (their home is an application above
+#: this package, :mod:`safepath.cells.pouring`, so they load on first use).
+_POURING = ("PourController", "PourControllerOptions", "PourReport", "PourState",
+            "SendArmGoal", "SendGripperGoal")
+
+
+def __getattr__(name: str) -> object:
+    """The pouring cell's controller names, imported on first use."""
+    if name in _POURING:
+        from ..cells.pouring import controller
+
+        return getattr(controller, name)
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
 
 __all__ = [
     "ActuateGripper",

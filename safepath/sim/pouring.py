@@ -1,4 +1,4 @@
-"""The pouring cell's twin: :class:`~safepath.ros.pour_controller.PourController` closed loop.
+"""The pouring cell's twin: :class:`~safepath.cells.pouring.controller.PourController` closed loop.
 
 The cell's own state machine decides, as ``examples/ros2/pour_node.py`` runs it; around it,
 on one simulated clock:
@@ -12,7 +12,7 @@ on one simulated clock:
   refuses them, when the executed arm is not at their first point
   (:func:`safepath.ros.goals.check_start`); the tilt's progress is fed back every
   ``feedback_period`` (``desired.time_from_start``);
-* the **cup and the scale** (:class:`~safepath.planning.gravimetric.FlowModel`, the
+* the **cup and the scale** (:class:`~safepath.cells.pouring.flow.FlowModel`, the
   project's flow law ``gain * (tilt - spill_angle) ** 1.5``): the flow is integrated
   every ``step`` from the tilt the *simulated* arm really has (forward kinematics of the
   MuJoCo joints, the held cup's axis from the scene's grasp; 0 while the cup is not
@@ -50,9 +50,9 @@ from .twin import GripperResult, RobotTwin, TwinOptions
 
 if TYPE_CHECKING:
     from ..cell import Cell
-    from ..planning.gravimetric import FlowModel
+    from ..cells.pouring.commands import PourReport
+    from ..cells.pouring.flow import FlowModel
     from ..planning.pour import PourMotion
-    from ..ros.pour_commands import PourReport
     from ..trajectory import GripperEvent, Trajectory
 
 __all__ = ["PouringParams", "PouringRun", "run_pouring", "pour_plan", "pour_route_of"]
@@ -199,12 +199,12 @@ def pour_plan(scene: str, pour_route: str | None = None, pick_and_place: bool = 
         SafepathError: Planning failed.
     """
     from .. import load_cell
-    from ..planning.gravimetric import FlowModel
+    from ..cells.pouring.flow import FlowModel
+    from ..cells.pouring.parts import PourStopper
     from ..planning.planner import plan_cell
     from ..planning.pour import PourOptions, plan_tilt
     from ..pour_steps import Tilt
     from ..ros.goals import split_at_gripper_events
-    from ..ros.pour_parts import PourStopper
 
     cell = load_cell(scene)
     name, pick, place = _routes(cell, pour_route)
@@ -328,10 +328,10 @@ class _Pour:
     """One run's state: the controller, the twin, the cup and the scale."""
 
     def __init__(self, plan: PourPlan, truth: FlowModel, params: PouringParams) -> None:
-        from ..planning.gravimetric import FlowModel
+        from ..cells.pouring.commands import PourControllerOptions
+        from ..cells.pouring.controller import PourController
+        from ..cells.pouring.flow import FlowModel
         from ..planning.pour import cup_axis_in_tcp
-        from ..ros.pour_commands import PourControllerOptions
-        from ..ros.pour_controller import PourController
 
         self.plan, self.truth, self.params = plan, truth, params
         cell = plan.cell
@@ -387,8 +387,8 @@ class _Pour:
 
     # -- commands --------------------------------------------------------------------
     def dispatch(self, commands: list[Any]) -> None:
+        from ..cells.pouring.commands import PourReport, SendArmGoal, SendGripperGoal
         from ..ros.controller import CancelGoal, Fault
-        from ..ros.pour_commands import PourReport, SendArmGoal, SendGripperGoal
 
         now = self.twin.now
         for cmd in commands:
@@ -524,7 +524,7 @@ class _Pour:
     def loop(self) -> None:
         """Run the node's event loop on the simulated clock until the pour is over (and
         what was poured has landed), or ``max_time``."""
-        from ..ros.pour_controller import PourState
+        from ..cells.pouring.controller import PourState
 
         params, truth, twin = self.params, self.truth, self.twin
         self.dispatch(self.ctl.start(0.0))
@@ -564,7 +564,7 @@ class _Pour:
 
 
 def _truth(seed: int, params: PouringParams) -> FlowModel:
-    from ..planning.gravimetric import FlowModel
+    from ..cells.pouring.flow import FlowModel
 
     rng = np.random.default_rng([seed, 0])
     gain = float(rng.uniform(*params.gain_range))

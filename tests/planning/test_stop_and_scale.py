@@ -1,7 +1,7 @@
 """Stop on a sensor event: the path-consistent stop, the simulated scale, the closed loop.
 
 Real Pinocchio/TOPP-RA/FCL through the pouring cell's slow tilt; the flow model is the
-documented simulation of ``safepath.planning.gravimetric``.
+documented simulation of ``safepath.cells.pouring.flow``.
 """
 
 from __future__ import annotations
@@ -15,8 +15,8 @@ import pytest
 
 from safepath import ConfigError, load_cell
 from safepath.cell import Cell
-from safepath.planning.cup import Cup
-from safepath.planning.gravimetric import (
+from safepath.cells.pouring.cup import Cup
+from safepath.cells.pouring.flow import (
     FlowModel,
     plan_stops,
     simulate_pour,

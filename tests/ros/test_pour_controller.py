@@ -2,7 +2,7 @@
 
 Real Pinocchio/TOPP-RA/FCL: the slow tilt of the pouring cell (plan_tilt, verified), the
 stop goals (StopPlanner), the returns upright (the tilt's path backwards, TOPP-RA); the scale
-is safepath.planning.gravimetric's FlowModel reading the tilt the simulated arm really has.
+is safepath.cells.pouring.flow's FlowModel reading the tilt the simulated arm really has.
 """
 
 from __future__ import annotations
@@ -16,8 +16,18 @@ import pytest
 
 from safepath import load_cell
 from safepath.cell import Cell
+from safepath.cells.pouring.controller import (
+    PourController,
+    PourControllerOptions,
+    PourReport,
+    PourState,
+    SendArmGoal,
+    SendGripperGoal,
+)
+from safepath.cells.pouring.dry_run import PourSim, commands_of
+from safepath.cells.pouring.flow import FlowModel
+from safepath.cells.pouring.parts import MassPredictor, PourStopper
 from safepath.errors import InputError
-from safepath.planning.gravimetric import FlowModel
 from safepath.planning.pour import PourMotion, PourOptions, plan_barista, plan_tilt, tilt_curve
 from safepath.ros.bag import (
     ARM_GOAL_TOPIC,
@@ -27,16 +37,6 @@ from safepath.ros.bag import (
     write_bag,
 )
 from safepath.ros.controller import CancelGoal, Fault
-from safepath.ros.pour_controller import (
-    PourController,
-    PourControllerOptions,
-    PourReport,
-    PourState,
-    SendArmGoal,
-    SendGripperGoal,
-)
-from safepath.ros.pour_parts import MassPredictor, PourStopper
-from safepath.ros.pour_sim import PourSim, commands_of
 from safepath.trajectory import GripperEvent, Trajectory
 
 #: How far from 100 g the closed-loop pours end [g]. It was 2 g while stops braked at the

@@ -13,13 +13,13 @@ import numpy as np
 import pytest
 import yaml
 
+from safepath.cells.pouring.controller import PourState, SendArmGoal, SendGripperGoal
+from safepath.cells.pouring.dry_run import PourSim, commands_of
+from safepath.cells.pouring.flow import FlowModel
+from safepath.cells.pouring.setup import PourParameters, PourSetup, build_pour
 from safepath.errors import InputError, TrajectoryError
-from safepath.planning.gravimetric import FlowModel
 from safepath.ros.goals import follow_joint_trajectory_goal, split_at_gripper_events
 from safepath.ros.gripper import gripper_command_goal
-from safepath.ros.pour_controller import PourState, SendArmGoal, SendGripperGoal
-from safepath.ros.pour_setup import PourParameters, PourSetup, build_pour
-from safepath.ros.pour_sim import PourSim, commands_of
 from safepath.trajectory import Trajectory
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -100,8 +100,8 @@ def test_missing_parameter_and_wrong_robot() -> None:
 def test_bag_of_pick_pour_place_with_gripper_goals(setup: PourSetup, tmp_path: Path) -> None:
     """Pick (with its gripper events), the tilt until a stop, the stop, the return
     upright, place: one bag with every goal the node sends, read back."""
+    from safepath.cells.pouring.parts import PourStopper
     from safepath.ros.bag import ARM_GOAL_TOPIC, GRIPPER_GOAL_TOPIC, read_bag, write_bag
-    from safepath.ros.pour_parts import PourStopper
 
     pick, place = setup.routes["pick_cup"], setup.routes["place_cup"]
     stopper = PourStopper(setup.cell, setup.tilt)

@@ -47,22 +47,22 @@ from typing import TYPE_CHECKING, Literal
 
 import numpy as np
 
-from ..errors import InputError, SafepathError
-from ..trajectory import GripperEvent, Trajectory
-from .controller import CancelGoal, Fault
-from .pour_commands import (
+from ...errors import InputError, SafepathError
+from ...ros.controller import CancelGoal, Fault
+from ...trajectory import GripperEvent, Trajectory
+from .commands import (
     PourCommand,
     PourControllerOptions,
     PourReport,
     SendArmGoal,
     SendGripperGoal,
 )
-from .pour_parts import MassPredictor, PourStopper
+from .parts import MassPredictor, PourStopper
 
 if TYPE_CHECKING:
-    from ..cell import Cell
-    from ..planning.gravimetric import FlowModel
-    from ..planning.pour import PourMotion
+    from ...cell import Cell
+    from ...planning.pour import PourMotion
+    from .flow import FlowModel
 
 __all__ = ["PourCommand", "PourController", "PourControllerOptions",
            "PourReport", "PourState", "SendArmGoal", "SendGripperGoal"]

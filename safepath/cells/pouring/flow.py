@@ -10,7 +10,7 @@ returns upright by a motion planned, checked, timed and verified like any other.
 Flow model (documented, deterministic for a seed), two variants:
 
 * ``FlowModel(cup=Cup())``: a cup that empties over its lip
-  (:class:`~safepath.planning.cup.Cup`): ``gain * (tilt - spill_angle(content)) ** 1.5``
+  (:class:`~safepath.cells.pouring.cup.Cup`): ``gain * (tilt - spill_angle(content)) ** 1.5``
   [g/s], the spill angle rising as the cup empties; its fill, repose and gain were fitted
   to the seed's two measured figures (``scenes/pouring_cell/README.md``). The benchmark
   and the tests use it.
@@ -26,7 +26,7 @@ and its fill), the scale's latency and the fall time, but not the flow gain; at 
 reading it fits the gain to the readings so far, predicts the final mass if it stopped
 now (what is in the air and in the sensor's latency, what the stop and the return still
 pour) and stops when that reaches the target (endless cup: a closed-form fit and
-:func:`calibrate_still`; cup: :mod:`._cup_control`). :func:`simulate_stepwise` runs the
+:func:`calibrate_still`; cup: :mod:`.stop_decision`). :func:`simulate_stepwise` runs the
 seed's stepwise tilt in the same simulation for comparison.
 """
 
@@ -41,13 +41,13 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from ..errors import ConfigError
-from ._cup_control import StopTable, decide, plan_stops
+from ...errors import ConfigError
 from .cup import Cup
+from .stop_decision import StopTable, decide, plan_stops
 
 if TYPE_CHECKING:
-    from ..cell import Cell
-    from .pour import PourMotion, PourOptions
+    from ...cell import Cell
+    from ...planning.pour import PourMotion, PourOptions
 
 __all__ = ["FlowModel", "PourRun", "simulate_pour", "simulate_stepwise", "stop_and_return",
            "calibrate_still", "plan_stops", "StopTable", "Cup"]
@@ -159,7 +159,7 @@ def simulate_pour(tilt_of_t: Callable[[float], float], duration: float,
     back at ``return_speed``.
 
     With a cup (``model.cup``), the controller knows the cup and fits the gain on a grid
-    instead (:func:`~safepath.planning._cup_control.decide`); what its stop and return
+    instead (:func:`~safepath.cells.pouring.stop_decision.decide`); what its stop and return
     pour comes from ``stops`` (:func:`plan_stops`, made here if not given).
 
     Args:
@@ -323,8 +323,8 @@ def stop_and_return(cell: Cell, motion: PourMotion, R_upright: np.ndarray, pivot
     go back upright about the same pivot with :func:`~safepath.planning.pour.plan_tilt`
     (planned, timed, checked and verified). Returns the tilt history from the event and
     the wall time of the stop computation alone."""
-    from .pour import PourOptions, plan_tilt, tilt_of
-    from .stop import StopPlanner, path_state
+    from ...planning.pour import PourOptions, plan_tilt, tilt_of
+    from ...planning.stop import StopPlanner, path_state
 
     traj = motion.trajectory
     planner = StopPlanner(cell.robot, motion.path,
@@ -348,6 +348,6 @@ def stop_and_return(cell: Cell, motion: PourMotion, R_upright: np.ndarray, pivot
 
 def cup_axis(cell: Cell) -> np.ndarray:
     """The held cup's axis in the TCP frame."""
-    from .pour import cup_axis_in_tcp
+    from ...planning.pour import cup_axis_in_tcp
 
     return cup_axis_in_tcp(cell)

@@ -1,4 +1,4 @@
-"""The gravimetric controller for a cup that empties (:class:`~safepath.planning.cup.Cup`).
+"""The gravimetric controller for a cup that empties (:class:`~safepath.cells.pouring.cup.Cup`).
 
 It knows the cup (geometry, fill, repose, flow exponent), the scale's latency and the fall
 time, and its own stop-and-return motions (:func:`plan_stops`: the real braking and the
@@ -23,7 +23,7 @@ __all__ = ["GAINS", "StopTable", "plan_stops", "decide", "Delays"]
 
 
 class Delays(Protocol):
-    """What :func:`decide` reads of the flow model (``gravimetric.FlowModel``), so that
+    """What :func:`decide` reads of the flow model (``flow.FlowModel``), so that
     this module imports nothing of the module that calls it."""
 
     @property

@@ -1,4 +1,4 @@
-"""What :class:`~safepath.ros.pour_controller.PourController` takes and hands out: its
+"""What :class:`~safepath.cells.pouring.controller.PourController` takes and hands out: its
 options, and the commands a node carries out (goals to send) and reads (the report).
 """
 
@@ -8,9 +8,9 @@ import math
 from dataclasses import dataclass, field
 from typing import Literal
 
-from ..errors import InputError
-from ..trajectory import GripperEvent, Trajectory
-from .controller import CancelGoal, Fault
+from ...errors import InputError
+from ...ros.controller import CancelGoal, Fault
+from ...trajectory import GripperEvent, Trajectory
 
 __all__ = ["PourCommand", "PourControllerOptions", "PourReport", "SendArmGoal",
            "SendGripperGoal"]

@@ -3,7 +3,7 @@
 A trajectory controller that runs goals by their stamps (a new goal replaces the running
 one, as ros2_controllers' does; a cancelled one holds the arm), a gripper (the cup is held
 between a ``close`` and an ``open``), and the simulated scale of
-:mod:`safepath.planning.gravimetric` (its :class:`FlowModel`: flow law, fall time, latency,
+:mod:`safepath.cells.pouring.flow` (its :class:`FlowModel`: flow law, fall time, latency,
 noise) weighing what the cup pours at the tilt the arm really has (forward kinematics of
 the executed joints). Every step is ``DT``; used by the tests and
 ``benchmarks/pour_controller.py``, and to try a pour before a robot runs it.
@@ -17,12 +17,12 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..cell import Cell
-from ..planning.gravimetric import FlowModel
-from ..planning.pour import cup_axis_in_tcp, tilt_of
-from ..trajectory import Trajectory
-from .controller import CancelGoal, Fault
-from .pour_controller import PourCommand, PourController, PourReport, SendArmGoal, SendGripperGoal
+from ...cell import Cell
+from ...planning.pour import cup_axis_in_tcp, tilt_of
+from ...ros.controller import CancelGoal, Fault
+from ...trajectory import Trajectory
+from .controller import PourCommand, PourController, PourReport, SendArmGoal, SendGripperGoal
+from .flow import FlowModel
 
 __all__ = ["DT", "PourSim", "Run", "commands_of"]
 

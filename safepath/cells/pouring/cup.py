@@ -13,7 +13,7 @@ tilt keeps, and each small step of a stepwise tilt pours a bounded amount.
 
 The defaults are the seed's cup (70 x 100 mm outside) with walls of a few millimetres,
 holding rice (0.8 g/cm^3); the fill (115 g) and the repose (0: the rice treated as a
-liquid) were fitted, with the flow gain of :class:`~safepath.planning.gravimetric.
+liquid) were fitted, with the flow gain of :class:`~safepath.cells.pouring.flow.
 FlowModel`, to the seed's two measured figures (``scenes/pouring_cell/README.md`` says
 what was fitted to what; ``benchmarks/pour.py`` prints the result).
 """
@@ -25,7 +25,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..errors import ConfigError
+from ...errors import ConfigError
 
 __all__ = ["Cup"]
 

@@ -2,7 +2,7 @@
 
 :class:`PourParameters` are the node's ROS parameters (every one checked where it enters,
 a typed error naming it); :func:`build_pour` plans the tilt (and the pick and place routes,
-if named) and returns the :class:`~safepath.ros.pour_controller.PourController` that runs
+if named) and returns the :class:`~safepath.cells.pouring.controller.PourController` that runs
 it. Nothing here knows a robot or a cell: the scene folder names its robot, whose
 ``controller.yaml`` names the actions; the tilt (axis, angle, pivot) is the cell's.
 """
@@ -16,14 +16,14 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from .._io import check_keys
-from ..errors import InputError
-from ..trajectory import GripperEvent, Trajectory
+from ..._io import check_keys
+from ...errors import InputError
+from ...trajectory import GripperEvent, Trajectory
 
 if TYPE_CHECKING:
-    from ..cell import Cell
-    from ..planning.pour import PourMotion
-    from .pour_controller import PourController
+    from ...cell import Cell
+    from ...planning.pour import PourMotion
+    from .controller import PourController
 
 __all__ = ["PourParameters", "PourSetup", "build_pour"]
 
@@ -143,12 +143,12 @@ def build_pour(params: PourParameters) -> PourSetup:
     """
     import pinocchio as pin
 
-    from ..cell import load_cell
-    from ..planning.gravimetric import FlowModel
-    from ..planning.planner import plan_cell
-    from ..planning.pour import PourOptions, plan_tilt
-    from .goals import split_at_gripper_events
-    from .pour_controller import PourController, PourControllerOptions
+    from ...cell import load_cell
+    from ...planning.planner import plan_cell
+    from ...planning.pour import PourOptions, plan_tilt
+    from ...ros.goals import split_at_gripper_events
+    from .controller import PourController, PourControllerOptions
+    from .flow import FlowModel
 
     cell = load_cell(params.scene)
     if cell.robot.name != params.robot:

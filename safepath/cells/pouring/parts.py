@@ -2,12 +2,12 @@
 
 * :class:`MassPredictor`: the controller's model of its own pour. It knows the tilt it
   commands (the planned tilt motion), the flow law's shape, the scale's latency and the
-  fall time (a :class:`~safepath.planning.gravimetric.FlowModel`), but not the flow gain:
+  fall time (a :class:`~safepath.cells.pouring.flow.FlowModel`), but not the flow gain:
   it fits the gain to the readings (least squares of each reading against the flow
   integral of the commanded tilt ``latency + fall_time`` before it) and predicts the final
   mass if braking began at a given moment: everything poured until then plus what the
   stop and the return upright pour (``still``, per unit gain). This is the decision rule
-  of :func:`~safepath.planning.gravimetric.simulate_pour`, fed one reading at a time.
+  of :func:`~safepath.cells.pouring.flow.simulate_pour`, fed one reading at a time.
 * :class:`PourStopper`: the stop goal for a running tilt. It follows the tilt from the
   present knot to the braking point, then brakes along it, jerk-limited (the monitor's
   re-timing, :class:`~safepath.monitor.profile.MonitoredPath`): every knot is a state of
@@ -28,15 +28,15 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from ..errors import InputError
-from ..execution import LIMITS_KEY, robot_limits
-from ..trajectory import Trajectory
+from ...errors import InputError
+from ...execution import LIMITS_KEY, robot_limits
+from ...trajectory import Trajectory
 
 if TYPE_CHECKING:
-    from ..cell import Cell
-    from ..planning.gravimetric import FlowModel
-    from ..planning.pour import PourMotion
-    from ..timing import PathSpline, TimedPiece, TimingOptions
+    from ...cell import Cell
+    from ...planning.pour import PourMotion
+    from ...timing import PathSpline, TimedPiece, TimingOptions
+    from .flow import FlowModel
 
 __all__ = ["MassPredictor", "PourStopper"]
 
@@ -50,7 +50,7 @@ class MassPredictor:
         flow: The flow law's shape, the scale's latency and the fall time (its ``gain``
             and ``noise`` are not used: the gain is fitted).
         still: What the stop and the return upright pour from a tilt, per unit gain [s]
-            (:func:`~safepath.planning.gravimetric.calibrate_still`); default: braking for
+            (:func:`~safepath.cells.pouring.flow.calibrate_still`); default: braking for
             ``brake_time`` at the current rate, then turning back at ``return_speed``.
         min_reading: Readings below this are not used for the fit [g].
         return_speed: Angular speed of the return assumed without ``still`` [rad/s].
@@ -132,9 +132,9 @@ class PourStopper:
     def __init__(self, cell: Cell, motion: PourMotion, *,
                  return_angular_speed: float = math.radians(30.0),
                  timing: TimingOptions | None = None) -> None:
-        from ..monitor.profile import MonitoredPath
-        from ..timing import TimingOptions
-        from ..verify import FclVerifier
+        from ...monitor.profile import MonitoredPath
+        from ...timing import TimingOptions
+        from ...verify import FclVerifier
 
         if not (math.isfinite(return_angular_speed) and return_angular_speed > 0):
             raise InputError(f"must be > 0 [rad/s], got {return_angular_speed!r}",
@@ -219,7 +219,7 @@ class PourStopper:
         Raises:
             InputError: ``stop`` took over at the tilt's very start (nothing ran before).
         """
-        from .goals import _segment
+        from ...ros.goals import _segment
 
         offset = float(stop.info.get("time_offset", 0.0))
         traj = self.motion.trajectory
@@ -247,7 +247,7 @@ class PourStopper:
                           {"s_from": s_rest, LIMITS_KEY: robot_limits(self.robot)})
 
     def _back_piece(self, s_rest: float) -> tuple[TimedPiece, float]:
-        from ..timing import time_path
+        from ...timing import time_path
 
         end = float(self.motion.path.x[-1])
         if not (math.isfinite(s_rest) and 1e-9 < s_rest <= end + 1e-12):
@@ -270,7 +270,7 @@ class PourStopper:
     def calibrate_still(self, flow: FlowModel, *, samples: int = 6) -> Callable[[float], float]:
         """What the stop and the return pour from a tilt, per unit gain [s], measured on
         this stopper's own stops and returns (for :class:`MassPredictor`)."""
-        from ..planning.gravimetric import calibrate_still
+        from .flow import calibrate_still
 
         traj = self.motion.trajectory
 
