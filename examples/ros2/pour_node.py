@@ -50,7 +50,7 @@ from safepath.cells.pouring.controller import PourCommand, SendArmGoal, SendGrip
 from safepath.cells.pouring.setup import PourParameters, build_pour
 from safepath.errors import SafepathError
 from safepath.ros import goals, gripper_command_goal, gripper_of
-from safepath.ros.controller import CancelGoal
+from safepath.ros.commands import CancelGoal
 
 _NS = 1_000_000_000
 

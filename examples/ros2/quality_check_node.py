@@ -1,8 +1,9 @@
 #!/usr/bin/env python3
 """Quality-check cell on a Niryo Ned3 Pro: safepath routes, run by a ROS 2 node.
 
-Every decision is taken by :class:`safepath.ros.controller.QualityCheckController`; this
-file connects its events and commands to ROS 2. Conveyor and robot are two nodes in one
+Every decision is taken by
+:class:`safepath.cells.quality_check.controller.QualityCheckController`; this file connects
+its events and commands to ROS 2. Conveyor and robot are two nodes in one
 ``MultiThreadedExecutor``; every call is asynchronous, answered via ``add_done_callback``.
 Routes are planned once at start-up (``RuntimePlanner``); motions go to the arm's
 trajectory controller (FollowJointTrajectory: safepath's verified timing is executed),
@@ -43,9 +44,7 @@ from std_msgs.msg import String
 from std_srvs.srv import Trigger
 
 from safepath import load_robot, runtime  # RuntimePlanner: plans routes in the background
-from safepath.errors import SafepathError
-from safepath.ros import goals
-from safepath.ros.controller import (
+from safepath.cells.quality_check.controller import (
     ActuateGripper,
     CancelGoal,
     Command,
@@ -55,6 +54,8 @@ from safepath.ros.controller import (
     RequestVerdict,
     SetConveyor,
 )
+from safepath.errors import SafepathError
+from safepath.ros import goals
 from safepath.trajectory import Trajectory
 
 NIRYO_SUCCESS = 1  # niryo_robot_msgs/CommandStatus.SUCCESS

@@ -8,4 +8,6 @@ would have its own such package, outside safepath.
 
 * :mod:`safepath.cells.pouring`: the pouring cell's gravimetric pour (the scale stops the
   tilt).
+* :mod:`safepath.cells.quality_check`: the quality-check cell's state machine (a vial
+  picked from the conveyor, tested, then packed or rejected).
 """

@@ -11,10 +11,13 @@ return the native ``rclpy`` message classes instead (``backend="auto"``).
 * :mod:`safepath.ros.gripper`: ``control_msgs/GripperCommand`` goals from the ``gripper``
   section of the robot's ``controller.yaml`` (the Gen3 Lite under ros2_kortex).
 * :mod:`safepath.ros.bag`: write and read a ROS 2 bag (MCAP) of a cycle.
-* :mod:`safepath.ros.controller`: the quality-check cell's state machine, ROS-free.
-* The pouring cell's state machine (:class:`PourController` and its commands) is an
-  application of this package and lives in :mod:`safepath.cells.pouring`; its names are
-  still importable from here, loaded on first use.
+* :mod:`safepath.ros.commands`: the commands every cell's controller may return
+  (:class:`CancelGoal`, :class:`Fault`).
+* The cells' state machines are applications of this package: the quality-check cell's
+  (:class:`QualityCheckController` and its commands) lives in
+  :mod:`safepath.cells.quality_check`, the pouring cell's (:class:`PourController` and its
+  commands) in :mod:`safepath.cells.pouring`; their names are still importable from here,
+  loaded on first use.
 * :mod:`safepath.ros.messages`: the type store and CDR (de)serialisation.
 """
 
@@ -23,19 +26,7 @@ from __future__ import annotations
 from typing import TYPE_CHECKING
 
 from .bag import BagContents, BagMessage, read_bag, write_bag
-from .controller import (
-    ActuateGripper,
-    CancelGoal,
-    CellState,
-    Command,
-    ControllerOptions,
-    CycleReport,
-    Fault,
-    MoveArm,
-    QualityCheckController,
-    RequestVerdict,
-    SetConveyor,
-)
+from .commands import CancelGoal, Fault
 from .goals import (
     ROBOT_MOVE_ACTION,
     TOOL_ACTION,
@@ -47,6 +38,7 @@ from .goals import (
     split_at_gripper_events,
     tool_goal,
     tool_goals,
+    trajectory_between,
 )
 from .gripper import gripper_command_goal, gripper_command_goals, gripper_of
 from .messages import deserialize, message_factory, serialize, typestore
@@ -60,19 +52,39 @@ if TYPE_CHECKING:
         SendArmGoal,
         SendGripperGoal,
     )
+    from ..cells.quality_check.controller import (
+        ActuateGripper,
+        CellState,
+        Command,
+        ControllerOptions,
+        CycleReport,
+        MoveArm,
+        QualityCheckController,
+        RequestVerdict,
+        SetConveyor,
+    )
 
 #: The pouring cell's names kept importable from here (their home is an application above
 #: this package, :mod:`safepath.cells.pouring`, so they load on first use).
 _POURING = ("PourController", "PourControllerOptions", "PourReport", "PourState",
             "SendArmGoal", "SendGripperGoal")
+#: The quality-check cell's names kept importable from here (their home is
+#: :mod:`safepath.cells.quality_check`, loaded on first use as the pouring cell's are).
+_QUALITY_CHECK = ("ActuateGripper", "CellState", "Command", "ControllerOptions",
+                  "CycleReport", "MoveArm", "QualityCheckController", "RequestVerdict",
+                  "SetConveyor")
 
 
 def __getattr__(name: str) -> object:
-    """The pouring cell's controller names, imported on first use."""
+    """The cells' controller names, imported on first use."""
     if name in _POURING:
         from ..cells.pouring import controller
 
         return getattr(controller, name)
+    if name in _QUALITY_CHECK:
+        from ..cells.quality_check import controller as quality_check
+
+        return getattr(quality_check, name)
     raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
 
 __all__ = [
@@ -112,6 +124,7 @@ __all__ = [
     "split_at_gripper_events",
     "tool_goal",
     "tool_goals",
+    "trajectory_between",
     "typestore",
     "write_bag",
 ]

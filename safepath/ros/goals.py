@@ -60,6 +60,7 @@ __all__ = [
     "split_at_gripper_events",
     "tool_goal",
     "tool_goals",
+    "trajectory_between",
 ]
 
 #: Niryo's arm commander action (``RobotMove``), Ned robots only.
@@ -464,8 +465,23 @@ def tool_goals(traj: Trajectory, *, tool_id: int = GRIPPER_1_TOOL_ID, max_torque
             for event in sorted(traj.events, key=lambda e: e.time)]
 
 
-def _segment(traj: Trajectory, t_from: float, t_to: float, index: int) -> Trajectory:
-    """The part of ``traj`` between two times [s], re-timed to start at 0."""
+def trajectory_between(traj: Trajectory, t_from: float, t_to: float,
+                       index: int = 0) -> Trajectory:
+    """The part of ``traj`` between two of its times [s], re-timed to start at 0.
+
+    The knots of ``traj`` strictly inside ``(t_from, t_to)`` are kept, with the states
+    sampled at both ends (the very last state of ``traj`` exactly, when ``t_to`` reaches
+    its end); each knot keeps its route step. Gripper events are left out. ``info`` gets
+    ``segment`` (``index``: which motion of the route this is, as
+    :func:`split_at_gripper_events` counts them) and ``time_offset`` (``t_from``: where
+    the part started in ``traj``).
+
+    Args:
+        traj: The trajectory.
+        t_from: Start of the part, within ``traj``'s time span [s].
+        t_to: End of the part, after ``t_from`` [s].
+        index: The part's number, stored as ``info['segment']``.
+    """
     inner = traj.t[(traj.t > t_from + 1e-9) & (traj.t < t_to - 1e-9)]
     times = np.concatenate([[t_from], inner, [t_to]])
     q, qd, qdd = traj.sample(times)
@@ -511,7 +527,7 @@ def split_at_gripper_events(traj: Trajectory) -> list[Trajectory | GripperEvent]
             out.append(events[done])
             done += 1
         if t_to - t_from > 1e-9:
-            out.append(_segment(traj, t_from, t_to, n_motions))
+            out.append(trajectory_between(traj, t_from, t_to, n_motions))
             n_motions += 1
     out.extend(events[done:])
     return out

@@ -63,7 +63,7 @@ def cmd_sim(args: argparse.Namespace) -> int:
         return cmd_obstacles(args, cell)
     if pour_route_of(cell) is not None:
         return _cmd_pouring(args, cell)
-    from ..ros.controller import ControllerOptions
+    from ..cells.quality_check.commands import ControllerOptions
 
     missing = [r for r in ControllerOptions().routes if r not in cell.route_table()]
     if missing:

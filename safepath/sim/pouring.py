@@ -388,7 +388,7 @@ class _Pour:
     # -- commands --------------------------------------------------------------------
     def dispatch(self, commands: list[Any]) -> None:
         from ..cells.pouring.commands import PourReport, SendArmGoal, SendGripperGoal
-        from ..ros.controller import CancelGoal, Fault
+        from ..ros.commands import CancelGoal, Fault
 
         now = self.twin.now
         for cmd in commands:

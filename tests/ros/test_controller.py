@@ -12,8 +12,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from safepath.errors import InputError
-from safepath.ros.controller import (
+from safepath.cells.quality_check.controller import (
     ActuateGripper,
     CancelGoal,
     CellState,
@@ -26,6 +25,7 @@ from safepath.ros.controller import (
     RequestVerdict,
     SetConveyor,
 )
+from safepath.errors import InputError
 
 from .test_messages import phase1, phase2
 

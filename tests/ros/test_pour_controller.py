@@ -36,7 +36,7 @@ from safepath.ros.bag import (
     read_bag,
     write_bag,
 )
-from safepath.ros.controller import CancelGoal, Fault
+from safepath.ros.commands import CancelGoal, Fault
 from safepath.trajectory import GripperEvent, Trajectory
 
 #: How far from 100 g the closed-loop pours end [g]. It was 2 g while stops braked at the

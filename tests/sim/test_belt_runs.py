@@ -9,8 +9,8 @@ import pytest
 
 from safepath import Trajectory
 from safepath.cell import Cell
+from safepath.cells.quality_check.commands import ControllerOptions
 from safepath.collision import CheckOptions, CollisionChecker
-from safepath.ros.controller import ControllerOptions
 from safepath.ros.goals import split_at_gripper_events
 from safepath.sim.clearance import allowed_by_step
 from safepath.sim.quality_check import (

@@ -9,7 +9,7 @@ from dataclasses import dataclass, field
 from typing import Literal
 
 from ...errors import InputError
-from ...ros.controller import CancelGoal, Fault
+from ...ros.commands import CancelGoal, Fault
 from ...trajectory import GripperEvent, Trajectory
 
 __all__ = ["PourCommand", "PourControllerOptions", "PourReport", "SendArmGoal",

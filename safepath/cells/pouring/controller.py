@@ -1,8 +1,9 @@
 """The gravimetric pour's decision logic, without ROS: an explicit state machine.
 
-As :class:`~safepath.ros.controller.QualityCheckController` does for the quality-check
-cell: events in (weight readings with their stamps, goal results and feedback, clock
-ticks), each with the current clock time [s]; commands out, for the node to carry out.
+As :class:`~safepath.cells.quality_check.controller.QualityCheckController` does for the
+quality-check cell: events in (weight readings with their stamps, goal results and
+feedback, clock ticks), each with the current clock time [s]; commands out, for the node
+to carry out.
 No threads and no clock inside: a pour can be replayed in a test.
 
 ::
@@ -48,7 +49,7 @@ from typing import TYPE_CHECKING, Literal
 import numpy as np
 
 from ...errors import InputError, SafepathError
-from ...ros.controller import CancelGoal, Fault
+from ...ros.commands import CancelGoal, Fault
 from ...trajectory import GripperEvent, Trajectory
 from .commands import (
     PourCommand,

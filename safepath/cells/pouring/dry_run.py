@@ -19,7 +19,7 @@ import numpy as np
 
 from ...cell import Cell
 from ...planning.pour import cup_axis_in_tcp, tilt_of
-from ...ros.controller import CancelGoal, Fault
+from ...ros.commands import CancelGoal, Fault
 from ...trajectory import Trajectory
 from .controller import PourCommand, PourController, PourReport, SendArmGoal, SendGripperGoal
 from .flow import FlowModel

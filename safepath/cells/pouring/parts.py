@@ -219,13 +219,13 @@ class PourStopper:
         Raises:
             InputError: ``stop`` took over at the tilt's very start (nothing ran before).
         """
-        from ...ros.goals import _segment
+        from ...ros.goals import trajectory_between
 
         offset = float(stop.info.get("time_offset", 0.0))
         traj = self.motion.trajectory
         if not offset > traj.t[0]:
             raise InputError("the stop took over at the start of the tilt", key="stop")
-        return _segment(traj, float(traj.t[0]), offset, 0)
+        return trajectory_between(traj, float(traj.t[0]), offset, 0)
 
     def back(self, s_rest: float) -> Trajectory:
         """Back upright from rest at path parameter ``s_rest``: the tilt's own path in
