@@ -84,7 +84,7 @@ import time
 import numpy as np
 import safepath
 t0 = time.perf_counter()
-from safepath.planning import _ik_kernel
+from safepath.kinematics import _ik_kernel
 _ik_kernel.log6(np.eye(3), np.zeros(3), np.empty(6))
 print(time.perf_counter() - t0)
 """

@@ -158,7 +158,7 @@ def solve_target(robot: Robot, target: CartesianTarget, seed: np.ndarray, *,
         PoseError: No solution within the joint limits from that seed (names file, key).
     """
     from .errors import PoseError
-    from .planning.cartesian import solve_ik
+    from .kinematics import solve_ik
 
     try:
         T = target.tcp_pose(robot)

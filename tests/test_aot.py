@@ -100,8 +100,8 @@ def recorded() -> dict[str, list[tuple[Any, ...]]]:
     first KEEP calls of every kernel, copied before the call: kernels write into some)."""
     from safepath import _joinkernel
     from safepath.collision import _kernels as _fastkernels
+    from safepath.kinematics import _ik_kernel
     from safepath.monitor import _kernels as _monitor_kernels
-    from safepath.planning import _ik_kernel
     from safepath.timing import _topp
     from safepath.verify import _kernel as _verify_kernel
 
@@ -146,7 +146,7 @@ def recorded() -> dict[str, list[tuple[Any, ...]]]:
 def _helpers(cell: safepath.Cell) -> None:
     """The kernels planning does not call but the API and the tests do, on real data."""
     from safepath.collision import _kernels as _fastkernels
-    from safepath.planning import _ik_kernel
+    from safepath.kinematics import _ik_kernel
     from safepath.planning.cartesian import _line_chain
 
     robot = cell.robot

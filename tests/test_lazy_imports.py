@@ -80,4 +80,4 @@ def test_load_cell_loads_the_release_check_and_the_built_kernels_but_not_numba(a
     assert "fcl" in packages
     assert packages.isdisjoint({"numba", "llvmlite"})
     assert ("safepath.verify._kernel" in kernels) is built
-    assert ("safepath.planning._ik_kernel" in kernels) is built
+    assert ("safepath.kinematics._ik_kernel" in kernels) is built

@@ -54,7 +54,7 @@ _FAST_PARTS = ("safepath.collision._placement", "safepath.collision._pair_tests"
                "safepath.collision._gjk", "safepath.collision._layout")
 _VERIFY = "safepath.verify._kernel"
 _VERIFY_DISTANCE = "safepath.verify._distance"
-_IK = "safepath.planning._ik_kernel"
+_IK = "safepath.kinematics._ik_kernel"
 _TOPP = "safepath.timing._topp"
 _MONITOR = "safepath.monitor._kernels"
 _JOIN = "safepath._joinkernel"
@@ -93,7 +93,8 @@ ENTRIES: dict[str, Entry] = {
                               (_SHAPE, _SHAPE, _HULLS, FLOAT, FLOAT, FLOAT, FLOAT, BOOL, F2,
                                F2, I1),
                               "UniTuple(f8, 5)"),
-    # Cartesian lines (safepath.planning.cartesian).
+    # Inverse kinematics of Cartesian lines (safepath.planning.cartesian, on the kernel of
+    # safepath.kinematics).
     "ik_line_path": Entry(_IK, "line_path", (F2, I1, F1, F2, F1, F1, F1, F1, F1, F1, INT, F2),
                           "Tuple((i8, i8, i8, f8))"),
     "ik_solve": Entry(_IK, "solve", (F2, I1, F1, F2, F1, F1, F1, F1, F1, INT), INT),

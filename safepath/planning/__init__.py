@@ -1,9 +1,10 @@
 """Planning: routes of taught poses to verified, timed trajectories."""
 
+from ..kinematics import LineOptions, solve_ik
 from ..routes import Route, Step, Target, load_routes
 from ..timing import TimingOptions
 from ..verify import FclVerifier, VerifyResult
-from .cartesian import LineOptions, cartesian_line, solve_ik
+from .cartesian import cartesian_line
 from .motion import plan
 from .options import PLANNERS, PlannerOptions, PlanOptions
 from .planner import plan_cell, plan_route

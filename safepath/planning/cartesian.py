@@ -7,8 +7,9 @@ line "keeps orientation". Each TCP step is at most ``step`` long and no joint ma
 move more than ``max_joint_step`` for it: a branch switch (a joint jump) is a failure,
 reported with the fraction of the line where it happened.
 
-:func:`solve_ik` works on Pinocchio from Python. A line runs the same algorithm in
-one numba call (:mod:`._ik_kernel`, imported on the first line; the first call after
+:func:`~safepath.kinematics.solve_ik` (in :mod:`safepath.kinematics`, below the planner)
+works on Pinocchio from Python. A line runs the same algorithm in one numba call
+(:mod:`safepath.kinematics._ik_kernel`, imported on the first line; the first call after
 an install compiles it, a few seconds, later processes load it from numba's cache).
 Each waypoint is seeded with the previous waypoints' motion continued quadratically,
 so most are accepted at the seed or after one step (0.65 steps per waypoint on the
@@ -25,81 +26,12 @@ import numpy as np
 import pinocchio as pin
 
 from ..errors import ConfigError, IKError
+from ..kinematics.ik import _DAMPING, LineOptions
 from ..robot import Robot
 
-__all__ = ["LineOptions", "solve_ik", "cartesian_line"]
+__all__ = ["cartesian_line"]
 
 log = logging.getLogger(__name__)
-
-#: Damping of the least-squares step (added to the diagonal of J J^T).
-_DAMPING = 1e-6
-
-
-@dataclass(frozen=True, kw_only=True)
-class LineOptions:
-    """Options of Cartesian lines.
-
-    Attributes:
-        step: Largest TCP translation between two IK waypoints [m].
-        max_joint_step: Largest change of any joint between two waypoints [rad].
-        position_tolerance: IK position tolerance [m].
-        orientation_tolerance: IK orientation tolerance [rad].
-        max_iterations: IK iterations per waypoint.
-        goal_tolerance: Largest joint distance between the line's last IK solution and
-            the taught goal pose [rad] (otherwise the line ends in another branch).
-    """
-
-    step: float = 0.004
-    max_joint_step: float = 0.15
-    position_tolerance: float = 1e-5
-    orientation_tolerance: float = 1e-4
-    max_iterations: int = 60
-    goal_tolerance: float = 0.05
-
-
-def solve_ik(robot: Robot, T_world_tcp: pin.SE3, q_seed: np.ndarray, *,
-             options: LineOptions = LineOptions(), data: pin.Data | None = None,
-             step: str | None = None) -> np.ndarray:
-    """Joint vector that puts the TCP at ``T_world_tcp`` [m, rad], near ``q_seed`` [rad].
-
-    Damped least squares on the 6-D frame error (LOCAL frame), joint limits enforced by
-    clipping each iterate. ``data`` lets a caller reuse its Pinocchio workspace.
-
-    Args:
-        robot: The robot.
-        T_world_tcp: The TCP pose to reach, in the world frame.
-        q_seed: Where the iteration starts [rad].
-        options: Tolerances and the iteration budget.
-        data: A Pinocchio workspace of ``robot.model`` to reuse.
-        step: Route step (or pose) the target belongs to, for the error.
-
-    Raises:
-        IKError: No solution within ``options.max_iterations`` (the target out of reach,
-            or not reachable from the seed within the joint limits); carries the target
-            position and the remaining error.
-    """
-    model = robot.model
-    if data is None:
-        data = model.createData()
-    fid = robot.tcp_frame_id
-    q = q_seed.copy()
-    damping = _DAMPING * np.eye(6)
-    for _ in range(options.max_iterations):
-        pin.forwardKinematics(model, data, q)
-        T = pin.updateFramePlacement(model, data, fid)
-        M = T.actInv(T_world_tcp)
-        err = pin.log6(M).vector
-        if (np.linalg.norm(T_world_tcp.translation - T.translation) < options.position_tolerance
-                and np.linalg.norm(err[3:]) < options.orientation_tolerance):
-            return q
-        J = pin.Jlog6(M) @ pin.computeFrameJacobian(model, data, q, fid, pin.LOCAL)
-        q = np.clip(q + J.T @ np.linalg.solve(J @ J.T + damping, err), robot.lower, robot.upper)
-    pin.forwardKinematics(model, data, q)
-    left = float(np.linalg.norm(T_world_tcp.translation
-                                - pin.updateFramePlacement(model, data, fid).translation))
-    raise IKError(f"no inverse-kinematics solution for the target in {options.max_iterations} "
-                  f"iterations ({left * 1000:.1f} mm away)", step=step, fraction=1.0,
-                  position=np.array(T_world_tcp.translation))
 
 
 def cartesian_line(robot: Robot, q_start: np.ndarray, q_goal: np.ndarray, *,
@@ -113,7 +45,7 @@ def cartesian_line(robot: Robot, q_start: np.ndarray, q_goal: np.ndarray, *,
     Raises:
         IKError: No continuous IK solution; says where along the line and why.
     """
-    from . import _ik_kernel as kernel
+    from ..kinematics import _ik_kernel as kernel
 
     chain = _line_chain(robot)
     T0 = robot.frame_pose(q_start)
@@ -154,7 +86,7 @@ def cartesian_line(robot: Robot, q_start: np.ndarray, q_goal: np.ndarray, *,
 @dataclass(frozen=True)
 class _Chain:
     """The kinematic chain from the root to the TCP as flat arrays for the kernel
-    (layout in :mod:`._ik_kernel`)."""
+    (layout in :mod:`safepath.kinematics._ik_kernel`)."""
 
     joint_f: np.ndarray
     joint_i: np.ndarray

@@ -9,8 +9,8 @@ import numpy as np
 from .._io import check_names
 from ..collision import CheckOptions
 from ..errors import ConfigError
+from ..kinematics import LineOptions
 from ..timing import TimingOptions
-from .cartesian import LineOptions
 from .pour import PourOptions
 
 __all__ = ["PLANNERS", "PlanOptions", "PlannerOptions"]

@@ -332,7 +332,7 @@ def _check_position_limits(cell: Cell, traj: Trajectory) -> None:
 def _resolve(cell: Cell, step: Step, q: np.ndarray, label: str, options: PlanOptions
              ) -> tuple[np.ndarray, str | None]:
     """Joint goal of a motion step, and the taught pose it is exactly (or None)."""
-    from .cartesian import solve_ik
+    from ..kinematics import solve_ik
 
     target = step.target
     assert target is not None

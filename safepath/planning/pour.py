@@ -40,10 +40,10 @@ import pinocchio as pin
 
 from ..errors import ConfigError, IKError, PlanningError
 from ..execution import LIMITS_KEY, robot_limits
+from ..kinematics import LineOptions, solve_ik
 from ..timing import PathSpline, TimingOptions, spline_path, stretch_knots, time_path
 from ..trajectory import Trajectory
 from ..verify import FclVerifier, VerifyResult
-from .cartesian import LineOptions, solve_ik
 
 if TYPE_CHECKING:
     from ..cell import Cell

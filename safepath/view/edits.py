@@ -20,7 +20,7 @@ import pinocchio as pin
 from ..cell import Cell
 from ..collision import CollisionChecker, StateReport
 from ..errors import CollisionError, PoseError, SafepathError
-from ..planning import solve_ik
+from ..kinematics import solve_ik
 from .store import PoseChange, PosesChanged, PosesSnapshot
 
 __all__ = ["OutsideLimits", "PoseStatus", "PoseEdits"]

@@ -1,16 +1,17 @@
 """Numba kernels of Cartesian lines: the arm's kinematics and damped-least-squares IK.
 
-The same algorithm as :func:`safepath.planning.cartesian.solve_ik` (the frame error as
+The same algorithm as :func:`safepath.kinematics.solve_ik` (the frame error as
 ``log6`` in the TCP frame, its Jacobian ``Jlog6``, the damping, clipping to the limits,
 the acceptance test and the iteration count), without one Python call per operation:
 a whole line is one call. Imported lazily by :mod:`~safepath.planning.cartesian`, so
 ``import safepath`` does not import numba; the first call compiles, or loads from
 numba's on-disk cache (``cache=True``, in ``__pycache__`` next to this file).
 
-The chain (``cartesian._line_chain``) lists the joints from the root to the TCP's
-parent joint, in order. Row j of ``joint_f`` holds joint j's placement in its parent
-(rotation 0-8 row-major, translation 9-11) and its constant motion subspace (linear
-12-14, angular 15-17: a screw, angular part unit or zero, linear part parallel to it);
+The chain (``safepath.planning.cartesian._line_chain``) lists the joints from the root
+to the TCP's parent joint, in order. Row j of ``joint_f`` holds joint j's placement in
+its parent (rotation 0-8 row-major, translation 9-11) and its constant motion subspace
+(linear 12-14, angular 15-17: a screw, angular part unit or zero, linear part parallel to
+it);
 ``joint_i[j]`` is its index in ``q``; ``frame_f`` holds the TCP placement in the last
 joint (rotation 0-8, translation 9-11). Results agree with Pinocchio to rounding
 (tests/planning/test_cartesian.py compares them).
