@@ -55,7 +55,8 @@ def test_make_test_prints_its_wall_time_and_bench_peers_runs_the_smoke_test() ->
 def test_the_peers_smoke_test_is_opt_in() -> None:
     env = {k: v for k, v in os.environ.items() if k != "SAFEPATH_PEERS_SMOKE"}
     done = subprocess.run([sys.executable, "-m", "pytest", "-q", "-rs", "-p", "no:cacheprovider",
-                           "-n", "0", str(REPO / "tests" / "test_peers_smoke.py")], cwd=REPO, env=env,
+                           "-n", "0", str(REPO / "tests" / "test_peers_smoke.py")],
+                          cwd=REPO, env=env,
                           capture_output=True, text=True, timeout=120)
     assert done.returncode == 0, done.stdout + done.stderr
     assert "3 skipped" in done.stdout and "SAFEPATH_PEERS_SMOKE=1" in done.stdout
