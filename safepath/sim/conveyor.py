@@ -4,7 +4,8 @@ Both are kinematic models driven by a ``numpy.random.Generator`` (never global s
 
 * :class:`Conveyor`: vials are put on the belt's far end at random intervals
   (exponential, mean ``arrival_interval``), ride at ``belt_speed`` while the belt runs,
-  keep ``spacing`` between them, and stop at the IR sensor at the belt's end (under the
+  keep ``spacing`` between them (centre to centre; a vial is put on only when the last
+  one has ridden ``spacing`` away), and stop at the IR sensor at the belt's end (under the
   robot's ``grip`` pose). The conveyor stops itself while a vial stands at the sensor
   (otherwise the vial would be pushed off the end), whatever it was told.
 * :class:`VerdictService`: the test zone's answer to a verdict request: the vial's true
@@ -97,6 +98,12 @@ class Conveyor:
                 self.vials.append(vial)
                 self.arrived.append(vial)
             self.next_arrival += float(self.rng.exponential(self.arrival_interval))
+
+    def queued(self) -> tuple[float, ...]:
+        """Where the vials behind the sensor stand: each one's distance [m] behind the
+        sensor, front first (the vial at the sensor, if any, not included)."""
+        return tuple(self.length - v.position for v in self.vials
+                     if v.position < self.length - 1e-9)
 
     def pick(self, now: float) -> Vial | None:
         """The robot takes the vial at the sensor off the belt (None: there is none)."""

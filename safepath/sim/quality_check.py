@@ -51,18 +51,18 @@ from .twin import GripperResult, RobotTwin, TwinOptions
 
 if TYPE_CHECKING:
     from ..cell import Cell
-    from ..ros.controller import Command, ControllerOptions, CycleReport
+    from ..cells.quality_check.commands import Command, ControllerOptions, CycleReport
     from ..trajectory import Trajectory
 
 __all__ = ["QualityCheckParams", "QualityCheckRun", "run_quality_check", "ARCHITECTURES",
-           "WAITING_VIAL", "waiting_vial_cell"]
+           "WAITING_VIAL", "waiting_vial_cell", "QUEUED_VIAL", "queued_vials_cell"]
 
 Architecture = Literal["safepath", "sequential"]
 ARCHITECTURES: tuple[str, ...] = ("safepath", "sequential")
 
 
 def _controller_options() -> ControllerOptions:
-    from ..ros.controller import ControllerOptions
+    from ..cells.quality_check.commands import ControllerOptions
 
     return ControllerOptions()
 
@@ -77,7 +77,11 @@ class QualityCheckParams:
         arrival_interval: Mean time between vials put on the belt [s] (exponential).
         belt_speed: Conveyor speed [m/s].
         belt_length: Distance a vial rides to the sensor [m].
-        vial_spacing: Least distance between vials on the belt [m].
+        vial_spacing: Least distance between vials' centres on the belt [m]. The default
+            is the quality-check cell's minimum (``scenes/quality_check_cell/README.md``:
+            the open jaws straddle the picked vial along the belt and keep the cell's
+            10 mm margin from a vial queued 35 mm behind it; vials touching, 16 mm
+            apart, are hit by the jaws at ``grip`` whatever the route).
         p_unsafe: Probability that a vial is unsafe.
         verdict: The test zone's service (its ``period`` is set to 5 s for the
             sequential architecture unless given).
@@ -92,7 +96,7 @@ class QualityCheckParams:
     arrival_interval: float = 10.0
     belt_speed: float = 0.05
     belt_length: float = 0.40
-    vial_spacing: float = 0.03
+    vial_spacing: float = 0.035
     p_unsafe: float = 0.3
     verdict: VerdictService = field(default_factory=VerdictService)
     controller: ControllerOptions = field(default_factory=_controller_options)
@@ -155,6 +159,8 @@ class QualityCheckRun:
             vial arriving during a cycle).
         waiting_motions: Motion goals during which a vial stood at the sensor (checked
             with it in the cell).
+        queued_motions: Motion goals during which vials stood on the belt behind the
+            sensor (checked with them in the cell, where they were at each state).
     """
 
     seed: int
@@ -184,6 +190,7 @@ class QualityCheckRun:
     belt_moving_at_sensor: float = 0.0
     belt_commanded_at_sensor: float = 0.0
     waiting_motions: int = 0
+    queued_motions: int = 0
 
     @property
     def vials_per_minute(self) -> float:
@@ -258,6 +265,79 @@ def waiting_vial_cell(cell: Cell) -> Cell:
     return dataclasses.replace(cell, scene=new_scene)
 
 
+#: The name prefix of the vials queued behind the sensor in :func:`queued_vials_cell`.
+QUEUED_VIAL = "vial_queued"
+#: The name of the vial riding in to the sensor in :func:`queued_vials_cell`.
+RIDING_IN_VIAL = "vial_riding_in"
+
+
+def queued_vials_cell(cell: Cell, behind: tuple[float, ...], *, riding_in: float | None = None
+                      ) -> Cell:
+    """``cell`` with static copies of the grasped vial standing on the belt ``behind``
+    the sensor: one per distance [m] (centre to centre, from the vial's scene placement
+    at the sensor), named ``vial_queued_1``, ``vial_queued_2``, … with the vial's margin,
+    no contact with them allowed. The belt is the object the vial stands on at the pick
+    pose (its allowed contact there other than the gripper, a box under the vial's scene
+    placement); its longer horizontal axis,
+    pointing from the vial towards the belt's centre, is where the next vials come from.
+    ``riding_in``: a vial that far behind the sensor [m], closer than the spacing of the
+    queue: the next one on its way to the sensor, into the open jaws waiting there
+    (``vial_riding_in``, the open jaws allowed around it where the vial at the sensor is
+    picked, as :func:`waiting_vial_cell` allows them around the vial waiting there).
+
+    Raises:
+        InputError: The cell has no grasped object, or no belt under it.
+    """
+    import dataclasses
+
+    scene = cell.scene
+    if scene.grasp is None:
+        raise InputError("the cell has no grasp: no vial queued on the belt", key="grasp")
+    vial = scene.objects[scene.grasp.object]
+    pick_poses = {p for c in scene.allowed_contacts if vial.name in c.between
+                  and "gripper" in c.between for p in c.at}
+    supports = sorted({o for c in scene.allowed_contacts if vial.name in c.between
+                       and "gripper" not in c.between and set(c.at) & pick_poses
+                       for o in c.between if o != vial.name and o in scene.objects})
+
+    def under_vial(name: str) -> bool:  # the vial's scene placement above its footprint
+        obj = scene.objects[name]
+        local = np.linalg.solve(obj.T_world_object, vial.T_world_object[:, 3])
+        return obj.shape.kind == "box" and all(
+            abs(local[i]) <= obj.shape.size[i] / 2 for i in (0, 1))
+
+    belts = [name for name in supports if under_vial(name)]
+    if not belts:
+        raise InputError("no support under the vial where it is picked: no belt to queue "
+                         "vials on", key="allowed_contacts")
+    belt = scene.objects[belts[0]]
+    T_belt = belt.T_world_object  # noqa: N806
+    axis = T_belt[:3, 0] if belt.shape.size[0] >= belt.shape.size[1] else T_belt[:3, 1]
+    if float(axis @ (T_belt[:3, 3] - vial.T_world_object[:3, 3])) < 0:
+        axis = -axis
+    objects = dict(scene.objects)
+    for i, d in enumerate(behind, start=1):
+        T = vial.T_world_object.copy()  # noqa: N806
+        T[:3, 3] += d * axis
+        name = f"{QUEUED_VIAL}_{i}"
+        objects[name] = dataclasses.replace(vial, name=name, movable=False, T_world_object=T)
+    contacts = tuple(scene.allowed_contacts)
+    if riding_in is not None:
+        from ..scene import AllowedContact
+
+        T = vial.T_world_object.copy()  # noqa: N806
+        T[:3, 3] += riding_in * axis
+        objects[RIDING_IN_VIAL] = dataclasses.replace(vial, name=RIDING_IN_VIAL, movable=False,
+                                                      T_world_object=T)
+        at = tuple(sorted(set(pick_poses) & {p for c in scene.allowed_contacts
+                                             if belt.name in c.between for p in c.at}))
+        contacts += (AllowedContact((RIDING_IN_VIAL, "gripper"), at=at,
+                                    reason="the next vial rides into the open jaws waiting "
+                                           "at the sensor"),)
+    return dataclasses.replace(cell, scene=dataclasses.replace(
+        scene, objects=objects, allowed_contacts=contacts))
+
+
 @dataclass
 class _Motion:
     goal_id: int
@@ -282,7 +362,7 @@ class _Cell:
 
     def __init__(self, cell: Cell, trajs: dict[str, Trajectory], seed: int,
                  params: QualityCheckParams) -> None:
-        from ..ros.controller import QualityCheckController
+        from ..cells.quality_check.controller import QualityCheckController
 
         self.cell, self.trajs, self.params = cell, trajs, params
         self.ctl = QualityCheckController(params.controller)
@@ -304,6 +384,8 @@ class _Cell:
         self.world = MotionWorld(None, None)
         self.sensor = False
         self.sensor_spans: list[list[float]] = []  # [on, off] of the IR sensor
+        # (from when, the vials behind the sensor: distances [m], floored to the mm)
+        self.queue_log: list[tuple[float, tuple[float, ...]]] = []
         self.empty_picks = 0
         self.belt_moving_at_sensor = self.belt_commanded_at_sensor = 0.0
         self.robot_idle = 0.0
@@ -317,7 +399,7 @@ class _Cell:
         heapq.heappush(self.events, (when, self._seq, kind, payload))
 
     def dispatch(self, commands: list[Command]) -> None:
-        from ..ros import controller as c
+        from ..cells.quality_check import controller as c
 
         for cmd in commands:
             if isinstance(cmd, c.SetConveyor):
@@ -414,6 +496,9 @@ class _Cell:
             self.belt_moving_at_sensor += dt if self.conveyor.running else 0.0
             self.belt_commanded_at_sensor += dt if self.conveyor.commanded else 0.0
         self.conveyor.advance(now, dt)
+        queue = tuple(math.floor(d * 1000.0 + 1e-6) / 1000.0 for d in self.conveyor.queued())
+        if not self.queue_log or self.queue_log[-1][1] != queue:
+            self.queue_log.append((now, queue))
         for result in results:
             if isinstance(result, GripperResult):
                 self.on_gripper(result)
@@ -446,20 +531,69 @@ def _waiting_motions(run: _Cell) -> list[_Motion]:
             if any(on < m.end and off > m.start for on, off in run.sensor_spans)]
 
 
+@dataclass
+class _Span:
+    """A part of a motion (its states from ``start`` to ``end``), the motion's own
+    trajectory time starting at ``t0``."""
+
+    start: float
+    end: float
+    traj: Trajectory
+    world: MotionWorld
+    t0: float
+
+
+def _queue_spans(run: _Cell, motion: _Motion) -> list[tuple[tuple[float, ...], _Span]]:
+    """``motion`` cut where the vials behind the sensor moved, with where they stood."""
+    log = run.queue_log
+    out: list[tuple[tuple[float, ...], _Span]] = []
+    for k, (since, queue) in enumerate(log):
+        until = log[k + 1][0] if k + 1 < len(log) else math.inf
+        start, end = max(since, motion.start), min(until, motion.end)
+        if start > end or (until < math.inf and start >= until):
+            continue
+        # a state exactly at ``until`` belongs to the next entry
+        stop = end if end < until else math.nextafter(until, -math.inf)
+        out.append((queue, _Span(start, stop, motion.traj, motion.world, motion.start)))
+    if not log:
+        out.append(((), _Span(motion.start, motion.end, motion.traj, motion.world,
+                               motion.start)))
+    return out
+
+
+def _queued_motions(run: _Cell) -> list[_Motion]:
+    """The motions during which vials stood on the belt behind the sensor."""
+    return [m for m in run.motions if any(q for q, _ in _queue_spans(run, m))]
+
+
 def _clearance(run: _Cell) -> ExecutedClearance:
-    """The executed states of every motion, checked in their world (with the vial waiting
-    at the sensor in it while one stood there)."""
-    waiting = _waiting_motions(run)
-    ids = {id(m) for m in waiting}
-    others = [m for m in run.motions if id(m) not in ids]
-    best = executed_clearance(run.cell, run.twin.recording, others)
-    if not waiting:
-        return best
+    """The executed states of every motion, checked in their world: with the vial waiting
+    at the sensor in it while one stood there, and the vials queued behind the sensor
+    where they stood at each state (to the millimetre, rounded towards the sensor)."""
+    waiting = {id(m) for m in _waiting_motions(run)}
     folder = run.cell.folder
-    cell = _waiting_cell(str(folder)) if folder is not None else waiting_vial_cell(run.cell)
-    more = executed_clearance(cell, run.twin.recording, waiting)
-    low = more if more.clearance < best.clearance else best
-    return ExecutedClearance(low.clearance, low.pair, low.time, best.states + more.states)
+    groups: dict[tuple[bool, tuple[float, ...]], list[_Span]] = {}
+    for motion in run.motions:
+        for queue, span in _queue_spans(run, motion):
+            groups.setdefault((id(motion) in waiting, queue), []).append(span)
+    best = ExecutedClearance(math.inf, None, math.nan, 0)
+    states = 0
+    for (wait, queue), spans in groups.items():
+        cell = run.cell
+        if wait:
+            cell = _waiting_cell(str(folder)) if folder is not None \
+                else waiting_vial_cell(run.cell)
+        if queue:
+            # the front vial, closer to the sensor than the queue's spacing, is riding
+            # in to it: into the open jaws, when they wait there
+            riding = queue[0] if queue[0] < run.params.vial_spacing - 1e-3 else None
+            cell = queued_vials_cell(cell, queue[1:] if riding is not None else queue,
+                                     riding_in=riding)
+        got = executed_clearance(cell, run.twin.recording, spans)
+        states += got.states
+        if got.clearance < best.clearance:
+            best = got
+    return ExecutedClearance(best.clearance, best.pair, best.time, states)
 
 
 def _tcp_deviation(run: _Cell) -> float:
@@ -527,7 +661,8 @@ def run_quality_check(cell: str | Path, seed: int, params: QualityCheckParams | 
         belt_runs=params.controller.belt_runs_while_working, empty_picks=run.empty_picks,
         belt_moving_at_sensor=run.belt_moving_at_sensor,
         belt_commanded_at_sensor=run.belt_commanded_at_sensor,
-        waiting_motions=len(_waiting_motions(run)))
+        waiting_motions=len(_waiting_motions(run)),
+        queued_motions=len(_queued_motions(run)))
 
 
 def events_json(run: QualityCheckRun) -> list[tuple[float, str]]:
