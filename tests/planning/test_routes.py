@@ -66,17 +66,19 @@ def test_bundled_routes_load_as_written(bundled_cell: Cell) -> None:
     assert list(routes) == ["phase1", "phase2_safe", "phase2_unsafe"]
     p1, safe = routes["phase1"], routes["phase2_safe"]
     assert p1.start == "grip" and p1.after is None
-    assert [s.kind for s in p1.steps] == ["close", "line", "move", "line", "open", "line"]
+    assert [s.kind for s in p1.steps] == ["close", "line", "line", "move", "line", "open",
+                                          "line"]
     assert p1.steps[0].object == "vial" and p1.steps[0].stop
-    assert p1.steps[1].speed == 0.5 and p1.steps[1].tcp_speed == 0.25
-    assert p1.steps[2].speed == 1.0 and p1.steps[2].tcp_speed is None
+    assert p1.steps[1].target == Target(None, (0.0, 0.0, 0.10))  # {up: 0.10}: straight up
+    assert p1.steps[2].speed == 0.5 and p1.steps[2].tcp_speed == 0.25
+    assert p1.steps[3].speed == 1.0 and p1.steps[3].tcp_speed is None
     assert safe.after == "phase1" and safe.start == "high2"
     assert safe.steps[3].target == Target("safe", (0.0, 0.0, 0.05))
     assert safe.steps[3].target.exact_pose is None
     assert safe.steps[6].target == Target(None, (0.0, 0.0, 0.05))  # {up: 0.05}
     via = safe.steps[7]  # via: high2 is a move that never stops
     assert via.kind == "move" and not via.stop and via.target == Target("high2")
-    assert p1.labels()[2] == "2 move high2"
+    assert p1.labels()[3] == "3 move high2"
     assert route_order({k: routes[k] for k in reversed(list(routes))})[0] == "phase1"
 
 
