@@ -15,7 +15,7 @@ from safepath.trajectory import Trajectory
 
 from .conftest import DETOUR, Plans, dense_times, route_routes
 
-MOVE = "2 move high2"
+MOVE = "3 move high2"
 
 
 def _held_checker(cell: Cell) -> CollisionChecker:

@@ -40,7 +40,7 @@ from safepath.verify._bounds import (
 
 from .conftest import Plans, object_released_at
 
-STEP = "2 move high2"
+STEP = "3 move high2"
 
 
 def _straight(cell: Cell, a: str, b: str) -> TimedPiece:
@@ -231,7 +231,7 @@ def test_an_allowed_contact_is_judged_as_a_dense_check_judges_it(
         bundled: Plans, dz: float, max_depth: float, fails: bool) -> None:
     """The held vial put down on the test plate: in contact, FCL's depth decides."""
     cell = bundled.cell
-    t, q, _ = _step(bundled, "3 line low1")
+    t, q, _ = _step(bundled, "4 line low1")
     scene = _raised(cell, "test_plate", dz)
     allowed = (AllowedContact(("vial", "test_plate"), ("low1",), max_depth),
                *cell.scene.contacts_at("high2"))
@@ -251,7 +251,7 @@ def test_the_open_jaws_leaving_the_vial_are_judged_as_a_dense_check_judges_them(
     touch them): the line back up to high2, with the scene's margins, then with a margin
     a fraction of a millimetre above its clearance."""
     cell = bundled.cell
-    t, q, _ = _step(bundled, "5 line high2")
+    t, q, _ = _step(bundled, "6 line high2")
     resting = {"vial": object_released_at(cell, bundled.trajectories["phase1"])}
 
     def verifier(margin: float | None) -> FclVerifier:
@@ -733,7 +733,7 @@ def test_stages_are_judged_as_each_stage_alone_judges_its_stretch(
     from safepath.verify import StagedVerifier
 
     cell = bundled.cell
-    t, q, start = _two_steps(bundled, STEP, "3 line low1")
+    t, q, start = _two_steps(bundled, STEP, "4 line low1")
     scene = _raised(cell, "test_plate", dz)
     resting = dict(initial_world(cell).resting)
     first = FclVerifier(cell.robot, scene, held="vial", resting=resting)
@@ -769,7 +769,7 @@ def test_a_pair_in_consecutive_stages_is_walked_across_their_boundary(bundled: P
     from safepath.verify import StagedVerifier
 
     cell = bundled.cell
-    t, q, start = _two_steps(bundled, STEP, "3 line low1")
+    t, q, start = _two_steps(bundled, STEP, "4 line low1")
     first = _verifier(cell)
     second = first.with_allowed(cell.scene.contacts_at("low1"))
     staged = StagedVerifier([first, second]).verify(t, q, [0, start])
