@@ -40,8 +40,8 @@ def test_ros_page_says_how_to_stop_a_pour_on_your_own_scale() -> None:
     (issue 28): build_pour, start, on_weight(mass, stamp, now), and says what ``stamp`` is."""
     import inspect
 
+    from safepath.cells.pouring import PourController
     from safepath.cells.pouring.setup import PourSetup, build_pour
-    from safepath.ros import PourController
 
     assert "docs/ros.md" in (ROOT / "README.md").read_text()
     page = (ROOT / "docs" / "ros.md").read_text()

@@ -1,6 +1,8 @@
-"""The quality-check cell's twin: :class:`~safepath.ros.QualityCheckController` closed loop.
+"""The quality-check cell's twin: its state machine closed loop on a simulated cell.
 
-The cell's own state machine decides; everything around it is simulated on one clock:
+The cell's own state machine
+(:class:`~safepath.cells.quality_check.QualityCheckController`) decides; everything
+around it is simulated on one clock:
 vials arriving on the conveyor (:class:`~safepath.sim.conveyor.Conveyor`), the IR
 sensor, the verdict service with its latency, time-outs and malformed answers
 (:class:`~safepath.sim.conveyor.VerdictService`), and the robot

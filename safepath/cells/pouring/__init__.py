@@ -16,3 +16,9 @@ the pouring cell does with them:
 * :mod:`.setup`: the controller built from the pour node's parameters.
 * :mod:`.dry_run`: the controller run on a simulated cell and scale.
 """
+
+from .commands import PourControllerOptions, PourReport, SendArmGoal, SendGripperGoal
+from .controller import PourController, PourState
+
+__all__ = ["PourController", "PourControllerOptions", "PourReport", "PourState", "SendArmGoal",
+           "SendGripperGoal"]

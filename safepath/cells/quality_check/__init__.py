@@ -11,3 +11,17 @@ with them:
 * :mod:`.controller`: :class:`~.controller.QualityCheckController`, the cell's state
   machine, ROS-free (sensor readings, verdicts and goal results in, goals out).
 """
+
+from .commands import (
+    ActuateGripper,
+    Command,
+    ControllerOptions,
+    CycleReport,
+    MoveArm,
+    RequestVerdict,
+    SetConveyor,
+)
+from .controller import CellState, QualityCheckController
+
+__all__ = ["ActuateGripper", "CellState", "Command", "ControllerOptions", "CycleReport",
+           "MoveArm", "QualityCheckController", "RequestVerdict", "SetConveyor"]
