@@ -16,6 +16,7 @@ Stamps are the simulated clock from ``start_time_ns``.
 from __future__ import annotations
 
 import json
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
@@ -23,7 +24,7 @@ import numpy as np
 
 from ..errors import RosError
 
-__all__ = ["write_run_bag", "JOINT_STATES", "ARM_GOALS", "TOOL_GOALS", "GRIPPER_GOALS",
+__all__ = ["RunRecord", "write_run_bag", "JOINT_STATES", "ARM_GOALS", "TOOL_GOALS", "GRIPPER_GOALS",
            "EVENTS"]
 
 JOINT_STATES = "/joint_states"
@@ -41,7 +42,28 @@ _TYPES = {
 _NS = 1_000_000_000
 
 
-def write_run_bag(path: str | Path, record: Any, *, start_time_ns: int = 0) -> Path:
+@dataclass
+class RunRecord:
+    """What a twin's run keeps for its bag (``record=True``).
+
+    Attributes:
+        goals: ``(time [s], kind, goal message)``; kind ``arm``, ``tool`` or ``gripper``.
+        events: ``(time [s], JSON-serialisable event)``: cycles, reports, faults, kills.
+        time: Times of the executed joint states [s], shape (N,).
+        q: Executed joint positions [rad], shape (N, dof).
+        qd: Executed joint velocities [rad/s], shape (N, dof).
+        joint_names: Joint order of the columns.
+    """
+
+    goals: list[tuple[float, str, Any]] = field(default_factory=list)
+    events: list[tuple[float, dict[str, Any]]] = field(default_factory=list)
+    time: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    q: np.ndarray = field(default_factory=lambda: np.zeros((0, 0)))
+    qd: np.ndarray = field(default_factory=lambda: np.zeros((0, 0)))
+    joint_names: tuple[str, ...] = ()
+
+
+def write_run_bag(path: str | Path, record: RunRecord | None, *, start_time_ns: int = 0) -> Path:
     """Write the bag of a run recorded with ``record=True``.
 
     Args:

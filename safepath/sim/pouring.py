@@ -45,6 +45,7 @@ import numpy as np
 
 from ..errors import ConfigError, InputError
 from .arm import CANCELED, ArmResult
+from .bag import RunRecord
 from .clearance import ExecutedClearance, MotionWorld, executed_clearance, tcp_deviation
 from .twin import GripperResult, RobotTwin, TwinOptions
 
@@ -286,7 +287,7 @@ class PouringRun:
     joint_names: tuple[str, ...]
     killed_at: float | None = None
     moved_after_kill: float = 0.0
-    record: Any = field(default=None, repr=False)
+    record: RunRecord | None = field(default=None, repr=False)
 
     @property
     def error(self) -> float:
@@ -312,16 +313,6 @@ class _Motion:
     traj: Trajectory
     world: MotionWorld
     t0: float
-
-
-@dataclass
-class _Record:
-    goals: list[tuple[float, str, Any]] = field(default_factory=list)
-    events: list[tuple[float, dict[str, Any]]] = field(default_factory=list)
-    time: np.ndarray = field(default_factory=lambda: np.zeros(0))
-    q: np.ndarray = field(default_factory=lambda: np.zeros((0, 0)))
-    qd: np.ndarray = field(default_factory=lambda: np.zeros((0, 0)))
-    joint_names: tuple[str, ...] = ()
 
 
 class _Pour:
@@ -370,7 +361,7 @@ class _Pour:
         self.grippers: set[int] = set()
         self.faults: list[str] = []
         self.goals: list[str] = []
-        self.record = _Record()
+        self.record = RunRecord()
         # The flow: mass out of the cup at times ts [g].
         self.ts: list[float] = [0.0]
         self.out: list[float] = [0.0]

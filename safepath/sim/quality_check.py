@@ -47,6 +47,7 @@ import numpy as np
 
 from ..errors import InputError
 from .arm import CANCELED, ArmResult
+from .bag import RunRecord
 from .clearance import ExecutedClearance, MotionWorld, executed_clearance, tcp_deviation
 from .conveyor import Conveyor, VerdictService, Vial
 from .twin import GripperResult, RobotTwin, TwinOptions
@@ -186,7 +187,7 @@ class QualityCheckRun:
     tcp_deviation: float
     margin: float
     joint_names: tuple[str, ...]
-    record: Any = field(default=None, repr=False)
+    record: RunRecord | None = field(default=None, repr=False)
     belt_runs: bool = False
     empty_picks: int = 0
     belt_moving_at_sensor: float = 0.0
@@ -349,16 +350,6 @@ class _Motion:
     world: MotionWorld
 
 
-@dataclass
-class _Record:
-    goals: list[tuple[float, str, Any]] = field(default_factory=list)
-    events: list[tuple[float, dict[str, Any]]] = field(default_factory=list)
-    time: np.ndarray = field(default_factory=lambda: np.zeros(0))
-    q: np.ndarray = field(default_factory=lambda: np.zeros((0, 0)))
-    qd: np.ndarray = field(default_factory=lambda: np.zeros((0, 0)))
-    joint_names: tuple[str, ...] = ()
-
-
 class _Cell:
     """One run's state: the controller, the twin and the cell around them."""
 
@@ -393,7 +384,7 @@ class _Cell:
         self.robot_idle = 0.0
         self.faults: list[str] = []
         self.reports: list[CycleReport] = []
-        self.record = _Record()
+        self.record = RunRecord()
 
     # -- commands --------------------------------------------------------------------
     def schedule(self, when: float, kind: str, payload: Any) -> None:
