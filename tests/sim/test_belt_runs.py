@@ -4,72 +4,25 @@ the sensor, and a short closed-loop run against the belt stopped during cycles."
 
 from __future__ import annotations
 
-import numpy as np
 import pytest
 
 from safepath import Trajectory
 from safepath.cell import Cell
 from safepath.cells.quality_check.commands import ControllerOptions
-from safepath.collision import CheckOptions, CollisionChecker
-from safepath.ros.goals import split_at_gripper_events
-from safepath.sim.clearance import allowed_by_step
 from safepath.sim.quality_check import (
     WAITING_VIAL,
     QualityCheckParams,
     run_quality_check,
     waiting_vial_cell,
 )
-from safepath.trajectory import GripperEvent
 
-
-def _distance_to_waiting_vial(cell: Cell, routes: dict[str, Trajectory]
-                              ) -> dict[tuple[str, int], float]:
-    """Per motion of each route: the smallest distance [m] of the arm (and the vial it
-    holds) to a vial standing at the sensor, with safepath's checker, every 10 ms of the
-    planned motion, in the world of the motion (vial held, or resting where released) and
-    with the contacts its step allows."""
-    wcell = waiting_vial_cell(cell)
-    grasp = cell.scene.grasp
-    assert grasp is not None
-    robot = wcell.robot
-    out: dict[tuple[str, int], float] = {}
-    for route in ("phase1", "phase2_safe", "phase2_unsafe"):
-        allowed = allowed_by_step(wcell, route)
-        held: str | None = None
-        rest = None if route == "phase1" else \
-            robot.frame_pose(cell.poses["low1"]).homogeneous @ grasp.T_tcp_object
-        last: Trajectory | None = None
-        for k, part in enumerate(split_at_gripper_events(routes[route])):
-            if isinstance(part, GripperEvent):
-                if part.action == "close":
-                    held = grasp.object
-                else:
-                    assert last is not None
-                    held = None
-                    rest = robot.frame_pose(last.q[-1]).homogeneous @ grasp.T_tcp_object
-                continue
-            last = part
-            times = np.append(np.arange(0.0, part.duration, 0.01), part.duration)
-            checkers: dict[tuple, CollisionChecker] = {}
-            best = np.inf
-            for t, q in zip(times, part.sample(times)[0], strict=True):
-                head = part.step_at(float(t)).split(" ", 1)[0]
-                step_allowed = allowed.get(int(head), ()) if head.isdigit() else ()
-                if step_allowed not in checkers:
-                    checkers[step_allowed] = CollisionChecker(
-                        robot, wcell.scene, held=held,
-                        resting={} if rest is None else {grasp.object: rest},
-                        allowed=step_allowed, options=CheckOptions())
-                for pair, d in checkers[step_allowed].distances(q):
-                    if WAITING_VIAL in pair:
-                        best = min(best, d)
-            out[(route, k)] = best
-    return out
+from .conftest import distances_to
 
 
 def test_routes_keep_the_margin_from_a_vial_waiting_at_the_sensor(
         cell: Cell, routes: dict[str, Trajectory]) -> None:
-    dist = _distance_to_waiting_vial(cell, routes)
+    dist = distances_to(cell, routes, waiting_vial_cell(cell),
+                        lambda name: name == WAITING_VIAL)
     lift = ("phase1", 1)  # the motion carrying the picked vial off the belt
     margin = waiting_vial_cell(cell).scene.margin_for(WAITING_VIAL)
     others = {k: d for k, d in dist.items() if k != lift}

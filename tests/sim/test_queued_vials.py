@@ -4,74 +4,27 @@ twin's executed clearance includes the queued vials where they stand."""
 
 from __future__ import annotations
 
-import numpy as np
-
 from safepath import Trajectory
 from safepath.cell import Cell
 from safepath.collision import CheckOptions, CollisionChecker
-from safepath.ros.goals import split_at_gripper_events
-from safepath.sim.clearance import allowed_by_step
 from safepath.sim.quality_check import (
     QUEUED_VIAL,
     QualityCheckParams,
     queued_vials_cell,
     run_quality_check,
 )
-from safepath.trajectory import GripperEvent
+
+from .conftest import distances_to
 
 #: The cell's minimum spacing of vials on the belt, centre to centre [m]
 #: (scenes/quality_check_cell/README.md), which the twin puts vials on with.
 SPACING = QualityCheckParams().vial_spacing
 
 
-def _distance_to_queued_vials(cell: Cell, routes: dict[str, Trajectory],
-                              behind: tuple[float, ...]) -> dict[tuple[str, int], float]:
-    """Per motion of each route: the smallest distance [m] of the arm (and the vial it
-    holds) to vials queued ``behind`` the sensor, with safepath's checker, every 10 ms of
-    the planned motion, in the motion's world (vial held, or resting where released) and
-    with the contacts its step allows."""
-    qcell = queued_vials_cell(cell, behind)
-    grasp = cell.scene.grasp
-    assert grasp is not None
-    robot = qcell.robot
-    out: dict[tuple[str, int], float] = {}
-    for route in ("phase1", "phase2_safe", "phase2_unsafe"):
-        allowed = allowed_by_step(qcell, route)
-        held: str | None = None
-        rest = None if route == "phase1" else \
-            robot.frame_pose(cell.poses["low1"]).homogeneous @ grasp.T_tcp_object
-        last: Trajectory | None = None
-        for k, part in enumerate(split_at_gripper_events(routes[route])):
-            if isinstance(part, GripperEvent):
-                if part.action == "close":
-                    held = grasp.object
-                else:
-                    assert last is not None
-                    held = None
-                    rest = robot.frame_pose(last.q[-1]).homogeneous @ grasp.T_tcp_object
-                continue
-            last = part
-            times = np.append(np.arange(0.0, part.duration, 0.01), part.duration)
-            checkers: dict[tuple, CollisionChecker] = {}
-            best = np.inf
-            for t, q in zip(times, part.sample(times)[0], strict=True):
-                head = part.step_at(float(t)).split(" ", 1)[0]
-                step_allowed = allowed.get(int(head), ()) if head.isdigit() else ()
-                if step_allowed not in checkers:
-                    checkers[step_allowed] = CollisionChecker(
-                        robot, qcell.scene, held=held,
-                        resting={} if rest is None else {grasp.object: rest},
-                        allowed=step_allowed, options=CheckOptions())
-                for pair, d in checkers[step_allowed].distances(q):
-                    if any(name.startswith(QUEUED_VIAL) for name in pair):
-                        best = min(best, d)
-            out[(route, k)] = best
-    return out
-
-
 def test_routes_keep_the_margin_from_vials_queued_at_the_minimum_spacing(
         cell: Cell, routes: dict[str, Trajectory]) -> None:
-    dist = _distance_to_queued_vials(cell, routes, (SPACING, 2 * SPACING))
+    dist = distances_to(cell, routes, queued_vials_cell(cell, (SPACING, 2 * SPACING)),
+                        lambda name: name.startswith(QUEUED_VIAL))
     # the pick's lift rises straight up before it moves along the belt, the return comes
     # down straight onto the grip pose: 10.7 mm measured (the open jaws, on the vertical
     # lines), against -5.6 mm (the held vial hit) when the lift went straight to high1
