@@ -5,14 +5,14 @@ bowl:
 
 * the slow tilt to 115 deg about the cup's lip (5 deg/s bound): duration, largest angular
   speed, largest orientation and path error of the released samples;
-* the barista pour (tilt to 93 deg, the seed's listed orientation, then a 3 cm circle at
+* the barista pour (tilt to 93 deg, the brief's listed orientation, then a 3 cm circle at
   0.05 m/s): largest distance of the TCP from the circle and tilt error on the circle;
 * the path-consistent stop at ``--events`` moments of the slow tilt: computation time
   (median, 99th percentile, max) and braking time;
 * ``--runs`` simulated gravimetric pours (the cup of ``safepath.cells.pouring.cup``, its flow
   gain drawn in 500-2000 g/s/rad^1.5, scale latency 0.05-0.3 s, 0.2 g noise;
   ``safepath.cells.pouring.flow``), each stopped on the scale and returned upright by a
-  planned, verified motion: the final masses, and in the same simulation the seed's two
+  planned, verified motion: the final masses, and in the same simulation the brief's two
   ways (20 separate steps to 115 deg, measured ~103 g; one move straight to 90 deg, their
   first version, measured 110-120 g), to which the cup's fill, repose and gain were
   fitted. Aim: every final mass within 2 g of 100 g.
@@ -151,7 +151,7 @@ def main() -> None:
     print(f"\nfinal masses, safepath: {min(ours):.2f} .. {max(ours):.2f} g, worst error "
           f"{err.max():.2f} g ({'aim met' if err.max() <= 2.0 else 'aim NOT met'}: "
           f"within 2 g in every run)")
-    print(f"the seed's ways in the same simulation: 20 steps {min(steps):.1f} .. "
+    print(f"the brief's ways in the same simulation: 20 steps {min(steps):.1f} .. "
           f"{max(steps):.1f} g, median {np.median(steps):.1f} (seed measured ~103 g); one "
           f"move to 90 deg {min(direct):.1f} .. {max(direct):.1f} g, median "
           f"{np.median(direct):.1f} (seed measured 110-120 g)")

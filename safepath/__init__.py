@@ -11,6 +11,7 @@ import logging
 
 from .cell import Cell, PoseCheck, check_poses, load_cell
 from .collision import CheckOptions, CollisionChecker, SegmentReport, StateReport
+from .controller_spec import ControllerSpec
 from .errors import (
     CollisionError,
     ConfigError,
@@ -44,12 +45,11 @@ from .planning import (
 )
 from .poses import dump_poses, load_poses, save_poses
 from .robot import Robot
-from .robot_loader import load_robot, robot_names
+from .robot_folder import load_robot, robot_names
 from .scene import AllowedContact, Grasp, Scene, SceneObject, Shape, placement
-from .scene_loader import load_scene
+from .scene_yaml import load_scene
 from .tool import ToolSpec
 from .trajectory import GripperEvent, Trajectory, load_trajectory
-from .trajectory_controller import TrajectoryController
 
 logging.getLogger(__name__).addHandler(logging.NullHandler())
 
@@ -92,7 +92,7 @@ __all__ = [
     "StateReport",
     "TimingError",
     "ToolSpec",
-    "TrajectoryController",
+    "ControllerSpec",
     "TrajectoryError",
     "VerificationError",
     "check_poses",

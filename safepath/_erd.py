@@ -21,9 +21,9 @@ import pinocchio as pin
 from ._bare_urdf import Given, convexify, vector_argument, velocity_limits_of
 from ._joint_roles import gripper_joints, refuse_non_arm, tip_frame
 from ._locked import lock_joints, read_mimics
+from .controller_spec import read_controller
 from .errors import ConfigError
 from .robot import Robot, adjacent_link_pairs
-from .trajectory_controller import read_controller
 
 __all__ = ["load_erd"]
 

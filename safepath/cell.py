@@ -21,10 +21,10 @@ from .collision import CheckOptions, CollisionChecker, StateReport
 from .errors import ConfigError, PoseError, unknown_name
 from .poses import POSE_NAME, load_poses
 from .robot import Robot
-from .robot_loader import load_robot
+from .robot_folder import load_robot
 from .routes import Route, check_routes, load_cycle, load_routes
 from .scene import Scene
-from .scene_loader import load_scene
+from .scene_yaml import load_scene
 from .tool import check_tool
 
 __all__ = ["Cell", "PoseCheck", "load_cell", "check_poses"]

@@ -90,7 +90,7 @@ def cmd_robot_pairs(args: argparse.Namespace) -> int:
     """Regenerate a robot folder's allowed self-collision pairs, and name the file in its
     robot.yaml if it does not yet (or say how, with --no-wire)."""
     from .collision import wire_allowed_pairs, write_allowed_pairs
-    from .robot_loader import load_robot
+    from .robot_folder import load_robot
 
     bare = Path(args.robot).suffix.lower() == ".urdf"
     robot = None if bare else load_robot(args.robot)

@@ -13,7 +13,7 @@ two points per joint with
 The ROS 1 ``joint_trajectory_controller`` behind Niryo's
 ``/niryo_robot_follow_joint_trajectory_controller`` (``QuinticSplineSegment``) and
 ros2_kortex's (ros2_control's) join points the same way. Each robot's ``controller.yaml``
-names its interpolation (:attr:`safepath.trajectory_controller.TrajectoryController
+names its interpolation (:attr:`safepath.controller_spec.ControllerSpec
 .interpolation`).
 
 :func:`executed_peaks` finds, per joint, the largest speed, acceleration and jerk of

@@ -13,7 +13,7 @@ Layouts read:
 
 A file may hold both (a nested file to which the recorder appended lines). A pose may
 also be given as a TCP pose (position, orientation quaternion (x, y, z, w), optional
-frame, and the ``seed:`` pose the inverse kinematics starts from, given before it), solved
+frame, and the ``ik_start:`` pose the inverse kinematics starts from, given before it), solved
 when the file is read: see :mod:`safepath.tcp_targets`. Saving updates the file in place
 (round-trip YAML: comments, key order, layout and unchanged values kept; changed values
 at full double precision), atomically, keeping its mode and the previous file as
@@ -69,7 +69,7 @@ def load_poses(path: str | Path, robot: Robot, *, names: Sequence[str] | None = 
         raise PoseError("expected a mapping of pose names to joint lists", path=path)
     raw = _entries(data, path)
     poses: dict[str, np.ndarray] = {}
-    for name, (key, q) in raw.items():  # file order: a TCP pose's seed comes before it
+    for name, (key, q) in raw.items():  # file order: a TCP pose's ik_start comes before it
         poses[name] = _tcp_pose(name, key, q, robot, path, poses) if is_cartesian(q) \
             else _pose(name, key, q, robot, path)
     if names is not None:
@@ -98,16 +98,19 @@ def _entries(data: dict, path: Path) -> dict[str, tuple[str, object]]:
 
 def _tcp_pose(name: str, key: str, spec: object, robot: Robot, path: Path,
               known: dict[str, np.ndarray]) -> np.ndarray:
-    """A pose given as a TCP pose, solved by IK from a seed pose given before it."""
+    """A pose given as a TCP pose, solved by IK from the ``ik_start`` pose given before it."""
     assert isinstance(spec, dict)
     if not POSE_NAME.match(name):
         raise PoseError(f"'{name}' is not a valid pose name", path=path, key=key)
-    target = parse_cartesian(spec, path=path, key=key, extra=frozenset({"seed"}))
-    seed = spec.get("seed")
-    if not isinstance(seed, str) or seed not in known:
-        raise PoseError("a TCP pose needs `seed:`, the name of a pose given before it in "
-                        "this file", path=path, key=f"{key}.seed")
-    return robot.as_joint_vector(solve_target(robot, target, known[seed], path=path, key=key),
+    if "seed" in spec:  # its former name ("seed" means a random seed only)
+        raise PoseError("`seed:` is now `ik_start:` (the pose the inverse kinematics starts "
+                        "from)", path=path, key=f"{key}.seed")
+    target = parse_cartesian(spec, path=path, key=key, extra=frozenset({"ik_start"}))
+    start = spec.get("ik_start")
+    if not isinstance(start, str) or start not in known:
+        raise PoseError("a TCP pose needs `ik_start:`, the name of a pose given before it in "
+                        "this file", path=path, key=f"{key}.ik_start")
+    return robot.as_joint_vector(solve_target(robot, target, known[start], path=path, key=key),
                                  name=key, path=path)
 
 

@@ -1,6 +1,6 @@
 """Robots: kinematics, collision geometry, limits, TCP and tool.
 
-:class:`Robot` is built by :func:`safepath.load_robot` (:mod:`safepath.robot_loader`)
+:class:`Robot` is built by :func:`safepath.load_robot` (:mod:`safepath.robot_folder`)
 from a robot folder or an ``example-robot-data`` name, or directly from Pinocchio models.
 """
 
@@ -15,9 +15,9 @@ import numpy as np
 import pinocchio as pin
 
 from ._locked import LockedJoint
+from .controller_spec import ControllerSpec
 from .errors import ConfigError, FrameNotFound, PoseError
 from .tool import ToolSpec, check_tool
-from .trajectory_controller import TrajectoryController
 
 T = TypeVar("T")
 
@@ -64,7 +64,7 @@ class Robot:
         source: Path | None = None,
         urdf_path: Path | None = None,
         allowed_collisions_path: Path | None = None,
-        controller: TrajectoryController | None = None,
+        controller: ControllerSpec | None = None,
         locked_joints: Sequence[LockedJoint] = (),
     ) -> None:
         self.name = name
@@ -104,10 +104,10 @@ class Robot:
             controller.check_joints(self.joint_names)
         #: Its ROS 2 trajectory controller (from the robot folder's ``controller.yaml``, or
         #: derived from the joint names): what :mod:`safepath.ros` addresses.
-        self.controller = controller or TrajectoryController.derived(self.joint_names)
+        self.controller = controller or ControllerSpec.derived(self.joint_names)
         #: How :func:`safepath.load_robot` loads this robot again (a folder or a name), or
         #: None for a robot built in Python. A robot pickles as this reference, its locked
-        #: joints and its attributes a user may change (``robot_loader.CARRIED``: limits,
+        #: joints and its attributes a user may change (``robot_folder.CARRIED``: limits,
         #: TCP frame, tool, controller...): worker processes load it themselves and apply
         #: them. Changes made to ``model`` itself do not travel. One without a reference
         #: does not pickle.

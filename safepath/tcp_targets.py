@@ -1,13 +1,13 @@
 """Cartesian targets: a position and an orientation quaternion for the TCP (or a frame on it).
 
-Used by ``poses.yaml`` (a pose given as a TCP pose, solved by inverse kinematics from a
-seed pose) and by ``routes.yaml`` (a motion step to a TCP pose)::
+Used by ``poses.yaml`` (a pose given as a TCP pose, solved by inverse kinematics from an
+`ik_start` pose) and by ``routes.yaml`` (a motion step to a TCP pose)::
 
     above_cup:
       position: [0.40, -0.20, 0.21]           # [m], world (= robot base) frame
       orientation: [0.0, 0.7071, 0.0, 0.7071]  # quaternion (x, y, z, w)
       frame: end_effector_link                 # optional: the frame placed there (default TCP)
-      seed: home                               # poses.yaml only: the IK starts here
+      ik_start: home                           # poses.yaml only: the IK starts here
 
 Quaternions are written (x, y, z, w), as in ROS ``geometry_msgs/Quaternion``. One that is
 not finite, or whose norm is not within :data:`UNIT_TOLERANCE` of 1, is a
@@ -149,13 +149,13 @@ def parse_cartesian(raw: Mapping[str, Any], *, path: Path | None, key: str,
                            frame)
 
 
-def solve_target(robot: Robot, target: CartesianTarget, seed: np.ndarray, *,
+def solve_target(robot: Robot, target: CartesianTarget, q_init: np.ndarray, *,
                  path: Path | None = None, key: str | None = None) -> np.ndarray:
     """Joint vector [rad] that puts the target's frame at the target, found by inverse
-    kinematics started at ``seed`` (deterministic: the solution nearest the seed's branch).
+    kinematics started at ``q_init`` [rad] (deterministic: the solution nearest its branch).
 
     Raises:
-        PoseError: No solution within the joint limits from that seed (names file, key).
+        PoseError: No solution within the joint limits from ``q_init`` (names file, key).
     """
     from .errors import PoseError
     from .kinematics import solve_ik
@@ -168,8 +168,8 @@ def solve_target(robot: Robot, target: CartesianTarget, seed: np.ndarray, *,
     from .errors import IKError
 
     try:
-        return solve_ik(robot, T, np.asarray(seed, dtype=float), step=key)
+        return solve_ik(robot, T, np.asarray(q_init, dtype=float), step=key)
     except IKError:
         raise PoseError(f"no inverse-kinematics solution for position {list(target.position)} "
-                        f"from the seed pose (out of reach, or at a joint limit)", path=path,
+                        f"from the `ik_start` pose (out of reach, or at a joint limit)", path=path,
                         key=key) from None

@@ -142,7 +142,7 @@ def test_check_pouring_cell(repo_root: Path, tmp_path: Path) -> None:
     assert result.returncode == 0, result.stderr
     assert "robot gen3_lite" in result.stdout
     assert "8/8 states valid, 0 below margin" in result.stdout
-    # The seed's non-unit quaternion: one line naming file and key, exit status 2.
+    # The brief's non-unit quaternion: one line naming file and key, exit status 2.
     import shutil
 
     copy = tmp_path / "pouring_cell"
@@ -156,6 +156,23 @@ def test_check_pouring_cell(repo_root: Path, tmp_path: Path) -> None:
     assert bad.stdout == ""
     (line,) = bad.stderr.strip().splitlines()
     assert "poses.above_bowl.orientation" in line and "not a unit quaternion" in line
+
+
+def test_check_names_the_renamed_ik_start_key(repo_root: Path, tmp_path: Path) -> None:
+    # A TCP pose's IK start was written `seed:`; "seed" now means a random seed only, so
+    # the old key is refused with one line naming file, key and the new name.
+    import shutil
+
+    copy = tmp_path / "pouring_cell"
+    shutil.copytree(repo_root / "scenes" / "pouring_cell", copy)
+    poses = copy / "poses.yaml"
+    text = poses.read_text()
+    assert text.count("ik_start: above_cup") == 2
+    poses.write_text(text.replace("ik_start: above_cup", "seed: above_cup", 1))
+    bad = run("check", str(copy), cwd=repo_root)
+    assert bad.returncode == 2
+    (line,) = bad.stderr.strip().splitlines()
+    assert str(poses) in line and "seed" in line and "`ik_start:`" in line
 
 
 def test_check_refuses_a_line_target_out_of_reach(repo_root: Path, cell_copy: Path) -> None:

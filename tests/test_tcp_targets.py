@@ -80,7 +80,7 @@ def test_tcp_poses_are_solved_where_they_are_written() -> None:
         np.testing.assert_allclose(T.translation, raw[name]["position"], atol=2e-5)
         R = quaternion_matrix(raw[name]["orientation"])
         assert np.linalg.norm(pin.log3(R.T @ T.rotation)) < 2e-4
-    # The seed's upright end_effector_link quaternion names the same TCP orientation.
+    # The brief's upright end_effector_link quaternion names the same TCP orientation.
     ee = CartesianTarget((0.27, -0.2, 0.21), (0.0, math.sqrt(0.5), 0.0, math.sqrt(0.5)),
                          "end_effector_link")
     T = ee.tcp_pose(cell.robot)

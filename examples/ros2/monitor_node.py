@@ -2,7 +2,7 @@
 """Speed and separation monitoring of the Ned3 Pro with a planar lidar, as a ROS 2 node.
 
 Every decision is taken by :class:`safepath.monitor.node.MonitorNodeCore` (tested without
-ROS); this file wires it to a lifecycle node, as the fourth seed document recommends:
+ROS); this file wires it to a lifecycle node, as the fourth brief recommends:
 
 * ``configure``: loads the cell, validates the parameter file (``--params-file``) and warms
   the runtime planner by planning the route in its worker;

@@ -5,7 +5,7 @@ safepath tilt, stopped on the scale's reading and brought back upright, run by a
 Every decision is taken by :class:`safepath.cells.pouring.controller.PourController`, built from
 the node's parameters by :func:`safepath.cells.pouring.setup.build_pour`; this file connects its
 events and commands to ROS 2: the scale on ``/weight`` (``std_msgs/Float32``
-[g], as the seed's Arduino node publishes it), the arm's trajectory controller
+[g], as the brief's Arduino node publishes it), the arm's trajectory controller
 (FollowJointTrajectory, safepath's verified timing executed, each goal stamped with the
 clock time of its first point), the gripper (GripperCommand) and a 50 Hz timer. Robot,
 scene, tilt and scale are parameters (``pour_params.yaml``, the fields of

@@ -44,10 +44,10 @@ class LineOptions:
     goal_tolerance: float = 0.05
 
 
-def solve_ik(robot: Robot, T_world_tcp: pin.SE3, q_seed: np.ndarray, *,
+def solve_ik(robot: Robot, T_world_tcp: pin.SE3, q_init: np.ndarray, *,
              options: LineOptions = LineOptions(), data: pin.Data | None = None,
              step: str | None = None) -> np.ndarray:
-    """Joint vector that puts the TCP at ``T_world_tcp`` [m, rad], near ``q_seed`` [rad].
+    """Joint vector that puts the TCP at ``T_world_tcp`` [m, rad], near ``q_init`` [rad].
 
     Damped least squares on the 6-D frame error (LOCAL frame), joint limits enforced by
     clipping each iterate. ``data`` lets a caller reuse its Pinocchio workspace.
@@ -55,21 +55,21 @@ def solve_ik(robot: Robot, T_world_tcp: pin.SE3, q_seed: np.ndarray, *,
     Args:
         robot: The robot.
         T_world_tcp: The TCP pose to reach, in the world frame.
-        q_seed: Where the iteration starts [rad].
+        q_init: Where the iteration starts [rad].
         options: Tolerances and the iteration budget.
         data: A Pinocchio workspace of ``robot.model`` to reuse.
         step: Route step (or pose) the target belongs to, for the error.
 
     Raises:
         IKError: No solution within ``options.max_iterations`` (the target out of reach,
-            or not reachable from the seed within the joint limits); carries the target
+            or not reachable from q_init within the joint limits); carries the target
             position and the remaining error.
     """
     model = robot.model
     if data is None:
         data = model.createData()
     fid = robot.tcp_frame_id
-    q = q_seed.copy()
+    q = q_init.copy()
     damping = _DAMPING * np.eye(6)
     for _ in range(options.max_iterations):
         pin.forwardKinematics(model, data, q)

@@ -1,7 +1,7 @@
 """The monitor node's logic without ROS: lifecycle, parameters, scans in, goals out.
 
 ``examples/ros2/monitor_node.py`` wires :class:`MonitorNodeCore` to a ROS 2 lifecycle
-node as the fourth seed document recommends: *configure* loads the cell, validates the
+node as the fourth brief recommends: *configure* loads the cell, validates the
 parameters (a ``ros__parameters`` YAML file) and warms the runtime planner; *activate*
 starts the motion; *deactivate* stops it along its path (a stop replacement, not a
 latched kill). Sensor data come on a best-effort QoS (the newest scan matters, a lost

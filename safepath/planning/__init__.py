@@ -7,7 +7,7 @@ from ..verify import FclVerifier, VerifyResult
 from .cartesian import cartesian_line
 from .motion import plan
 from .options import PLANNERS, PlannerOptions, PlanOptions
-from .planner import plan_cell, plan_route
+from .route_planner import plan_cell, plan_route
 from .sampling import plan_joint_path
 from .world import WorldState, initial_world
 

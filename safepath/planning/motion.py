@@ -17,7 +17,7 @@ from ..robot import Robot
 from ..routes import Route, Step, Target
 from ..scene import Scene
 from ..trajectory import Trajectory
-from .planner import PlanOptions, WorldState, initial_world, plan_route
+from .route_planner import PlanOptions, WorldState, initial_world, plan_route
 
 __all__ = ["plan"]
 

@@ -1,7 +1,7 @@
 """Pours: continuous Cartesian motions of a held cup, timed by TOPP-RA, checked per sample.
 
-Two motions of the pouring cell (seed 001), each one continuous timed trajectory instead
-of the seed's 20 separate MoveIt moves:
+Two motions of the pouring cell (brief 001), each one continuous timed trajectory instead
+of the brief's 20 separate MoveIt moves:
 
 * :func:`plan_tilt`: from upright to the pour orientation about a fixed pour point (the
   cup's lip): the orientation is interpolated on SO(3) (geodesic,

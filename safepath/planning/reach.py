@@ -19,7 +19,7 @@ from ..cell import Cell
 from ..errors import IKError
 from ..routes import Route
 from .options import PlanOptions
-from .planner import _resolve
+from .route_planner import _resolve
 
 __all__ = ["UnreachableTarget", "check_targets"]
 

@@ -46,9 +46,9 @@ import numpy as np
 from rosbags.rosbag2 import Reader, ReaderError, StoragePlugin, Writer, WriterError
 
 from .._knots import interval_index
+from ..controller_spec import ControllerSpec
 from ..errors import RosError, TrajectoryError
 from ..trajectory import GripperEvent, Trajectory
-from ..trajectory_controller import TrajectoryController
 from .goals import (
     controller_of,
     follow_joint_trajectory_goal,
@@ -122,7 +122,7 @@ def _string(data: dict[str, Any]) -> Any:
 
 
 def _gripper_positions(trajs: Sequence[Trajectory], starts_ns: Sequence[int],
-                       spec: TrajectoryController, times: np.ndarray) -> np.ndarray | None:
+                       spec: ControllerSpec, times: np.ndarray) -> np.ndarray | None:
     """The gripper joint's position at ``times`` [ns from the cycle's start]: the open or
     closed position of the last gripper event at or before each time; before the first
     event, the other one (the gripper changes at each event). None for a cycle without
@@ -141,7 +141,7 @@ def _gripper_positions(trajs: Sequence[Trajectory], starts_ns: Sequence[int],
 
 def _joint_states(trajs: Sequence[Trajectory], starts_ns: Sequence[int], total_ns: int,
                   rate: float, names: tuple[str, ...], start_time_ns: int,
-                  spec: TrajectoryController) -> list[tuple[int, Any]]:
+                  spec: ControllerSpec) -> list[tuple[int, Any]]:
     """``/joint_states`` every 1/``rate`` over the whole cycle, from the true motion; with
     the gripper joint of ``spec``'s ``gripper`` section (RViz draws the fingers from it)."""
     types = typestore().types
@@ -187,7 +187,7 @@ def _check_joins(trajs: Sequence[Trajectory], names: tuple[str, ...]) -> None:
 
 
 def _cycle_records(trajs: Sequence[Trajectory], names: tuple[str, ...], period: float,
-                   spec: TrajectoryController, start_time_ns: int, goals: bool
+                   spec: ControllerSpec, start_time_ns: int, goals: bool
                    ) -> tuple[list[tuple[int, int, str, Any]], list[int], int]:
     """Messages of the trajectories back to back: (time [ns], order, topic, message), the
     start of each trajectory and the end of the cycle [ns from its start].
@@ -229,7 +229,7 @@ def _cycle_records(trajs: Sequence[Trajectory], names: tuple[str, ...], period: 
 def write_bag(path: str | Path, trajectories: Iterable[Trajectory], *,
               joint_state_rate: float | None = None, period: float | None = None,
               robot_joint_names: Sequence[str] | None = None,
-              controller: TrajectoryController | None = None,
+              controller: ControllerSpec | None = None,
               start_time_ns: int | None = None, goals: bool = False) -> Path:
     """Write a ROS 2 bag (MCAP) of a cycle; see the module docstring for its layout.
 

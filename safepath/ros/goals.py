@@ -2,7 +2,7 @@
 
 The robot's trajectory controller (action name, joint order, goal tolerances, point
 spacing) comes from the trajectory's own robot: the ``controller.yaml`` of its folder
-(:class:`~safepath.trajectory_controller.TrajectoryController`), looked up by the robot
+(:class:`~safepath.controller_spec.ControllerSpec`), looked up by the robot
 name the trajectory records, or given as ``controller=robot.controller``. Robots without
 such a file get settings derived from their joint names.
 
@@ -39,10 +39,10 @@ import numpy as np
 
 from .._io import check_names
 from .._knots import interval_index
+from ..controller_spec import ControllerSpec, controller_for
 from ..errors import InputError, TrajectoryError
 from ..execution import check_executed, limits_of
 from ..trajectory import GripperEvent, Trajectory
-from ..trajectory_controller import TrajectoryController, controller_for
 from .messages import Backend, MessageFactory, message_factory
 
 __all__ = [
@@ -115,8 +115,8 @@ def _refuse_events_inside(traj: Trajectory) -> None:
                 "after another", key=f"events[{k}]")
 
 
-def controller_of(traj: Trajectory, controller: TrajectoryController | None = None
-                  ) -> TrajectoryController:
+def controller_of(traj: Trajectory, controller: ControllerSpec | None = None
+                  ) -> ControllerSpec:
     """The trajectory controller that ``traj``'s goals address.
 
     ``controller`` if given, else the ``controller.yaml`` of the bundled robot the
@@ -155,7 +155,7 @@ def _period_ns(period: float) -> int:
 
 
 def _points(traj: Trajectory, period: float | None, robot_joint_names: Sequence[str] | None,
-            controller: TrajectoryController | None,
+            controller: ControllerSpec | None,
             limits: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None) -> _Points:
     """The goal's points: every knot of ``traj`` (times from its start), and where two
     knots are more than ``period`` [s] apart, points of the quintic between them (which
@@ -189,7 +189,7 @@ def _points(traj: Trajectory, period: float | None, robot_joint_names: Sequence[
     return pts
 
 
-def _check_executed(traj: Trajectory, pts: _Points, spec: TrajectoryController,
+def _check_executed(traj: Trajectory, pts: _Points, spec: ControllerSpec,
                     limits: tuple[np.ndarray, np.ndarray, np.ndarray] | None,
                     cols: list[int]) -> None:
     """Check the motion ``spec``'s controller executes from ``pts`` against the limits the
@@ -214,7 +214,7 @@ def _bundled_limits(robot: str, joint_names: tuple[str, ...]
                     ) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
     """The limits of the bundled or example-robot-data robot named ``robot`` (None when
     there is none by that name, or its joints are not ``joint_names``)."""
-    from ..robot_loader import load_robot, robot_names
+    from ..robot_folder import load_robot, robot_names
 
     if not robot or robot not in robot_names():
         return None
@@ -261,7 +261,7 @@ def _build_joint_trajectory(f: MessageFactory, pts: _Points, stamp_ns: int) -> A
 
 def joint_trajectory(traj: Trajectory, *, period: float | None = None,
                      robot_joint_names: Sequence[str] | None = None,
-                     controller: TrajectoryController | None = None, stamp_ns: int = 0,
+                     controller: ControllerSpec | None = None, stamp_ns: int = 0,
                      limits: Any = None, backend: Backend = "auto") -> Any:
     """``trajectory_msgs/msg/JointTrajectory`` of ``traj``'s knots.
 
@@ -308,7 +308,7 @@ def follow_joint_trajectory_goal(
         robot_joint_names: Sequence[str] | None = None,
         goal_tolerance: Sequence[float] | None | Literal["controller"] = "controller",
         goal_time_tolerance: float | None = None,
-        controller: TrajectoryController | None = None, stamp_ns: int = 0,
+        controller: ControllerSpec | None = None, stamp_ns: int = 0,
         limits: Any = None, backend: Backend = "auto") -> Any:
     """``control_msgs/action/FollowJointTrajectory_Goal`` for the arm's trajectory controller.
 
@@ -389,7 +389,7 @@ def _reordered(values: Sequence[float] | None, names: Sequence[str], order: Sequ
 
 def robot_move_goal(traj: Trajectory, *, period: float | None = None,
                     robot_joint_names: Sequence[str] | None = None,
-                    controller: TrajectoryController | None = None,
+                    controller: ControllerSpec | None = None,
                     backend: Backend = "auto") -> Any:
     """Niryo ``RobotMove`` goal running ``traj`` as ``EXECUTE_FULL_TRAJ`` (Ned robots).
 

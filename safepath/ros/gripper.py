@@ -4,7 +4,7 @@ A gripper driven by ros2_controllers' ``GripperActionController`` (the Gen3 Lite
 ros2_kortex, and most grippers MoveIt drives) takes one position (the driven joint's, in
 [rad] or [m]) and a ``max_effort``. The action name, the joint, its range and the open and
 closed positions are facts about the robot: the ``gripper`` section of its folder's
-``controller.yaml`` (:class:`~safepath.trajectory_controller.GripperController`). Robots
+``controller.yaml`` (:class:`~safepath.controller_spec.GripperSpec`). Robots
 without one (the Ned3 Pro, driven through Niryo's tools commander, see
 :func:`safepath.ros.goals.tool_goal`) get a typed error, never a guessed action.
 """
@@ -15,14 +15,14 @@ from typing import TYPE_CHECKING, Any, Literal
 
 from .._io import check_names
 from .._paths import ROBOTS_DIR
-from ..errors import InputError
-from ..trajectory import GripperEvent, Trajectory
-from ..trajectory_controller import (
+from ..controller_spec import (
     FILE_NAME,
-    GripperController,
-    TrajectoryController,
+    ControllerSpec,
+    GripperSpec,
     controller_for,
 )
+from ..errors import InputError
+from ..trajectory import GripperEvent, Trajectory
 from .messages import Backend, message_factory
 
 if TYPE_CHECKING:
@@ -36,7 +36,7 @@ GRIPPER_COMMAND_TYPES = ("control_msgs/action/GripperCommand_Goal",
                          "control_msgs/msg/GripperCommand")
 
 
-def gripper_of(robot: Robot | TrajectoryController | str) -> GripperController:
+def gripper_of(robot: Robot | ControllerSpec | str) -> GripperSpec:
     """The ``GripperCommand`` controller of ``robot``.
 
     Args:
@@ -51,7 +51,7 @@ def gripper_of(robot: Robot | TrajectoryController | str) -> GripperController:
 
     if isinstance(robot, Robot):
         controller, name = robot.controller, robot.name
-    elif isinstance(robot, TrajectoryController):
+    elif isinstance(robot, ControllerSpec):
         controller, name = robot, str(robot.source or "the given controller")
     elif isinstance(robot, str) and robot:
         path = ROBOTS_DIR / robot / FILE_NAME
@@ -60,7 +60,7 @@ def gripper_of(robot: Robot | TrajectoryController | str) -> GripperController:
                              f"robot instead", key="robot")
         controller, name = controller_for(robot, ()), robot
     else:
-        raise InputError(f"expected a Robot, a TrajectoryController or a robot name, got "
+        raise InputError(f"expected a Robot, a ControllerSpec or a robot name, got "
                          f"{robot!r}", key="robot")
     if controller.gripper is None:
         where = controller.source or "its controller settings"
@@ -69,7 +69,7 @@ def gripper_of(robot: Robot | TrajectoryController | str) -> GripperController:
     return controller.gripper
 
 
-def gripper_command_goal(robot: Robot | TrajectoryController | str,
+def gripper_command_goal(robot: Robot | ControllerSpec | str,
                          position: float | Literal["open", "close"], *,
                          max_effort: float | None = None, backend: Backend = "auto") -> Any:
     """``control_msgs/action/GripperCommand_Goal`` for the robot's gripper controller.
@@ -108,7 +108,7 @@ def gripper_command_goal(robot: Robot | TrajectoryController | str,
     return f.new("control_msgs/action/GripperCommand_Goal", command=command)
 
 
-def gripper_command_goals(traj: Trajectory, robot: Robot | TrajectoryController | str | None
+def gripper_command_goals(traj: Trajectory, robot: Robot | ControllerSpec | str | None
                           = None, *, backend: Backend = "auto"
                           ) -> list[tuple[GripperEvent, Any]]:
     """A :func:`gripper_command_goal` for each gripper event of ``traj``, in time order.

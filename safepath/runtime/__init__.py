@@ -14,6 +14,6 @@ Example::
 """
 
 from ._transport import WorkerError
-from .planner import RuntimePlanner, RuntimeStats
+from .runtime_planner import RuntimePlanner, RuntimeStats
 
 __all__ = ["RuntimePlanner", "RuntimeStats", "WorkerError"]

@@ -33,8 +33,8 @@ from typing import Any
 
 import numpy as np
 
+from ..controller_spec import ControllerSpec
 from ..execution import join
-from ..trajectory_controller import TrajectoryController
 from .model import RobotModel
 
 __all__ = ["ArmServer", "ArmFeedback", "ArmResult", "SUCCESSFUL", "INVALID_GOAL",
@@ -124,7 +124,7 @@ class ArmServer:
         timestep: Physics timestep [s].
     """
 
-    def __init__(self, model: RobotModel, controller: TrajectoryController,
+    def __init__(self, model: RobotModel, controller: ControllerSpec,
                  q_initial: np.ndarray, timestep: float) -> None:
         self.model = model
         self.controller = controller

@@ -130,7 +130,7 @@ class VerdictService:
         latency: Answer latency, uniform in [low, high] [s].
         p_timeout: Probability of no answer at all.
         p_malformed: Probability of a malformed answer.
-        period: The seed's way: the answer is only read at the next of the test zone's
+        period: The brief's way: the answer is only read at the next of the test zone's
             publications every ``period`` [s] (None: a service answers each request).
     """
 

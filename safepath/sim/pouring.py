@@ -202,8 +202,8 @@ def pour_plan(scene: str, pour_route: str | None = None, pick_and_place: bool = 
     from .. import load_cell
     from ..cells.pouring.flow import FlowModel
     from ..cells.pouring.parts import PourStopper
-    from ..planning.planner import plan_cell
     from ..planning.pour import PourOptions, plan_tilt
+    from ..planning.route_planner import plan_cell
     from ..pour_steps import Tilt
     from ..ros.goals import split_at_gripper_events
 

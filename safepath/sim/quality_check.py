@@ -15,7 +15,7 @@ Two architectures run on the same twin:
 
 * ``safepath``: the planned, blended motions and a verdict service answering each
   request (the rewritten node of ``examples/ros2/quality_check_node.py``);
-* ``sequential``: the seed's: every route step rest to rest
+* ``sequential``: the brief's: every route step rest to rest
   (:func:`~safepath.sim.stop_and_go.stop_and_go`), the verdict read from the test zone's
   publications every 5 s; the same state machine sequences the cell, so the difference
   is the architecture, not the bookkeeping.

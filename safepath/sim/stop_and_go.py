@@ -1,6 +1,6 @@
-"""The seed's way of moving, for comparison: every route step rest to rest on its own.
+"""The brief's way of moving, for comparison: every route step rest to rest on its own.
 
-The seed's node sends one arm command per taught pose and waits for each to finish, so
+The brief's node sends one arm command per taught pose and waits for each to finish, so
 the arm stops at every pose. :func:`stop_and_go` turns a verified route into that motion:
 the same path (the route's own knots), cut where its steps meet, each piece timed rest
 to rest by safepath's timing (:func:`safepath.timing.time_path`) at the step's

@@ -104,7 +104,7 @@ def test_slow_tilt_is_one_continuous_motion_about_the_pour_point(cell: Cell,
     tilt = _tilts(cell, traj.q)
     assert tilt[0] < math.radians(0.5)
     assert abs(math.degrees(tilt[-1]) - 115.0) < 1.0
-    # No stop on the way (the seed's 20 separate moves stopped 19 times).
+    # No stop on the way (the brief's 20 separate moves stopped 19 times).
     speed = np.linalg.norm(traj.qd, axis=1)
     assert np.all(speed[5:-5] > 1e-4)
     # The lip (the fixed pour point) stays where it is.

@@ -31,7 +31,7 @@ from safepath import (
     plan_route,
 )
 from safepath.cell import Cell
-from safepath.planning.planner import route_order
+from safepath.planning.route_planner import route_order
 
 from .conftest import BUNDLED
 

@@ -141,8 +141,8 @@ def test_closed_loop_pours_within_two_grams(cell: Cell) -> None:
         stepwise.append(simulate_stepwise(model).final_mass)
         direct.append(simulate_stepwise(model, steps=1, angle=math.pi / 2).final_mass)
     assert all(abs(m - 100.0) <= 2.0 for m in finals), finals
-    # The seed's ways in the same simulation (the flow model's fill, repose and gain
-    # were fitted to the seed's figures: ~103 g with 20 steps, 110-120 g with one move
+    # The brief's ways in the same simulation (the flow model's fill, repose and gain
+    # were fitted to the brief's figures: ~103 g with 20 steps, 110-120 g with one move
     # to 90 deg): both overshoot (benchmarks/pour.py prints 24 runs of each).
     assert all(102.0 < m < 116.0 for m in stepwise), stepwise
     assert all(106.0 < m <= 115.0 + 1e-6 for m in direct), direct

@@ -13,8 +13,9 @@ import numpy as np
 import pytest
 
 from safepath import load_robot
+from safepath.controller_spec import GripperSpec
 from safepath.errors import ConfigError, InputError
-from safepath.robot_loader import ROBOTS_DIR
+from safepath.robot_folder import ROBOTS_DIR
 from safepath.ros.bag import (
     ARM_GOAL_TOPIC,
     GRIPPER_GOAL_TOPIC,
@@ -28,7 +29,6 @@ from safepath.ros.goals import follow_joint_trajectory_goal, split_at_gripper_ev
 from safepath.ros.gripper import gripper_command_goal, gripper_command_goals, gripper_of
 from safepath.ros.messages import deserialize, serialize
 from safepath.trajectory import GripperEvent, Trajectory
-from safepath.trajectory_controller import GripperController
 
 from .test_messages import assert_same, round_trip
 
@@ -126,7 +126,7 @@ def test_gripper_controller_constructor_checks_its_values() -> None:
     good: dict[str, Any] = dict(action="/g/gripper_cmd", joint="finger", unit="m",
                                 position_range=(0.0, 0.04), open_position=0.04,
                                 closed_position=0.0, max_effort=20.0)
-    GripperController(**good)
+    GripperSpec(**good)
     for change, key in [({"action": "g/gripper_cmd"}, "gripper.action"),
                         ({"unit": "deg"}, "gripper.unit"),
                         ({"position_range": (0.04, 0.0)}, "gripper.position_range"),
@@ -135,7 +135,7 @@ def test_gripper_controller_constructor_checks_its_values() -> None:
                         ({"max_effort": -1.0}, "gripper.max_effort"),
                         ({"joint": ""}, "gripper.joint")]:
         with pytest.raises(ConfigError) as info:
-            GripperController(**{**good, **change})
+            GripperSpec(**{**good, **change})
         assert info.value.key == key, change
 
 

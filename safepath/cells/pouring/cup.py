@@ -1,7 +1,7 @@
 """A cup that empties over its lip: what it holds at a tilt, and how fast it pours.
 
 The cup is a cylinder (inner ``radius``, ``depth``) holding ``fill`` grams of a material
-of bulk ``density``; a granular material (the seed's rice) keeps a surface that leans
+of bulk ``density``; a granular material (the brief's rice) keeps a surface that leans
 back by up to its angle of ``repose`` from the horizontal. Tilted by ``theta``, the
 cup keeps at most :meth:`Cup.held` (the material below the plane through the lowest
 point of the rim, leaning back by the repose angle); more flows out. Its *spill angle*
@@ -11,10 +11,10 @@ lip: it rises as the cup empties. The flow out is ``gain * (theta - spill_angle(
 weir), so that at a fixed tilt the flow dies out by itself once the cup holds what that
 tilt keeps, and each small step of a stepwise tilt pours a bounded amount.
 
-The defaults are the seed's cup (70 x 100 mm outside) with walls of a few millimetres,
+The defaults are the brief's cup (70 x 100 mm outside) with walls of a few millimetres,
 holding rice (0.8 g/cm^3); the fill (115 g) and the repose (0: the rice treated as a
 liquid) were fitted, with the flow gain of :class:`~safepath.cells.pouring.flow.
-FlowModel`, to the seed's two measured figures (``scenes/pouring_cell/README.md`` says
+FlowModel`, to the brief's two measured figures (``scenes/pouring_cell/README.md`` says
 what was fitted to what; ``benchmarks/pour.py`` prints the result).
 """
 

@@ -1,6 +1,6 @@
 """The gravimetric pour in simulation: a flow model, a scale, and the stop on its reading.
 
-The seed (001) tilts the cup in 20 separate moves while reading a scale on ``/weight``,
+The brief (001) tilts the cup in 20 separate moves while reading a scale on ``/weight``,
 stops once the reading reaches 100 g and goes back upright: ~103 g in the bowl, 110-120 g
 with their first version (one move straight to 90 deg). Here the tilt is one continuous timed motion
 (:func:`~safepath.planning.pour.plan_tilt`); when the controller decides to stop, the
@@ -12,10 +12,10 @@ Flow model (documented, deterministic for a seed), two variants:
 * ``FlowModel(cup=Cup())``: a cup that empties over its lip
   (:class:`~safepath.cells.pouring.cup.Cup`): ``gain * (tilt - spill_angle(content)) ** 1.5``
   [g/s], the spill angle rising as the cup empties; its fill, repose and gain were fitted
-  to the seed's two measured figures (``scenes/pouring_cell/README.md``). The benchmark
+  to the brief's two measured figures (``scenes/pouring_cell/README.md``). The benchmark
   and the tests use it.
 * ``FlowModel()`` (``cup=None``): an endless cup, ``gain * (tilt - spill_angle) ** 1.5``
-  past a fixed ``spill_angle`` whatever was poured (with it the seed's 20 steps pour
+  past a fixed ``spill_angle`` whatever was poured (with it the brief's 20 steps pour
   136-220 g, far from their ~103 g); kept for the ROS pour controller's simulation.
 
 Either way the material reaches the bowl ``fall_time`` later, and the scale reports the
@@ -108,7 +108,7 @@ class PourRun:
         mass: Mass in the bowl [g].
         readings: (time [s], reading [g]) of the scale.
         gain_estimate: The controller's flow gain when it decided [g/s/rad^1.5] (NaN
-            where it has none: the seed's way, the endless cup).
+            where it has none: the brief's way, the endless cup).
     """
 
     final_mass: float
@@ -282,7 +282,7 @@ def simulate_stepwise(model: FlowModel, *, angle: float = math.radians(115.0), s
                       speed: float = math.radians(20.0), accel: float = math.radians(40.0),
                       pause: float = 0.3, wait: float = 20.0, target: float = 100.0,
                       dt: float = 0.002) -> PourRun:
-    """The seed's way: ``steps`` separate rest-to-rest moves of ``angle / steps`` (bounded
+    """The brief's way: ``steps`` separate rest-to-rest moves of ``angle / steps`` (bounded
     speed and acceleration, ``pause`` [s] between them for MoveIt's plan-and-execute round
     trip), then waiting at the last tilt (at most ``wait`` [s]), while reading the scale;
     when a reading reaches ``target``, the move in progress finishes (a MoveIt move is

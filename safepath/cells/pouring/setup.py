@@ -144,8 +144,8 @@ def build_pour(params: PourParameters) -> PourSetup:
     import pinocchio as pin
 
     from ...cell import load_cell
-    from ...planning.planner import plan_cell
     from ...planning.pour import PourOptions, plan_tilt
+    from ...planning.route_planner import plan_cell
     from ...ros.goals import split_at_gripper_events
     from .controller import PourController, PourControllerOptions
     from .flow import FlowModel

@@ -42,7 +42,7 @@ class ControllerOptions:
         conveyor_timeout: Longest conveyor service call [s].
         belt_runs_while_working: Keep the conveyor running during the cycle, stopped only
             while a vial stands at the sensor (see the module docstring); False: stopped
-            from the vial's detection to the arm's return, as the seed's node does.
+            from the vial's detection to the arm's return, as the brief's node does.
     """
 
     phase1_route: str = "phase1"

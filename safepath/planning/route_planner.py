@@ -338,13 +338,13 @@ def _resolve(cell: Cell, step: Step, q: np.ndarray, label: str, options: PlanOpt
     assert target is not None
     if target.exact_pose is not None:
         return cell.pose(target.exact_pose), target.exact_pose
-    seed = cell.pose(target.pose) if target.pose is not None else q
+    q_init = cell.pose(target.pose) if target.pose is not None else q
     if target.cartesian is not None:
         T = target.cartesian.tcp_pose(cell.robot)
     else:
-        T = cell.robot.frame_pose(seed)
+        T = cell.robot.frame_pose(q_init)
         T.translation = T.translation + np.asarray(target.offset)
-    return solve_ik(cell.robot, T, seed, options=options.line, step=label), None
+    return solve_ik(cell.robot, T, q_init, options=options.line, step=label), None
 
 
 def _gripper(cell: Cell, world: WorldState, step: Step, q: np.ndarray, label: str,

@@ -1,4 +1,5 @@
-"""The robot's ROS 2 trajectory controller: what :mod:`safepath.ros` sends goals to.
+"""The settings of a robot's ROS 2 trajectory controller (a specification, not a
+controller): what :mod:`safepath.ros` addresses goals to and how the controller joins them.
 
 These are facts about a robot, not about safepath, so they live in the robot's data
 folder as ``controller.yaml`` (``robots/ned3pro/controller.yaml``)::
@@ -23,7 +24,7 @@ folder as ``controller.yaml`` (``robots/ned3pro/controller.yaml``)::
 Every key but ``follow_joint_trajectory_action`` may be left out; a robot without a
 gripper (or whose gripper is not driven through ``control_msgs/GripperCommand``) has no
 ``gripper`` section. A robot without a ``controller.yaml`` (an ``example-robot-data`` arm
-without a folder, a robot built in Python) gets :meth:`TrajectoryController.derived`:
+without a folder, a robot built in Python) gets :meth:`ControllerSpec.derived`:
 the robot's own joint names, ros2_controllers' conventional
 ``/joint_trajectory_controller/follow_joint_trajectory``, the controller's
 own goal tolerances, points every 10 ms.
@@ -43,7 +44,7 @@ from ._paths import ROBOTS_DIR
 from .errors import ConfigError, InputError
 from .execution import INTERPOLATIONS
 
-__all__ = ["GripperController", "TrajectoryController", "controller_for", "read_controller"]
+__all__ = ["GripperSpec", "ControllerSpec", "controller_for", "read_controller"]
 
 #: The file in a robot folder.
 FILE_NAME = "controller.yaml"
@@ -64,8 +65,8 @@ def _action_name(action: object, key: str, example: str, where: dict[str, Any]) 
 
 
 @dataclass(frozen=True, kw_only=True)
-class GripperController:
-    """A gripper driven through ``control_msgs/action/GripperCommand``
+class GripperSpec:
+    """The settings of a gripper driven through ``control_msgs/action/GripperCommand``
     (ros2_controllers' ``GripperActionController``, as MoveIt's gripper interface uses it).
 
     Attributes:
@@ -136,8 +137,9 @@ def _finite(value: object) -> bool:
 
 
 @dataclass(frozen=True, kw_only=True)
-class TrajectoryController:
-    """A robot's joint trajectory controller, as ROS 2 goals and bags address it.
+class ControllerSpec:
+    """The settings of a robot's joint trajectory controller, as ROS 2 goals and bags
+    address it.
 
     Attributes:
         joint_names: The controller's joints, in the order its messages use.
@@ -166,7 +168,7 @@ class TrajectoryController:
     joint_state_rate: float = 50.0
     interpolation: str = "quintic"
     cycle: float = 0.001
-    gripper: GripperController | None = None
+    gripper: GripperSpec | None = None
     source: Path | None = field(default=None, compare=False)
 
     def __post_init__(self) -> None:
@@ -179,8 +181,8 @@ class TrajectoryController:
         object.__setattr__(self, "joint_names", names)
         _action_name(self.follow_joint_trajectory_action, "follow_joint_trajectory_action",
                      GENERIC_ACTION, where)
-        if self.gripper is not None and not isinstance(self.gripper, GripperController):
-            raise ConfigError(f"expected a GripperController, got {self.gripper!r}",
+        if self.gripper is not None and not isinstance(self.gripper, GripperSpec):
+            raise ConfigError(f"expected a GripperSpec, got {self.gripper!r}",
                               key="gripper", **where)
         if self.goal_tolerance is not None:
             tol = tuple(float(v) for v in self.goal_tolerance)
@@ -201,7 +203,7 @@ class TrajectoryController:
                                   f", got {value!r}", key=key, **where)
 
     @classmethod
-    def derived(cls, joint_names: Sequence[str]) -> TrajectoryController:
+    def derived(cls, joint_names: Sequence[str]) -> ControllerSpec:
         """Settings for a robot whose folder says nothing about its controller.
 
         The joint names are the robot's (its URDF's, which ``/joint_states`` uses), the
@@ -225,7 +227,7 @@ class TrajectoryController:
 
 
 def read_controller(path: str | Path, joint_names: Sequence[str] | None = None
-                    ) -> TrajectoryController:
+                    ) -> ControllerSpec:
     """Read a robot folder's ``controller.yaml``.
 
     Args:
@@ -257,7 +259,7 @@ def read_controller(path: str | Path, joint_names: Sequence[str] | None = None
         numbers["interpolation"] = as_str(data["interpolation"], path=path,
                                           key="interpolation")
     gripper = _read_gripper(data["gripper"], path) if data.get("gripper") is not None else None
-    spec = TrajectoryController(joint_names=tuple(raw_names),
+    spec = ControllerSpec(joint_names=tuple(raw_names),
                                 follow_joint_trajectory_action=action, goal_tolerance=tol,
                                 gripper=gripper, source=path, **numbers)
     if joint_names is not None:
@@ -265,7 +267,7 @@ def read_controller(path: str | Path, joint_names: Sequence[str] | None = None
     return spec
 
 
-def _read_gripper(raw: Any, path: Path) -> GripperController:
+def _read_gripper(raw: Any, path: Path) -> GripperSpec:
     """The ``gripper`` section of a ``controller.yaml``."""
     if not isinstance(raw, dict):
         raise ConfigError("expected a mapping", path=path, key="gripper")
@@ -275,7 +277,7 @@ def _read_gripper(raw: Any, path: Path) -> GripperController:
         return get_key(raw, key, path=path, prefix="gripper")
 
     low, high = as_vector(value("position_range"), 2, path=path, key="gripper.position_range")
-    return GripperController(
+    return GripperSpec(
         action=as_str(value("action"), path=path, key="gripper.action"),
         joint=as_str(value("joint"), path=path, key="gripper.joint"),
         unit=as_str(value("unit"), path=path, key="gripper.unit"),  # type: ignore[arg-type]
@@ -285,7 +287,7 @@ def _read_gripper(raw: Any, path: Path) -> GripperController:
         source=path)
 
 
-def controller_for(robot: str, joint_names: Sequence[str]) -> TrajectoryController:
+def controller_for(robot: str, joint_names: Sequence[str]) -> ControllerSpec:
     """The controller of the bundled robot named ``robot``, else :meth:`derived` settings.
 
     This is how :mod:`safepath.ros` finds a trajectory's controller from the robot name
@@ -300,9 +302,9 @@ def controller_for(robot: str, joint_names: Sequence[str]) -> TrajectoryControll
     path = ROBOTS_DIR / robot / FILE_NAME if robot and "/" not in robot else None
     if path is not None and path.is_file():
         return _read_cached(path)
-    return TrajectoryController.derived(joint_names)
+    return ControllerSpec.derived(joint_names)
 
 
 @functools.lru_cache(maxsize=32)
-def _read_cached(path: Path) -> TrajectoryController:
+def _read_cached(path: Path) -> ControllerSpec:
     return read_controller(path)

@@ -4,7 +4,7 @@ A robot folder (see ``robots/ned3pro``) holds a URDF with primitive collision sh
 a ``robot.yaml`` with what a URDF cannot say (velocity and acceleration limits, the
 TCP frame, the tool), the computed list of link pairs that never need checking, and
 optionally a ``controller.yaml`` (its ROS 2 trajectory controller, see
-:mod:`safepath.trajectory_controller`). Robots of ``example-robot-data`` (``ur5``,
+:mod:`safepath.controller_spec`). Robots of ``example-robot-data`` (``ur5``,
 ``panda``, ...) load by name too; a bundled folder of the same name that holds only a
 ``controller.yaml`` adds their controller settings. A URDF file loads alone too
 (:mod:`safepath._bare_urdf`), with the limits it lacks given as arguments.
@@ -26,11 +26,11 @@ from ._io import as_str, as_vector, get_key, read_mapping, read_yaml
 from ._joint_roles import refuse_non_arm
 from ._locked import TRAVEL, lock_joints, read_mimics
 from ._paths import ROBOTS_DIR
+from .controller_spec import FILE_NAME as CONTROLLER_FILE
+from .controller_spec import ControllerSpec, read_controller
 from .errors import ConfigError, FrameNotFound, RobotNotFound
 from .robot import Robot, adjacent_link_pairs, frame_id
 from .tool import ToolSpec, check_tool, read_tool
-from .trajectory_controller import FILE_NAME as CONTROLLER_FILE
-from .trajectory_controller import TrajectoryController, read_controller
 
 __all__ = ["ROBOTS_DIR", "load_robot", "robot_names"]
 
@@ -269,7 +269,7 @@ def _load_folder(folder: Path, locked_values: Mapping[str, float | str] | None =
             log.warning("%s: allowed_collisions file %s missing; only adjacent links skipped "
                         "(write it with `safepath robot-pairs %s`)", spec_path,
                         pairs_path.name, folder)
-    controller: TrajectoryController | None = None
+    controller: ControllerSpec | None = None
     if (folder / CONTROLLER_FILE).is_file():
         controller = read_controller(folder / CONTROLLER_FILE, model_joints)
         _check_gripper_joint(controller, unlocked)
@@ -281,7 +281,7 @@ def _load_folder(folder: Path, locked_values: Mapping[str, float | str] | None =
                  locked_joints=locked)
 
 
-def _check_gripper_joint(controller: TrajectoryController, model: pin.Model) -> None:
+def _check_gripper_joint(controller: ControllerSpec, model: pin.Model) -> None:
     """The gripper's joint exists, moves in its unit, and its range is within the URDF's."""
     gripper = controller.gripper
     if gripper is None:

@@ -64,7 +64,7 @@ class RuntimePlanner:
             :class:`~safepath.cell.Cell` with its routes (built in Python; its robot must
             come from :func:`~safepath.load_robot`, which the workers call again; its
             locked joints and any limits, TCP frame, tool or controller changed since
-            travel with it, see :data:`safepath.robot_loader.CARRIED`).
+            travel with it, see :data:`safepath.robot_folder.CARRIED`).
         options: Planning options (default: ``PlanOptions()``).
         workers: Worker processes; requests are spread over them, each runs one at a time.
         start_method: ``spawn`` (default) or ``forkserver``; never ``fork``, which is
