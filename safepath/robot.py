@@ -7,19 +7,18 @@ from a robot folder or an ``example-robot-data`` name, or directly from Pinocchi
 from __future__ import annotations
 
 import threading
-from collections.abc import Callable, Sequence
+from collections.abc import Sequence
 from pathlib import Path
-from typing import Any, Literal, TypeVar
+from typing import Any, Literal
 
 import numpy as np
 import pinocchio as pin
 
 from ._locked import LockedJoint
 from .controller_spec import ControllerSpec
+from .derived import Derived, DerivedValues
 from .errors import ConfigError, FrameNotFound, PoseError
 from .tool import ToolSpec, check_tool
-
-T = TypeVar("T")
 
 __all__ = ["Robot", "ToolSpec", "adjacent_link_pairs", "frame_id", "joint_motion",
            "is_prismatic"]
@@ -43,7 +42,7 @@ class Robot:
     Joint vectors are numpy arrays in the order of :attr:`joint_names` [rad].
 
     Collision checkers and verifiers share what they build from the robot's shapes alone
-    (see :meth:`derived`). To change a shape, give the robot a new collision model
+    (see :attr:`derived`). To change a shape, give the robot a new collision model
     (``robot.collision_model = ...``) rather than changing one in place; moving a
     geometry, changing the limits or replacing a model is seen.
     """
@@ -116,7 +115,7 @@ class Robot:
         #: collision geometry covers their whole travel. See :func:`safepath.load_robot`.
         self.locked_joints: tuple[LockedJoint, ...] = tuple(locked_joints)
         self._local = threading.local()  # one pinocchio Data per thread
-        self._derived: dict[Any, tuple[tuple[Any, Any], tuple[Any, ...], Any]] = {}
+        self._derived = DerivedValues()  # shared by its copies with another tool
 
     # -- basic facts -------------------------------------------------------------------
     @property
@@ -132,28 +131,13 @@ class Robot:
             seen[self.model.frames[geom.parentFrame].name] = None
         return tuple(seen)
 
-    def derived(self, key: Any, make: Callable[[], T]) -> T:
-        """``make()``, made once per ``key`` and kept while the robot's kinematics,
-        collision geometry and limits stay as they were made from.
-
-        For what every collision checker and verifier of the robot would otherwise build
-        again from its shapes alone (sphere fits placed on their joints, hulls, reach per
-        joint): a planner builds one per world state and allowed-contact set. The value is
-        shared, so it must not be changed. A robot whose models are replaced, whose
-        geometry is moved or whose limits change gets it made again; the shapes
-        themselves are taken as they were (safepath never changes a loaded robot's shapes).
-        """
-        geoms = self.collision_model.geometryObjects
-        # The models themselves are kept (so that their ids are never reused for others).
-        models = (self.model, self.collision_model)
-        stamp = (tuple(int(g.parentJoint) for g in geoms),
-                 b"".join(g.placement.homogeneous.tobytes() for g in geoms),
-                 self.lower.tobytes(), self.upper.tobytes())
-        made = self._derived.get(key)
-        if (made is None or made[0][0] is not models[0] or made[0][1] is not models[1]
-                or made[1] != stamp):
-            made = self._derived[key] = (models, stamp, make())
-        return made[2]  # type: ignore[no-any-return]
+    @property
+    def derived(self) -> Derived:
+        """What is computed from this robot alone and kept for it (sphere fits placed on
+        their joints, hulls, reach per joint, the verifier's shapes), made again when its
+        models are replaced, a geometry moves or a limit changes: see
+        :mod:`safepath.derived` (``held()`` lists it, ``forget()`` drops it)."""
+        return Derived(self, self._derived)
 
     def geometry_link(self, geom_index: int) -> str:
         """Link (frame) name that carries collision geometry ``geom_index``."""

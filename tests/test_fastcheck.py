@@ -357,7 +357,7 @@ def _layer_of(robot: Robot, cell: Cell) -> tuple[np.ndarray, np.ndarray]:
 
 
 def _afresh(robot: Robot, cell: Cell) -> tuple[np.ndarray, np.ndarray]:
-    robot._derived.clear()  # nothing kept: everything made from the shapes again
+    robot.derived.forget()  # nothing kept: everything made from the shapes again
     return _layer_of(robot, cell)
 
 

@@ -1,34 +1,50 @@
-"""The disk cache of what the sphere layer makes from a robot alone (``collision._partcache``):
-an entry read back is the part made afresh, bit for bit; a damaged entry is ignored with a
-warning and made again; other options or geometry are another entry; ``SAFEPATH_CACHE=0``
-writes nothing; ``load_cell`` makes (or reads) it, and what the checkers and verifiers
-take from the robot, before the first plan."""
+"""The disk cache of what the sphere layer makes from a robot alone (``safepath.derived``,
+its stored kind): an entry read back is the part made afresh, bit for bit; a damaged
+entry is ignored with a warning and made again; other options or geometry are another
+entry; ``SAFEPATH_CACHE=0`` writes nothing; ``load_cell`` makes (or reads) it, and what
+the checkers and verifiers take from the robot, before the first plan."""
 
 from __future__ import annotations
 
 import logging
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pytest
 
 from safepath import CollisionChecker
 from safepath.cell import Cell
-from safepath.collision import LayerOptions, _pack, _partcache
+from safepath.collision import CheckOptions, LayerOptions
+from safepath.collision.layer import SphereLayer
+from safepath.derived import CACHE_ENV, StoredKind, disk_folder, read_entry
 
 
-def _arrays(part: _pack._RobotPart) -> dict[str, np.ndarray]:
-    return _pack._flat(part.J, part.Ji, part.movers)
+def _stored(cell: Cell, options: LayerOptions) -> tuple[StoredKind[Any], Any]:
+    """The robot's value kept on disk (the sphere layer's part) for ``options``: its kind
+    and value."""
+    (found,) = [(kind, value) for (kind, opts), value in cell.robot.derived.held().items()
+                if isinstance(kind, StoredKind) and opts == options]
+    return found
 
 
-def _made(cell: Cell, options: LayerOptions) -> _pack._RobotPart:
-    cell.robot._derived.clear()  # nothing kept in memory: the disk or a fresh fit
-    return _pack._robot_part(cell.robot, options)
+def _made(cell: Cell, options: LayerOptions) -> Any:
+    """The sphere layer's part of the cell's robot, with nothing kept in memory: read from
+    the disk or fitted afresh (by a layer of a checker that builds none itself)."""
+    cell.robot.derived.forget()
+    exact = CollisionChecker(cell.robot, cell.scene, options=CheckOptions(fast=False))
+    SphereLayer(exact.layer_source(), options)
+    return _stored(cell, options)[1]
+
+
+def _arrays(cell: Cell, part: Any) -> dict[str, np.ndarray]:
+    kind, _ = _stored(cell, LayerOptions())
+    return kind.to_arrays(part)
 
 
 def test_a_part_read_back_is_the_part_made(cell: Cell, tmp_path: Path,
                                            monkeypatch: pytest.MonkeyPatch) -> None:
-    monkeypatch.setenv(_partcache.ENV, str(tmp_path))
+    monkeypatch.setenv(CACHE_ENV, str(tmp_path))
     options = LayerOptions()
     made = _made(cell, options)
     entries = list((tmp_path / "robot-parts").glob("*.part"))
@@ -36,7 +52,7 @@ def test_a_part_read_back_is_the_part_made(cell: Cell, tmp_path: Path,
     fresh_layer = CollisionChecker(cell.robot, cell.scene).layer
     read = _made(cell, options)
     assert read is not made
-    a, b = _arrays(made), _arrays(read)
+    a, b = _arrays(cell, made), _arrays(cell, read)
     assert a.keys() == b.keys()
     for name in a:
         assert a[name].dtype == b[name].dtype and a[name].shape == b[name].shape, name
@@ -53,9 +69,9 @@ def test_a_part_read_back_is_the_part_made(cell: Cell, tmp_path: Path,
 def test_a_damaged_entry_is_ignored_with_a_warning_and_made_again(
         cell: Cell, tmp_path: Path, monkeypatch: pytest.MonkeyPatch,
         caplog: pytest.LogCaptureFixture, damage: str) -> None:
-    monkeypatch.setenv(_partcache.ENV, str(tmp_path))
+    monkeypatch.setenv(CACHE_ENV, str(tmp_path))
     options = LayerOptions()
-    made = _arrays(_made(cell, options))
+    made = _arrays(cell, _made(cell, options))
     (entry,) = (tmp_path / "robot-parts").glob("*.part")
     raw = entry.read_bytes()
     if damage == "garbage":
@@ -64,18 +80,18 @@ def test_a_damaged_entry_is_ignored_with_a_warning_and_made_again(
         entry.write_bytes(raw[: len(raw) // 2])
     else:  # one byte of an array changed: the digest tells
         entry.write_bytes(raw[:-9] + bytes([raw[-9] ^ 0x10]) + raw[-8:])
-    with caplog.at_level(logging.WARNING, logger="safepath.collision._partcache"):
-        again = _arrays(_made(cell, options))
+    with caplog.at_level(logging.WARNING, logger="safepath.derived"):
+        again = _arrays(cell, _made(cell, options))
     assert any("ignored" in r.getMessage() and entry.name in r.getMessage()
                for r in caplog.records)
     for name in made:
         np.testing.assert_array_equal(made[name], again[name], err_msg=name)
-    assert _partcache._decode(entry.read_bytes()).keys() == made.keys()  # written anew
+    assert read_entry(entry.read_bytes()).keys() == made.keys()  # written anew
 
 
 def test_other_options_or_geometry_are_another_entry(cell: Cell, tmp_path: Path,
                                                      monkeypatch: pytest.MonkeyPatch) -> None:
-    monkeypatch.setenv(_partcache.ENV, str(tmp_path))
+    monkeypatch.setenv(CACHE_ENV, str(tmp_path))
     folder = tmp_path / "robot-parts"
     _made(cell, LayerOptions())
     _made(cell, LayerOptions(cell=0.03))
@@ -92,13 +108,13 @@ def test_other_options_or_geometry_are_another_entry(cell: Cell, tmp_path: Path,
                                    [0.0, 0.0, 0.01], atol=1e-12)
     finally:
         geom.placement = placement
-        cell.robot._derived.clear()
+        cell.robot.derived.forget()
 
 
 def test_no_disk_cache_when_turned_off(cell: Cell, tmp_path: Path,
                                        monkeypatch: pytest.MonkeyPatch) -> None:
-    monkeypatch.setenv(_partcache.ENV, "0")
-    assert _partcache.folder() is None
+    monkeypatch.setenv(CACHE_ENV, "0")
+    assert disk_folder() is None
     monkeypatch.setenv("XDG_CACHE_HOME", str(tmp_path))
     _made(cell, LayerOptions())
     assert not any(tmp_path.rglob("*.part"))
@@ -112,11 +128,12 @@ def test_load_cell_prepares_what_the_checkers_and_verifiers_take_from_the_robot(
     from safepath.planning import FclVerifier
 
     cell = load_cell("quality_check_cell")
-    made = dict(cell.robot._derived)
-    kinds = {key if isinstance(key, str) else key[0] for key in made}
-    assert {"checker", "verifier"} <= kinds
-    assert ("sphere layer" in kinds) is (_aot.compiled() is not None)
+    made = cell.robot.derived.held()
+    names = {kind.name for kind, _ in made}
+    assert {"collision checker's links and reach", "release verifier's bodies"} <= names
+    assert ("sphere layer robot part" in names) is (_aot.compiled() is not None)
     checker = CollisionChecker(cell.robot, cell.scene, held="vial")
     assert checker.layer is not None
     FclVerifier(cell.robot, cell.scene, held="vial")
-    assert all(cell.robot._derived[key][2] is value[2] for key, value in made.items())
+    held = cell.robot.derived.held()
+    assert all(held[key] is value for key, value in made.items())

@@ -11,12 +11,15 @@ they differ only in the held object, the scene and the pairs.
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from dataclasses import dataclass
+from pathlib import Path
 from typing import Any
 
 import numpy as np
 import pinocchio as pin
 
+from ..derived import StoredKind
 from ..robot import Robot, is_prismatic
 from . import _layout as K  # noqa: N812  (constants only: imports no kernel)
 from .options import LayerOptions
@@ -77,27 +80,24 @@ class _RobotPart:
 
 def _robot_part(robot: Robot, options: LayerOptions) -> _RobotPart:
     """The robot's joints and shapes, made by the first checker of the robot (or read
-    from the disk cache, :mod:`safepath.collision._partcache`, where a process made them before)."""
-    from . import _partcache
+    from the disk cache, :mod:`safepath.derived`, where a process made them before)."""
     from .spheres import _fit_key
 
+    model, geoms = robot.model, robot.collision_model.geometryObjects
+
+    def inputs() -> list[object]:
+        return [*_joints(model),
+                np.array([model.joints[j].idx_v for j in range(1, model.njoints)]),
+                robot.lower, robot.upper,
+                *((int(g.parentJoint), g.placement.homogeneous.tobytes(),
+                   _fit_key(g.geometry, options.cell)) for g in geoms)]
+
     def make() -> _RobotPart:
-        model, geoms = robot.model, robot.collision_model.geometryObjects
         J, Ji = _joints(model)
-        name = _partcache.key([
-            "sphere layer robot part", repr(options), J, Ji,
-            np.array([model.joints[j].idx_v for j in range(1, model.njoints)]),
-            robot.lower, robot.upper,
-            *((int(g.parentJoint), g.placement.homogeneous.tobytes(),
-               _fit_key(g.geometry, options.cell)) for g in geoms)])
+        return _RobotPart(J, Ji, [_mover(model, g, options, robot.lower, robot.upper)
+                                  for g in geoms])
 
-        def fresh() -> dict[str, np.ndarray]:
-            movers = [_mover(model, g, options, robot.lower, robot.upper) for g in geoms]
-            return _flat(J, Ji, movers)
-
-        return _unflat(_partcache.load_or_make(name, fresh))
-
-    return robot.derived(("sphere layer", options), make)
+    return robot.derived.get(ROBOT_PART, make, options=options, inputs=inputs)
 
 
 #: The arrays of a mover in the disk cache's entries, by suffix.
@@ -118,7 +118,7 @@ def _flat(J: np.ndarray, Ji: np.ndarray, movers: list[_Mover]  # noqa: N803
     return out
 
 
-def _unflat(a: dict[str, np.ndarray]) -> _RobotPart:
+def _unflat(a: Mapping[str, np.ndarray]) -> _RobotPart:
     """The robot part of :func:`_flat`'s arrays, its fits read-only (every checker of
     the robot shares them)."""
     movers = []
@@ -131,6 +131,16 @@ def _unflat(a: dict[str, np.ndarray]) -> _RobotPart:
         movers.append(_Mover(fit, row, int(ints[0]), int(ints[1]), spheres, int(ints[2]),
                              hull, degree, neighbours, weights, chain))
     return _RobotPart(a["J"], a["Ji"], movers)
+
+
+#: The sphere layer's part of a robot (its joints, and each shape's sphere fit, hull
+#: tables, reach per joint and chain), kept per robot and layer options, and on disk.
+ROBOT_PART: StoredKind[_RobotPart] = StoredKind(
+    "sphere layer robot part",
+    makers=tuple(Path(__file__).with_name(name)
+                 for name in ("_pack.py", "_layout.py", "spheres.py", "_gjk.py")),
+    to_arrays=lambda part: _flat(part.J, part.Ji, part.movers),
+    from_arrays=_unflat)
 
 
 def _joints(model: pin.Model) -> tuple[np.ndarray, np.ndarray]:

@@ -8,6 +8,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..derived import DerivedKind
 from ..robot import Robot
 from ..scene import Scene, Shape
 from ._bounds import (
@@ -111,6 +112,12 @@ def _body(name: str, joint: int, T: np.ndarray, geometry: object, label: str = "
     return Body(name, joint, T, obj, spec or shape_spec(geometry, label or name))
 
 
+#: The robot's bodies, their FCL shapes, motion weights and joint tables (see
+#: :func:`robot_bodies`).
+_BODIES: DerivedKind[tuple[list[Body], list[object], np.ndarray, tuple[np.ndarray, ...]]] = \
+    DerivedKind("release verifier's bodies")
+
+
 def robot_bodies(robot: Robot) -> tuple[list[Body], np.ndarray, tuple[np.ndarray, ...]]:
     """The robot's collision geometries, each on its joint, their motion weights
     (:func:`motion_weights`: (bodies, dof), read-only) and the robot's
@@ -133,7 +140,7 @@ def robot_bodies(robot: Robot) -> tuple[list[Body], np.ndarray, tuple[np.ndarray
         weights.flags.writeable = False
         return bodies, shapes, weights, joint_tables(robot.model)
 
-    bodies, shapes, weights, tables = robot.derived("verifier", make)
+    bodies, shapes, weights, tables = robot.derived.get(_BODIES, make)
     return [Body(b.name, b.joint, b.T, fcl.CollisionObject(
         shape, fcl.Transform(b.T[:3, :3], b.T[:3, 3])), b.spec)
         for b, shape in zip(bodies, shapes, strict=True)], weights, tables

@@ -696,7 +696,7 @@ def test_verifiers_of_a_robot_share_its_bodies_and_see_them_change(detour_cell: 
     places collision objects of its own; moving a geometry makes them again."""
     robot = copy.copy(detour_cell.robot)
     robot.collision_model = detour_cell.robot.collision_model.copy()
-    robot._derived = {}
+    robot.derived.forget()
     (a, wa, _), (b, wb, _) = robot_bodies(robot), robot_bodies(robot)
     assert wa is wb and not wa.flags.writeable
     assert all(x.fcl is not y.fcl for x, y in zip(a, b, strict=True))
@@ -705,7 +705,7 @@ def test_verifiers_of_a_robot_share_its_bodies_and_see_them_change(detour_cell: 
     c, wc, _ = robot_bodies(robot)
     assert not np.array_equal(wc, wa)
     assert not np.array_equal(c[2].T, a[2].T)
-    robot._derived = {}
+    robot.derived.forget()
     d, wd, _ = robot_bodies(robot)
     np.testing.assert_array_equal(wd, wc)
     np.testing.assert_array_equal(d[2].T, c[2].T)
