@@ -128,10 +128,10 @@ def test_kernel_kinematics_match_pinocchio(cell: Cell) -> None:
         checker = CollisionChecker(robot)
         layer = checker.layer
         assert layer is not None
-        Rw, pw, wf, _ = K._workspace(layer.I)
+        Rw, pw, _, _ = K._workspace(layer.I)
         data = robot.model.createData()
         for q in np.random.default_rng(0).uniform(robot.lower, robot.upper, (50, robot.dof)):
-            K._fk(q, layer.F, layer.I, Rw, pw, wf)
+            K._fk(q, layer.F, layer.I, Rw, pw)
             pin.forwardKinematics(robot.model, data, q)
             for j in range(1, robot.model.njoints):
                 np.testing.assert_allclose(Rw[j], data.oMi[j].rotation, atol=1e-12)

@@ -27,7 +27,7 @@ Kind = str | tuple["Kind", ...]
 
 #: Arrays: C-contiguous float64, int64 and bool arrays of 1 to 4 dimensions.
 F1, F2, F3, F4 = "f8[::1]", "f8[:, ::1]", "f8[:, :, ::1]", "f8[:, :, :, ::1]"
-I1, B1, B2 = "i8[::1]", "b1[::1]", "b1[:, ::1]"
+I1, I2, B1, B2 = "i8[::1]", "i8[:, ::1]", "b1[::1]", "b1[:, ::1]"
 #: Scalars.
 FLOAT, INT, BOOL = "f8", "i8", "b1"
 
@@ -58,6 +58,9 @@ _IK = "safepath.kinematics._ik_kernel"
 _TOPP = "safepath.timing._topp"
 _MONITOR = "safepath.monitor._kernels"
 _JOIN = "safepath._joinkernel"
+#: The planner's one forward kinematics (the sphere layer's and the lines' IK's) and the
+#: joint table's columns it compiles in.
+_FK = ("safepath._fk_kernel", "safepath._joint_table")
 #: A placed shape of the verifier: a tuple of 17 floats.
 _SHAPE = "UniTuple(f8, 17)"
 #: The verifier's hull tables: vertices, neighbour starts, neighbour rows, climbs' starts.
@@ -95,11 +98,11 @@ ENTRIES: dict[str, Entry] = {
                               "UniTuple(f8, 5)"),
     # Inverse kinematics of Cartesian lines (safepath.planning.cartesian, on the kernel of
     # safepath.kinematics).
-    "ik_line_path": Entry(_IK, "line_path", (F2, I1, F1, F2, F1, F1, F1, F1, F1, F1, INT, F2),
+    "ik_line_path": Entry(_IK, "line_path", (F2, I2, F1, F2, F1, F1, F1, F1, F1, F1, INT, F2),
                           "Tuple((i8, i8, i8, f8))"),
-    "ik_solve": Entry(_IK, "solve", (F2, I1, F1, F2, F1, F1, F1, F1, F1, INT), INT),
-    "ik_tcp_pose": Entry(_IK, "tcp_pose", (F2, I1, F1, F1, F2, F1), "void"),
-    "ik_tcp_jacobian": Entry(_IK, "tcp_jacobian", (F2, I1, F1, F1, F2), "void"),
+    "ik_solve": Entry(_IK, "solve", (F2, I2, F1, F2, F1, F1, F1, F1, F1, INT), INT),
+    "ik_tcp_pose": Entry(_IK, "tcp_pose", (F2, I2, F1, F1, F2, F1), "void"),
+    "ik_tcp_jacobian": Entry(_IK, "tcp_jacobian", (F2, I2, F1, F1, F2), "void"),
     "ik_log6": Entry(_IK, "log6", (F2, F1, F1), "void"),
     "ik_jlog6": Entry(_IK, "jlog6", (F2, F1, F2), "void"),
     # The monitor (safepath.monitor: separation bounds, speed profiles).
@@ -126,8 +129,8 @@ ENTRIES: dict[str, Entry] = {
 #: while all of them are unchanged. Every kernel compiled through :func:`safepath._aot.njit`
 #: lives in one of them (tests/test_aot.py checks it); the cup's (a simulated scale, not
 #: on a planning path) uses numba directly.
-MODULES: tuple[str, ...] = (_FAST, *_FAST_PARTS, _VERIFY, _VERIFY_DISTANCE, _IK, _TOPP, _JOIN,
-                            _MONITOR)
+MODULES: tuple[str, ...] = (_FAST, *_FAST_PARTS, *_FK, _VERIFY, _VERIFY_DISTANCE, _IK, _TOPP,
+                            _JOIN, _MONITOR)
 #: Those a plan calls (all but the monitor's).
-PLANNING_MODULES: tuple[str, ...] = (_FAST, *_FAST_PARTS, _VERIFY, _VERIFY_DISTANCE, _IK, _TOPP,
-                                     _JOIN)
+PLANNING_MODULES: tuple[str, ...] = (_FAST, *_FAST_PARTS, *_FK, _VERIFY, _VERIFY_DISTANCE, _IK,
+                                     _TOPP, _JOIN)

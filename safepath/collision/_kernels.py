@@ -34,6 +34,7 @@ import math
 import numpy as np
 
 from .._aot import njit
+from .._joint_table import JF_W, JF_WIDTH, JI_KIND, JI_PARENT, JI_Q, JI_WIDTH, PRISMATIC
 from ._layout import (
     C_FREE_EPS,
     C_PROOF_EPS,
@@ -61,7 +62,6 @@ from ._layout import (
     H_PM,
     H_PW,
     H_W,
-    JOINT_PRISMATIC,
     OUTSIDE,
     UNSURE,
     W_FIXED,
@@ -114,7 +114,7 @@ def _evaluate(q, fb, ib, Rw, pw, wf, wi, rates, want_radius, need, t):  # noqa: 
     radius reaches ``need`` skip the finer local radius, and a pair is not evaluated at
     all when the stretch an earlier state of the segment certified for it (wf's WI_CERT
     block, which this updates) covers ``need`` either side of ``t``."""
-    _fk(q, fb, ib, Rw, pw, wf)
+    _fk(q, fb, ib, Rw, pw)
     oc = ib[H_C]
     refine, free_eps, proof_eps = fb[oc + C_REFINE], fb[oc + C_FREE_EPS], fb[oc + C_PROOF_EPS]
     if not want_radius:
@@ -210,12 +210,12 @@ def _axis_distances(m, fb, ib, Rw, pw, wf, ocw, odl):  # noqa: N803
     r_m = fb[og + GW * m + 3]
     j = ib[ogi + GIW * m]
     while j > 0:
-        v = ib[oji + 3 * j + 2]
-        if ib[oji + 3 * j + 1] == JOINT_PRISMATIC:
+        v = ib[oji + JI_WIDTH * j + JI_Q]
+        if ib[oji + JI_WIDTH * j + JI_KIND] == PRISMATIC:
             wf[odl + m * dof + v] = 1.0
         else:
-            base = oj + 15 * j
-            ax, ay, az = fb[base + 12], fb[base + 13], fb[base + 14]
+            axis = oj + JF_WIDTH * j + JF_W
+            ax, ay, az = fb[axis], fb[axis + 1], fb[axis + 2]
             ux = Rw[j, 0, 0] * ax + Rw[j, 0, 1] * ay + Rw[j, 0, 2] * az
             uy = Rw[j, 1, 0] * ax + Rw[j, 1, 1] * ay + Rw[j, 1, 2] * az
             uz = Rw[j, 2, 0] * ax + Rw[j, 2, 1] * ay + Rw[j, 2, 2] * az
@@ -224,7 +224,7 @@ def _axis_distances(m, fb, ib, Rw, pw, wf, ocw, odl):  # noqa: N803
             dz = wf[ocw + 3 * m + 2] - pw[j, 2]
             cx, cy, cz = dy * uz - dz * uy, dz * ux - dx * uz, dx * uy - dy * ux
             wf[odl + m * dof + v] = math.sqrt(cx * cx + cy * cy + cz * cz) + r_m
-        j = ib[oji + 3 * j]
+        j = ib[oji + JI_WIDTH * j + JI_PARENT]
 
 
 @_inlined
@@ -304,10 +304,11 @@ def _axis_growth(fb, ib, wf, wi):  # noqa: N803
         acc = 0.0
         j = ib[ogi + GIW * m]
         while j > 0:
-            v = ib[oji + 3 * j + 2]
-            wf[occ + m * dof + v] = 0.0 if ib[oji + 3 * j + 1] == JOINT_PRISMATIC else acc
+            v = ib[oji + JI_WIDTH * j + JI_Q]
+            wf[occ + m * dof + v] = (0.0 if ib[oji + JI_WIDTH * j + JI_KIND] == PRISMATIC
+                                     else acc)
             acc += fb[ow + m * dof + v] * wf[oabs + v]
-            j = ib[oji + 3 * j]
+            j = ib[oji + JI_WIDTH * j + JI_PARENT]
 
 
 @njit(cache=True, nogil=True)

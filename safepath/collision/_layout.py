@@ -3,9 +3,10 @@
 All data of one checker travels in two flat buffers, ``fb`` (float64) and ``ib`` (int64),
 laid out by :func:`safepath.collision._pack.pack` (one call argument each keeps numba's
 dispatch cheap: the single-state API is called millions of times by planners): an int
-header of block positions (H_*), the constants (C_*), the rows of the movers (GW, GIW
-wide) and of the environment objects, and the shape kinds. A kernel call's scratch
-(``wf``, ``wi``) is laid out here too (W_*, WI_*).
+header of block positions (H_*), the joint table (rows of :mod:`safepath._joint_table`,
+row j for the model's joint j: H_J its floats, H_JI its ints), the constants (C_*), the
+rows of the movers (GW, GIW wide) and of the environment objects, and the shape kinds.
+A kernel call's scratch (``wf``, ``wi``) is laid out here too (W_*, WI_*).
 
 Only constants: importing this module compiles nothing (the packer reads it).
 The kernels read these as compile-time constants; :mod:`safepath._aot` keys its
@@ -50,19 +51,18 @@ SPHERES_ONLY = -1
 #: in the joint frame, dimensions 3) and ints (joint, outer start/end, inner start/end,
 #: kind, hull vertex start/end).
 GW, GIW = 19, 8
-JOINT_FIXED, JOINT_REVOLUTE, JOINT_PRISMATIC = 0, 1, 2
 
 #: Scratch of one kernel call: the joint frames ``Rw`` (nj, 3, 3) and ``pw`` (nj, 3), one
 #: float buffer ``wf`` and one int buffer ``wi``. Helpers take these four arrays, never a
 #: tuple of many: a numba call pays the reference counts (and copies the descriptors) of
 #: every array it is passed, ~10 ns each, and the per-pair helpers run millions of times a
 #: second. ``wf`` starts with fixed slots (W_*: two 3-vectors, two placed shapes, the
-#: separating-axis candidates, GJK's simplex and supports, a local joint placement); the
-#: per-checker blocks follow, where ``wi``'s header says (WI_*); ``wi`` then holds, per
-#: pair, the hull vertices where GJK's support searches start.
+#: separating-axis candidates, GJK's simplex and supports); the per-checker blocks follow,
+#: where ``wi``'s header says (WI_*); ``wi`` then holds, per pair, the hull vertices where
+#: GJK's support searches start.
 W_TMP, W_TMP2, W_RA, W_PA, W_DA, W_RB, W_PB, W_DB = 0, 3, 6, 15, 18, 21, 30, 33
-W_AXES, W_S, W_SA, W_SB, W_GV, W_M, W_T = 36, 108, 120, 123, 126, 129, 138
-W_FIXED = 141
+W_AXES, W_S, W_SA, W_SB, W_GV = 36, 108, 120, 123, 126
+W_FIXED = 129
 #: Blocks of ``wf``: world bounding-sphere centres of the movers (ng, 3); two placed sphere
 #: sets (ns, 5) each; per pair, the last direction GJK found (3: the next state's first
 #: guess); |u| (dof); per mover and joint, its distance to the joint's axis (DL) and how

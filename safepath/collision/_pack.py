@@ -19,6 +19,7 @@ from typing import Any
 import numpy as np
 import pinocchio as pin
 
+from .._joint_table import WORLD, joint_table
 from ..derived import StoredKind
 from ..robot import Robot, is_prismatic
 from . import _layout as K  # noqa: N812  (constants only: imports no kernel)
@@ -144,22 +145,10 @@ ROBOT_PART: StoredKind[_RobotPart] = StoredKind(
 
 
 def _joints(model: pin.Model) -> tuple[np.ndarray, np.ndarray]:
-    """Per joint: placement (9 + 3) and axis (3); parent, kind and q index."""
-    nj = model.njoints
-    data = model.createData()
-    pin.forwardKinematics(model, data, pin.neutral(model))
-    J = np.zeros((nj, 15))
-    Ji = np.zeros((nj, 3), dtype=np.int64)
-    for j in range(1, nj):
-        M = model.jointPlacements[j]
-        J[j, :9] = np.asarray(M.rotation).ravel()
-        J[j, 9:12] = M.translation
-        S = np.asarray(data.joints[j].S).ravel()
-        angular = np.linalg.norm(S[3:]) > 0.5
-        J[j, 12:15] = S[3:] if angular else S[:3]
-        Ji[j] = (model.parents[j], K.JOINT_REVOLUTE if angular else K.JOINT_PRISMATIC,
-                 model.joints[j].idx_q)
-    return J, Ji
+    """The joint table (:mod:`safepath._joint_table`) of every joint of ``model``, row j
+    for joint j (row 0: the universe, fixed at the origin)."""
+    return joint_table(model, range(model.njoints),
+                       [WORLD, *(int(model.parents[j]) for j in range(1, model.njoints))])
 
 
 def _mover(model: pin.Model, geom: Any, options: LayerOptions, lower: np.ndarray,

@@ -1,9 +1,10 @@
 """Kernels of the sphere layer: kinematics and placement.
 
-Forward kinematics of the checker's joints into world frames, and the world placement of
-a mover's spheres and primitive frame (the rows :mod:`safepath.collision._layout`
-describes), for :mod:`safepath.collision._pair_tests` and
-:mod:`safepath.collision._kernels`. Compiled without numba's reference counting, like
+The world frames of the checker's joints (the planner's one forward kinematics,
+:func:`safepath._fk_kernel.joint_frames`, over the joint table in the buffers), and the
+world placement of a mover's spheres and primitive frame (the rows
+:mod:`safepath.collision._layout` describes), for :mod:`safepath.collision._pair_tests`
+and :mod:`safepath.collision._kernels`. Compiled without numba's reference counting, like
 every helper of the layer (see :mod:`safepath.collision._kernels`): no allocation, no
 array returned.
 
@@ -19,76 +20,21 @@ from __future__ import annotations
 import math
 
 from .._aot import njit
-from ._layout import (
-    GIW,
-    GW,
-    H_DOF,
-    H_G,
-    H_GI,
-    H_J,
-    H_JI,
-    H_L,
-    H_NJ,
-    H_S,
-    JOINT_FIXED,
-    JOINT_REVOLUTE,
-    W_M,
-    W_T,
-)
+from .._fk_kernel import joint_frames
+from .._joint_table import JF_WIDTH, JI_WIDTH
+from ._layout import GIW, GW, H_DOF, H_G, H_GI, H_J, H_JI, H_L, H_NJ, H_S
 
 #: How the helpers are compiled (see :mod:`safepath.collision._kernels`).
 _helper = njit(cache=True, nogil=True, _nrt=False)
 _inlined = njit(cache=True, nogil=True, _nrt=False, inline="always")
 
 
-@_helper
-def _fk(q, fb, ib, Rw, pw, wf):  # noqa: N803
+@_inlined
+def _fk(q, fb, ib, Rw, pw):  # noqa: N803
     """World rotation and position of every joint frame at ``q`` into Rw (nj,3,3), pw (nj,3)."""
-    nj = ib[H_NJ]
-    oj, oji = ib[H_J], ib[H_JI]
-    Rw[0, :, :] = 0.0
-    Rw[0, 0, 0] = Rw[0, 1, 1] = Rw[0, 2, 2] = 1.0
-    pw[0, :] = 0.0
-    M, t = W_M, W_T  # the local placement, rows of M at wf[M + 3 r]
-    for j in range(1, nj):
-        base = oj + 15 * j
-        parent = ib[oji + 3 * j]
-        kind = ib[oji + 3 * j + 1]
-        # Local placement (joint placement times the joint's own motion).
-        for r in range(3):
-            for c in range(3):
-                wf[M + 3 * r + c] = fb[base + 3 * r + c]
-            wf[t + r] = fb[base + 9 + r]
-        if kind != JOINT_FIXED:
-            x = q[ib[oji + 3 * j + 2]]
-            ax, ay, az = fb[base + 12], fb[base + 13], fb[base + 14]
-            if kind == JOINT_REVOLUTE:
-                c_, s_ = math.cos(x), math.sin(x)
-                v = 1.0 - c_
-                R00 = c_ + ax * ax * v
-                R01 = ax * ay * v - az * s_
-                R02 = ax * az * v + ay * s_
-                R10 = ay * ax * v + az * s_
-                R11 = c_ + ay * ay * v
-                R12 = ay * az * v - ax * s_
-                R20 = az * ax * v - ay * s_
-                R21 = az * ay * v + ax * s_
-                R22 = c_ + az * az * v
-                for r in range(3):
-                    m0, m1, m2 = wf[M + 3 * r], wf[M + 3 * r + 1], wf[M + 3 * r + 2]
-                    wf[M + 3 * r] = m0 * R00 + m1 * R10 + m2 * R20
-                    wf[M + 3 * r + 1] = m0 * R01 + m1 * R11 + m2 * R21
-                    wf[M + 3 * r + 2] = m0 * R02 + m1 * R12 + m2 * R22
-            else:
-                for r in range(3):
-                    wf[t + r] += (wf[M + 3 * r] * ax + wf[M + 3 * r + 1] * ay
-                                  + wf[M + 3 * r + 2] * az) * x
-        for r in range(3):
-            pw[j, r] = (Rw[parent, r, 0] * wf[t] + Rw[parent, r, 1] * wf[t + 1]
-                        + Rw[parent, r, 2] * wf[t + 2] + pw[parent, r])
-            for c in range(3):
-                Rw[j, r, c] = (Rw[parent, r, 0] * wf[M + c] + Rw[parent, r, 1] * wf[M + 3 + c]
-                               + Rw[parent, r, 2] * wf[M + 6 + c])
+    nj, oj, oji = ib[H_NJ], ib[H_J], ib[H_JI]
+    joint_frames(q, fb[oj:oj + JF_WIDTH * nj].reshape((nj, JF_WIDTH)),
+                 ib[oji:oji + JI_WIDTH * nj].reshape((nj, JI_WIDTH)), Rw, pw)
 
 
 @_inlined

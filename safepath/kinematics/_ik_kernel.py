@@ -7,13 +7,12 @@ a whole line is one call. Imported lazily by :mod:`~safepath.planning.cartesian`
 ``import safepath`` does not import numba; the first call compiles, or loads from
 numba's on-disk cache (``cache=True``, in ``__pycache__`` next to this file).
 
-The chain (``safepath.planning.cartesian._line_chain``) lists the joints from the root
-to the TCP's parent joint, in order. Row j of ``joint_f`` holds joint j's placement in
-its parent (rotation 0-8 row-major, translation 9-11) and its constant motion subspace
-(linear 12-14, angular 15-17: a screw, angular part unit or zero, linear part parallel to
-it);
-``joint_i[j]`` is its index in ``q``; ``frame_f`` holds the TCP placement in the last
-joint (rotation 0-8, translation 9-11). Results agree with Pinocchio to rounding
+The chain (``safepath.planning.cartesian._line_chain``) is a joint table
+(:mod:`safepath._joint_table`: ``joint_f``, ``joint_i``) of the joints from the root to
+the TCP's parent joint, in order, each the parent of the next; its joint frames come from
+the planner's one forward kinematics (:func:`safepath._fk_kernel.joint_frames`).
+``frame_f`` holds the TCP placement in the last joint (rotation 0-8 row-major,
+translation 9-11). Results agree with Pinocchio to rounding
 (tests/planning/test_cartesian.py compares them).
 
 Written for short compile times: scalar loops, no array expressions or slices.
@@ -26,6 +25,8 @@ import math
 import numpy as np
 
 from .._aot import njit
+from .._fk_kernel import exp3, joint_frames
+from .._joint_table import JF_V, JF_W, JI_Q
 
 __all__ = ["OK", "NO_SOLUTION", "JUMP", "tcp_pose", "tcp_jacobian", "log6", "jlog6",
            "solve", "line_path"]
@@ -33,63 +34,17 @@ __all__ = ["OK", "NO_SOLUTION", "JUMP", "tcp_pose", "tcp_jacobian", "log6", "jlo
 #: Status codes of :func:`line_path`.
 OK, NO_SOLUTION, JUMP = 0, 1, 2
 
-# Below these angles [rad] the closed forms lose precision and Taylor series are used
-# (Pinocchio's thresholds: eps ** (1/3) and eps ** (1/4)).
+# Below these angles [rad] log6's and Jlog6's closed forms lose precision and Taylor
+# series are used (Pinocchio's thresholds: eps ** (1/3) and eps ** (1/4)).
 _SMALL2 = 2.220446049250313e-16 ** (1.0 / 3.0)
 _SMALL3 = 2.220446049250313e-16 ** 0.25
 
 
 @njit(cache=True, nogil=True)
-def _exp3(wx, wy, wz, R):  # noqa: N803
-    """Rotation matrix of the rotation vector ``w`` [rad] into R (Rodrigues)."""
-    t2 = wx * wx + wy * wy + wz * wz
-    t = math.sqrt(t2)
-    if t < _SMALL3:
-        a = 1.0 - t2 / 6.0
-        b = 0.5 - t2 / 24.0
-    else:
-        a = math.sin(t) / t
-        b = (1.0 - math.cos(t)) / t2
-    R[0, 0] = 1.0 - b * (wy * wy + wz * wz)
-    R[1, 1] = 1.0 - b * (wx * wx + wz * wz)
-    R[2, 2] = 1.0 - b * (wx * wx + wy * wy)
-    R[0, 1] = b * wx * wy - a * wz
-    R[1, 0] = b * wx * wy + a * wz
-    R[0, 2] = b * wx * wz + a * wy
-    R[2, 0] = b * wx * wz - a * wy
-    R[1, 2] = b * wy * wz - a * wx
-    R[2, 1] = b * wy * wz + a * wx
-
-
-@njit(cache=True, nogil=True)
-def _fk(joint_f, joint_i, frame_f, q, Rw, pw, R, p, E):  # noqa: N803
-    """World pose of every chain joint (Rw (k,3,3), pw (k,3)) and of the TCP (R, p);
-    E (3, 3) is work space."""
+def _fk(joint_f, joint_i, frame_f, q, Rw, pw, R, p):  # noqa: N803
+    """World pose of every chain joint (Rw (k,3,3), pw (k,3)) and of the TCP (R, p)."""
     k = joint_f.shape[0]
-    for j in range(k):
-        x = q[joint_i[j]]
-        _exp3(joint_f[j, 15] * x, joint_f[j, 16] * x, joint_f[j, 17] * x, E)
-        # Placement times joint motion: rotation into R (as work space), translation l.
-        for r in range(3):
-            for c in range(3):
-                R[r, c] = (joint_f[j, 3 * r] * E[0, c] + joint_f[j, 3 * r + 1] * E[1, c]
-                           + joint_f[j, 3 * r + 2] * E[2, c])
-        tx, ty, tz = joint_f[j, 12] * x, joint_f[j, 13] * x, joint_f[j, 14] * x
-        lx = joint_f[j, 9] + joint_f[j, 0] * tx + joint_f[j, 1] * ty + joint_f[j, 2] * tz
-        ly = joint_f[j, 10] + joint_f[j, 3] * tx + joint_f[j, 4] * ty + joint_f[j, 5] * tz
-        lz = joint_f[j, 11] + joint_f[j, 6] * tx + joint_f[j, 7] * ty + joint_f[j, 8] * tz
-        if j == 0:
-            for r in range(3):
-                for c in range(3):
-                    Rw[0, r, c] = R[r, c]
-            pw[0, 0], pw[0, 1], pw[0, 2] = lx, ly, lz
-        else:
-            for r in range(3):
-                for c in range(3):
-                    Rw[j, r, c] = (Rw[j - 1, r, 0] * R[0, c] + Rw[j - 1, r, 1] * R[1, c]
-                                   + Rw[j - 1, r, 2] * R[2, c])
-                pw[j, r] = (pw[j - 1, r] + Rw[j - 1, r, 0] * lx + Rw[j - 1, r, 1] * ly
-                            + Rw[j - 1, r, 2] * lz)
+    joint_frames(q, joint_f, joint_i, Rw, pw)
     for r in range(3):
         if k == 0:
             for c in range(3):
@@ -111,20 +66,16 @@ def _jacobian(joint_f, joint_i, Rw, pw, R, p, J):  # noqa: N803
         for c in range(J.shape[1]):
             J[r, c] = 0.0
     for j in range(joint_f.shape[0]):
-        col = joint_i[j]
+        col = joint_i[j, JI_Q]
         # The joint's angular (w) and linear (v) motion in the world frame.
-        wx = Rw[j, 0, 0] * joint_f[j, 15] + Rw[j, 0, 1] * joint_f[j, 16] \
-            + Rw[j, 0, 2] * joint_f[j, 17]
-        wy = Rw[j, 1, 0] * joint_f[j, 15] + Rw[j, 1, 1] * joint_f[j, 16] \
-            + Rw[j, 1, 2] * joint_f[j, 17]
-        wz = Rw[j, 2, 0] * joint_f[j, 15] + Rw[j, 2, 1] * joint_f[j, 16] \
-            + Rw[j, 2, 2] * joint_f[j, 17]
-        vx = Rw[j, 0, 0] * joint_f[j, 12] + Rw[j, 0, 1] * joint_f[j, 13] \
-            + Rw[j, 0, 2] * joint_f[j, 14]
-        vy = Rw[j, 1, 0] * joint_f[j, 12] + Rw[j, 1, 1] * joint_f[j, 13] \
-            + Rw[j, 1, 2] * joint_f[j, 14]
-        vz = Rw[j, 2, 0] * joint_f[j, 12] + Rw[j, 2, 1] * joint_f[j, 13] \
-            + Rw[j, 2, 2] * joint_f[j, 14]
+        ax, ay, az = joint_f[j, JF_W], joint_f[j, JF_W + 1], joint_f[j, JF_W + 2]
+        wx = Rw[j, 0, 0] * ax + Rw[j, 0, 1] * ay + Rw[j, 0, 2] * az
+        wy = Rw[j, 1, 0] * ax + Rw[j, 1, 1] * ay + Rw[j, 1, 2] * az
+        wz = Rw[j, 2, 0] * ax + Rw[j, 2, 1] * ay + Rw[j, 2, 2] * az
+        lx, ly, lz = joint_f[j, JF_V], joint_f[j, JF_V + 1], joint_f[j, JF_V + 2]
+        vx = Rw[j, 0, 0] * lx + Rw[j, 0, 1] * ly + Rw[j, 0, 2] * lz
+        vy = Rw[j, 1, 0] * lx + Rw[j, 1, 1] * ly + Rw[j, 1, 2] * lz
+        vz = Rw[j, 2, 0] * lx + Rw[j, 2, 1] * ly + Rw[j, 2, 2] * lz
         # Velocity of the TCP origin: v + w x (p_tcp - p_joint).
         dx, dy, dz = p[0] - pw[j, 0], p[1] - pw[j, 1], p[2] - pw[j, 2]
         vx += wy * dz - wz * dy
@@ -270,7 +221,7 @@ def solve(joint_f, joint_i, frame_f, R_target, p_target, q, lower, upper, params
     J, Jl, Jt = np.empty((6, nq)), np.empty((6, 6)), np.empty((6, nq))
     A, x = np.empty((6, 6)), np.empty(6)
     for it in range(max_iterations):
-        _fk(joint_f, joint_i, frame_f, q, Rw, pw, R, p, E)
+        _fk(joint_f, joint_i, frame_f, q, Rw, pw, R, p)
         dx, dy, dz = p_target[0] - p[0], p_target[1] - p[1], p_target[2] - p[2]
         for r in range(3):  # the error pose (Re, pe): TCP^-1 target
             pe[r] = R[0, r] * dx + R[1, r] * dy + R[2, r] * dz
@@ -319,14 +270,14 @@ def line_path(joint_f, joint_i, frame_f, R0, w_line, p0, p1, lower, upper, param
     k; the Jacobian steps taken in all; the failing jump [rad] (JUMP only).
     """
     n, nq = path.shape[0] - 1, path.shape[1]
-    E, R_target, p_target, q = np.empty((3, 3)), np.empty((3, 3)), np.empty(3), np.empty(nq)
+    R_target, p_target, q = np.empty((3, 3)), np.empty(3), np.empty(nq)
     iterations = 0
     for k in range(1, n + 1):
         s = k / n
-        _exp3(s * w_line[0], s * w_line[1], s * w_line[2], E)
+        e = exp3(s * w_line[0], s * w_line[1], s * w_line[2])
         for r in range(3):
             for c in range(3):
-                R_target[r, c] = R0[r, 0] * E[0, c] + R0[r, 1] * E[1, c] + R0[r, 2] * E[2, c]
+                R_target[r, c] = R0[r, 0] * e[c] + R0[r, 1] * e[3 + c] + R0[r, 2] * e[6 + c]
             p_target[r] = (1.0 - s) * p0[r] + s * p1[r]
         for c in range(nq):
             if k == 1:
@@ -355,8 +306,7 @@ def line_path(joint_f, joint_i, frame_f, R0, w_line, p0, p1, lower, upper, param
 def tcp_pose(joint_f, joint_i, frame_f, q, R, p):  # noqa: N803
     """TCP pose in the world frame at ``q`` into R (3, 3) and p (3,) (for tests)."""
     k = joint_f.shape[0]
-    _fk(joint_f, joint_i, frame_f, q, np.empty((k, 3, 3)), np.empty((k, 3)), R, p,
-        np.empty((3, 3)))
+    _fk(joint_f, joint_i, frame_f, q, np.empty((k, 3, 3)), np.empty((k, 3)), R, p)
 
 
 @njit(cache=True, nogil=True)
@@ -364,7 +314,7 @@ def tcp_jacobian(joint_f, joint_i, frame_f, q, J):  # noqa: N803
     """TCP Jacobian in the TCP frame at ``q`` into J (6, nq) (for tests)."""
     k = joint_f.shape[0]
     Rw, pw, R, p = np.empty((k, 3, 3)), np.empty((k, 3)), np.empty((3, 3)), np.empty(3)
-    _fk(joint_f, joint_i, frame_f, q, Rw, pw, R, p, np.empty((3, 3)))
+    _fk(joint_f, joint_i, frame_f, q, Rw, pw, R, p)
     _jacobian(joint_f, joint_i, Rw, pw, R, p, J)
 
 

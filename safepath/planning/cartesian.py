@@ -25,6 +25,7 @@ from dataclasses import dataclass
 import numpy as np
 import pinocchio as pin
 
+from .._joint_table import WORLD, joint_table
 from ..errors import ConfigError, IKError
 from ..kinematics.ik import _DAMPING, LineOptions
 from ..robot import Robot
@@ -85,8 +86,9 @@ def cartesian_line(robot: Robot, q_start: np.ndarray, q_goal: np.ndarray, *,
 
 @dataclass(frozen=True)
 class _Chain:
-    """The kinematic chain from the root to the TCP as flat arrays for the kernel
-    (layout in :mod:`safepath.kinematics._ik_kernel`)."""
+    """The kinematic chain from the root to the TCP for the kernel: a joint table
+    (:mod:`safepath._joint_table`) and the TCP's placement in its last joint (layout in
+    :mod:`safepath.kinematics._ik_kernel`)."""
 
     joint_f: np.ndarray
     joint_i: np.ndarray
@@ -113,10 +115,7 @@ def _line_chain(robot: Robot) -> _Chain:
     joints = [j for j in model.supports[frame.parentJoint] if j != 0]
     q_test = np.clip(np.full(model.nq, 0.7), robot.lower, robot.upper)
     pin.forwardKinematics(model, data, q_test)
-    joint_f = np.zeros((len(joints), 18))
-    joint_i = np.zeros(len(joints), dtype=np.int64)
-    for row, j in enumerate(joints):
-        placement = model.jointPlacements[j]
+    for j in joints:
         S = np.asarray(data.joints[j].S, dtype=float).reshape(6)
         x = float(q_test[model.idx_qs[j]])
         moved = pin.exp6(pin.Motion(S * x))
@@ -127,10 +126,7 @@ def _line_chain(robot: Robot) -> _Chain:
             raise ConfigError(f"joint '{model.names[j]}' ({model.joints[j].shortname()}) is "
                               "not a revolute, prismatic or helical joint; Cartesian lines "
                               "cannot follow it", path=robot.source, key="urdf")
-        joint_f[row, :9] = placement.rotation.reshape(9)
-        joint_f[row, 9:12] = placement.translation
-        joint_f[row, 12:] = S
-        joint_i[row] = model.idx_qs[j]
+    joint_f, joint_i = joint_table(model, joints, [WORLD, *range(len(joints) - 1)])
     frame_f = np.concatenate([frame.placement.rotation.reshape(9), frame.placement.translation])
     chain = _Chain(joint_f, joint_i, frame_f)
     _CHAINS[robot] = (model, chain)
