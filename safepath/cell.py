@@ -6,12 +6,9 @@ Built in Python (``Cell(robot, scene, poses, routes=...)``) or loaded from a sce
 
 from __future__ import annotations
 
-import importlib
-import threading
 from collections.abc import Mapping
-from dataclasses import KW_ONLY, dataclass, field
+from dataclasses import KW_ONLY, dataclass
 from pathlib import Path
-from typing import Any
 
 import numpy as np
 
@@ -64,8 +61,6 @@ class Cell:
     routes: Mapping[str, Route] | None = None
     folder: Path | None = None
     poses_path: Path | None = None
-    _local: threading.local = field(default_factory=threading.local, repr=False,
-                                    compare=False)
 
     def __post_init__(self) -> None:
         if not isinstance(self.robot, Robot):
@@ -117,15 +112,6 @@ class Cell:
                               key="poses_path")
         return self.poses_path
 
-    def __getstate__(self) -> dict[str, Any]:
-        state = dict(self.__dict__)
-        state.pop("_local", None)  # per-thread checkers: rebuilt where the cell is used
-        return state
-
-    def __setstate__(self, state: dict[str, Any]) -> None:
-        self.__dict__.update(state)
-        self._local = threading.local()
-
     def __repr__(self) -> str:
         where = f", folder={str(self.folder)!r}" if self.folder is not None else ""
         return (f"Cell({self.scene.name!r}, robot={self.robot.name!r}, "
@@ -157,14 +143,6 @@ class Cell:
         if self.routes is not None or self.folder is None:
             return None
         return load_cycle(self.folder, self.route_table())
-
-    def cache(self, key: Any) -> dict[Any, Any]:
-        """A per-thread dictionary for objects built from this cell (collision checkers
-        are not thread-safe, so each thread gets its own), one per ``key``."""
-        caches: dict[Any, dict[Any, Any]] | None = getattr(self._local, "caches", None)
-        if caches is None:
-            caches = self._local.caches = {}
-        return caches.setdefault(key, {})
 
     def pose(self, name: str) -> np.ndarray:
         """The taught pose ``name``.
@@ -262,17 +240,14 @@ def load_cell(folder: str | Path) -> Cell:
 
 def _load_planning_code() -> None:
     """Load what every plan of a cell runs, once per process: the release check's
-    library (python-fcl, 5-8 ms) and the kernels compiled ahead of time (~2 ms), so
-    that a loaded cell's first plan pays for planning, not for loading code. Without a
-    current build the kernels stay lazy: numba (tenths of a second) is imported by
-    the first kernel call, not here."""
+    library (python-fcl, 5-8 ms) and the kernels compiled ahead of time
+    (:func:`safepath._aot.load_planning_kernels`), so that a loaded cell's first plan
+    pays for planning, not for loading code."""
     import fcl  # noqa: F401
 
     from . import _aot
 
-    if _aot.compiled() is not None:
-        for name in _aot.PLANNING_MODULES:
-            importlib.import_module(name)
+    _aot.load_planning_kernels()
 
 
 def _prepare_robot(robot: Robot) -> None:
@@ -281,15 +256,17 @@ def _prepare_robot(robot: Robot) -> None:
     process made them before; the verifier's shapes; reach per joint: ~4 ms for the
     Ned3 Pro), as preparing the robot's geometry is part of loading it: a loaded cell's
     first plan pays for planning. Planners make the same when first needed for a robot
-    built in Python. A geometry the verifier does not handle is refused when planning
-    (as for a cell built in Python), not here."""
+    built in Python.
+
+    A robot the release verifier cannot check (:func:`safepath.verify.unverifiable`)
+    still loads, to be viewed, edited and checked pose by pose; planning refuses it,
+    naming the geometry or joint (as for a cell built in Python), so its verifier's part
+    is not made here."""
     from . import collision, verify
 
     collision.prepare_robot(robot)
-    try:
+    if not verify.unverifiable(robot):
         verify.prepare_robot(robot)
-    except ConfigError:
-        pass
 
 
 def _check_scene_against(robot: Robot, scene: Scene, poses: Mapping[str, np.ndarray]) -> None:

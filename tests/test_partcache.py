@@ -137,3 +137,29 @@ def test_load_cell_prepares_what_the_checkers_and_verifiers_take_from_the_robot(
     FclVerifier(cell.robot, cell.scene, held="vial")
     held = cell.robot.derived.held()
     assert all(held[key] is value for key, value in made.items())
+
+
+def test_a_robot_the_verifier_cannot_check_loads_and_planning_refuses_it(cell: Cell) -> None:
+    # Loading prepares the verifier's part only for a robot it can check (unverifiable
+    # lists what it cannot, without raising); such a robot still loads (to be viewed and
+    # edited), and check_verifiable, which planning runs first, refuses it by name.
+    import copy
+
+    import coal
+
+    from safepath.cell import _prepare_robot
+    from safepath.errors import ConfigError
+    from safepath.verify import check_verifiable, unverifiable
+
+    assert unverifiable(cell.robot, cell.scene) == []
+    odd = copy.copy(cell.robot)
+    odd.collision_model = cell.robot.collision_model.copy()
+    geom = odd.collision_model.geometryObjects[2]
+    geom.geometry = coal.Ellipsoid(0.02, 0.03, 0.04)
+    (refused,) = unverifiable(odd)
+    assert refused.key == geom.name
+    _prepare_robot(odd)
+    assert "release verifier's bodies" not in {kind.name for kind, _ in odd.derived.held()}
+    with pytest.raises(ConfigError) as caught:
+        check_verifiable(odd, cell.scene)
+    assert caught.value.key == geom.name

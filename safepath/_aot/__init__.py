@@ -307,3 +307,14 @@ def njit(**options: Any) -> Callable[[Callable[..., Any]], Any]:
         return wrapped
 
     return decorate
+
+
+def load_planning_kernels() -> None:
+    """Load the kernel modules every plan calls (:data:`PLANNING_MODULES`), where a
+    current build of the kernels is loaded (~2 ms), so that a loaded cell's first plan
+    pays for planning, not for loading code. Without one, nothing is loaded here: numba
+    (tenths of a second) is imported by the first kernel call."""
+    if compiled() is None:
+        return
+    for name in PLANNING_MODULES:
+        importlib.import_module(name)

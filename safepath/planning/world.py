@@ -3,6 +3,8 @@ and the checkers and verifiers built for each such state."""
 
 from __future__ import annotations
 
+import threading
+import weakref
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 from typing import TypeVar
@@ -10,7 +12,7 @@ from typing import TypeVar
 import numpy as np
 
 from ..cell import Cell
-from ..collision import CollisionChecker
+from ..collision import CheckOptions, CollisionChecker
 from ..scene import AllowedContact
 from ..verify import FclVerifier, StagedVerifier
 from .options import PlanOptions
@@ -48,19 +50,52 @@ def initial_world(cell: Cell) -> WorldState:
                              for o in cell.scene.objects.values() if o.movable})
 
 
+@dataclass
+class _Made:
+    """The checkers and verifiers made for one cell, thread and check options, by world
+    state and allowed contacts."""
+
+    checkers: dict[tuple, CollisionChecker] = field(default_factory=dict)
+    verifiers: dict[tuple, FclVerifier] = field(default_factory=dict)
+    staged: dict[tuple, StagedVerifier] = field(default_factory=dict)
+
+
+class _PerThread(threading.local):
+    def __init__(self) -> None:
+        self.made: dict[CheckOptions, _Made] = {}
+
+
+#: What was made per cell (kept while the cell lives) and thread: collision checkers are
+#: not thread-safe, so each thread gets its own.
+_MADE: weakref.WeakKeyDictionary[Cell, _PerThread] = weakref.WeakKeyDictionary()
+_MADE_LOCK = threading.Lock()
+
+
 class CheckerCache:
-    """Checkers and verifiers, built once per world state and allowed-contact set."""
+    """Checkers and verifiers, built once per world state and allowed-contact set.
+
+    What it builds is kept per cell and thread, so that planning the same cell again, as
+    a node or a review session does, does not rebuild them; they depend on the world
+    state and the allowed contacts (the keys), never on the taught poses. A cell made
+    anew (``dataclasses.replace``, unpickled in a worker) starts with none.
+    """
 
     def __init__(self, cell: Cell, options: PlanOptions) -> None:
         self.cell = cell
         self.options = options
-        # Kept on the cell (per thread) so that planning again, as a node or a review
-        # session does, does not rebuild them; they depend on the world state and the
-        # allowed contacts (the keys), never on the taught poses.
-        self._checkers: dict[tuple, CollisionChecker] = cell.cache(("checkers", options.check))
-        self._verifiers: dict[tuple, FclVerifier] = cell.cache(("verifiers", options.check))
-        self._staged: dict[tuple, StagedVerifier] = cell.cache(("staged verifiers",
-                                                                options.check))
+        with _MADE_LOCK:
+            per_thread = _MADE.get(cell)
+            if per_thread is None:
+                per_thread = _MADE[cell] = _PerThread()
+        made = per_thread.made.setdefault(options.check, _Made())
+        self._checkers = made.checkers
+        self._verifiers = made.verifiers
+        self._staged = made.staged
+
+    def made(self) -> tuple[dict[tuple, CollisionChecker], dict[tuple, FclVerifier]]:
+        """The checkers and verifiers made so far (in this thread, for these check
+        options), by (world state key, allowed contacts): copies, for inspection."""
+        return dict(self._checkers), dict(self._verifiers)
 
     def checker(self, world: WorldState, allowed: tuple[AllowedContact, ...]) -> CollisionChecker:
         """The collision checker of ``world`` with the contacts ``allowed``."""

@@ -13,14 +13,15 @@ trajectory. Keep it so: nothing here imports :mod:`safepath.collision` or
 :mod:`safepath.planning` (tests/test_import_contracts.py checks it).
 
 Its face: :class:`FclVerifier`, :class:`StagedVerifier`, :class:`VerifyResult`,
-:func:`check_verifiable` (refuses, before planning, what it cannot check),
+:func:`check_verifiable` (refuses, before planning, what it cannot check; :func:`unverifiable`
+lists it),
 :func:`prepare_robot` (what every verifier of a robot takes from it alone) and
 :func:`fcl_shape`.
 """
 
 from __future__ import annotations
 
-from ._bodies import check_verifiable, fcl_shape, prepare_robot
+from ._bodies import check_verifiable, fcl_shape, prepare_robot, unverifiable
 from .verifier import FclVerifier, StagedVerifier, VerifyResult
 
 __all__ = [
@@ -30,4 +31,5 @@ __all__ = [
     "check_verifiable",
     "fcl_shape",
     "prepare_robot",
+    "unverifiable",
 ]

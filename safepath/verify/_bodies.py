@@ -9,7 +9,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..derived import DerivedKind
-from ..robot import Robot
+from ..errors import ConfigError
+from ..robot import Robot, is_prismatic
 from ..scene import Scene, Shape
 from ._bounds import (
     ShapeSpec,
@@ -20,8 +21,8 @@ from ._bounds import (
     unsupported_geometry,
 )
 
-__all__ = ["Body", "check_verifiable", "fcl_shape", "robot_bodies", "held_bodies",
-           "environment_bodies", "prepare_robot"]
+__all__ = ["Body", "check_verifiable", "unverifiable", "fcl_shape", "robot_bodies",
+           "held_bodies", "environment_bodies", "prepare_robot"]
 
 
 def _supported(geometry: object) -> bool:
@@ -37,17 +38,45 @@ def check_verifiable(robot: Robot, scene: Scene | None = None) -> None:
 
     Raises:
         ConfigError: A collision geometry of the robot or the scene, or a joint, the
-            verifier does not handle; names it (``key``).
+            verifier does not handle; names it (``key``). The first of
+            :func:`unverifiable`.
     """
-    for g in robot.collision_model.geometryObjects:
-        if not _supported(g.geometry):
-            raise unsupported_geometry(g.geometry, g.name)
+    refused = unverifiable(robot, scene)
+    if refused:
+        raise refused[0]
+
+
+def unverifiable(robot: Robot, scene: Scene | None = None) -> list[ConfigError]:
+    """What the independent verifier cannot check of ``robot`` (and ``scene``), each as
+    the error that refuses it (names it, ``key``): a collision geometry of a kind it does
+    not handle, a joint other than a 1-dof revolute or prismatic one, a prismatic joint
+    without position limits that moves a geometry. Empty: it checks all of it."""
+    model = robot.model
+    refused = [unsupported_geometry(g.geometry, g.name)
+               for g in robot.collision_model.geometryObjects if not _supported(g.geometry)]
     for obj in (scene.objects.values() if scene is not None else ()):
         shape = obj.shape.to_coal()
         if not _supported(shape):
-            raise unsupported_geometry(shape, obj.name)
-    for j in range(1, robot.model.njoints):
-        joint_kind(robot.model, j)
+            refused.append(unsupported_geometry(shape, obj.name))
+    moving: set[int] = set()  # the joints that move a geometry
+    for g in robot.collision_model.geometryObjects:
+        j = int(g.parentJoint)
+        while j > 0:
+            moving.add(j)
+            j = int(model.parents[j])
+    for j in range(1, model.njoints):
+        try:
+            joint_kind(model, j)
+        except ConfigError as exc:  # collected: each refusal names its joint
+            refused.append(exc)
+            continue
+        if j in moving and is_prismatic(model, j):
+            v = model.joints[j].idx_v
+            stroke = max(abs(model.lowerPositionLimit[v]), abs(model.upperPositionLimit[v]))
+            if not np.isfinite(stroke):  # the motion weights need a bound on its offset
+                refused.append(ConfigError(f"prismatic joint '{model.names[j]}' has no "
+                                           "position limits", key=model.names[j]))
+    return refused
 
 
 def fcl_shape(geometry: object, name: str = "") -> object:
@@ -152,7 +181,8 @@ def prepare_robot(robot: Robot) -> None:
     does so that its first plan pays for planning only.
 
     Raises:
-        ConfigError: A geometry or joint the verifier does not handle.
+        ConfigError: A geometry or joint the verifier does not handle (see
+            :func:`unverifiable`, which lists them without raising).
     """
     robot_bodies(robot)
 

@@ -84,7 +84,7 @@ class ReviewSession:
                  options: ViewOptions | None = None) -> None:
         self.options = opts = options or ViewOptions()
         if isinstance(scene, Cell):
-            self.cell = replace(scene, poses=dict(scene.poses), _local=threading.local())
+            self.cell = replace(scene, poses=dict(scene.poses))  # its own checkers
         else:
             self.cell = load_cell(scene)
         self.routes = routes_of(self.cell)

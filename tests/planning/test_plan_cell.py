@@ -243,11 +243,11 @@ def test_a_checker_and_verifier_made_for_other_contacts_judge_as_new_ones(
     from safepath import plan_cell
     from safepath.planning import FclVerifier
     from safepath.planning.options import PlanOptions
+    from safepath.planning.world import CheckerCache
 
     plan_cell(bundled_cell)
     options = PlanOptions().check
-    made = bundled_cell.cache(("checkers", options))
-    verifiers = bundled_cell.cache(("verifiers", options))
+    made, verifiers = CheckerCache(bundled_cell, PlanOptions()).made()
     worlds = [state for state, _ in made]
     derived = [key for key in made if worlds.count(key[0]) > 1]
     assert derived and any(allowed for _, allowed in derived)
