@@ -41,7 +41,12 @@ from ._layout import (
     C_REFINE,
     C_RES,
     COLLIDES,
+    E_POS,
+    EW,
     FREE,
+    G_CENTRE,
+    G_RADIUS,
+    GI_JOINT,
     GIW,
     GW,
     H_C,
@@ -63,6 +68,10 @@ from ._layout import (
     H_PW,
     H_W,
     OUTSIDE,
+    PI_A,
+    PI_B,
+    PI_ENV,
+    PIW,
     UNSURE,
     W_FIXED,
     WI_ABSU,
@@ -124,8 +133,9 @@ def _evaluate(q, fb, ib, Rw, pw, wf, wi, rates, want_radius, need, t):  # noqa: 
     odl, occ, oabs = wi[WI_DL], wi[WI_CC], wi[WI_ABSU]
     # Bounding spheres of the movers, in the world.
     for m in range(ib[H_NG]):
-        j = ib[ogi + GIW * m]
-        x, y, z = fb[og + GW * m], fb[og + GW * m + 1], fb[og + GW * m + 2]
+        j = ib[ogi + GIW * m + GI_JOINT]
+        c = og + GW * m + G_CENTRE
+        x, y, z = fb[c], fb[c + 1], fb[c + 2]
         for r in range(3):
             wf[ocw + 3 * m + r] = (Rw[j, r, 0] * x + Rw[j, r, 1] * y + Rw[j, r, 2] * z
                                    + pw[j, r])
@@ -144,24 +154,26 @@ def _evaluate(q, fb, ib, Rw, pw, wf, wi, rates, want_radius, need, t):  # noqa: 
                 if need < radius:
                     radius = need
                 continue
-        a, b, is_env = ib[op_ + 4 * k], ib[op_ + 4 * k + 1], ib[op_ + 4 * k + 2]
+        pair = op_ + PIW * k
+        a, b, is_env = ib[pair + PI_A], ib[pair + PI_B], ib[pair + PI_ENV]
         sm = max(fb[of_ + k], 0.0)
         cax, cay, caz = wf[ocw + 3 * a], wf[ocw + 3 * a + 1], wf[ocw + 3 * a + 2]
         if is_env == 1:
             if not want_radius:
                 # Broad phase: bounding spheres apart by more than the margin decide the
                 # pair (free) without measuring the object.
-                dx = cax - fb[oe + 15 * b + 9]
-                dy = cay - fb[oe + 15 * b + 10]
-                dz = caz - fb[oe + 15 * b + 11]
-                reach = fb[og + GW * a + 3] + fb[oer + b] + sm + free_eps
+                e_pos = oe + EW * b + E_POS
+                dx = cax - fb[e_pos]
+                dy = cay - fb[e_pos + 1]
+                dz = caz - fb[e_pos + 2]
+                reach = fb[og + GW * a + G_RADIUS] + fb[oer + b] + sm + free_eps
                 if dx * dx + dy * dy + dz * dz > reach * reach:
                     continue
-            coarse = _env_sdist3(fb, ib, b, cax, cay, caz) - fb[og + GW * a + 3]
+            coarse = _env_sdist3(fb, ib, b, cax, cay, caz) - fb[og + GW * a + G_RADIUS]
         else:
             dd = ((cax - wf[ocw + 3 * b]) ** 2 + (cay - wf[ocw + 3 * b + 1]) ** 2
                   + (caz - wf[ocw + 3 * b + 2]) ** 2)
-            rr = fb[og + GW * a + 3] + fb[og + GW * b + 3]
+            rr = fb[og + GW * a + G_RADIUS] + fb[og + GW * b + G_RADIUS]
             if not want_radius and dd > (rr + sm + free_eps) ** 2:
                 continue
             coarse = math.sqrt(dd) - rr
@@ -207,8 +219,8 @@ def _axis_distances(m, fb, ib, Rw, pw, wf, ocw, odl):  # noqa: N803
     joint's axis plus its radius (revolute), 1 (prismatic)."""
     oj, oji, og, ogi = ib[H_J], ib[H_JI], ib[H_G], ib[H_GI]
     dof = ib[H_DOF]
-    r_m = fb[og + GW * m + 3]
-    j = ib[ogi + GIW * m]
+    r_m = fb[og + GW * m + G_RADIUS]
+    j = ib[ogi + GIW * m + GI_JOINT]
     while j > 0:
         v = ib[oji + JI_WIDTH * j + JI_Q]
         if ib[oji + JI_WIDTH * j + JI_KIND] == PRISMATIC:
@@ -302,7 +314,7 @@ def _axis_growth(fb, ib, wf, wi):  # noqa: N803
     oabs, occ = wi[WI_ABSU], wi[WI_CC]
     for m in range(ib[H_NG]):
         acc = 0.0
-        j = ib[ogi + GIW * m]
+        j = ib[ogi + GIW * m + GI_JOINT]
         while j > 0:
             v = ib[oji + JI_WIDTH * j + JI_Q]
             wf[occ + m * dof + v] = (0.0 if ib[oji + JI_WIDTH * j + JI_KIND] == PRISMATIC

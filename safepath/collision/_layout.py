@@ -47,10 +47,25 @@ ENV_BOX, ENV_CYLINDER, ENV_SPHERE, ENV_CAPSULE, ENV_BOX_ONLY_OUTER = 0, 1, 2, 3,
 #: Shape kinds of movers (same codes; HULL: a convex hull, measured by GJK on its
 #: vertices; SPHERES_ONLY: no primitive, spheres decide).
 SPHERES_ONLY = -1
-#: Widths of a mover's rows: floats (bounding centre 3, radius 1, rotation 9, position 3
-#: in the joint frame, dimensions 3) and ints (joint, outer start/end, inner start/end,
-#: kind, hull vertex start/end).
-GW, GIW = 19, 8
+
+# The rows of the tables in the buffers: where each column starts, and the row's width.
+#: A mover's floats (H_G): its bounding sphere's centre (3) and radius [m], its
+#: primitive's rotation (9, row-major) and position (3) in the joint frame, and its
+#: dimensions (3) [m].
+G_CENTRE, G_RADIUS, G_ROT, G_POS, G_DIMS, GW = 0, 3, 4, 13, 16, 19
+#: A mover's ints (H_GI): its joint, its outer spheres' rows (start, end) and inner
+#: spheres' rows (start, end) in the H_S block, its kind, its hull vertices' rows (start,
+#: end) in the H_V block.
+GI_JOINT, GI_OUTER, GI_OUTER_END, GI_INNER, GI_INNER_END = 0, 1, 2, 3, 4
+GI_KIND, GI_HULL, GI_HULL_END, GIW = 5, 6, 7, 8
+#: A sphere (H_S): its centre (3) in its mover's joint frame, its radius [m].
+S_RADIUS, SW = 3, 4
+#: An environment object's floats (H_E): its world rotation (9, row-major), position (3)
+#: and dimensions (3) [m].
+E_ROT, E_POS, E_DIMS, EW = 0, 9, 12, 15
+#: A pair's ints (H_PI): mover a; mover or environment object b; 1 if b is an environment
+#: object; 1 if the pair's margin is >= 0 (a collision can be proven).
+PI_A, PI_B, PI_ENV, PI_PROOF, PIW = 0, 1, 2, 3, 4
 
 #: Scratch of one kernel call: the joint frames ``Rw`` (nj, 3, 3) and ``pw`` (nj, 3), one
 #: float buffer ``wf`` and one int buffer ``wi``. Helpers take these four arrays, never a

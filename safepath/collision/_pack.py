@@ -170,7 +170,10 @@ def _mover(model: pin.Model, geom: Any, options: LayerOptions, lower: np.ndarray
         hull, ptr, neighbours = hull_tables(np.asarray(geom.geometry.points()))
         degree = np.diff(ptr)
         kind = HULL
-    row = np.array([*c, r, *T[:3, :3].ravel(), *T[:3, 3], *dims], dtype=float)
+    row = np.zeros(K.GW)
+    row[K.G_CENTRE:K.G_CENTRE + 3], row[K.G_RADIUS] = c, r
+    row[K.G_ROT:K.G_ROT + 9], row[K.G_POS:K.G_POS + 3] = T[:3, :3].ravel(), T[:3, 3]
+    row[K.G_DIMS:K.G_DIMS + 3] = dims
     outer = np.column_stack([fit.outer_centers, fit.outer_radii])
     inner = np.column_stack([fit.inner_centers, fit.inner_radii])
     joint = int(geom.parentJoint)
@@ -229,11 +232,14 @@ def _mover_blocks(movers: list[_Mover]) -> tuple[np.ndarray, ...]:
     for m, mover in enumerate(movers):
         G[m] = mover.row
         n_spheres, n_hull = len(mover.spheres), len(mover.hull)
-        Gi[m] = (mover.joint, count, count + mover.n_outer, count + mover.n_outer,
-                 count + n_spheres, mover.kind, n_vertices, n_vertices + n_hull)
+        row = Gi[m]
+        row[K.GI_JOINT], row[K.GI_KIND] = mover.joint, mover.kind
+        row[K.GI_OUTER], row[K.GI_OUTER_END] = count, count + mover.n_outer
+        row[K.GI_INNER], row[K.GI_INNER_END] = count + mover.n_outer, count + n_spheres
+        row[K.GI_HULL], row[K.GI_HULL_END] = n_vertices, n_vertices + n_hull
         count += n_spheres
         n_vertices += n_hull
-    S_ = (np.vstack([m.spheres for m in movers]) if movers else np.zeros((0, 4)))
+    S_ = (np.vstack([m.spheres for m in movers]) if movers else np.zeros((0, K.SW)))
     V = np.vstack([m.hull for m in movers]) if movers else np.zeros((0, 3))
     # Hull edges: one neighbour list per vertex row of V, in V's rows.
     degree = np.concatenate([np.zeros(1, dtype=np.int64)]
@@ -250,7 +256,7 @@ def _environment(source: LayerSource) -> tuple[np.ndarray, np.ndarray, np.ndarra
     """World placement, dimensions and kind of each environment object, and the radius
     of a sphere about its centre that holds it."""
     gmodel, env = source.geometry, source.environment
-    E = np.zeros((len(env), 15))
+    E = np.zeros((len(env), K.EW))
     Ei = np.zeros(len(env), dtype=np.int64)
     ER = np.zeros(len(env))
     for e, g in enumerate(env):
@@ -263,9 +269,9 @@ def _environment(source: LayerSource) -> tuple[np.ndarray, np.ndarray, np.ndarra
             lo, hi = np.asarray(shape.aabb_local.min_), np.asarray(shape.aabb_local.max_)
             kind, dims = K.ENV_BOX_ONLY_OUTER, (hi - lo) / 2
             T[:3, 3] = T[:3, :3] @ ((hi + lo) / 2) + T[:3, 3]
-        E[e, :9] = T[:3, :3].ravel()
-        E[e, 9:12] = T[:3, 3]
-        E[e, 12:15] = dims
+        E[e, K.E_ROT:K.E_ROT + 9] = T[:3, :3].ravel()
+        E[e, K.E_POS:K.E_POS + 3] = T[:3, 3]
+        E[e, K.E_DIMS:K.E_DIMS + 3] = dims
         Ei[e] = kind
         ER[e] = _holding_radius(kind, dims)
     return E, Ei, ER
@@ -283,11 +289,11 @@ def _pairs(source: LayerSource, movers_idx: list[int]) -> tuple[np.ndarray, np.n
     a, b = ab[:, 0], ab[:, 1]
     b_env, a_env = env_pos[b] >= 0, env_pos[a] >= 0
     P = source.security.astype(float)
-    Pi = np.zeros((len(ab), 4), dtype=np.int64)
-    Pi[:, 0] = np.where(a_env, mover_pos[b], mover_pos[a])
-    Pi[:, 1] = np.where(b_env, env_pos[b], np.where(a_env, env_pos[a], mover_pos[b]))
-    Pi[:, 2] = a_env | b_env
-    Pi[:, 3] = P >= 0
+    Pi = np.zeros((len(ab), K.PIW), dtype=np.int64)
+    Pi[:, K.PI_A] = np.where(a_env, mover_pos[b], mover_pos[a])
+    Pi[:, K.PI_B] = np.where(b_env, env_pos[b], np.where(a_env, env_pos[a], mover_pos[b]))
+    Pi[:, K.PI_ENV] = a_env | b_env
+    Pi[:, K.PI_PROOF] = P >= 0
     return P, Pi
 
 
@@ -321,9 +327,9 @@ def _pair_masks(chains: np.ndarray, Pi: np.ndarray) -> np.ndarray:  # noqa: N803
     """Per pair and velocity index: bit 1 if the joint moves body a relative to body b
     (or the world), bit 2 if it moves b relative to a; 0 for joints that carry both
     (they move the pair as one rigid piece) and joints that carry neither."""
-    ca = chains[Pi[:, 0]]
-    is_env = Pi[:, 2].astype(bool)
-    cb = chains[np.where(is_env, 0, Pi[:, 1])] & ~is_env[:, None]
+    ca = chains[Pi[:, K.PI_A]]
+    is_env = Pi[:, K.PI_ENV].astype(bool)
+    cb = chains[np.where(is_env, 0, Pi[:, K.PI_B])] & ~is_env[:, None]
     return ((ca & ~cb).astype(np.int64) | ((cb & ~ca).astype(np.int64) << 1)).reshape(
         len(Pi), chains.shape[1])
 
@@ -333,8 +339,8 @@ def _pair_weights(W: np.ndarray, Pi: np.ndarray, PM: np.ndarray) -> np.ndarray: 
     body a's weight where the mask has bit 1, plus body b's where it has bit 2 (in that
     order, from 0: the sums the kernels made from the masks, bit for bit). An
     environment object is never b's side of a mask."""
-    a = W[Pi[:, 0]]
-    b = W[np.where(Pi[:, 2] == 1, 0, Pi[:, 1])]
+    a = W[Pi[:, K.PI_A]]
+    b = W[np.where(Pi[:, K.PI_ENV] == 1, 0, Pi[:, K.PI_B])]
     return (0.0 + np.where(PM & 1, a, 0.0)) + np.where(PM & 2, b, 0.0)
 
 

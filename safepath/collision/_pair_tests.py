@@ -21,11 +21,25 @@ import math
 from .._aot import njit
 from ._gjk import HULL, distance_lower_bound, distance_upper_bound
 from ._layout import (
+    E_DIMS,
+    E_POS,
+    E_ROT,
     ENV_BOX,
     ENV_BOX_ONLY_OUTER,
     ENV_CAPSULE,
     ENV_CYLINDER,
     ENV_SPHERE,
+    EW,
+    G_DIMS,
+    G_RADIUS,
+    GI_HULL,
+    GI_HULL_END,
+    GI_INNER,
+    GI_INNER_END,
+    GI_JOINT,
+    GI_KIND,
+    GI_OUTER,
+    GI_OUTER_END,
     GIW,
     GW,
     H_AI,
@@ -38,7 +52,14 @@ from ._layout import (
     H_PI,
     H_S,
     H_V,
+    PI_A,
+    PI_B,
+    PI_ENV,
+    PI_PROOF,
+    PIW,
+    S_RADIUS,
     SPHERES_ONLY,
+    SW,
     W_AXES,
     W_DA,
     W_DB,
@@ -69,15 +90,16 @@ _inlined = njit(cache=True, nogil=True, _nrt=False, inline="always")
 def _env_sdist3(fb, ib, e, px, py, pz):  # noqa: N803
     """Signed distance [m] from world point (px, py, pz) to environment object ``e`` (for
     ENV_BOX_ONLY_OUTER: to a box that encloses it, a lower bound)."""
-    base = ib[H_E] + 15 * e
-    dx = px - fb[base + 9]
-    dy = py - fb[base + 10]
-    dz = pz - fb[base + 11]
+    base = ib[H_E] + EW * e
+    o, t, d = base + E_ROT, base + E_POS, base + E_DIMS
+    dx = px - fb[t]
+    dy = py - fb[t + 1]
+    dz = pz - fb[t + 2]
     # Local coordinates: R^T (p - t).
-    x = fb[base + 0] * dx + fb[base + 3] * dy + fb[base + 6] * dz
-    y = fb[base + 1] * dx + fb[base + 4] * dy + fb[base + 7] * dz
-    z = fb[base + 2] * dx + fb[base + 5] * dy + fb[base + 8] * dz
-    a, b, c = fb[base + 12], fb[base + 13], fb[base + 14]
+    x = fb[o + 0] * dx + fb[o + 3] * dy + fb[o + 6] * dz
+    y = fb[o + 1] * dx + fb[o + 4] * dy + fb[o + 7] * dz
+    z = fb[o + 2] * dx + fb[o + 5] * dy + fb[o + 8] * dz
+    a, b, c = fb[d], fb[d + 1], fb[d + 2]
     kind = ib[ib[H_EI] + e]
     if kind == ENV_BOX or kind == ENV_BOX_ONLY_OUTER:
         qx, qy, qz = abs(x) - a, abs(y) - b, abs(z) - c
@@ -183,23 +205,23 @@ def _place_pair(fb, ib, a, b, is_env, Rw, pw, wf):  # noqa: N803
     mover ``b``'s shape (W_RB, W_PB, W_DB) in ``wf`` at the state of Rw, pw; returns their
     kinds."""
     og, ogi = ib[H_G], ib[H_GI]
-    ka = ib[ogi + GIW * a + 5]
+    ka = ib[ogi + GIW * a + GI_KIND]
     _mover_frame(fb, ib, a, Rw, pw, wf, W_RA, W_PA)
     for r in range(3):
-        wf[W_DA + r] = fb[og + GW * a + 16 + r]
+        wf[W_DA + r] = fb[og + GW * a + G_DIMS + r]
     if is_env == 1:
-        oe = ib[H_E] + 15 * b
+        oe = ib[H_E] + EW * b
         kb = ib[ib[H_EI] + b]
         for r in range(3):
-            wf[W_PB + r] = fb[oe + 9 + r]
-            wf[W_DB + r] = fb[oe + 12 + r]
+            wf[W_PB + r] = fb[oe + E_POS + r]
+            wf[W_DB + r] = fb[oe + E_DIMS + r]
             for c in range(3):
-                wf[W_RB + 3 * r + c] = fb[oe + 3 * r + c]
+                wf[W_RB + 3 * r + c] = fb[oe + E_ROT + 3 * r + c]
     else:
-        kb = ib[ogi + GIW * b + 5]
+        kb = ib[ogi + GIW * b + GI_KIND]
         _mover_frame(fb, ib, b, Rw, pw, wf, W_RB, W_PB)
         for r in range(3):
-            wf[W_DB + r] = fb[og + GW * b + 16 + r]
+            wf[W_DB + r] = fb[og + GW * b + G_DIMS + r]
     return ka, kb
 
 
@@ -218,10 +240,10 @@ def _gjk_pair(fb, ib, k, a, b, is_env, Rw, pw, wf, wi, low, high):  # noqa: N803
     until it reaches ``high`` or the distance is known to be at most ``low``."""
     ogi = ib[H_GI]
     ka, kb = _place_pair(fb, ib, a, b, is_env, Rw, pw, wf)
-    va0, va1 = ib[ogi + GIW * a + 6], ib[ogi + GIW * a + 7]
+    va0, va1 = ib[ogi + GIW * a + GI_HULL], ib[ogi + GIW * a + GI_HULL_END]
     vb0 = vb1 = 0
     if is_env == 0:
-        vb0, vb1 = ib[ogi + GIW * b + 6], ib[ogi + GIW * b + 7]
+        vb0, vb1 = ib[ogi + GIW * b + GI_HULL], ib[ogi + GIW * b + GI_HULL_END]
     ow, oh = wi[WI_WARM] + 3 * k, wi[WI_HINT] + 2 * k
     return distance_lower_bound(ka, wf[W_RA:W_RA + 9].reshape((3, 3)), wf[W_PA:W_PA + 3],
                                 wf[W_DA:W_DA + 3], va0, va1, kb,
@@ -239,10 +261,10 @@ def _gjk_overlap(fb, ib, k, a, b, is_env, Rw, pw, wf, wi, goal):  # noqa: N803
     overlap at least that deep), searched until it is below ``goal``."""
     ogi = ib[H_GI]
     ka, kb = _place_pair(fb, ib, a, b, is_env, Rw, pw, wf)
-    va0, va1 = ib[ogi + GIW * a + 6], ib[ogi + GIW * a + 7]
+    va0, va1 = ib[ogi + GIW * a + GI_HULL], ib[ogi + GIW * a + GI_HULL_END]
     vb0 = vb1 = 0
     if is_env == 0:
-        vb0, vb1 = ib[ogi + GIW * b + 6], ib[ogi + GIW * b + 7]
+        vb0, vb1 = ib[ogi + GIW * b + GI_HULL], ib[ogi + GIW * b + GI_HULL_END]
     ow, oh = wi[WI_WARM] + 3 * k, wi[WI_HINT] + 2 * k
     return distance_upper_bound(ka, wf[W_RA:W_RA + 9].reshape((3, 3)), wf[W_PA:W_PA + 3],
                                 wf[W_DA:W_DA + 3], va0, va1, kb,
@@ -261,29 +283,29 @@ def _pair_bound(k, fb, ib, Rw, pw, wf, wi, enough):  # noqa: N803
     primitives, GJK's when one is a hull, or the fine spheres of a body that is no
     primitive. A bound of ``enough`` (beyond the pair's margin) is sufficient for the
     caller."""
-    op, of = ib[H_PI] + 4 * k, ib[H_P] + k
-    a, b, is_env = ib[op], ib[op + 1], ib[op + 2]
+    op, of = ib[H_PI] + PIW * k, ib[H_P] + k
+    a, b, is_env = ib[op + PI_A], ib[op + PI_B], ib[op + PI_ENV]
     sm = max(fb[of], 0.0)
     og, oS, ogi = ib[H_G], ib[H_S], ib[H_GI]
-    ka = ib[ogi + GIW * a + 5]
-    kb = ENV_BOX if is_env == 1 else ib[ogi + GIW * b + 5]
+    ka = ib[ogi + GIW * a + GI_KIND]
+    kb = ENV_BOX if is_env == 1 else ib[ogi + GIW * b + GI_KIND]
     if ka != SPHERES_ONLY and kb != SPHERES_ONLY:
         if ka == HULL or kb == HULL:
             return _gjk_pair(fb, ib, k, a, b, is_env, Rw, pw, wf, wi, sm, sm + enough)
         return _sat_pair(fb, ib, a, b, is_env, Rw, pw, wf)
-    ja = ib[ogi + GIW * a]
+    ja = ib[ogi + GIW * a + GI_JOINT]
     if is_env == 1:
         best = 1e300
-        for s in range(ib[ogi + GIW * a + 1], ib[ogi + GIW * a + 2]):
-            _world(fb, oS + 4 * s, Rw, pw, ja, wf, W_TMP)
+        for s in range(ib[ogi + GIW * a + GI_OUTER], ib[ogi + GIW * a + GI_OUTER_END]):
+            _world(fb, oS + SW * s, Rw, pw, ja, wf, W_TMP)
             d = (_env_sdist3(fb, ib, b, wf[W_TMP], wf[W_TMP + 1], wf[W_TMP + 2])
-                 - fb[oS + 4 * s + 3])
+                 - fb[oS + SW * s + S_RADIUS])
             if d < best:
                 best = d
                 if best - sm <= 0.0:
                     return best
         return best
-    ra, rb = fb[og + GW * a + 3], fb[og + GW * b + 3]
+    ra, rb = fb[og + GW * a + G_RADIUS], fb[og + GW * b + G_RADIUS]
     ocw = wi[WI_CW]
     cbx, cby, cbz = wf[ocw + 3 * b], wf[ocw + 3 * b + 1], wf[ocw + 3 * b + 2]
     ca0, ca1, ca2 = wf[ocw + 3 * a], wf[ocw + 3 * a + 1], wf[ocw + 3 * a + 2]
@@ -327,39 +349,39 @@ def _pair_collides(k, fb, ib, eps, Rw, pw, wf, wi):  # noqa: N803
     that close, (two boxes, no margin) the complete separating-axis test fails, or (two
     exact shapes: primitives or convex hulls) GJK's upper bound on their signed distance
     is below it."""
-    op, of = ib[H_PI] + 4 * k, ib[H_P] + k
-    a, b, is_env, proof = ib[op], ib[op + 1], ib[op + 2], ib[op + 3]
+    op, of = ib[H_PI] + PIW * k, ib[H_P] + k
+    a, b, is_env, proof = ib[op + PI_A], ib[op + PI_B], ib[op + PI_ENV], ib[op + PI_PROOF]
     if proof == 0:
         return False
     sm = fb[of]
     oS, ogi = ib[H_S], ib[H_GI]
-    ja = ib[ogi + GIW * a]
-    ka = ib[ogi + GIW * a + 5]
+    ja = ib[ogi + GIW * a + GI_JOINT]
+    ka = ib[ogi + GIW * a + GI_KIND]
     t1, t2 = W_TMP, W_TMP2
     if is_env == 1:
         if (sm == 0.0 and ka == ENV_BOX and ib[ib[H_EI] + b] == ENV_BOX
                 and _sat_pair(fb, ib, a, b, 1, Rw, pw, wf) < -eps):
             return True
-        for s in range(ib[ogi + GIW * a + 3], ib[ogi + GIW * a + 4]):
-            _world(fb, oS + 4 * s, Rw, pw, ja, wf, t1)
-            if (_env_sdist3(fb, ib, b, wf[t1], wf[t1 + 1], wf[t1 + 2]) - fb[oS + 4 * s + 3]
-                    < sm - eps):
+        for s in range(ib[ogi + GIW * a + GI_INNER], ib[ogi + GIW * a + GI_INNER_END]):
+            _world(fb, oS + SW * s, Rw, pw, ja, wf, t1)
+            if (_env_sdist3(fb, ib, b, wf[t1], wf[t1 + 1], wf[t1 + 2])
+                    - fb[oS + SW * s + S_RADIUS] < sm - eps):
                 return True
         # An object measured by the box around it (ENV_BOX_ONLY_OUTER) proves nothing.
         return (ka != SPHERES_ONLY and ib[ib[H_EI] + b] != ENV_BOX_ONLY_OUTER
                 and _gjk_overlap(fb, ib, k, a, b, 1, Rw, pw, wf, wi, sm - eps) < sm - eps)
-    jb = ib[ogi + GIW * b]
-    kb = ib[ogi + GIW * b + 5]
+    jb = ib[ogi + GIW * b + GI_JOINT]
+    kb = ib[ogi + GIW * b + GI_KIND]
     if (sm == 0.0 and ka == ENV_BOX and kb == ENV_BOX
             and _sat_pair(fb, ib, a, b, 0, Rw, pw, wf) < -eps):
         return True
-    for s in range(ib[ogi + GIW * a + 3], ib[ogi + GIW * a + 4]):
-        _world(fb, oS + 4 * s, Rw, pw, ja, wf, t1)
-        rs = fb[oS + 4 * s + 3]
-        for t in range(ib[ogi + GIW * b + 3], ib[ogi + GIW * b + 4]):
-            _world(fb, oS + 4 * t, Rw, pw, jb, wf, t2)
+    for s in range(ib[ogi + GIW * a + GI_INNER], ib[ogi + GIW * a + GI_INNER_END]):
+        _world(fb, oS + SW * s, Rw, pw, ja, wf, t1)
+        rs = fb[oS + SW * s + S_RADIUS]
+        for t in range(ib[ogi + GIW * b + GI_INNER], ib[ogi + GIW * b + GI_INNER_END]):
+            _world(fb, oS + SW * t, Rw, pw, jb, wf, t2)
             d = math.sqrt((wf[t1] - wf[t2]) ** 2 + (wf[t1 + 1] - wf[t2 + 1]) ** 2
-                          + (wf[t1 + 2] - wf[t2 + 2]) ** 2) - rs - fb[oS + 4 * t + 3]
+                          + (wf[t1 + 2] - wf[t2 + 2]) ** 2) - rs - fb[oS + SW * t + S_RADIUS]
             if d < sm - eps:
                 return True
     return (ka != SPHERES_ONLY and kb != SPHERES_ONLY

@@ -22,7 +22,25 @@ import math
 from .._aot import njit
 from .._fk_kernel import joint_frames
 from .._joint_table import JF_WIDTH, JI_WIDTH
-from ._layout import GIW, GW, H_DOF, H_G, H_GI, H_J, H_JI, H_L, H_NJ, H_S
+from ._layout import (
+    G_POS,
+    G_ROT,
+    GI_JOINT,
+    GI_OUTER,
+    GI_OUTER_END,
+    GIW,
+    GW,
+    H_DOF,
+    H_G,
+    H_GI,
+    H_J,
+    H_JI,
+    H_L,
+    H_NJ,
+    H_S,
+    S_RADIUS,
+    SW,
+)
 
 #: How the helpers are compiled (see :mod:`safepath.collision._kernels`).
 _helper = njit(cache=True, nogil=True, _nrt=False)
@@ -50,13 +68,14 @@ def _mover_frame(fb, ib, m, Rw, pw, wf, oR, op):  # noqa: N803
     """World rotation (rows at wf[oR:oR+9]) and position (wf[op:op+3]) of mover ``m``'s
     primitive."""
     og = ib[H_G] + GW * m
-    j = ib[ib[H_GI] + GIW * m]
+    j = ib[ib[H_GI] + GIW * m + GI_JOINT]
+    t, R = og + G_POS, og + G_ROT  # noqa: N806
     for r in range(3):
-        wf[op + r] = (Rw[j, r, 0] * fb[og + 13] + Rw[j, r, 1] * fb[og + 14]
-                      + Rw[j, r, 2] * fb[og + 15] + pw[j, r])
+        wf[op + r] = (Rw[j, r, 0] * fb[t] + Rw[j, r, 1] * fb[t + 1] + Rw[j, r, 2] * fb[t + 2]
+                      + pw[j, r])
         for c in range(3):
-            wf[oR + 3 * r + c] = (Rw[j, r, 0] * fb[og + 4 + c] + Rw[j, r, 1] * fb[og + 7 + c]
-                                  + Rw[j, r, 2] * fb[og + 10 + c])
+            wf[oR + 3 * r + c] = (Rw[j, r, 0] * fb[R + c] + Rw[j, r, 1] * fb[R + 3 + c]
+                                  + Rw[j, r, 2] * fb[R + 6 + c])
 
 
 @_helper
@@ -65,14 +84,14 @@ def _place_spheres(fb, ib, m, Rw, pw, ox, oy, oz, orad, wf, out):  # noqa: N803
     ``out`` (x, y, z, r, lower bound of the distance to the sphere (ox, oy, oz, orad));
     returns the count."""
     oS, ogi = ib[H_S], ib[H_GI]
-    j = ib[ogi + GIW * m]
+    j = ib[ogi + GIW * m + GI_JOINT]
     n = 0
-    for s in range(ib[ogi + GIW * m + 1], ib[ogi + GIW * m + 2]):
-        x, y, z = fb[oS + 4 * s], fb[oS + 4 * s + 1], fb[oS + 4 * s + 2]
+    for s in range(ib[ogi + GIW * m + GI_OUTER], ib[ogi + GIW * m + GI_OUTER_END]):
+        x, y, z = fb[oS + SW * s], fb[oS + SW * s + 1], fb[oS + SW * s + 2]
         wx = Rw[j, 0, 0] * x + Rw[j, 0, 1] * y + Rw[j, 0, 2] * z + pw[j, 0]
         wy = Rw[j, 1, 0] * x + Rw[j, 1, 1] * y + Rw[j, 1, 2] * z + pw[j, 1]
         wz = Rw[j, 2, 0] * x + Rw[j, 2, 1] * y + Rw[j, 2, 2] * z + pw[j, 2]
-        r = fb[oS + 4 * s + 3]
+        r = fb[oS + SW * s + S_RADIUS]
         o = out + 5 * n
         wf[o], wf[o + 1], wf[o + 2], wf[o + 3] = wx, wy, wz, r
         wf[o + 4] = math.sqrt((wx - ox) ** 2 + (wy - oy) ** 2 + (wz - oz) ** 2) - r - orad
