@@ -29,7 +29,7 @@ if TYPE_CHECKING:
     from .options import PlanOptions
     from .world import CheckerCache, WorldState
 
-__all__ = ["time_chunk", "time_segments", "assemble"]
+__all__ = ["apart", "assemble", "time_chunk", "time_segments", "verify_piece"]
 
 log = logging.getLogger(__name__)
 
@@ -55,7 +55,7 @@ def time_chunk(cell: Cell, segments: list[Segment], world: WorldState, options: 
             try:
                 piece, seg_steps = time_segments(cell, segments, world, options, cache,
                                                   blend=blend)
-                return [_verified(piece, seg_steps, segments, world, cache, labels, known)]
+                return [verify_piece(piece, seg_steps, segments, world, cache, labels, known)]
             except _NotFree:
                 log.debug("blend %.3f rad not collision-free", blend)
             except VerificationError as exc:
@@ -64,7 +64,7 @@ def time_chunk(cell: Cell, segments: list[Segment], world: WorldState, options: 
     for seg in segments:
         try:
             piece, seg_steps = time_segments(cell, [seg], world, options, cache, blend=0.0)
-            out.append(_verified(piece, seg_steps, [seg], world, cache, labels, known))
+            out.append(verify_piece(piece, seg_steps, [seg], world, cache, labels, known))
             known = min(known, out[-1][2].min_clearance)
             continue
         except (_NotFree, VerificationError) as exc:
@@ -77,14 +77,14 @@ def time_chunk(cell: Cell, segments: list[Segment], world: WorldState, options: 
         for a, b in zip(seg.waypoints[:-1], seg.waypoints[1:], strict=True):
             part = Segment(seg.step_index, seg.step, [a, b], seg.allowed)
             piece, seg_steps = time_segments(cell, [part], world, options, cache, check=False)
-            out.append(_verified(piece, seg_steps, [part], world, cache, labels, known))
+            out.append(verify_piece(piece, seg_steps, [part], world, cache, labels, known))
             known = min(known, out[-1][2].min_clearance)
     return out
 
 
-def _verified(piece: TimedPiece, seg_steps: list[int], segments: list[Segment],
-              world: WorldState, cache: CheckerCache, labels: list[str],
-              known: float = float("inf")) -> tuple[TimedPiece, list[int], VerifyResult]:
+def verify_piece(piece: TimedPiece, seg_steps: list[int], segments: list[Segment],
+                 world: WorldState, cache: CheckerCache, labels: list[str],
+                 known: float = float("inf")) -> tuple[TimedPiece, list[int], VerifyResult]:
     """Re-check a timed piece with the independent verifier, each step under its own
     allowed contacts, in one check (its clearance measured only below ``known`` [m]);
     raise VerificationError on failure."""
@@ -116,7 +116,7 @@ class _NotFree(Exception):
 _REPEAT = 1e-10
 
 
-def _apart(last: np.ndarray | None, pts: Sequence[np.ndarray]) -> bool:
+def apart(last: np.ndarray | None, pts: Sequence[np.ndarray]) -> bool:
     """Whether no point of ``pts`` repeats the one before it (``_REPEAT``), ``last``
     before the first (None: nothing before)."""
     P = np.asarray(pts, dtype=float)  # noqa: N806
@@ -144,7 +144,7 @@ def time_segments(cell: Cell, segments: list[Segment], world: WorldState,
                                                           0.4 * lengths[n]))))
         pts = seg.waypoints if not waypoints else seg.waypoints[1:]
         detour = seg.step.kind == "move" and blend > 0
-        if not detour and len(pts) > 1 and _apart(waypoints[-1] if waypoints else None, pts):
+        if not detour and len(pts) > 1 and apart(waypoints[-1] if waypoints else None, pts):
             # No point repeats the one before it (the common case: every point is kept).
             seg_of_poly.extend([n] * (len(pts) if waypoints else len(pts) - 1))
             waypoints.extend(pts)

@@ -20,7 +20,8 @@ from .._knots import interval_index
 from ..robot import Robot
 from . import _topp
 
-__all__ = ["TCP_STEP", "PathSpline", "PathLimits", "Points", "path_limits", "row_max"]
+__all__ = ["TCP_STEP", "PathSpline", "PathLimits", "Points", "gridpoints", "path_limits",
+           "row_max"]
 
 #: Spacing of the points where the TCP's speed per path speed is computed [rad].
 TCP_STEP = 0.015
@@ -102,7 +103,7 @@ def path_limits(robot: Robot, path: PathSpline, s_way: np.ndarray, scales: Seque
         grid_step: Largest spacing of the gridpoints [rad].
         jerk_scale: Fraction of the jerk limits (on top of the speed scales), in (0, 1].
     """
-    grid = _grid(path.x, s_way, grid_step)
+    grid = gridpoints(path.x, s_way, grid_step)
     seg_scales = np.asarray(scales, dtype=float) * speed_scale
     last = len(seg_scales) - 1
     seg_of_grid = interval_index(s_way, grid, last + 1)
@@ -146,7 +147,7 @@ def _tcp_xmax(robot: Robot, path: PathSpline, s_way: np.ndarray, grid: np.ndarra
     :data:`TCP_STEP` apart (forward kinematics is the costly part; the rate varies
     slowly), linear in between.
     """
-    samples = _grid(path.x, s_way, TCP_STEP)
+    samples = gridpoints(path.x, s_way, TCP_STEP)
     p = np.array([robot.tcp_position(q) for q in path(samples)])
     rate = np.interp(grid, samples, np.linalg.norm(np.gradient(p, samples, axis=0), axis=1))
     with np.errstate(divide="ignore"):
@@ -154,9 +155,10 @@ def _tcp_xmax(robot: Robot, path: PathSpline, s_way: np.ndarray, grid: np.ndarra
                         (v_tcp / np.maximum(rate, 1e-9)) ** 2, np.inf)
 
 
-def _grid(breaks: np.ndarray, s_way: np.ndarray, step: float) -> np.ndarray:
-    """TOPP-RA's gridpoints: each spline piece cut evenly into pieces of at most ``step``
-    (at least 19 in all), and the segment boundaries.
+def gridpoints(breaks: np.ndarray, s_way: np.ndarray, step: float) -> np.ndarray:
+    """TOPP-RA's gridpoints [rad] (path parameter): each spline piece (between
+    ``breaks``) cut evenly into pieces of at most ``step`` [rad] (at least 19 in all),
+    and the segment boundaries ``s_way``.
 
     On a spline piece the path's curvature is linear in ``s``; across a spline knot it
     bends, which is where the limits would otherwise be exceeded between gridpoints.

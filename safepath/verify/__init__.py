@@ -12,7 +12,9 @@ its GJK, its kinematics) cannot also hide a collision from the check that releas
 trajectory. Keep it so: nothing here imports :mod:`safepath.collision` or
 :mod:`safepath.planning` (tests/test_import_contracts.py checks it).
 
-Its face: :class:`FclVerifier`, :class:`StagedVerifier`, :class:`VerifyResult`,
+Its face: :class:`FclVerifier`, :class:`StagedVerifier`, :class:`VerifyResult`, what a
+verifier shows of itself (:class:`CheckedPair`, :class:`Body`, :class:`Grid`,
+:class:`StateBounds`),
 :func:`check_verifiable` (refuses, before planning, what it cannot check; :func:`unverifiable`
 lists it),
 :func:`prepare_robot` (what every verifier of a robot takes from it alone) and
@@ -21,12 +23,17 @@ lists it),
 
 from __future__ import annotations
 
-from ._bodies import check_verifiable, fcl_shape, prepare_robot, unverifiable
-from .verifier import FclVerifier, StagedVerifier, VerifyResult
+from ._bodies import Body, check_verifiable, fcl_shape, prepare_robot, unverifiable
+from ._bounds import Grid
+from .verifier import CheckedPair, FclVerifier, StagedVerifier, StateBounds, VerifyResult
 
 __all__ = [
+    "Body",
+    "CheckedPair",
     "FclVerifier",
+    "Grid",
     "StagedVerifier",
+    "StateBounds",
     "VerifyResult",
     "check_verifiable",
     "fcl_shape",

@@ -30,8 +30,8 @@ if TYPE_CHECKING:
     import pinocchio as pin
 
 __all__ = ["Grid", "Layer", "PoseCache", "ShapeSpec", "WalkMemory", "bound_between",
-           "joint_kind", "joint_tables", "motion_weights", "pair_weights", "shape_spec",
-           "unsupported_geometry", "SUPPORTED"]
+           "climbing", "joint_kind", "joint_tables", "motion_weights", "pair_weights",
+           "shape_spec", "shape_table", "unsupported_geometry", "SUPPORTED"]
 
 _BOX, _SPHERE, _CYLINDER, _CAPSULE, _HULL = 0, 1, 2, 3, 4
 _REVOLUTE, _PRISMATIC = 1, 2
@@ -130,7 +130,7 @@ def bound_between(a: ShapeSpec, T_world_a: np.ndarray, b: ShapeSpec,
     raised by GJK's directions): for tests and diagnostics."""
     from . import _distance as shapes
 
-    table, hulls = _shape_table([a, b])
+    table, hulls = shape_table([a, b])
 
     def placed(k: int, T: np.ndarray) -> tuple[float, ...]:
         T = np.asarray(T, dtype=float)
@@ -138,7 +138,7 @@ def bound_between(a: ShapeSpec, T_world_a: np.ndarray, b: ShapeSpec,
         return (*table[k, :4], table[k, 7], *centre, *T[:3, :3].ravel())
 
     Sa, Sb = placed(0, T_world_a), placed(1, T_world_b)
-    hulls = _climbing(hulls)
+    hulls = climbing(hulls)
     bound, n0, n1, n2 = shapes.axis_bound(Sa, Sb, hulls)
     return float(shapes.gjk_bound(Sa, Sb, hulls, bound, n0, n1, n2, False, np.empty((4, 3)),
                                   np.empty((3, 3)), np.empty(4, dtype=np.int64))[0])
@@ -159,7 +159,7 @@ def _edges(vertices: np.ndarray, triangles: np.ndarray) -> tuple[np.ndarray, np.
     return starts.astype(np.int64), np.ascontiguousarray(both[:, 1], dtype=np.int64)
 
 
-def _shape_table(specs: list[ShapeSpec]) -> tuple[np.ndarray, tuple[np.ndarray, ...]]:
+def shape_table(specs: list[ShapeSpec]) -> tuple[np.ndarray, tuple[np.ndarray, ...]]:
     """The kernels' shape table (kind, parameters, centre, radius; a hull's parameters:
     its first row in the vertex table and its count) and the hull tables (vertices,
     per vertex row where its neighbours start, the neighbours' rows: all rows of the
@@ -188,7 +188,7 @@ def _shape_table(specs: list[ShapeSpec]) -> tuple[np.ndarray, tuple[np.ndarray, 
     return table, (np.ascontiguousarray(np.vstack(verts)), ptr, nbr)
 
 
-def _climbing(hulls: tuple[np.ndarray, ...]) -> tuple[np.ndarray, ...]:
+def climbing(hulls: tuple[np.ndarray, ...]) -> tuple[np.ndarray, ...]:
     """The hull tables as the kernels take them: with a fresh start table (every climb
     of a hull starts at its first vertex until one has ended elsewhere). One per walk:
     the kernel updates it."""
@@ -474,7 +474,7 @@ class Layer:
         self._upstream = upstream
         self._env_pose = np.array([np.asarray(T)[:3] for T in T_world_env]).reshape(-1, 3, 4)
         # The kernels' shape and vertex tables; bodies first.
-        self._shapes, self._hulls = _shape_table(movers + env)
+        self._shapes, self._hulls = shape_table(movers + env)
         self._pairs = _pair_arrays(pairs, weights, clearance, self._kin)
 
     def with_clearance(self, clearance: np.ndarray) -> Layer:
@@ -491,6 +491,14 @@ class Layer:
         out = copy.copy(self)
         out._pairs = _pair_arrays(pairs, weights, clearance, self._kin)
         return out
+
+    @property
+    def pair_weights(self) -> np.ndarray:
+        """Motion weights of each pair, as walked (:func:`pair_weights`): (pairs x dof)
+        [m/rad] or [m/m], read-only."""
+        weights = self._pairs[3].view()
+        weights.flags.writeable = False
+        return weights
 
     def cache(self, samples: int) -> PoseCache:
         """An empty pose cache for a grid of ``samples`` samples."""
@@ -545,7 +553,7 @@ class Layer:
                 (grid.cum, grid.step, grid.cum @ self._upstream.T, grid.step @ self._upstream.T,
                  np.ascontiguousarray(q, dtype=float), grid.knot_of, grid.frac),
                 self._kin, cache.arrays(), self._pairs, (self._shapes, self._env_pose,
-                                                         _climbing(self._hulls)),
+                                                         climbing(self._hulls)),
                 memory.arrays(), params, scratch)
         parts = []
         t, s = 0, (int(first[0]) if todo.size else 0)
@@ -596,9 +604,10 @@ class Layer:
         return out
 
     def bounds_at(self, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Every pair's lower bound at one state [m] (the finest the layer computes), and
-        the moving bodies' geometry frames in the world (bodies x 3 x 4), from the
-        layer's own kinematics for every body in a pair."""
+        """Every pair's lower bound at the state ``q`` [rad] (the finest the layer
+        computes) [m], and the moving bodies' geometry frames in the world (bodies x 3 x
+        4) [m], from the layer's own kinematics: the diagnostic
+        :meth:`FclVerifier.bounds_at <safepath.verify.FclVerifier.bounds_at>` reads."""
         q = np.asarray(q, dtype=float).reshape(1, -1)
         zero = np.zeros((1, q.shape[1]))
         grid = Grid(np.zeros(1, dtype=np.int64), np.ones(1), zero, zero)

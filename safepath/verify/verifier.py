@@ -35,6 +35,7 @@ from ..errors import VerificationError
 from ..robot import Robot
 from ..scene import GRIPPER, AllowedContact, Scene
 from ._bodies import (
+    Body,
     check_verifiable,
     environment_bodies,
     held_bodies,
@@ -50,7 +51,8 @@ from ._bounds import (
     undominated,
 )
 
-__all__ = ["FclVerifier", "StagedVerifier", "VerifyResult", "check_verifiable"]
+__all__ = ["CheckedPair", "FclVerifier", "StagedVerifier", "StateBounds", "VerifyResult",
+           "check_verifiable"]
 
 Pair = tuple[str, str]
 #: Margin kept between the clearance walk's threshold and the tolerance [m], so that
@@ -83,6 +85,52 @@ class VerifyResult:
     closest_pair: Pair | None
     pair_checks: int = 0
     bound_checks: int = 0
+
+
+@dataclass(frozen=True)
+class CheckedPair:
+    """One pair of bodies the release check judges (:attr:`FclVerifier.pairs`).
+
+    Attributes:
+        names: The bodies' names: a link or the held object, then a link, the held
+            object or an environment object.
+        first: The first body's index in :attr:`FclVerifier.movers`.
+        second: The second body's index in :attr:`FclVerifier.environment` if
+            ``environment``, else in :attr:`FclVerifier.movers`.
+        environment: Whether the second body is an environment object.
+        allowed_depth: How deep the bodies may touch [m] (0: not at all).
+        keep: What the signed distance must not fall below [m]: minus the allowed depth
+            of a contact, else the object's margin if margins are enforced, else 0.
+        certified_above: What the conservative layer must prove the distance exceeds
+            to certify a sample [m]: ``keep``, or 0 for a pair allowed to touch (in
+            contact, FCL's penetration depth decides).
+        clearance: Whether the pair's distance counts for the clearance (a moving body
+            against an environment object, no contact allowed).
+    """
+
+    names: Pair
+    first: int
+    second: int
+    environment: bool
+    allowed_depth: float
+    keep: float
+    certified_above: float
+    clearance: bool
+
+
+@dataclass(frozen=True)
+class StateBounds:
+    """The conservative layer's reading of one robot state (:meth:`FclVerifier.bounds_at`).
+
+    Attributes:
+        bounds: Per pair of :attr:`FclVerifier.pairs`, its lower bound on the signed
+            distance [m] (the finest the layer computes; at most 0 in collision).
+        T_world_geom: Per moving body of :attr:`FclVerifier.movers`, its geometry frame
+            in the world as the layer's own kinematics place it (bodies x 3 x 4) [m].
+    """
+
+    bounds: np.ndarray
+    T_world_geom: np.ndarray
 
 
 class FclVerifier:
@@ -142,6 +190,7 @@ class FclVerifier:
         """Check the pairs of ``table`` (see :meth:`_pair_list`): what each must keep."""
         self._table = table
         self._pair_rows: list[tuple[int, int, bool, float]] | None = None
+        self._pair_records: tuple[CheckedPair, ...] | None = None
         env, depth = table[:, 2] != 0.0, table[:, 3]
         self._theta = self._thresholds(table[:, 1].astype(np.int64), env, depth)
         # The layer certifies a pair allowed to touch only where it is apart: in
@@ -176,6 +225,64 @@ class FclVerifier:
             self._pair_rows = [(int(i), int(j), bool(env), float(depth))
                                for i, j, env, depth in self._table.tolist()]
         return self._pair_rows
+
+    @property
+    def pairs(self) -> tuple[CheckedPair, ...]:
+        """Every pair this verifier judges, in the order of its bounds
+        (:meth:`bounds_at`) and of :attr:`pair_weights`."""
+        if self._pair_records is None:
+            names = [b.name for b in self._movers], [b.name for b in self._env]
+            self._pair_records = tuple(
+                CheckedPair((names[0][i], names[int(env)][j]), i, j, env, depth,
+                            float(keep), float(above), bool(tracked))
+                for (i, j, env, depth), keep, above, tracked in zip(
+                    self._pairs, self._theta, self._bound_theta, self._tracked,
+                    strict=True))
+        return self._pair_records
+
+    @property
+    def movers(self) -> tuple[Body, ...]:
+        """The moving bodies: the robot's collision geometries, each on its joint, then
+        the held object (if any). Their FCL objects are this verifier's own: placing
+        one moves it for the verifier too (:meth:`verify` places them itself)."""
+        return tuple(self._movers)
+
+    @property
+    def environment(self) -> tuple[Body, ...]:
+        """The environment objects, placed in the world: the scene's fixed objects and
+        the movable ones where they rest (not the held one)."""
+        return tuple(self._env)
+
+    @property
+    def motion_weights(self) -> np.ndarray:
+        """Per moving body and joint, a bound on how far a unit of that joint's motion
+        moves the body's points [m/rad] or [m/m] (zero for joints that do not move it):
+        (bodies x dof), read-only. The grid is cut with them."""
+        weights = self._weights.view()
+        weights.flags.writeable = False
+        return weights
+
+    @property
+    def pair_weights(self) -> np.ndarray:
+        """Per pair of :attr:`pairs` and joint, a bound on how much a unit of that
+        joint's motion can change the pair's distance [m/rad] or [m/m], as the
+        conservative layer walks it: (pairs x dof), read-only."""
+        return self._layer.pair_weights
+
+    def grid(self, q: np.ndarray) -> Grid:
+        """The resolution grid :meth:`verify` cuts knots ``q`` [rad] (knots x dof) into:
+        no point of a moving body moves more than :attr:`resolution` [m] between two
+        samples."""
+        return Grid.cut(np.asarray(q, dtype=float), self._grid_weights, self.resolution)
+
+    def bounds_at(self, q: np.ndarray) -> StateBounds:
+        """The conservative layer's lower bound on every pair's signed distance at the
+        state ``q`` [rad], and where its own kinematics place the moving bodies: a
+        diagnostic of how close the bounds :meth:`verify` certifies samples with come
+        to FCL's distances. Each bound is at most FCL's distance (at most 0 in
+        collision)."""
+        bounds, poses = self._layer.bounds_at(q)
+        return StateBounds(bounds, poses)
 
     def _conservative_layer(self, like: Layer | None = None) -> Layer:
         """The layer that bounds every pair's distance from below (``_bounds``);
@@ -249,10 +356,6 @@ class FclVerifier:
                 add((a, e.name) if a <= e.name else (e.name, a), i, j, True)
         return np.array(pairs, dtype=float).reshape(-1, 4), rows_of
 
-    def _grid(self, q: np.ndarray) -> Grid:
-        """The resolution grid of knots ``q`` (also used by the tests' dense check)."""
-        return Grid.cut(np.asarray(q, dtype=float), self._grid_weights, self.resolution)
-
     def _names(self, p: int) -> Pair:
         i, j, env, _ = self._pairs[p]
         return (self._movers[i].name, self._env[j].name if env else self._movers[j].name)
@@ -289,7 +392,7 @@ class FclVerifier:
                 penetrates deeper than an allowed contact's depth.
         """
         q = np.asarray(q, dtype=float)
-        grid = self._grid(q)
+        grid = self.grid(q)
         n = len(self._table)
         everywhere = (np.zeros(n, dtype=np.int64), np.full(n, grid.samples, dtype=np.int64))
         return self._check(t, q, grid, np.arange(n), everywhere, steps, known)
@@ -394,7 +497,7 @@ class StagedVerifier:
                              f"({len(self.verifiers)}), from knot 0, not descending, before "
                              f"knot {len(q)}")
         joined = self._joined
-        grid = joined._grid(q)
+        grid = joined.grid(q)
         # The sample at each knot (the last of its interval), and each stage's stretch.
         at = np.searchsorted(grid.knot_of, knots, side="right") - 1
         first, stop = at[:-1][self._from], at[1:][self._to] + 1

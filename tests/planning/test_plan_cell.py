@@ -195,7 +195,7 @@ def test_each_piece_is_verified_in_one_call_each_step_under_its_contacts(
     pieces: list[tuple[object, list[int], list[str]]] = []
     calls: list[tuple[StagedVerifier, np.ndarray, np.ndarray, list[int], list[str],
                       float]] = []
-    verified, verify = _chunks._verified, StagedVerifier.verify
+    verified, verify = _chunks.verify_piece, StagedVerifier.verify
 
     def spy_verified(piece: object, seg_steps: list[int], segments: list[object],
                      world: object, cache: object, labels: list[str], *args: object
@@ -210,7 +210,7 @@ def test_each_piece_is_verified_in_one_call_each_step_under_its_contacts(
                       list(kwargs["steps"]), float(kwargs["known"])))
         return verify(self, t, q, starts, **kwargs)  # type: ignore[arg-type]
 
-    monkeypatch.setattr(_chunks, "_verified", spy_verified)
+    monkeypatch.setattr(_chunks, "verify_piece", spy_verified)
     monkeypatch.setattr(StagedVerifier, "verify", spy_verify)
     plan_cell(bundled_cell)
     monkeypatch.undo()
@@ -259,7 +259,8 @@ def test_a_checker_and_verifier_made_for_other_contacts_judge_as_new_ones(
         fresh = CollisionChecker(robot, bundled_cell.scene, held=checker.held,
                                  resting=checker.resting, allowed=key[1], options=options)
         assert checker.pairs == fresh.pairs
-        np.testing.assert_array_equal(checker._security, fresh._security)
+        np.testing.assert_array_equal(checker.layer_source().security,
+                                      fresh.layer_source().security)
         assert checker.layer is not None and fresh.layer is not None
         np.testing.assert_array_equal(checker.layer.F, fresh.layer.F)
         np.testing.assert_array_equal(checker.layer.I, fresh.layer.I)
@@ -271,10 +272,10 @@ def test_a_checker_and_verifier_made_for_other_contacts_judge_as_new_ones(
                           resting=dict(checker.resting), allowed=key[1],
                           resolution=options.resolution, margin=options.margin,
                           enforce_margin=options.enforce_margin)
-        assert verifier._pairs == new._pairs
-        for mine, theirs in ((verifier._theta, new._theta),
-                             (verifier._bound_theta, new._bound_theta),
-                             (verifier._tracked, new._tracked)):
-            np.testing.assert_array_equal(mine, theirs)
-        for mine, theirs in zip(verifier._layer._pairs, new._layer._pairs, strict=True):
-            np.testing.assert_array_equal(mine, theirs)
+        # The same pairs, what each must keep and which count for the clearance ...
+        assert verifier.pairs == new.pairs
+        # ... and the same layer: its pairs' motion weights and, in the same order, bounds.
+        np.testing.assert_array_equal(verifier.pair_weights, new.pair_weights)
+        for q in states[:10]:
+            np.testing.assert_array_equal(verifier.bounds_at(q).bounds,
+                                          new.bounds_at(q).bounds)

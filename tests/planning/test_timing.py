@@ -293,7 +293,7 @@ def test_the_grid_follows_the_spline_pieces() -> None:
             [0.0, breaks[-1]], rng.choice(breaks, rng.integers(0, breaks.size)),
             rng.uniform(0.0, breaks[-1], rng.integers(0, 4))]))
         step = float(rng.choice([0.005, 0.015, 0.05]))
-        grid = _path_limits._grid(breaks, s_way, step)
+        grid = _path_limits.gridpoints(breaks, s_way, step)
         assert grid[0] == 0.0 and grid[-1] == breaks[-1]
         assert np.all(np.diff(grid) > 0)
         assert np.diff(grid).max() <= step * (1 + 1e-9)
@@ -410,13 +410,13 @@ def test_a_segment_takes_the_quick_way_only_when_no_point_repeats_the_one_before
     """time_segments keeps every waypoint of a segment at once only when none lies within
     1e-10 (in every joint) of the one before it, the last kept one before the first;
     otherwise it drops the repeats one by one."""
-    from safepath.planning._chunks import _apart
+    from safepath.planning._chunks import apart
 
     a = np.array([0.1, 0.2, 0.3])
     b = a + [0.0, 0.0, 1e-9]
     c = a + [0.0, 0.0, 5e-11]
-    assert _apart(None, [a, b])
-    assert _apart(a - 1.0, [a, b])
-    assert not _apart(None, [a, c])  # c repeats a
-    assert not _apart(c, [a, b])  # a repeats the last kept point
-    assert not _apart(None, [a, b, b.copy()])
+    assert apart(None, [a, b])
+    assert apart(a - 1.0, [a, b])
+    assert not apart(None, [a, c])  # c repeats a
+    assert not apart(c, [a, b])  # a repeats the last kept point
+    assert not apart(None, [a, b, b.copy()])

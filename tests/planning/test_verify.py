@@ -28,11 +28,13 @@ from safepath.planning import FclVerifier, VerifyResult, initial_world
 from safepath.robot import Robot
 from safepath.scene import AllowedContact, Scene, SceneObject, Shape
 from safepath.timing import TimedPiece, spline_path, time_path
-from safepath.verify import check_verifiable, fcl_shape
+from safepath.verify import Body, CheckedPair, check_verifiable, fcl_shape
 from safepath.verify._bodies import robot_bodies
 from safepath.verify._bounds import (
     Grid,
+    Layer,
     bound_between,
+    joint_tables,
     pair_weights,
     shape_spec,
     undominated,
@@ -122,11 +124,17 @@ def test_verifier_and_checker_agree_on_clearance(bundled: Plans) -> None:
 # sample placed with pinocchio and judged with FCL, pair by pair.
 
 
-def _judge(verifier: FclVerifier, p: int, margin_of: dict[str, float]) -> tuple[bool, float]:
-    """FCL's judgement of pair p as placed now: (fails, distance [m])."""
-    i, j, env, depth = verifier._pairs[p]
-    o1 = verifier._movers[i].fcl
-    o2 = verifier._env[j].fcl if env else verifier._movers[j].fcl
+def _bodies(verifier: FclVerifier, pair: CheckedPair) -> tuple[Body, Body]:
+    """The verifier's two bodies of ``pair``."""
+    movers, env = verifier.movers, verifier.environment
+    return movers[pair.first], (env if pair.environment else movers)[pair.second]
+
+
+def _judge(verifier: FclVerifier, pair: CheckedPair, margin_of: dict[str, float]
+           ) -> tuple[bool, float]:
+    """FCL's judgement of ``pair`` as placed now: (fails, distance [m])."""
+    a, b = _bodies(verifier, pair)
+    o1, o2, env, depth = a.fcl, b.fcl, pair.environment, pair.allowed_depth
     if depth > 0.0:  # allowed to touch, up to a depth
         res = fcl.CollisionResult()
         if fcl.collide(o1, o2, fcl.CollisionRequest(enable_contact=True, num_max_contacts=4),
@@ -134,7 +142,7 @@ def _judge(verifier: FclVerifier, p: int, margin_of: dict[str, float]) -> tuple[
             return max(c.penetration_depth for c in res.contacts) > depth, 0.0
         return False, np.inf
     d = fcl.distance(o1, o2, fcl.DistanceRequest(), fcl.DistanceResult())
-    keep = margin_of[verifier._env[j].name] if env else 0.0
+    keep = margin_of[b.name] if env else 0.0
     hit = d <= 0.0 and fcl.collide(o1, o2, fcl.CollisionRequest(), fcl.CollisionResult())
     return hit or d < keep, d
 
@@ -142,21 +150,21 @@ def _judge(verifier: FclVerifier, p: int, margin_of: dict[str, float]) -> tuple[
 def _dense(verifier: FclVerifier, q: np.ndarray, margin_of: dict[str, float]
            ) -> tuple[int | None, set[tuple[str, str]], float]:
     """(first failing sample or None, the pairs failing there, smallest clearance [m])."""
-    grid = verifier._grid(q)
+    grid = verifier.grid(q)
     model = verifier.robot.model
     data = model.createData()
     clearance = np.inf
     for s in range(grid.samples):
         pin.forwardKinematics(model, data, grid.state(q, s))
-        for body in verifier._movers:
+        for body in verifier.movers:
             T = data.oMi[body.joint].homogeneous @ body.T
             body.fcl.setTransform(fcl.Transform(T[:3, :3], T[:3, 3]))
         bad = set()
-        for p, (_, _, env, depth) in enumerate(verifier._pairs):
-            fails, d = _judge(verifier, p, margin_of)
+        for pair in verifier.pairs:
+            fails, d = _judge(verifier, pair, margin_of)
             if fails:
-                bad.add(verifier._names(p))
-            elif env and depth == 0.0:
+                bad.add(pair.names)
+            elif pair.environment and pair.allowed_depth == 0.0:
                 clearance = min(clearance, d)
         if bad:
             return s, bad, clearance
@@ -177,7 +185,7 @@ def _step(bundled: Plans, label: str) -> tuple[np.ndarray, np.ndarray, np.ndarra
 def _assert_same_as_dense(verifier: FclVerifier, t: np.ndarray, q: np.ndarray,
                           margin_of: dict[str, float]) -> VerifyResult | VerificationError:
     first, bad, clearance = _dense(verifier, q, margin_of)
-    grid = verifier._grid(q)
+    grid = verifier.grid(q)
     try:
         result = verifier.verify(t, q, np.zeros_like(q), steps=["step"] * len(t))
     except VerificationError as err:
@@ -284,21 +292,20 @@ def test_the_layer_bounds_are_below_fcl_distances(bundled_cell: Cell) -> None:
     slack = []
     for verifier in verifiers:
         for q in states:
-            bounds, poses = verifier._layer.bounds_at(q)
+            at = verifier.bounds_at(q)
+            bounds, poses = at.bounds, at.T_world_geom
             pin.forwardKinematics(model, data, q)
-            for m, body in enumerate(verifier._movers):
+            for m, body in enumerate(verifier.movers):
                 T = data.oMi[body.joint].homogeneous @ body.T
                 np.testing.assert_allclose(poses[m], T[:3], atol=1e-12)
                 body.fcl.setTransform(fcl.Transform(T[:3, :3], T[:3, 3]))
-            for p in range(len(verifier._pairs)):
-                i, j, env, _ = verifier._pairs[p]
-                o1 = verifier._movers[i].fcl
-                o2 = verifier._env[j].fcl if env else verifier._movers[j].fcl
+            for p, pair in enumerate(verifier.pairs):
+                o1, o2 = (body.fcl for body in _bodies(verifier, pair))
                 d = fcl.distance(o1, o2, fcl.DistanceRequest(), fcl.DistanceResult())
                 if fcl.collide(o1, o2, fcl.CollisionRequest(), fcl.CollisionResult()):
-                    assert bounds[p] <= 0.0, (verifier._names(p), q, bounds[p])
+                    assert bounds[p] <= 0.0, (pair.names, q, bounds[p])
                 else:
-                    assert bounds[p] <= d + 1e-9, (verifier._names(p), q, bounds[p], d)
+                    assert bounds[p] <= d + 1e-9, (pair.names, q, bounds[p], d)
                     slack.append(d - bounds[p])
     assert np.quantile(slack, 0.95) < 1e-4  # not a vacuous bound
 
@@ -389,6 +396,18 @@ def test_a_known_clearance_is_measured_only_below_it_as_a_dense_check_finds_it(
     assert below.bound_checks < alone.bound_checks
 
 
+def _layer_of(verifier: FclVerifier) -> Layer:
+    """A conservative layer of the verifier's bodies, environment and pairs, made as the
+    verifier makes its own."""
+    model = verifier.robot.model
+    movers, env, pairs = verifier.movers, verifier.environment, verifier.pairs
+    return Layer(model, [b.joint for b in movers], [b.T for b in movers],
+                 [b.spec for b in movers], [b.T for b in env], [b.spec for b in env],
+                 [(p.first, p.second, p.environment) for p in pairs],
+                 verifier.pair_weights.copy(),  # the kernels take writeable arrays
+                 np.array([p.clearance for p in pairs]), joint_tables(model))
+
+
 def test_a_walk_that_fills_its_outputs_resumes_where_it_stopped(
         bundled: Plans, monkeypatch: pytest.MonkeyPatch) -> None:
     """The kernel writes the couples it leaves to buffers of fixed room and returns when
@@ -398,8 +417,11 @@ def test_a_walk_that_fills_its_outputs_resumes_where_it_stopped(
 
     t, q, qd = _step(bundled, STEP)
     verifier = _verifier(bundled.cell)
-    layer, grid = verifier._layer, verifier._grid(q)
-    pairs = len(verifier._pairs)
+    layer, grid = _layer_of(verifier), verifier.grid(q)
+    pairs = len(verifier.pairs)
+    bound_theta = np.array([p.certified_above for p in verifier.pairs])
+    # The layer made here is the verifier's: the same bounds.
+    np.testing.assert_array_equal(layer.bounds_at(q[0])[0], verifier.bounds_at(q[0]).bounds)
 
     def walk(theta: np.ndarray) -> tuple[np.ndarray, ...]:
         memory = _verify_bounds.WalkMemory.empty(pairs)
@@ -410,13 +432,13 @@ def test_a_walk_that_fills_its_outputs_resumes_where_it_stopped(
     assert left[0].size == pairs * grid.samples
     np.testing.assert_array_equal(left[0], np.repeat(np.arange(pairs), grid.samples))
     np.testing.assert_array_equal(left[1], np.tile(np.arange(grid.samples), pairs))
-    real = walk(verifier._bound_theta)
+    real = walk(bound_theta)
     one_go = verifier.verify(t, q, qd)
     for room in (1, 7):
         monkeypatch.setattr(_verify_bounds, "_ROOM", room)
         for mine, theirs in zip(walk(np.full(pairs, np.inf)), left, strict=True):
             np.testing.assert_array_equal(mine, theirs)
-        for mine, theirs in zip(walk(verifier._bound_theta), real, strict=True):
+        for mine, theirs in zip(walk(bound_theta), real, strict=True):
             np.testing.assert_array_equal(mine, theirs)
         assert verifier.verify(t, q, qd) == one_go
 
@@ -558,13 +580,13 @@ def test_a_hulls_support_climbs_to_the_largest_vertex_from_any_start() -> None:
     must reach the same value as the scan over all vertices."""
     from safepath import load_robot
     from safepath.verify import _distance as kernel
-    from safepath.verify._bounds import _climbing, _shape_table
+    from safepath.verify._bounds import climbing, shape_table
 
     specs = [shape_spec(g.geometry) for g in load_robot("panda").collision_model.geometryObjects
              if isinstance(g.geometry, coal.ConvexBase)]
     assert sum(len(s.vertices) > 50 for s in specs) >= 5
-    table, hulls = _shape_table(specs)
-    hulls = _climbing(hulls)
+    table, hulls = shape_table(specs)
+    hulls = climbing(hulls)
     V, ptr, nbr, start = hulls
     assert ptr.size == len(V) + 1 and nbr.size == ptr[-1]
     rng = np.random.default_rng(11)
@@ -652,11 +674,12 @@ def test_pair_weights_leave_out_exactly_the_joints_that_carry_both_bodies(
     ``supports``), which moves them as one piece."""
     robot = bundled_cell.robot
     verifier = _verifier(bundled_cell)
-    model, movers = robot.model, verifier._movers
-    weights = verifier._weights
-    pairs = [(i, j, env) for i, j, env, _ in verifier._pairs]
+    model, movers = robot.model, verifier.movers
+    weights = verifier.motion_weights
+    pairs = [(p.first, p.second, p.environment) for p in verifier.pairs]
     got = pair_weights(model, [b.joint for b in movers], weights, pairs)
     assert got.shape == (len(pairs), model.nv)
+    np.testing.assert_array_equal(verifier.pair_weights, got)  # what the layer walks
     carriers = [{model.joints[j].idx_v for j in model.supports[b.joint] if j > 0}
                 for b in movers]
     assert any(not env and carriers[i] & carriers[j] for i, j, env in pairs)
@@ -679,7 +702,7 @@ def test_a_grid_cut_with_the_undominated_weights_is_the_grid_cut_with_all(
     q = robot.lower + rng.random((40, robot.model.nq)) * (robot.upper - robot.lower)
     random = rng.random((12, robot.model.nq)) * rng.integers(0, 2, (12, robot.model.nq))
     random = np.vstack([random, random[:3], random[:4] * 0.5])  # equal and bounded rows
-    for weights in (verifier._weights, random):
+    for weights in (verifier.motion_weights, random):
         kept = undominated(weights)
         assert 0 < len(kept) < len(weights)
         for row in weights:  # each row is bounded by a kept one
@@ -688,7 +711,7 @@ def test_a_grid_cut_with_the_undominated_weights_is_the_grid_cut_with_all(
             want, got = (Grid.cut(q, w, resolution) for w in (weights, kept))
             for name in ("knot_of", "frac", "step", "cum"):
                 assert np.array_equal(getattr(want, name), getattr(got, name)), name
-    assert len(undominated(verifier._weights)) < len(verifier._weights) / 2
+    assert len(undominated(verifier.motion_weights)) < len(verifier.motion_weights) / 2
 
 
 def test_verifiers_of_a_robot_share_its_bodies_and_see_them_change(detour_cell: Cell) -> None:
@@ -740,7 +763,7 @@ def test_stages_are_judged_as_each_stage_alone_judges_its_stretch(
     second = first.with_allowed(cell.scene.contacts_at("low1"))
     margins = _margins(cell, None, True)
     stretches = [(first, slice(0, start + 1)), (second, slice(start, len(t)))]
-    dense = [(_dense(v, q[k], margins), t[k], v._grid(q[k])) for v, k in stretches]
+    dense = [(_dense(v, q[k], margins), t[k], v.grid(q[k])) for v, k in stretches]
     failing = [(float(tk[g.knot_of[f]]), bad) for (f, bad, _), tk, g in dense if f is not None]
     staged = StagedVerifier([first, second])
     try:
@@ -804,8 +827,8 @@ def test_the_layers_own_kinematics_place_the_bodies_as_pinocchio_does(
         data = model.createData()
         for _ in range(5):
             q = pin.randomConfiguration(model)
-            _, poses = verifier._layer.bounds_at(q)
+            poses = verifier.bounds_at(q).T_world_geom
             pin.forwardKinematics(model, data, q)
-            for m, body in enumerate(verifier._movers[:len(poses)]):
+            for m, body in enumerate(verifier.movers[:len(poses)]):
                 want = (data.oMi[body.joint].homogeneous @ body.T)[:3]
                 np.testing.assert_allclose(poses[m], want, atol=1e-12)
