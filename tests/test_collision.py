@@ -450,12 +450,34 @@ def test_a_few_states_are_judged_one_by_one_as_a_batch_judges_them(
     assert any(colliding) and not all(colliding)
     fractions = np.linspace(0.0, 1.0, len(states))
     for start in range(0, len(states), 3):
-        batch = states[start:start + collision._FEW]
-        few = checker._check_states(batch, fractions[start:start + len(batch)], True)
+        batch, where = states[start:], fractions[start:]
         with monkeypatch.context() as patch:
-            patch.setattr(collision, "_FEW", 0)
-            pooled = checker._check_states(batch, fractions[start:start + len(batch)], True)
+            patch.setattr(collision, "_FEW", len(batch))  # one by one
+            few = checker.check_states(batch, where)
+            patch.setattr(collision, "_FEW", 0)  # a batch pool
+            pooled = checker.check_states(batch, where)
         assert (few.valid, few.checked, few.fraction, few.collisions) == (
             pooled.valid, pooled.checked, pooled.fraction, pooled.collisions)
         first = next((k for k, hit in enumerate(colliding[start:]) if hit), None)
         assert few.checked == (len(batch) if first is None else first + 1)
+
+
+def test_states_outside_the_limits_or_without_one_fraction_each_are_refused(
+        cell: Cell, robot: Robot) -> None:
+    """check_states: a state beyond a limit fails before any is checked, where it lies;
+    by default the k-th of n states lies at k / (n - 1); fractions must be one per
+    state."""
+    from safepath import InputError
+
+    checker = cell.checker()
+    states = np.vstack([q for q in map(cell.pose, cell.poses) if not checker.exact_collides(q)])
+    assert len(states) >= 3
+    free = checker.check_states(states)
+    assert free.valid and free.checked == len(states)
+    beyond = states.copy()
+    beyond[2, 0] = robot.upper[0] + 0.01
+    report = checker.check_states(beyond)
+    assert not report.valid and report.checked == 0 and report.limit_violation
+    assert report.fraction == 2 / (len(states) - 1)
+    with pytest.raises(InputError, match="fractions"):
+        checker.check_states(states, np.zeros(len(states) - 1))

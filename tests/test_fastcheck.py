@@ -58,7 +58,8 @@ def test_outer_spheres_enclose_every_shape(name: str) -> None:
         _assert_enclosed(geom.geometry, rng, f"{name}/{geom.name}")
 
 
-def test_a_fit_is_made_once_per_shape_and_never_handed_to_another() -> None:
+def test_a_fit_is_made_once_per_shape_and_never_handed_to_another(
+        monkeypatch: pytest.MonkeyPatch) -> None:
     """Fits are kept per process by what they are made of (kind, dimensions, a hull's
     points, the cell): the same shape gets the same (read-only) fit, a shape that differs
     in any of those gets its own, equal to one made afresh, and enclosed."""
@@ -87,7 +88,9 @@ def test_a_fit_is_made_once_per_shape_and_never_handed_to_another() -> None:
     assert fit_spheres(box, cell=0.01) is not first
     for g, fit in zip(variants, fits, strict=True):
         assert fit is not first
-        fresh = spheres._fit_shape(g, 0.015)
+        with monkeypatch.context() as patch:
+            patch.setattr(spheres, "_FITS", {})  # nothing kept: made afresh
+            fresh = fit_spheres(g, cell=0.015)
         np.testing.assert_array_equal(fit.outer_centers, fresh.outer_centers)
         np.testing.assert_array_equal(fit.outer_radii, fresh.outer_radii)
         _assert_enclosed(g, rng, type(g).__name__)
@@ -334,8 +337,9 @@ def test_one_call_segments_report_as_the_polyline_walk(cell: Cell, panda_cell: C
                     continue
                 lo, hi = (0, n) if ends else (1, n - 1)
                 lo = 1 if start is False else (0 if start else lo)
-                b = checker._certify(np.vstack([q0, q1]), np.array([n]), np.array([lo]),
-                                     np.array([hi]), False)
+                # The same grid states, walked as a polyline.
+                b = checker.check_path([q0, q1], details=False, check_start=lo == 0,
+                                       check_end=hi == n)
                 assert (a.valid, a.checked, a.fraction) == (b.valid, b.checked, b.fraction)
                 if not a.valid:
                     np.testing.assert_array_equal(a.q, b.q)

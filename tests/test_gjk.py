@@ -187,7 +187,7 @@ def test_search_stops_at_the_callers_thresholds(hulls: list) -> None:
 def test_edge_climbing_finds_the_farthest_vertex(hulls: list) -> None:
     """The support search climbs the hull's edges from any start: it must find the same
     farthest vertex as scanning them all."""
-    from safepath.collision._gjk import _climb
+    from safepath.collision._gjk import climb
 
     rng = np.random.default_rng(3)
     for shape in hulls:
@@ -196,5 +196,5 @@ def test_edge_climbing_finds_the_farthest_vertex(hulls: list) -> None:
         for _ in range(200):
             n = rng.normal(size=3)
             start = int(rng.integers(len(v)))
-            found = _climb(fb, 0, ib, 0, rows[0][1] + 1, 0, len(v), start, *n)
+            found = climb(fb, 0, ib, 0, rows[0][1] + 1, 0, len(v), start, *n)
             assert v[found] @ n == pytest.approx(np.max(v @ n), abs=1e-12)

@@ -47,7 +47,7 @@ MAX_ITER = 32
 
 
 @_inlined
-def _climb(fb, ov, ib, oap, oai, v0, v1, start, lx, ly, lz):  # noqa: N803
+def climb(fb, ov, ib, oap, oai, v0, v1, start, lx, ly, lz):  # noqa: N803
     """The hull vertex (row) farthest along (lx, ly, lz): steepest ascent over the
     hull's edges from ``start``. Exact on a convex polytope: a vertex that is not
     farthest has an edge along which the direction strictly increases."""
@@ -83,7 +83,7 @@ def support(kind, R, p, d, fb, ov, v0, v1, ib, oap, oai, start, nx, ny, nz,  # n
     x = y = z = 0.0
     found = -1
     if kind == HULL:
-        found = _climb(fb, ov, ib, oap, oai, v0, v1, start, lx, ly, lz)
+        found = climb(fb, ov, ib, oap, oai, v0, v1, start, lx, ly, lz)
         b = ov + 3 * found
         x, y, z = fb[b], fb[b + 1], fb[b + 2]
     elif kind == BOX or kind == BOX_ONLY_OUTER:

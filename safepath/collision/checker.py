@@ -26,7 +26,7 @@ from typing import Any
 import numpy as np
 import pinocchio as pin
 
-from ..errors import ConfigError
+from ..errors import ConfigError, InputError
 from ..robot import Robot, is_prismatic
 from ..scene import AllowedContact, Scene, SceneObject
 from ._pack import LayerSource
@@ -537,14 +537,22 @@ class CollisionChecker:
         return SegmentReport(False, checked, fraction, q, tuple(self.collisions(q)),
                              self.robot.limit_violation(q))
 
-    def check_path(self, path: Sequence[np.ndarray], *, details: bool = True
-                   ) -> SegmentReport:
+    def check_path(self, path: Sequence[np.ndarray], *, details: bool = True,
+                   check_start: bool = True, check_end: bool = True) -> SegmentReport:
         """Check a joint-space polyline at the checker's resolution.
 
         Every waypoint and, on every segment, states spaced as in :meth:`check_segment`
         are evaluated in one batch (in path order, stopping at the first collision).
         ``fraction`` of a failure is measured along the whole polyline (segments count
-        equally).
+        equally). A waypoint outside the joint limits fails the path before any state is
+        checked.
+
+        Args:
+            path: The waypoints [rad].
+            details: Report the colliding pairs of a failure.
+            check_start: Check the first waypoint (False: it was checked before, as the
+                end of the motion before).
+            check_end: Check the last waypoint.
         """
         P = np.asarray(path, dtype=float)
         if P.ndim != 2 or len(P) < 1:
@@ -557,17 +565,53 @@ class CollisionChecker:
         # segment_states of every segment at once.
         counts = np.maximum(1, np.ceil(np.abs(np.diff(P, axis=0)) @ self._weights
                                        / self.options.resolution)).astype(np.int64)
+        if len(P) == 1 and not (check_start and check_end):
+            return SegmentReport(True, 0)
         if self.layer is not None and len(P) > 1:
             lo = np.ones(len(counts), dtype=np.int64)
-            lo[0] = 0
-            return self._certify(P, counts, lo, counts, details)
+            lo[0] = 0 if check_start else 1
+            hi = counts
+            if not check_end:
+                hi = counts.copy()
+                hi[-1] -= 1
+            return self._certify(P, counts, lo, hi, details)
         chunks, where = [P[:1]], [np.zeros(1)]
         for k in range(len(P) - 1):
             f = np.arange(1, counts[k] + 1) / counts[k]
             chunks.append(P[k][None, :] + f[:, None] * (P[k + 1] - P[k])[None, :])
             where.append(k + f)
-        fractions = np.concatenate(where) / max(1, len(P) - 1)
-        return self._check_states(np.vstack(chunks), fractions, details)
+        states, fractions = np.vstack(chunks), np.concatenate(where) / max(1, len(P) - 1)
+        first, stop = (0 if check_start else 1), len(states) - (0 if check_end else 1)
+        return self._check_states(states[first:stop], fractions[first:stop], details)
+
+    def check_states(self, states: Any, fractions: Any = None, *, details: bool = True
+                     ) -> SegmentReport:
+        """Check ``states`` exactly (coal), in the given order, stopping at the first
+        collision (later states are then not evaluated): a few one by one, more in one
+        batch. A state outside the joint limits fails the check before any is checked.
+
+        Args:
+            states: Joint positions, one state per row [rad].
+            fractions: Where each state lies along the motion they sample, in [0, 1],
+                for the report's ``fraction`` (default: k / (n - 1) for the k-th of n).
+            details: Report the colliding pairs of a failure.
+
+        Raises:
+            InputError: ``fractions`` not one per state.
+        """
+        P = np.atleast_2d(np.asarray(states, dtype=float))
+        if fractions is None:
+            fractions = np.arange(len(P)) / max(1, len(P) - 1)
+        fractions = np.asarray(fractions, dtype=float)
+        if fractions.shape != (len(P),):
+            raise InputError(f"fractions: {fractions.shape} for {len(P)} states, one per "
+                             "state wanted", key="fractions")
+        robot = self.robot
+        outside = ~np.all((P >= robot.lower) & (P <= robot.upper), axis=1)
+        if outside.any():
+            k = int(np.argmax(outside))
+            return self._outside(P[k], float(fractions[k]))
+        return self._check_states(P, fractions, details)
 
     def _certify(self, P: np.ndarray, counts: np.ndarray, lo: np.ndarray, hi: np.ndarray,
                  details: bool, checked: int = 0, evaluated: int = 0) -> SegmentReport:
