@@ -139,6 +139,11 @@ class MonitorReplay:
                 f"separation {mm(d['separation_now'])}, protective distance "
                 f"{d['protective_distance'] * 1000:.0f} mm. {d['reason']}")
 
+    @property
+    def playing(self) -> bool:
+        """Whether the replay is playing (Play pressed, not paused nor at its end)."""
+        return self._playing
+
     def pause(self) -> None:
         """Stop playing (the slider stays where it is)."""
         self._playing = False

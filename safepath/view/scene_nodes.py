@@ -96,6 +96,11 @@ class ShapeNode:
         self.root.wxyz = wxyz
         self.root.position = position
 
+    @property
+    def shown_color(self) -> Rgb | None:
+        """The colour the shape is painted now (None: never painted)."""
+        return self._shown
+
     def paint(self, color: Rgb) -> None:
         """Colour the shape (no message when unchanged)."""
         if color != self._shown:

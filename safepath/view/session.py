@@ -20,10 +20,11 @@ Parts, each with explicit inputs, one lock for all: ``stage`` (what every page s
 
 from __future__ import annotations
 
+import contextlib
 import logging
 import threading
 import time
-from collections.abc import Callable, Mapping
+from collections.abc import Callable, Iterator, Mapping
 from concurrent.futures import Future
 from dataclasses import replace
 from pathlib import Path
@@ -267,6 +268,15 @@ class ReviewSession:
         """Playback speed (1 = real time)."""
         return self.timeline.speed
 
+    @contextlib.contextmanager
+    def locked(self) -> Iterator[None]:
+        """Hold the session's lock for the block: no page's callback, playback tick or
+        plan result changes the session meanwhile, so that edits made from Python
+        through several calls (a page's, or the session's own methods: the lock is
+        re-entrant) land as one, as a page's callbacks do (they run under it)."""
+        with self._lock:
+            yield
+
     def select_route(self, name: str) -> None:
         """Show route ``name`` from its start (ends a pose edit from Python).
 
@@ -408,13 +418,13 @@ class ReviewSession:
         p, timeline = self.panel, self.timeline
 
         def on(handle: Any, fn: Callable[[Any], object]) -> None:
-            handle.on_update(self._guard(fn))
+            handle.on_update(self.guarded(fn))
 
         on(p.route, lambda ev: self.select_route(ev.target.value)
            if ev.target.value != NO_ROUTE else None)
         on(p.time, lambda ev: self.seek(float(ev.target.value)))
-        p.play.on_click(self._guard(lambda ev: self.play()))
-        p.pause.on_click(self._guard(lambda ev: self.pause()))
+        p.play.on_click(self.guarded(lambda ev: self.play()))
+        p.pause.on_click(self.guarded(lambda ev: self.pause()))
         on(p.speed, lambda ev: self.set_speed(float(ev.target.value)))
         on(p.visual_style, lambda ev: self._locked(
             self.stage.robot_nodes.set_style, "visual" if ev.target.value else "collision"))
@@ -452,6 +462,10 @@ class ReviewSession:
                 client.add_notification("safepath", text, color="red" if error else "blue",
                                         auto_close_seconds=10.0)
 
-    def _guard(self, fn: Callable[..., object]) -> Callable[[Any], None]:
-        """A shared-panel callback that shows failures in the page instead of raising."""
+    def guarded(self, fn: Callable[..., object]) -> Callable[[Any], None]:
+        """``fn`` as a GUI callback (it takes viser's event) for a widget on the
+        session's server that shows a failure instead of raising: a
+        :class:`~safepath.SafepathError`'s message, or any other exception's type and
+        message, goes to every page's status line, a notification and
+        :attr:`messages`. Events the server made itself (no client) are ignored."""
         return guard(fn, lambda text: self._say(text, error=True))

@@ -238,16 +238,16 @@ class PosesStore:
             def write_ahead(tmp: Path) -> None:
                 entry["sha256_after"] = _digest(tmp.read_bytes())
                 _fsync_folder(tmp.parent)  # the temporary file's name is on disk too
-                _append(log_file, entry)
+                append_log_entry(log_file, entry)
 
             try:
                 save_poses(self.path, poses, self.robot, backup=True,
                            before_replace=write_ahead)
             except SafepathError as exc:
                 if entry["sha256_after"]:  # logged, then the rename failed
-                    _append(log_file, {"time": _now(), "client": client,
-                                       "file": self.path.name, "undone": entry["time"],
-                                       "reason": str(exc)})
+                    append_log_entry(log_file, {"time": _now(), "client": client,
+                                                "file": self.path.name,
+                                                "undone": entry["time"], "reason": str(exc)})
                 raise
             _fsync_folder(self.path.parent)
             new = self.read()
@@ -300,8 +300,10 @@ def _now() -> str:
     return datetime.now(timezone.utc).isoformat(timespec="milliseconds")
 
 
-def _append(log_file: Any, entry: dict[str, Any]) -> None:
-    """One line on the log, on disk before this returns."""
+def append_log_entry(log_file: Any, entry: dict[str, Any]) -> None:
+    """Append ``entry`` as one JSON line to the open poses log ``log_file``
+    (``poses.log``), on disk before this returns: every save is logged so, before the
+    poses file is replaced."""
     log_file.write(json.dumps(entry) + "\n")
     log_file.flush()
     os.fsync(log_file.fileno())

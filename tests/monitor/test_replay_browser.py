@@ -54,14 +54,14 @@ class _Page:
         with urllib.request.urlopen(f"http://127.0.0.1:{port}/json/list", timeout=10) as r:
             page = next(t for t in json.load(r) if t["type"] == "page")
         self.ws = ws_sync.connect(page["webSocketDebuggerUrl"], max_size=None)
-        self._id = 0
+        self.call_id = 0
 
     def call(self, method: str, **params: Any) -> dict[str, Any]:
-        self._id += 1
-        self.ws.send(json.dumps({"id": self._id, "method": method, "params": params}))
+        self.call_id += 1
+        self.ws.send(json.dumps({"id": self.call_id, "method": method, "params": params}))
         while True:
             msg = json.loads(self.ws.recv(timeout=30))
-            if msg.get("id") == self._id:
+            if msg.get("id") == self.call_id:
                 return dict(msg.get("result", {}))
 
     def shot(self) -> np.ndarray:
@@ -106,7 +106,7 @@ def test_replay_page_draws_the_zone_and_plays(cell: Cell, bag: Path, tmp_path: P
         assert page.click("Play"), "no Play button"
         _wait(lambda: float(replay.slider.value) > 0.5, 10.0, "Play did not run the replay")
         assert page.click("Pause")
-        _wait(lambda: not replay._playing, 5.0, "Pause did not stop the replay")
+        _wait(lambda: not replay.playing, 5.0, "Pause did not stop the replay")
     finally:
         replay.pause()
         page.close()

@@ -60,17 +60,17 @@ class Browser:
             pages = [t for t in json.load(r) if t["type"] == "page"]
         self.ws = ws_sync.connect(pages[0]["webSocketDebuggerUrl"], max_size=None,
                                   open_timeout=10)
-        self._id = 0
+        self.call_id = 0
         self.call("Emulation.setDeviceMetricsOverride", width=WIDTH, height=HEIGHT,
                   deviceScaleFactor=1, mobile=False)
 
     def call(self, method: str, **params: Any) -> dict[str, Any]:
         """Send one DevTools command and return its result."""
-        self._id += 1
-        self.ws.send(json.dumps({"id": self._id, "method": method, "params": params}))
+        self.call_id += 1
+        self.ws.send(json.dumps({"id": self.call_id, "method": method, "params": params}))
         while True:
             msg = json.loads(self.ws.recv(timeout=30))
-            if msg.get("id") == self._id:
+            if msg.get("id") == self.call_id:
                 if "error" in msg:
                     raise RuntimeError(f"{method}: {msg['error']}")
                 return dict(msg.get("result", {}))
@@ -293,7 +293,7 @@ def test_two_pages_need_the_token_and_lose_no_edit(tmp_path: Path, cell_copy: Pa
         wait_for(lambda: pb.may_edit, 10.0, "page b was not unlocked")
 
         # Different poses edited on two pages: both saves land, each logged.
-        with session._lock:
+        with session.locked():
             qa = pa.set_joint(0, float(q0[0]) + 0.05).q
             pb.edit_pose("safe")
             qb = pb.set_joint(5, float(pb.edits.q("safe")[5]) + 0.05).q
@@ -316,7 +316,7 @@ def test_two_pages_need_the_token_and_lose_no_edit(tmp_path: Path, cell_copy: Pa
         assert (cell_copy / "poses.yaml~").exists()
 
         # The same pose on two pages: the second save is refused, never overwrites.
-        with session._lock:
+        with session.locked():
             pa.edit_pose("low1")
             q_low = pa.edits.q("low1")
             qa_low = pa.set_joint(0, float(q_low[0]) + 0.02).q
@@ -481,7 +481,7 @@ def test_joint_boxes_refuse_out_of_limit_values_keep_precision_and_follow_rights
         wait_for(lambda: button_disabled(browser, "Save poses") is not None, 30.0,
                  "the page never showed its edit folder")
         (page,) = session.clients.values()
-        with session._lock:
+        with session.locked():
             page.edit_pose("low1")
         q0 = page.edits.q("low1")
         wait_for(lambda: (box(browser, "joint_1 [rad]") or {}).get("value") == "1.4017786",

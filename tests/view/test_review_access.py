@@ -135,20 +135,20 @@ def test_a_page_guessing_tokens_locks_out_itself_not_its_host(
         assert guesser.host == other.host == "127.0.0.1"
         assert "the token this session was started with" in guesser.widgets.access_note.content
         for _ in range(3):
-            with pytest.raises(AccessDenied, match="wrong token"), session._lock:
+            with pytest.raises(AccessDenied, match="wrong token"), session.locked():
                 guesser.unlock("not-the-token")
-        with pytest.raises(AccessDenied, match="from this page"), session._lock:
+        with pytest.raises(AccessDenied, match="from this page"), session.locked():
             guesser.unlock(token)
-        with session._lock:
+        with session.locked():
             other.unlock(token)  # the host is not locked out by one page
         assert other.may_edit and not guesser.may_edit
         third = raw_pages(session)
         for _ in range(2):  # the host's 4th and 5th wrong tokens
-            with pytest.raises(AccessDenied, match="wrong token"), session._lock:
+            with pytest.raises(AccessDenied, match="wrong token"), session.locked():
                 third.unlock("not-the-token")
         fourth = raw_pages(session)  # a reload is a new page: the host's ceiling holds
         with pytest.raises(AccessDenied, match="from 127.0.0.1 \\(all its pages\\)"), \
-                session._lock:
+                session.locked():
             fourth.unlock(token)
         assert not fourth.may_edit
     finally:
@@ -163,37 +163,37 @@ def test_a_page_saves_only_what_it_showed(cell_copy: Path,
         port=0, plan_on_start=False, replan_on_save=False)).start()
     try:
         page, other = raw_pages(session), raw_pages(session)
-        with session._lock:
+        with session.locked():
             page.edit_pose("low1")
             page.set_joint(0, 1.4318)
             shown = page.save()
         assert "**low1**: joint_1 = 1.4318 (was 1.401779) rad" in shown.summary
         assert page.widgets.to_save.content == shown.summary and page.widgets.confirm.visible
         assert not (cell_copy / "poses.log").exists()  # nothing written yet
-        with session._lock:  # an edit arriving after the values were shown
+        with session.locked():  # an edit arriving after the values were shown
             page.set_joint(0, 1.4319)
         assert page.pending is None and not page.widgets.confirm.visible
         with pytest.raises(SafepathError, match="not saved: press Save poses first"), \
-                session._lock:
+                session.locked():
             page.confirm_save()
-        with session._lock:
+        with session.locked():
             page.save()
             other.edit_pose("safe")
             q = other.set_joint(5, float(other.edits.q("safe")[5]) + 0.01).q
             other.save()
             other.confirm_save()  # another page's save moves the base on
         assert page.pending is None
-        with pytest.raises(SafepathError, match="press Save poses first"), session._lock:
+        with pytest.raises(SafepathError, match="press Save poses first"), session.locked():
             page.confirm_save()
-        with session._lock:  # the edit buffer changed by a path that shows nothing
+        with session.locked():  # the edit buffer changed by a path that shows nothing
             page.save()
             q_low = page.edits.q("low1")
             q_low[1] += 0.01
             page.edits.set("low1", q_low)
         with pytest.raises(SafepathError, match="changed after Save poses showed them"), \
-                session._lock:
+                session.locked():
             page.confirm_save()
-        with session._lock:
+        with session.locked():
             page.edits.set("low1", q_low - np.array([0, 0.01, 0, 0, 0, 0]))
             page.save()
             page.confirm_save()

@@ -244,7 +244,7 @@ def test_a_save_has_landed_when_the_file_is_replaced_not_when_its_line_appears(
     assert np.array_equal(other.edits["safe"], q_safe)  # carried over the first save
 
     at_line: dict[str, Any] = {}
-    append = store._append
+    append = store.append_log_entry
 
     def append_and_look(log_file: Any, entry: dict[str, Any]) -> None:
         append(log_file, entry)
@@ -252,7 +252,7 @@ def test_a_save_has_landed_when_the_file_is_replaced_not_when_its_line_appears(
                        safe=load_poses(poses_file, robot)["safe"],
                        told=[m for m in session.messages if "saved by 127.0.0.1:5" in m])
 
-    monkeypatch.setattr(store, "_append", append_and_look)
+    monkeypatch.setattr(store, "append_log_entry", append_and_look)
     session.save_edits(other, "127.0.0.1:5")
     # At its line: logged, the file not replaced yet, nobody told.
     assert at_line["lines"] == 2 and at_line["landed"] == 1 and at_line["told"] == []

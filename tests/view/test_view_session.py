@@ -124,12 +124,12 @@ def test_a_state_in_collision_is_drawn_red(open_session: Callable[..., ReviewSes
     assert any("intruder" in pair for pair in session.shown.collisions)
     # Exactly the geometry of the colliding pairs is red (links, the held vial, ...).
     nodes = [*session.robot_nodes.nodes, *session.cell_nodes.nodes.values()]
-    red = {n.name for n in nodes if n._shown == HIGHLIGHT}
+    red = {n.name for n in nodes if n.shown_color == HIGHLIGHT}
     assert red == {name for pair in session.shown.collisions for name in pair}
     assert "intruder" in red
     session.seek(0.0)
     assert session.shown.valid
-    assert not any(n._shown == HIGHLIGHT for n in session.robot_nodes.nodes)
+    assert not any(n.shown_color == HIGHLIGHT for n in session.robot_nodes.nodes)
 
 
 def test_play_advances_time_and_moves_the_robot(session: ReviewSession) -> None:
@@ -196,7 +196,7 @@ def test_a_colliding_edit_is_flagged_and_not_saved(open_session: Callable[..., R
     assert not status.valid
     assert ("vial", "test_plate") in status.collisions
     assert session.shown is not None and not session.shown.valid
-    assert session.cell_nodes.nodes["test_plate"]._shown == HIGHLIGHT
+    assert session.cell_nodes.nodes["test_plate"].shown_color == HIGHLIGHT
     assert "COLLISION" in status.summary()
     with pytest.raises(CollisionError, match="low1"):
         session.save_poses()
@@ -313,12 +313,12 @@ def test_gui_callbacks_show_errors_instead_of_raising(session: ReviewSession) ->
     def bug(_: object) -> None:
         raise ZeroDivisionError("boom")
 
-    session._guard(bad_input)(event)
+    session.guarded(bad_input)(event)
     assert "that went wrong" in session.panel.status.content
-    session._guard(bug)(event)
+    session.guarded(bug)(event)
     assert session.messages[-1] == "internal error: ZeroDivisionError: boom"
     # A pose edit without a selected pose is a message too, not a traceback.
-    session._guard(lambda e: session.editor.set_joint(0, 0.1))(event)
+    session.guarded(lambda e: session.editor.set_joint(0, 0.1))(event)
     assert session.messages[-1] == "pick a pose to edit first"
 
 
