@@ -15,7 +15,7 @@ from typing import Any
 
 import numpy as np
 
-__all__ = ["peaks"]
+__all__ = ["compiled_kernels", "peaks"]
 
 _lock = threading.Lock()
 _compiled: dict[str, Callable[..., Any]] = {}
@@ -90,7 +90,7 @@ def peaks(t: np.ndarray, q: np.ndarray, qd: np.ndarray, qdd: np.ndarray, rate: f
           ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Speed bound, acceleration and jerk peaks of the quintic join of the points, per
     interval and joint (see :func:`_peaks`)."""
-    kernel = _kernels()["peaks"]
+    kernel = compiled_kernels()["peaks"]
     t, q, qd, qdd = (np.ascontiguousarray(x, dtype=np.float64) for x in (t, q, qd, qdd))
     shape = (t.size - 1, q.shape[1])
     v, a, j = np.empty(shape), np.empty(shape), np.empty(shape)
@@ -98,7 +98,7 @@ def peaks(t: np.ndarray, q: np.ndarray, qd: np.ndarray, qdd: np.ndarray, rate: f
     return v, a, j
 
 
-def _kernels() -> dict[str, Callable[..., Any]]:
+def compiled_kernels() -> dict[str, Callable[..., Any]]:
     """The compiled kernel: ahead of time, else numba's (compiled, or loaded from numba's
     cache, once); see :mod:`safepath._aot`."""
     with _lock:

@@ -72,7 +72,7 @@ def test_every_kernel_module_is_hashed_and_every_entry_exists() -> None:
 
     for name in MODULES:
         importlib.import_module(name)
-    _topp._kernels()
+    _topp.compiled_kernels()
     assert {module for module, _ in _aot.decorated} <= set(MODULES)
     for name, entry in ENTRIES.items():
         assert entry.module in MODULES, name
@@ -121,12 +121,12 @@ def recorded() -> dict[str, list[tuple[Any, ...]]]:
             if mod == module.__name__:
                 patched.append((module, function, getattr(module, function)))
                 setattr(module, function, recorder(name, getattr(module, function)))
-    kernels = _topp._kernels()
+    kernels = _topp.compiled_kernels()
     saved = dict(kernels)
     kernels["backward"] = recorder("topp_backward", saved["backward"])
     kernels["forward"] = recorder("topp_forward", saved["forward"])
     kernels["tridiagonal"] = recorder("topp_tridiagonal", saved["tridiagonal"])
-    join = _joinkernel._kernels()
+    join = _joinkernel.compiled_kernels()
     saved_join = dict(join)
     join["peaks"] = recorder("join_peaks", saved_join["peaks"])
     try:
@@ -191,7 +191,7 @@ def _monitor(cell: safepath.Cell, phase1: safepath.Trajectory) -> None:
 
 def test_ahead_of_time_kernels_answer_as_numba_bit_for_bit(
         built: Build, recorded: dict[str, list[tuple[Any, ...]]]) -> None:
-    module, reason = _aot._load(built.path)
+    module, reason = _aot.load(built.path)
     assert module is not None, reason
     uncalled = {"verify_axis_bound", "verify_gjk_bound"}  # bound_between: diagnostics
     empty = sorted(n for n in set(ENTRIES) - uncalled if not recorded[n])
@@ -219,14 +219,14 @@ def test_arguments_off_the_signature_run_the_jit_kernel_or_raise_when_strict(
 ) -> None:
     """An int64 array where float64 is expected, or a strided view, would be read as the
     signature says by the raw extension: the guard hands such calls to numba instead."""
-    module, _ = _aot._load(built.path)
+    module, _ = _aot.load(built.path)
     assert module is not None
     entry = ENTRIES["ik_log6"]
     taken: list[tuple[Any, ...]] = []
 
     def fallback(name: str, args: tuple[Any, ...]) -> Any:
         taken.append(args)
-        return _aot._fallback(name, args)
+        return _aot.fallback(name, args)
 
     log6 = guard.wrap("ik_log6", entry, module.ik_log6, fallback)
     R = np.eye(3)
@@ -323,7 +323,7 @@ def test_a_compiled_kernel_releases_the_gil(built: Build) -> None:
     import threading
     import time
 
-    module, _ = _aot._load(built.path)
+    module, _ = _aot.load(built.path)
     assert module is not None
     cell = safepath.load_cell(CELL)
     layer = cell.checker(held=False).layer
@@ -400,24 +400,24 @@ def test_guards_compiled_code_is_kept_next_to_the_build_and_a_bad_file_is_replac
         caplog: pytest.LogCaptureFixture) -> None:
     """A new process finds the guards compiled (no compile call); a damaged file is
     ignored with a warning, the guards compiled again and the file made whole."""
-    module, _ = _aot._load(built.path)
+    module, _ = _aot.load(built.path)
     assert module is not None
     monkeypatch.setattr(guard, "_codes", {})
     monkeypatch.setattr(guard, "_code_file", [])
     guard.keep_code_in(tmp_path)
     names = sorted(ENTRIES)[:3]
-    first = [guard.wrap(n, ENTRIES[n], getattr(module, n), _aot._fallback) for n in names]
+    first = [guard.wrap(n, ENTRIES[n], getattr(module, n), _aot.fallback) for n in names]
     kept = tmp_path / f"guards.{sys.implementation.cache_tag}.marshal"
     assert kept.is_file() and not list(tmp_path.glob("*.part"))
 
     def compiled_in_a_new_process() -> int:
-        guard._codes.clear()
+        monkeypatch.setattr(guard, "_codes", {})  # a new process holds no code yet
         guard.keep_code_in(tmp_path)
         calls = []
         real = compile
         monkeypatch.setattr(guard, "compile", lambda *a: calls.append(a) or real(*a),
                             raising=False)
-        again = [guard.wrap(n, ENTRIES[n], getattr(module, n), _aot._fallback)
+        again = [guard.wrap(n, ENTRIES[n], getattr(module, n), _aot.fallback)
                  for n in names]
         monkeypatch.delattr(guard, "compile")
         assert [f.__code__.co_code for f in again] == [f.__code__.co_code for f in first]

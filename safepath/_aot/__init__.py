@@ -42,7 +42,7 @@ from .._digest import sha256
 from .table import ENTRIES, MODULES, PLANNING_MODULES
 
 __all__ = ["njit", "compiled", "status", "source_key", "build_dir", "cache_root",
-           "materialize", "strict", "PLANNING_MODULES"]
+           "fallback", "load", "materialize", "strict", "PLANNING_MODULES"]
 
 log = logging.getLogger(__name__)
 
@@ -172,7 +172,7 @@ def compiled() -> ModuleType | None:
         if _enabled():
             path, reason = find()
             if path is not None:
-                module, reason = _load(path)
+                module, reason = load(path)
                 if module is not None:
                     from .guard import keep_code_in
 
@@ -184,7 +184,9 @@ def compiled() -> ModuleType | None:
         return module
 
 
-def _load(path: Path) -> tuple[ModuleType | None, str]:
+def load(path: Path) -> tuple[ModuleType | None, str]:
+    """The extension module built at ``path``, and "" (or None, and why it is not used:
+    it does not load, or lacks an exported kernel)."""
     name = path.name.split(".")[0]
     try:
         spec = importlib.util.spec_from_file_location(name, path)
@@ -251,7 +253,7 @@ def materialize() -> None:
         log.debug("numba dispatchers bound for %d kernels", len(pending))
 
 
-def _fallback(name: str, args: tuple[Any, ...]) -> Any:
+def fallback(name: str, args: tuple[Any, ...]) -> Any:
     """A call whose arguments do not match the exported signature: numba's JIT kernel
     (compiled for whatever was passed), or TypeError in strict mode."""
     from .guard import describe
@@ -301,7 +303,7 @@ def njit(**options: Any) -> Callable[[Callable[..., Any]], Any]:
         from .guard import wrap
 
         _EXPORTED[name] = lazy
-        wrapped = wrap(name, ENTRIES[name], getattr(module, name), _fallback)
+        wrapped = wrap(name, ENTRIES[name], getattr(module, name), fallback)
         wrapped._safepath_lazy = lazy  # type: ignore[attr-defined]
         wrapped.py_func = function  # type: ignore[attr-defined]
         return wrapped

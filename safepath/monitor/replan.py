@@ -42,8 +42,8 @@ from ..scene import SceneObject, Shape
 from ..trajectory import Trajectory
 from .monitor import ReplanRequest
 
-__all__ = ["replan", "ways", "step_role", "world_at", "obstacle_scene", "Way", "StepRole",
-           "REST_POSE", "OBSTACLE"]
+__all__ = ["replan", "ways", "step_role", "world_at", "obstacle_scene", "start_pose",
+           "step_index", "Way", "StepRole", "REST_POSE", "OBSTACLE"]
 
 #: Name of the temporary pose the re-planned route starts from.
 REST_POSE = "monitor_rest"
@@ -99,7 +99,7 @@ def step_role(routes: Mapping[str, Route], route: Route, index: int) -> StepRole
     return "leavable"
 
 
-def _start_pose(route: Route, first: int) -> str | None:
+def start_pose(route: Route, first: int) -> str | None:
     """The taught pose step ``first`` starts from (None: not exactly a taught pose)."""
     pose: str | None = route.start
     for step in route.steps[:first]:
@@ -108,7 +108,7 @@ def _start_pose(route: Route, first: int) -> str | None:
     return pose
 
 
-def _step_index(route: Route, label: str) -> int | None:
+def step_index(route: Route, label: str) -> int | None:
     """Index of the step ``label`` names: exactly, or (in a re-planned route, whose steps
     are numbered from 0 again) by its text after the number, the last such step."""
     labels = route.labels()
@@ -126,7 +126,7 @@ def _absolute(cell: Cell, route: Route, index: int) -> Target | None:
     target = route.steps[index].target
     if target is None or target.pose is not None or target.cartesian is not None:
         return target
-    start = _start_pose(route, index)
+    start = start_pose(route, index)
     if start is None:
         return None
     import pinocchio as pin
@@ -279,7 +279,7 @@ def replan(cell: Cell, route_name: str, request: ReplanRequest, *, held: str | N
     route = routes.get(base)
     if route is None:
         raise PlanningError(f"unknown route '{route_name}' (routes: {', '.join(routes)})")
-    first = _step_index(route, request.step)
+    first = step_index(route, request.step)
     if first is None:
         raise PlanningError(f"route '{base}' has no step '{request.step}'")
     if world is None:
@@ -289,7 +289,7 @@ def replan(cell: Cell, route_name: str, request: ReplanRequest, *, held: str | N
     options = options or PlanOptions()
     candidates, limit = ways(cell, routes, route, first)
     failed: list[str] = []
-    start = _start_pose(route, first)
+    start = start_pose(route, first)
     cells: dict[bool, Cell] = {}  # one per contact set: its checkers are built once
     for way in candidates:
         if way.keeps_line not in cells:

@@ -24,7 +24,8 @@ from ..errors import PlanningError
 from . import _ompl
 from .options import PLANNERS, PlannerOptions
 
-__all__ = ["PlannerOptions", "plan_joint_path", "shortcut", "default_range", "PLANNERS"]
+__all__ = ["PlannerOptions", "plan_joint_path", "random_shortcuts", "shortcut", "default_range",
+           "PLANNERS"]
 
 log = logging.getLogger(__name__)
 
@@ -144,18 +145,26 @@ def shortcut(checker: CollisionChecker, path: list[np.ndarray], rng: np.random.G
         else:
             i += 1
     draws = rng.random((iterations, 4))
-    out, checked = _shortcuts(checker, pts, draws, min_gain, eager=False)
+    out, checked = random_shortcuts(checker, pts, draws, min_gain, eager=False)
     if all(checked[i] or checker.segment_is_valid(out[i], out[i + 1], check_ends=False)
            for i in range(len(out) - 1)):
         return out
-    return _shortcuts(checker, pts, draws, min_gain, eager=True)[0]
+    return random_shortcuts(checker, pts, draws, min_gain, eager=True)[0]
 
 
-def _shortcuts(checker: CollisionChecker, pts: list[np.ndarray], draws: np.ndarray,
-               min_gain: float, eager: bool) -> tuple[list[np.ndarray], list[bool]]:
-    """The random shortcuts of :func:`shortcut` (one row of ``draws`` per iteration), and
-    per edge of the result whether it was checked as it stands. ``eager``: a shortcut is
-    kept only if the kept parts of its two segments pass too."""
+def random_shortcuts(checker: CollisionChecker, pts: list[np.ndarray], draws: np.ndarray,
+                     min_gain: float, eager: bool) -> tuple[list[np.ndarray], list[bool]]:
+    """The random shortcuts :func:`shortcut` makes of the valid polyline ``pts`` [rad],
+    and per edge of the result whether it was checked as it stands.
+
+    Args:
+        checker: The collision checker.
+        pts: The polyline [rad].
+        draws: One row per iteration: four uniforms in [0, 1) (the two segments, and
+            the points on them).
+        min_gain: Least share of the path's length a shortcut must save to be checked.
+        eager: Keep a shortcut only if the kept parts of its two segments pass too.
+    """
     checked = [True] * (len(pts) - 1)
     k, iterations = 0, len(draws)  # draws used
     while k < iterations and len(pts) >= 3:

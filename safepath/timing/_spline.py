@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["CubicPath"]
+__all__ = ["CubicPath", "solve_tridiagonal"]
 
 
 class CubicPath:
@@ -65,7 +65,7 @@ class CubicPath:
         d = x[-1] - x[-3]
         ab[1, -1], ab[2, -2] = h[-2], d
         b[-1] = (h[-1] ** 2 * delta[-2] + (2.0 * d + h[-1]) * h[-2] * delta[-1]) / d
-        return _solve_tridiagonal(ab[2, :-1], ab[1], ab[0, 1:], b)
+        return solve_tridiagonal(ab[2, :-1], ab[1], ab[0, 1:], b)
 
     def __call__(self, s: np.ndarray | float, nu: int = 0) -> np.ndarray:
         """Values (``nu`` = 0) or their first, second or third derivative at ``s``: (len(s), d),
@@ -90,7 +90,7 @@ class CubicPath:
         return out[0] if s_arr.ndim == 0 else out
 
 
-def _solve_tridiagonal(dl: np.ndarray, d: np.ndarray, du: np.ndarray, b: np.ndarray
+def solve_tridiagonal(dl: np.ndarray, d: np.ndarray, du: np.ndarray, b: np.ndarray
                        ) -> np.ndarray:
     """Solve the tridiagonal system (sub-diagonal ``dl``, diagonal ``d``, super-diagonal
     ``du``) for the right-hand sides ``b`` (n, k), n >= 3: LAPACK's ``dgtsv`` (Gaussian
@@ -100,11 +100,11 @@ def _solve_tridiagonal(dl: np.ndarray, d: np.ndarray, du: np.ndarray, b: np.ndar
     ``scipy.linalg`` (0.15 s in a new process): the compiled ``_topp._tridiagonal``
     (a Python loop over the rows took ~0.4 ms per spline). The inputs are not modified.
     """
-    from ._topp import _kernels
+    from ._topp import compiled_kernels
 
     dl, d, du = (np.array(x, dtype=float) for x in (dl, d, du))
     b = np.array(b, dtype=float)
-    singular = _kernels()["tridiagonal"](dl, d, du, b)
+    singular = compiled_kernels()["tridiagonal"](dl, d, du, b)
     if singular:
         raise ValueError(f"singular tridiagonal system (row {singular - 1})")
     return b

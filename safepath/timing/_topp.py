@@ -32,7 +32,8 @@ import numpy as np
 
 from .._knots import interval_index
 
-__all__ = ["Profile", "acceleration_rows", "solve", "parametrize", "evaluate"]
+__all__ = ["Profile", "acceleration_rows", "compiled_kernels", "evaluate", "parametrize",
+           "solve"]
 
 #: Largest squared path speed [1/s^2] where no joint limits it (a joint path at rest).
 X_CAP = 1e12
@@ -99,7 +100,7 @@ def solve(grid: np.ndarray, xmax: np.ndarray, a: np.ndarray, b: np.ndarray, c: n
         sets are empty, the inputs are not finite, or the path would have to rest over
         a whole grid interval (which takes forever).
     """
-    kernels = _kernels()
+    kernels = compiled_kernels()
     delta = np.ascontiguousarray(np.diff(grid), dtype=np.float64)
     args = [np.ascontiguousarray(v, dtype=np.float64) for v in (xmax, a, b, c)]
     if not all(np.isfinite(v).all() for v in (delta, *args)):
@@ -146,7 +147,7 @@ def evaluate(profile: Profile, t: np.ndarray) -> tuple[np.ndarray, np.ndarray, n
     return s, sd, u
 
 
-# -- kernels (plain Python, compiled by numba in _kernels) ------------------------------------
+# -- kernels (plain Python, compiled by numba in compiled_kernels) -------------------------
 
 def _backward(delta: np.ndarray, xmax: np.ndarray, a: np.ndarray, b: np.ndarray,
               c: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> int:
@@ -248,7 +249,7 @@ def _tridiagonal(dl: np.ndarray, d: np.ndarray, du: np.ndarray, b: np.ndarray) -
     """Solve the tridiagonal system (sub-diagonal ``dl``, diagonal ``d``, super-diagonal
     ``du``, n >= 3) for the right-hand sides ``b`` (n, k) in place, as LAPACK's ``dgtsv``
     does it (Gaussian elimination with partial pivoting), operation for operation: the
-    spline slopes' solve (:func:`safepath.timing._spline._solve_tridiagonal`). All four
+    spline slopes' solve (:func:`safepath.timing._spline.solve_tridiagonal`). All four
     arrays are overwritten; ``b`` holds the solution.
 
     Returns:
@@ -289,7 +290,7 @@ def _tridiagonal(dl: np.ndarray, d: np.ndarray, du: np.ndarray, b: np.ndarray) -
     return 0
 
 
-def _kernels() -> dict[str, Callable[..., Any]]:
+def compiled_kernels() -> dict[str, Callable[..., Any]]:
     """The compiled passes: ahead of time, else numba's (compiled, or loaded from numba's
     cache, once); see :mod:`safepath._aot`."""
     with _lock:

@@ -146,15 +146,15 @@ def _scene_with(cell: Cell, center: np.ndarray, size: np.ndarray):  # noqa: ANN2
 
 def test_a_replanned_route_is_found_again(cell: Cell) -> None:
     from safepath import load_routes
-    from safepath.monitor.replan import _start_pose, _step_index
+    from safepath.monitor.replan import start_pose, step_index
 
     route = load_routes(cell.folder / "routes.yaml", poses=list(cell.poses),
                         objects=list(cell.scene.objects))["phase1"]
-    assert _step_index(route, "3 move high2") == 3
-    assert _step_index(route, "0 move high2") == 3  # numbered from 0 in a re-planned route
-    assert _step_index(route, "0 line high2") == 6  # the last of the same text
-    assert _step_index(route, "0 move nowhere") is None
-    assert _start_pose(route, 1) == "grip" and _start_pose(route, 4) == "high2"
+    assert step_index(route, "3 move high2") == 3
+    assert step_index(route, "0 move high2") == 3  # numbered from 0 in a re-planned route
+    assert step_index(route, "0 line high2") == 6  # the last of the same text
+    assert step_index(route, "0 move nowhere") is None
+    assert start_pose(route, 1) == "grip" and start_pose(route, 4) == "high2"
 
 
 def test_same_inputs_same_decisions_in_any_thread(cell: Cell, phase1: Phase1) -> None:

@@ -136,13 +136,13 @@ def test_every_edge_of_a_shortcut_path_passes_as_it_stands(monkeypatch: pytest.M
     checker, q_start, q_goal = detour_problem("ned3pro")
     fresh = CollisionChecker(checker.robot, checker.scene, options=CheckOptions())
     eager: list[bool] = []  # the eager flag of every run of the shortcuts
-    shortcuts = sampling._shortcuts
+    shortcuts = sampling.random_shortcuts
 
     def recorded(*args: object, **kwargs: object) -> object:
         eager.append(bool(kwargs["eager"]))
         return shortcuts(*args, **kwargs)  # type: ignore[arg-type]
 
-    monkeypatch.setattr(sampling, "_shortcuts", recorded)
+    monkeypatch.setattr(sampling, "random_shortcuts", recorded)
     redone = 0
     for seed in range(8):
         eager.clear()

@@ -40,7 +40,7 @@ def test_tridiagonal_solve_equals_lapack_bit_for_bit() -> None:
     so that dropping scipy.linalg changed no trajectory."""
     from scipy.linalg import solve_banded
 
-    from safepath.timing._spline import _solve_tridiagonal
+    from safepath.timing._spline import solve_tridiagonal
 
     rng = np.random.default_rng(11)
     pivoted = 0
@@ -53,8 +53,8 @@ def test_tridiagonal_solve_equals_lapack_bit_for_bit() -> None:
             pivoted += int(np.any(np.abs(ab[1, :-1]) < np.abs(ab[2, :-1])))
         b = rng.normal(size=(n, k))
         ref = solve_banded((1, 1), ab.copy(), b.copy(), check_finite=False)
-        got = _solve_tridiagonal(ab[2, :-1], ab[1], ab[0, 1:], b)
+        got = solve_tridiagonal(ab[2, :-1], ab[1], ab[0, 1:], b)
         assert got.tobytes() == ref.tobytes(), f"trial {trial}: n={n}, k={k}"
     assert pivoted > 1000
     with pytest.raises(ValueError, match="singular"):
-        _solve_tridiagonal(np.zeros(3), np.zeros(4), np.zeros(3), np.ones((4, 1)))
+        solve_tridiagonal(np.zeros(3), np.zeros(4), np.zeros(3), np.ones((4, 1)))
