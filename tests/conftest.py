@@ -111,6 +111,8 @@ HEAVY = (
     "planning/test_executed_motion.py",
 )
 _LOCK_DIR = "safepath_lock_dir"
+#: The controller's folder of lock files for this run's workers (xdist only).
+_LOCKS = pytest.StashKey[str]()
 _TESTS = Path(__file__).resolve().parent
 
 
@@ -158,9 +160,9 @@ def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item
 def pytest_configure_node(node: Any) -> None:
     """xdist's controller: one folder of lock files for the workers of this run."""
     config = node.config
-    if not hasattr(config, "_safepath_locks"):
-        config._safepath_locks = tempfile.mkdtemp(prefix="safepath-tests-locks-")
-    node.workerinput[_LOCK_DIR] = config._safepath_locks
+    if _LOCKS not in config.stash:
+        config.stash[_LOCKS] = tempfile.mkdtemp(prefix="safepath-tests-locks-")
+    node.workerinput[_LOCK_DIR] = config.stash[_LOCKS]
 
 
 @pytest.hookimpl(optionalhook=True, tryfirst=True)
@@ -175,7 +177,7 @@ def pytest_xdist_make_scheduler(config: pytest.Config, log: Any) -> Any:
 
         def _split_scope(self, nodeid: str) -> str:
             if self.units is None:
-                folder = Path(getattr(config, "_safepath_locks", "/nonexistent"))
+                folder = Path(config.stash.get(_LOCKS, "/nonexistent"))
                 files = sorted(folder.glob("units-*.json"))
                 self.units = json.loads(files[0].read_text()) if files else {}
             return self.units.get(nodeid, nodeid.split("::", 1)[0])
@@ -185,7 +187,7 @@ def pytest_xdist_make_scheduler(config: pytest.Config, log: Any) -> Any:
 
 
 def pytest_unconfigure(config: pytest.Config) -> None:
-    folder = getattr(config, "_safepath_locks", None)
+    folder = config.stash.get(_LOCKS, None)
     if folder is not None:
         shutil.rmtree(folder, ignore_errors=True)
 

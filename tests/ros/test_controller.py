@@ -56,15 +56,15 @@ class SimCell:
         self.placed: list[str] = []  # where the gripper released a vial
         self.commands: list[tuple[float, Command]] = []
         self.violations: list[str] = []
-        self._queue: list[tuple[float, int, Callable[[], list[Command]]]] = []
-        self._seq = itertools.count()
-        self._next_tick = 0.1
+        self.queue: list[tuple[float, int, Callable[[], list[Command]]]] = []
+        self.seq = itertools.count()
+        self.next_tick = 0.1
 
     # -- driving ---------------------------------------------------------------------------
     def feed(self, commands: list[Command]) -> None:
         for cmd in commands:
             self.commands.append((self.now, cmd))
-            self._execute(cmd)
+            self.execute(cmd)
 
     def start(self) -> None:
         for name, traj in (("phase1", phase1()), ("phase2_safe", phase2("safe")),
@@ -79,41 +79,41 @@ class SimCell:
     def run(self, duration: float) -> None:
         end = self.now + duration
         while True:
-            t_event = self._queue[0][0] if self._queue else math.inf
-            t = min(t_event, self._next_tick)
+            t_event = self.queue[0][0] if self.queue else math.inf
+            t = min(t_event, self.next_tick)
             if t > end:
                 self.now = end
                 return
             self.now = t
-            if self._next_tick <= t_event:
-                self._next_tick += 0.1
+            if self.next_tick <= t_event:
+                self.next_tick += 0.1
                 self.feed(self.ctrl.on_tick(t))
             else:
-                _, _, action = heapq.heappop(self._queue)
+                _, _, action = heapq.heappop(self.queue)
                 self.feed(action())
 
-    def _later(self, delay: float, action: Callable[[], list[Command]]) -> None:
-        heapq.heappush(self._queue, (self.now + delay, next(self._seq), action))
+    def later(self, delay: float, action: Callable[[], list[Command]]) -> None:
+        heapq.heappush(self.queue, (self.now + delay, next(self.seq), action))
 
     # -- the fake hardware -----------------------------------------------------------------
-    def _execute(self, cmd: Command) -> None:
+    def execute(self, cmd: Command) -> None:
         if isinstance(cmd, SetConveyor):
-            self._later(CONVEYOR_TIME, lambda: self._conveyor_done(cmd))
+            self.later(CONVEYOR_TIME, lambda: self.conveyor_done(cmd))
         elif isinstance(cmd, MoveArm):
-            self._move(cmd)
+            self.move(cmd)
         elif isinstance(cmd, ActuateGripper):
-            self._later(GRIPPER_TIME, lambda: self._gripper_done(cmd))
+            self.later(GRIPPER_TIME, lambda: self.gripper_done(cmd))
         elif isinstance(cmd, RequestVerdict):
             verdict = self.verdicts.pop(0)
             if verdict is not TIMEOUT:
-                self._later(VERDICT_TIME, lambda: self.ctrl.on_verdict(
+                self.later(VERDICT_TIME, lambda: self.ctrl.on_verdict(
                     verdict, self.now, request_id=cmd.request_id))  # type: ignore[arg-type]
 
-    def _conveyor_done(self, cmd: SetConveyor) -> list[Command]:
+    def conveyor_done(self, cmd: SetConveyor) -> list[Command]:
         self.conveyor = cmd.running
         return self.ctrl.on_goal_result(cmd.goal_id, True, "ok", self.now)
 
-    def _move(self, cmd: MoveArm) -> None:
+    def move(self, cmd: MoveArm) -> None:
         traj = cmd.trajectory
         if self.conveyor is not False:
             self.violations.append(f"arm moved with the conveyor {self.conveyor}")
@@ -128,9 +128,9 @@ class SimCell:
                 self.arm_q = traj.q[-1]
             return self.ctrl.on_goal_result(cmd.goal_id, ok, "ok" if ok else "aborted",
                                             self.now)
-        self._later(traj.duration + 0.01, done)
+        self.later(traj.duration + 0.01, done)
 
-    def _gripper_done(self, cmd: ActuateGripper) -> list[Command]:
+    def gripper_done(self, cmd: ActuateGripper) -> list[Command]:
         out: list[Command] = []
         if cmd.event.action == "close":
             self.holding = True
