@@ -234,7 +234,7 @@ def load_cell(folder: str | Path) -> Cell:
     poses = load_poses(poses_path, robot) if poses_path.exists() else {}
     cell = Cell(robot, scene, poses, folder=folder, poses_path=poses_path)
     _load_planning_code()
-    _prepare_robot(robot)
+    prepare_robot(robot)
     return cell
 
 
@@ -250,7 +250,7 @@ def _load_planning_code() -> None:
     _aot.load_planning_kernels()
 
 
-def _prepare_robot(robot: Robot) -> None:
+def prepare_robot(robot: Robot) -> None:
     """Make what every collision checker and release verifier of ``robot`` takes from
     the robot alone (sphere fits and hull tables, read from the disk cache where a
     process made them before; the verifier's shapes; reach per joint: ~4 ms for the

@@ -147,7 +147,7 @@ def _helpers(cell: safepath.Cell) -> None:
     """The kernels planning does not call but the API and the tests do, on real data."""
     from safepath.collision import _kernels as _fastkernels
     from safepath.kinematics import _ik_kernel
-    from safepath.planning.cartesian import _line_chain
+    from safepath.planning.cartesian import line_chain
 
     robot = cell.robot
     rng = np.random.default_rng(7)
@@ -155,7 +155,7 @@ def _helpers(cell: safepath.Cell) -> None:
     layer = cell.checker(held=False).layer
     assert layer is not None
     _fastkernels.classify_many(Q, layer.F, layer.I, np.empty(len(Q), dtype=np.int64))
-    chain = _line_chain(robot)
+    chain = line_chain(robot)
     args = (chain.joint_f, chain.joint_i, chain.frame_f)
     for q in Q[:20]:
         R, p, J = np.empty((3, 3)), np.empty(3), np.empty((6, robot.dof))

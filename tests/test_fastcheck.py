@@ -125,18 +125,21 @@ def test_inner_spheres_lie_inside_their_shape(name: str) -> None:
 
 
 def test_kernel_kinematics_match_pinocchio(cell: Cell) -> None:
-    from safepath.collision import _kernels as K
+    """The planner's kernels' one forward kinematics (the sphere layer's and the lines'
+    IK's), over every joint of the robot's joint table, against Pinocchio."""
+    from safepath._fk_kernel import joint_frames
+    from safepath._joint_table import WORLD, joint_table
 
     for robot in (cell.robot, load_robot("panda")):
-        checker = CollisionChecker(robot)
-        layer = checker.layer
-        assert layer is not None
-        Rw, pw, _, _ = K._workspace(layer.I)
-        data = robot.model.createData()
+        model = robot.model
+        jf, ji = joint_table(model, range(model.njoints),
+                             [WORLD, *(int(model.parents[j]) for j in range(1, model.njoints))])
+        Rw, pw = np.empty((model.njoints, 3, 3)), np.empty((model.njoints, 3))
+        data = model.createData()
         for q in np.random.default_rng(0).uniform(robot.lower, robot.upper, (50, robot.dof)):
-            K._fk(q, layer.F, layer.I, Rw, pw)
-            pin.forwardKinematics(robot.model, data, q)
-            for j in range(1, robot.model.njoints):
+            joint_frames(q, jf, ji, Rw, pw)
+            pin.forwardKinematics(model, data, q)
+            for j in range(1, model.njoints):
                 np.testing.assert_allclose(Rw[j], data.oMi[j].rotation, atol=1e-12)
                 np.testing.assert_allclose(pw[j], data.oMi[j].translation, atol=1e-12)
 
@@ -406,3 +409,34 @@ def test_checkers_of_a_robot_share_its_part_and_see_it_change() -> None:
     bigger.geometryObjects[3].geometry = coal.Sphere(0.2)
     robot.collision_model = bigger
     changed("a new collision model")
+
+
+@pytest.mark.parametrize("helical", [False, True])
+def test_a_helical_joint_leaves_the_checker_exact(helical: bool) -> None:
+    """The layer's motion bounds know a joint's turn or its slide, not both: a robot with
+    a helical joint gets no sphere layer (every check exact), one without gets it."""
+    import coal
+
+    model = pin.Model()
+    kind = (pin.JointModelHelicalUnaligned(np.array([0.0, 0.0, 1.0]), 0.05) if helical
+            else pin.JointModelRevoluteUnaligned(np.array([0.0, 0.0, 1.0])))
+    j1 = model.addJoint(0, kind, pin.SE3.Identity(), "j1", np.array([10.0]), np.array([1.0]),
+                        np.array([-3.0]), np.array([3.0]))
+    j2 = model.addJoint(j1, pin.JointModelRY(), pin.SE3(np.eye(3), np.array([0.0, 0.0, 0.3])),
+                        "j2", np.array([10.0]), np.array([1.0]), np.array([-3.0]),
+                        np.array([3.0]))
+    for j, name in ((j1, "l1"), (j2, "l2")):
+        model.addFrame(pin.Frame(name, j, pin.SE3.Identity(), pin.FrameType.BODY))
+    model.addFrame(pin.Frame("tcp", j2, pin.SE3(np.eye(3), np.array([0.0, 0.0, 0.2])),
+                             pin.FrameType.OP_FRAME))
+    geometry = pin.GeometryModel()
+    for j, name in ((j1, "l1"), (j2, "l2")):
+        geometry.addGeometryObject(pin.GeometryObject(
+            f"{name}_box", model.getFrameId(name), j, pin.SE3(np.eye(3), np.array([0, 0, 0.1])),
+            coal.Box(0.05, 0.05, 0.2)))
+    robot = Robot(name="screw" if helical else "turn", model=model, collision_model=geometry,
+                  visual_model=None, velocity_limits=np.ones(2), acceleration_limits=np.ones(2),
+                  tcp_frame="tcp")
+    checker = CollisionChecker(robot)
+    assert (checker.layer is None) is helical
+    assert checker.is_valid(np.array([0.5, 0.3]))

@@ -147,7 +147,7 @@ def test_a_robot_the_verifier_cannot_check_loads_and_planning_refuses_it(cell: C
 
     import coal
 
-    from safepath.cell import _prepare_robot
+    from safepath.cell import prepare_robot
     from safepath.errors import ConfigError
     from safepath.verify import check_verifiable, unverifiable
 
@@ -158,7 +158,7 @@ def test_a_robot_the_verifier_cannot_check_loads_and_planning_refuses_it(cell: C
     geom.geometry = coal.Ellipsoid(0.02, 0.03, 0.04)
     (refused,) = unverifiable(odd)
     assert refused.key == geom.name
-    _prepare_robot(odd)
+    prepare_robot(odd)
     assert "release verifier's bodies" not in {kind.name for kind, _ in odd.derived.held()}
     with pytest.raises(ConfigError) as caught:
         check_verifiable(odd, cell.scene)

@@ -19,21 +19,8 @@ from pathlib import Path
 TESTS = Path(__file__).resolve().parent
 ROOT = TESTS.parent
 
-#: Reads other engineers are removing right now (issue 26), as (file, expression): at
-#: most this many each. Remove an entry with the last read it allows; add none.
-ALLOWED: dict[tuple[str, str], int] = {
-    # The planner's kernel kinematics are being reworked (one forward kinematics for
-    # the planner's kernels): the test of its private kernels goes with that work.
-    ("tests/test_fastcheck.py", "K._workspace"): 1,
-    ("tests/test_fastcheck.py", "K._fk"): 1,
-    # What loading a cell prepares (another engineer's test of the robot's part cache).
-    ("tests/test_partcache.py", "from safepath.cell import _prepare_robot"): 1,
-    # The Cartesian line's kernel chain is being rebuilt on the joint table; it gets a
-    # public home in that work.
-    ("tests/planning/test_cartesian.py",
-     "from safepath.planning.cartesian import _line_chain"): 1,
-    ("tests/test_aot.py", "from safepath.planning.cartesian import _line_chain"): 1,
-}
+#: Reads allowed, as (file, expression): at most this many each. None today; add none.
+ALLOWED: dict[tuple[str, str], int] = {}
 
 
 def _private(name: str) -> bool:

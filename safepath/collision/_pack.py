@@ -19,7 +19,7 @@ from typing import Any
 import numpy as np
 import pinocchio as pin
 
-from .._joint_table import WORLD, joint_table
+from .._joint_table import HELICAL, JI_KIND, WORLD, joint_table
 from ..derived import StoredKind
 from ..robot import Robot, is_prismatic
 from . import _layout as K  # noqa: N812  (constants only: imports no kernel)
@@ -146,9 +146,18 @@ ROBOT_PART: StoredKind[_RobotPart] = StoredKind(
 
 def _joints(model: pin.Model) -> tuple[np.ndarray, np.ndarray]:
     """The joint table (:mod:`safepath._joint_table`) of every joint of ``model``, row j
-    for joint j (row 0: the universe, fixed at the origin)."""
-    return joint_table(model, range(model.njoints),
-                       [WORLD, *(int(model.parents[j]) for j in range(1, model.njoints))])
+    for joint j (row 0: the universe, fixed at the origin).
+
+    Raises:
+        ValueError: A helical joint: the layer's motion bounds (``_weights``) know the
+            turn and the slide of a joint, not both at once, so its checker stays exact.
+    """
+    jf, ji = joint_table(model, range(model.njoints),
+                         [WORLD, *(int(model.parents[j]) for j in range(1, model.njoints))])
+    helical = [str(model.names[j]) for j in range(model.njoints) if ji[j, JI_KIND] == HELICAL]
+    if helical:
+        raise ValueError(f"helical joints {helical}")
+    return jf, ji
 
 
 def _mover(model: pin.Model, geom: Any, options: LayerOptions, lower: np.ndarray,

@@ -7,7 +7,7 @@ a whole line is one call. Imported lazily by :mod:`~safepath.planning.cartesian`
 ``import safepath`` does not import numba; the first call compiles, or loads from
 numba's on-disk cache (``cache=True``, in ``__pycache__`` next to this file).
 
-The chain (``safepath.planning.cartesian._line_chain``) is a joint table
+The chain (``safepath.planning.cartesian.line_chain``) is a joint table
 (:mod:`safepath._joint_table`: ``joint_f``, ``joint_i``) of the joints from the root to
 the TCP's parent joint, in order, each the parent of the next; its joint frames come from
 the planner's one forward kinematics (:func:`safepath._fk_kernel.joint_frames`).

@@ -16,10 +16,10 @@ import pinocchio as pin
 from ..errors import IKError
 from ..robot import Robot
 
-__all__ = ["LineOptions", "solve_ik"]
+__all__ = ["DAMPING", "LineOptions", "solve_ik"]
 
 #: Damping of the least-squares step (added to the diagonal of J J^T).
-_DAMPING = 1e-6
+DAMPING = 1e-6
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -70,7 +70,7 @@ def solve_ik(robot: Robot, T_world_tcp: pin.SE3, q_init: np.ndarray, *,
         data = model.createData()
     fid = robot.tcp_frame_id
     q = q_init.copy()
-    damping = _DAMPING * np.eye(6)
+    damping = DAMPING * np.eye(6)
     for _ in range(options.max_iterations):
         pin.forwardKinematics(model, data, q)
         T = pin.updateFramePlacement(model, data, fid)

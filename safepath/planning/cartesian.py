@@ -19,15 +19,15 @@ bundled cell's lines).
 from __future__ import annotations
 
 import logging
-import weakref
 from dataclasses import dataclass
 
 import numpy as np
 import pinocchio as pin
 
 from .._joint_table import WORLD, joint_table
+from ..derived import DerivedKind
 from ..errors import ConfigError, IKError
-from ..kinematics.ik import _DAMPING, LineOptions
+from ..kinematics.ik import DAMPING, LineOptions
 from ..robot import Robot
 
 __all__ = ["cartesian_line"]
@@ -48,7 +48,7 @@ def cartesian_line(robot: Robot, q_start: np.ndarray, q_goal: np.ndarray, *,
     """
     from ..kinematics import _ik_kernel as kernel
 
-    chain = _line_chain(robot)
+    chain = line_chain(robot)
     T0 = robot.frame_pose(q_start)
     T1 = robot.frame_pose(q_goal)
     p0, p1 = T0.translation, T1.translation
@@ -59,7 +59,7 @@ def cartesian_line(robot: Robot, q_start: np.ndarray, q_goal: np.ndarray, *,
     path = np.empty((n + 1, robot.dof))
     path[0] = q_start
     params = np.array([options.position_tolerance, options.orientation_tolerance,
-                       options.max_joint_step, _DAMPING])
+                       options.max_joint_step, DAMPING])
     status, k, iterations, jump = kernel.line_path(
         chain.joint_f, chain.joint_i, chain.frame_f, np.ascontiguousarray(T0.rotation),
         np.ascontiguousarray(w_line, dtype=float), np.ascontiguousarray(p0),
@@ -95,20 +95,23 @@ class _Chain:
     frame_f: np.ndarray
 
 
-_CHAINS: weakref.WeakKeyDictionary[Robot, tuple[pin.Model, _Chain]] = \
-    weakref.WeakKeyDictionary()
+#: The chain to the TCP, kept by the robot per TCP frame (:mod:`safepath.derived`).
+LINE_CHAIN: DerivedKind[_Chain] = DerivedKind("Cartesian lines' joint chain to the TCP")
 
 
-def _line_chain(robot: Robot) -> _Chain:
-    """The robot's chain to its TCP, built once per robot (and model).
+def line_chain(robot: Robot) -> _Chain:
+    """The robot's chain to its TCP, made once per robot and TCP frame (kept by the
+    robot: :mod:`safepath.derived`).
 
     Raises:
         ConfigError: A joint on the chain does not move as a screw of constant axis
             (revolute, prismatic or helical), which the kernel assumes.
     """
-    cached = _CHAINS.get(robot)
-    if cached is not None and cached[0] is robot.model:
-        return cached[1]
+    return robot.derived.get(LINE_CHAIN, lambda: _make_chain(robot),
+                             options=int(robot.tcp_frame_id))
+
+
+def _make_chain(robot: Robot) -> _Chain:
     model = robot.model
     data = model.createData()
     frame = model.frames[robot.tcp_frame_id]
@@ -128,6 +131,4 @@ def _line_chain(robot: Robot) -> _Chain:
                               "cannot follow it", path=robot.source, key="urdf")
     joint_f, joint_i = joint_table(model, joints, [WORLD, *range(len(joints) - 1)])
     frame_f = np.concatenate([frame.placement.rotation.reshape(9), frame.placement.translation])
-    chain = _Chain(joint_f, joint_i, frame_f)
-    _CHAINS[robot] = (model, chain)
-    return chain
+    return _Chain(joint_f, joint_i, frame_f)

@@ -11,7 +11,7 @@ from safepath import IKError, Robot, load_robot
 from safepath.cell import Cell
 from safepath.kinematics import _ik_kernel as kernel
 from safepath.planning import LineOptions, cartesian_line, solve_ik
-from safepath.planning.cartesian import _line_chain
+from safepath.planning.cartesian import line_chain
 
 LINES = [("grip", "high1"), ("high2", "low1"), ("low1", "high2")]
 
@@ -139,7 +139,7 @@ def _random_q(robot: Robot, rng: np.random.Generator) -> np.ndarray:
 
 def test_kernel_kinematics_match_pinocchio(any_robot: Robot) -> None:
     robot = any_robot
-    chain = _line_chain(robot)
+    chain = line_chain(robot)
     rng = np.random.default_rng(0)
     data = robot.model.createData()
     for _ in range(20):
@@ -172,7 +172,7 @@ def test_kernel_log6_and_jlog6_match_pinocchio(angle: float) -> None:
 def test_kernel_solve_takes_the_steps_of_solve_ik(any_robot: Robot) -> None:
     """Same algorithm: from the same seed, the same solution (to rounding), or none."""
     robot = any_robot
-    chain = _line_chain(robot)
+    chain = line_chain(robot)
     options = LineOptions()
     params = np.array([options.position_tolerance, options.orientation_tolerance,
                        options.max_joint_step, 1e-6])
