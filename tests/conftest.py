@@ -23,7 +23,7 @@ from safepath import Cell, Robot, load_cell
 # A kernel call whose arguments do not match its ahead-of-time signature raises in the
 # tests (a user's process runs numba's JIT kernel instead); child processes inherit it.
 os.environ.setdefault("SAFEPATH_AOT_STRICT", "1")
-# The sphere layer's disk cache of robot parts (safepath.collision._partcache): one of the session's
+# The disk cache of what is computed from a robot alone (safepath.derived): one of the session's
 # own, empty at its start, never the user's.
 os.environ.setdefault("SAFEPATH_CACHE", tempfile.mkdtemp(prefix="safepath-tests-cache-"))
 
