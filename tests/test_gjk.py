@@ -26,6 +26,26 @@ from safepath.collision._gjk import (
     distance_upper_bound,
     hull_tables,
 )
+from safepath.collision._layout import (
+    H_AI,
+    H_AP,
+    H_V,
+    HEADER,
+    W_A,
+    W_B,
+    W_D,
+    W_FIXED,
+    W_P,
+    W_R,
+    WI_A,
+    WI_B,
+    WI_HEADER,
+    WI_HINT,
+    WI_WARM,
+    WS_HULL,
+    WS_HULL_END,
+    WS_KIND,
+)
 
 
 def _random_rotation(rng: np.random.Generator) -> np.ndarray:
@@ -60,8 +80,9 @@ def _primitive(kind: int, rng: np.random.Generator) -> tuple[object, np.ndarray]
 
 
 def _tables(*shapes: object) -> tuple[np.ndarray, np.ndarray, list[tuple[int, int]]]:
-    """Vertex block (flat) and the ints block (edge pointers at 0, neighbours after) of
-    the given hulls, and each one's vertex rows."""
+    """The given hulls as the sphere layer's buffers hold them: the vertex block (flat) in
+    ``fb``, the edge pointers and neighbours in ``ib`` after its header (which says where
+    the three blocks start), and each hull's vertex rows."""
     verts, ptrs, idxs, rows = [], [np.zeros(1, dtype=np.int64)], [], []
     nv = ne = 0
     for shape in shapes:
@@ -71,9 +92,24 @@ def _tables(*shapes: object) -> tuple[np.ndarray, np.ndarray, list[tuple[int, in
         idxs.append(idx + nv)
         rows.append((nv, nv + len(v)))
         nv, ne = nv + len(v), ne + len(idx)
-    ptr = np.concatenate(ptrs)
-    ib = np.concatenate([ptr, *idxs])
+    header = np.zeros(HEADER, dtype=np.int64)
+    header[H_V], header[H_AP], header[H_AI] = 0, HEADER, HEADER + nv + 1
+    ib = np.concatenate([header, *ptrs, *idxs])
     return np.concatenate([v.ravel() for v in verts]), ib, rows
+
+
+def _scratch(shapes: list[tuple[int, np.ndarray, np.ndarray, np.ndarray, tuple[int, int]]]
+             ) -> tuple[np.ndarray, np.ndarray]:
+    """A kernel call's scratch (``wf``, ``wi``) for one pair with shapes A and B (kind,
+    world rotation, position, dimensions, hull vertex rows) placed in it, no direction
+    from an earlier search and no support hints."""
+    wf = np.zeros(W_FIXED + 3)  # the fixed slots, then the pair's last direction
+    wi = np.zeros(WI_HEADER + 2, dtype=np.int64)  # the header, then the pair's hints
+    for (kind, R, p, d, (v0, v1)), s, si in zip(shapes, (W_A, W_B), (WI_A, WI_B), strict=True):
+        wf[s + W_R:s + W_R + 9], wf[s + W_P:s + W_P + 3], wf[s + W_D:s + W_D + 3] = R.ravel(), p, d
+        wi[si + WS_KIND], wi[si + WS_HULL], wi[si + WS_HULL_END] = kind, v0, v1
+    wi[WI_WARM], wi[WI_HINT], wi[WI_HEADER:] = W_FIXED, WI_HEADER, -1
+    return wf, wi
 
 
 def _search(bound: object, ka: int, Ra: np.ndarray, pa: np.ndarray, da: np.ndarray,
@@ -83,11 +119,8 @@ def _search(bound: object, ka: int, Ra: np.ndarray, pa: np.ndarray, da: np.ndarr
     them in ``hulls``, with fresh hints and scratch, searched to ``limits``."""
     fb, ib, rows = _tables(*hulls)
     (va0, va1), (vb0, vb1) = (rows + [(0, 0), (0, 0)])[:2]
-    scratch = [np.empty((4, 3)), np.empty(3), np.empty(3), np.empty(3), np.empty(3)]
-    n_ptr = rows[-1][1] + 1
-    return bound(ka, Ra, pa, da, va0, va1, kb, Rb, pb, db, vb0, vb1, fb, 0,  # type: ignore[operator, no-any-return]
-                 ib, 0, n_ptr, np.full(2, -1, dtype=np.int64), np.zeros(3), *scratch,
-                 *limits)
+    wf, wi = _scratch([(ka, Ra, pa, da, (va0, va1)), (kb, Rb, pb, db, (vb0, vb1))])
+    return bound(fb, ib, wf, wi, 0, *limits)  # type: ignore[operator, no-any-return]
 
 
 def _bound(ka: int, Ra: np.ndarray, pa: np.ndarray, da: np.ndarray, kb: int,
@@ -196,5 +229,5 @@ def test_edge_climbing_finds_the_farthest_vertex(hulls: list) -> None:
         for _ in range(200):
             n = rng.normal(size=3)
             start = int(rng.integers(len(v)))
-            found = climb(fb, 0, ib, 0, rows[0][1] + 1, 0, len(v), start, *n)
+            found = climb(fb, ib, 0, len(v), start, *n)
             assert v[found] @ n == pytest.approx(np.max(v @ n), abs=1e-12)

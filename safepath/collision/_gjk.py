@@ -19,10 +19,17 @@ when only this file changes. After editing it in a source checkout, delete
 helpers there, these are compiled without numba's reference counting (see
 :mod:`safepath.collision._kernels`): no allocation, no array returned.
 
-Shape kinds are those of :mod:`safepath.collision._layout` (box, cylinder, sphere, capsule,
-hull); a shape is (kind, world rotation ``R``, world position ``p``, dimensions ``d``,
-vertex rows ``v0:v1`` of the flat vertex block of ``fb`` starting at ``ov``, in the
-shape's own frame).
+The two shapes are read as the rest of the layer reads its data
+(:mod:`safepath.collision._layout`): placed in the call's scratch, shape A at slots W_A of
+``wf`` and WI_A of ``wi``, shape B at W_B and WI_B, each a record of its world rotation,
+position and dimensions (W_R, W_P, W_D) and its kind and hull vertex rows (WS_KIND,
+WS_HULL, WS_HULL_END: rows of the H_V block of ``fb``, in the shape's own frame, with
+their edges in ``ib``'s H_AP, H_AI blocks). Shape kinds are those of
+:mod:`safepath.collision._layout` (box, cylinder, sphere, capsule) and the hull. A search
+takes the checker's buffers, the scratch and the pair (whose last direction and support
+hints it starts from): a handful of arguments, as every array passed costs a numba call
+~10 ns in reference counts and descriptors, and the searches run millions of times a
+second.
 """
 
 from __future__ import annotations
@@ -32,12 +39,34 @@ import math
 import numpy as np
 
 from .._aot import njit
+from ._layout import (
+    H_AI,
+    H_AP,
+    H_V,
+    W_A,
+    W_B,
+    W_D,
+    W_GV,
+    W_P,
+    W_R,
+    W_S,
+    W_SA,
+    W_SB,
+    W_TMP,
+    WI_A,
+    WI_B,
+    WI_HINT,
+    WI_WARM,
+    WS_HULL,
+    WS_HULL_END,
+    WS_KIND,
+)
 
 #: How these are compiled (see the module doc).
 _helper = njit(cache=True, nogil=True, _nrt=False)
 _inlined = njit(cache=True, nogil=True, _nrt=False, inline="always")
 
-# Same codes as safepath.collision._layout (kept here so that this module imports alone).
+# The shape kinds: safepath.collision._layout's ENV_* codes, and the hull.
 BOX, CYLINDER, SPHERE, CAPSULE, BOX_ONLY_OUTER, HULL = 0, 1, 2, 3, 4, 5
 
 #: Absolute tolerance [m]: the search stops once the bound is this close to the distance
@@ -47,10 +76,13 @@ MAX_ITER = 32
 
 
 @_inlined
-def climb(fb, ov, ib, oap, oai, v0, v1, start, lx, ly, lz):  # noqa: N803
-    """The hull vertex (row) farthest along (lx, ly, lz): steepest ascent over the
-    hull's edges from ``start``. Exact on a convex polytope: a vertex that is not
-    farthest has an edge along which the direction strictly increases."""
+def climb(fb, ib, v0, v1, start, lx, ly, lz):
+    """The vertex (row) of the hull at rows ``v0:v1`` of the H_V block farthest along (lx,
+    ly, lz): steepest ascent over the hull's edges from ``start``. Exact on a convex
+    polytope: a vertex that is not farthest has an edge along which the direction
+    strictly increases. Row g's neighbours: ``ib[oai + ib[oap + g] : oai + ib[oap + g +
+    1]]`` (``oap``, ``oai``: the H_AP, H_AI blocks)."""
+    ov, oap, oai = ib[H_V], ib[H_AP], ib[H_AI]
     g = start if v0 <= start < v1 else v0
     b = ov + 3 * g
     best = fb[b] * lx + fb[b + 1] * ly + fb[b + 2] * lz
@@ -68,44 +100,44 @@ def climb(fb, ov, ib, oap, oai, v0, v1, start, lx, ly, lz):  # noqa: N803
 
 
 @_inlined
-def support(kind, R, p, d, fb, ov, v0, v1, ib, oap, oai, start, nx, ny, nz,  # noqa: N803
-            out):
-    """World point of a shape farthest along (nx, ny, nz) (not necessarily unit) into
-    ``out``; for a hull, returns the vertex row (the next search's ``start``), else -1.
-
-    A hull is rows ``v0:v1`` of the vertex block of ``fb`` at ``ov``, with its edges as
-    neighbour lists in ``ib`` (row g's neighbours: ``ib[oai + ib[oap + g] : oai +
-    ib[oap + g + 1]]``)."""
+def support(fb, ib, wf, wi, s, si, start, nx, ny, nz, out):
+    """World point farthest along (nx, ny, nz) (not necessarily unit) of the shape placed
+    at slot ``s`` of ``wf`` and ``si`` of ``wi`` (see the module doc) into wf[out:out+3];
+    for a hull, returns the vertex row (the next search's ``start``), else -1."""
+    rot, dims = s + W_R, s + W_D
     # Direction in the shape's frame: R^T n.
-    lx = R[0, 0] * nx + R[1, 0] * ny + R[2, 0] * nz
-    ly = R[0, 1] * nx + R[1, 1] * ny + R[2, 1] * nz
-    lz = R[0, 2] * nx + R[1, 2] * ny + R[2, 2] * nz
+    lx = wf[rot] * nx + wf[rot + 3] * ny + wf[rot + 6] * nz
+    ly = wf[rot + 1] * nx + wf[rot + 4] * ny + wf[rot + 7] * nz
+    lz = wf[rot + 2] * nx + wf[rot + 5] * ny + wf[rot + 8] * nz
+    kind = wi[si + WS_KIND]
+    a, b, c = wf[dims], wf[dims + 1], wf[dims + 2]
     x = y = z = 0.0
     found = -1
     if kind == HULL:
-        found = climb(fb, ov, ib, oap, oai, v0, v1, start, lx, ly, lz)
-        b = ov + 3 * found
-        x, y, z = fb[b], fb[b + 1], fb[b + 2]
+        found = climb(fb, ib, wi[si + WS_HULL], wi[si + WS_HULL_END], start, lx, ly, lz)
+        v = ib[H_V] + 3 * found
+        x, y, z = fb[v], fb[v + 1], fb[v + 2]
     elif kind == BOX or kind == BOX_ONLY_OUTER:
-        x = d[0] if lx >= 0.0 else -d[0]
-        y = d[1] if ly >= 0.0 else -d[1]
-        z = d[2] if lz >= 0.0 else -d[2]
+        x = a if lx >= 0.0 else -a
+        y = b if ly >= 0.0 else -b
+        z = c if lz >= 0.0 else -c
     else:
         norm = math.sqrt(lx * lx + ly * ly + lz * lz)
         if kind == SPHERE:
             if norm > 0.0:
-                x, y, z = d[0] * lx / norm, d[0] * ly / norm, d[0] * lz / norm
+                x, y, z = a * lx / norm, a * ly / norm, a * lz / norm
         elif kind == CAPSULE:
-            z = d[1] if lz >= 0.0 else -d[1]
+            z = b if lz >= 0.0 else -b
             if norm > 0.0:
-                x, y, z = d[0] * lx / norm, d[0] * ly / norm, z + d[0] * lz / norm
-        else:  # cylinder along z: radius d[0], half length d[1]
-            z = d[1] if lz >= 0.0 else -d[1]
+                x, y, z = a * lx / norm, a * ly / norm, z + a * lz / norm
+        else:  # cylinder along z: radius a, half length b
+            z = b if lz >= 0.0 else -b
             rho = math.sqrt(lx * lx + ly * ly)
             if rho > 0.0:
-                x, y = d[0] * lx / rho, d[0] * ly / rho
+                x, y = a * lx / rho, a * ly / rho
     for r in range(3):
-        out[r] = R[r, 0] * x + R[r, 1] * y + R[r, 2] * z + p[r]
+        wf[out + r] = (wf[rot + 3 * r] * x + wf[rot + 3 * r + 1] * y + wf[rot + 3 * r + 2] * z
+                       + wf[s + W_P + r])
     return found
 
 
@@ -220,43 +252,46 @@ def _closest(S, n, v, tmp):  # noqa: N803
 
 
 @_inlined
-def _first_direction(v, warm, pa, pb):
+def _first_direction(wf, v, warm):
     """GJK's first search direction ``v``: ``warm`` (the pair's last one), else the line
-    between the shapes' centres ``pa``, ``pb``, else x."""
+    between the placed shapes' centres, else x."""
+    pa, pb = W_A + W_P, W_B + W_P
     v[0], v[1], v[2] = warm[0], warm[1], warm[2]
     if _dot(v, v) < 1e-18:
-        v[0], v[1], v[2] = pa[0] - pb[0], pa[1] - pb[1], pa[2] - pb[2]
+        v[0], v[1], v[2] = wf[pa] - wf[pb], wf[pa + 1] - wf[pb + 1], wf[pa + 2] - wf[pb + 2]
         if _dot(v, v) < 1e-18:
             v[0] = 1.0
 
 
 @_inlined
-def _difference_support(ka, Ra, pa, da, va0, va1, kb, Rb, pb, db, vb0, vb1,  # noqa: N803
-                        fb, ov, ib, oap, oai, hint, v, sa, sb):
-    """The support point of A - B towards -v (A's towards -v in ``sa``, B's towards v in
-    ``sb``; ``hint`` updated), as (x, y, z): both searches' step."""
-    hint[0] = support(ka, Ra, pa, da, fb, ov, va0, va1, ib, oap, oai, hint[0],
-                      -v[0], -v[1], -v[2], sa)
-    hint[1] = support(kb, Rb, pb, db, fb, ov, vb0, vb1, ib, oap, oai, hint[1],
-                      v[0], v[1], v[2], sb)
-    return sa[0] - sb[0], sa[1] - sb[1], sa[2] - sb[2]
+def _difference_support(fb, ib, wf, wi, hint, v):
+    """The support point of A - B towards -v (A's towards -v at W_SA, B's towards v at
+    W_SB; ``hint`` updated), as (x, y, z): both searches' step."""
+    hint[0] = support(fb, ib, wf, wi, W_A, WI_A, hint[0], -v[0], -v[1], -v[2], W_SA)
+    hint[1] = support(fb, ib, wf, wi, W_B, WI_B, hint[1], v[0], v[1], v[2], W_SB)
+    return wf[W_SA] - wf[W_SB], wf[W_SA + 1] - wf[W_SB + 1], wf[W_SA + 2] - wf[W_SB + 2]
 
 
 @_helper
-def distance_lower_bound(ka, Ra, pa, da, va0, va1, kb, Rb, pb, db, vb0, vb1,  # noqa: N803
-                         fb, ov, ib, oap, oai, hint, warm, S, sa, sb, v, tmp, low, high):
-    """A lower bound [m] on the distance between shapes A and B (negative or zero when they
-    may touch), within :data:`TOL` of the true distance when GJK converges.
+def distance_lower_bound(fb, ib, wf, wi, k, low, high):
+    """A lower bound [m] on the distance between the shapes A and B placed in the scratch
+    (negative or zero when they may touch), within :data:`TOL` of the true distance when
+    GJK converges.
 
     The search also stops once the bound reaches ``high`` (enough for the caller) or the
     distance is known to be at most ``low`` (no bound above ``low`` exists).
 
-    ``warm`` (3,) is a first search direction (e.g. the last one of the same pair; all
-    zero: the centre line), overwritten with the direction that gave the bound; ``hint``
-    (2,) the hull vertices where the support searches of A and B start (updated). Hulls
-    are given as in :func:`support`. S (4,3), sa, sb, v, tmp (3,) are scratch.
+    Pair ``k``'s row of wf's WI_WARM block is the first search direction (its last one;
+    all zero: the centre line), overwritten with the direction that gave the bound; its
+    row of wi's WI_HINT block, the hull vertices where the support searches of A and B
+    start (updated). wf's W_S (the simplex, 4 rows of 3), W_SA, W_SB, W_GV, W_TMP are
+    scratch.
     """
-    _first_direction(v, warm, pa, pb)
+    S = wf[W_S:W_S + 12].reshape((4, 3))  # noqa: N806
+    v, tmp = wf[W_GV:W_GV + 3], wf[W_TMP:W_TMP + 3]
+    ow, oh = wi[WI_WARM] + 3 * k, wi[WI_HINT] + 2 * k
+    warm, hint = wf[ow:ow + 3], wi[oh:oh + 2]
+    _first_direction(wf, v, warm)
     lb = -1e300
     ub = 1e300
     n = 0
@@ -264,8 +299,7 @@ def distance_lower_bound(ka, Ra, pa, da, va0, va1, kb, Rb, pb, db, vb0, vb1,  # 
         vn = math.sqrt(_dot(v, v))
         if vn < 1e-12:
             break
-        w0, w1, w2 = _difference_support(ka, Ra, pa, da, va0, va1, kb, Rb, pb, db, vb0, vb1,
-                                         fb, ov, ib, oap, oai, hint, v, sa, sb)
+        w0, w1, w2 = _difference_support(fb, ib, wf, wi, hint, v)
         gap = (v[0] * w0 + v[1] * w1 + v[2] * w2) / vn
         if gap > lb:
             lb = gap
@@ -307,27 +341,30 @@ def _depth_inside(S):  # noqa: N803
 
 
 @_helper
-def distance_upper_bound(ka, Ra, pa, da, va0, va1, kb, Rb, pb, db, vb0, vb1,  # noqa: N803
-                         fb, ov, ib, oap, oai, hint, warm, S, sa, sb, v, tmp, goal):
-    """An upper bound [m] on the signed distance between shapes A and B (negative: they
-    overlap, at least that deep), searched until it is below ``goal`` or GJK shows no
-    bound below ``goal`` exists (then some bound at least ``goal`` is returned).
+def distance_upper_bound(fb, ib, wf, wi, k, goal):
+    """An upper bound [m] on the signed distance between the shapes A and B placed in the
+    scratch (negative: they overlap, at least that deep), searched until it is below
+    ``goal`` or GJK shows no bound below ``goal`` exists (then some bound at least
+    ``goal`` is returned).
 
     Every point GJK's simplex holds is a point of the shapes' difference A - B (each
     from the exact support functions), so the distance of the simplex's closest point to
     the origin bounds the shapes' distance from above; a tetrahedron holding the origin
     lies inside A - B, and the origin's depth in it bounds the overlap from below.
-    Arguments as :func:`distance_lower_bound`.
+    Arguments and scratch as :func:`distance_lower_bound`.
     """
-    _first_direction(v, warm, pa, pb)
+    S = wf[W_S:W_S + 12].reshape((4, 3))  # noqa: N806
+    v, tmp = wf[W_GV:W_GV + 3], wf[W_TMP:W_TMP + 3]
+    ow, oh = wi[WI_WARM] + 3 * k, wi[WI_HINT] + 2 * k
+    warm, hint = wf[ow:ow + 3], wi[oh:oh + 2]
+    _first_direction(wf, v, warm)
     ub = 1e300
     n = 0
     for _ in range(MAX_ITER):
         vn = math.sqrt(_dot(v, v))
         if vn < 1e-12:
             break
-        w0, w1, w2 = _difference_support(ka, Ra, pa, da, va0, va1, kb, Rb, pb, db, vb0, vb1,
-                                         fb, ov, ib, oap, oai, hint, v, sa, sb)
+        w0, w1, w2 = _difference_support(fb, ib, wf, wi, hint, v)
         if (v[0] * w0 + v[1] * w1 + v[2] * w2) / vn >= goal:
             return max(ub, goal)  # a lower bound of at least goal: no proof below it
         S[n, 0], S[n, 1], S[n, 2] = w0, w1, w2

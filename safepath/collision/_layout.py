@@ -71,13 +71,21 @@ PI_A, PI_B, PI_ENV, PI_PROOF, PIW = 0, 1, 2, 3, 4
 #: float buffer ``wf`` and one int buffer ``wi``. Helpers take these four arrays, never a
 #: tuple of many: a numba call pays the reference counts (and copies the descriptors) of
 #: every array it is passed, ~10 ns each, and the per-pair helpers run millions of times a
-#: second. ``wf`` starts with fixed slots (W_*: two 3-vectors, two placed shapes, the
-#: separating-axis candidates, GJK's simplex and supports); the per-checker blocks follow,
-#: where ``wi``'s header says (WI_*); ``wi`` then holds, per pair, the hull vertices where
-#: GJK's support searches start.
-W_TMP, W_TMP2, W_RA, W_PA, W_DA, W_RB, W_PB, W_DB = 0, 3, 6, 15, 18, 21, 30, 33
+#: second. ``wf`` starts with fixed slots (W_*: two 3-vectors, the two placed shapes of a
+#: pair (W_A, W_B), the separating-axis candidates, GJK's simplex and supports); the
+#: per-checker blocks follow, where ``wi``'s header says (WI_*); ``wi`` then holds, after
+#: the two placed shapes' ints (WI_A, WI_B), per pair, the hull vertices where GJK's
+#: support searches start.
+W_TMP, W_TMP2, W_A, W_B = 0, 3, 6, 21
 W_AXES, W_S, W_SA, W_SB, W_GV = 36, 108, 120, 123, 126
 W_FIXED = 129
+#: A placed shape's floats, from its slot in ``wf`` (W_A, W_B): its world rotation (9,
+#: row-major), position (3) and dimensions (3) [m].
+W_R, W_P, W_D = 0, 9, 12
+#: A placed shape's ints, from its slot in ``wi`` (WI_A, WI_B): its kind, its hull
+#: vertices' rows (start, end) in the H_V block (a mover's GI_KIND, GI_HULL, GI_HULL_END;
+#: an environment object's kind and 0, 0).
+WS_KIND, WS_HULL, WS_HULL_END = 0, 1, 2
 #: Blocks of ``wf``: world bounding-sphere centres of the movers (ng, 3); two placed sphere
 #: sets (ns, 5) each; per pair, the last direction GJK found (3: the next state's first
 #: guess); |u| (dof); per mover and joint, its distance to the joint's axis (DL) and how
@@ -88,4 +96,5 @@ W_FIXED = 129
 #: its DL row is measured at the state being evaluated, else 0 (ng).
 (WI_CW, WI_BUFA, WI_BUFB, WI_WARM, WI_ABSU, WI_DL, WI_CC, WI_BUDGET, WI_CERT, WI_DLOK,
  WI_HINT) = range(11)
-WI_HEADER = 11
+WI_A, WI_B = 11, 14
+WI_HEADER = 17

@@ -42,8 +42,6 @@ from ._layout import (
     GI_OUTER_END,
     GIW,
     GW,
-    H_AI,
-    H_AP,
     H_E,
     H_EI,
     H_G,
@@ -51,7 +49,6 @@ from ._layout import (
     H_P,
     H_PI,
     H_S,
-    H_V,
     PI_A,
     PI_B,
     PI_ENV,
@@ -60,24 +57,22 @@ from ._layout import (
     S_RADIUS,
     SPHERES_ONLY,
     SW,
+    W_A,
     W_AXES,
-    W_DA,
-    W_DB,
-    W_GV,
-    W_PA,
-    W_PB,
-    W_RA,
-    W_RB,
-    W_S,
-    W_SA,
-    W_SB,
+    W_B,
+    W_D,
+    W_P,
+    W_R,
     W_TMP,
     W_TMP2,
+    WI_A,
+    WI_B,
     WI_BUFA,
     WI_BUFB,
     WI_CW,
-    WI_HINT,
-    WI_WARM,
+    WS_HULL,
+    WS_HULL_END,
+    WS_KIND,
 )
 from ._placement import _mover_frame, _place_spheres, _world
 
@@ -163,12 +158,12 @@ def _push_axis(wf, n, x, y, z):  # noqa: N803
 @_helper
 def _sat_gap(ka, kb, wf):  # noqa: N803
     """Lower bound [m] on the distance of the two convex primitives placed in ``wf`` (A at
-    W_RA, W_PA, W_DA; B at W_RB, W_PB, W_DB): the largest gap between their projections
+    slot W_A, B at W_B): the largest gap between their projections
     over a set of separating-axis candidates (face normals, primitive axes, their cross
     products, the centre line). For two boxes the 15 axes are complete: a bound < 0 then
     means they intersect."""
-    na = _primitive_axes(ka, wf, W_RA, 0)
-    nb = _primitive_axes(kb, wf, W_RB, na)
+    na = _primitive_axes(ka, wf, W_A + W_R, 0)
+    nb = _primitive_axes(kb, wf, W_B + W_R, na)
     n = nb
     for i in range(na):
         oi = W_AXES + 3 * i
@@ -177,13 +172,14 @@ def _sat_gap(ka, kb, wf):  # noqa: N803
             n = _push_axis(wf, n, wf[oi + 1] * wf[oj + 2] - wf[oi + 2] * wf[oj + 1],
                            wf[oi + 2] * wf[oj] - wf[oi] * wf[oj + 2],
                            wf[oi] * wf[oj + 1] - wf[oi + 1] * wf[oj])
-    dx, dy, dz = wf[W_PB] - wf[W_PA], wf[W_PB + 1] - wf[W_PA + 1], wf[W_PB + 2] - wf[W_PA + 2]
+    pa, pb = W_A + W_P, W_B + W_P
+    dx, dy, dz = wf[pb] - wf[pa], wf[pb + 1] - wf[pa + 1], wf[pb + 2] - wf[pa + 2]
     n = _push_axis(wf, n, dx, dy, dz)
     # Round shapes: the centre line's part across each axis.
     for which in range(2):
         kind = ka if which == 0 else kb
         if kind == ENV_CYLINDER or kind == ENV_CAPSULE:
-            o = W_RA if which == 0 else W_RB
+            o = (W_A if which == 0 else W_B) + W_R
             ax, ay, az = wf[o + 2], wf[o + 5], wf[o + 8]
             t = dx * ax + dy * ay + dz * az
             n = _push_axis(wf, n, dx - t * ax, dy - t * ay, dz - t * az)
@@ -192,44 +188,51 @@ def _sat_gap(ka, kb, wf):  # noqa: N803
         o = W_AXES + 3 * i
         x, y, z = wf[o], wf[o + 1], wf[o + 2]
         gap = (abs(dx * x + dy * y + dz * z)
-               - _support(ka, wf, W_RA, W_DA, x, y, z)
-               - _support(kb, wf, W_RB, W_DB, x, y, z))
+               - _support(ka, wf, W_A + W_R, W_A + W_D, x, y, z)
+               - _support(kb, wf, W_B + W_R, W_B + W_D, x, y, z))
         if gap > best:
             best = gap
     return best
 
 
-@_helper
-def _place_pair(fb, ib, a, b, is_env, Rw, pw, wf):  # noqa: N803
-    """Place mover ``a``'s shape (W_RA, W_PA, W_DA) and environment object (``is_env``) or
-    mover ``b``'s shape (W_RB, W_PB, W_DB) in ``wf`` at the state of Rw, pw; returns their
-    kinds."""
-    og, ogi = ib[H_G], ib[H_GI]
-    ka = ib[ogi + GIW * a + GI_KIND]
-    _mover_frame(fb, ib, a, Rw, pw, wf, W_RA, W_PA)
+@_inlined
+def _place_mover(fb, ib, m, Rw, pw, wf, wi, s, si):  # noqa: N803
+    """Place mover ``m``'s shape at slot ``s`` of ``wf`` (its world rotation, position,
+    dimensions) and ``si`` of ``wi`` (its kind and hull rows) at the state of Rw, pw;
+    returns its kind."""
+    row = ib[H_GI] + GIW * m
+    _mover_frame(fb, ib, m, Rw, pw, wf, s + W_R, s + W_P)
     for r in range(3):
-        wf[W_DA + r] = fb[og + GW * a + G_DIMS + r]
-    if is_env == 1:
-        oe = ib[H_E] + EW * b
-        kb = ib[ib[H_EI] + b]
-        for r in range(3):
-            wf[W_PB + r] = fb[oe + E_POS + r]
-            wf[W_DB + r] = fb[oe + E_DIMS + r]
-            for c in range(3):
-                wf[W_RB + 3 * r + c] = fb[oe + E_ROT + 3 * r + c]
-    else:
-        kb = ib[ogi + GIW * b + GI_KIND]
-        _mover_frame(fb, ib, b, Rw, pw, wf, W_RB, W_PB)
-        for r in range(3):
-            wf[W_DB + r] = fb[og + GW * b + G_DIMS + r]
+        wf[s + W_D + r] = fb[ib[H_G] + GW * m + G_DIMS + r]
+    wi[si + WS_KIND] = ib[row + GI_KIND]
+    wi[si + WS_HULL], wi[si + WS_HULL_END] = ib[row + GI_HULL], ib[row + GI_HULL_END]
+    return ib[row + GI_KIND]
+
+
+@_helper
+def _place_pair(fb, ib, a, b, is_env, Rw, pw, wf, wi):  # noqa: N803
+    """Place mover ``a``'s shape (slots W_A, WI_A) and environment object (``is_env``) or
+    mover ``b``'s shape (slots W_B, WI_B) in the scratch at the state of Rw, pw; returns
+    their kinds."""
+    ka = _place_mover(fb, ib, a, Rw, pw, wf, wi, W_A, WI_A)
+    if is_env == 0:
+        return ka, _place_mover(fb, ib, b, Rw, pw, wf, wi, W_B, WI_B)
+    oe = ib[H_E] + EW * b
+    kb = ib[ib[H_EI] + b]
+    for r in range(3):
+        wf[W_B + W_P + r] = fb[oe + E_POS + r]
+        wf[W_B + W_D + r] = fb[oe + E_DIMS + r]
+        for c in range(3):
+            wf[W_B + W_R + 3 * r + c] = fb[oe + E_ROT + 3 * r + c]
+    wi[WI_B + WS_KIND], wi[WI_B + WS_HULL], wi[WI_B + WS_HULL_END] = kb, 0, 0
     return ka, kb
 
 
 @_helper
-def _sat_pair(fb, ib, a, b, is_env, Rw, pw, wf):  # noqa: N803
+def _sat_pair(fb, ib, a, b, is_env, Rw, pw, wf, wi):  # noqa: N803
     """Separating-axis bound [m] between mover ``a``'s primitive and environment object
     (``is_env``) or mover ``b``'s primitive, at the state of Rw, pw."""
-    ka, kb = _place_pair(fb, ib, a, b, is_env, Rw, pw, wf)
+    ka, kb = _place_pair(fb, ib, a, b, is_env, Rw, pw, wf, wi)
     return _sat_gap(ka, kb, wf)
 
 
@@ -238,42 +241,16 @@ def _gjk_pair(fb, ib, k, a, b, is_env, Rw, pw, wf, wi, low, high):  # noqa: N803
     """GJK's distance lower bound [m] between mover ``a``'s shape and environment object
     or mover ``b``'s (pair ``k``; its last direction warm-starts the search), searched
     until it reaches ``high`` or the distance is known to be at most ``low``."""
-    ogi = ib[H_GI]
-    ka, kb = _place_pair(fb, ib, a, b, is_env, Rw, pw, wf)
-    va0, va1 = ib[ogi + GIW * a + GI_HULL], ib[ogi + GIW * a + GI_HULL_END]
-    vb0 = vb1 = 0
-    if is_env == 0:
-        vb0, vb1 = ib[ogi + GIW * b + GI_HULL], ib[ogi + GIW * b + GI_HULL_END]
-    ow, oh = wi[WI_WARM] + 3 * k, wi[WI_HINT] + 2 * k
-    return distance_lower_bound(ka, wf[W_RA:W_RA + 9].reshape((3, 3)), wf[W_PA:W_PA + 3],
-                                wf[W_DA:W_DA + 3], va0, va1, kb,
-                                wf[W_RB:W_RB + 9].reshape((3, 3)), wf[W_PB:W_PB + 3],
-                                wf[W_DB:W_DB + 3], vb0, vb1, fb, ib[H_V], ib, ib[H_AP],
-                                ib[H_AI], wi[oh:oh + 2], wf[ow:ow + 3],
-                                wf[W_S:W_S + 12].reshape((4, 3)), wf[W_SA:W_SA + 3],
-                                wf[W_SB:W_SB + 3], wf[W_GV:W_GV + 3], wf[W_TMP:W_TMP + 3],
-                                low, high)
+    _place_pair(fb, ib, a, b, is_env, Rw, pw, wf, wi)
+    return distance_lower_bound(fb, ib, wf, wi, k, low, high)
 
 
 @_helper
 def _gjk_overlap(fb, ib, k, a, b, is_env, Rw, pw, wf, wi, goal):  # noqa: N803
     """GJK's upper bound [m] on the signed distance of pair ``k``'s shapes (negative: they
     overlap at least that deep), searched until it is below ``goal``."""
-    ogi = ib[H_GI]
-    ka, kb = _place_pair(fb, ib, a, b, is_env, Rw, pw, wf)
-    va0, va1 = ib[ogi + GIW * a + GI_HULL], ib[ogi + GIW * a + GI_HULL_END]
-    vb0 = vb1 = 0
-    if is_env == 0:
-        vb0, vb1 = ib[ogi + GIW * b + GI_HULL], ib[ogi + GIW * b + GI_HULL_END]
-    ow, oh = wi[WI_WARM] + 3 * k, wi[WI_HINT] + 2 * k
-    return distance_upper_bound(ka, wf[W_RA:W_RA + 9].reshape((3, 3)), wf[W_PA:W_PA + 3],
-                                wf[W_DA:W_DA + 3], va0, va1, kb,
-                                wf[W_RB:W_RB + 9].reshape((3, 3)), wf[W_PB:W_PB + 3],
-                                wf[W_DB:W_DB + 3], vb0, vb1, fb, ib[H_V], ib, ib[H_AP],
-                                ib[H_AI], wi[oh:oh + 2], wf[ow:ow + 3],
-                                wf[W_S:W_S + 12].reshape((4, 3)), wf[W_SA:W_SA + 3],
-                                wf[W_SB:W_SB + 3], wf[W_GV:W_GV + 3], wf[W_TMP:W_TMP + 3],
-                                goal)
+    _place_pair(fb, ib, a, b, is_env, Rw, pw, wf, wi)
+    return distance_upper_bound(fb, ib, wf, wi, k, goal)
 
 
 @_helper
@@ -292,7 +269,7 @@ def _pair_bound(k, fb, ib, Rw, pw, wf, wi, enough):  # noqa: N803
     if ka != SPHERES_ONLY and kb != SPHERES_ONLY:
         if ka == HULL or kb == HULL:
             return _gjk_pair(fb, ib, k, a, b, is_env, Rw, pw, wf, wi, sm, sm + enough)
-        return _sat_pair(fb, ib, a, b, is_env, Rw, pw, wf)
+        return _sat_pair(fb, ib, a, b, is_env, Rw, pw, wf, wi)
     ja = ib[ogi + GIW * a + GI_JOINT]
     if is_env == 1:
         best = 1e300
@@ -360,7 +337,7 @@ def _pair_collides(k, fb, ib, eps, Rw, pw, wf, wi):  # noqa: N803
     t1, t2 = W_TMP, W_TMP2
     if is_env == 1:
         if (sm == 0.0 and ka == ENV_BOX and ib[ib[H_EI] + b] == ENV_BOX
-                and _sat_pair(fb, ib, a, b, 1, Rw, pw, wf) < -eps):
+                and _sat_pair(fb, ib, a, b, 1, Rw, pw, wf, wi) < -eps):
             return True
         for s in range(ib[ogi + GIW * a + GI_INNER], ib[ogi + GIW * a + GI_INNER_END]):
             _world(fb, oS + SW * s, Rw, pw, ja, wf, t1)
@@ -373,7 +350,7 @@ def _pair_collides(k, fb, ib, eps, Rw, pw, wf, wi):  # noqa: N803
     jb = ib[ogi + GIW * b + GI_JOINT]
     kb = ib[ogi + GIW * b + GI_KIND]
     if (sm == 0.0 and ka == ENV_BOX and kb == ENV_BOX
-            and _sat_pair(fb, ib, a, b, 0, Rw, pw, wf) < -eps):
+            and _sat_pair(fb, ib, a, b, 0, Rw, pw, wf, wi) < -eps):
         return True
     for s in range(ib[ogi + GIW * a + GI_INNER], ib[ogi + GIW * a + GI_INNER_END]):
         _world(fb, oS + SW * s, Rw, pw, ja, wf, t1)
