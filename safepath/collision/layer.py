@@ -75,8 +75,8 @@ class SphereLayer:
         F, I_ = self.F.copy(), self.I.copy()
         n, at = int(I_[K.H_NP]), int(I_[K.H_P])
         F[at:at + n] = security
-        pairs = I_[int(I_[K.H_PI]):int(I_[K.H_PI]) + 4 * n].reshape(n, 4)
-        pairs[:, 3] = np.asarray(security) >= 0
+        pairs = I_[int(I_[K.H_PI]):int(I_[K.H_PI]) + K.PIW * n].reshape(n, K.PIW)
+        pairs[:, K.PI_PROOF] = np.asarray(security) >= 0
         out = copy.copy(self)
         out.F, out.I = F, I_
         return out
