@@ -61,7 +61,7 @@ _JOIN = "safepath._joinkernel"
 #: The planner's one forward kinematics (the sphere layer's and the lines' IK's) and the
 #: joint table's columns it compiles in.
 _FK = ("safepath._fk_kernel", "safepath._joint_table")
-#: A placed shape of the verifier: a tuple of 17 floats.
+#: A placed shape of the verifier: a tuple of 17 floats (its record's fields, in order).
 _SHAPE = "UniTuple(f8, 17)"
 #: The verifier's hull tables: vertices, neighbour starts, neighbour rows, climbs' starts.
 _HULLS = (F2, I1, I1, I1)
@@ -90,9 +90,9 @@ ENTRIES: dict[str, Entry] = {
          INT, INT),  # where to start
         "UniTuple(i8, 3)"),
     "verify_grid": Entry(_VERIFY, "grid", (F2, F2, FLOAT), f"Tuple(({I1}, {F1}, {F2}, {F2}))"),
-    "verify_axis_bound": Entry(_VERIFY_DISTANCE, "axis_bound", (_SHAPE, _SHAPE, _HULLS),
+    "verify_axis_bound": Entry(_VERIFY_DISTANCE, "axis_bound_entry", (_SHAPE, _SHAPE, _HULLS),
                                "UniTuple(f8, 4)"),
-    "verify_gjk_bound": Entry(_VERIFY_DISTANCE, "gjk_bound",
+    "verify_gjk_bound": Entry(_VERIFY_DISTANCE, "gjk_bound_entry",
                               (_SHAPE, _SHAPE, _HULLS, FLOAT, FLOAT, FLOAT, FLOAT, BOOL, F2,
                                F2, I1),
                               "UniTuple(f8, 5)"),

@@ -139,9 +139,10 @@ def bound_between(a: ShapeSpec, T_world_a: np.ndarray, b: ShapeSpec,
 
     Sa, Sb = placed(0, T_world_a), placed(1, T_world_b)
     hulls = climbing(hulls)
-    bound, n0, n1, n2 = shapes.axis_bound(Sa, Sb, hulls)
-    return float(shapes.gjk_bound(Sa, Sb, hulls, bound, n0, n1, n2, False, np.empty((4, 3)),
-                                  np.empty((3, 3)), np.empty(4, dtype=np.int64))[0])
+    bound, n0, n1, n2 = shapes.axis_bound_entry(Sa, Sb, hulls)
+    return float(shapes.gjk_bound_entry(Sa, Sb, hulls, bound, n0, n1, n2, False,
+                                        np.empty((4, 3)), np.empty((3, 3)),
+                                        np.empty(4, dtype=np.int64))[0])
 
 
 def _edges(vertices: np.ndarray, triangles: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

@@ -2,13 +2,16 @@
 
 Part of the verifier's independent geometry (:mod:`safepath.verify`): it shares no code
 with the planner's sphere layer (:mod:`safepath.collision`), on purpose. Plain loops, no
-``np.dot`` or ``@``. The helpers take floats and tuples of floats only: a numba helper
-that takes arrays pays their reference counting on every call, which costs more than
-most of these helpers' work. The small helpers that take placed shapes (:func:`support`,
-:func:`gap`, ...) are inlined where they are called (numba's ``inline="always"``): a
-call copies both shapes' 17 floats and the hull tables onto the stack, which cost more
-than the helper's own arithmetic (the walk took ~12 % less time inlined). Inlining
-changes no operation, so no result.
+``np.dot`` or ``@``. A placed shape is a :class:`Placed` record (17 floats read by
+field name), the hull tables a :class:`Hulls` record; both are ``typing.NamedTuple``
+classes, which numba compiles to plain structs. Everything here is compiled without numba's
+reference counting (see :mod:`safepath.verify._kernel`). The small helpers that take
+placed shapes (:func:`support`, :func:`gap`, ...) and GJK's steps are inlined where they
+are called (numba's ``inline="always"``): a call copies both shapes' 17 floats and the
+hull tables onto the stack, which cost more than the helper's own arithmetic (the walk
+took ~12 % less time inlined). Inlining changes no operation, so no result. Python
+callers use :func:`axis_bound_entry` and :func:`gjk_bound_entry`, which take the records
+as plain tuples in field order (what the ahead-of-time guards take).
 
 Shapes are convex: boxes, spheres, cylinders and capsules (cylinders and capsules along
 their local z), and convex hulls given by their vertices (a mesh link's own hull, as FCL
@@ -41,6 +44,7 @@ compiled ahead of time are keyed on every kernel module's source, this one's too
 from __future__ import annotations
 
 import math
+from typing import NamedTuple
 
 import numpy as np
 
@@ -57,31 +61,86 @@ BOX, SPHERE, CYLINDER, CAPSULE, HULL = 0, 1, 2, 3, 4
 #: Columns of the shape table.
 KIND, PAR, CENTRE, RADIUS = 0, 1, 4, 7
 
-# A placed shape is a tuple of 17 floats: kind, three parameters (box half extents;
-# radius; radius and half length), the radius of a sphere about the centre that holds
-# it, its centre in the world (3), its rotation in the world (9, row-major; column j is
-# the shape's axis j).
+
+
+class Placed(NamedTuple):
+    """A shape placed in the world, as the bounds read it (17 floats, read by name).
+
+    Attributes:
+        kind: BOX, SPHERE, CYLINDER, CAPSULE or HULL (a float, as the shape table's).
+        par0, par1, par2: Its parameters: box half extents; radius; radius and half
+            length; a hull's first row in the vertex table and its count [m].
+        radius: Radius of a sphere about the centre that holds the shape [m].
+        cx, cy, cz: Its centre in the world [m].
+        r00, r01, r02, r10, r11, r12, r20, r21, r22: Its rotation in the world
+            (row-major; column j is the shape's axis j).
+    """
+
+    kind: float
+    par0: float
+    par1: float
+    par2: float
+    radius: float
+    cx: float
+    cy: float
+    cz: float
+    r00: float
+    r01: float
+    r02: float
+    r10: float
+    r11: float
+    r12: float
+    r20: float
+    r21: float
+    r22: float
+
+
+class Hulls(NamedTuple):
+    """The hull tables (all rows of the vertex table; see the module doc).
+
+    Attributes:
+        vertices: The hulls' vertices about their centres, in their geometry frames
+            (rows x 3) [m].
+        starts: Per vertex row, where its neighbours start in ``neighbours`` (rows + 1).
+        neighbours: The neighbours' rows.
+        climb: Per hull, at its first row, the vertex its last climb ended at (updated).
+    """
+
+    vertices: np.ndarray
+    starts: np.ndarray
+    neighbours: np.ndarray
+    climb: np.ndarray
 
 
 @_inline
-def _dots(S: tuple, n0: float, n1: float, n2: float) -> tuple[float, float, float]:
+def _dots(S: Placed, n0: float, n1: float, n2: float) -> tuple[float, float, float]:
     """n along each of the shape's axes."""
-    return (n0 * S[8] + n1 * S[11] + n2 * S[14], n0 * S[9] + n1 * S[12] + n2 * S[15],
-            n0 * S[10] + n1 * S[13] + n2 * S[16])
+    return (n0 * S.r00 + n1 * S.r10 + n2 * S.r20, n0 * S.r01 + n1 * S.r11 + n2 * S.r21,
+            n0 * S.r02 + n1 * S.r12 + n2 * S.r22)
 
 
 @_inline
-def _axis(S: tuple, j: int) -> tuple[float, float, float]:
+def _axis(S: Placed, j: int) -> tuple[float, float, float]:
     """The shape's axis j in the world."""
     if j == 0:
-        return S[8], S[11], S[14]
+        return S.r00, S.r10, S.r20
     if j == 1:
-        return S[9], S[12], S[15]
-    return S[10], S[13], S[16]
+        return S.r01, S.r11, S.r21
+    return S.r02, S.r12, S.r22
+
+
+@_inline
+def _par(S: Placed, j: int) -> float:
+    """The shape's parameter j (a box's half extent along its axis j)."""
+    if j == 0:
+        return S.par0
+    if j == 1:
+        return S.par1
+    return S.par2
 
 
 @_kernel
-def _hull_top(S: tuple, H: tuple, a0: float, a1: float, a2: float) -> tuple[float, int]:
+def _hull_top(S: Placed, H: Hulls, a0: float, a1: float, a2: float) -> tuple[float, int]:
     """The largest of a hull's vertices along a (in its frame), and its row: climbing
     the hull's edges to a better neighbour while there is one, from where its last
     climb ended (kept in ``H``'s start table at the hull's first row: the next
@@ -93,9 +152,9 @@ def _hull_top(S: tuple, H: tuple, a0: float, a1: float, a2: float) -> tuple[floa
     the maximum over all the vertices from any start (to rounding: a neighbour better
     by less than the rounding of a dot product may be missed, ~1e-16 m), visiting a
     few of them."""
-    V, ptr, nbr, start = H
-    first = int(S[1])
-    k = start[first]
+    V, ptr, nbr = H.vertices, H.starts, H.neighbours
+    first = int(S.par0)
+    k = H.climb[first]
     best = V[k, 0] * a0 + V[k, 1] * a1 + V[k, 2] * a2
     while True:
         top = k
@@ -105,42 +164,42 @@ def _hull_top(S: tuple, H: tuple, a0: float, a1: float, a2: float) -> tuple[floa
             if x > best:
                 best, top = x, j
         if top == k:
-            start[first] = k
+            H.climb[first] = k
             return best, k
         k = top
 
 
 @_inline
-def support(S: tuple, H: tuple, n0: float, n1: float, n2: float) -> float:
+def support(S: Placed, H: Hulls, n0: float, n1: float, n2: float) -> float:
     """How far the shape's projection on the unit axis n reaches beyond its centre along
     n [m] (half its width, but for a hull: ``H`` holds the hulls' vertices about their
     centres in their own frames (rows), per vertex row where its neighbours start in
     the neighbour rows, those rows, and per hull (at its first row) the vertex its
     last climb ended at, updated)."""
     a0, a1, a2 = _dots(S, n0, n1, n2)
-    kind = int(S[0])
+    kind = int(S.kind)
     if kind == HULL:
         return _hull_top(S, H, a0, a1, a2)[0]  # type: ignore[no-any-return]
     if kind == BOX:
-        return S[1] * abs(a0) + S[2] * abs(a1) + S[3] * abs(a2)  # type: ignore[no-any-return]
+        return S.par0 * abs(a0) + S.par1 * abs(a1) + S.par2 * abs(a2)
     if kind == SPHERE:
-        return S[1]  # type: ignore[no-any-return]
+        return S.par0
     u = abs(a2)
     if kind == CYLINDER:
-        return S[2] * u + S[1] * math.sqrt(max(0.0, 1.0 - u * u))  # type: ignore[no-any-return]
-    return S[2] * u + S[1]  # type: ignore[no-any-return]
+        return S.par1 * u + S.par0 * math.sqrt(max(0.0, 1.0 - u * u))
+    return S.par1 * u + S.par0
 
 
 @_inline
-def _support_point(S: tuple, H: tuple, n0: float, n1: float, n2: float
+def _support_point(S: Placed, H: Hulls, n0: float, n1: float, n2: float
                    ) -> tuple[float, float, float]:
     """A point of the shape furthest along n: GJK's search only, the bounds use
     :func:`support`."""
-    x0, x1, x2 = S[5], S[6], S[7]
+    x0, x1, x2 = S.cx, S.cy, S.cz
     a0, a1, a2 = _dots(S, n0, n1, n2)
-    kind = int(S[0])
+    kind = int(S.kind)
     if kind == HULL:
-        V = H[0]
+        V = H.vertices
         k = _hull_top(S, H, a0, a1, a2)[1]
         for j in range(3):
             c0, c1, c2 = _axis(S, j)
@@ -148,32 +207,32 @@ def _support_point(S: tuple, H: tuple, n0: float, n1: float, n2: float
         return x0, x1, x2
     if kind == BOX:
         for j, a in ((0, a0), (1, a1), (2, a2)):
-            h = S[1 + j] if a >= 0.0 else -S[1 + j]
+            h = _par(S, j) if a >= 0.0 else -_par(S, j)
             c0, c1, c2 = _axis(S, j)
             x0, x1, x2 = x0 + h * c0, x1 + h * c1, x2 + h * c2
         return x0, x1, x2
     norm = math.sqrt(n0 * n0 + n1 * n1 + n2 * n2)
     if kind == SPHERE:
-        r = S[1] / norm
+        r = S.par0 / norm
         return x0 + r * n0, x1 + r * n1, x2 + r * n2
     c0, c1, c2 = _axis(S, 2)
-    h = S[2] if a2 >= 0.0 else -S[2]
+    h = S.par1 if a2 >= 0.0 else -S.par1
     x0, x1, x2 = x0 + h * c0, x1 + h * c1, x2 + h * c2
     if kind == CAPSULE:
-        r = S[1] / norm
+        r = S.par0 / norm
         return x0 + r * n0, x1 + r * n1, x2 + r * n2
     r0, r1, r2 = n0 - a2 * c0, n1 - a2 * c1, n2 - a2 * c2
     radial = math.sqrt(r0 * r0 + r1 * r1 + r2 * r2)
     if radial > 1e-12 * norm:
-        r = S[1] / radial
+        r = S.par0 / radial
         x0, x1, x2 = x0 + r * r0, x1 + r * r1, x2 + r * r2
     return x0, x1, x2
 
 
 @_inline
-def gap(Sa: tuple, Sb: tuple, H: tuple, n0: float, n1: float, n2: float) -> float:
+def gap(Sa: Placed, Sb: Placed, H: Hulls, n0: float, n1: float, n2: float) -> float:
     """Gap between the shapes' projections on the unit axis n [m]."""
-    d0, d1, d2 = Sb[5] - Sa[5], Sb[6] - Sa[6], Sb[7] - Sa[7]
+    d0, d1, d2 = Sb.cx - Sa.cx, Sb.cy - Sa.cy, Sb.cz - Sa.cz
     along = n0 * d0 + n1 * d1 + n2 * d2
     if along < 0.0:  # B lies behind A along n: measure along -n
         n0, n1, n2, along = -n0, -n1, -n2, -along
@@ -182,20 +241,20 @@ def gap(Sa: tuple, Sb: tuple, H: tuple, n0: float, n1: float, n2: float) -> floa
 
 
 @_inline
-def sphere_bound(Sa: tuple, Sb: tuple) -> tuple[float, float, float, float]:
+def sphere_bound(Sa: Placed, Sb: Placed) -> tuple[float, float, float, float]:
     """Distance between the bounding spheres [m] (never above the gap along the line
     between the centres), and that line's direction."""
-    d0, d1, d2 = Sb[5] - Sa[5], Sb[6] - Sa[6], Sb[7] - Sa[7]
+    d0, d1, d2 = Sb.cx - Sa.cx, Sb.cy - Sa.cy, Sb.cz - Sa.cz
     dist = math.sqrt(d0 * d0 + d1 * d1 + d2 * d2)
     if dist < 1e-12:
-        return dist - Sa[4] - Sb[4], 0.0, 0.0, 1.0
-    return dist - Sa[4] - Sb[4], d0 / dist, d1 / dist, d2 / dist
+        return dist - Sa.radius - Sb.radius, 0.0, 0.0, 1.0
+    return dist - Sa.radius - Sb.radius, d0 / dist, d1 / dist, d2 / dist
 
 
 @_inline
-def _own_axes(S: tuple) -> tuple[int, int]:
+def _own_axes(S: Placed) -> tuple[int, int]:
     """The shape's axes worth trying: (first, count)."""
-    kind = int(S[0])
+    kind = int(S.kind)
     if kind == BOX:
         return 0, 3
     if kind == SPHERE or kind == HULL:  # a hull's frame axes are nothing special
@@ -204,7 +263,7 @@ def _own_axes(S: tuple) -> tuple[int, int]:
 
 
 @_kernel
-def axis_bound(Sa: tuple, Sb: tuple, H: tuple) -> tuple[float, float, float, float]:
+def axis_bound(Sa: Placed, Sb: Placed, H: Hulls) -> tuple[float, float, float, float]:
     """The largest gap along the line between the centres, the shapes' own axes and
     their cross products [m] (never below the bounding spheres' distance), and its
     axis."""
@@ -266,8 +325,75 @@ def _solve(k: int, g00: float, g01: float, g02: float, g11: float, g12: float,
             (c01 * r0 + c11 * r1 + c12 * r2) / det, (c02 * r0 + c12 * r1 + c22 * r2) / det)
 
 
+@_inline
+def _face_point(W: np.ndarray, e: np.ndarray, idx: np.ndarray, count: int, mask: int
+                ) -> tuple[bool, float, float, float]:
+    """The point of the simplex's face (its vertices: the bits of ``mask`` among the
+    first ``count`` rows of ``W``) closest to the origin, if the origin's projection on
+    the face's plane falls inside the face (else False)."""
+    k = -1
+    for i in range(count):
+        if mask >> i & 1:
+            k += 1
+            idx[k] = i
+    i0 = idx[0]
+    e[:] = 0.0
+    for a in range(k):
+        for c in range(3):
+            e[a, c] = W[idx[a + 1], c] - W[i0, c]
+    x0, x1, x2 = W[i0, 0], W[i0, 1], W[i0, 2]
+    if k > 0:
+        ok, l1, l2, l3 = _solve(
+            k, e[0, 0] * e[0, 0] + e[0, 1] * e[0, 1] + e[0, 2] * e[0, 2],
+            e[0, 0] * e[1, 0] + e[0, 1] * e[1, 1] + e[0, 2] * e[1, 2],
+            e[0, 0] * e[2, 0] + e[0, 1] * e[2, 1] + e[0, 2] * e[2, 2],
+            e[1, 0] * e[1, 0] + e[1, 1] * e[1, 1] + e[1, 2] * e[1, 2],
+            e[1, 0] * e[2, 0] + e[1, 1] * e[2, 1] + e[1, 2] * e[2, 2],
+            e[2, 0] * e[2, 0] + e[2, 1] * e[2, 1] + e[2, 2] * e[2, 2],
+            -(e[0, 0] * x0 + e[0, 1] * x1 + e[0, 2] * x2),
+            -(e[1, 0] * x0 + e[1, 1] * x1 + e[1, 2] * x2),
+            -(e[2, 0] * x0 + e[2, 1] * x1 + e[2, 2] * x2))
+        if not ok or min(l1, l2, l3) < -1e-12 or l1 + l2 + l3 > 1.0 + 1e-12:
+            return False, x0, x1, x2
+        x0 += l1 * e[0, 0] + l2 * e[1, 0] + l3 * e[2, 0]
+        x1 += l1 * e[0, 1] + l2 * e[1, 1] + l3 * e[2, 1]
+        x2 += l1 * e[0, 2] + l2 * e[1, 2] + l3 * e[2, 2]
+    return True, x0, x1, x2
+
+
+@_inline
+def _closest(W: np.ndarray, e: np.ndarray, idx: np.ndarray, count: int, v0: float,
+             v1: float, v2: float) -> tuple[int, float, float, float]:
+    """The closest point of the simplex (the first ``count`` rows of ``W``) to the
+    origin, and the face it lies on (a mask of its vertices): the smallest of the faces'
+    closest points (:func:`_face_point`). (v0, v1, v2) is kept if no face has one."""
+    closest, keep_mask = np.inf, 0
+    for mask in range(1, 1 << count):
+        inside, x0, x1, x2 = _face_point(W, e, idx, count, mask)
+        if not inside:
+            continue
+        norm2 = x0 * x0 + x1 * x1 + x2 * x2
+        if norm2 < closest:
+            closest, keep_mask = norm2, mask
+            v0, v1, v2 = x0, x1, x2
+    return keep_mask, v0, v1, v2
+
+
+@_inline
+def _reduce(W: np.ndarray, count: int, keep_mask: int) -> int:
+    """Keep the simplex's vertices in ``keep_mask`` (moved to the first rows of ``W``,
+    in order); returns how many."""
+    kept = 0
+    for i in range(count):
+        if keep_mask >> i & 1:
+            for c in range(3):
+                W[kept, c] = W[i, c]
+            kept += 1
+    return kept
+
+
 @_kernel
-def gjk_bound(Sa: tuple, Sb: tuple, H: tuple, best: float, w0: float, w1: float,
+def gjk_bound(Sa: Placed, Sb: Placed, H: Hulls, best: float, w0: float, w1: float,
               w2: float, warm: bool, W: np.ndarray, e: np.ndarray, idx: np.ndarray
               ) -> tuple[float, float, float, float, float]:
     """Raise the lower bound ``best`` [m] with the gaps along GJK's search directions.
@@ -285,7 +411,7 @@ def gjk_bound(Sa: tuple, Sb: tuple, H: tuple, best: float, w0: float, w1: float,
         The bound [m], the upper bound [m], and the axis of the bound if GJK raised
         it (else w).
     """
-    d0, d1, d2 = Sb[5] - Sa[5], Sb[6] - Sa[6], Sb[7] - Sa[7]
+    d0, d1, d2 = Sb.cx - Sa.cx, Sb.cy - Sa.cy, Sb.cz - Sa.cz
     v0, v1, v2 = d0, d1, d2
     b0, b1, b2 = w0, w1, w2
     count = 0
@@ -313,46 +439,25 @@ def gjk_bound(Sa: tuple, Sb: tuple, H: tuple, best: float, w0: float, w1: float,
         W[count, 0], W[count, 1], W[count, 2] = c0 - a0, c1 - a1, c2 - a2
         count += 1
         # The closest point of the simplex to the origin, and the face it lies on.
-        closest, keep_mask = np.inf, 0
-        for mask in range(1, 1 << count):
-            k = -1
-            for i in range(count):
-                if mask >> i & 1:
-                    k += 1
-                    idx[k] = i
-            i0 = idx[0]
-            e[:] = 0.0
-            for a in range(k):
-                for c in range(3):
-                    e[a, c] = W[idx[a + 1], c] - W[i0, c]
-            x0, x1, x2 = W[i0, 0], W[i0, 1], W[i0, 2]
-            if k > 0:
-                ok, l1, l2, l3 = _solve(
-                    k, e[0, 0] * e[0, 0] + e[0, 1] * e[0, 1] + e[0, 2] * e[0, 2],
-                    e[0, 0] * e[1, 0] + e[0, 1] * e[1, 1] + e[0, 2] * e[1, 2],
-                    e[0, 0] * e[2, 0] + e[0, 1] * e[2, 1] + e[0, 2] * e[2, 2],
-                    e[1, 0] * e[1, 0] + e[1, 1] * e[1, 1] + e[1, 2] * e[1, 2],
-                    e[1, 0] * e[2, 0] + e[1, 1] * e[2, 1] + e[1, 2] * e[2, 2],
-                    e[2, 0] * e[2, 0] + e[2, 1] * e[2, 1] + e[2, 2] * e[2, 2],
-                    -(e[0, 0] * x0 + e[0, 1] * x1 + e[0, 2] * x2),
-                    -(e[1, 0] * x0 + e[1, 1] * x1 + e[1, 2] * x2),
-                    -(e[2, 0] * x0 + e[2, 1] * x1 + e[2, 2] * x2))
-                if not ok or min(l1, l2, l3) < -1e-12 or l1 + l2 + l3 > 1.0 + 1e-12:
-                    continue
-                x0 += l1 * e[0, 0] + l2 * e[1, 0] + l3 * e[2, 0]
-                x1 += l1 * e[0, 1] + l2 * e[1, 1] + l3 * e[2, 1]
-                x2 += l1 * e[0, 2] + l2 * e[1, 2] + l3 * e[2, 2]
-            norm2 = x0 * x0 + x1 * x1 + x2 * x2
-            if norm2 < closest:
-                closest, keep_mask = norm2, mask
-                v0, v1, v2 = x0, x1, x2
-        kept = 0
-        for i in range(count):
-            if keep_mask >> i & 1:
-                for c in range(3):
-                    W[kept, c] = W[i, c]
-                kept += 1
-        count = kept
+        keep_mask, v0, v1, v2 = _closest(W, e, idx, count, v0, v1, v2)
+        count = _reduce(W, count, keep_mask)
         if count == 4:
             break  # the origin is inside: overlapping
     return best, upper, b0, b1, b2
+
+
+@njit(cache=True)
+def axis_bound_entry(Sa: tuple, Sb: tuple, H: tuple) -> tuple[float, float, float, float]:
+    """:func:`axis_bound` for callers from Python (an entry of the ahead-of-time table,
+    whose guards take plain tuples): the placed shapes as tuples in :class:`Placed`'s
+    field order, the hull tables in :class:`Hulls`'s."""
+    return axis_bound(Placed(*Sa), Placed(*Sb), Hulls(*H))  # type: ignore[no-any-return]
+
+
+@njit(cache=True)
+def gjk_bound_entry(Sa: tuple, Sb: tuple, H: tuple, best: float, w0: float, w1: float,
+                    w2: float, warm: bool, W: np.ndarray, e: np.ndarray, idx: np.ndarray
+                    ) -> tuple[float, float, float, float, float]:
+    """:func:`gjk_bound` for callers from Python (as :func:`axis_bound_entry`)."""
+    return gjk_bound(Placed(*Sa), Placed(*Sb), Hulls(*H),  # type: ignore[no-any-return]
+                     best, w0, w1, w2, warm, W, e, idx)

@@ -586,16 +586,17 @@ def test_a_hulls_support_climbs_to_the_largest_vertex_from_any_start() -> None:
              if isinstance(g.geometry, coal.ConvexBase)]
     assert sum(len(s.vertices) > 50 for s in specs) >= 5
     table, hulls = shape_table(specs)
-    hulls = climbing(hulls)
-    V, ptr, nbr, start = hulls
+    hulls = kernel.Hulls(*climbing(hulls))
+    V, ptr, nbr = hulls.vertices, hulls.starts, hulls.neighbours
     assert ptr.size == len(V) + 1 and nbr.size == ptr[-1]
     rng = np.random.default_rng(11)
     for k, spec in enumerate(specs):
         first, count = int(table[k, 1]), int(table[k, 2])
-        S = (4.0, float(first), float(count), 0.0, spec.radius, 0.0, 0.0, 0.0,
-             1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0)
+        S = kernel.Placed(kind=4.0, par0=float(first), par1=float(count), par2=0.0,
+                          radius=spec.radius, cx=0.0, cy=0.0, cz=0.0, r00=1.0, r01=0.0,
+                          r02=0.0, r10=0.0, r11=1.0, r12=0.0, r20=0.0, r21=0.0, r22=1.0)
         for _ in range(300):
-            start[first] = first + int(rng.integers(count))
+            hulls.climb[first] = first + int(rng.integers(count))
             n = rng.normal(size=3)
             n /= np.linalg.norm(n)
             want = max(V[i, 0] * n[0] + V[i, 1] * n[1] + V[i, 2] * n[2]
