@@ -206,42 +206,45 @@ def _origin_outside(S, i, j, k, o):  # noqa: N803
 
 
 @_inlined
-def _closest(S, n, v, tmp):  # noqa: N803
-    """Closest point ``v`` of the simplex S[:n] to the origin; S is reduced in place to
-    the vertices that span it. Returns the new count (4: the origin is inside)."""
-    if n == 1:
+def _closest_on_segment(S, v):  # noqa: N803
+    """Closest point ``v`` of the segment S[0], S[1] to the origin; S is reduced in place
+    to the vertices that span it. Returns their count."""
+    e0, e1, e2 = S[1, 0] - S[0, 0], S[1, 1] - S[0, 1], S[1, 2] - S[0, 2]
+    ee = e0 * e0 + e1 * e1 + e2 * e2
+    t = -(S[0, 0] * e0 + S[0, 1] * e1 + S[0, 2] * e2) / ee if ee > 0.0 else 0.0
+    if t <= 0.0:
         v[0], v[1], v[2] = S[0, 0], S[0, 1], S[0, 2]
         return 1
-    if n == 2:
-        e0, e1, e2 = S[1, 0] - S[0, 0], S[1, 1] - S[0, 1], S[1, 2] - S[0, 2]
-        ee = e0 * e0 + e1 * e1 + e2 * e2
-        t = -(S[0, 0] * e0 + S[0, 1] * e1 + S[0, 2] * e2) / ee if ee > 0.0 else 0.0
-        if t <= 0.0:
-            v[0], v[1], v[2] = S[0, 0], S[0, 1], S[0, 2]
-            return 1
-        if t >= 1.0:
-            S[0, 0], S[0, 1], S[0, 2] = S[1, 0], S[1, 1], S[1, 2]
-            v[0], v[1], v[2] = S[0, 0], S[0, 1], S[0, 2]
-            return 1
-        v[0], v[1], v[2] = S[0, 0] + t * e0, S[0, 1] + t * e1, S[0, 2] + t * e2
-        return 2
-    if n == 3:
-        mask = _triangle(S, 0, 1, 2, v)
-    else:
-        mask = 0
-        best = 1e300
-        faces = ((0, 1, 2, 3), (0, 2, 3, 1), (0, 3, 1, 2), (1, 3, 2, 0))
-        for f in faces:
-            if _origin_outside(S, f[0], f[1], f[2], f[3]):
-                m = _triangle(S, f[0], f[1], f[2], tmp)
-                dd = _dot(tmp, tmp)
-                if dd < best:
-                    best = dd
-                    mask = m
-                    v[0], v[1], v[2] = tmp[0], tmp[1], tmp[2]
-        if mask == 0:
-            v[:] = 0.0
-            return 4
+    if t >= 1.0:
+        S[0, 0], S[0, 1], S[0, 2] = S[1, 0], S[1, 1], S[1, 2]
+        v[0], v[1], v[2] = S[0, 0], S[0, 1], S[0, 2]
+        return 1
+    v[0], v[1], v[2] = S[0, 0] + t * e0, S[0, 1] + t * e1, S[0, 2] + t * e2
+    return 2
+
+
+@_inlined
+def _closest_on_tetrahedron(S, v, tmp):  # noqa: N803
+    """Closest point ``v`` of the tetrahedron S[0:4] to the origin, over the faces that
+    the origin lies outside of; returns the bit mask of the vertices that span it (0: the
+    origin is inside, ``v`` untouched)."""
+    mask = 0
+    best = 1e300
+    faces = ((0, 1, 2, 3), (0, 2, 3, 1), (0, 3, 1, 2), (1, 3, 2, 0))
+    for f in faces:
+        if _origin_outside(S, f[0], f[1], f[2], f[3]):
+            m = _triangle(S, f[0], f[1], f[2], tmp)
+            dd = _dot(tmp, tmp)
+            if dd < best:
+                best = dd
+                mask = m
+                v[0], v[1], v[2] = tmp[0], tmp[1], tmp[2]
+    return mask
+
+
+@_inlined
+def _keep(S, n, mask):  # noqa: N803
+    """Reduce S[:n] in place to the vertices in ``mask`` (in order); returns their count."""
     out = 0
     for r in range(n):
         if mask & (1 << r):
@@ -249,6 +252,25 @@ def _closest(S, n, v, tmp):  # noqa: N803
                 S[out, 0], S[out, 1], S[out, 2] = S[r, 0], S[r, 1], S[r, 2]
             out += 1
     return out
+
+
+@_inlined
+def _closest(S, n, v, tmp):  # noqa: N803
+    """Closest point ``v`` of the simplex S[:n] to the origin; S is reduced in place to
+    the vertices that span it. Returns the new count (4: the origin is inside)."""
+    if n == 1:
+        v[0], v[1], v[2] = S[0, 0], S[0, 1], S[0, 2]
+        return 1
+    if n == 2:
+        return _closest_on_segment(S, v)
+    if n == 3:
+        mask = _triangle(S, 0, 1, 2, v)
+    else:
+        mask = _closest_on_tetrahedron(S, v, tmp)
+        if mask == 0:
+            v[:] = 0.0
+            return 4
+    return _keep(S, n, mask)
 
 
 @_inlined

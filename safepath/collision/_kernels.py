@@ -125,58 +125,27 @@ def _evaluate(q, fb, ib, Rw, pw, wf, wi, rates, want_radius, need, t):  # noqa: 
     block, which this updates) covers ``need`` either side of ``t``."""
     _fk(q, fb, ib, Rw, pw)
     oc = ib[H_C]
-    refine, free_eps, proof_eps = fb[oc + C_REFINE], fb[oc + C_FREE_EPS], fb[oc + C_PROOF_EPS]
-    if not want_radius:
-        refine = 0.0
-    og, ogi, op_, of_ = ib[H_G], ib[H_GI], ib[H_PI], ib[H_P]
-    ocw, obud = wi[WI_CW], wi[WI_BUDGET]
-    odl, occ, oabs = wi[WI_DL], wi[WI_CC], wi[WI_ABSU]
-    # Bounding spheres of the movers, in the world.
-    for m in range(ib[H_NG]):
-        j = ib[ogi + GIW * m + GI_JOINT]
-        c = og + GW * m + G_CENTRE
-        x, y, z = fb[c], fb[c + 1], fb[c + 2]
-        for r in range(3):
-            wf[ocw + 3 * m + r] = (Rw[j, r, 0] * x + Rw[j, r, 1] * y + Rw[j, r, 2] * z
-                                   + pw[j, r])
-    odlok = wi[WI_DLOK]
-    if want_radius:
-        for m in range(ib[H_NG]):  # measured when a pair first needs them
-            wf[odlok + m] = 0.0
+    free_eps, proof_eps = fb[oc + C_FREE_EPS], fb[oc + C_PROOF_EPS]
+    refine = fb[oc + C_REFINE] if want_radius else 0.0
+    _place_bounds(fb, ib, Rw, pw, wf, wi)
+    if want_radius:  # the axis distances (DL) are measured when a pair first needs them
+        wf[wi[WI_DLOK]:wi[WI_DLOK] + ib[H_NG]] = 0.0
     unsure = False
     radius = 1e300
-    oe, oer, ocert = ib[H_E], ib[H_ER], wi[WI_CERT]
+    og, op_, of_, ocw = ib[H_G], ib[H_PI], ib[H_P], wi[WI_CW]
     for k in range(ib[H_NP]):
-        if want_radius:
+        if want_radius and _covered(k, t, need, wf, wi):
             # Free for every state within ``need`` of this one: its bound is no limit.
-            c, w = wf[ocert + 2 * k], wf[ocert + 2 * k + 1]
-            if t - need > c - w and t + need < c + w:
-                if need < radius:
-                    radius = need
-                continue
+            if need < radius:
+                radius = need
+            continue
+        sm = max(fb[of_ + k], 0.0)
         pair = op_ + PIW * k
         a, b, is_env = ib[pair + PI_A], ib[pair + PI_B], ib[pair + PI_ENV]
-        sm = max(fb[of_ + k], 0.0)
-        cax, cay, caz = wf[ocw + 3 * a], wf[ocw + 3 * a + 1], wf[ocw + 3 * a + 2]
-        if is_env == 1:
-            if not want_radius:
-                # Broad phase: bounding spheres apart by more than the margin decide the
-                # pair (free) without measuring the object.
-                e_pos = oe + EW * b + E_POS
-                dx = cax - fb[e_pos]
-                dy = cay - fb[e_pos + 1]
-                dz = caz - fb[e_pos + 2]
-                reach = fb[og + GW * a + G_RADIUS] + fb[oer + b] + sm + free_eps
-                if dx * dx + dy * dy + dz * dz > reach * reach:
-                    continue
-            coarse = _env_sdist3(fb, ib, b, cax, cay, caz) - fb[og + GW * a + G_RADIUS]
-        else:
-            dd = ((cax - wf[ocw + 3 * b]) ** 2 + (cay - wf[ocw + 3 * b + 1]) ** 2
-                  + (caz - wf[ocw + 3 * b + 2]) ** 2)
-            rr = fb[og + GW * a + G_RADIUS] + fb[og + GW * b + G_RADIUS]
-            if not want_radius and dd > (rr + sm + free_eps) ** 2:
-                continue
-            coarse = math.sqrt(dd) - rr
+        apart, coarse = _coarse_distance(a, b, is_env, sm, free_eps, not want_radius, fb, ib,
+                                         wf, og, ocw)
+        if apart:
+            continue
         budget = coarse - sm - free_eps
         if budget <= refine:
             budget = max(coarse, _pair_bound(k, fb, ib, Rw, pw, wf, wi,
@@ -185,30 +154,100 @@ def _evaluate(q, fb, ib, Rw, pw, wf, wi, rates, want_radius, need, t):  # noqa: 
             if _pair_collides(k, fb, ib, proof_eps, Rw, pw, wf, wi):
                 return COLLIDES, 0.0
             unsure = True
-            continue
-        if not want_radius:
-            continue
-        left = budget - rates[k] * (1.0 - t)  # at the segment's end
-        if left > wf[obud + k]:
-            wf[obud + k] = left
-        h = 1e300  # a pair the segment does not move stays free along all of it
-        if rates[k] > 0.0:
-            h = budget / rates[k]
-            if h < need:
-                if wf[odlok + a] == 0.0:
-                    _axis_distances(a, fb, ib, Rw, pw, wf, ocw, odl)
-                    wf[odlok + a] = 1.0
-                if is_env == 0 and wf[odlok + b] == 0.0:
-                    _axis_distances(b, fb, ib, Rw, pw, wf, ocw, odl)
-                    wf[odlok + b] = 1.0
-                h = max(h, _local_radius(k, a, b, budget, ib, wf, odl, occ, oabs))
+        elif want_radius:
+            h = _certify_pair(k, budget, t, need, rates, fb, ib, Rw, pw, wf, wi)
             if h < radius:
                 radius = h
-        wf[ocert + 2 * k] = t
-        wf[ocert + 2 * k + 1] = h * (1.0 - 1e-12)
     if unsure:
         return UNSURE, 0.0
     return FREE, radius
+
+
+@_inlined
+def _place_bounds(fb, ib, Rw, pw, wf, wi):  # noqa: N803
+    """World centres of the movers' bounding spheres at the state of Rw, pw into wf's
+    WI_CW block."""
+    og, ogi, ocw = ib[H_G], ib[H_GI], wi[WI_CW]
+    for m in range(ib[H_NG]):
+        j = ib[ogi + GIW * m + GI_JOINT]
+        c = og + GW * m + G_CENTRE
+        x, y, z = fb[c], fb[c + 1], fb[c + 2]
+        for r in range(3):
+            wf[ocw + 3 * m + r] = (Rw[j, r, 0] * x + Rw[j, r, 1] * y + Rw[j, r, 2] * z
+                                   + pw[j, r])
+
+
+@_inlined
+def _covered(k, t, need, wf, wi):
+    """Whether the stretch pair ``k`` is certified along (wf's WI_CERT block) covers every
+    state within ``need`` of ``t``."""
+    ocert = wi[WI_CERT]
+    c, w = wf[ocert + 2 * k], wf[ocert + 2 * k + 1]
+    return t - need > c - w and t + need < c + w
+
+
+@_inlined
+def _coarse_distance(a, b, is_env, sm, free_eps, broad, fb, ib, wf, og, ocw):
+    """(apart, distance): a lower bound [m] on the distance of mover ``a`` and environment
+    object (``is_env``) or mover ``b`` from a's bounding sphere (to the object, or to b's
+    bounding sphere; centres in wf from ``ocw``, rows of the movers from ``og``). With
+    ``broad`` (no radius wanted), apart (and no distance) when the bounding spheres lie
+    farther apart than the margin ``sm`` and ``free_eps``: free, without measuring the
+    object. The offsets are the caller's, read once per state: this runs for every pair
+    of every state."""
+    cax, cay, caz = wf[ocw + 3 * a], wf[ocw + 3 * a + 1], wf[ocw + 3 * a + 2]
+    if is_env == 1:
+        if broad:
+            e_pos = ib[H_E] + EW * b + E_POS
+            dx = cax - fb[e_pos]
+            dy = cay - fb[e_pos + 1]
+            dz = caz - fb[e_pos + 2]
+            reach = fb[og + GW * a + G_RADIUS] + fb[ib[H_ER] + b] + sm + free_eps
+            if dx * dx + dy * dy + dz * dz > reach * reach:
+                return True, 0.0
+        return False, _env_sdist3(fb, ib, b, cax, cay, caz) - fb[og + GW * a + G_RADIUS]
+    dd = ((cax - wf[ocw + 3 * b]) ** 2 + (cay - wf[ocw + 3 * b + 1]) ** 2
+          + (caz - wf[ocw + 3 * b + 2]) ** 2)
+    rr = fb[og + GW * a + G_RADIUS] + fb[og + GW * b + G_RADIUS]
+    if broad and dd > (rr + sm + free_eps) ** 2:
+        return True, 0.0
+    return False, math.sqrt(dd) - rr
+
+
+@_inlined
+def _certify_pair(k, budget, t, need, rates, fb, ib, Rw, pw, wf, wi):  # noqa: N803
+    """Pair ``k``, free at the state at ``t`` with ``budget`` [m] to spare: its ledger
+    entry (wf's WI_BUDGET block: what the budget leaves at the segment's end, if more) and
+    the stretch it is certified along (WI_CERT); returns that stretch's radius (in units
+    of ``t``; 1e300: the segment does not move the pair)."""
+    obud, ocert = wi[WI_BUDGET], wi[WI_CERT]
+    left = budget - rates[k] * (1.0 - t)  # at the segment's end
+    if left > wf[obud + k]:
+        wf[obud + k] = left
+    h = 1e300  # a pair the segment does not move stays free along all of it
+    if rates[k] > 0.0:
+        h = budget / rates[k]
+        if h < need:
+            h = max(h, _finer_radius(k, budget, fb, ib, Rw, pw, wf, wi))
+    wf[ocert + 2 * k] = t
+    wf[ocert + 2 * k + 1] = h * (1.0 - 1e-12)
+    return h
+
+
+@_inlined
+def _finer_radius(k, budget, fb, ib, Rw, pw, wf, wi):  # noqa: N803
+    """Pair ``k``'s radius from its bodies' distances to the joint axes (see
+    ``_local_radius``), measuring each body's (DL) first if this state has not yet."""
+    pair = ib[H_PI] + PIW * k
+    a, b = ib[pair + PI_A], ib[pair + PI_B]
+    ocw, odl, odlok = wi[WI_CW], wi[WI_DL], wi[WI_DLOK]
+    if wf[odlok + a] == 0.0:
+        _axis_distances(a, fb, ib, Rw, pw, wf, ocw, odl)
+        wf[odlok + a] = 1.0
+    if ib[pair + PI_ENV] == 0 and wf[odlok + b] == 0.0:
+        _axis_distances(b, fb, ib, Rw, pw, wf, ocw, odl)
+        wf[odlok + b] = 1.0
+    return _local_radius(k, a, b, budget, ib, wf, odl, wi[WI_CC], wi[WI_ABSU])
 
 
 @_inlined
@@ -342,7 +381,6 @@ def certify_polyline(P, n, lo, hi, fb, ib, unsure_seg, unsure_idx, max_unsure): 
     """
     npairs, dof = ib[H_NP], ib[H_DOF]
     Rw, pw, wf, wi = _workspace(ib)
-    obud, ocert = wi[WI_BUDGET], wi[WI_CERT]
     rates = np.empty(npairs)
     u = np.empty(dof)
     qs = np.empty(dof)
@@ -354,8 +392,7 @@ def certify_polyline(P, n, lo, hi, fb, ib, unsure_seg, unsure_idx, max_unsure): 
     # segment), none (<= 0) yet. A pair within its budget over a whole segment is not
     # evaluated there; a segment within every pair's is certified without an evaluation
     # (short chords of a sampled curve).
-    for p in range(npairs):
-        wf[obud + p] = -1.0
+    wf[wi[WI_BUDGET]:wi[WI_BUDGET] + npairs] = -1.0
     # FIFO of disjoint, non-empty index ranges still to cover (coarse to fine), made once
     # for the longest segment: a segment's live ranges and the two it adds fit in it.
     room = 3
@@ -367,28 +404,11 @@ def certify_polyline(P, n, lo, hi, fb, ib, unsure_seg, unsure_idx, max_unsure): 
         for j in range(dof):
             u[j] = P[k + 1, j] - P[k, j]
         _pair_rates(u, fb, ib, wf, wi, rates)
-        whole = hi[k] < lo[k]  # no state of this segment to check
-        if not whole:
-            whole = True
-            for p in range(npairs):
-                if wf[obud + p] - rates[p] <= 0.0:
-                    whole = False
-                    break
-        if whole:
-            for p in range(npairs):
-                wf[obud + p] -= rates[p]
+        # No state of this segment to check, or every pair's budget lasts along it.
+        if hi[k] < lo[k] or _ledger_lasts(ib, wf, wi, rates):
+            _spend_ledger(ib, wf, wi, rates)
             continue
-        # Each pair starts certified from the segment's start as far as its budget
-        # lasts; the ledger becomes what that budget leaves at the segment's end (the
-        # evaluations below raise it).
-        for p in range(npairs):
-            left = wf[obud + p]
-            width = -1.0
-            if left > 0.0:
-                width = 1e300 if rates[p] == 0.0 else left / rates[p] * (1.0 - 1e-12)
-            wf[ocert + 2 * p] = 0.0
-            wf[ocert + 2 * p + 1] = width
-            wf[obud + p] = left - rates[p]
+        _open_segment(ib, wf, wi, rates)
         _axis_growth(fb, ib, wf, wi)  # for this segment's evaluations
         nk = n[k]
         head, tail = 0, 1
@@ -408,27 +428,78 @@ def certify_polyline(P, n, lo, hi, fb, ib, unsure_seg, unsure_idx, max_unsure): 
                 return COLLIDES, k, mid, evaluated, n_unsure
             m = 0
             if status == FREE:
-                # Grid states with |i - mid| / nk < radius are certified.
-                reach = radius * nk * (1.0 - 1e-12)
-                m = nk if reach >= nk else max(int(math.ceil(reach)) - 1, 0)
+                m = _certified_steps(radius, nk)
             else:
                 unsure_seg[n_unsure] = k
                 unsure_idx[n_unsure] = mid
                 n_unsure += 1
                 if n_unsure >= max_unsure:
                     return UNSURE, k, mid, evaluated, n_unsure
-            if tail + 2 > room:
-                live = tail - head
-                qlo[:live] = qlo[head:tail].copy()
-                qhi[:live] = qhi[head:tail].copy()
-                head, tail = 0, live
-            if a <= mid - m - 1:
-                qlo[tail], qhi[tail] = a, mid - m - 1
-                tail += 1
-            if mid + m + 1 <= b:
-                qlo[tail], qhi[tail] = mid + m + 1, b
-                tail += 1
+            head, tail = _queue_rest(qlo, qhi, head, tail, a, b, mid, m)
     return FREE, -1, -1, evaluated, n_unsure
+
+
+@_inlined
+def _ledger_lasts(ib, wf, wi, rates):
+    """Whether every pair's ledger entry (wf's WI_BUDGET block) outlasts a segment along
+    which it can close by ``rates`` [m]."""
+    obud = wi[WI_BUDGET]
+    for p in range(ib[H_NP]):
+        if wf[obud + p] - rates[p] <= 0.0:
+            return False
+    return True
+
+
+@_inlined
+def _spend_ledger(ib, wf, wi, rates):
+    """The ledger at the end of a segment certified as a whole: each entry less what the
+    segment may close (``rates``)."""
+    obud = wi[WI_BUDGET]
+    for p in range(ib[H_NP]):
+        wf[obud + p] -= rates[p]
+
+
+@_inlined
+def _open_segment(ib, wf, wi, rates):
+    """Start a segment's walk: each pair certified from its start as far as its ledger's
+    budget lasts (wf's WI_CERT block); the ledger becomes what that budget leaves at the
+    segment's end (the evaluations raise it)."""
+    obud, ocert = wi[WI_BUDGET], wi[WI_CERT]
+    for p in range(ib[H_NP]):
+        left = wf[obud + p]
+        width = -1.0
+        if left > 0.0:
+            width = 1e300 if rates[p] == 0.0 else left / rates[p] * (1.0 - 1e-12)
+        wf[ocert + 2 * p] = 0.0
+        wf[ocert + 2 * p + 1] = width
+        wf[obud + p] = left - rates[p]
+
+
+@_inlined
+def _certified_steps(radius, nk):
+    """How many grid steps either side of a free state its ``radius`` (in units of ``t``,
+    ``nk`` steps per unit) certifies: grid states with |i - mid| / nk < radius."""
+    reach = radius * nk * (1.0 - 1e-12)
+    return nk if reach >= nk else max(int(math.ceil(reach)) - 1, 0)
+
+
+@_inlined
+def _queue_rest(qlo, qhi, head, tail, a, b, mid, m):
+    """Queue what range [a, b] leaves to cover once ``mid`` and the ``m`` states either
+    side of it are decided (moving the live ranges to the front of the FIFO first when
+    its end is near); returns the new (head, tail)."""
+    if tail + 2 > qlo.shape[0]:
+        live = tail - head
+        for i in range(live):  # forwards: the ranges move down
+            qlo[i], qhi[i] = qlo[head + i], qhi[head + i]
+        head, tail = 0, live
+    if a <= mid - m - 1:
+        qlo[tail], qhi[tail] = a, mid - m - 1
+        tail += 1
+    if mid + m + 1 <= b:
+        qlo[tail], qhi[tail] = mid + m + 1, b
+        tail += 1
+    return head, tail
 
 
 @njit(cache=True, nogil=True)

@@ -263,25 +263,60 @@ def _pair_bound(k, fb, ib, Rw, pw, wf, wi, enough):  # noqa: N803
     op, of = ib[H_PI] + PIW * k, ib[H_P] + k
     a, b, is_env = ib[op + PI_A], ib[op + PI_B], ib[op + PI_ENV]
     sm = max(fb[of], 0.0)
-    og, oS, ogi = ib[H_G], ib[H_S], ib[H_GI]
+    ogi = ib[H_GI]
     ka = ib[ogi + GIW * a + GI_KIND]
     kb = ENV_BOX if is_env == 1 else ib[ogi + GIW * b + GI_KIND]
     if ka != SPHERES_ONLY and kb != SPHERES_ONLY:
         if ka == HULL or kb == HULL:
             return _gjk_pair(fb, ib, k, a, b, is_env, Rw, pw, wf, wi, sm, sm + enough)
         return _sat_pair(fb, ib, a, b, is_env, Rw, pw, wf, wi)
-    ja = ib[ogi + GIW * a + GI_JOINT]
     if is_env == 1:
-        best = 1e300
-        for s in range(ib[ogi + GIW * a + GI_OUTER], ib[ogi + GIW * a + GI_OUTER_END]):
-            _world(fb, oS + SW * s, Rw, pw, ja, wf, W_TMP)
-            d = (_env_sdist3(fb, ib, b, wf[W_TMP], wf[W_TMP + 1], wf[W_TMP + 2])
-                 - fb[oS + SW * s + S_RADIUS])
-            if d < best:
-                best = d
-                if best - sm <= 0.0:
-                    return best
-        return best
+        return _spheres_to_object(fb, ib, a, b, sm, Rw, pw, wf)
+    return _sphere_sets(fb, ib, a, b, sm, Rw, pw, wf, wi)
+
+
+@_inlined
+def _spheres_to_object(fb, ib, a, e, sm, Rw, pw, wf):  # noqa: N803
+    """Lower bound [m] on the distance of mover ``a``'s outer spheres to environment
+    object ``e``; the first one found within the margin ``sm``, if any."""
+    oS, ogi = ib[H_S], ib[H_GI]
+    ja = ib[ogi + GIW * a + GI_JOINT]
+    best = 1e300
+    for s in range(ib[ogi + GIW * a + GI_OUTER], ib[ogi + GIW * a + GI_OUTER_END]):
+        _world(fb, oS + SW * s, Rw, pw, ja, wf, W_TMP)
+        d = (_env_sdist3(fb, ib, e, wf[W_TMP], wf[W_TMP + 1], wf[W_TMP + 2])
+             - fb[oS + SW * s + S_RADIUS])
+        if d < best:
+            best = d
+            if best - sm <= 0.0:
+                return best
+    return best
+
+
+@_inlined
+def _nearest(wf, rows, n):
+    """The sphere of the ``n`` placed at wf[rows] (rows of 5) whose distance bound to the
+    other body is the smallest (the first such)."""
+    best = 0
+    for i in range(1, n):
+        if wf[rows + 5 * i + 4] < wf[rows + 5 * best + 4]:
+            best = i
+    return best
+
+
+@_inlined
+def _sphere_gap(wf, i0, j0):
+    """Distance [m] between the placed spheres at wf[i0] and wf[j0] (rows of 5)."""
+    return (math.sqrt((wf[i0] - wf[j0]) ** 2 + (wf[i0 + 1] - wf[j0 + 1]) ** 2
+                      + (wf[i0 + 2] - wf[j0 + 2]) ** 2) - wf[i0 + 3] - wf[j0 + 3])
+
+
+@_inlined
+def _sphere_sets(fb, ib, a, b, sm, Rw, pw, wf, wi):  # noqa: N803
+    """Lower bound [m] on the distance of movers ``a`` and ``b``'s outer sphere sets
+    (their bounding spheres' world centres in wf's WI_CW block); the first pair of
+    spheres found within the margin ``sm``, if any."""
+    og = ib[H_G]
     ra, rb = fb[og + GW * a + G_RADIUS], fb[og + GW * b + G_RADIUS]
     ocw = wi[WI_CW]
     cbx, cby, cbz = wf[ocw + 3 * b], wf[ocw + 3 * b + 1], wf[ocw + 3 * b + 2]
@@ -292,17 +327,7 @@ def _pair_bound(k, fb, ib, Rw, pw, wf, wi, enough):  # noqa: N803
     A, B = wi[WI_BUFA], wi[WI_BUFB]  # rows of 5 in wf
     na = _place_spheres(fb, ib, a, Rw, pw, cbx, cby, cbz, rb, wf, A)
     nb = _place_spheres(fb, ib, b, Rw, pw, ca0, ca1, ca2, ra, wf, B)
-    sa = 0
-    for i in range(1, na):
-        if wf[A + 5 * i + 4] < wf[A + 5 * sa + 4]:
-            sa = i
-    sb = 0
-    for i in range(1, nb):
-        if wf[B + 5 * i + 4] < wf[B + 5 * sb + 4]:
-            sb = i
-    i0, j0 = A + 5 * sa, B + 5 * sb
-    best = (math.sqrt((wf[i0] - wf[j0]) ** 2 + (wf[i0 + 1] - wf[j0 + 1]) ** 2
-                      + (wf[i0 + 2] - wf[j0 + 2]) ** 2) - wf[i0 + 3] - wf[j0 + 3])
+    best = _sphere_gap(wf, A + 5 * _nearest(wf, A, na), B + 5 * _nearest(wf, B, nb))
     for i in range(na):
         i0 = A + 5 * i
         if wf[i0 + 4] >= best:
@@ -311,8 +336,7 @@ def _pair_bound(k, fb, ib, Rw, pw, wf, wi, enough):  # noqa: N803
             j0 = B + 5 * j
             if wf[j0 + 4] >= best:
                 continue
-            d = (math.sqrt((wf[i0] - wf[j0]) ** 2 + (wf[i0 + 1] - wf[j0 + 1]) ** 2
-                           + (wf[i0 + 2] - wf[j0 + 2]) ** 2) - wf[i0 + 3] - wf[j0 + 3])
+            d = _sphere_gap(wf, i0, j0)
             if d < best:
                 best = d
                 if best - sm <= 0.0:
