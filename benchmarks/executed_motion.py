@@ -145,7 +145,7 @@ def _toppra(call: dict[str, Any]) -> dict[str, Any] | None:
     cons = [constraint.JointVelocityConstraint(vlim),
             constraint.JointAccelerationConstraint(
                 alim, discretization_scheme=constraint.DiscretizationType.Interpolation)]
-    grid = _path_limits._grid(breaks, call["s_way"], 0.005)
+    grid = _path_limits.gridpoints(breaks, call["s_way"], 0.005)
     t0 = time.perf_counter()
     traj = algo.TOPPRA(cons, ta_path, gridpoints=grid,
                        parametrizer="ParametrizeConstAccel").compute_trajectory()

@@ -95,31 +95,32 @@ def dense(call: Call) -> tuple[bool, float]:
 
 def _dense_stretch(v: FclVerifier, q: np.ndarray) -> tuple[bool, float]:
     """:func:`dense` on one stage's stretch ``q`` with its verifier ``v``."""
-    grid = v._grid(q)
+    grid = v.grid(q)
     model = v.robot.model
     data = model.createData()
     request = fcl.DistanceRequest()
     clearance = np.inf
+    movers, environment = v.movers, v.environment
     for s in range(grid.samples):
         pin.forwardKinematics(model, data, grid.state(q, s))
-        for body in v._movers:
+        for body in movers:
             T = data.oMi[body.joint].homogeneous @ body.T
             body.fcl.setTransform(fcl.Transform(T[:3, :3], T[:3, 3]))
-        for p, (i, j, env, depth) in enumerate(v._pairs):
-            o1 = v._movers[i].fcl
-            o2 = v._env[j].fcl if env else v._movers[j].fcl
-            if depth > 0.0:
+        for pair in v.pairs:
+            o1 = movers[pair.first].fcl
+            o2 = (environment if pair.environment else movers)[pair.second].fcl
+            if pair.allowed_depth > 0.0:
                 result = fcl.CollisionResult()
                 request_c = fcl.CollisionRequest(enable_contact=True, num_max_contacts=4)
                 if fcl.collide(o1, o2, request_c, result) and max(
-                        c.penetration_depth for c in result.contacts) > depth:
+                        c.penetration_depth for c in result.contacts) > pair.allowed_depth:
                     return True, clearance
                 continue
             d = fcl.distance(o1, o2, request, fcl.DistanceResult())
-            if d < v._theta[p] or (d <= 0.0 and fcl.collide(  # its margin, or zero
+            if d < pair.keep or (d <= 0.0 and fcl.collide(  # its margin, or zero
                     o1, o2, fcl.CollisionRequest(), fcl.CollisionResult())):
                 return True, clearance
-            if env:
+            if pair.environment:
                 clearance = min(clearance, d)
     return False, clearance
 

@@ -133,7 +133,7 @@ def test_the_planner_passes_every_planner_option_on(detour_cell: Cell,
     """Each move is planned with the caller's options, only the seed advanced per step."""
     import dataclasses
 
-    from safepath.planning import planner
+    from safepath.planning import route_planner as planner
 
     seen: list[PlannerOptions] = []
     real = planner.plan_joint_path
