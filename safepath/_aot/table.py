@@ -54,6 +54,8 @@ _FAST_PARTS = ("safepath.collision._placement", "safepath.collision._pair_tests"
                "safepath.collision._gjk", "safepath.collision._layout")
 _VERIFY = "safepath.verify._kernel"
 _VERIFY_DISTANCE = "safepath.verify._distance"
+#: The records the release check's walk reads (no kernel: its source shapes the build).
+_VERIFY_RECORDS = "safepath.verify._records"
 _IK = "safepath.kinematics._ik_kernel"
 _TOPP = "safepath.timing._topp"
 _MONITOR = "safepath.monitor._kernels"
@@ -129,8 +131,8 @@ ENTRIES: dict[str, Entry] = {
 #: while all of them are unchanged. Every kernel compiled through :func:`safepath._aot.njit`
 #: lives in one of them (tests/test_aot.py checks it); the cup's (a simulated scale, not
 #: on a planning path) uses numba directly.
-MODULES: tuple[str, ...] = (_FAST, *_FAST_PARTS, *_FK, _VERIFY, _VERIFY_DISTANCE, _IK, _TOPP,
-                            _JOIN, _MONITOR)
+MODULES: tuple[str, ...] = (_FAST, *_FAST_PARTS, *_FK, _VERIFY, _VERIFY_DISTANCE,
+                            _VERIFY_RECORDS, _IK, _TOPP, _JOIN, _MONITOR)
 #: Those a plan calls (all but the monitor's).
-PLANNING_MODULES: tuple[str, ...] = (_FAST, *_FAST_PARTS, *_FK, _VERIFY, _VERIFY_DISTANCE, _IK,
-                                     _TOPP, _JOIN)
+PLANNING_MODULES: tuple[str, ...] = (_FAST, *_FAST_PARTS, *_FK, _VERIFY, _VERIFY_DISTANCE,
+                                     _VERIFY_RECORDS, _IK, _TOPP, _JOIN)
