@@ -364,8 +364,10 @@ class Grid:
         """
         from . import _kernel as kernel
 
-        return Grid(*kernel.grid(np.ascontiguousarray(q, dtype=float),
-                                 np.ascontiguousarray(weights, dtype=float), float(resolution)))
+        w = np.ascontiguousarray(weights, dtype=float)
+        if not w.flags.writeable:  # a shared table (motion_weights): the kernel only reads
+            w = w.copy()           # it, but its compiled signature takes writeable arrays
+        return Grid(*kernel.grid(np.ascontiguousarray(q, dtype=float), w, float(resolution)))
 
     @property
     def samples(self) -> int:
