@@ -289,7 +289,9 @@ def test_two_sessions_on_one_folder_do_not_overwrite_each_other(
 
 def _serve(args: list[str], env: dict[str, str] | None = None) -> str:
     """Run ``safepath view`` until it serves, interrupt it; its console output."""
-    proc = subprocess.Popen([sys.executable, "-m", "safepath.cli", "view", *args],
+    # -X faulthandler: a stop that hangs is aborted below with every thread's stack shown.
+    proc = subprocess.Popen([sys.executable, "-X", "faulthandler", "-m", "safepath.cli",
+                             "view", *args],
                             stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True,
                             cwd=REPO, env=env)
     try:
@@ -298,9 +300,19 @@ def _serve(args: list[str], env: dict[str, str] | None = None) -> str:
         end = time.monotonic() + 60
         while not any("safepath view:" in line for line in lines) and time.monotonic() < end:
             lines.append(proc.stdout.readline())
+        assert any("safepath view:" in line for line in lines), "".join(lines)
         proc.send_signal(signal.SIGINT)
-        out, _ = proc.communicate(timeout=30)
-        assert proc.returncode == 0
+        # Generous: a fresh clone's CI run once saw the stop take over 30 s on two loaded
+        # cores (never reproduced: 0.2-0.4 s even with four busy loops beside it). If it
+        # hangs, the abort prints every thread's stack into the failure.
+        try:
+            out, _ = proc.communicate(timeout=120)
+        except subprocess.TimeoutExpired:
+            proc.send_signal(signal.SIGABRT)
+            stacks, _ = proc.communicate(timeout=30)
+            raise AssertionError("safepath view did not stop within 120 s of Ctrl-C:\n"
+                                 + "".join(lines) + stacks) from None
+        assert proc.returncode == 0, "".join(lines) + out
         return "".join(lines) + out
     finally:
         if proc.poll() is None:
