@@ -53,3 +53,13 @@ def saves_landed(folder: Path) -> int:
         return 0
     on_disk = hashlib.sha256((folder / "poses.yaml").read_bytes()).hexdigest()
     return len(saves) if saves[-1]["sha256_after"] == on_disk else len(saves) - 1
+
+
+#: ``python -c VIEW_WITH_CTRL_C ARGS`` runs ``safepath view ARGS`` with Python's own Ctrl-C
+#: handler installed, whatever the test run inherited: a run a shell started in the
+#: background ignores SIGINT, and so would the view (a fresh-clone ``.ci/run`` started with
+#: ``&`` saw it sleep on through the tests' interrupt).
+VIEW_WITH_CTRL_C = (
+    "import runpy, signal, sys; signal.signal(signal.SIGINT, signal.default_int_handler); "
+    "sys.argv = ['safepath', 'view', *sys.argv[1:]]; "
+    "runpy.run_module('safepath.cli', run_name='__main__', alter_sys=True)")

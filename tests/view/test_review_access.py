@@ -24,6 +24,8 @@ from safepath.view import ReviewSession, ViewOptions
 from safepath.view.access import Access, AccessDenied
 from safepath.view.store import PosesChanged
 
+from .conftest import VIEW_WITH_CTRL_C
+
 REPO = Path(__file__).resolve().parents[2]
 
 
@@ -289,9 +291,12 @@ def test_two_sessions_on_one_folder_do_not_overwrite_each_other(
 
 def _serve(args: list[str], env: dict[str, str] | None = None) -> str:
     """Run ``safepath view`` until it serves, interrupt it; its console output."""
-    # -X faulthandler: a stop that hangs is aborted below with every thread's stack shown.
-    proc = subprocess.Popen([sys.executable, "-X", "faulthandler", "-m", "safepath.cli",
-                             "view", *args],
+    # Ctrl-C is honoured whatever the test run inherited: a run started in the background
+    # by a shell ignores SIGINT, and so would the view (seen in a fresh-clone .ci/run
+    # started with `&`: the view slept on through the interrupt). -X faulthandler: a stop
+    # that hangs anyway is aborted below with every thread's stack shown.
+    proc = subprocess.Popen([sys.executable, "-X", "faulthandler", "-c", VIEW_WITH_CTRL_C,
+                             *args],
                             stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True,
                             cwd=REPO, env=env)
     try:
@@ -302,15 +307,12 @@ def _serve(args: list[str], env: dict[str, str] | None = None) -> str:
             lines.append(proc.stdout.readline())
         assert any("safepath view:" in line for line in lines), "".join(lines)
         proc.send_signal(signal.SIGINT)
-        # Generous: a fresh clone's CI run once saw the stop take over 30 s on two loaded
-        # cores (never reproduced: 0.2-0.4 s even with four busy loops beside it). If it
-        # hangs, the abort prints every thread's stack into the failure.
         try:
-            out, _ = proc.communicate(timeout=120)
+            out, _ = proc.communicate(timeout=60)
         except subprocess.TimeoutExpired:
             proc.send_signal(signal.SIGABRT)
             stacks, _ = proc.communicate(timeout=30)
-            raise AssertionError("safepath view did not stop within 120 s of Ctrl-C:\n"
+            raise AssertionError("safepath view did not stop within 60 s of Ctrl-C:\n"
                                  + "".join(lines) + stacks) from None
         assert proc.returncode == 0, "".join(lines) + out
         return "".join(lines) + out

@@ -34,6 +34,8 @@ from safepath.view import ReviewSession, ViewOptions
 from safepath.view.analysis import RED, affected_routes
 from safepath.view.scene_nodes import HIGHLIGHT
 
+from .conftest import VIEW_WITH_CTRL_C
+
 REPO = Path(__file__).resolve().parents[2]
 
 
@@ -324,7 +326,7 @@ def test_gui_callbacks_show_errors_instead_of_raising(session: ReviewSession) ->
 
 def test_the_command_serves_until_interrupted(cell_dir: Path, plans_dir: Path) -> None:
     proc = subprocess.Popen(
-        [sys.executable, "-m", "safepath.cli", "view", str(cell_dir), "--plans",
+        [sys.executable, "-c", VIEW_WITH_CTRL_C, str(cell_dir), "--plans",
          str(plans_dir), "--port", "0"], stdout=subprocess.PIPE, stderr=subprocess.PIPE,
         text=True, cwd=REPO)
     try:
