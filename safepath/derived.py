@@ -105,6 +105,11 @@ class _Entry:
     stamp: tuple[Any, ...]
     value: Any
 
+    def current(self, models: tuple[Any, Any], stamp: tuple[Any, ...]) -> bool:
+        """Whether it was made from these models (the same objects) and this stamp."""
+        return (self.models[0] is models[0] and self.models[1] is models[1]
+                and self.stamp == stamp)
+
 
 class DerivedValues:
     """The values kept for one robot (its copies with another tool share them): held by
@@ -137,8 +142,7 @@ class Derived:
         models, stamp = self._state()
         key = (kind, options)
         made = self._entries.get(key)
-        if (made is None or made.models[0] is not models[0] or made.models[1] is not models[1]
-                or made.stamp != stamp):
+        if made is None or not made.current(models, stamp):
             value = _load_or_make(kind, make, options, inputs) \
                 if isinstance(kind, StoredKind) else make()
             made = self._entries[key] = _Entry(models, stamp, value)
@@ -147,8 +151,7 @@ class Derived:
     def held(self) -> dict[tuple[DerivedKind[Any], Hashable], Any]:
         """The values kept and still current, by kind and options."""
         models, stamp = self._state()
-        return {key: e.value for key, e in self._entries.items()
-                if e.models[0] is models[0] and e.models[1] is models[1] and e.stamp == stamp}
+        return {key: e.value for key, e in self._entries.items() if e.current(models, stamp)}
 
     def forget(self) -> None:
         """Drop every value kept for the robot (and its copies with another tool): the

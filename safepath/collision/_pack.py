@@ -11,6 +11,7 @@ they differ only in the held object, the scene and the pairs.
 
 from __future__ import annotations
 
+import functools
 from collections.abc import Mapping
 from dataclasses import dataclass
 from pathlib import Path
@@ -85,16 +86,17 @@ def _robot_part(robot: Robot, options: LayerOptions) -> _RobotPart:
     from .spheres import _fit_key
 
     model, geoms = robot.model, robot.collision_model.geometryObjects
+    joints = functools.cache(lambda: _joints(model))  # names the disk entry, then made into it
 
     def inputs() -> list[object]:
-        return [*_joints(model),
+        return [*joints(),
                 np.array([model.joints[j].idx_v for j in range(1, model.njoints)]),
                 robot.lower, robot.upper,
                 *((int(g.parentJoint), g.placement.homogeneous.tobytes(),
                    _fit_key(g.geometry, options.cell)) for g in geoms)]
 
     def make() -> _RobotPart:
-        J, Ji = _joints(model)
+        J, Ji = joints()
         return _RobotPart(J, Ji, [_mover(model, g, options, robot.lower, robot.upper)
                                   for g in geoms])
 
