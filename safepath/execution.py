@@ -42,7 +42,7 @@ from .errors import ExecutedLimitError
 
 __all__ = ["Interpolation", "INTERPOLATIONS", "ExecutedPeaks", "join", "executed_peaks",
            "interval_ratios", "check_executed", "CHECK_RATE", "LIMITS_KEY", "limits_info",
-           "limits_of", "robot_limits"]
+           "limits_of", "robot_limits", "ControllerModel", "Switch", "SWITCH_TOLERANCE"]
 
 Interpolation = Literal["quintic", "cubic", "linear"]
 #: The ways a controller joins points, as ``controller.yaml`` names them.
@@ -325,3 +325,160 @@ def robot_limits(robot: object) -> dict[str, list[float]]:
     goals are checked against (:func:`safepath.ros.joint_trajectory`)."""
     return limits_info(robot.velocity_limits, robot.acceleration_limits,  # type: ignore[attr-defined]
                        robot.jerk_limits)  # type: ignore[attr-defined]
+
+
+#: Two times closer than this [s] are the same instant for a goal switch (a point at the
+#: switch time is joined with zero length: a step, not a quintic).
+SWITCH_TOLERANCE = 1e-6
+
+
+@dataclass(frozen=True)
+class Switch:
+    """How a controller took a goal that replaced the motion it was running.
+
+    Attributes:
+        time: When the controller took the goal [s].
+        state: The controller's commanded position, velocity and acceleration then, on
+            the motion it was running (each (dof,)).
+        first: Index of the goal's first point it kept (earlier points lay in the past).
+        joined: Whether that point lies later than ``time`` (a quintic joins the state
+            to it); else the point replaced the state at once.
+        position_step: Largest ``|p_point - p_state|`` of an instant join [rad] (0 when
+            joined).
+        velocity_step: Largest ``|v_point - v_state|`` of an instant join [rad/s].
+        acceleration_step: Largest ``|a_point - a_state|`` of an instant join [rad/s^2].
+    """
+
+    time: float
+    state: tuple[np.ndarray, np.ndarray, np.ndarray]
+    first: int
+    joined: bool
+    position_step: float
+    velocity_step: float
+    acceleration_step: float
+
+    @property
+    def continuous(self) -> bool:
+        """Whether the switch keeps position, velocity and acceleration (to 1e-6)."""
+        return max(self.position_step, self.velocity_step, self.acceleration_step) <= 1e-6
+
+
+@dataclass(frozen=True)
+class _Running:
+    """A goal as the controller runs it: points at absolute times, from ``since`` on."""
+
+    since: float
+    t: np.ndarray
+    q: np.ndarray
+    qd: np.ndarray
+    qdd: np.ndarray
+
+
+class ControllerModel:
+    """What a joint trajectory controller does with the goals it is sent, one after another.
+
+    This is the one model of the controller the monitor's replacement goals are built
+    against, their switches checked with, and the twin executes (ros2_control's
+    ``joint_trajectory_controller``, ``trajectory.cpp``: a new goal is taken at once; the
+    state it is commanding then is the point before the new trajectory, joined to the
+    first point not yet in the past; points already in the past are dropped; after the
+    last point it holds that position):
+
+    * a goal with header stamp ``start`` runs its points at ``start + time_from_start``;
+    * taken at ``time`` (the moment it reaches the controller), the controller's
+      commanded state ``(p, v, a)`` at ``time`` on the motion it was running is joined by
+      one interpolation segment to the first point at or after ``time``; a point at
+      ``time`` itself (within :data:`SWITCH_TOLERANCE`) replaces the state at once (a step
+      in position, velocity and acceleration unless they are equal);
+    * points are joined as :func:`join` joins them (the controller's interpolation).
+
+    Args:
+        q_rest: Where the arm rests before the first goal [rad] (dof,).
+        interpolation: How the controller joins points (``controller.yaml``).
+        history: How many taken goals are kept for :meth:`sample` (older times are
+            answered from the oldest kept).
+    """
+
+    def __init__(self, q_rest: np.ndarray, *, interpolation: Interpolation = "quintic",
+                 history: int = 64) -> None:
+        q0 = np.asarray(q_rest, dtype=float).reshape(1, -1)
+        zero = np.zeros_like(q0)
+        self.interpolation: Interpolation = interpolation
+        self.history = max(1, int(history))
+        self._runs: list[_Running] = [_Running(-np.inf, np.zeros(1), q0, zero, zero)]
+
+    @property
+    def running(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """The points of the motion running now as the controller joins them: absolute
+        times [s], positions, velocities, accelerations (the switch state first)."""
+        r = self._runs[-1]
+        return r.t, r.q, r.qd, r.qdd
+
+    @property
+    def end(self) -> float:
+        """When the last goal's last point is reached [s] (``-inf`` before any goal)."""
+        r = self._runs[-1]
+        return float(r.t[-1]) if np.isfinite(r.since) else -np.inf
+
+    def state(self, time: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """The commanded position, velocity and acceleration at ``time`` [s] (held at rest
+        after the last point)."""
+        p, v, a, _ = self.sample(np.array([float(time)]))
+        return p[0], v[0], a[0]
+
+    def sample(self, times: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray,
+                                                 np.ndarray]:
+        """Commanded positions, velocities, accelerations and jerks at ``times`` [s]."""
+        times = np.atleast_1d(np.asarray(times, dtype=float))
+        dof = self._runs[0].q.shape[1]
+        out = [np.zeros((times.size, dof)) for _ in range(4)]
+        since = np.array([r.since for r in self._runs])
+        which = np.searchsorted(since, times, side="right") - 1
+        for k in np.unique(which):
+            r, sel = self._runs[max(int(k), 0)], which == k
+            p, v, a, j = join(r.t, r.q, r.qd, r.qdd, times[sel],
+                              interpolation=self.interpolation)
+            after = times[sel] >= r.t[-1]
+            v[after] = a[after] = j[after] = 0.0  # holds the last position
+            for arr, val in zip(out, (p, v, a, j), strict=True):
+                arr[sel] = val
+        return out[0], out[1], out[2], out[3]
+
+    def take(self, t: np.ndarray, q: np.ndarray, qd: np.ndarray, qdd: np.ndarray, *,
+             start: float, time: float | None = None) -> Switch:
+        """The controller takes a goal.
+
+        Args:
+            t: The goal's ``time_from_start`` of each point [s], increasing.
+            q, qd, qdd: Its points (N, dof) [rad, rad/s, rad/s^2].
+            start: Its header stamp: when ``t = 0`` is [s].
+            time: When the controller takes it [s] (default ``start``).
+
+        Returns:
+            How the running motion was switched to it.
+        """
+        time = float(start if time is None else time)
+        t_abs = float(start) + np.asarray(t, dtype=float)
+        q, qd, qdd = (np.atleast_2d(np.asarray(x, dtype=float)) for x in (q, qd, qdd))
+        p0, v0, a0 = self.state(time)
+        first = int(np.searchsorted(t_abs, time - SWITCH_TOLERANCE, side="left"))
+        if first >= t_abs.size:  # every point is past: the last one at once
+            first = t_abs.size - 1
+            t_abs = np.array([time])
+            pts = q[-1:], np.zeros_like(q[-1:]), np.zeros_like(q[-1:])
+        else:
+            pts = q[first:], qd[first:], qdd[first:]
+            t_abs = t_abs[first:]
+        joined = bool(t_abs[0] > time + SWITCH_TOLERANCE)
+        if joined:
+            run = _Running(time, np.concatenate([[time], t_abs]),
+                           np.vstack([p0, pts[0]]), np.vstack([v0, pts[1]]),
+                           np.vstack([a0, pts[2]]))
+            steps = (0.0, 0.0, 0.0)
+        else:
+            run = _Running(time, t_abs, pts[0], pts[1], pts[2])
+            dp, dv, da = (float(np.max(np.abs(x[0] - s)))
+                          for x, s in zip(pts, (p0, v0, a0), strict=True))
+            steps = (dp, dv, da)
+        self._runs = [*self._runs[-self.history + 1:], run] if self.history > 1 else [run]
+        return Switch(time, (p0, v0, a0), first, joined, *steps)

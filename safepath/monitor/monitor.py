@@ -36,10 +36,13 @@ import numpy as np
 
 from ..cell import Cell
 from ..errors import InputError, TimingError
+from ..execution import ControllerModel, Interpolation, Switch
 from ..trajectory import Trajectory
 from .elements import OBSTACLES, scene_arrays, to_elements
 from .observations import Counts, ObservationError
 from .options import MonitorOptions
+from .parked import (REPLAN_MOVED, ParkedBody, Rest, RestHistory, blocking_body, extent,
+                     shrink_box)
 from .profile import MonitoredPath, Timing
 from .separation import Assessment, assess
 from .sweep import PathSweep, RobotSpheres
@@ -49,10 +52,6 @@ __all__ = ["Monitor", "Decision", "ReplanRequest"]
 log = logging.getLogger(__name__)
 
 DecisionKind = Literal["continue", "slow", "stop", "resume", "replan"]
-
-#: A re-plan that found no way is asked again once a side of the obstacle's box moved
-#: more than this [m] (beyond the jitter of noisy points on the box's edges).
-REPLAN_MOVED = 0.03
 
 
 @dataclass(frozen=True)
@@ -64,8 +63,16 @@ class ReplanRequest:
         q: The joint state the robot rests at [rad].
         tau: Where on the followed trajectory it rests [s of that trajectory].
         step: The route step it rests in.
-        obstacle_center: Centre of a world box holding the blocking elements [m].
-        obstacle_size: Its edge lengths [m] (inflated by C + Z_d on every side).
+        obstacle_center: Centre of a world box holding the blocking body [m].
+        obstacle_size: Its edge lengths [m]: the body's box inflated by C + Z_d on every
+            side, except where that reached into the robot's enclosing spheres at ``q``:
+            such a side is cut back to the spheres (``shrunk`` says which), never inside
+            the body's box (:func:`safepath.monitor.parked.shrink_box`).
+        body_center: Centre of the body's own box (its elements' extent over the rest
+            window, not inflated) [m]; None: not measured (a request made by hand).
+        body_size: Its edge lengths [m]; None: not measured.
+        body_speed: The body's speed by the rest rule when asked [m/s].
+        shrunk: Which sides of the box were cut back to the robot, in words ("": none).
     """
 
     time: float
@@ -74,6 +81,10 @@ class ReplanRequest:
     step: str
     obstacle_center: np.ndarray
     obstacle_size: np.ndarray
+    body_center: np.ndarray | None = None
+    body_size: np.ndarray | None = None
+    body_speed: float = 0.0
+    shrunk: str = ""
 
 
 @dataclass(frozen=True)
@@ -98,6 +109,8 @@ class Decision:
         closest: Closest observed element (x, y, z, radius) [m], or None.
         latched: Whether the kill switch is latched.
         elapsed: Computation time of the decision [s].
+        switch: How the controller takes the replacement at ``replacement_start``
+            (:class:`safepath.execution.Switch`: its state then, and any step).
     """
 
     time: float
@@ -117,6 +130,7 @@ class Decision:
     closest: np.ndarray | None = field(default=None, repr=False)
     latched: bool = False
     elapsed: float = 0.0
+    switch: Switch | None = field(default=None, repr=False)
 
 
 @dataclass
@@ -149,8 +163,18 @@ class Monitor:
         self._blocked_since: float | None = None
         self._replan_sent = False
         self._replan_failed: tuple[ReplanRequest, str] | None = None
+        self._rest = RestHistory(self.options.rest_window, self.options.rest_speed)
+        self._parked: list[ParkedBody] = []  # bodies re-planned around, still watched
+        self._asked: list[ReplanRequest] = []  # the latest requests (add_static_box)
+        self._parked_note = ""  # why a parked body was dropped, for the next stop
         self._last_stamp: dict[str, float] = {}
         self.last: Decision = Decision(0.0, "continue", "not started", 1.0)
+        #: The controller as the monitor's goals drive it (None before the first
+        #: :meth:`follow`): the verified motion from its start, then every replacement
+        #: from its ``replacement_start``. Replacements begin at its state then.
+        self.controller: ControllerModel | None = None
+        self._interpolation: Interpolation = cell.robot.controller.interpolation  # type: ignore[assignment]
+        self._any_instant = True  # the running goal is on the path at every instant
         self.stats = {"out_of_order": 0, "stale": 0, "malformed": 0}
         self._self_filtered = 0
 
@@ -182,9 +206,15 @@ class Monitor:
         self._path = MonitoredPath(traj, self.cell.robot)
         self._sweep = PathSweep.build(self.cell.robot, self._spheres[held], traj.t, traj.q,
                                       spacing=self.options.sweep_spacing)
-        # A motion starts at rest (Q' = 0 there), so its first speed scale is immaterial.
-        timing = self._path.march(start, float(traj.t[0]), scale, scale, np.inf)
+        # The goal is the motion as verified, from ``start`` on: followed with no lead,
+        # the path parameter at monitor time t is exactly t - start (a motion starts at
+        # rest, Q' = 0 there, so its first speed scale is immaterial).
+        timing = self._path.march(start, float(traj.t[0]), scale, scale, np.inf, lead=0.0)
         self._timings = [timing]
+        if self.controller is None:
+            self.controller = ControllerModel(traj.q[0], interpolation=self._interpolation)
+        self.controller.take(traj.t - traj.t[0], traj.q, traj.qd, traj.qdd, start=start)
+        self._any_instant = True
         self._scale = scale
         self._blocked_since = None
         self._replan_sent = False
@@ -199,6 +229,14 @@ class Monitor:
             if t.start <= time:
                 timing = t
         return timing.state_at(time)
+
+    def at_end(self, time: float) -> bool:
+        """Whether the followed motion has reached the end of its path at monitor time
+        ``time`` [s]: its path parameter is within 1e-9 s of the path's last knot (a stop
+        that rests before it has not; False while no motion is followed)."""
+        if self._path is None:
+            return False
+        return self.state_at(time)[0] >= self._path.end - 1e-9
 
     def _timing_at(self, time: float) -> Timing | None:
         """The profile followed at monitor time ``time`` (None: no motion)."""
@@ -245,25 +283,52 @@ class Monitor:
         return self._decide(now, Counts())
 
     def add_static_box(self, center: np.ndarray, size: np.ndarray) -> None:
-        """Take a box into the static scene (after re-planning around an obstacle that
-        stays): elements within it (and the scene filter) are ignored from now on;
-        whatever leaves it is monitored again.
+        """Take the box a re-plan went around as a *parked body*: while the body in it
+        stays, its elements are left out of the separation test; it stays watched, and
+        once it moves (:class:`~safepath.monitor.parked.ParkedBody`: no element left where
+        it was, or an element in the box, or linked to the body, more than
+        :data:`~safepath.monitor.parked.REPLAN_MOVED` beyond its box at rest) the box is
+        dropped: the body is an obstacle like any other again, and the separation rule
+        stops or slows the robot (the next stop says why).
+
+        The body is the one measured for the latest request with this box (its
+        ``body_center`` and ``body_size``); for any other box, the elements inside it now
+        (none: any element that enters the box drops it).
 
         Args:
             center: World centre [m].
             size: Edge lengths [m].
+
+        Raises:
+            InputError: Not three finite numbers each, or an edge <= 0.
         """
-        kinds, Ts, dims = self._scene
-        T = np.eye(4)
-        T[:3, 3] = center
-        self._scene = (np.append(kinds, 0), np.concatenate([Ts, T[None]]),
-                       np.vstack([dims, np.asarray(size, dtype=float) / 2]))
+        c = np.asarray(center, dtype=float)
+        e = np.asarray(size, dtype=float)
+        for key, v in (("center", c), ("size", e)):
+            if v.shape != (3,) or not np.all(np.isfinite(v)):
+                raise InputError(f"expected 3 finite numbers [m], got {v!r}", key=key)
+        if np.any(e <= 0):
+            raise InputError(f"edge lengths must be > 0 [m], got {e!r}", key="size")
+        lo, hi = c - e / 2, c + e / 2
+        body: tuple[np.ndarray, np.ndarray] | None = None
+        for r in reversed(self._asked):
+            if r.body_center is not None and r.body_size is not None and \
+                    np.array_equal(r.obstacle_center, c) and np.array_equal(r.obstacle_size, e):
+                body = (r.body_center - r.body_size / 2, r.body_center + r.body_size / 2)
+                break
+        if body is None:
+            E = self._elements()  # noqa: N806
+            inside = E[np.all((E[:, :3] >= lo) & (E[:, :3] <= hi), axis=1)]
+            body = extent(inside) if len(inside) else None
+        self._parked.append(ParkedBody(lo, hi, None if body is None else body[0],
+                                       None if body is None else body[1],
+                                       self.options.replan_cluster))
 
     def replan_failed(self, request: ReplanRequest, reason: str) -> None:
         """A re-plan found no way (``reason``: the planner's why). The robot stays
-        stopped; its stop decisions say why, and a new request is made as soon as the
-        obstacle's box has moved (by more than :data:`REPLAN_MOVED` on any side) while
-        the robot is still blocked.
+        stopped; its stop decisions say why, and a new request is made once the body's
+        box has moved (by more than :data:`~safepath.monitor.parked.REPLAN_MOVED` on any
+        side) and the body is at rest again, while the robot is still blocked.
 
         Args:
             request: The request that failed.
@@ -304,13 +369,15 @@ class Monitor:
         if o.self_filter is not None and len(E):
             E = self._without_robot(E, now - age, tau_c)  # noqa: N806
             counts = replace(counts, robot=self._self_filtered)
+        E = self._unparked(E)  # noqa: N806  (parked bodies that stay: add_static_box)
         elements = _kernels.bucket(E, o.cell_size) if len(E) else (
             E, np.zeros((0, 4)), np.zeros(1, np.int64), np.zeros((0, 4)), np.zeros(1, np.int64))
-        tau_l, r_l = self.state_at(now + o.command_latency)
+        switch = self._switch_time(now + o.command_latency)
+        tau_l, r_l = self.state_at(switch)
         # A new profile starts from the raw profile half a width later (see
         # MonitoredPath.march); that is what the assessment marches from.
-        current = self._timing_at(now + o.command_latency)
-        raw = current.raw_state(now + o.command_latency + self._path.width / 2) \
+        current = self._timing_at(switch)
+        raw = current.raw_state(switch + self._path.width / 2) \
             if current is not None else (tau_l, r_l)
         a = assess(self._path, self._sweep, elements, age, tau_c, raw[0], raw[1], o)
         base = dict(separation_now=a.separation_now, separation_path=a.separation_path,
@@ -348,19 +415,22 @@ class Monitor:
             why = (f"no speed scale >= {o.min_scale:g} keeps the protective distance; "
                    f"braking needs {a.protective_distance:.3f} m, has "
                    f"{a.separation_kept:.3f} m")
+            if self._parked_note:
+                why, self._parked_note = f"{why}; {self._parked_note}", ""
             if self._blocked_since is None:
                 self._blocked_since = now
             decision = self._stop(now, tau_l, r_l, why, base)
+            self._record_rest(a, E)
             if self._replan_sent and self._replan_failed is not None and r_l == 0.0:
-                return self._retry(decision, now, tau_l, a, E)
+                return self._retry(decision, now, tau_l)
             if (self._blocked_since is not None and not self._replan_sent
                     and now - self._blocked_since >= o.replan_after and r_l == 0.0):
-                self._replan_sent = True
-                return replace(decision, kind="replan", reason="obstacle stays: " + why,
-                               replan=self._request(now, tau_l, a, E))
+                return self._ask(decision, now, tau_l)
             return decision
         self._blocked_since = None
         self._replan_sent, self._replan_failed = False, None  # clear: a new block re-plans
+        self._rest.clear()
+        self._parked_note = ""
         if a.scale < self._scale:
             self._clear_since = None
             return self._emit(now, tau_l, r_l, a.scale, "slow",
@@ -380,26 +450,93 @@ class Monitor:
         kind: DecisionKind = "slow" if self._scale > 0 else "stop"
         return Decision(now, kind, f"holding scale {self._scale:.2f}", self._scale, **base)
 
+    def _switch_time(self, time: float) -> float:
+        """When a goal sent now takes effect: ``time`` (the command latency after the
+        decision), or, while a replacement runs, its first point at or after ``time``.
+
+        A replacement's points lie on the verified path, but the controller's join
+        between two of them does not exactly: a new replacement starts at one of them,
+        where the controller's state (p, v, a) is a path state whose speed and path
+        acceleration are known (at most one point spacing later). The verified motion
+        itself is on the path at every instant."""
+        if self.controller is None or self._any_instant:
+            return time
+        t_abs = self.controller.running[0]
+        k = int(np.searchsorted(t_abs, time - 1e-9, side="left"))
+        return time if k >= t_abs.size else float(t_abs[k])
+
     def _emit(self, now: float, tau_l: float, r_l: float, scale: float, kind: DecisionKind,
               reason: str, base: dict[str, Any]) -> Decision:
-        assert self._path is not None
-        start = now + self.options.command_latency
+        assert self._path is not None and self.controller is not None
+        start = self._switch_time(now + self.options.command_latency)
+        before = self._timing_at(start)
+        if before is not None and \
+                before.raw_state(start + self._path.width / 2)[0] >= self._path.end - 1e-9:
+            # The running goal reaches the path's end (at rest) before a new profile could
+            # change anything: it is the stop (and nothing is to be slowed or resumed).
+            self._scale = scale
+            return Decision(now, kind, f"{reason}; the running goal comes to rest at the "
+                            "motion's end first: no replacement", self._scale, **base)
         try:
             timing, traj = self._path.replacement(
-                start, scale, 0.0 if scale == 0 else np.inf, before=self._timing_at(start),
+                start, scale, 0.0 if scale == 0 else np.inf, before=before,
                 tau0=tau_l, r0=r_l, kind=kind)
         except TimingError as exc:
-            # No re-timing from this state stays within the limits as the controller
-            # executes it (the motion is in a phase at its jerk limit): nothing is sent,
-            # the robot keeps its current goal, and the next decision tries again.
-            log.warning("monitor: %s not sent: %s", kind, exc)
-            self.stats["deferred"] = self.stats.get("deferred", 0) + 1
-            return Decision(now, kind, f"{reason}; deferred: no re-timing within the limits "
-                            f"as executed from this state ({exc})", self._scale, **base)
+            if kind == "slow":  # no slowing within the limits: stopping may be
+                try:
+                    timing, traj = self._path.replacement(
+                        start, 0.0, 0.0, before=before, tau0=tau_l, r0=r_l, kind="stop")
+                    return self._sent(now, start, timing, traj, "stop", 0.0,
+                                      f"{reason}; stopping: no slowing within the limits "
+                                      f"as executed from this state ({exc})", base)
+                except TimingError:
+                    pass
+            if kind == "resume":
+                # Speeding up may wait: the robot keeps its lower speed, which the
+                # separation allows, and the next decision tries again.
+                log.info("monitor: resume not sent yet: %s", exc)
+                self.stats["resume_waits"] = self.stats.get("resume_waits", 0) + 1
+                return Decision(now, "slow" if self._scale > 0 else "stop",
+                                f"{reason}; speed-up waits: no re-timing within the limits "
+                                f"as executed from this state ({exc})", self._scale, **base)
+            # Slowing or stopping is never postponed: brake to rest at once, as hard as
+            # the acceleration limits allow, even where the executed jerk or acceleration
+            # then exceeds a limit; the decision says by how much.
+            timing, traj = self._path.forced_stop(start, before=before, tau0=tau_l, r0=r_l)
+            ratios = traj.info["executed_ratios"]
+            if max(ratios) <= 1.0:
+                self.stats["gentle_stops"] = self.stats.get("gentle_stops", 0) + 1
+                return self._sent(now, start, timing, traj, "stop", 0.0,
+                                  f"{reason}; braking gentler than assessed (at rest after "
+                                  f"{traj.duration:.3f} s, assessed "
+                                  f"{base['stopping_time']:.3f} s): no braking as assessed "
+                                  f"is within the limits from this state", base)
+            log.warning("monitor: %s beyond the limits as executed (%s): %s", kind,
+                        ", ".join(f"{x:.3f}" for x in ratios), exc)
+            self.stats["stops_over_limit"] = self.stats.get("stops_over_limit", 0) + 1
+            reason = (f"{reason}; braking at once beyond the limits as executed (speed, "
+                      f"acceleration, jerk ratios {ratios[0]:.3f}, {ratios[1]:.3f}, "
+                      f"{ratios[2]:.3f}): no re-timing within them from this state")
+            kind, scale = "stop", 0.0
+        return self._sent(now, start, timing, traj, kind, scale, reason, base)
+
+    def _sent(self, now: float, start: float, timing: Timing, traj: Trajectory,
+              kind: DecisionKind, scale: float, reason: str, base: dict[str, Any]
+              ) -> Decision:
+        """The decision that sends ``traj`` to start at ``start``: the controller model
+        takes it, the monitor follows ``timing`` from then on."""
+        assert self.controller is not None
+        switch = self.controller.take(traj.t, traj.q, traj.qd, traj.qdd, start=start)
+        if not switch.continuous:  # the path state and the controller's state disagree
+            log.error("monitor: the %s goal starts %.3g rad, %.3g rad/s, %.3g rad/s^2 off "
+                      "the controller's state", kind, switch.position_step,
+                      switch.velocity_step, switch.acceleration_step)
+            self.stats["switch_steps"] = self.stats.get("switch_steps", 0) + 1
+        self._any_instant = False
         self._timings = [t for t in self._timings if t.start < start][-1:] + [timing]
         self._scale = scale
         return Decision(now, kind, reason, scale, replacement=traj, replacement_start=start,
-                        **base)
+                        switch=switch, **base)
 
     def _stop(self, now: float, tau_l: float, r_l: float, reason: str,
               base: dict[str, Any]) -> Decision:
@@ -408,35 +545,90 @@ class Monitor:
             return Decision(now, "stop", reason, 0.0, **base)
         return self._emit(now, tau_l, r_l, 0.0, "stop", reason, base)
 
-    def _retry(self, decision: Decision, now: float, tau: float, a: Assessment,
-               E: np.ndarray) -> Decision:  # noqa: N803
-        """Still blocked after a failed re-plan: ask again once the obstacle's box has
-        moved, else wait and say why."""
+    def _retry(self, decision: Decision, now: float, tau: float) -> Decision:
+        """Still blocked after a failed re-plan: ask again once the body's box has moved
+        and the body is at rest again, else wait and say why."""
         assert self._replan_failed is not None
         failed, why = self._replan_failed
-        request = self._request(now, tau, a, E)
-        lo, hi = request.obstacle_center - request.obstacle_size / 2, \
-            request.obstacle_center + request.obstacle_size / 2
-        lo0, hi0 = failed.obstacle_center - failed.obstacle_size / 2, \
-            failed.obstacle_center + failed.obstacle_size / 2
-        if max(np.abs(lo - lo0).max(), np.abs(hi - hi0).max()) > REPLAN_MOVED:
-            self._replan_failed = None
-            return replace(decision, kind="replan",
-                           reason="the obstacle moved since the last re-plan found no way",
-                           replan=request)
-        return replace(decision, reason=f"{decision.reason}; waiting for the obstacle to "
-                       f"move: the last re-plan found no way ({why})")
+        rest = self._rest.judge()
+        if failed.body_center is not None and failed.body_size is not None:
+            lo0 = failed.body_center - failed.body_size / 2
+            hi0 = failed.body_center + failed.body_size / 2
+        else:  # a request made by hand: its box less the inflation
+            d = self.options.min_separation + self.options.sensor_uncertainty
+            lo0 = failed.obstacle_center - failed.obstacle_size / 2 + d
+            hi0 = failed.obstacle_center + failed.obstacle_size / 2 - d
+        moved = max(np.abs(rest.lo - lo0).max(), np.abs(rest.hi - hi0).max())
+        if not moved > REPLAN_MOVED:  # (nan: no body measured)
+            return replace(decision, reason=f"{decision.reason}; waiting for the body to "
+                           f"move: the last re-plan found no way ({why})")
+        if not rest.at_rest:
+            return replace(decision, reason=f"{decision.reason}; the body moved since the "
+                           f"last re-plan found no way; no re-plan yet: {rest.why}")
+        self._replan_failed = None
+        return replace(decision, kind="replan",
+                       reason="the body moved since the last re-plan found no way, and is "
+                       f"at rest again ({rest.speed:.3f} m/s)",
+                       replan=self._request(now, tau, rest))
 
-    def _request(self, now: float, tau: float, a: Assessment, E: np.ndarray  # noqa: N803
-                 ) -> ReplanRequest:
-        assert self._path is not None
+    def _request(self, now: float, tau: float, rest: Rest) -> ReplanRequest:
+        """The request: the rest state, and the body's box inflated by C + Z_d, cut back
+        where it reaches into the robot's enclosing spheres at the rest state."""
+        assert self._path is not None and self._sweep is not None
         o = self.options
         q = self._path.traj.sample([tau])[0][0]
-        center = a.closest[:3] if a.closest is not None else np.zeros(3)
-        near = E[np.linalg.norm(E[:, :3] - center, axis=1) <= o.replan_cluster] \
-            if len(E) else np.zeros((0, 4))
-        if len(near) == 0:
-            near = np.array([[*center, 0.0]])
-        lo = (near[:, :3] - near[:, 3:]).min(axis=0) - o.min_separation - o.sensor_uncertainty
-        hi = (near[:, :3] + near[:, 3:]).max(axis=0) + o.min_separation + o.sensor_uncertainty
-        return ReplanRequest(now, q, tau, self._path.traj.step_at(tau), (lo + hi) / 2, hi - lo)
+        d = o.min_separation + o.sensor_uncertainty
+        spheres = self._sweep.spheres
+        centers, _ = spheres.place(self.cell.robot, q[None])
+        lo, hi, shrunk = shrink_box(rest.lo - d, rest.hi + d, rest.lo, rest.hi, centers[0],
+                                    spheres.radii)
+        request = ReplanRequest(now, q, tau, self._path.traj.step_at(tau), (lo + hi) / 2,
+                                hi - lo, (rest.lo + rest.hi) / 2, rest.hi - rest.lo,
+                                rest.speed, shrunk)
+        self._asked = [*self._asked[-3:], request]
+        return request
+
+    # -- re-plan: the rest rule and the parked bodies (safepath.monitor.parked) --------
+    def _ask(self, decision: Decision, now: float, tau: float) -> Decision:
+        """Stopped for ``replan_after``: a re-plan request if the body is at rest, else
+        the stop, saying why not yet."""
+        rest = self._rest.judge()
+        if not rest.at_rest:
+            return replace(decision, reason=f"{decision.reason}; no re-plan yet: {rest.why}")
+        self._replan_sent = True
+        request = self._request(now, tau, rest)
+        shrunk = f"; box {request.shrunk}" if request.shrunk else ""
+        return replace(decision, kind="replan", replan=request,
+                       reason=f"obstacle stays (at rest: {rest.speed:.3f} m/s over the last "
+                       f"{self.options.rest_window:g} s){shrunk}: {decision.reason}")
+
+    def _record_rest(self, a: Assessment, E: np.ndarray) -> None:  # noqa: N803
+        """Add the blocking body, as the newest observation shows it, to the rest rule's
+        history."""
+        if a.closest is None or not self._sources:
+            return
+        stamp = max(s.stamp for s in self._sources.values())
+        self._rest.add(stamp, blocking_body(E, a.closest, self.options.replan_cluster))
+
+    def _elements(self) -> np.ndarray:
+        """The latest elements of every source (n, 4) [m]."""
+        parts = [s.elements for s in self._sources.values()]
+        return np.vstack(parts) if parts else np.zeros((0, 4))
+
+    def _unparked(self, E: np.ndarray) -> np.ndarray:  # noqa: N803
+        """``E`` without the elements of the parked bodies that stay; a parked body that
+        moved is dropped (its elements stay: an obstacle again) and the next stop says
+        so."""
+        if not self._parked:
+            return E
+        keep = np.ones(len(E), dtype=bool)
+        for body in list(self._parked):
+            mask, moved = body.watch(E)
+            if moved:
+                self._parked.remove(body)
+                self._parked_note = f"a parked body moved ({moved}): an obstacle again"
+                log.warning("monitor: %s", self._parked_note)
+                self.stats["parked_dropped"] = self.stats.get("parked_dropped", 0) + 1
+            else:
+                keep &= ~mask
+        return E if keep.all() else np.ascontiguousarray(E[keep])

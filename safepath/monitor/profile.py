@@ -143,23 +143,29 @@ class Timing:
         return dataclasses.replace(self, before=self.before.trimmed(keep_from))
 
 
-#: Fractions of the acceleration limits a raw profile may use, tried in turn until the
-#: replacement is within every limit as executed (the averaging, the path's curvature and
-#: the verified motion's own jerk take the rest). The last, gentlest, is what the
-#: separation assessment assumes (:attr:`MonitoredPath.amax`): any of them stops sooner.
+#: Fractions of the acceleration limits a raw braking profile may use, tried in turn
+#: until the replacement is within every limit as executed (the averaging, the path's
+#: curvature and the verified motion's own jerk take the rest). The last, gentlest, is
+#: what the separation assessment assumes (:attr:`MonitoredPath.amax`): any of them stops
+#: sooner. Braking starts at once with each: a stop is never postponed (when none is
+#: within the limits, :meth:`MonitoredPath.forced_stop` brakes anyway).
 BRAKE_SCALES = (0.9, 0.6)
 BRAKE_SCALE = BRAKE_SCALES[0]
-#: Delays [s] before braking tried last, at the gentlest scale, when braking at once
-#: would add too much jerk to the verified motion's own (a change of speed needs the
-#: motion's jerk headroom; a motion at its jerk limit has none until that phase ends).
-#: The assessment assumes the longest.
-BRAKE_DELAYS = (0.0, 0.02, 0.05)
+#: Holds [s] of the running speed before braking at the gentlest scale, tried last for a
+#: stop: where the running motion is in a phase at its own jerk limit, braking adds to
+#: that jerk until the phase ends. The separation assessment assumes the longest hold
+#: (a stop is sent at once either way: the hold is part of the stop it sends).
+BRAKE_HOLDS = (0.025, 0.05)
+#: Gentler braking [fraction of the acceleration limits] a stop falls back on when none
+#: of :data:`BRAKE_SCALES` (and their holds) is within the limits from the state it
+#: starts in: it comes to rest later than the assessment assumed, and says so.
+GENTLE_SCALES = (0.4, 0.25, 0.15, 0.1)
 #: Fractions of the acceleration limits a speed-up may use, tried in turn: the first is
 #: the assessment's; a gentler speed-up is slower at every instant, so it stops sooner.
 SPEED_UP_SCALES = (0.6, 0.4, 0.25, 0.15, 0.1)
 #: Share of each joint's jerk limit left to the change of the path acceleration
 #: (``q'(tau) r''``); the rest is for the verified motion's own jerk and curvature terms.
-JERK_SHARE = 0.5
+JERK_SHARE = 0.25
 #: Spacing of a replacement's knots [s] (whole nanoseconds).
 KNOT_NS = 4_000_000
 
@@ -209,7 +215,7 @@ class MonitoredPath:
 
     def march(self, start: float, tau0: float, r0: float, scale: float, brake_after: float,
               *, limit: int | None = None, before: Timing | None = None,
-              accel_scale: float | None = None) -> Timing:
+              accel_scale: float | None = None, lead: float | None = None) -> Timing:
         """A profile toward speed ``scale``, braking to rest from ``brake_after`` [s] on
         (``inf``: never), followed from monitor time ``start`` on.
 
@@ -224,8 +230,12 @@ class MonitoredPath:
                 profile is half a width after ``start`` (``tau0`` and ``r0`` unused).
             accel_scale: Fraction of the acceleration limits the raw profile uses
                 (default: the assessment's, :attr:`amax`).
+            lead: Where the raw knots start after ``start`` [s] (default half the width:
+                the followed profile changes from ``start`` on). 0 for a motion followed
+                as it was verified from ``start`` (a steady raw speed before it: the
+                followed path parameter at ``start`` is then ``tau0`` itself).
         """
-        lead = self.width / 2
+        lead = self.width / 2 if lead is None else float(lead)
         if before is not None:
             tau0, r0 = before.raw_state(start + lead)
             before = before.trimmed(start - self.width)
@@ -245,22 +255,22 @@ class MonitoredPath:
                     before: Timing | None, tau0: float, r0: float, kind: str
                     ) -> tuple[Timing, Trajectory]:
         """The followed timing toward ``scale`` and its trajectory: the raw profile at
-        each of :data:`BRAKE_SCALES` in turn (then braking a little later,
-        :data:`BRAKE_DELAYS`), or for a speed-up each of :data:`SPEED_UP_SCALES`, the
-        first whose trajectory is within every limit as executed.
+        each of :data:`BRAKE_SCALES` in turn, or for a speed-up each of
+        :data:`SPEED_UP_SCALES`, the first whose trajectory is within every limit as
+        executed.
 
         Raises:
             TimingError: None is (naming the last excess).
         """
         current = before.state_at(start)[1] if before is not None else r0
-        if scale <= current:
-            tries = [(s, 0.0) for s in BRAKE_SCALES] + [(BRAKE_SCALES[-1], d)
-                                                         for d in BRAKE_DELAYS[1:]]
-        else:
-            tries = [(s, 0.0) for s in SPEED_UP_SCALES]
+        tries = [(s, scale, brake_after) for s in
+                 (BRAKE_SCALES if scale <= current else SPEED_UP_SCALES)]
+        if scale == 0.0:
+            raw = before.raw_state(start + self.width / 2)[1] if before is not None else r0
+            tries += [(BRAKE_SCALES[-1], raw, hold) for hold in BRAKE_HOLDS]
         error: TimingError | None = None
-        for accel_scale, delay in tries:
-            timing = self.march(start, tau0, r0, scale, brake_after + delay, before=before,
+        for accel_scale, target, brake in tries:
+            timing = self.march(start, tau0, r0, target, brake, before=before,
                                 accel_scale=accel_scale)
             try:
                 return timing, self.trajectory(timing, kind=kind, scale=scale)
@@ -269,7 +279,35 @@ class MonitoredPath:
         assert error is not None
         raise error
 
-    def trajectory(self, timing: Timing, *, kind: str, scale: float) -> Trajectory:
+    def forced_stop(self, start: float, *, before: Timing | None, tau0: float, r0: float
+                    ) -> tuple[Timing, Trajectory]:
+        """The stop sent when no re-timing of :meth:`replacement` stays within every limit
+        as executed from this state: a stop is never postponed, so braking gentler than
+        the assessment assumed (:data:`GENTLE_SCALES`, after the holds of
+        :data:`BRAKE_HOLDS`) or the motion's own timing to its end, whichever within the
+        limits comes to rest first; if none is within them, of all those the one whose
+        largest ratio to a limit is least. ``info["executed_ratios"]`` holds its speed,
+        acceleration and jerk ratios to the limits as executed."""
+        raw = before.raw_state(start + self.width / 2)[1] if before is not None else r0
+        best: tuple[float, float, Timing, Trajectory] | None = None  # (excess, rest, ...)
+        tries = [(a, 0.0, 0.0) for a in (*BRAKE_SCALES, *GENTLE_SCALES)] + \
+            [(a, raw, hold) for a in GENTLE_SCALES for hold in BRAKE_HOLDS] + \
+            [(1.0, raw, np.inf)]  # the motion's own timing to its end
+        for accel_scale, target, brake in tries:
+            timing = self.march(start, tau0, r0, target, brake, before=before,
+                                accel_scale=accel_scale)
+            traj = self.trajectory(timing, kind="stop", scale=0.0, check=False)
+            if np.isinf(brake) and (traj.t.size < 2 or not timing.rest and
+                                    traj.info["path_tau"][-1] < self.end - 1e-9):
+                continue  # does not come to rest
+            key = (max(max(traj.info["executed_ratios"]), 1.0), traj.duration)
+            if best is None or key < best[:2]:
+                best = (*key, timing, traj)
+        assert best is not None
+        return best[2], best[3]
+
+    def trajectory(self, timing: Timing, *, kind: str, scale: float, check: bool = True
+                   ) -> Trajectory:
         """The followed timing as a trajectory starting at t = 0 (a replacement goal):
         knots every 4 ms on the verified motion, speeds ``Q' r`` and accelerations
         ``Q'' r^2 + Q' r'``, until it rests or reaches the path's end.
@@ -289,12 +327,14 @@ class MonitoredPath:
         v = Qd * r[:, None]
         a = Qdd * (r * r)[:, None] + Qd * rd[:, None]
         v[-1] = a[-1] = 0.0
+        peaks = (0.0, 0.0, 0.0)
         if n > 1:
             rv, ra, rj = interval_ratios(t, q, v, a, vmax=self.robot.velocity_limits,
                                          amax=self.robot.acceleration_limits,
-                                         jmax=self.robot.jerk_limits)
+                                         jmax=self.robot.jerk_limits,
+                                         interpolation=self.robot.controller.interpolation)  # type: ignore[arg-type]
             peaks = (float(rv.max()), float(ra.max()), float(rj.max()))
-            if not max(peaks) <= 1.0:
+            if check and not max(peaks) <= 1.0:
                 k = int(np.argmax(np.maximum(np.maximum(rv, ra), rj)))
                 raise TimingError(
                     f"re-timed motion at {max(peaks)!r} of a limit as executed ({kind} to "
@@ -304,6 +344,6 @@ class MonitoredPath:
         knot = np.clip(np.searchsorted(tr.t, tau, side="right") - 1, 0, tr.t.size - 1)
         info = {"monitor": kind, "speed_scale": scale, "path_start": float(tau[0]),
                 "path_tau": tau.tolist(), "source_route": tr.route,
-                LIMITS_KEY: robot_limits(self.robot)}
+                "executed_ratios": list(peaks), LIMITS_KEY: robot_limits(self.robot)}
         return Trajectory(tr.joint_names, t, q, v, a, tr.step_index[knot],
                           tr.steps, (), tr.robot, tr.route, info)

@@ -31,7 +31,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .options import MonitorOptions
-from .profile import MonitoredPath
+from .profile import BRAKE_HOLDS, MonitoredPath
 from .sweep import PathSweep
 
 __all__ = ["Assessment", "assess"]
@@ -131,14 +131,15 @@ def assess(path: MonitoredPath, sweep: PathSweep, elements: tuple[np.ndarray, ..
         return float(tau[m - 1]), float(bt[m - 1]) + path.width, tb
 
     # The farthest any tested profile reaches: full speed, then braking.
-    far, _, _ = end_of(1.0, o.stale_after)
+    far, _, _ = end_of(1.0, o.stale_after + BRAKE_HOLDS[-1])
     s0 = sweep.index_at(tau_c)
     horizon = min(tau_c + o.horizon, path.end)
     s1 = sweep.index_at(max(far, horizon)) + 2
     prefix = _Prefix(sweep, s0, min(s1, sweep.tau.size), elements, o.range_cap)
 
     def margin(scale: float, brake_after: float) -> tuple[float, float]:
-        where, t_rest, _ = end_of(scale, brake_after)
+        # A stop may hold the speed for up to BRAKE_HOLDS[-1] before braking.
+        where, t_rest, _ = end_of(scale, brake_after + BRAKE_HOLDS[-1])
         needed = o.approach_speed * (age + o.command_latency + t_rest) + o.constant_terms
         return prefix.until(where), needed
 
@@ -159,7 +160,7 @@ def assess(path: MonitoredPath, sweep: PathSweep, elements: tuple[np.ndarray, ..
         kept, needed = margin(chosen, o.stale_after)
         if kept < needed:
             chosen = 0.0
-    where0, t_stop, _ = end_of(0.0, 0.0)
+    where0, t_stop, _ = end_of(r_l, BRAKE_HOLDS[-1])
     if chosen == 0.0:
         kept, needed = prefix.until(where0), (
             o.approach_speed * (age + o.command_latency + t_stop) + o.constant_terms)

@@ -9,10 +9,12 @@ rosbags or rclpy classes) and does what ``joint_trajectory_controller`` does wit
 * **samples the joined motion every controller cycle** (``cycle``) as the drives'
   setpoint; between two cycles the drives extrapolate it at the sampled velocity (a
   first-order hold: the Ned's 25 Hz controller would otherwise command a staircase);
-* **starts** at ``header.stamp`` (0: on receipt). A goal that replaces a running one
-  with a stamp in the past joins from the current time, as ros2_control does: the new
-  trajectory is sampled at ``now - stamp``; a first point later than now is reached
-  from the state commanded now (the "point before the trajectory");
+* **switches** as :class:`safepath.execution.ControllerModel` says (the one model of the
+  controller the monitor builds its replacements against): a goal is taken at its
+  ``header.stamp`` (0: on receipt; a stamp later than its arrival is the command latency
+  the sender stated, and the running goal goes on until then; one in the past is taken
+  on receipt); the state (position, velocity and acceleration) commanded then is joined
+  to the first point not in the past, and earlier points are dropped;
 * **reports** feedback (desired, actual, error) and the result: ``SUCCESSFUL`` once the
   trajectory's time is over and every joint is within its goal tolerance, else
   ``GOAL_TOLERANCE_VIOLATED`` when ``goal_time_tolerance`` has passed too;
@@ -34,7 +36,7 @@ from typing import Any
 import numpy as np
 
 from ..controller_spec import ControllerSpec
-from ..execution import join
+from ..execution import ControllerModel
 from .model import RobotModel
 
 __all__ = ["ArmServer", "ArmFeedback", "ArmResult", "SUCCESSFUL", "INVALID_GOAL",
@@ -135,6 +137,11 @@ class ArmServer:
                              self._ordered(controller.joint_names, controller.goal_tolerance))
         self._goal: _Goal | None = None
         self._hold_q = np.asarray(q_initial, dtype=float).copy()
+        #: What the controller commands, goal after goal.
+        self.commanded = ControllerModel(self._hold_q,
+                                         interpolation=controller.interpolation)  # type: ignore[arg-type]
+        #: Each switch to a goal that arrived while another ran: (goal id, Switch).
+        self.switches: list[tuple[int, Any]] = []
         self._hold_ctrl = model.control(self._hold_q, np.zeros(dof), np.zeros(dof))
         self.results: list[ArmResult] = []
 
@@ -190,18 +197,14 @@ class ArmServer:
                                 "non-finite positions", now)
         stamp = _duration(traj.header.stamp)
         t0 = now if stamp == 0 else stamp
-        t_abs = t0 + t
-        if t_abs[0] > now + 1e-9:  # the point before the trajectory: where the arm is told to be
-            q_before = self.reference_at(step) if self._goal is not None else self._hold_q
-            t_abs = np.concatenate([[now], t_abs])
-            q = np.vstack([q_before, q])
-            qd = np.vstack([np.zeros(len(cols)), qd])
-            qdd = np.vstack([np.zeros(len(cols)), qdd])
-        if self._goal is not None:
-            self._finish(CANCELED, "replaced by a new goal", step, q_now)
+        running = self._goal is not None
+        switch = self.commanded.take(t, q, qd, qdd, start=t0, time=max(t0, now))
+        if running:
+            self.switches.append((goal_id, switch))
+            self._finish(CANCELED, "replaced by a new goal", step, q_now, hold=False)
         tol = self._tolerances(goal)
         time_tol = _duration(goal.goal_time_tolerance)
-        self._goal = self._build(goal_id, step, t_abs, q, qd, qdd, tol,
+        self._goal = self._build(goal_id, step, tol,
                                  time_tol if time_tol > 0 else self.controller.goal_time_tolerance)
         return None
 
@@ -214,26 +217,24 @@ class ArmServer:
                 tol[jt.name] = float(jt.position)
         return np.array([tol[n] for n in self.model.joint_names])
 
-    def _build(self, goal_id: int, step: int, t_abs: np.ndarray, q: np.ndarray,
-               qd: np.ndarray, qdd: np.ndarray, tol: np.ndarray, time_tol: float) -> _Goal:
-        """The joined motion at every physics step from ``step`` to the end, and the
-        drives' controls: samples every controller cycle, extrapolated in between."""
-        interpolation = self.controller.interpolation
+    def _build(self, goal_id: int, step: int, tol: np.ndarray, time_tol: float) -> _Goal:
+        """The commanded motion (:attr:`commanded`) at every physics step from ``step`` to
+        the end, and the drives' controls: samples every controller cycle, extrapolated
+        in between."""
         dt, c = self.timestep, self._cycle_steps
-        n = max(1, math.ceil((t_abs[-1] - step * dt) / dt - 1e-9) + 1)
+        end = self.commanded.end
+        n = max(1, math.ceil((end - step * dt) / dt - 1e-9) + 1)
         steps = step + np.arange(n)
-        q_ref, qd_ref, _, _ = join(t_abs, q, qd, qdd, steps * dt,
-                                   interpolation=interpolation)  # type: ignore[arg-type]
+        q_ref, qd_ref, _, _ = self.commanded.sample(steps * dt)
         # Controller cycles fall on the global grid of the cycle period.
         ticks = (steps // c) * c
         ticks = np.maximum(ticks, step)
         uniq, where = np.unique(ticks, return_inverse=True)
-        sq, sqd, sqdd, _ = join(t_abs, q, qd, qdd, uniq * dt,
-                                interpolation=interpolation)  # type: ignore[arg-type]
+        sq, sqd, sqdd, _ = self.commanded.sample(uniq * dt)
         lag = ((steps - ticks) * dt)[:, None]
         set_q = sq[where] + sqd[where] * lag
         ctrl = self.model.control(set_q, sqd[where], sqdd[where])
-        return _Goal(goal_id, step, q_ref, qd_ref, ctrl, float(t_abs[-1]), tol, time_tol)
+        return _Goal(goal_id, step, q_ref, qd_ref, ctrl, float(end), tol, time_tol)
 
     def cancel(self, goal_id: int, step: int, q_now: np.ndarray) -> ArmResult | None:
         """Cancel ``goal_id`` if it runs: the arm holds the position commanded now."""
@@ -241,13 +242,18 @@ class ArmServer:
             return None
         return self._finish(CANCELED, "cancelled", step, q_now)
 
-    def _finish(self, code: int, why: str, step: int, q_now: np.ndarray) -> ArmResult:
+    def _finish(self, code: int, why: str, step: int, q_now: np.ndarray, *,
+                hold: bool = True) -> ArmResult:
         goal = self._goal
         assert goal is not None
         q_ref = self.reference_at(step)
         self._hold_q = q_ref.copy()
         dof = q_ref.size
         self._hold_ctrl = self.model.control(q_ref, np.zeros(dof), np.zeros(dof))
+        if hold and step * self.timestep < self.commanded.end:
+            # Cancelled while moving: the controller holds the position commanded now.
+            self.commanded.take(np.zeros(1), q_ref[None], np.zeros((1, dof)),
+                                np.zeros((1, dof)), start=step * self.timestep)
         self._goal = None
         result = ArmResult(goal.goal_id, code, why, step * self.timestep, q_ref - q_now)
         self.results.append(result)

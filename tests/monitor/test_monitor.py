@@ -129,10 +129,15 @@ def test_user_obstacles_box_and_sphere(cell: Cell, phase1: Phase1) -> None:
     traj, held = phase1.motions[0]
     m.follow(traj, start=0.0, held=held)
     T = np.eye(4)
-    T[:3, 3] = [0.9, 0.0, 0.2]
+    T[:3, 3] = [1.2, 0.0, 0.2]
     d = m.observe(Obstacles(0.0, spheres=[[1.5, 0.0, 0.2, 0.05]], boxes=((T, [0.1, 0.1, 0.1]),)),
                   0.0)
     assert d.kind == "continue" and d.counts.used > 1 and d.separation_now < 1.0
+    assert d.separation_kept >= d.protective_distance
+    # The same box 0.1 m nearer is inside the protective distance: stop.
+    T[:3, 3] = [0.9, 0.0, 0.2]
+    d = m.observe(Obstacles(0.01, boxes=((T, [0.1, 0.1, 0.1]),)), 0.01)
+    assert d.kind == "stop" and d.separation_kept < d.protective_distance
     with pytest.raises(ObservationError, match="boxes"):
         Obstacles(0.0, boxes=((T, [0.1, -1.0, 0.1]),))
 

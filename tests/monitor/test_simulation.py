@@ -52,7 +52,7 @@ def test_approach_slows_stops_keeps_separation_and_resumes(cell: Cell, phase1: P
     start = TARGET + [travel, 0.0, 0.0]
     obstacle = MovingSphere.approach(start, TARGET, speed, 0.2, t_stop, leave_at=t_stop + 1.0)
     res = simulate(monitor, list(phase1.motions), obstacle, sensor="cam", sensor_pose=CAMERA,
-                   until=t_stop + 1.0 + travel / speed + 12.0)
+                   until=t_stop + 1.0 + travel / speed + 20.0)
     kinds = [d.kind for d in res.decisions]
     first_stop = kinds.index("stop")
     assert "continue" in kinds[:first_stop]
