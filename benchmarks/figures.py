@@ -115,6 +115,21 @@ def _monitor(d: dict[str, Any]) -> list[Row]:
     return rows
 
 
+def _switches(d: dict[str, Any]) -> list[Row]:
+    g, o, aim = d["goal_decision_ms"], d["other_decision_ms"], d["aim_goal_decision_ms"]
+    ok = g["median"] <= aim["median"] and g["p99"] <= aim["p99"]
+    r = d["executed_ratios"]
+    return [(f"monitor switches to replacement goals ({d['runs']} random runs, "
+             f"{d['switches']} switches)",
+             f"largest step {d['largest_switch_step']:.1e}; executed speed / acceleration / "
+             f"jerk ratio {r[0]:.3f} / {r[1]:.3f} / {r[2]:.3f}; stops deferred "
+             f"{d['stops_deferred']}, braking gentler than assessed {d['gentle_stops']}, "
+             f"beyond the limits {d['stops_over_limit']}"),
+            ("monitor decision that sends a goal, median / p99 (without a goal)",
+             f"{g['median']:.2f} / {g['p99']:.2f} ms (aim {aim['median']:.0f} / "
+             f"{aim['p99']:.0f} ms, {_met(ok)}; {o['median']:.2f} / {o['p99']:.2f} ms)")]
+
+
 def _runtime_heartbeat(d: dict[str, Any]) -> list[Row]:
     gaps = "; ".join(f"{name} {m['heartbeat_gap_max_ms']:.1f} ms"
                      for name, m in d["modes"].items())
@@ -218,6 +233,7 @@ SOURCES: list[tuple[str, str, Reader]] = [
     ("cold_start.json", "benchmarks/cold_start.py --save", _cold_start),
     ("runtime_heartbeat.json", "benchmarks/runtime_heartbeat.py --save", _runtime_heartbeat),
     ("monitor.json", "benchmarks/monitor.py --save", _monitor),
+    ("switches.json", "benchmarks/switches.py --runs 200 --save", _switches),
     ("executed_motion.json", "benchmarks/executed_motion.py --random 40 --seed 23",
      _executed_motion),
     ("replan.json", "benchmarks/replan.py", _replan),

@@ -1,0 +1,180 @@
+"""Replacement goals from random decisions, checked as the controller executes them.
+
+Runs seeded random sequences of observations (an obstacle near the camera for a random
+while, at a random distance), kill presses at random instants and sensor silences on the
+bundled quality-check cell's two phase-1 motions; every replacement goal is taken by an
+independent controller model (the goals' points as the message carries them, joined by a
+quintic written here) at its ``replacement_start``. Prints: switches, the largest step at a
+switch (position, velocity, acceleration), the largest speed / acceleration / jerk ratio
+of the executed replacements, stops deferred (none may be), stops braking gentler than
+assessed, and decision times of decisions that send a goal and of those that do not
+(median, p99) with the machine's load.
+
+    .venv/bin/python benchmarks/switches.py --runs 200 [--seed 0] [--save]
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+ROOT = Path(__file__).resolve().parents[1]
+
+
+def _quintic(t, P, V, A, at):  # noqa: ANN001, ANN202, N803
+    """(p, v, a) of the quintic join at ``at`` (held at the ends)."""
+    if at <= t[0]:
+        return P[0], V[0], A[0]
+    if at >= t[-1]:
+        return P[-1], 0 * V[-1], 0 * A[-1]
+    i = int(np.clip(np.searchsorted(t, at, side="right") - 1, 0, t.size - 2))
+    T, s = t[i + 1] - t[i], at - t[i]  # noqa: N806
+    h = P[i + 1] - P[i] - V[i] * T - A[i] * T * T / 2
+    dv, da = V[i + 1] - V[i] - A[i] * T, A[i + 1] - A[i]
+    c3 = (10 * h - 4 * dv * T + da * T * T / 2) / T ** 3
+    c4 = (-15 * h + 7 * dv * T - da * T * T) / T ** 4
+    c5 = (6 * h - 3 * dv * T + da * T * T / 2) / T ** 5
+    return (P[i] + V[i] * s + A[i] * s * s / 2 + c3 * s ** 3 + c4 * s ** 4 + c5 * s ** 5,
+            V[i] + A[i] * s + 3 * c3 * s ** 2 + 4 * c4 * s ** 3 + 5 * c5 * s ** 4,
+            A[i] + 6 * c3 * s + 12 * c4 * s ** 2 + 20 * c5 * s ** 3)
+
+
+def _peaks(t, P, V, A, rate=1000.0):  # noqa: ANN001, ANN202, N803
+    T = np.diff(t)[:, None, None]  # noqa: N806
+    m = max(2, int(np.ceil(T.max() * rate)) + 1)
+    s = T * np.linspace(0.0, 1.0, m)[None, None, :]
+    p0, v0, a0 = P[:-1, :, None], V[:-1, :, None], A[:-1, :, None]
+    h = P[1:, :, None] - p0 - v0 * T - a0 * T * T / 2
+    dv, da = V[1:, :, None] - v0 - a0 * T, A[1:, :, None] - a0
+    c3 = (10 * h - 4 * dv * T + da * T * T / 2) / T ** 3
+    c4 = (-15 * h + 7 * dv * T - da * T * T) / T ** 4
+    c5 = (6 * h - 3 * dv * T + da * T * T / 2) / T ** 5
+    v = v0 + a0 * s + 3 * c3 * s ** 2 + 4 * c4 * s ** 3 + 5 * c5 * s ** 4
+    a = a0 + 6 * c3 * s + 12 * c4 * s ** 2 + 20 * c5 * s ** 3
+    j = 6 * c3 + 24 * c4 * s + 60 * c5 * s ** 2
+    return [np.abs(x).max(axis=(0, 2)) for x in (v, a, j)]
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    parser.add_argument("--runs", type=int, default=200)
+    parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument("--save", action="store_true",
+                        help="write benchmarks/results/switches.json")
+    args = parser.parse_args()
+    load_before = os.getloadavg()[0]
+
+    from safepath import Trajectory, load_cell, plan_cell
+    from safepath.errors import ExecutedLimitError
+    from safepath.monitor import Monitor, MonitorOptions, Scan
+    from safepath.ros import joint_trajectory, split_at_gripper_events
+
+    cell = load_cell(ROOT / "scenes" / "quality_check_cell")
+    robot = cell.robot
+    routes = cell.route_table()
+    traj = plan_cell(cell, routes={"phase1": routes["phase1"]})["phase1"]
+    parts = [m for m in split_at_gripper_events(traj) if isinstance(m, Trajectory)]
+    motions = [(parts[0], "vial"), (parts[1], None)]
+    camera = np.eye(4)
+    camera[:3, 3] = [1.2, 0.3, 0.4]
+    limits = (robot.velocity_limits, robot.acceleration_limits, robot.jerk_limits)
+
+    def points(tr: Trajectory) -> tuple[np.ndarray, ...]:
+        msg = joint_trajectory(tr, controller=robot.controller, backend="rosbags")
+        t = np.array([p.time_from_start.sec + p.time_from_start.nanosec * 1e-9
+                      for p in msg.points])
+        return (t, *(np.array([list(getattr(p, f)) for p in msg.points])
+                     for f in ("positions", "velocities", "accelerations")))
+
+    rng = np.random.default_rng(args.seed)
+    switches, step, worst = 0, 0.0, np.zeros(3)
+    kinds: dict[str, int] = {}
+    stats: dict[str, int] = {}
+    with_goal, without = [], []
+    refused: list[str] = []
+    started = time.perf_counter()
+    for run in range(args.runs):
+        m, held = motions[run % 2]
+        mon = Monitor(cell, MonitorOptions(sensors={"cam": camera}, stale_after=0.06,
+                                           hold_time=0.1))
+        mon.follow(m, start=0.0, held=held)
+        running = (0.0, *points(m))
+        kill_at = rng.uniform(0, m.duration) if rng.uniform() < 0.3 else None
+        silent_from = rng.uniform(0, m.duration) if rng.uniform() < 0.2 else None
+        near_from = rng.uniform(0, m.duration)
+        near_to = near_from + rng.uniform(0.05, 1.0)
+        distance = rng.uniform(0.3, 1.2)
+        t = 0.0
+        while t < m.duration + 1.0:
+            t += 1 / 30 + rng.uniform(-0.005, 0.005)
+            if kill_at is not None and kill_at <= t:
+                d, kill_at = mon.kill(t), None
+            elif silent_from is not None and silent_from <= t < silent_from + 0.3:
+                d = mon.tick(t)
+            else:
+                ranges = np.full(360, np.inf)
+                if near_from <= t <= near_to:
+                    ranges[170:190] = distance
+                d = mon.observe(Scan(t, "cam", ranges, -np.pi, 2 * np.pi / 360, 0.05, 8.0), t)
+            rep = d.replacement
+            (with_goal if rep is not None else without).append(d.elapsed)
+            if rep is None:
+                continue
+            kinds[d.kind] = kinds.get(d.kind, 0) + 1
+            try:
+                tn, P, V, A = points(rep)  # noqa: N806
+            except ExecutedLimitError as exc:  # the goal builder refuses it: counted
+                refused.append(f"run {run} t={t:.3f} {d.kind}: {exc}")
+                tn, P, V, A = (np.asarray(rep.t), rep.q, rep.qd, rep.qdd)  # noqa: N806
+            stamp, *old = running
+            p, v, a = _quintic(old[0] + stamp, *old[1:], at=d.replacement_start)
+            step = max(step, *(float(np.max(np.abs(x - y)))
+                               for x, y in ((P[0], p), (V[0], v), (A[0], a))))
+            if tn.size > 1:
+                worst = np.maximum(worst, [float(np.max(pk / lim))
+                                           for pk, lim in zip(_peaks(tn, P, V, A), limits,
+                                                              strict=True)])
+            running = (d.replacement_start, tn, P, V, A)
+            switches += 1
+        for k, v in mon.stats.items():
+            stats[k] = stats.get(k, 0) + v
+    wall = time.perf_counter() - started
+    load_after = os.getloadavg()[0]
+    wg, wo = np.array(with_goal) * 1e3, np.array(without) * 1e3
+    print(f"{args.runs} runs (seed {args.seed}), {switches} switches {kinds}, {wall:.1f} s; "
+          f"load {load_before:.2f} -> {load_after:.2f} on {os.cpu_count()} cores")
+    print(f"largest step at a switch: {step:.2e} (rad, rad/s, rad/s^2); executed ratios "
+          f"speed {worst[0]:.4f}, acceleration {worst[1]:.4f}, jerk {worst[2]:.4f}")
+    print(f"stops deferred: {stats.get('deferred', 0)}; braking gentler than assessed: "
+          f"{stats.get('gentle_stops', 0)}; beyond the limits: {stats.get('stops_over_limit', 0)}"
+          f" (goals the goal builder refuses: {len(refused)})")
+    for line in refused[:5]:
+        print("  refused:", line)
+    print(f"decision time with a goal: median {np.median(wg):.2f} ms, p99 "
+          f"{np.percentile(wg, 99):.2f} ms ({wg.size}); without: median {np.median(wo):.2f} ms, "
+          f"p99 {np.percentile(wo, 99):.2f} ms ({wo.size})")
+    if args.save:
+        from _results import save
+
+        save("switches", {
+            "runs": args.runs, "seed": args.seed, "switches": switches, "kinds": kinds,
+            "largest_switch_step": step, "executed_ratios": worst.tolist(),
+            "stops_deferred": stats.get("deferred", 0),
+            "gentle_stops": stats.get("gentle_stops", 0),
+            "stops_over_limit": stats.get("stops_over_limit", 0),
+            "goals_refused": len(refused),
+            "goal_decision_ms": {"median": float(np.median(wg)),
+                                 "p99": float(np.percentile(wg, 99))},
+            "other_decision_ms": {"median": float(np.median(wo)),
+                                  "p99": float(np.percentile(wo, 99))},
+            "aim_goal_decision_ms": {"median": 5.0, "p99": 10.0}}, load_before=load_before)
+
+
+if __name__ == "__main__":
+    main()
