@@ -144,7 +144,13 @@ def main() -> None:
             switches += 1
         for k, v in mon.stats.items():
             stats[k] = stats.get(k, 0) + v
-    wall = time.perf_counter() - started
+    _report(args, time.perf_counter() - started, load_before, switches, kinds, step, worst,
+            stats, with_goal, without, refused)
+
+
+def _report(args, wall, load_before, switches, kinds, step, worst, stats,  # noqa: ANN001, PLR0913
+            with_goal, without, refused) -> None:  # noqa: ANN001
+    """Print the figures (and save them with ``--save``)."""
     load_after = os.getloadavg()[0]
     wg, wo = np.array(with_goal) * 1e3, np.array(without) * 1e3
     print(f"{args.runs} runs (seed {args.seed}), {switches} switches {kinds}, {wall:.1f} s; "
@@ -174,6 +180,8 @@ def main() -> None:
             "other_decision_ms": {"median": float(np.median(wo)),
                                   "p99": float(np.percentile(wo, 99))},
             "aim_goal_decision_ms": {"median": 5.0, "p99": 10.0}}, load_before=load_before)
+
+
 
 
 if __name__ == "__main__":
