@@ -9,6 +9,12 @@ ROS); this file wires it to a lifecycle node, as the fourth brief recommends:
 * ``activate``: starts the route's first motion (FollowJointTrajectory);
 * ``deactivate``: stops along the path (a stop replacement goal), without latching.
 
+Every goal leaves the core through its one gate (a latched kill or an inactive node lets
+nothing out but a braking stop; refusals are logged here). Each goal is stamped with its
+``start``: a replacement's t = 0 is where the monitor timed it, so the controller joins
+it there. Only the newest goal's success reaches the core, which moves the route on only
+when the monitor's motion has reached the end of its path (a stop's success does not).
+
 ``/scan`` comes on the sensor-data QoS (best effort, newest only: a lost scan is covered
 by the silence rule); decisions (``std_msgs/String``, JSON) and goals are reliable. A
 100 Hz timer lets silence stop the robot even when no scan arrives. A kill switch is a
@@ -83,7 +89,8 @@ class MonitorNode(LifecycleNode):
         self.arm = ActionClient(self, FollowJointTrajectory,
                                 goals.FOLLOW_JOINT_TRAJECTORY_ACTION)
         self.tool = ActionClient(self, Tool, goals.TOOL_ACTION)
-        self.latest_goal = 0  # only the newest goal's success advances the route
+        self.latest_goal = 0  # only the newest goal's success reaches the core
+        self.refusals_logged = 0
         self.replanner = ProcessPoolExecutor(1, mp_context=multiprocessing.get_context("spawn"))
         self.scan_sub = None
         self.timer = None
@@ -101,6 +108,7 @@ class MonitorNode(LifecycleNode):
             params = parameters_from_mapping(raw)
             self.planner = runtime.RuntimePlanner(params.scene)
             self.core = MonitorNodeCore(params)
+            self.refusals_logged = 0
             self.core.configure(planner=self.planner)  # plans in the worker: warms it
         except SafepathError as exc:
             self.get_logger().error(f"configure failed: {exc}")
@@ -158,7 +166,10 @@ class MonitorNode(LifecycleNode):
             if isinstance(command, Publish):
                 self.decisions.publish(String(data=json.dumps(decision_dict(command.decision))))
             elif isinstance(command, SendGoal):
-                goal = goals.follow_joint_trajectory_goal(command.trajectory, backend="rclpy")
+                # header.stamp: the ROS time of the goal's t = 0 (0: on receipt).
+                stamp_ns = 0 if command.start is None else max(1, round(command.start * 1e9))
+                goal = goals.follow_joint_trajectory_goal(command.trajectory,
+                                                          stamp_ns=stamp_ns, backend="rclpy")
                 self.latest_goal += 1
                 number = self.latest_goal
                 future = self.arm.send_goal_async(goal)  # replaces the running goal
@@ -174,6 +185,10 @@ class MonitorNode(LifecycleNode):
                 future.add_done_callback(
                     lambda f: f.result().get_result_async().add_done_callback(
                         lambda _: self.run(self.core.on_gripper_done(self.now()))))
+        if self.core is not None:
+            for refusal in self.core.refused[self.refusals_logged:]:
+                self.get_logger().info(f"goal refused at {refusal.time:.3f} s: {refusal.why}")
+            self.refusals_logged = len(self.core.refused)
 
     def on_replanned(self, future, command: Replan) -> None:
         try:
@@ -191,12 +206,11 @@ class MonitorNode(LifecycleNode):
         handle.get_result_async().add_done_callback(lambda f: self.on_result(f, number))
 
     def on_result(self, future, number: int) -> None:
-        # A replaced goal ends too; only the newest one, finished at the path's end
-        # (not a stop), moves the route on.
+        # A replaced goal ends too; only the newest one's success reaches the core, which
+        # moves the route on only at the end of the path (never after a stop at rest).
         result = future.result()
         if (number == self.latest_goal and result.status == GoalStatus.STATUS_SUCCEEDED
-                and self.core is not None and self.core.monitor is not None
-                and self.core.monitor.last.scale > 0):
+                and self.core is not None):
             self.run(self.core.on_motion_done(self.now()))
 
 

@@ -9,10 +9,23 @@ one is covered by the silence rule); decisions and goals go reliable.
 
 Every callback returns :class:`Command` s for the node to execute, so the whole logic
 is tested here with real messages (rosbags) and real trajectories.
+
+**One gate.** Every goal the core sends (a :class:`SendGoal` or a :class:`Gripper`) leaves
+through one method, which refuses it while the monitor's kill switch is latched or the
+node is not active, with a single exception: a replacement that brakes to rest (a stop,
+the kill's own) always goes out. A refused goal is logged and kept in
+:attr:`MonitorNodeCore.refused`; a refused step of the route (the next motion, a gripper
+action, a re-plan's first motion) waits, and the first tick with the gate open starts it.
+
+**The route moves on only at a path's end.** A motion goal that succeeds because a stop
+brought the arm to rest mid-path does not advance the route (:meth:`Monitor.at_end`): the
+monitor resumes the motion by its hold-time rule (a ``resume`` replacement), and the goal
+that reaches the end of the path moves the route on.
 """
 
 from __future__ import annotations
 
+import logging
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -27,7 +40,9 @@ from .monitor import Decision, Monitor, ReplanRequest
 from .options import MonitorOptions
 
 __all__ = ["NodeParameters", "load_node_parameters", "MonitorNodeCore", "SendGoal",
-           "Publish", "Gripper", "Replan", "NODE_NAME"]
+           "Publish", "Gripper", "Replan", "Refusal", "Command", "NODE_NAME"]
+
+log = logging.getLogger(__name__)
 
 NODE_NAME = "safepath_monitor"
 _LIFECYCLE = Literal["unconfigured", "inactive", "active"]
@@ -148,10 +163,20 @@ def load_node_parameters(path: str | Path, node: str = NODE_NAME) -> NodeParamet
 
 @dataclass(frozen=True)
 class SendGoal:
-    """Send this trajectory as a FollowJointTrajectory goal (replaces the running one)."""
+    """Send this trajectory as a FollowJointTrajectory goal (replaces the running one).
+
+    Attributes:
+        trajectory: The motion (t = 0 at ``start``).
+        reason: ``next motion``, or the kind of the decision whose replacement it is
+            (``stop``, ``slow``, ``resume``).
+        start: Monitor time at which the goal's t = 0 applies [s], the goal's header
+            stamp: the decision's ``replacement_start`` for a replacement, the time the
+            monitor follows a next motion from; None: on receipt.
+    """
 
     trajectory: Trajectory
     reason: str
+    start: float | None = None
 
 
 @dataclass(frozen=True)
@@ -163,9 +188,32 @@ class Publish:
 
 @dataclass(frozen=True)
 class Gripper:
-    """Run this gripper action (the arm is at rest at the end of a motion)."""
+    """Run this gripper action (the arm is at rest at the end of a motion).
+
+    Attributes:
+        event: The route's gripper event.
+        q: The joint state the route performs it at [rad] (the end of the motion before
+            it, or the start of the first motion): where the arm must rest; None in a
+            route without a motion.
+    """
 
     event: GripperEvent
+    q: np.ndarray | None = field(default=None, repr=False, compare=False)
+
+
+@dataclass(frozen=True)
+class Refusal:
+    """A goal the core's gate did not let out (see :attr:`MonitorNodeCore.refused`).
+
+    Attributes:
+        time: Monitor time [s].
+        command: The goal refused.
+        why: ``kill switch latched``, ``node <state>`` or ``no motion running``.
+    """
+
+    time: float
+    command: SendGoal | Gripper
+    why: str
 
 
 @dataclass(frozen=True)
@@ -188,6 +236,9 @@ class MonitorNodeCore:
 
     Args:
         parameters: Validated parameters.
+
+    Attributes:
+        refused: Every goal the gate refused, in order (see the module docstring).
     """
 
     def __init__(self, parameters: NodeParameters) -> None:
@@ -196,10 +247,13 @@ class MonitorNodeCore:
         self.monitor: Monitor | None = None
         self.sequence: list[Trajectory | GripperEvent] = []
         self.motions: list[tuple[Trajectory, str | None]] = []
+        self.refused: list[Refusal] = []
         self._next = 0
         self._held: str | None = None
         self._started = False
-        self._held_back = False  # a part completed while the kill was latched
+        self._held_back = False  # the gate refused the route's next step: it waits
+        # The step of the route under way: a motion, a gripper action, or none yet.
+        self._running: Literal["motion", "gripper"] | None = None
 
     def configure(self, *, planner: Any = None) -> None:
         """Load the cell, build the monitor, plan the route (with ``planner``, a
@@ -231,11 +285,13 @@ class MonitorNodeCore:
                 held = part.object if part.action == "close" else None
         self.monitor = Monitor(cell, p.options)
         self._next, self._held, self._started = 0, None, False
+        self._held_back, self._running = False, None
         self.state = "inactive"
 
     def activate(self, now: float) -> list[Command]:
         """Start the route (the first time), or release the stop of a deactivation
-        (motion resumes by the hold-time rule)."""
+        (motion resumes by the hold-time rule; a step of the route held back while
+        inactive starts at the next tick)."""
         if self.state != "inactive" or self.monitor is None:
             raise ConfigError(f"cannot activate from state '{self.state}'", key="lifecycle")
         self.state = "active"
@@ -251,13 +307,13 @@ class MonitorNodeCore:
             raise ConfigError(f"cannot deactivate from state '{self.state}'",
                               key="lifecycle")
         self.state = "inactive"
-        return self._commands(self.monitor.kill(now))
+        return self._commands(self.monitor.kill(now), now)
 
     def kill(self, now: float) -> list[Command]:
         """Kill switch: stop along the path, latched until :meth:`reset`."""
         if self.monitor is None:
             return []
-        return self._commands(self.monitor.kill(now))
+        return self._commands(self.monitor.kill(now), now)
 
     def reset(self) -> None:
         """Release the kill switch (motion resumes by the hold-time rule)."""
@@ -272,41 +328,49 @@ class MonitorNodeCore:
         """
         if self.state != "active" or self.monitor is None:
             return []
-        return self._commands(self.monitor.observe(msg, now))
+        return self._commands(self.monitor.observe(msg, now), now)
 
     def on_tick(self, now: float) -> list[Command]:
         """Timer: silence must stop the robot even without callbacks."""
         if self.state != "active" or self.monitor is None:
             return []
-        out = self._commands(self.monitor.tick(now))
-        if self._held_back and not self.monitor.last.latched:
-            self._held_back = False
+        out = self._commands(self.monitor.tick(now), now)
+        if self._held_back and self._closed() is None:
             out += self._advance(now)
         return out
 
     def on_motion_done(self, now: float) -> list[Command]:
-        """The latest goal succeeded and the monitor's motion is complete: the next
-        gripper action or motion. While the kill switch is latched nothing starts (a kill
-        just before a motion's end must not be followed by the next action); the next
-        part waits for :meth:`reset`, and the first tick after it starts it."""
-        if self.state != "active":
-            return []
-        if self.monitor is not None and self.monitor.last.latched:
-            self._held_back = True
+        """The latest motion goal succeeded: when the monitor's motion has reached the
+        end of its path (:meth:`Monitor.at_end`), the route's next step (a gripper
+        action or the next motion).
+
+        A goal that succeeds because a stop brought the arm to rest before the end moves
+        nothing on: the monitor resumes the motion by its hold-time rule, and the goal
+        that reaches the end advances the route. While the kill switch is latched (or
+        the node is inactive) the next step is refused by the gate and waits; the first
+        tick with the gate open starts it.
+        """
+        if self._running != "motion" or self.monitor is None \
+                or not self.monitor.at_end(now):
             return []
         return self._advance(now)
 
     def on_gripper_done(self, now: float) -> list[Command]:
-        """The gripper action finished: the next motion."""
-        return self.on_motion_done(now)
+        """The gripper action finished: the next motion (through the gate, as
+        :meth:`on_motion_done`)."""
+        if self._running != "gripper" or self.monitor is None:
+            return []
+        return self._advance(now)
 
     def on_replanned(self, request: ReplanRequest, traj: Trajectory, now: float
                      ) -> list[Command]:
         """A re-plan finished: its box joins the static scene, the new route replaces the
-        rest of the old one, its first part starts."""
+        rest of the old one, its first part starts (through the gate: while the kill
+        switch is latched or the node is inactive it waits, and the first tick with the
+        gate open starts it)."""
         from ..ros.goals import split_at_gripper_events
 
-        if self.state != "active" or self.monitor is None:
+        if self.state == "unconfigured" or self.monitor is None:
             return []
         if self.monitor.last.scale > 0.0:
             # The obstacle left while the re-plan ran and the robot moves on along the old
@@ -327,22 +391,82 @@ class MonitorNodeCore:
             self.monitor.replan_failed(request, reason)
         return []
 
+    # -- the gate ---------------------------------------------------------------------
+    def _closed(self) -> str | None:
+        """Why the gate refuses goals now (None: open)."""
+        if self.monitor is not None and self.monitor.last.latched:
+            return "kill switch latched"
+        if self.state != "active":
+            return f"node {self.state}"
+        return None
+
+    def _send(self, command: SendGoal | Gripper, now: float,
+              role: Literal["route", "replacement", "brake"]) -> list[Command]:
+        """The one way out for goals: ``[command]``, or ``[]`` with the refusal logged
+        and kept in :attr:`refused`.
+
+        Args:
+            command: The goal.
+            now: Monitor time [s].
+            role: ``brake``: a replacement that brakes to rest (a stop), which always
+                goes out, whatever the kill switch and the lifecycle; ``replacement``: a
+                re-timing of the running motion (slow, resume), refused as a step of
+                the ``route`` is, and when no motion runs (a gripper acts: a re-timing
+                of the finished motion would move nothing).
+        """
+        if role == "brake":
+            return [command]
+        why = self._closed()
+        if why is None and role == "replacement" and self._running != "motion":
+            why = "no motion running"
+        if why is None:
+            return [command]
+        self.refused.append(Refusal(now, command, why))
+        what = command.reason if isinstance(command, SendGoal) else \
+            f"gripper {command.event.action}"
+        log.info("monitor node: %s goal refused at %.3f s: %s", what, now, why)
+        return []
+
+    # -- the route ---------------------------------------------------------------------
     def _advance(self, now: float) -> list[Command]:
+        """The route's next step, through the gate (refused: it waits, see
+        :meth:`on_tick`)."""
         assert self.monitor is not None
         if self._next >= len(self.sequence):
+            self._held_back = False
             return []
         part = self.sequence[self._next]
+        command: SendGoal | Gripper = Gripper(part, self._pose_of(self._next)) \
+            if isinstance(part, GripperEvent) else SendGoal(part, "next motion", start=now)
+        out = self._send(command, now, "route")
+        self._held_back = not out
+        if not out:
+            return []
         self._next += 1
         if isinstance(part, GripperEvent):
             self._held = part.object if part.action == "close" else None
-            return [Gripper(part)]
-        self.monitor.follow(part, start=now, held=self._held)
-        return [SendGoal(part, "next motion")]
+            self._running = "gripper"
+        else:
+            self.monitor.follow(part, start=now, held=self._held)
+            self._running = "motion"
+        return out
 
-    def _commands(self, decision: Decision) -> list[Command]:
+    def _pose_of(self, index: int) -> np.ndarray | None:
+        """Where the arm rests for the gripper event ``sequence[index]`` [rad]: the end of
+        the motion before it, else the start of the motion after it (None: no motion)."""
+        before = [p for p in self.sequence[:index] if isinstance(p, Trajectory)]
+        if before:
+            return before[-1].q[-1].copy()
+        after = [p for p in self.sequence[index:] if isinstance(p, Trajectory)]
+        return after[0].q[0].copy() if after else None
+
+    def _commands(self, decision: Decision, now: float) -> list[Command]:
+        """The decision published, its replacement (through the gate) and its re-plan."""
         out: list[Command] = [Publish(decision)]
         if decision.replacement is not None:
-            out.append(SendGoal(decision.replacement, decision.kind))
+            out += self._send(SendGoal(decision.replacement, decision.kind,
+                                       start=decision.replacement_start), now,
+                              "brake" if decision.scale == 0.0 else "replacement")
         if decision.replan is not None:
             out.append(Replan(decision.replan, self.parameters.route, self._held,
                               self.parameters.replan_margin))

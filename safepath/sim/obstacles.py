@@ -19,7 +19,13 @@ depth camera, with :class:`~safepath.monitor.node.MonitorNodeCore` closed loop.
   a kill is pressed at a given time or a given lead before a motion's end.
 * **Measured**: the true closest approach of the simulated arm to the body (MuJoCo's
   ``mj_geomDistance`` between the arm's collision shapes and the cylinder, every tick),
-  the decisions, and what follows a kill.
+  overall and while the arm moves; the speed, acceleration and jerk of the motion the
+  trajectory controller commanded against the robot's limits, and its goal switches;
+  where the arm was at each gripper action; the decisions, and what follows a kill. A run
+  fails (:attr:`ObstacleRun.failures`) when the commanded motion exceeds a limit or
+  steps at a goal switch, a gripper action happens away from the pose its route plans it
+  at (a held object dropped), the controller refuses or aborts a goal, or the kill does
+  not hold.
 """
 
 from __future__ import annotations
@@ -33,7 +39,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from ..errors import InputError
-from .monitor_loop import MonitorTwin
+from .monitor_loop import CommandedPeak, MonitorTwin
 
 if TYPE_CHECKING:
     import argparse
@@ -47,6 +53,10 @@ __all__ = ["MovingBody", "SensorRig", "ObstacleTwin", "ObstacleRun", "run_obstac
 BODY_GROUP = 3
 #: Distances arm - body are measured up to this [m] (farther: reported as this).
 _DIST_MAX = 10.0
+#: The arm moves while a joint's executed speed exceeds this [rad/s].
+MOVING_SPEED = 1e-3
+#: A commanded speed, acceleration or jerk above its limit by more than this share fails.
+LIMIT_SLACK = 1e-6
 
 
 @dataclass(frozen=True)
@@ -225,6 +235,8 @@ class ObstacleTwin(MonitorTwin):
         self.clouds = 0
         self.replans: list[tuple[float, str]] = []
         self.kill_time: float | None = None
+        #: Whether an arm goal's success reached the node after the kill was pressed.
+        self.motion_end_after_kill = False
         self.motion_goals = 0
 
     # -- the body and the sensors ------------------------------------------------------
@@ -242,7 +254,7 @@ class ObstacleTwin(MonitorTwin):
                                                                  _DIST_MAX, None)))
         if best < self.closest:
             self.closest, self.closest_time = best, self.twin.now
-        if self.twin.arm.active is not None:
+        if float(np.max(np.abs(self.twin.qd))) > MOVING_SPEED:
             self.closest_moving = min(self.closest_moving, best)
 
     def _push(self, when: float, kind: str, payload: Any) -> None:
@@ -314,9 +326,28 @@ class ObstacleTwin(MonitorTwin):
     def run(self, duration: float, *, kill_at: float | None = None,
             kill_before_end_of: int | None = None, kill_lead: float = 0.005) -> None:
         """Activate the node and run for ``duration`` [s]: the body moves, the sensors
-        publish, the node decides. A kill is pressed at ``kill_at`` [s], or ``kill_lead``
-        [s] before the end of the ``kill_before_end_of``-th motion (0: the first) as the
-        trajectory controller runs it (its replacements included)."""
+        publish, the node decides.
+
+        A kill is pressed at ``kill_at`` [s], or ``kill_lead`` [s] before the end of the
+        ``kill_before_end_of``-th motion (0: the first) as the trajectory controller runs
+        it: the end of the goal running it then (its replacements included; a stop's goal
+        ends at rest). ``kill_lead`` 0 presses it at that end, to the physics step, before
+        the controller's result of that instant reaches the node.
+
+        Raises:
+            InputError: ``kill_lead`` not a finite number >= 0 [s], or
+                ``kill_before_end_of`` not an integer >= 0.
+        """
+        if isinstance(kill_lead, bool) or not isinstance(kill_lead, (int, float)) \
+                or not math.isfinite(kill_lead) or kill_lead < 0:
+            raise InputError(f"expected a finite number >= 0 [s], got {kill_lead!r}",
+                             key="kill_lead")
+        if kill_before_end_of is not None and (
+                isinstance(kill_before_end_of, bool)
+                or not isinstance(kill_before_end_of, (int, np.integer))
+                or kill_before_end_of < 0):
+            raise InputError(f"expected a motion index >= 0, got {kill_before_end_of!r}",
+                             key="kill_before_end_of")
         rig = self.rig
         self._place(0.0)
         self._dispatch(self.core.activate(self.twin.now))
@@ -325,18 +356,14 @@ class ObstacleTwin(MonitorTwin):
         while self.twin.now < end - 1e-9:
             now = self.twin.now
             nxt = min(now + self.tick, end)
-            goal = self.twin.arm._goal
+            kill_due = self._kill_due(kill_at, kill_before_end_of, kill_lead)
             due = [next_laser, next_camera, self._events[0][0] if self._events else math.inf]
-            if self.kill_time is None and kill_at is not None:
-                due.append(kill_at)
-            if self.kill_time is None and kill_before_end_of is not None and goal is not None \
-                    and self.motion_goals == kill_before_end_of + 1:
-                due.append(goal.end_time - kill_lead)
+            if kill_due is not None:
+                due.append(kill_due)
             for when in due:
                 nxt = min(nxt, max(when, now + self.twin.options.timestep))
             self.twin.data.mocap_pos[self._mocap] = self.body.at(nxt) if self.body else 0
-            for result in self.twin.advance(nxt):
-                self._on_result(result)
+            self._advance(nxt, kill_due)
             now = self.twin.now
             self._place(now)
             self._measure()
@@ -347,20 +374,32 @@ class ObstacleTwin(MonitorTwin):
                 self._push(now + rig.camera_latency, "scan", self._camera(now))
                 next_camera += 1.0 / rig.camera_rate
             self._deliver(now)
-            if self.kill_time is None and self._kill_due(now, kill_at, kill_before_end_of,
-                                                         kill_lead):
-                self.kill_time = now
-                self.issued.append(_issued(now, "kill", "pressed"))
-                self._dispatch(self.core.kill(now))
             self._dispatch(self.core.on_tick(now))
 
-    def _kill_due(self, now: float, kill_at: float | None, before_end_of: int | None,
-                  lead: float) -> bool:
-        if kill_at is not None and now >= kill_at - 1e-9:
-            return True
-        goal = self.twin.arm._goal
-        return before_end_of is not None and goal is not None \
-            and self.motion_goals == before_end_of + 1 and now >= goal.end_time - lead - 1e-9
+    def _kill_due(self, kill_at: float | None, before_end_of: int | None, lead: float
+                  ) -> float | None:
+        """When the kill is due [s]; None: pressed already, or not yet known (the motion
+        it precedes the end of does not run)."""
+        if self.kill_time is not None:
+            return None
+        if kill_at is not None:
+            return kill_at
+        end = self.goal_end
+        if before_end_of is None or end is None or self.motion_goals != before_end_of + 1:
+            return None
+        return end - lead
+
+    def _press_kill(self) -> None:
+        self.kill_time = self.twin.now
+        self.issued.append(_issued(self.twin.now, "kill", "pressed"))
+        super()._press_kill()
+
+    def _on_result(self, result: Any) -> None:
+        from .arm import ArmResult
+
+        if self.kill_time is not None and isinstance(result, ArmResult) and result.success:
+            self.motion_end_after_kill = True
+        super()._on_result(result)
 
     def _deliver(self, now: float) -> None:
         """The messages and re-plan answers due by ``now``, to the node core."""
@@ -375,6 +414,35 @@ class ObstacleTwin(MonitorTwin):
                 self._dispatch(self.core.on_replanned(request, value, now))
             else:
                 self._dispatch(self.core.on_replan_failed(request, value, now))
+
+    def report(self, *, wall_time: float = math.nan) -> ObstacleRun:
+        """What the run so far did, judged (:attr:`ObstacleRun.failures`).
+
+        Args:
+            wall_time: The computation time of the run [s] (reported as given).
+        """
+        assert self.body is not None
+        after: tuple[str, ...] = ()
+        moved = 0.0
+        if self.kill_time is not None:
+            # What the core issued after the kill, in the order of events (at the kill's
+            # own instant too).
+            pressed = next(i for i, c in enumerate(self.issued) if c.kind == "kill")
+            after = tuple(f"{c.kind} {c.detail}" for c in self.issued[pressed + 1:]
+                          if c.kind != "decision" and c.detail != "stop")
+            late = self.positions[self.times >= self.kill_time + 1.0]
+            moved = float(np.ptp(late, axis=0).max()) if late.shape[0] else 0.0
+        rec = self.twin.recording
+        peaks = self.commanded_peaks()
+        failures = (_limit_failures(peaks) + _switch_failures(self) + _gripper_failures(self)
+                    + _goal_failures(self) + _kill_failures(after, moved))
+        offset = max((a.offset for a in self.gripper_actions), default=0.0)
+        return ObstacleRun(self.seed, self.body, self.closest, self.closest_time,
+                           self.closest_moving, self.decisions(), tuple(self.replans),
+                           self.kill_time, after, moved, self.motion_end_after_kill,
+                           self.scans, self.clouds,
+                           self.twin.now, wall_time, rec.speed_ratio.copy(), *peaks, offset,
+                           failures)
 
     def decisions(self) -> dict[str, int]:
         """How often the decision changed to each kind (a run of the same kind counts
@@ -404,21 +472,34 @@ class ObstacleRun:
         body: The moving body.
         closest: True closest approach arm - body [m].
         closest_time: When [s].
-        closest_moving: Closest approach while a motion goal ran [m] (the rest: the
-            body walking past an arm at rest).
+        closest_moving: Closest approach while the arm moved (a joint's executed speed
+            above :data:`MOVING_SPEED`) [m] (the rest: the body walking past an arm at
+            rest); inf when it never moved.
         decisions: How often the decision changed to each kind.
         replans: Re-plans answered (``ok`` / ``failed``).
         kill_time: When the kill was pressed [s] (None: never).
-        after_kill: Commands after the kill other than decisions and a stop goal
-            (must be empty: the kill is latched).
+        after_kill: Commands the core issued after the kill (in the order of events)
+            other than decisions and a stop goal (must be empty: the kill is latched).
         moved_after_kill: Largest joint travel from 1 s after the kill on [rad].
-        motion_end_after_kill: Whether a motion ended (the controller reported its
-            result) after the kill, i.e. the latch was tested through a motion's end.
+        motion_end_after_kill: Whether an arm goal's success reached the node after the
+            kill (at the kill's own instant too: the kill comes first), i.e. the latch
+            was tested through a motion's end.
         scans: Laser scans published.
         clouds: Point clouds published.
         duration: Simulated time [s].
         wall_time: Computation time [s].
-        speed_ratio: Largest |executed speed| / limit per joint.
+        speed_ratio: Largest |executed speed| / limit per joint (the simulated arm).
+        commanded_speed: The commanded motion's largest speed / limit (sampled at every
+            physics step, :meth:`MonitorTwin.commanded_peaks`).
+        commanded_acceleration: Its largest acceleration / limit.
+        commanded_jerk: Its largest jerk / limit.
+        gripper_offset: Largest distance of the arm from the planned pose at a gripper
+            action, over the joints [rad] (0: no action).
+        failures: What went wrong, one line each (empty: the run passed): a commanded
+            limit exceeded (ratio above 1 + :data:`LIMIT_SLACK`), a goal switch that
+            steps the commanded position, speed or acceleration, a gripper action away
+            from its pose (a held object dropped, or an object missed), a goal the
+            controller rejected or aborted, anything after the kill.
     """
 
     seed: int
@@ -437,12 +518,22 @@ class ObstacleRun:
     duration: float
     wall_time: float
     speed_ratio: np.ndarray
+    commanded_speed: CommandedPeak
+    commanded_acceleration: CommandedPeak
+    commanded_jerk: CommandedPeak
+    gripper_offset: float
+    failures: tuple[str, ...]
+
+    @property
+    def ok(self) -> bool:
+        """Whether the run passed (no failure)."""
+        return not self.failures
 
 
 def run_obstacles(cell: str, seed: int, *, route: str = "phase1", duration: float = 20.0,
                   kill_at: float | None = None, kill_before_end_of: int | None = None,
-                  body: MovingBody | None = None, rig: SensorRig | None = None
-                  ) -> ObstacleRun:
+                  kill_lead: float = 0.005, body: MovingBody | None = None,
+                  rig: SensorRig | None = None) -> ObstacleRun:
     """One run of the monitor node's core with a moving body (see the module docstring).
 
     Args:
@@ -451,12 +542,14 @@ def run_obstacles(cell: str, seed: int, *, route: str = "phase1", duration: floa
         route: The route the node runs.
         duration: Simulated time [s].
         kill_at: Time of a kill [s] (None: see ``kill_before_end_of``).
-        kill_before_end_of: Kill 5 ms before the end of this motion (0: the first).
+        kill_before_end_of: Kill ``kill_lead`` before the end of this motion (0: the
+            first).
+        kill_lead: How long before that end [s] (0: at it).
         body: The body (default: a seeded :meth:`MovingBody.crossing`).
         rig: The sensors (default: :class:`SensorRig()`).
 
     Raises:
-        InputError: A bad seed or duration.
+        InputError: A bad seed, duration or kill lead.
     """
     from ..monitor import MonitorOptions
     from ..monitor.node import MonitorNodeCore, NodeParameters
@@ -473,29 +566,66 @@ def run_obstacles(cell: str, seed: int, *, route: str = "phase1", duration: floa
     core.configure()
     loop = ObstacleTwin(core, body=body, rig=rig, seed=int(seed))
     t0 = time.perf_counter()
-    loop.run(duration, kill_at=kill_at, kill_before_end_of=kill_before_end_of)
-    wall = time.perf_counter() - t0
-    after: tuple[str, ...] = ()
-    moved = 0.0
-    ended = False
-    if loop.kill_time is not None:
-        k = loop.kill_time
-        after = tuple(f"{c.kind} {c.detail}" for c in loop.after(k)
-                      if c.kind not in ("decision", "kill") and c.detail != "stop")
-        times, q = loop.times, loop.positions
-        late = q[times >= k + 1.0]
-        moved = float(np.ptp(late, axis=0).max()) if late.shape[0] else 0.0
-        ended = any(r.time > k and r.error_code == 0 for r in loop.twin.arm.results)
-    return ObstacleRun(int(seed), body, loop.closest, loop.closest_time, loop.closest_moving,
-                       loop.decisions(),
-                       tuple(loop.replans), loop.kill_time, after, moved, ended, loop.scans,
-                       loop.clouds, loop.twin.now, wall,
-                       loop.twin.recording.speed_ratio.copy())
+    loop.run(duration, kill_at=kill_at, kill_before_end_of=kill_before_end_of,
+             kill_lead=kill_lead)
+    return loop.report(wall_time=time.perf_counter() - t0)
+
+
+def _limit_failures(peaks: tuple[CommandedPeak, CommandedPeak, CommandedPeak]
+                    ) -> tuple[str, ...]:
+    """A commanded speed, acceleration or jerk above its limit."""
+    return tuple(f"commanded {name} {p.ratio:.3f} x the limit ({p.joint} at {p.time:.3f} s)"
+                 for name, p in zip(("speed", "acceleration", "jerk"), peaks, strict=True)
+                 if p.ratio > 1.0 + LIMIT_SLACK)
+
+
+def _switch_failures(loop: ObstacleTwin) -> tuple[str, ...]:
+    """Goal switches that step the commanded position, speed or acceleration (the
+    controller took a goal whose first point was not the state it commanded)."""
+    reasons = {g.goal_id: g.reason for g in loop.arm_goals}
+    return tuple(f"goal {goal_id} ({reasons.get(goal_id, '?')}) taken at {s.time:.3f} s "
+                 f"steps {s.position_step:.3g} rad, {s.velocity_step:.3g} rad/s, "
+                 f"{s.acceleration_step:.3g} rad/s^2" for goal_id, s in loop.twin.arm.switches
+                 if not s.continuous)
+
+
+def _gripper_failures(loop: ObstacleTwin) -> tuple[str, ...]:
+    """Gripper actions away from the pose their route plans them at."""
+    out = []
+    for a in loop.gripper_actions:
+        if a.at_pose:
+            continue
+        what = "" if a.object is None else \
+            f": drops '{a.object}'" if a.action == "open" else f": misses '{a.object}'"
+        out.append(f"gripper {a.action} at {a.time:.3f} s {a.offset:.3f} rad from its "
+                   f"pose{what}")
+    return tuple(out)
+
+
+def _goal_failures(loop: ObstacleTwin) -> tuple[str, ...]:
+    """Arm goals the controller rejected or aborted (a cancelled, replaced goal is
+    not a failure)."""
+    from .arm import CANCELED, SUCCESSFUL
+
+    return tuple(f"controller: goal {r.goal_id} ended {r.error_code} at {r.time:.3f} s: "
+                 f"{r.error_string}" for r in loop.twin.arm.results
+                 if r.error_code not in (SUCCESSFUL, CANCELED))
+
+
+def _kill_failures(after: tuple[str, ...], moved: float) -> tuple[str, ...]:
+    """Whatever the latched kill let through."""
+    out = []
+    if after:
+        out.append(f"after the kill: {', '.join(after)}")
+    if moved >= 1e-3:
+        out.append(f"the arm moved {1000 * moved:.2f} mrad from 1 s after the kill on")
+    return tuple(out)
 
 
 def cmd_obstacles(args: argparse.Namespace, cell: Cell) -> int:
     """``safepath sim CELL --obstacles``: runs of the monitor with a moving body, kills at
-    seeded random times and one just before a motion's end."""
+    seeded random times and one just before a motion's end. Exits 1 when a run fails
+    (:attr:`ObstacleRun.failures`), naming the failures on one line."""
     import os
 
     from ..monitor import MonitorOptions
@@ -515,12 +645,13 @@ def cmd_obstacles(args: argparse.Namespace, cell: Cell) -> int:
           f"0.22-0.40 m; laser 20 Hz (271 beams, 270 deg, 1 cm noise, 20 ms latency), depth "
           f"camera 15 Hz (48x36 rays, 5 mm noise, 40 ms latency), by mujoco.mj_multiRay; "
           f"monitor: approach speed {opts.approach_speed} m/s, C {opts.min_separation} m")
-    print("| seed | closest approach [mm] | at [s] | while moving [mm] | decisions | "
-          "re-plans | kill [s] | "
-          "motion ended after the kill | commands after the kill | moved after [mrad] | "
-          "sim/real |")
-    print("|---|---|---|---|---|---|---|---|---|---|---|")
+    print("| seed | closest approach [mm] | at [s] | while moving [mm] | commanded speed / "
+          "accel / jerk vs limit | gripper off pose [mrad] | decisions | re-plans | "
+          "kill [s] | motion ended after the kill | commands after the kill | "
+          "moved after [mrad] | sim/real | result |")
+    print("|---|---|---|---|---|---|---|---|---|---|---|---|---|---|")
     latched = True
+    failed: list[str] = []
     for k in range(runs):
         seed = args.seed + k
         kill_at = None
@@ -536,12 +667,21 @@ def cmd_obstacles(args: argparse.Namespace, cell: Cell) -> int:
         rp = ", ".join(s for _, s in r.replans) or "-"
         kt = "-" if r.kill_time is None else f"{r.kill_time:.3f}" + \
             (" (5 ms before a motion's end)" if before_end is not None else "")
-        print(f"| {seed} | {1000 * r.closest:.0f} | {r.closest_time:.2f} | "
-              f"{1000 * r.closest_moving:.0f} | {dec} | {rp} | "
+        peaks = " / ".join(f"{p.ratio:.3f}" for p in (r.commanded_speed,
+                                                       r.commanded_acceleration,
+                                                       r.commanded_jerk))
+        moving = "-" if math.isinf(r.closest_moving) else f"{1000 * r.closest_moving:.0f}"
+        print(f"| {seed} | {1000 * r.closest:.0f} | {r.closest_time:.2f} | {moving} | "
+              f"{peaks} | {1000 * r.gripper_offset:.1f} | {dec} | {rp} | "
               f"{kt} | {'yes' if r.motion_end_after_kill else 'no'} | "
               f"{', '.join(r.after_kill) or 'none'} | {1000 * r.moved_after_kill:.2f} | "
-              f"{r.duration / max(r.wall_time, 1e-9):.1f}x |")
+              f"{r.duration / max(r.wall_time, 1e-9):.1f}x | "
+              f"{'ok' if r.ok else 'FAILED'} |")
+        failed += [f"seed {seed}: {'; '.join(r.failures)}"] if r.failures else []
     load = os.getloadavg()
     print(f"kill latched in every run: {'yes' if latched else 'NO'}; load {load[0]:.2f} "
           f"{load[1]:.2f} {load[2]:.2f} on {os.cpu_count()} CPUs")
+    if failed:
+        print(f"obstacle twin FAILED: {' | '.join(failed)}")
+        return 1
     return 0

@@ -14,7 +14,8 @@ from safepath.sim.monitor_loop import MonitorTwin
 from safepath.sim.quality_check import QualityCheckParams, run_quality_check
 
 
-def test_a_kill_just_before_a_motion_ends_stays_latched(cell_dir) -> None:
+@pytest.mark.parametrize("lead", [0.005, 0.0])
+def test_a_kill_just_before_a_motion_ends_stays_latched(cell_dir, lead: float) -> None:
     core = MonitorNodeCore(NodeParameters(scene=str(cell_dir), route="phase1",
                                           options=MonitorOptions()))
     core.configure()
@@ -23,11 +24,13 @@ def test_a_kill_just_before_a_motion_ends_stays_latched(cell_dir) -> None:
     first_motion = next(p for p in parts if isinstance(p, Trajectory))
     # phase1: close, motion, open, motion. The first motion starts when the close is done.
     motion_start = loop.options.gripper_time
-    kill_at = motion_start + first_motion.duration - 0.005
+    kill_at = motion_start + first_motion.duration - lead
     loop.run(kill_at + 3.0, kill_at=kill_at)
-    # The first motion was sent; after the kill, neither the gripper nor the next motion.
-    assert [c.detail for c in loop.issued if c.kind == "gripper"][:1] == ["close"]
-    assert loop.after(kill_at, "gripper") == []
+    # The first motion was sent; after the kill, neither the gripper nor the next motion
+    # (a kill at the end's own instant comes before the controller's result of it).
+    assert [c.detail for c in loop.issued if c.kind == "gripper"] == ["close"]
+    assert [a.action for a in loop.gripper_actions] == ["close"]
+    assert [g.reason for g in loop.arm_goals if g.reason == "next motion"] == ["next motion"]
     assert [c.detail for c in loop.after(kill_at, "goal")] in ([], ["stop"])
     # And the arm stays where the kill left it.
     times, q = loop.times, loop.positions
