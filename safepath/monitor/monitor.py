@@ -41,9 +41,8 @@ from ..trajectory import Trajectory
 from .elements import OBSTACLES, scene_arrays, to_elements
 from .observations import Counts, ObservationError
 from .options import MonitorOptions
-from .parked import (REPLAN_MOVED, ParkedBody, Rest, RestHistory, blocking_body, extent,
-                     shrink_box)
-from .profile import MonitoredPath, Timing
+from .parked import REPLAN_MOVED, ParkedBody, Rest, RestHistory, blocking_body, extent, shrink_box
+from .profile import KNOT_NS, MonitoredPath, Timing
 from .separation import Assessment, assess
 from .sweep import PathSweep, RobotSpheres
 
@@ -459,9 +458,17 @@ class Monitor:
         where the controller's state (p, v, a) is a path state whose speed and path
         acceleration are known (at most one point spacing later). The verified motion
         itself is on the path at every instant."""
-        if self.controller is None or self._any_instant:
+        if self.controller is None:
             return time
         t_abs = self.controller.running[0]
+        if self._any_instant and self._path is not None and \
+                self._path.knot != KNOT_NS / 1e9:
+            # On a path's own knots a replacement's knots are the path's while it keeps
+            # the verified timing (see MonitoredPath.knot).
+            k = int(np.searchsorted(t_abs, time - 1e-9, side="left"))
+            return time if k >= t_abs.size else float(t_abs[k])
+        if self._any_instant:
+            return time
         k = int(np.searchsorted(t_abs, time - 1e-9, side="left"))
         return time if k >= t_abs.size else float(t_abs[k])
 

@@ -155,7 +155,9 @@ BRAKE_SCALE = BRAKE_SCALES[0]
 #: stop: where the running motion is in a phase at its own jerk limit, braking adds to
 #: that jerk until the phase ends. The separation assessment assumes the longest hold
 #: (a stop is sent at once either way: the hold is part of the stop it sends).
-BRAKE_HOLDS = (0.025, 0.05)
+BRAKE_HOLDS = (0.024, 0.048)
+#: Holds [s] the gentler stops of :meth:`MonitoredPath.forced_stop` try.
+GENTLE_HOLDS = (0.048, 0.1, 0.2)
 #: Gentler braking [fraction of the acceleration limits] a stop falls back on when none
 #: of :data:`BRAKE_SCALES` (and their holds) is within the limits from the state it
 #: starts in: it comes to rest later than the assessment assumed, and says so.
@@ -166,7 +168,10 @@ SPEED_UP_SCALES = (0.6, 0.4, 0.25, 0.15, 0.1)
 #: Share of each joint's jerk limit left to the change of the path acceleration
 #: (``q'(tau) r''``); the rest is for the verified motion's own jerk and curvature terms.
 JERK_SHARE = 0.25
-#: Spacing of a replacement's knots [s] (whole nanoseconds).
+#: Spacing of a replacement's knots [s] (whole nanoseconds) on a path whose own knots are
+#: not evenly spaced; on an evenly spaced one (as the planner's timing makes them), the
+#: replacement keeps the path's spacing, so that where it follows the verified timing its
+#: knots are the path's own and the controller's join is the verified one exactly.
 KNOT_NS = 4_000_000
 
 
@@ -190,6 +195,10 @@ class MonitoredPath:
         #: [s]: a change of the raw path acceleration from 0 to braking at
         #: ``BRAKE_SCALE`` of the limits, spread over it, keeps ``q' r''`` within
         #: ``JERK_SHARE`` of the jerk limits (at least three knots).
+        steps = np.diff(np.asarray(traj.t, dtype=float))
+        #: Spacing of a replacement's knots [s].
+        self.knot = float(steps[0]) if steps.size and float(np.ptp(steps)) <= 1e-9 and \
+            steps[0] <= 2 * KNOT_NS / 1e9 else KNOT_NS / 1e9
         self.width = max(3 * KNOT_NS / 1e9, float(np.max(
             BRAKE_SCALE * robot.acceleration_limits / (JERK_SHARE * robot.jerk_limits))))
 
@@ -263,14 +272,22 @@ class MonitoredPath:
             TimingError: None is (naming the last excess).
         """
         current = before.state_at(start)[1] if before is not None else r0
-        tries = [(s, scale, brake_after) for s in
-                 (BRAKE_SCALES if scale <= current else SPEED_UP_SCALES)]
         if scale == 0.0:
-            raw = before.raw_state(start + self.width / 2)[1] if before is not None else r0
-            tries += [(BRAKE_SCALES[-1], raw, hold) for hold in BRAKE_HOLDS]
-        error: TimingError | None = None
-        for accel_scale, target, brake in tries:
-            timing = self.march(start, tau0, r0, target, brake, before=before,
+            stops = [(a, 0.0) for a in BRAKE_SCALES] + [(BRAKE_SCALES[-1], h)
+                                                        for h in BRAKE_HOLDS]
+            error: TimingError | None = None
+            for accel_scale, hold in stops:
+                timing = self.stop_timing(start, accel_scale, hold, before=before,
+                                          tau0=tau0, r0=r0)
+                try:
+                    return timing, self.trajectory(timing, kind=kind, scale=scale, t0=start)
+                except TimingError as exc:
+                    error = exc
+            assert error is not None
+            raise error
+        error = None
+        for accel_scale in (BRAKE_SCALES if scale <= current else SPEED_UP_SCALES):
+            timing = self.march(start, tau0, r0, scale, brake_after, before=before,
                                 accel_scale=accel_scale)
             try:
                 return timing, self.trajectory(timing, kind=kind, scale=scale)
@@ -279,46 +296,72 @@ class MonitoredPath:
         assert error is not None
         raise error
 
+    def stop_timing(self, start: float, accel_scale: float, hold: float, *,
+                    before: Timing | None, tau0: float, r0: float) -> Timing:
+        """Braking to rest from monitor time ``start`` (followed from then on), as hard as
+        ``accel_scale`` of the acceleration limits allows, after following the running
+        profile for ``hold`` [s] (its raw speed kept at the full limits meanwhile)."""
+        if hold <= 0.0:
+            return self.march(start, tau0, r0, 0.0, 0.0, before=before,
+                              accel_scale=accel_scale)
+        raw = before.raw_state(start + self.width / 2)[1] if before is not None else r0
+        kept = self.march(start, tau0, r0, raw, np.inf, before=before, accel_scale=1.0)
+        return self.march(start + hold, tau0, r0, 0.0, 0.0, before=kept,
+                          accel_scale=accel_scale)
+
     def forced_stop(self, start: float, *, before: Timing | None, tau0: float, r0: float
                     ) -> tuple[Timing, Trajectory]:
         """The stop sent when no re-timing of :meth:`replacement` stays within every limit
         as executed from this state: a stop is never postponed, so braking gentler than
-        the assessment assumed (:data:`GENTLE_SCALES`, after the holds of
-        :data:`BRAKE_HOLDS`) or the motion's own timing to its end, whichever within the
+        the assessment assumed (:data:`GENTLE_SCALES`, at once or after the holds of
+        :data:`GENTLE_HOLDS`) or the motion's own timing to its end, whichever within the
         limits comes to rest first; if none is within them, of all those the one whose
         largest ratio to a limit is least. ``info["executed_ratios"]`` holds its speed,
         acceleration and jerk ratios to the limits as executed."""
-        raw = before.raw_state(start + self.width / 2)[1] if before is not None else r0
         best: tuple[float, float, Timing, Trajectory] | None = None  # (excess, rest, ...)
-        tries = [(a, 0.0, 0.0) for a in (*BRAKE_SCALES, *GENTLE_SCALES)] + \
-            [(a, raw, hold) for a in GENTLE_SCALES for hold in BRAKE_HOLDS] + \
-            [(1.0, raw, np.inf)]  # the motion's own timing to its end
-        for accel_scale, target, brake in tries:
-            timing = self.march(start, tau0, r0, target, brake, before=before,
-                                accel_scale=accel_scale)
-            traj = self.trajectory(timing, kind="stop", scale=0.0, check=False)
-            if np.isinf(brake) and (traj.t.size < 2 or not timing.rest and
-                                    traj.info["path_tau"][-1] < self.end - 1e-9):
-                continue  # does not come to rest
-            key = (max(max(traj.info["executed_ratios"]), 1.0), traj.duration)
-            if best is None or key < best[:2]:
-                best = (*key, timing, traj)
+        # Hardest braking first, each at once and then after longer holds: the first
+        # within the limits is taken (a later one would rest later, but for rare shapes).
+        for accel_scale in (*BRAKE_SCALES, *GENTLE_SCALES):
+            for hold in (0.0, *GENTLE_HOLDS):
+                timing = self.stop_timing(start, accel_scale, hold, before=before,
+                                          tau0=tau0, r0=r0)
+                traj = self.trajectory(timing, kind="stop", scale=0.0, check=False, t0=start)
+                key = (max(max(traj.info["executed_ratios"]), 1.0), traj.duration)
+                if best is None or key < best[:2]:
+                    best = (*key, timing, traj)
+            if best is not None and best[0] <= 1.0:
+                break
         assert best is not None
+        # Near the end of a motion that decelerates at its limits, braking along the path
+        # adds to that deceleration: the motion's own timing to its end may be within
+        # the limits and at rest no later than braking would be. It is the stop then.
+        current = before.state_at(start)[1] if before is not None else r0
+        timing = self.march(start, tau0, r0, current, np.inf, before=before)
+        traj = self.trajectory(timing, kind="stop", scale=current, check=False)
+        if traj.t.size > 1 and traj.info["path_tau"][-1] >= self.end - 1e-9 and \
+                max(traj.info["executed_ratios"]) <= 1.0 and \
+                (traj.duration, 1.0) <= (best[1], best[0]):
+            return timing, traj
         return best[2], best[3]
 
-    def trajectory(self, timing: Timing, *, kind: str, scale: float, check: bool = True
-                   ) -> Trajectory:
+    def trajectory(self, timing: Timing, *, kind: str, scale: float, check: bool = True,
+                   t0: float | None = None) -> Trajectory:
         """The followed timing as a trajectory starting at t = 0 (a replacement goal):
-        knots every 4 ms on the verified motion, speeds ``Q' r`` and accelerations
+        knots every :attr:`knot` seconds on the verified motion, speeds ``Q' r`` and accelerations
         ``Q'' r^2 + Q' r'``, until it rests or reaches the path's end.
+
+        Args:
+            t0: Monitor time of the first knot (default the timing's start; a profile
+                chained after a hold starts later than the replacement).
 
         Raises:
             TimingError: The knots' quintic join (as the controller executes them) would
                 exceed a speed, acceleration or jerk limit.
         """
-        n = max(2, int(np.ceil((timing.end - timing.start) * 1e9 / KNOT_NS)) + 1)
-        t = np.arange(n, dtype=np.int64) * KNOT_NS / 1e9
-        tau, r, rd = timing.followed(timing.start + t)
+        first = timing.start if t0 is None else t0  # the first knot's monitor time
+        n = max(2, int(np.ceil((timing.end - first) / self.knot - 1e-9)) + 1)
+        t = np.arange(n) * self.knot
+        tau, r, rd = timing.followed(first + t)
         done = np.flatnonzero(tau >= self.end - 1e-12)
         if done.size:  # reaches the path's end: stop there
             n = int(done[0]) + 1
