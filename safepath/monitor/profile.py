@@ -156,8 +156,8 @@ BRAKE_SCALE = BRAKE_SCALES[0]
 #: that jerk until the phase ends. The separation assessment assumes the longest hold
 #: (a stop is sent at once either way: the hold is part of the stop it sends).
 BRAKE_HOLDS = (0.024, 0.048)
-#: Holds [s] the gentler stops of :meth:`MonitoredPath.forced_stop` try.
-GENTLE_HOLDS = (0.048, 0.1, 0.2)
+#: Longer holds [s] :meth:`MonitoredPath.forced_stop` tries.
+GENTLE_HOLDS = (0.1, 0.2)
 #: Gentler braking [fraction of the acceleration limits] a stop falls back on when none
 #: of :data:`BRAKE_SCALES` (and their holds) is within the limits from the state it
 #: starts in: it comes to rest later than the assessment assumed, and says so.
@@ -280,9 +280,12 @@ class MonitoredPath:
                 timing = self.stop_timing(start, accel_scale, hold, before=before,
                                           tau0=tau0, r0=r0)
                 try:
-                    return timing, self.trajectory(timing, kind=kind, scale=scale, t0=start)
+                    traj = self.trajectory(timing, kind=kind, scale=scale, t0=start)
                 except TimingError as exc:
                     error = exc
+                    continue
+                traj.info["stop"] = {"accel_scale": accel_scale, "hold": hold}
+                return timing, traj
             assert error is not None
             raise error
         error = None
@@ -312,36 +315,44 @@ class MonitoredPath:
     def forced_stop(self, start: float, *, before: Timing | None, tau0: float, r0: float
                     ) -> tuple[Timing, Trajectory]:
         """The stop sent when no re-timing of :meth:`replacement` stays within every limit
-        as executed from this state: a stop is never postponed, so braking gentler than
-        the assessment assumed (:data:`GENTLE_SCALES`, at once or after the holds of
-        :data:`GENTLE_HOLDS`) or the motion's own timing to its end, whichever within the
-        limits comes to rest first; if none is within them, of all those the one whose
-        largest ratio to a limit is least. ``info["executed_ratios"]`` holds its speed,
-        acceleration and jerk ratios to the limits as executed."""
+        as executed from this state: a stop is never postponed, so the motion's own
+        timing to its end or the assessed braking after a longer hold
+        (:data:`GENTLE_HOLDS`), else braking gentler than assessed (:data:`GENTLE_SCALES`),
+        whichever within the limits comes to rest first; if none is within them, of all
+        those the one whose largest ratio to a limit is least. ``info["executed_ratios"]``
+        holds its speed, acceleration and jerk ratios to the limits as executed, and
+        ``info["stop"]`` how it brakes (acceleration scale, hold [s])."""
         best: tuple[float, float, Timing, Trajectory] | None = None  # (excess, rest, ...)
-        # Hardest braking first, each at once and then after longer holds: the first
-        # within the limits is taken (a later one would rest later, but for rare shapes).
-        for accel_scale in (*BRAKE_SCALES, *GENTLE_SCALES):
-            for hold in (0.0, *GENTLE_HOLDS):
-                timing = self.stop_timing(start, accel_scale, hold, before=before,
-                                          tau0=tau0, r0=r0)
-                traj = self.trajectory(timing, kind="stop", scale=0.0, check=False, t0=start)
-                key = (max(max(traj.info["executed_ratios"]), 1.0), traj.duration)
-                if best is None or key < best[:2]:
-                    best = (*key, timing, traj)
-            if best is not None and best[0] <= 1.0:
-                break
-        assert best is not None
+
+        def consider(timing: Timing, traj: Trajectory, how: dict[str, float]) -> None:
+            nonlocal best
+            traj.info["stop"] = how
+            key = (max(max(traj.info["executed_ratios"]), 1.0), traj.duration)
+            if best is None or key < best[:2]:
+                best = (*key, timing, traj)
+
         # Near the end of a motion that decelerates at its limits, braking along the path
         # adds to that deceleration: the motion's own timing to its end may be within
-        # the limits and at rest no later than braking would be. It is the stop then.
+        # the limits and at rest no later than braking would be.
         current = before.state_at(start)[1] if before is not None else r0
         timing = self.march(start, tau0, r0, current, np.inf, before=before)
         traj = self.trajectory(timing, kind="stop", scale=current, check=False)
-        if traj.t.size > 1 and traj.info["path_tau"][-1] >= self.end - 1e-9 and \
-                max(traj.info["executed_ratios"]) <= 1.0 and \
-                (traj.duration, 1.0) <= (best[1], best[0]):
-            return timing, traj
+        if traj.t.size > 1 and traj.info["path_tau"][-1] >= self.end - 1e-9:
+            consider(timing, traj, {"accel_scale": 1.0, "hold": float("inf")})
+        # With it, the assessed braking after longer holds; gentler braking only when
+        # none of those is within the limits. The stop within them that rests first wins.
+        groups = ([(a, h) for a in BRAKE_SCALES for h in GENTLE_HOLDS],
+                  [(a, h) for a in GENTLE_SCALES for h in (0.0, *GENTLE_HOLDS)])
+        for k, group in enumerate(groups):
+            if k and best is not None and best[0] <= 1.0:
+                break
+            for accel_scale, hold in group:
+                timing = self.stop_timing(start, accel_scale, hold, before=before,
+                                          tau0=tau0, r0=r0)
+                consider(timing, self.trajectory(timing, kind="stop", scale=0.0, check=False,
+                                                 t0=start),
+                         {"accel_scale": accel_scale, "hold": hold})
+        assert best is not None
         return best[2], best[3]
 
     def trajectory(self, timing: Timing, *, kind: str, scale: float, check: bool = True,
