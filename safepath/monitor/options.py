@@ -47,7 +47,8 @@ class MonitorOptions:
             most this late, so the robot may keep its timing this long.
         command_latency: ``T_cmd``, from a decision to the controller acting on it [s].
         hold_time: The area must stay clear this long before the robot speeds up [s].
-        replan_after: Stopped by an obstacle this long: ask for a re-plan [s].
+        replan_after: Stopped by an obstacle this long: ask for a re-plan [s] (once the
+            obstacle is at rest: see ``rest_speed``).
         min_scale: Below this speed scale the robot stops instead of crawling.
         scale_step: Speed scales are multiples of this (fewer replacement goals).
         horizon: Look-ahead of the reported path separation [s of motion].
@@ -64,8 +65,15 @@ class MonitorOptions:
         workspace: Axis-aligned box (xmin, ymin, zmin, xmax, ymax, zmax) [m] outside
             which elements are ignored; None keeps them all.
         future_tolerance: Stamps later than now by more than this are refused [s].
-        replan_cluster: Elements within this of the closest one form the obstacle of
-            a re-plan request [m].
+        replan_cluster: Link distance of a body [m]: the elements linked to the blocking
+            one (grid cells of half this edge that touch, in a chain) form the body a
+            re-plan goes around, and an element this close to a parked body's belongs to
+            it (:mod:`safepath.monitor.parked`).
+        rest_speed: A body is re-planned around only at rest: the least-squares velocity
+            of its centroid and of each side of its box, over the observations of the
+            last ``rest_window``, at most this [m/s] (and no side of its latest box
+            more than ``REPLAN_MOVED`` from the window's median).
+        rest_window: How long a body must be seen at rest before a re-plan [s].
     """
 
     sensors: Mapping[str, Any] = field(default_factory=dict)
@@ -88,7 +96,9 @@ class MonitorOptions:
     self_filter: float | None = None
     workspace: tuple[float, float, float, float, float, float] | None = None
     future_tolerance: float = 0.05
-    replan_cluster: float = 0.3
+    replan_cluster: float = 0.1
+    rest_speed: float = 0.02
+    rest_window: float = 1.0
 
     def __post_init__(self) -> None:
         sensors = {}
@@ -101,7 +111,8 @@ class MonitorOptions:
             sensors[str(name)] = M
         object.__setattr__(self, "sensors", sensors)
         for name in ("approach_speed", "stale_after", "horizon", "sweep_spacing",
-                     "sphere_cell", "cell_size", "range_cap", "scale_step", "replan_cluster"):
+                     "sphere_cell", "cell_size", "range_cap", "scale_step", "replan_cluster",
+                     "rest_speed", "rest_window"):
             _positive(name, float(getattr(self, name)))
         for name in ("min_separation", "sensor_uncertainty", "robot_uncertainty",
                      "command_latency", "hold_time", "replan_after", "future_tolerance"):

@@ -2,7 +2,8 @@
 the route.
 
 The obstacle of a :class:`~safepath.monitor.ReplanRequest` (a box around the blocking
-elements, already inflated by ``C + Z_d``) is added to the scene with a margin, the rest
+body, inflated by ``C + Z_d`` except where cut back to the arm) is added to the scene with
+a margin, the rest
 state becomes a temporary pose, and *ways* back to the route are tried in order; the
 first that plans, times and verifies with the library's pipeline
 (:func:`safepath.plan_route`: the independent re-check included) is the answer.
@@ -24,7 +25,24 @@ left, a free joint move from the rest state to the end of that step, and further
 end of each following step while the steps skipped may be left too (never past an
 approach, a gripper action or a pour); the route then goes on with its next step. The
 inserted move keeps the slowest speed and TCP speed limit of the steps it replaces.
-When none works, :class:`~safepath.errors.PlanningError` says, for each way, why.
+Last, when the robot rests in a line that may be left, the first :data:`PARTIAL_LINES` of
+that line followed by each of those moves (a vial just lifted off its support may leave
+it only straight: a free move cannot start there). When none works,
+:class:`~safepath.errors.PlanningError` says, for each way, why.
+
+The start must be clear of the box (:mod:`safepath.monitor.escape`): the sides of the box
+facing the robot at rest are cut back as little as needed, never inside the body's own
+box (``request.body_center``, ``body_size``); when even that box is closer than the
+margin, the route begins with a first stretch away from it (step
+:data:`ESCAPE_SUFFIX`), planned with the clearance the robot has at rest, and the ways
+are tried from its end. The box planned around is in ``info["replan"]["box"]``.
+
+Step names (:func:`rest_step`): the re-planned trajectory's steps carry the original
+route's labels (``4 line low1``), the rest of the step the robot stopped in too; an
+inserted move carries the label of the step whose end it reaches, with
+:data:`MOVE_SUFFIX` (``2 line high1 (re-planned move)``), the first stretch away the label
+of the step the robot rested in with :data:`ESCAPE_SUFFIX`. A request made in a
+re-planned trajectory therefore names a step of the original route, and re-plans again.
 """
 
 from __future__ import annotations
@@ -40,10 +58,12 @@ from ..errors import InputError, PlanningError, SafepathError
 from ..planning import PlanOptions, Route, Step, Target, WorldState, initial_world, plan_route
 from ..scene import SceneObject, Shape
 from ..trajectory import Trajectory
+from .escape import START_SLACK, escape_state, start_box
 from .monitor import ReplanRequest
 
 __all__ = ["replan", "ways", "step_role", "world_at", "obstacle_scene", "start_pose",
-           "step_index", "Way", "StepRole", "REST_POSE", "OBSTACLE"]
+           "step_index", "rest_step", "Way", "StepRole", "REST_POSE", "OBSTACLE",
+           "MOVE_SUFFIX", "ESCAPE_SUFFIX", "ESCAPE_POSE"]
 
 #: Name of the temporary pose the re-planned route starts from.
 REST_POSE = "monitor_rest"
@@ -51,6 +71,15 @@ REST_POSE = "monitor_rest"
 OBSTACLE = "monitor_obstacle"
 #: Suffix of a re-planned route's name.
 SUFFIX = "_replanned"
+#: Suffix of an inserted move's step name (after the label of the step it ends with).
+MOVE_SUFFIX = " (re-planned move)"
+#: Suffix of the first stretch away's step name (after the label of the step the robot
+#: rested in).
+ESCAPE_SUFFIX = " (re-planned escape)"
+#: Name of the temporary pose the first stretch away ends at.
+ESCAPE_POSE = "monitor_escape"
+#: Lengths of the partial lines tried from a rest in a line that may be left [m].
+PARTIAL_LINES = (0.01, 0.02, 0.04)
 
 StepRole = Literal["free", "leavable", "approach", "action", "pour"]
 
@@ -66,12 +95,15 @@ class Way:
             are the route's own).
         keeps_line: Whether the way goes on along the line the robot stopped in (it
             then keeps the contacts allowed where that line began).
+        labels: The names its steps get in the re-planned trajectory (the original
+            route's labels; see the module doc).
     """
 
     description: str
     steps: tuple[Step, ...]
     joins: int
     keeps_line: bool
+    labels: tuple[str, ...] = ()
 
 
 def step_role(routes: Mapping[str, Route], route: Route, index: int) -> StepRole:
@@ -119,6 +151,20 @@ def step_index(route: Route, label: str) -> int | None:
     return matches[-1] if matches else None
 
 
+def rest_step(route: Route, label: str) -> tuple[int, bool] | None:
+    """Index of the original step a (possibly re-planned) step name ``label`` stands for,
+    and whether it is an inserted move to that step's end (None: no such step).
+
+    A re-planned trajectory's names are the original labels (an inserted move's with
+    :data:`MOVE_SUFFIX`); other names are looked up by :func:`step_index`."""
+    labels = route.labels()
+    for suffix in (MOVE_SUFFIX, ESCAPE_SUFFIX):
+        if label.endswith(suffix) and label[:-len(suffix)] in labels:
+            return labels.index(label[:-len(suffix)]), True
+    index = step_index(route, label)
+    return None if index is None else (index, False)
+
+
 def _absolute(cell: Cell, route: Route, index: int) -> Target | None:
     """Step ``index``'s target as one that does not depend on where the robot is (a
     target relative to the TCP becomes the TCP pose it reaches from the taught pose the
@@ -144,23 +190,42 @@ def _label(step: Step) -> str:
     return f"{step.kind} {step.target}"
 
 
-def ways(cell: Cell, routes: Mapping[str, Route], route: Route, first: int
+def ways(cell: Cell, routes: Mapping[str, Route], route: Route, first: int, *,
+         in_move: bool = False, q_rest: np.ndarray | None = None
          ) -> tuple[list[Way], str | None]:
-    """The ways back to ``route`` from a rest inside step ``first``, in the order tried.
+    """The ways back to ``route`` from a rest inside step ``first`` (``in_move``: inside
+    a move a re-plan inserted to that step's end; ``q_rest``: the rest state [rad], for
+    the partial lines of a line that may be left), in the order tried.
 
     Returns:
         The ways, and why there are no others (an approach, a gripper action or a pour
         ends the steps that may be left), or None.
     """
     steps = route.steps
+    labels = route.labels()
     own = steps[first]
     continued = replace(own, target=_absolute(cell, route, first)) \
         if own.kind == "line" and _absolute(cell, route, first) is not None else own
-    out = [Way(f"the rest of '{_label(own)}', then the route", (continued, *steps[first + 1:]),
-               first, own.kind == "line")]
+    out: list[Way] = []
+    if not in_move or own.kind == "move":  # an inserted move is a free move anyway
+        out.append(Way(f"the rest of '{_label(own)}', then the route",
+                       (continued, *steps[first + 1:]), first, own.kind == "line",
+                       tuple(labels[first:])))
     role = step_role(routes, route, first)
     if role not in ("free", "leavable"):
         return out, f"'{_label(own)}' is {_ROLE_WORDS[role]}: it is not left"
+    moves, limit = _free_moves(cell, routes, route, first)
+    partial = _partial_lines(cell, route, first, q_rest, moves) \
+        if own.kind == "line" and q_rest is not None and not in_move else []
+    return out + moves + partial, limit
+
+
+def _free_moves(cell: Cell, routes: Mapping[str, Route], route: Route, first: int
+                ) -> tuple[list[Way], str | None]:
+    """The free moves from the rest (inside step ``first``, which may be left) to the end
+    of that step and of each following one that may be left (see :func:`ways`)."""
+    steps, labels, own = route.steps, route.labels(), route.steps[first]
+    out: list[Way] = []
     speed, tcp = own.speed, own.tcp_speed
     for k in range(first, len(steps)):
         role_k = step_role(routes, route, k)
@@ -176,8 +241,50 @@ def ways(cell: Cell, routes: Mapping[str, Route], route: Route, first: int
         move = Step("move", target, None, speed, tcp, steps[k].stop)
         skipped = ", ".join(f"'{_label(s)}'" for s in steps[first + 1:k + 1])
         what = f"a free move to {target}" + (f" (instead of {skipped})" if skipped else "")
-        out.append(Way(f"{what}, then the route", (move, *steps[k + 1:]), k, False))
+        out.append(Way(f"{what}, then the route", (move, *steps[k + 1:]), k, False,
+                       (labels[k] + MOVE_SUFFIX, *labels[k + 1:])))
     return out, None
+
+
+def _partial_lines(cell: Cell, route: Route, first: int, q_rest: np.ndarray,
+                   moves: Sequence[Way]) -> list[Way]:
+    """Ways for a rest in a line that may be left where the rest of the line is blocked
+    and a free move cannot start (the robot rests in a contact allowed only on the line:
+    a vial just lifted off its support): the first :data:`PARTIAL_LINES` of the line,
+    then each of the free ``moves`` (to the end of the line or of a step after it)."""
+    import pinocchio as pin
+
+    from ..tcp_targets import CartesianTarget
+
+    own, labels = route.steps[first], route.labels()
+    end = _absolute(cell, route, first)
+    if end is None:
+        return []
+    if end.cartesian is not None:
+        p_end = np.asarray(end.cartesian.position, dtype=float)
+        x, y, z, w = end.cartesian.orientation
+        r_end = pin.Quaternion(w, x, y, z)
+    else:
+        assert end.pose is not None
+        T = cell.robot.frame_pose(cell.pose(end.pose))
+        p_end, r_end = T.translation + np.asarray(end.offset), pin.Quaternion(T.rotation)
+    T_rest = cell.robot.frame_pose(np.asarray(q_rest, dtype=float))  # noqa: N806
+    r_rest = pin.Quaternion(T_rest.rotation)
+    length = float(np.linalg.norm(p_end - T_rest.translation))
+    out = []
+    for d in PARTIAL_LINES:
+        if d >= length - 1e-3:
+            break
+        f = d / length
+        p = T_rest.translation + f * (p_end - T_rest.translation)
+        qx, qy, qz, qw = (float(v) for v in r_rest.slerp(f, r_end).coeffs())
+        piece = Step("line", Target(None, cartesian=CartesianTarget(
+            (float(p[0]), float(p[1]), float(p[2])), (qx, qy, qz, qw))), None, own.speed,
+            own.tcp_speed)
+        out += [Way(f"the first {1000 * d:.0f} mm of '{_label(own)}', then {m.description}",
+                    (piece, *m.steps), m.joins, True, (labels[first], *m.labels))
+                for m in moves]
+    return out
 
 
 _ROLE_WORDS: dict[StepRole, str] = {
@@ -187,21 +294,24 @@ _ROLE_WORDS: dict[StepRole, str] = {
 
 
 def obstacle_scene(cell: Cell, request: ReplanRequest, *, margin: float,
-                   keep_contacts_of: str | None = None) -> Cell:
+                   keep_contacts_of: str | None = None,
+                   extra_poses: Mapping[str, np.ndarray] | None = None) -> Cell:
     """The cell with the request's obstacle box (``margin`` [m] around it) and the rest
-    state as the pose :data:`REST_POSE` (with the contacts allowed at
-    ``keep_contacts_of``, the pose a line the robot rests in began at)."""
+    state as the pose :data:`REST_POSE`, with ``extra_poses`` (the contacts allowed at
+    ``keep_contacts_of``, the pose a line the robot rests in began at, allowed there
+    too)."""
+    extra = {k: np.asarray(v, dtype=float) for k, v in (extra_poses or {}).items()}
     T = np.eye(4)
     T[:3, 3] = request.obstacle_center
     box = SceneObject(OBSTACLE, Shape("box", tuple(float(v) for v in request.obstacle_size)),
                       T, margin=margin, color=(0.9, 0.2, 0.2))
-    contacts = tuple(replace(c, at=(*c.at, REST_POSE))
+    contacts = tuple(replace(c, at=(*c.at, REST_POSE, *extra))
                      if keep_contacts_of is not None and keep_contacts_of in c.at else c
                      for c in cell.scene.allowed_contacts)
     scene = replace(cell.scene, objects={**cell.scene.objects, OBSTACLE: box},
                     allowed_contacts=contacts)
     return Cell(robot=cell.robot, scene=scene,
-                poses={**cell.poses, REST_POSE: np.asarray(request.q, dtype=float)},
+                poses={**cell.poses, REST_POSE: np.asarray(request.q, dtype=float), **extra},
                 folder=cell.folder, poses_path=cell.poses_path)
 
 
@@ -237,12 +347,20 @@ def _check_request(cell: Cell, request: ReplanRequest, margin: float) -> None:
     if q.shape != (cell.robot.dof,) or not np.all(np.isfinite(q)):
         raise InputError(f"the rest state needs {cell.robot.dof} finite joint values, got "
                          f"shape {q.shape}", key="request.q")
-    for key in ("obstacle_center", "obstacle_size"):
+    keys = ["obstacle_center", "obstacle_size"]
+    if (request.body_center is None) != (request.body_size is None):
+        raise InputError("body_center and body_size are given together or not at all",
+                         key="request.body_size")
+    if request.body_center is not None:
+        keys += ["body_center", "body_size"]
+    for key in keys:
         v = np.asarray(getattr(request, key), dtype=float)
         if v.shape != (3,) or not np.all(np.isfinite(v)):
             raise InputError(f"expected 3 finite numbers [m], got {v!r}", key=f"request.{key}")
     if np.any(np.asarray(request.obstacle_size) <= 0):
         raise InputError("edge lengths must be > 0 [m]", key="request.obstacle_size")
+    if request.body_size is not None and np.any(np.asarray(request.body_size) < 0):
+        raise InputError("edge lengths must be >= 0 [m]", key="request.body_size")
     if not (isinstance(margin, (int, float)) and np.isfinite(margin) and margin >= 0):
         raise InputError(f"must be a number >= 0 [m], got {margin!r}", key="margin")
 
@@ -254,7 +372,10 @@ def replan(cell: Cell, route_name: str, request: ReplanRequest, *, held: str | N
     ``route_name``, and on to the route's end.
 
     The result's ``info["replan"]`` holds the way taken (``way``, ``joins``: the
-    original step rejoined) and why the ways before it failed (``failed``).
+    original step rejoined), why the ways before it failed (``failed``) and the box
+    planned around (``box``: ``center``, ``size`` [m], ``shrunk``: what the monitor and
+    :func:`start_box` cut back, in words). Its steps carry the original route's labels
+    (see the module doc), so that a request made in it re-plans again.
 
     Args:
         cell: The cell the route belongs to.
@@ -268,8 +389,9 @@ def replan(cell: Cell, route_name: str, request: ReplanRequest, *, held: str | N
 
     Raises:
         InputError: A malformed request or margin (naming the key).
-        PlanningError: The route or step is unknown, or no way works: the reason lists
-            every way tried and why it failed, and what may not be left.
+        PlanningError: The route or step is unknown, the rest state is within the
+            margin of the body itself (:func:`start_box`), or no way works: the reason
+            lists every way tried and why it failed, and what may not be left.
     """
     _check_request(cell, request, margin)
     routes = cell.route_table()
@@ -279,15 +401,99 @@ def replan(cell: Cell, route_name: str, request: ReplanRequest, *, held: str | N
     route = routes.get(base)
     if route is None:
         raise PlanningError(f"unknown route '{route_name}' (routes: {', '.join(routes)})")
-    first = step_index(route, request.step)
-    if first is None:
+    found = rest_step(route, request.step)
+    if found is None:
         raise PlanningError(f"route '{base}' has no step '{request.step}'")
+    first, in_move = found
     if world is None:
         world = WorldState(held, {o.name: o.T_world_object.copy()
                                   for o in cell.scene.objects.values()
                                   if o.movable and o.name != held})
     options = options or PlanOptions()
-    candidates, limit = ways(cell, routes, route, first)
+    request, escape = _clear_start(cell, routes, route, first, request, held=held,
+                                   world=world, margin=margin)
+    head = None
+    if escape is not None:
+        head = _plan_escape(cell, route, first, request, escape, world, options)
+        request = replace(request, q=escape[0])
+    traj, way = _plan_ways(cell, routes, route, first, in_move, request, margin, world,
+                           options)
+    traj = _named(traj, way.labels)
+    traj.info["replan"] = {"way": way.description, "joins": route.labels()[way.joins],
+                           "failed": traj.info.pop("replan_failed"),
+                           "box": {"center": request.obstacle_center.tolist(),
+                                   "size": request.obstacle_size.tolist(),
+                                   "shrunk": request.shrunk}}
+    if head is not None:
+        assert escape is not None
+        traj = _joined(head, traj, route.labels()[first] + ESCAPE_SUFFIX)
+        traj.info["replan"]["escape"] = {"to": escape[0].tolist(), "margin": escape[1]}
+    return traj
+
+
+def _clear_start(cell: Cell, routes: Mapping[str, Route], route: Route, first: int,
+                 request: ReplanRequest, *, held: str | None, world: WorldState,
+                 margin: float) -> tuple[ReplanRequest, tuple[np.ndarray, float] | None]:
+    """The request with its box cut back from the rest state (:func:`start_box`), and,
+    when that does not make the start clear, the end of a first stretch away with the
+    margin it is planned with [m] (:func:`escape_state`)."""
+    lo, hi = _corners(request.obstacle_center, request.obstacle_size)
+    body = None if request.body_center is None or request.body_size is None else \
+        _corners(request.body_center, request.body_size)
+    q = np.asarray(request.q, dtype=float)
+    box = start_box(cell, q, lo, hi, body, held=held, margin=margin)
+    request = replace(request, obstacle_center=(box.lo + box.hi) / 2,
+                      obstacle_size=box.hi - box.lo,
+                      shrunk="; ".join(w for w in (request.shrunk, box.cut) if w))
+    if box.clearance >= margin + START_SLACK:
+        return request, None
+    what = "the body's own box (as measured)" if body is not None else \
+        "the obstacle box (the request has no measured body to cut it back to)"
+    why = (f"the rest state is {1000 * box.clearance:.0f} mm from {what}, within the "
+           f"margin {1000 * margin:.0f} mm")
+    if box.clearance <= START_SLACK:
+        raise PlanningError(f"{why}: no first stretch away from inside it",
+                            step=request.step)
+    if step_role(routes, route, first) == "approach":
+        raise PlanningError(f"{why}, in an approach line (it is not left): no first "
+                            "stretch away", step=request.step)
+    away = escape_state(cell, q, box.lo, box.hi, held=held, resting=world.resting,
+                        margin=margin)
+    if away is None:
+        raise PlanningError(f"{why}, and no first stretch away was found (the distance "
+                            "to the box stops growing, or a joint reaches its limit)",
+                            step=request.step)
+    return request, (away, box.clearance - START_SLACK)
+
+
+def _plan_escape(cell: Cell, route: Route, first: int, request: ReplanRequest,
+                 escape: tuple[np.ndarray, float], world: WorldState, options: PlanOptions
+                 ) -> Trajectory:
+    """The first stretch away from the rest state to ``escape[0]``, keeping the margin
+    ``escape[1]`` [m] from the box (the clearance it has at rest): a straight TCP line
+    when the robot rests in a line (the contacts allowed where that line began hold on
+    it: a vial just lifted off its support), else a free move."""
+    own = route.steps[first]
+    start = start_pose(route, first) if own.kind == "line" else None
+    temp = obstacle_scene(cell, request, margin=escape[1], keep_contacts_of=start,
+                          extra_poses={ESCAPE_POSE: escape[0]})
+    step = Step("line" if own.kind == "line" else "move", Target(ESCAPE_POSE), None,
+                own.speed, own.tcp_speed, True)
+    try:
+        return plan_route(temp, Route(f"{route.name}{SUFFIX}", REST_POSE, (step,)), options,
+                          world=world)
+    except SafepathError as exc:
+        raise PlanningError(f"the first stretch away from the body "
+                            f"({1000 * escape[1]:.0f} mm from it): {exc}",
+                            step=request.step) from None
+
+
+def _plan_ways(cell: Cell, routes: Mapping[str, Route], route: Route, first: int,
+               in_move: bool, request: ReplanRequest, margin: float, world: WorldState,
+               options: PlanOptions) -> tuple[Trajectory, Way]:
+    """The first way (:func:`ways`) that plans, from the request's rest state; its
+    ``info["replan_failed"]`` lists why the ways before it failed."""
+    candidates, limit = ways(cell, routes, route, first, in_move=in_move, q_rest=request.q)
     failed: list[str] = []
     start = start_pose(route, first)
     cells: dict[bool, Cell] = {}  # one per contact set: its checkers are built once
@@ -295,17 +501,51 @@ def replan(cell: Cell, route_name: str, request: ReplanRequest, *, held: str | N
         if way.keeps_line not in cells:
             cells[way.keeps_line] = obstacle_scene(
                 cell, request, margin=margin, keep_contacts_of=start if way.keeps_line else None)
-        temp = cells[way.keeps_line]
         try:
-            traj = plan_route(temp, Route(f"{base}{SUFFIX}", REST_POSE, way.steps), options,
+            traj = plan_route(cells[way.keeps_line],
+                              Route(f"{route.name}{SUFFIX}", REST_POSE, way.steps), options,
                               world=world)
         except SafepathError as exc:
             failed.append(f"{way.description}: {exc}")
             continue
-        traj.info["replan"] = {"way": way.description, "joins": route.labels()[way.joins],
-                               "failed": failed}
-        return traj
+        traj.info["replan_failed"] = failed
+        return traj, way
     why = "; ".join(f"({i + 1}) {f}" for i, f in enumerate(failed))
     if limit is not None:
         why += f"; no other way: {limit}"
     raise PlanningError(f"no way around the obstacle: {why}", step=request.step)
+
+
+def _corners(center: np.ndarray, size: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    c, e = np.asarray(center, dtype=float), np.asarray(size, dtype=float)
+    return c - e / 2, c + e / 2
+
+
+def _joined(head: Trajectory, tail: Trajectory, label: str) -> Trajectory:
+    """``head`` (the first stretch away, named ``label``) then ``tail``: both rest where
+    they meet."""
+    if not np.allclose(head.q[-1], tail.q[0], atol=1e-9):
+        raise PlanningError("the first stretch away does not end where the way back starts")
+    n, t0 = head.t.size, float(head.t[-1])
+    info = dict(tail.info)
+    info["replan"] = {**info["replan"], "head_duration": t0}
+    return Trajectory(tail.joint_names, np.concatenate([head.t, t0 + tail.t[1:] - tail.t[0]]),
+                      np.vstack([head.q, tail.q[1:]]), np.vstack([head.qd, tail.qd[1:]]),
+                      np.vstack([head.qdd, tail.qdd[1:]]),
+                      np.concatenate([np.zeros(n, dtype=int), tail.step_index[1:] + 1]),
+                      (label, *tail.steps),
+                      tuple(replace(e, time=e.time + t0 - float(tail.t[0]))
+                            for e in tail.events),
+                      tail.robot, tail.route, info)
+
+
+def _named(traj: Trajectory, labels: Sequence[str]) -> Trajectory:
+    """``traj`` (planned for a way) with its steps, its gripper events' steps and its
+    pours named ``labels`` (the original route's names, see the module doc)."""
+    names = dict(zip(traj.steps, labels, strict=True))
+    info = dict(traj.info)
+    if "pours" in info:
+        info["pours"] = {names.get(k, k): v for k, v in info["pours"].items()}
+    return replace(traj, steps=tuple(labels),
+                   events=tuple(replace(e, step=names.get(e.step, e.step))
+                                for e in traj.events), info=info)

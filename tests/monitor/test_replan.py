@@ -199,7 +199,8 @@ def test_no_way_waits_says_why_and_asks_again_when_the_obstacle_moves(
         cell: Cell, phase1: Phase1) -> None:
     """A box above the lift from the conveyor (inside the camera's view): every way back
     to the route crosses the placement's approach line, so the re-plan says there is none;
-    the monitor then waits, saying why, and asks again only once the box has moved."""
+    the monitor then waits, saying why, and asks again only once the body has moved and
+    is at rest again (for the rest window)."""
     m = make_monitor(cell, replan_after=0.5)
     traj, held = phase1.motions[0]
     m.follow(traj, start=0.0, held=held)
@@ -221,6 +222,15 @@ def test_no_way_waits_says_why_and_asks_again_when_the_obstacle_moves(
         t = round(t + 1 / 30, 9)
         assert d.kind == "stop" and d.replan is None and "found no way" in d.reason
     moved = above + [0.0, -0.05, 0.0]  # still in the way, 5 cm further
+    t_moved = t
     d = m.observe(_cloud_at(t, moved[None, :]), t)
+    assert d.kind == "stop" and d.replan is None
+    assert "moved since" in d.reason and "no re-plan yet: the body moves" in d.reason
+    while d.replan is None and t < t_moved + 3.0:
+        t = round(t + 1 / 30, 9)
+        d = m.observe(_cloud_at(t, moved[None, :]), t)
     assert d.kind == "replan" and d.replan is not None and "moved" in d.reason
-    assert abs(d.replan.obstacle_center[1] - request.obstacle_center[1] + 0.05) < 1e-9
+    # Asked once the body was seen at rest at its new place for most of the window.
+    assert t - t_moved >= 0.5 * m.options.rest_window
+    assert request.body_center is not None and d.replan.body_center is not None
+    assert abs(d.replan.body_center[1] - request.body_center[1] + 0.05) < 1e-9
