@@ -87,7 +87,24 @@ def cmd_plan(args: argparse.Namespace) -> int:
     print(f"wrote {len(trajectories)} trajectories (JSON, CSV) and summary.json to {out}")
     if bag is not None:
         print(f"wrote a ROS 2 bag of the cycle ({' -> '.join(t.route for t in cycle)}) to {bag}")
+    _note_jit_kernels()
     return 0
+
+
+def _note_jit_kernels() -> None:
+    """Say on standard error when the kernels were not compiled ahead of time for these
+    sources (none built, or built from other sources: any edit of a kernel module, the
+    monitor's included, needs a new build): numba then imports and loads them during the
+    first route, most of a second of this process."""
+    import os
+    import sys
+
+    from . import _aot
+
+    if _aot.compiled() is None and os.environ.get(_aot.ENV_MODE, "1") != "0":
+        print(f"safepath plan: note: {_aot.status()}; the first route paid for loading "
+              "numba's kernels: `safepath build-kernels` compiles them ahead of time",
+              file=sys.stderr)
 
 
 def _summary_row(traj: Any) -> dict[str, Any]:

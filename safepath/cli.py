@@ -171,7 +171,7 @@ _EXTRA: list[Callable[[argparse._SubParsersAction], None]] = []
 
 def main(argv: Sequence[str] | None = None) -> int:
     """Entry point of the ``safepath`` command."""
-    _load_extra()
+    _load_extra(sys.argv[1:] if argv is None else argv)
     parser = build_parser()
     args = parser.parse_args(argv)
     logging.basicConfig(level=logging.INFO if args.verbose else logging.WARNING,
@@ -186,10 +186,28 @@ def main(argv: Sequence[str] | None = None) -> int:
         return 130
 
 
-def _load_extra() -> None:
+#: The modules that add the other commands, by command.
+_EXTRA_MODULES = {"plan": "safepath._plan_cli", "view": "safepath.view.cli",
+                  "sim": "safepath.sim.cli"}
+#: The commands defined in this module.
+_OWN_COMMANDS = ("check", "robot-pairs", "build-kernels")
+
+
+def _load_extra(argv: Sequence[str] | None = None) -> None:
+    """Register the commands of other modules: with ``argv``, only the module of the
+    command it names (importing ``safepath.sim`` alone costs a plan process tens of
+    milliseconds); without, or when it names no known command (``--help``, a typo), all
+    of them, so that help and errors list every command."""
     import importlib
 
-    for name in ("safepath._plan_cli", "safepath.view.cli", "safepath.sim.cli"):
+    command = next((a for a in argv if not a.startswith("-")), None) if argv else None
+    if command in _OWN_COMMANDS:
+        names: tuple[str, ...] = ()
+    elif command in _EXTRA_MODULES:
+        names = (_EXTRA_MODULES[command],)
+    else:
+        names = tuple(_EXTRA_MODULES.values())
+    for name in names:
         try:
             module = importlib.import_module(name)
         except ModuleNotFoundError as exc:

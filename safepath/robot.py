@@ -202,15 +202,30 @@ class Robot:
     def frame_pose(self, q: np.ndarray, frame: str | None = None) -> pin.SE3:
         """Pose of ``frame`` (default: the TCP) in the world frame at ``q``."""
         fid = self.tcp_frame_id if frame is None else self._frame_id(frame)
-        data = getattr(self._local, "data", None)
-        if data is None:
-            data = self._local.data = self.model.createData()
+        data = self._data()
         pin.forwardKinematics(self.model, data, q)
         return pin.updateFramePlacement(self.model, data, fid).copy()
 
     def tcp_position(self, q: np.ndarray) -> np.ndarray:
         """TCP position in the world frame [m]."""
         return np.array(self.frame_pose(q).translation)
+
+    def tcp_positions(self, q_path: np.ndarray) -> np.ndarray:
+        """TCP positions in the world frame [m] (n, 3) at the joint positions ``q_path``
+        (n, dof): :meth:`tcp_position` of each row, without a pose object per row."""
+        model, data, fid = self.model, self._data(), self.tcp_frame_id
+        out = np.empty((len(q_path), 3))
+        for k, q in enumerate(q_path):
+            pin.forwardKinematics(model, data, q)
+            out[k] = pin.updateFramePlacement(model, data, fid).translation
+        return out
+
+    def _data(self) -> pin.Data:
+        """This thread's pinocchio data of the model."""
+        data = getattr(self._local, "data", None)
+        if data is None:
+            data = self._local.data = self.model.createData()
+        return data
 
     def _frame_id(self, frame: str) -> int:
         if not self.model.existFrame(frame):

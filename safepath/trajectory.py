@@ -213,12 +213,14 @@ class Trajectory:
         writer.writerow(["t", "step"] + [f"q_{n}" for n in self.joint_names]
                         + [f"qd_{n}" for n in self.joint_names]
                         + [f"qdd_{n}" for n in self.joint_names])
-        for k in range(traj.t.size):
-            step = traj.steps[traj.step_index[k]] if traj.steps else ""
-            writer.writerow([repr(float(traj.t[k])), step]
-                            + [repr(float(v)) for v in traj.q[k]]
-                            + [repr(float(v)) for v in traj.qd[k]]
-                            + [repr(float(v)) for v in traj.qdd[k]])
+        # Each step's cell quoted by the csv writer once; the numbers are Python floats'
+        # repr (shortest round-trip, never quoted), joined row by row: the same text as
+        # one writerow per knot, in a fraction of the time.
+        cells = [_csv_cell(name) for name in traj.steps or ("",)]
+        index = traj.step_index.tolist() if traj.steps else [0] * traj.t.size
+        rows = np.hstack([traj.q, traj.qd, traj.qdd]).tolist()
+        buf.writelines(f"{tk!r},{cells[i]},{','.join(map(repr, row))}\n"
+                       for tk, i, row in zip(traj.t.tolist(), index, rows, strict=True))
         text = buf.getvalue()
         if path is not None:
             atomic_write_text(path, text)
@@ -260,3 +262,12 @@ def load_trajectory(path: str | Path) -> Trajectory:
     except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
         raise TrajectoryError(f"cannot read trajectory ({exc})", path=path) from None
     return Trajectory.from_dict(data, path=path)
+
+
+def _csv_cell(text: str) -> str:
+    """``text`` as the csv writer writes it among other fields (quoted where needed)."""
+    if not text:
+        return ""
+    one = io.StringIO()
+    csv.writer(one, lineterminator="\n").writerow([text])
+    return one.getvalue()[:-1]

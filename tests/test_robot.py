@@ -109,6 +109,14 @@ def test_frame_pose_matches_finite_differences_of_joint_1(robot: Robot) -> None:
     np.testing.assert_allclose(p1, rot @ p0, atol=1e-12)
 
 
+def test_tcp_positions_are_tcp_position_of_each_row(robot: Robot) -> None:
+    rng = np.random.default_rng(3)
+    q_path = rng.uniform(robot.lower, robot.upper, (25, robot.dof))
+    got = robot.tcp_positions(q_path)
+    assert got.shape == (25, 3)
+    assert got.tobytes() == np.array([robot.tcp_position(q) for q in q_path]).tobytes()
+
+
 def test_unknown_frame_lists_frames(robot: Robot) -> None:
     with pytest.raises(FrameNotFound) as info:
         robot.frame_pose(np.zeros(6), "gripper_tip")

@@ -20,7 +20,7 @@ from ..errors import PlanningError, VerificationError
 from ..execution import LIMITS_KEY, robot_limits
 from ..routes import Route, Step
 from ..scene import AllowedContact
-from ..timing import TimedPiece, spline_path, time_path
+from ..timing import TimedPiece, TimingOptions, spline_path, time_path
 from ..trajectory import GripperEvent, Trajectory
 from ..verify import VerifyResult
 
@@ -29,9 +29,42 @@ if TYPE_CHECKING:
     from .options import PlanOptions
     from .world import CheckerCache, WorldState
 
-__all__ = ["apart", "assemble", "time_chunk", "time_segments", "verify_piece"]
+__all__ = ["TimedPieces", "apart", "assemble", "time_chunk", "time_segments", "verify_piece"]
 
 log = logging.getLogger(__name__)
+
+
+class TimedPieces:
+    """The pieces one planning call has timed, by everything their timing reads: the
+    path's points and blended corners, each segment's speed scale and TCP speed limit,
+    and the timing options (one robot per call). A route's stop-and-go baseline times a
+    lone line step as its chunk did, and routes from the same pose often plan the same
+    first steps: a second ask gets the first's piece (the same bits) instead of timing
+    it again. Kept for one call only: a plan keeps no results between calls."""
+
+    def __init__(self) -> None:
+        self._pieces: dict[tuple[object, ...], TimedPiece] = {}
+        #: How many asks got a piece timed before.
+        self.reused = 0
+
+    @staticmethod
+    def key(waypoints: Sequence[np.ndarray], corners: Sequence[tuple[int, float]],
+            scales: Sequence[float], tcp: Sequence[float | None], options: TimingOptions
+            ) -> tuple[object, ...]:
+        """What the timing of the spline through ``waypoints`` reads."""
+        points = np.asarray(waypoints, dtype=float)
+        return (points.shape, points.tobytes(), tuple(corners), tuple(scales), tuple(tcp),
+                options)
+
+    def get(self, key: tuple[object, ...]) -> TimedPiece | None:
+        """The piece timed for ``key``, or None."""
+        piece = self._pieces.get(key)
+        self.reused += piece is not None
+        return piece
+
+    def put(self, key: tuple[object, ...], piece: TimedPiece) -> None:
+        """Keep ``piece`` as the timing of ``key``."""
+        self._pieces[key] = piece
 
 
 @dataclass
@@ -43,7 +76,8 @@ class Segment:
 
 
 def time_chunk(cell: Cell, segments: list[Segment], world: WorldState, options: PlanOptions,
-                cache: CheckerCache, labels: list[str], known: float = float("inf")
+                cache: CheckerCache, labels: list[str], known: float = float("inf"), *,
+                timed: TimedPieces | None = None
                 ) -> list[tuple[TimedPiece, list[int], VerifyResult]]:
     """Time and verify a chunk: blended through its via points (large blends first, then
     smaller, then passing exactly); if no blend is collision-free or passes the
@@ -54,7 +88,7 @@ def time_chunk(cell: Cell, segments: list[Segment], world: WorldState, options: 
         for blend in options.timing.blend_radii:
             try:
                 piece, seg_steps = time_segments(cell, segments, world, options, cache,
-                                                  blend=blend)
+                                                  blend=blend, timed=timed)
                 return [verify_piece(piece, seg_steps, segments, world, cache, labels, known)]
             except _NotFree:
                 log.debug("blend %.3f rad not collision-free", blend)
@@ -63,7 +97,8 @@ def time_chunk(cell: Cell, segments: list[Segment], world: WorldState, options: 
     out = []
     for seg in segments:
         try:
-            piece, seg_steps = time_segments(cell, [seg], world, options, cache, blend=0.0)
+            piece, seg_steps = time_segments(cell, [seg], world, options, cache, blend=0.0,
+                                              timed=timed)
             out.append(verify_piece(piece, seg_steps, [seg], world, cache, labels, known))
             known = min(known, out[-1][2].min_clearance)
             continue
@@ -76,7 +111,8 @@ def time_chunk(cell: Cell, segments: list[Segment], world: WorldState, options: 
         # Stop at every corner: each straight segment was checked by the planner.
         for a, b in zip(seg.waypoints[:-1], seg.waypoints[1:], strict=True):
             part = Segment(seg.step_index, seg.step, [a, b], seg.allowed)
-            piece, seg_steps = time_segments(cell, [part], world, options, cache, check=False)
+            piece, seg_steps = time_segments(cell, [part], world, options, cache, check=False,
+                                              timed=timed)
             out.append(verify_piece(piece, seg_steps, [part], world, cache, labels, known))
             known = min(known, out[-1][2].min_clearance)
     return out
@@ -127,15 +163,47 @@ def apart(last: np.ndarray | None, pts: Sequence[np.ndarray]) -> bool:
 
 def time_segments(cell: Cell, segments: list[Segment], world: WorldState,
                    options: PlanOptions, cache: CheckerCache, *, check: bool = True,
-                   blend: float = 0.0) -> tuple[TimedPiece, list[int]]:
+                   blend: float = 0.0, timed: TimedPieces | None = None
+                   ) -> tuple[TimedPiece, list[int]]:
+    """Time the segments as one piece, blended at their via poses (and a planned
+    detour's vertices) by ``blend`` [rad]; the spline checked for collisions first
+    (``check``, raising _NotFree), its timing taken from ``timed`` where it was timed
+    before. Returns the piece and the step index of each polyline segment."""
+    waypoints, corners, seg_of_poly = _polyline(segments, blend)
+    seg_steps = [segments[n].step_index for n in seg_of_poly]
+    scales = [segments[n].step.speed for n in seg_of_poly]
+    tcp = [segments[n].step.tcp_speed for n in seg_of_poly]
+    if len(waypoints) < 2:
+        q = waypoints[0] if waypoints else segments[0].waypoints[0]
+        z = np.zeros((1, q.size))
+        return TimedPiece(np.zeros(1), q[None, :], z, z, np.zeros(1), np.zeros(1, dtype=int)), \
+            [segments[0].step_index]
+    key = TimedPieces.key(waypoints, corners, scales, tcp, options.timing)
+    piece = timed.get(key) if timed is not None else None
+    checked = check and len(waypoints) > 2
+    if piece is not None and not checked:
+        return piece, seg_steps
+    path, s_way, _ = spline_path(waypoints, options.timing.spacing, corners=corners)
+    if checked:
+        _check_spline(cell, path, s_way, seg_of_poly, segments, world, options, cache)
+    if piece is None:
+        piece = time_path(cell.robot, path, s_way, scales=scales, tcp_speeds=tcp,
+                          options=options.timing,
+                          step=segments[0].step.label(segments[0].step_index))
+        if timed is not None:
+            timed.put(key, piece)
+    return piece, seg_steps
+
+
+def _polyline(segments: list[Segment], blend: float
+              ) -> tuple[list[np.ndarray], list[tuple[int, float]], list[int]]:
+    """The segments' waypoints as one polyline (repeated points left out), its corners to
+    blend (waypoint index, radius [rad]), and the segment of each of its pieces."""
     waypoints: list[np.ndarray] = []
     corners: list[tuple[int, float]] = []
     lengths: list[float] = [
         float(np.sum(np.linalg.norm(np.diff(np.asarray(s.waypoints), axis=0), axis=1)))
         for s in segments]
-    seg_steps: list[int] = []
-    scales: list[float] = []
-    tcp: list[float | None] = []
     seg_of_poly: list[int] = []
     for n, seg in enumerate(segments):
         if waypoints and n > 0 and blend > 0:
@@ -159,23 +227,7 @@ def time_segments(cell: Cell, segments: list[Segment], world: WorldState,
                 a = float(np.linalg.norm(p - pts[j - 1]))
                 b = float(np.linalg.norm(pts[j + 1] - p))
                 corners.append((len(waypoints) - 1, min(blend, 0.4 * a, 0.4 * b)))
-    for n in seg_of_poly:
-        seg = segments[n]
-        seg_steps.append(seg.step_index)
-        scales.append(seg.step.speed)
-        tcp.append(seg.step.tcp_speed)
-    if len(waypoints) < 2:
-        q = waypoints[0] if waypoints else segments[0].waypoints[0]
-        z = np.zeros((1, q.size))
-        return TimedPiece(np.zeros(1), q[None, :], z, z, np.zeros(1), np.zeros(1, dtype=int)), \
-            [segments[0].step_index]
-    spacing = options.timing.spacing
-    path, s_way, _ = spline_path(waypoints, spacing, corners=corners)
-    if check and len(waypoints) > 2:
-        _check_spline(cell, path, s_way, seg_of_poly, segments, world, options, cache)
-    piece = time_path(cell.robot, path, s_way, scales=scales, tcp_speeds=tcp,
-                      options=options.timing, step=segments[0].step.label(segments[0].step_index))
-    return piece, seg_steps
+    return waypoints, corners, seg_of_poly
 
 
 def _check_spline(cell: Cell, path: object, s_way: np.ndarray, seg_of_poly: Sequence[int],

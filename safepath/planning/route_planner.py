@@ -26,7 +26,7 @@ from ..routes import Route, Step, after_chain
 from ..timing import TimedPiece
 from ..trajectory import Trajectory
 from ..verify import check_verifiable
-from ._chunks import Segment, assemble, time_chunk, time_segments
+from ._chunks import Segment, TimedPieces, assemble, time_chunk, time_segments
 from ._pour_chunk import PourChunk, plan_pour_chunk
 from .cartesian import cartesian_line
 from .constraints import check_landing, check_tilt, tilt_bound
@@ -72,12 +72,13 @@ def plan_cell(cell: Cell, options: PlanOptions | None = None, *,
     if routes is None:
         routes = cell.route_table()
     cache = CheckerCache(cell, options)
+    timed = TimedPieces()
     worlds: dict[str, WorldState] = {}
     out: dict[str, Trajectory] = {}
     for name in route_order(routes):
         route = routes[name]
         world = worlds[route.after].copy() if route.after else initial_world(cell)
-        traj, end_world = _plan_named(cell, route, world, options, cache)
+        traj, end_world = _plan_named(cell, route, world, options, cache, timed)
         worlds[name] = end_world
         out[name] = traj
     return out
@@ -104,16 +105,16 @@ def plan_route(cell: Cell, route: Route, options: PlanOptions | None = None, *,
     options = options or PlanOptions()
     check_verifiable(cell.robot, cell.scene)
     traj, _ = _plan_named(cell, route, world.copy() if world else initial_world(cell),
-                          options, CheckerCache(cell, options))
+                          options, CheckerCache(cell, options), TimedPieces())
     return traj
 
 
 def _plan_named(cell: Cell, route: Route, world: WorldState, options: PlanOptions,
-                cache: CheckerCache) -> tuple[Trajectory, WorldState]:
+                cache: CheckerCache, timed: TimedPieces) -> tuple[Trajectory, WorldState]:
     """:func:`_plan`, its planning errors naming the route and its routes file: in a cell
     of several routes, a step's name alone does not say where it is."""
     try:
-        return _plan(cell, route, world, options, cache)
+        return _plan(cell, route, world, options, cache, timed)
     except PlanningError as exc:
         exc.in_route(route.name, _routes_file(cell, route))
         raise
@@ -150,14 +151,14 @@ class _Paths:
 
 
 def _plan(cell: Cell, route: Route, world: WorldState, options: PlanOptions,
-          cache: CheckerCache) -> tuple[Trajectory, WorldState]:
+          cache: CheckerCache, timed: TimedPieces) -> tuple[Trajectory, WorldState]:
     """Paths, then timing and verification, then the trajectory and its figures."""
     t_start = time.perf_counter()
     labels = route.labels()
     paths = _plan_paths(cell, route, world, options, cache, labels)
     plan_time = time.perf_counter() - t_start
     pieces, chunk_ends, min_clear, closest, deviation = _time_and_verify(
-        cell, paths.chunks, options, cache, labels)
+        cell, paths.chunks, options, cache, labels, timed)
     traj = assemble(cell, route, labels, pieces, chunk_ends, paths.actions)
     _check_position_limits(cell, traj)
     carried = check_tilt(cell, route, traj)  # orientation path constraints (max_tilt)
@@ -186,7 +187,8 @@ def _plan(cell: Cell, route: Route, world: WorldState, options: PlanOptions,
         "resolution": options.check.resolution,
     })
     if options.baseline:
-        traj.info["baseline_duration"] = _baseline(cell, route, paths.chunks, options, cache)
+        traj.info["baseline_duration"] = _baseline(cell, route, paths.chunks, options, cache,
+                                                   timed)
     return traj, paths.world
 
 
@@ -252,7 +254,8 @@ def _line_path(cell: Cell, checker: CollisionChecker, q: np.ndarray, goal: np.nd
 
 
 def _time_and_verify(cell: Cell, chunks: list[tuple[list[Segment], WorldState] | PourChunk],
-                     options: PlanOptions, cache: CheckerCache, labels: list[str]
+                     options: PlanOptions, cache: CheckerCache, labels: list[str],
+                     timed: TimedPieces
                      ) -> tuple[list[tuple[TimedPiece, list[int]]], list[float], float,
                                 Pair | None, float]:
     """Time and verify chunk by chunk: the timed pieces (with the step of each knot),
@@ -266,14 +269,14 @@ def _time_and_verify(cell: Cell, chunks: list[tuple[list[Segment], WorldState] |
     min_clear, closest = float("inf"), None
     deviation = 0.0
     for chunk in chunks:
-        timed = [(chunk.piece, chunk.steps_of_knots, chunk.result)] \
+        verified = [(chunk.piece, chunk.steps_of_knots, chunk.result)] \
             if isinstance(chunk, PourChunk) else time_chunk(cell, *chunk, options, cache, labels,
-                                                            min_clear)
+                                                            min_clear, timed=timed)
         # A point's motion per joint turn depends on the robot and what it holds, not on
         # the allowed contacts: the chunk's own checker (the first step's) tells.
         weights = (cache.checker(chunk.world, ()) if isinstance(chunk, PourChunk)
                    else cache.checker(chunk[1], chunk[0][0].allowed)).displacement_weights
-        for piece, steps_of_knots, result in timed:
+        for piece, steps_of_knots, result in verified:
             if result.min_clearance < min_clear:
                 min_clear, closest = result.min_clearance, result.closest_pair
             pieces.append((piece, steps_of_knots))
@@ -297,7 +300,7 @@ def _knot_deviation(cell: Cell, piece: TimedPiece, weights: np.ndarray) -> float
 
 def _baseline(cell: Cell, route: Route,
               chunks: list[tuple[list[Segment], WorldState] | PourChunk],
-              options: PlanOptions, cache: CheckerCache) -> float | None:
+              options: PlanOptions, cache: CheckerCache, timed: TimedPieces) -> float | None:
     """The stop-and-go duration [s]: the same steps' paths, each timed rest to rest (a
     pour counts as itself). A figure for comparison only: its failure must not throw
     away the verified trajectory."""
@@ -310,7 +313,7 @@ def _baseline(cell: Cell, route: Route,
             segments, chunk_world = chunk
             for seg in segments:
                 piece, _ = time_segments(cell, [seg], chunk_world, options, cache,
-                                         check=False, blend=0.0)
+                                         check=False, blend=0.0, timed=timed)
                 total += float(piece.t[-1])
     except TimingError as exc:
         log.warning("route %s: no stop-and-go baseline (%s)", route.name, exc)

@@ -20,8 +20,8 @@ from .._knots import interval_index
 from ..robot import Robot
 from . import _topp
 
-__all__ = ["TCP_STEP", "PathSpline", "PathLimits", "Points", "gridpoints", "path_limits",
-           "row_max"]
+__all__ = ["TCP_STEP", "PathSpline", "PathLimits", "Points", "gridpoints", "jet",
+           "path_limits", "row_max"]
 
 #: Spacing of the points where the TCP's speed per path speed is computed [rad].
 TCP_STEP = 0.015
@@ -42,6 +42,15 @@ class PathSpline(Protocol):
     def __call__(self, s: np.ndarray | float, nu: int = 0) -> np.ndarray:
         """Positions [rad] (or their ``nu``-th derivative) at path parameters ``s``."""
         ...
+
+
+def jet(path: PathSpline, s: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """``path(s), path(s, 1), path(s, 2)``: with one piece lookup where the path offers
+    it (:meth:`~safepath.timing.CubicPath.jet`)."""
+    fast = getattr(path, "jet", None)
+    if fast is not None:
+        return fast(s)  # type: ignore[no-any-return]
+    return path(s), path(s, 1), path(s, 2)
 
 
 @dataclass(frozen=True)
@@ -148,7 +157,7 @@ def _tcp_xmax(robot: Robot, path: PathSpline, s_way: np.ndarray, grid: np.ndarra
     slowly), linear in between.
     """
     samples = gridpoints(path.x, s_way, TCP_STEP)
-    p = np.array([robot.tcp_position(q) for q in path(samples)])
+    p = robot.tcp_positions(path(samples))
     rate = np.interp(grid, samples, np.linalg.norm(np.gradient(p, samples, axis=0), axis=1))
     with np.errstate(divide="ignore"):
         return np.where(np.isfinite(v_tcp) & (rate >= 1e-9),
@@ -183,7 +192,7 @@ def gridpoints(breaks: np.ndarray, s_way: np.ndarray, step: float) -> np.ndarray
 
 def _points(robot: Robot, path: PathSpline, s: np.ndarray, scale: np.ndarray) -> Points:
     """The path at ``s`` and the joint limits there, scaled by ``scale`` (per point)."""
-    dq, ddq = path(s, 1), path(s, 2)
+    _, dq, ddq = jet(path, s)
     # sdot <= scale vmax_j / |q'_j| for every joint j.
     peak = row_max(np.abs(dq) / robot.velocity_limits)
     with np.errstate(divide="ignore"):

@@ -69,23 +69,23 @@ def smooth(profile: Profile, tau_a: float, tau_b: float) -> Smoothed:
 
 
 def _integrals(sm: Smoothed, t: np.ndarray) -> np.ndarray:
-    """``S2, S1, s0, sd0, u0`` at times ``t`` (5, len(t)), the profile extended at rest
+    """``S2, S1, s0, sd0`` at times ``t`` (4, len(t)), the profile extended at rest
     before 0 and after its end."""
     p = sm.profile
     T0 = p.t[-1]  # noqa: N806
     L = p.grid[-1]  # noqa: N806
-    out = np.zeros((5, t.size))
+    out = np.zeros((4, t.size))
     inside = (t > 0.0) & (t < T0)
     ti = t[inside]
-    k = np.clip(np.searchsorted(p.t, ti, side="right") - 1, 0, p.u.size - 1)
+    # (np.clip checks its arguments' types on every call.)
+    k = np.minimum(np.maximum(np.searchsorted(p.t, ti, side="right") - 1, 0), p.u.size - 1)
     tau = ti - p.t[k]
-    s, v, u = p.grid[k], p.sd[k], p.u[k]
-    out[0, inside] = sm.S2[k] + sm.S1[k] * tau + s * tau ** 2 / 2 + v * tau ** 3 / 6 \
-        + u * tau ** 4 / 24
-    out[1, inside] = sm.S1[k] + s * tau + v * tau ** 2 / 2 + u * tau ** 3 / 6
-    out[2, inside] = s + v * tau + u * tau ** 2 / 2
+    s, v, u, s1 = p.grid[k], p.sd[k], p.u[k], sm.S1[k]
+    tau2, tau3 = tau ** 2, tau ** 3  # each power once (the same values in every row)
+    out[0, inside] = sm.S2[k] + s1 * tau + s * tau2 / 2 + v * tau3 / 6 + u * tau ** 4 / 24
+    out[1, inside] = s1 + s * tau + v * tau2 / 2 + u * tau3 / 6
+    out[2, inside] = s + v * tau + u * tau2 / 2
     out[3, inside] = v + u * tau
-    out[4, inside] = u
     after = t >= T0
     d = t[after] - T0
     out[0, after] = sm.S2[-1] + sm.S1[-1] * d + L * d ** 2 / 2

@@ -35,11 +35,12 @@ class CubicPath:
         self.x = x
         delta = np.diff(y, axis=0) / h[:, None]
         m = self._slopes(x, h, y, delta)
-        # Piece i: y_i + m_i t + c2_i t^2 + c3_i t^3 for t = s - x_i.
-        self._y = y
-        self._m = m
-        self._c2 = (3.0 * delta - 2.0 * m[:-1] - m[1:]) / h[:, None]
-        self._c3 = (m[:-1] + m[1:] - 2.0 * delta) / (h * h)[:, None]
+        # Piece i: y_i + m_i t + c2_i t^2 + c3_i t^3 for t = s - x_i; the four
+        # coefficients of a piece side by side (pieces, 4, d), so that one gather fetches
+        # them.
+        c2 = (3.0 * delta - 2.0 * m[:-1] - m[1:]) / h[:, None]
+        c3 = (m[:-1] + m[1:] - 2.0 * delta) / (h * h)[:, None]
+        self._coef = np.stack([y[:-1], m[:-1], c2, c3], axis=1)
 
     @staticmethod
     def _slopes(x: np.ndarray, h: np.ndarray, y: np.ndarray, delta: np.ndarray
@@ -70,24 +71,36 @@ class CubicPath:
     def __call__(self, s: np.ndarray | float, nu: int = 0) -> np.ndarray:
         """Values (``nu`` = 0) or their first, second or third derivative at ``s``: (len(s), d),
         or (d,) for a scalar ``s``."""
+        if nu not in (0, 1, 2, 3):
+            raise ValueError(f"nu must be 0, 1, 2 or 3, got {nu}")
         s_arr = np.asarray(s, dtype=float)
-        flat = np.atleast_1d(s_arr)
-        # (np.clip checks its arguments' types on every call: ~4 us here.)
-        i = np.minimum(np.maximum(np.searchsorted(self.x, flat, side="right") - 1, 0),
-                       len(self.x) - 2)
-        t = (flat - self.x[i])[:, None]
-        m, c2, c3 = self._m[i], self._c2[i], self._c3[i]
+        t, c = self._pieces(np.atleast_1d(s_arr))
+        y, m, c2, c3 = c[:, 0], c[:, 1], c[:, 2], c[:, 3]
         if nu == 0:
-            out = self._y[i] + t * (m + t * (c2 + t * c3))
+            out = y + t * (m + t * (c2 + t * c3))
         elif nu == 1:
             out = m + t * (2.0 * c2 + 3.0 * t * c3)
         elif nu == 2:
             out = 2.0 * c2 + 6.0 * t * c3
-        elif nu == 3:
-            out = np.broadcast_to(6.0 * c3, (flat.size, c3.shape[-1])).copy()
         else:
-            raise ValueError(f"nu must be 0, 1, 2 or 3, got {nu}")
+            out = 6.0 * c3
         return out[0] if s_arr.ndim == 0 else out
+
+    def jet(self, s: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Values and first and second derivatives at the points ``s`` (each (len(s), d)):
+        ``path(s), path(s, 1), path(s, 2)`` with one piece lookup."""
+        t, c = self._pieces(np.atleast_1d(np.asarray(s, dtype=float)))
+        y, m, c2, c3 = c[:, 0], c[:, 1], c[:, 2], c[:, 3]
+        return (y + t * (m + t * (c2 + t * c3)), m + t * (2.0 * c2 + 3.0 * t * c3),
+                2.0 * c2 + 6.0 * t * c3)
+
+    def _pieces(self, flat: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """For points ``flat`` (n,): their offsets into their pieces (n, 1) and the
+        pieces' coefficients (n, 4, d)."""
+        # (np.clip checks its arguments' types on every call: ~4 us here.)
+        i = np.minimum(np.maximum(np.searchsorted(self.x, flat, side="right") - 1, 0),
+                       len(self.x) - 2)
+        return (flat - self.x[i])[:, None], self._coef[i]
 
 
 def solve_tridiagonal(dl: np.ndarray, d: np.ndarray, du: np.ndarray, b: np.ndarray

@@ -29,7 +29,7 @@ from ..errors import TimingError
 from ..execution import interval_ratios
 from ..robot import Robot
 from . import _smooth, _topp
-from ._path_limits import PathLimits, PathSpline, path_limits
+from ._path_limits import PathLimits, PathSpline, jet, path_limits
 from ._spline import CubicPath
 
 __all__ = ["TimingOptions", "TimedPiece", "PathSpline", "spline_path", "time_path",
@@ -279,12 +279,11 @@ def _time_once(path: PathSpline, limits: PathLimits, f_acc: np.ndarray, f_x: np.
     # (its jerk by ~0.2 %). The last knot may come a few ns after the motion's end (at rest).
     t = _ns_grid(n, int(np.ceil(duration / (n - 1) * _NS)))
     s, sd, sdd, _ = _smooth.evaluate(sm, t)
-    ps = path(s, 1)
+    q, ps, pss = jet(path, s)
     qd = ps * sd[:, None]
-    qdd = path(s, 2) * (sd ** 2)[:, None] + ps * sdd[:, None]
+    qdd = pss * (sd ** 2)[:, None] + ps * sdd[:, None]
     qd[0] = qd[-1] = 0.0  # at rest (not -0.0)
     qdd[0] = qdd[-1] = 0.0
-    q = path(s)
     segment = interval_index(limits.s_way, s, limits.vmax_seg.shape[0])
     ratios = np.array(_interval_ratios(t, q, qd, qdd, segment, limits))
     return _Run(t, s, q, qd, qdd, segment, ratios, sm)
@@ -300,7 +299,8 @@ def _jerk_window(profile: _topp.Profile, path: PathSpline, limits: PathLimits,
     t = np.arange(0.0, profile.duration, dt)
     s, sd, u = _topp.evaluate(profile, t)
     seg = interval_index(limits.s_way, s, limits.jmax_seg.shape[0])
-    acc = (path(s, 1) * u[:, None] + path(s, 2) * (sd ** 2)[:, None]) / limits.jmax_seg[seg]
+    _, ps, pss = jet(path, s)
+    acc = (ps * u[:, None] + pss * (sd ** 2)[:, None]) / limits.jmax_seg[seg]
     # At rest (zero acceleration) before and after: the first and last changes count.
     f = np.vstack([np.zeros((1, acc.shape[1])), acc, np.zeros((1, acc.shape[1]))])
     hi = max(1, int(np.ceil(2.0 * float(np.abs(f).max()) / dt)))
@@ -392,11 +392,13 @@ def _release(run: _Run, limits: PathLimits, options: TimingOptions, where: str) 
     limit, checked."""
     k = run.stretch
     t, qd, qdd = run.t, run.qd, run.qdd
+    # Unstretched, the released knots are the run's own: their ratios are known already.
+    ratios: Sequence[np.ndarray] = tuple(run.ratios)
     if k > 1.0:
         log.debug("timing up to %.4f %% over a limit; stretching time by %.6f",
                   (float(run.ratios.max()) - 1) * 100, k)
         t, qd, qdd, k = stretch_knots(t, qd, qdd, k)
-    ratios = _interval_ratios(t, run.q, qd, qdd, run.segment, limits)
+        ratios = _interval_ratios(t, run.q, qd, qdd, run.segment, limits)
     worst = max((float(r.max()) for r in ratios), default=0.0)
     for _ in range(3):
         # The speed bound samples each interval at >= 1 kHz: a stretched interval may get

@@ -1,7 +1,8 @@
 """``safepath view``: review and fix a cell's motions in the browser.
 
-This module is imported by every ``safepath`` command to register ``view``; it stays
-light (viser loads only when the command runs).
+This module is imported to register ``view`` (when that command runs, and for the
+command list of ``safepath --help``); it stays light (viser loads only when the command
+runs).
 """
 
 from __future__ import annotations

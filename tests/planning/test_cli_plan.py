@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import os
 import subprocess
 import sys
 from pathlib import Path
@@ -110,3 +111,18 @@ def test_a_bag_that_cannot_be_written_leaves_no_output(tmp_path: Path,
     assert main(["plan", str(BUNDLED), "--out", str(out), "--route", "phase1",
                  "--bag", str(blocker / "cycle")]) == 2
     assert sorted(p.name for p in out.iterdir()) == ["keep.txt"]
+
+
+def test_a_plan_without_compiled_kernels_says_so(tmp_path: Path) -> None:
+    """Without a build of the kernels for these sources (an empty kernel cache here) the
+    first route loads numba's kernels, most of a second: a plan says so, once, on
+    standard error, and how to build them."""
+    env = {k: v for k, v in os.environ.items() if k != "SAFEPATH_AOT"}
+    env["SAFEPATH_KERNEL_CACHE"] = str(tmp_path / "no-kernels")
+    proc = subprocess.run(_safepath() + ["plan", str(BUNDLED), "--out", str(tmp_path / "out"),
+                                         "--route", "phase1"],
+                          cwd=ROOT, capture_output=True, text=True, timeout=300, env=env)
+    assert proc.returncode == 0, proc.stderr
+    lines = proc.stderr.splitlines()
+    assert len(lines) == 1 and lines[0].startswith("safepath plan: note: numba JIT"), proc.stderr
+    assert "safepath build-kernels" in lines[0]

@@ -27,6 +27,18 @@ def test_values_and_derivatives_match_scipy(n: int) -> None:
         np.testing.assert_allclose(ours(s, 2), 0.0, atol=1e-12)
 
 
+@pytest.mark.parametrize("n", [2, 3, 17])
+def test_jet_is_the_three_evaluations_bit_for_bit(n: int) -> None:
+    """``jet`` (one piece lookup) gives exactly ``path(s), path(s, 1), path(s, 2)``: the
+    timing uses it, and a faster evaluation must not change a trajectory's bits."""
+    rng = np.random.default_rng(n)
+    x = np.concatenate([[0.0], np.cumsum(rng.uniform(0.005, 0.3, n - 1))])
+    path = CubicPath(x, rng.normal(0.0, 1.0, (n, 6)))
+    s = np.concatenate([np.linspace(x[0] - 0.1, x[-1] + 0.1, 501), x])
+    for got, nu in zip(path.jet(s), (0, 1, 2), strict=True):
+        assert got.tobytes() == path(s, nu).tobytes()
+
+
 def test_bad_input_is_refused() -> None:
     with pytest.raises(ValueError, match="increase"):
         CubicPath(np.array([0.0, 1.0, 1.0]), np.zeros((3, 2)))

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import csv
+import dataclasses
 import io
 import json
 from pathlib import Path
@@ -59,6 +60,25 @@ def test_csv_header_and_rows(bundled: Plans, tmp_path: Path) -> None:
     assert {r[1] for r in rows[1:]} == {traj.steps[k] for k in set(traj.step_index.tolist())}
     resampled = list(csv.reader(io.StringIO(traj.to_csv(period=0.01))))
     assert len(resampled) == 1 + traj.resample(0.01).t.size
+
+
+@pytest.mark.parametrize("steps", ["as planned", "quoted", "empty"])
+def test_csv_is_what_the_csv_writer_writes_row_by_row(bundled: Plans, steps: str) -> None:
+    """The rows are joined by hand (fast); they read as the csv writer writes them, step
+    names that need quoting included."""
+    traj = bundled.trajectories["phase1"]
+    if steps != "as planned":
+        names = tuple(f'{s}, "{i}"\n' if steps == "quoted" else "" for i, s in
+                      enumerate(traj.steps))
+        traj = dataclasses.replace(traj, steps=names)
+    buf = io.StringIO()
+    writer = csv.writer(buf, lineterminator="\n")
+    writer.writerow(traj.to_csv().splitlines()[0].split(","))
+    for k in range(traj.t.size):
+        writer.writerow([repr(float(traj.t[k])), traj.steps[traj.step_index[k]]]
+                        + [repr(float(v)) for v in np.hstack([traj.q[k], traj.qd[k],
+                                                              traj.qdd[k]])])
+    assert traj.to_csv() == buf.getvalue()
 
 
 def test_sample_at_knots_returns_knots(bundled: Plans) -> None:
