@@ -1,4 +1,4 @@
-"""The peaks of a quintic join, per interval and joint, numba-compiled.
+"""The peaks of a quintic join, per interval and joint, and its samples, numba-compiled.
 
 The kernel of :func:`safepath.execution.interval_ratios` (see there for what is bounded
 and how): the same sums as the numpy version it replaced, one interval and joint at a
@@ -15,7 +15,7 @@ from typing import Any
 
 import numpy as np
 
-__all__ = ["compiled_kernels", "peaks"]
+__all__ = ["compiled_kernels", "peaks", "sample"]
 
 _lock = threading.Lock()
 _compiled: dict[str, Callable[..., Any]] = {}
@@ -86,6 +86,57 @@ def _peaks(t: np.ndarray, q: np.ndarray, qd: np.ndarray, qdd: np.ndarray, rate: 
             j_out[k, d] = jp
 
 
+def _sample(t: np.ndarray, q: np.ndarray, qd: np.ndarray, qdd: np.ndarray,
+            times: np.ndarray, p_out: np.ndarray, v_out: np.ndarray, a_out: np.ndarray
+            ) -> None:
+    """Position, velocity and acceleration of the quintic join of points ``(t, q, qd,
+    qdd)`` (at least two) at ``times``, clamped to the ends (the end points themselves
+    there), into the outputs (len(times), dof)."""
+    n, dof = t.size, q.shape[1]
+    for i in range(times.size):
+        x = times[i]
+        if x <= t[0] or x >= t[n - 1]:
+            e = 0 if x <= t[0] else n - 1
+            for d in range(dof):
+                p_out[i, d], v_out[i, d], a_out[i, d] = q[e, d], qd[e, d], qdd[e, d]
+            continue
+        lo, hi = 0, n - 1  # t[lo] <= x < t[hi]
+        while hi - lo > 1:
+            mid = (lo + hi) // 2
+            if t[mid] <= x:
+                lo = mid
+            else:
+                hi = mid
+        h, s = t[lo + 1] - t[lo], x - t[lo]
+        for d in range(dof):
+            v0, acc0 = qd[lo, d], qdd[lo, d]
+            dp = q[lo + 1, d] - q[lo, d] - v0 * h - acc0 * h * h / 2.0
+            dv = qd[lo + 1, d] - v0 - acc0 * h
+            da = qdd[lo + 1, d] - acc0
+            c3 = (10.0 * dp - 4.0 * dv * h + da * h * h / 2.0) / h ** 3
+            c4 = (-15.0 * dp + 7.0 * dv * h - da * h * h) / h ** 4
+            c5 = (6.0 * dp - 3.0 * dv * h + da * h * h / 2.0) / h ** 5
+            p_out[i, d] = q[lo, d] + s * (v0 + s * (acc0 / 2.0 + s * (c3 + s * (c4 + c5 * s))))
+            v_out[i, d] = v0 + s * (acc0 + s * (3.0 * c3 + s * (4.0 * c4 + 5.0 * c5 * s)))
+            a_out[i, d] = acc0 + s * (6.0 * c3 + s * (12.0 * c4 + 20.0 * c5 * s))
+
+
+def sample(t: np.ndarray, q: np.ndarray, qd: np.ndarray, qdd: np.ndarray,
+           times: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Position, velocity and acceleration of the quintic join of the points at ``times``
+    (clamped to the ends), each (len(times), dof); what
+    :func:`safepath.execution.join` gives, compiled (equal to rounding)."""
+    t, q, qd, qdd = (np.ascontiguousarray(x, dtype=np.float64) for x in (t, q, qd, qdd))
+    times = np.ascontiguousarray(np.atleast_1d(times), dtype=np.float64)
+    shape = (times.size, q.shape[1])
+    if t.size == 1:
+        return (np.repeat(q, times.size, 0), np.repeat(qd, times.size, 0),
+                np.repeat(qdd, times.size, 0))
+    p, v, a = np.empty(shape), np.empty(shape), np.empty(shape)
+    compiled_kernels()["sample"](t, q, qd, qdd, times, p, v, a)
+    return p, v, a
+
+
 def peaks(t: np.ndarray, q: np.ndarray, qd: np.ndarray, qdd: np.ndarray, rate: float
           ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Speed bound, acceleration and jerk peaks of the quintic join of the points, per
@@ -106,4 +157,5 @@ def compiled_kernels() -> dict[str, Callable[..., Any]]:
             from ._aot import njit
 
             _compiled["peaks"] = njit(cache=True, nogil=True)(_peaks)
+            _compiled["sample"] = njit(cache=True, nogil=True)(_sample)
         return _compiled

@@ -129,6 +129,7 @@ def recorded() -> dict[str, list[tuple[Any, ...]]]:
     join = _joinkernel.compiled_kernels()
     saved_join = dict(join)
     join["peaks"] = recorder("join_peaks", saved_join["peaks"])
+    join["sample"] = recorder("join_sample", saved_join["sample"])
     try:
         for folder in (CELL, PANDA):
             cell = safepath.load_cell(folder)

@@ -125,6 +125,7 @@ ENTRIES: dict[str, Entry] = {
     "topp_tridiagonal": Entry(_TOPP, "_tridiagonal", (F1, F1, F1, F2), INT),
     # The peaks of a controller's quintic join (safepath._joinkernel).
     "join_peaks": Entry(_JOIN, "_peaks", (F1, F2, F2, F2, FLOAT, F2, F2, F2), "void"),
+    "join_sample": Entry(_JOIN, "_sample", (F1, F2, F2, F2, F1, F2, F2, F2), "void"),
 }
 
 #: The modules whose source the ahead-of-time module is compiled from: it is used only

@@ -207,9 +207,18 @@ class MonitoredPath:
         """Path parameter of the last knot [s]."""
         return float(self.traj.t[-1])
 
+    def states(self, tau: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Positions, velocities and accelerations of the verified trajectory at path
+        parameters ``tau`` (clamped to its ends): its knots' quintic join, compiled (a
+        replacement samples it at every knot, for every candidate profile)."""
+        from .._joinkernel import sample
+
+        tr = self.traj
+        return sample(tr.t, tr.q, tr.qd, tr.qdd, np.asarray(tau, dtype=float))
+
     def sample(self, tau: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Position, velocity and acceleration of the verified trajectory at ``tau``."""
-        q, qd, qdd = self.traj.sample([tau])
+        q, qd, qdd = self.states(np.array([float(tau)]))
         return q[0], qd[0], qdd[0]
 
     def grid(self, tau0: float) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
@@ -377,7 +386,7 @@ class MonitoredPath:
         if done.size:  # reaches the path's end: stop there
             n = int(done[0]) + 1
             t, tau, r, rd = t[:n], tau[:n], r[:n], rd[:n]
-        q, Qd, Qdd = self.traj.sample(tau)  # noqa: N806
+        q, Qd, Qdd = self.states(tau)  # noqa: N806
         v = Qd * r[:, None]
         a = Qdd * (r * r)[:, None] + Qd * rd[:, None]
         v[-1] = a[-1] = 0.0
