@@ -187,7 +187,9 @@ class Monitor:
             traj: The motion (no gripper event strictly inside it).
             start: Monitor time of its first knot [s].
             held: Object the gripper holds during it (part of the robot), or None.
-            scale: Speed scale to start with (1: its verified timing).
+            scale: Speed scale to start with (1: its verified timing, sent as it is; 0:
+                not sent, the arm waits at its start until a ``resume`` decision's
+                replacement starts it).
 
         Raises:
             InputError: A gripper event inside the motion, or a robot mismatch.
@@ -212,7 +214,11 @@ class Monitor:
         self._timings = [timing]
         if self.controller is None:
             self.controller = ControllerModel(traj.q[0], interpolation=self._interpolation)
-        self.controller.take(traj.t - traj.t[0], traj.q, traj.qd, traj.qdd, start=start)
+        if scale > 0.0:
+            self.controller.take(traj.t - traj.t[0], traj.q, traj.qd, traj.qdd, start=start)
+        else:  # not sent yet: the arm rests at its start until a resume
+            rest = np.zeros((1, traj.dof))
+            self.controller.take(np.zeros(1), traj.q[:1], rest, rest, start=start)
         self._any_instant = True
         self._scale = scale
         self._blocked_since = None

@@ -27,7 +27,7 @@ from __future__ import annotations
 
 import logging
 from collections.abc import Mapping
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any, Literal
 
@@ -447,8 +447,17 @@ class MonitorNodeCore:
             self._held = part.object if part.action == "close" else None
             self._running = "gripper"
         else:
-            self.monitor.follow(part, start=now, held=self._held)
             self._running = "motion"
+            # Assessed before it leaves: a motion the separation does not allow at all is
+            # not sent; the arm waits at its start and a resume decision starts it.
+            self.monitor.follow(part, start=now, held=self._held)
+            decision = self.monitor.tick(now)
+            if decision.scale <= 0.0:
+                self.monitor.follow(part, start=now, held=self._held, scale=0.0)
+                return [Publish(replace(decision, reason=decision.reason + "; the next "
+                                        "motion waits at its start", replacement=None,
+                                        replacement_start=None, switch=None))]
+            return out + self._commands(decision, now)
         return out
 
     def _pose_of(self, index: int) -> np.ndarray | None:

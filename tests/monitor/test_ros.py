@@ -143,6 +143,17 @@ def test_node_core_lifecycle(cell_dir: Path) -> None:
     # phase 1 starts with "close vial": the gripper first, then the first motion.
     first = core.activate(10.0)
     assert isinstance(first[0], Gripper) and first[0].event.action == "close"
+    # The motion is assessed before it is sent: with no scan yet (sensor silence) it
+    # waits at its start; after a fresh scan it is sent.
+    held = core.on_gripper_done(10.5)
+    assert len(held) == 1 and isinstance(held[0], Publish)
+    assert held[0].decision.kind == "stop" and "waits at its start" in held[0].decision.reason
+    scan = scan_message(Scan(10.45, "laser", np.full(360, np.inf), -np.pi, np.pi / 180,
+                             0.05, 8))
+    core = MonitorNodeCore(params)
+    core.configure()
+    core.activate(10.0)
+    core.on_scan(_round_trip(scan, "sensor_msgs/msg/LaserScan"), 10.46)
     move = core.on_gripper_done(10.5)
     assert isinstance(move[0], SendGoal) and move[0].trajectory is core.motions[0][0]
     scan = scan_message(Scan(10.55, "laser", np.full(360, np.inf), -np.pi, np.pi / 180,
