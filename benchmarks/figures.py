@@ -2,13 +2,13 @@
 
 Reads the JSON files the benchmarks write into ``benchmarks/results/``, each its latest
 saved run (``collision_checks.py``, ``plan_cycle.py``, ``panda_set.py``, ``cold_start.py``,
-``runtime_heartbeat.py`` and ``monitor.py`` with ``--save``; ``executed_motion.py``,
-``replan.py``, ``twin.py`` and ``peers/run.py`` always), and writes one row per headline
-figure, with the command that measures it and when, on what and at which load it was
-measured; then the peer comparison's table from ``peers.json``. A benchmark without a
-results file gets a row saying how to measure it. Saving a benchmark
-(``_results.save``), ``executed_motion.py``, ``replan.py`` and ``peers/run.py`` run this
-too.
+``runtime_heartbeat.py``, ``monitor.py``, ``switches.py`` and ``live_safety.py`` with
+``--save``; ``executed_motion.py``, ``replan.py``, ``twin.py`` and ``peers/run.py``
+always), and writes one row per headline figure, with the command that measures it and
+when, on what and at which load it was measured; then the peer comparison's table from
+``peers.json``. A benchmark without a results file gets a row saying how to measure it.
+Saving a benchmark (``_results.save``), ``executed_motion.py``, ``replan.py`` and
+``peers/run.py`` run this too.
 
     .venv/bin/python benchmarks/figures.py [--results DIR] [--out FILE]
 """
@@ -197,6 +197,31 @@ def _twin(d: dict[str, Any]) -> list[Row]:
     return rows
 
 
+def _live_safety(d: dict[str, Any]) -> list[Row]:
+    closest = d["closest_moving_m"]
+    zero = ("contacts_moving", "below_minimum", "goals_after_kill", "deferred",
+            "stops_over_limit", "switch_steps", "runs_over_limit", "dropped")
+    met = all(d[k] == 0 for k in zero)
+    ratios = " / ".join(f"{r:.3f}" for r in d["commanded_ratios"])
+    rows = [("live-safety suite in the twin (bodies parked and crossing at up to 1.6 m/s, "
+             "sensor silences, kills at random, before a motion's end, during re-plans): "
+             "contacts while moving; closest approach while moving; goals after a kill; "
+             "deferred / over-limit stops; stepped switches; dropped objects",
+             f"{d['contacts_moving']}; "
+             + ("-" if closest is None else f"{1000 * closest:.0f} mm")
+             + f" (minimum {1000 * d['min_separation_m']:.0f} mm); {d['goals_after_kill']}; "
+             f"{d['deferred']} / {d['stops_over_limit']}; {d['switch_steps']} of "
+             f"{d['switches']} (largest commanded speed / accel / jerk ratio {ratios}); "
+             f"{d['dropped']} (aim all 0 and closest ≥ minimum, {_met(met)}; {d['runs']} "
+             f"runs, failing seeds: {', '.join(map(str, d['failing_seeds'])) or 'none'})")]
+    asked = d["replan_requests"]
+    if asked:
+        rows.append(("live-safety suite: re-plans that succeeded",
+                     f"{d['replan_taken']} of {asked} requests "
+                     f"({d['replan_taken'] / asked:.0%})"))
+    return rows
+
+
 def _peers(d: dict[str, Any]) -> list[Row]:
     sp = d["summary"]["panda"]
     ours, rp = sp["safepath"], sp.get("roboplan", {})
@@ -234,6 +259,8 @@ SOURCES: list[tuple[str, str, Reader]] = [
     ("runtime_heartbeat.json", "benchmarks/runtime_heartbeat.py --save", _runtime_heartbeat),
     ("monitor.json", "benchmarks/monitor.py --save", _monitor),
     ("switches.json", "benchmarks/switches.py --runs 200 --save", _switches),
+    ("live_safety.json", "benchmarks/live_safety.py --runs 200 --workers 2 --save",
+     _live_safety),
     ("executed_motion.json", "benchmarks/executed_motion.py --random 40 --seed 23",
      _executed_motion),
     ("replan.json", "benchmarks/replan.py", _replan),
