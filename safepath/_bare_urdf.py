@@ -22,6 +22,7 @@ from pathlib import Path
 import numpy as np
 import pinocchio as pin
 
+from ._io import check_readable
 from ._joint_roles import gripper_joints, refuse_non_arm, tip_frame
 from ._locked import lock_joints, read_mimics
 from .errors import ConfigError
@@ -100,6 +101,7 @@ def load_urdf(urdf: Path, given: Given) -> Robot:
     # ``package://NAME/...`` meshes are looked for in the folders above the URDF (the
     # URDF of a ROS package lies inside it).
     packages = [str(folder) for folder in urdf.resolve().parents]
+    check_readable(urdf)
     try:
         full = pin.buildModelFromUrdf(str(urdf))
         geom = pin.buildGeomFromUrdf(full, str(urdf), pin.GeometryType.COLLISION,

@@ -1,12 +1,26 @@
-"""File helpers: YAML reading that names the file on failure, atomic writes with backup."""
+"""File helpers: YAML reading that names the file on failure, atomic writes with backup.
+
+How safepath reads and writes a user's files (robot, scene, routes, poses, the save log):
+
+* A file is read only if it is a regular file (a link to one is followed; a named pipe,
+  a device or a folder is refused before it is opened, so a pipe cannot block the reader
+  and ``/dev/zero`` cannot fill the memory) of at most :data:`MAX_FILE_BYTES`.
+* A file is written by creating a new temporary file beside it (``O_CREAT | O_EXCL |
+  O_NOFOLLOW``) and renaming it over the name. A name that is a symbolic link or not a
+  regular file is refused, never written through; so is a backup name ``<file>~`` that
+  is not a regular file. The backup is itself a fresh temporary file renamed into place,
+  so a link planted at that name between the check and the rename is replaced, not
+  followed.
+"""
 
 from __future__ import annotations
 
+import errno
 import glob
 import math
 import os
+import reprlib
 import secrets
-import shutil
 import stat
 from collections.abc import Callable, Iterable, Iterator, Mapping
 from contextlib import contextmanager
@@ -22,8 +36,18 @@ try:  # libyaml's parser: about 7x faster than PyYAML's own on the cell's files
 except ImportError:  # pragma: no cover - PyYAML built without libyaml
     from yaml import SafeLoader as _SafeBase  # type: ignore[assignment]
 
-__all__ = ["read_yaml", "atomic_write", "atomic_write_text", "leftover_temporaries", "get_key",
-           "as_float", "as_vector", "as_str", "check_names", "check_keys"]
+__all__ = ["MAX_FILE_BYTES", "check_readable", "read_bytes", "read_text", "read_yaml",
+           "atomic_write", "atomic_write_text", "keep_backup", "check_replaceable",
+           "open_no_follow", "leftover_temporaries", "get_key", "as_float", "as_vector",
+           "as_str", "brief", "check_names", "check_keys"]
+
+#: The largest file safepath reads [bytes] (16 MiB): a cell's YAML files are kilobytes;
+#: a poses file of 30,000 poses is 2 MB. A larger file is refused, naming this limit.
+MAX_FILE_BYTES = 16 << 20
+
+#: Flags of every file safepath opens: not inherited by a child process; never blocking
+#: on a named pipe (one is refused after ``fstat``).
+_OPEN_FLAGS = os.O_CLOEXEC | os.O_NONBLOCK
 
 
 class _DuplicateKey(Exception):
@@ -54,19 +78,112 @@ class _StrictLoader(_SafeBase):
         return super().construct_mapping(node, deep=deep)
 
 
+def _kind(mode: int) -> str:
+    """What a file that is not a regular file is, for a message."""
+    for test, name in ((stat.S_ISLNK, "a symbolic link"), (stat.S_ISDIR, "a folder"),
+                       (stat.S_ISFIFO, "a named pipe"), (stat.S_ISCHR, "a character device"),
+                       (stat.S_ISBLK, "a block device"), (stat.S_ISSOCK, "a socket")):
+        if test(mode):
+            return name
+    return "not a regular file"
+
+
+def _check_readable(st: os.stat_result, path: Path, error: type[InputError],
+                    limit: int) -> None:
+    if not stat.S_ISREG(st.st_mode):
+        raise error(f"is {_kind(st.st_mode)}: safepath reads regular files only",
+                    path=path)
+    if st.st_size > limit:
+        raise error(f"file too large ({st.st_size / (1 << 20):.1f} MiB; safepath reads at "
+                    f"most {limit / (1 << 20):g} MiB, safepath._io.MAX_FILE_BYTES)", path=path)
+
+
+def check_readable(path: str | Path, *, error: type[InputError] = ConfigError,
+                   limit: int = MAX_FILE_BYTES) -> None:
+    """Refuse a file that another library is about to open by its name (a URDF given to
+    Pinocchio) unless it is a regular file of at most ``limit`` [bytes].
+
+    Raises:
+        InputError: The file is missing, not a regular file or too large.
+    """
+    path = Path(path)
+    try:
+        _check_readable(os.stat(path), path, error, limit)
+    except FileNotFoundError:
+        raise error("file not found", path=path) from None
+    except OSError as exc:
+        raise error(f"cannot read file ({exc.strerror or exc})", path=path) from None
+
+
+def read_bytes(path: str | Path, *, error: type[InputError] = ConfigError,
+               limit: int = MAX_FILE_BYTES) -> bytes:
+    """The bytes of a user's file, read only if it is a regular file of at most ``limit``.
+
+    The path is checked with ``stat`` before it is opened (a device or a named pipe is
+    never opened), opened with ``O_NONBLOCK`` and checked again on the open file (it may
+    have been swapped meanwhile), and at most ``limit + 1`` bytes are read (it may grow
+    meanwhile). A symbolic link to a regular file is read.
+
+    Args:
+        path: The file.
+        error: Error class raised.
+        limit: The largest size read [bytes].
+
+    Raises:
+        InputError: The file is missing, unreadable, not a regular file, or larger than
+            ``limit`` (names the file and the reason).
+    """
+    path = Path(path)
+    try:
+        _check_readable(os.stat(path), path, error, limit)
+        fd = os.open(path, os.O_RDONLY | _OPEN_FLAGS)
+    except FileNotFoundError:
+        raise error("file not found", path=path) from None
+    except OSError as exc:
+        raise error(f"cannot read file ({exc.strerror or exc})", path=path) from None
+    try:
+        _check_readable(os.fstat(fd), path, error, limit)
+        chunks = []
+        left = limit + 1
+        while left > 0:
+            chunk = os.read(fd, min(left, 1 << 20))
+            if not chunk:
+                break
+            chunks.append(chunk)
+            left -= len(chunk)
+    except OSError as exc:
+        raise error(f"cannot read file ({exc.strerror or exc})", path=path) from None
+    finally:
+        os.close(fd)
+    if left <= 0:
+        raise error(f"file too large (grew beyond {limit / (1 << 20):g} MiB while it was "
+                    "read; safepath._io.MAX_FILE_BYTES)", path=path)
+    return b"".join(chunks)
+
+
+def read_text(path: str | Path, *, error: type[InputError] = ConfigError) -> str:
+    """The UTF-8 text of a user's file, read as :func:`read_bytes` reads it.
+
+    Raises:
+        InputError: As :func:`read_bytes`, or the file is not UTF-8.
+    """
+    raw = read_bytes(path, error=error)
+    try:
+        return raw.decode("utf-8")
+    except UnicodeDecodeError as exc:
+        raise error(f"cannot read file (not UTF-8: {exc.reason} at byte {exc.start})",
+                    path=Path(path)) from None
+
+
 def read_yaml(path: str | Path, *, error: type[InputError] = ConfigError) -> Any:
     """Read a YAML file; a key given twice in one mapping is an error.
 
     Raises:
-        InputError: The file is missing, unreadable, not valid YAML, or repeats a key.
+        InputError: The file is missing, unreadable, not a regular file, larger than
+            :data:`MAX_FILE_BYTES`, not valid YAML, or repeats a key.
     """
     path = Path(path)
-    try:
-        text = path.read_text(encoding="utf-8")
-    except FileNotFoundError:
-        raise error("file not found", path=path) from None
-    except (OSError, UnicodeDecodeError) as exc:
-        raise error(f"cannot read file ({exc})", path=path) from None
+    text = read_text(path, error=error)
     try:
         return yaml.load(text, Loader=_StrictLoader)  # noqa: S506 - a SafeLoader subclass
     except _DuplicateKey as exc:
@@ -93,6 +210,16 @@ def read_mapping(path: Path, known: Iterable[str]) -> dict[Any, Any]:
     return data
 
 
+def brief(value: Any) -> str:
+    """``repr(value)`` cut short for a message (a few items of a list or mapping, two
+    levels deep, at most 80 characters): a misplaced mapping may hold the whole file."""
+    shortener = reprlib.Repr()
+    shortener.maxlevel, shortener.maxdict, shortener.maxlist = 2, 3, 8
+    shortener.maxstring = shortener.maxother = 40
+    text = shortener.repr(value)
+    return text if len(text) <= 80 else text[:76] + " ..."
+
+
 def get_key(mapping: Any, key: str, *, path: Path | None, prefix: str = "",
             default: Any = ..., error: type[InputError] = ConfigError) -> Any:
     """Return ``mapping[key]``, or raise a typed error naming the file and dotted key."""
@@ -110,10 +237,10 @@ def as_float(value: Any, *, path: Path | None, key: str, positive: bool = False,
              non_negative: bool = False, error: type[InputError] = ConfigError) -> float:
     """Convert a YAML scalar to a finite float, or raise a typed error."""
     if isinstance(value, bool) or not isinstance(value, (int, float)):
-        raise error(f"expected a number, got {value!r}", path=path, key=key)
+        raise error(f"expected a number, got {brief(value)}", path=path, key=key)
     out = float(value)
     if not math.isfinite(out):
-        raise error(f"value {value!r} is not finite", path=path, key=key)
+        raise error(f"value {brief(value)} is not finite", path=path, key=key)
     if positive and out <= 0.0:
         raise error(f"must be > 0, got {out:g}", path=path, key=key)
     if non_negative and out < 0.0:
@@ -125,7 +252,7 @@ def as_vector(value: Any, n: int | None, *, path: Path | None, key: str,
               error: type[InputError] = ConfigError) -> list[float]:
     """Convert a YAML list to ``n`` finite floats, or raise a typed error."""
     if not isinstance(value, (list, tuple)):
-        raise error(f"expected a list of {n or ''} numbers, got {value!r}".replace("  ", " "),
+        raise error(f"expected a list of {n or ''} numbers, got {brief(value)}".replace("  ", " "),
                     path=path, key=key)
     if n is not None and len(value) != n:
         raise error(f"expected {n} values, got {len(value)}", path=path, key=key)
@@ -136,22 +263,23 @@ def as_str(value: Any, *, path: Path | None, key: str,
            error: type[InputError] = ConfigError) -> str:
     """Check that a YAML value is a non-empty string."""
     if not isinstance(value, str) or not value:
-        raise error(f"expected a non-empty string, got {value!r}", path=path, key=key)
+        raise error(f"expected a non-empty string, got {brief(value)}", path=path, key=key)
     return value
 
 
 @contextmanager
 def atomic_write(path: str | Path, *, mode: str = "w", backup: bool = False,
-                 before_replace: Callable[[Path], None] | None = None) -> Iterator[IO[Any]]:
+                 before_replace: Callable[[Path], None] | None = None,
+                 error: type[InputError] = InputError) -> Iterator[IO[Any]]:
     """Write a file so that it is either wholly replaced or left untouched.
 
-    The content goes to a temporary file ``.<name>.<random>.tmp`` in the same folder, is
-    flushed to disk, and only then renamed over ``path``. The new file keeps the mode
-    (and, where allowed, the owner and group) of the one it replaces; a new file gets
-    the mode the umask gives. With ``backup``, the previous file is kept as ``path~``
-    (copied before the rename). On an exception the temporary file is removed and
-    ``path`` is unchanged; a process killed meanwhile leaves the temporary file behind
-    (see :func:`leftover_temporaries`).
+    The content goes to a temporary file ``.<name>.<random>.tmp`` in the same folder
+    (created exclusively, never through a link), is flushed to disk, and only then
+    renamed over ``path``. The new file keeps the mode (and, where allowed, the owner
+    and group) of the one it replaces; a new file gets the mode the umask gives. With
+    ``backup``, the previous file is kept as ``path~`` (see :func:`keep_backup`). On an
+    exception the temporary file is removed and ``path`` is unchanged; a process killed
+    meanwhile leaves the temporary file behind (see :func:`leftover_temporaries`).
 
     Args:
         path: The file to replace.
@@ -159,10 +287,16 @@ def atomic_write(path: str | Path, *, mode: str = "w", backup: bool = False,
         backup: Keep the previous file as ``path~``.
         before_replace: Called with the temporary file once it holds the whole new
             content on disk, before anything is renamed (a write-ahead log goes there).
+        error: Error class of a refusal.
+
+    Raises:
+        InputError: ``path`` (or, with ``backup``, ``path~``) is a symbolic link or not a
+            regular file (see :func:`check_replaceable`); nothing is written.
     """
     path = Path(path)
     folder = path.parent if str(path.parent) else Path(".")
     folder.mkdir(parents=True, exist_ok=True)
+    check_replaceable(path, backup=backup, error=error)
     fd, tmp = _create_temporary(path)
     try:
         _keep_mode_and_owner(fd, path)
@@ -173,12 +307,107 @@ def atomic_write(path: str | Path, *, mode: str = "w", backup: bool = False,
             os.fsync(handle.fileno())
         if before_replace is not None:
             before_replace(tmp)
-        if backup and path.exists():
-            shutil.copy2(path, path.with_name(path.name + "~"))
+        if backup:
+            keep_backup(path, error=error)
         os.replace(tmp, path)
     except BaseException:
         tmp.unlink(missing_ok=True)
         raise
+
+
+def check_replaceable(path: Path, *, backup: bool, error: type[InputError]) -> None:
+    """Refuse to replace ``path`` if it is a symbolic link (replacing it would cut the
+    link, writing through it would change a file elsewhere) or not a regular file; with
+    ``backup``, refuse a ``path~`` that is not a regular file (a link planted there
+    would make the backup overwrite the file it points to).
+
+    Raises:
+        InputError: Names the file (``path`` or ``path~``) and what it is.
+    """
+    names = [(path, "not replaced (safepath replaces regular files only, never through a "
+                    "link); give the file itself")]
+    if backup:
+        names.append((_backup_name(path), "the backup of the previous file goes here and "
+                                          "safepath writes none through a link; remove it"))
+    for name, why in names:
+        try:
+            st = os.lstat(name)
+        except FileNotFoundError:
+            continue
+        if not stat.S_ISREG(st.st_mode):
+            raise error(f"is {_kind(st.st_mode)}: {why}", path=name)
+
+
+def keep_backup(path: Path, *, error: type[InputError] = InputError) -> None:
+    """Copy ``path`` (if it exists) to ``path~``, keeping its mode and times, without
+    following a link at either name.
+
+    The copy is a new temporary file (created exclusively) renamed over ``path~``: a link
+    at that name is replaced, never written through.
+
+    Raises:
+        InputError: ``path`` or ``path~`` is a link or not a regular file.
+        OSError: The copy cannot be written.
+    """
+    check_replaceable(path, backup=True, error=error)
+    try:
+        src = os.open(path, os.O_RDONLY | os.O_NOFOLLOW | _OPEN_FLAGS)
+    except FileNotFoundError:
+        return
+    try:
+        st = os.fstat(src)
+        if not stat.S_ISREG(st.st_mode):
+            raise error(f"is {_kind(st.st_mode)}: not copied to its backup", path=path)
+        fd, tmp = _create_temporary(path)
+        try:
+            os.fchmod(fd, stat.S_IMODE(st.st_mode))
+            while chunk := os.read(src, 1 << 20):
+                view = memoryview(chunk)
+                while view:
+                    view = view[os.write(fd, view):]
+            os.utime(fd, ns=(st.st_atime_ns, st.st_mtime_ns))
+            os.fsync(fd)
+        except BaseException:
+            os.close(fd)
+            tmp.unlink(missing_ok=True)
+            raise
+        os.close(fd)
+        try:
+            os.replace(tmp, _backup_name(path))
+        except BaseException:
+            tmp.unlink(missing_ok=True)
+            raise
+    finally:
+        os.close(src)
+
+
+def _backup_name(path: Path) -> Path:
+    return path.with_name(path.name + "~")
+
+
+def open_no_follow(path: Path, flags: int, *, error: type[InputError] = InputError) -> int:
+    """Open (or, with ``os.O_CREAT``, create) a regular file, never through a link.
+
+    Returns:
+        The file descriptor.
+
+    Raises:
+        InputError: ``path`` is a symbolic link or not a regular file (names it).
+        OSError: It cannot be opened.
+    """
+    try:
+        fd = os.open(path, flags | os.O_NOFOLLOW | _OPEN_FLAGS, 0o666)
+    except OSError as exc:
+        if exc.errno == errno.ELOOP:
+            raise error("is a symbolic link: safepath opens this file only as a regular "
+                        "file, never through a link; remove it", path=path) from None
+        raise
+    st = os.fstat(fd)
+    if not stat.S_ISREG(st.st_mode):
+        os.close(fd)
+        raise error(f"is {_kind(st.st_mode)}, not a regular file", path=path)
+    os.set_blocking(fd, True)
+    return fd
 
 
 def leftover_temporaries(path: str | Path) -> list[Path]:
@@ -190,12 +419,14 @@ def leftover_temporaries(path: str | Path) -> list[Path]:
 
 
 def _create_temporary(path: Path) -> tuple[int, Path]:
-    """A new temporary file beside ``path``, created with the umask's mode (mkstemp's
-    0600 would be kept by the rename)."""
+    """A new temporary file beside ``path``, created exclusively (a name that exists, a
+    link included, is never opened), with the umask's mode (mkstemp's 0600 would be kept
+    by the rename)."""
     for _ in range(100):
         tmp = path.with_name(f".{path.name}.{secrets.token_hex(4)}.tmp")
         try:
-            return os.open(tmp, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o666), tmp
+            return os.open(tmp, os.O_WRONLY | os.O_CREAT | os.O_EXCL | os.O_NOFOLLOW
+                           | os.O_CLOEXEC, 0o666), tmp
         except FileExistsError:
             continue
     raise FileExistsError(f"no free temporary name beside {path}")
@@ -206,7 +437,7 @@ def _keep_mode_and_owner(fd: int, path: Path) -> None:
     and group where this process may (a robot process running as another user or
     group must still read the file after it is replaced)."""
     try:
-        st = path.stat()
+        st = os.lstat(path)
     except FileNotFoundError:
         return
     os.fchmod(fd, stat.S_IMODE(st.st_mode))
@@ -224,10 +455,12 @@ def atomic_write_text(path: str | Path, text: str, *, backup: bool = False,
     """Atomically replace ``path`` with ``text`` (see :func:`atomic_write`).
 
     Raises:
-        InputError: The file cannot be written (``path`` is left as it was).
+        InputError: The file cannot be written, or ``path`` or its backup name is a
+            link or not a regular file (``path`` is left as it was).
     """
     try:
-        with atomic_write(path, backup=backup, before_replace=before_replace) as handle:
+        with atomic_write(path, backup=backup, before_replace=before_replace,
+                          error=error) as handle:
             handle.write(text)
     except OSError as exc:
         raise error(f"cannot write file ({exc.strerror or exc})", path=path) from None

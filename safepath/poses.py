@@ -22,6 +22,7 @@ at full double precision), atomically, keeping its mode and the previous file as
 
 from __future__ import annotations
 
+import difflib
 import io
 import logging
 import re
@@ -31,7 +32,7 @@ from typing import Any
 
 import numpy as np
 
-from ._io import atomic_write_text, check_names, read_yaml
+from ._io import atomic_write_text, brief, check_names, read_text, read_yaml
 from .errors import PoseError
 from .robot import Robot
 from .tcp_targets import is_cartesian, parse_cartesian, solve_target
@@ -92,6 +93,11 @@ def _entries(data: dict, path: Path) -> dict[str, tuple[str, object]]:
         elif key == "poses" and value is None:
             continue
         else:
+            if isinstance(value, dict) and not is_cartesian(value) \
+                    and difflib.get_close_matches(str(key), ["poses"]):
+                # A misspelt `poses:` (its mapping is no pose): name the key, not its content.
+                check_names([key], ["poses"], path=path, key=str(key), what="top-level key",
+                            error=PoseError)
             _add(raw, str(key), str(key), value, path)
     return raw
 
@@ -119,11 +125,11 @@ def _pose(name: str, key: str, q: object, robot: Robot, path: Path) -> np.ndarra
     if not POSE_NAME.match(name):
         raise PoseError(f"'{name}' is not a valid pose name", path=path, key=key)
     if not isinstance(q, list):
-        raise PoseError(f"expected a list of {robot.dof} joint values, got {q!r}",
+        raise PoseError(f"expected a list of {robot.dof} joint values, got {brief(q)}",
                         path=path, key=key)
     for i, v in enumerate(q):
         if isinstance(v, bool) or not isinstance(v, (int, float)):
-            raise PoseError(f"value {i} is not a number: {v!r}", path=path, key=key)
+            raise PoseError(f"value {i} is not a number: {brief(v)}", path=path, key=key)
     return robot.as_joint_vector(q, name=key, path=path)
 
 
@@ -182,12 +188,12 @@ def save_poses(path: str | Path, poses: Mapping[str, Sequence[float] | np.ndarra
 def _updated_text(path: Path, poses: dict[str, np.ndarray], robot: Robot) -> str | None:
     """The text of ``path`` with ``poses`` written into it (round-trip YAML), or None when
     there is no poses file to keep (missing, or it does not load)."""
-    try:
-        text = path.read_text(encoding="utf-8")
-        current = load_poses(path, robot)
-    except FileNotFoundError:
+    if not path.exists():
         return None
-    except (OSError, UnicodeDecodeError, PoseError) as exc:
+    try:
+        current = load_poses(path, robot)
+        text = read_text(path, error=PoseError)
+    except PoseError as exc:
         log.warning("%s does not load (%s): it is replaced whole, the old file kept as "
                     "the backup", path, exc)
         return None

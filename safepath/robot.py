@@ -14,6 +14,7 @@ from typing import Any, Literal
 import numpy as np
 import pinocchio as pin
 
+from ._io import brief
 from ._locked import LockedJoint
 from .controller_spec import ControllerSpec
 from .derived import Derived, DerivedValues
@@ -172,7 +173,7 @@ class Robot:
         try:
             arr = np.asarray(q, dtype=float).reshape(-1)
         except (TypeError, ValueError):
-            raise PoseError(f"not a vector of numbers: {q!r}", path=path, key=name) from None
+            raise PoseError(f"not a vector of numbers: {brief(q)}", path=path, key=name) from None
         if arr.shape != (self.dof,):
             raise PoseError(f"expected {self.dof} joint values, got {arr.size}", path=path,
                             key=name)

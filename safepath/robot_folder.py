@@ -22,7 +22,7 @@ import numpy as np
 import pinocchio as pin
 
 from ._bare_urdf import Given, vector_argument
-from ._io import as_str, as_vector, get_key, read_mapping, read_yaml
+from ._io import as_str, as_vector, check_readable, get_key, read_mapping, read_yaml
 from ._joint_roles import refuse_non_arm
 from ._locked import TRAVEL, lock_joints, read_mimics
 from ._paths import ROBOTS_DIR
@@ -222,6 +222,7 @@ def _load_folder(folder: Path, locked_values: Mapping[str, float | str] | None =
     urdf = folder / urdf_rel
     if not urdf.exists():
         raise ConfigError(f"URDF file not found: {urdf}", path=spec_path, key="urdf")
+    check_readable(urdf)
     try:
         full = pin.buildModelFromUrdf(str(urdf))
         geom = pin.buildGeomFromUrdf(full, str(urdf), pin.GeometryType.COLLISION,

@@ -21,7 +21,7 @@ from typing import Any, Literal
 
 import numpy as np
 
-from ._io import atomic_write_text
+from ._io import atomic_write_text, read_text
 from ._knots import interval_index
 from .errors import TrajectoryError
 
@@ -255,11 +255,10 @@ class Trajectory:
 def load_trajectory(path: str | Path) -> Trajectory:
     """Read a trajectory written by :meth:`Trajectory.to_json`."""
     path = Path(path)
+    text = read_text(path, error=TrajectoryError)
     try:
-        data = json.loads(path.read_text(encoding="utf-8"))
-    except FileNotFoundError:
-        raise TrajectoryError("file not found", path=path) from None
-    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
+        data = json.loads(text)
+    except json.JSONDecodeError as exc:
         raise TrajectoryError(f"cannot read trajectory ({exc})", path=path) from None
     return Trajectory.from_dict(data, path=path)
 

@@ -21,7 +21,7 @@ from pathlib import Path
 import numpy as np
 import pinocchio as pin
 
-from .._io import atomic_write_text, read_yaml
+from .._io import atomic_write_text, read_text, read_yaml
 from ..robot import Robot, adjacent_link_pairs
 
 __all__ = ["PairStats", "compute_allowed_pairs", "write_allowed_pairs", "wire_allowed_pairs"]
@@ -138,7 +138,7 @@ def wire_allowed_pairs(spec_path: Path, pairs_path: Path, *, write: bool = True)
                               key="allowed_collisions")
         return False
     if write:
-        text = Path(spec_path).read_text(encoding="utf-8")
+        text = read_text(spec_path)
         if text and not text.endswith("\n"):
             text += "\n"
         text += ("# Link pairs never self-checked, written by `safepath robot-pairs`.\n"

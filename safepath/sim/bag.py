@@ -40,6 +40,9 @@ _TYPES = {
     EVENTS: "std_msgs/msg/String",
 }
 _NS = 1_000_000_000
+#: Message type of a recorded goal, by its kind.
+_GOAL_TYPES = {"arm": _TYPES[ARM_GOALS], "tool": _TYPES[TOOL_GOALS],
+               "gripper": _TYPES[GRIPPER_GOALS]}
 
 
 @dataclass
@@ -61,6 +64,26 @@ class RunRecord:
     q: np.ndarray = field(default_factory=lambda: np.zeros((0, 0)))
     qd: np.ndarray = field(default_factory=lambda: np.zeros((0, 0)))
     joint_names: tuple[str, ...] = ()
+
+    def __getstate__(self) -> dict[str, Any]:
+        """The record as pickled (a pool's worker sends it back with its run): the goal
+        messages as CDR bytes, since rosbags makes their classes at run time and they
+        do not pickle."""
+        from ..ros.messages import serialize
+
+        state = dict(self.__dict__)
+        state["goals"] = [(t, kind, serialize(goal, _GOAL_TYPES[kind]))
+                          for t, kind, goal in self.goals]
+        return state
+
+    def __setstate__(self, state: dict[str, Any]) -> None:
+        """Inverse of :meth:`__getstate__`: the goals as messages again."""
+        from ..ros.messages import deserialize
+
+        state = dict(state)
+        state["goals"] = [(t, kind, deserialize(raw, _GOAL_TYPES[kind]))
+                          for t, kind, raw in state["goals"]]
+        self.__dict__.update(state)
 
 
 def write_run_bag(path: str | Path, record: RunRecord | None, *, start_time_ns: int = 0) -> Path:

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 import os
+from collections import Counter
 from pathlib import Path
 from typing import Any, Literal
 
@@ -24,8 +25,10 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--workers", type=int, default=None, help="processes (default: CPUs)")
     p.add_argument("--arrival", type=float, default=10.0,
                    help="mean time between vials put on the belt [s]")
-    p.add_argument("--bag", default=None, help="write a ROS 2 bag (MCAP) of the first "
-                                               "safepath run to this folder")
+    p.add_argument("--bag", default=None,
+                   help="write a ROS 2 bag (MCAP) of the (first architecture's) safepath "
+                        "run to this folder; with --runs N, one bag per run: "
+                        "BAG/seed_<seed>")
     p.add_argument("--belt-runs", action="store_true",
                    help="quality-check cell: also run safepath with the belt running while "
                         "the robot works (ControllerOptions(belt_runs_while_working=True))")
@@ -47,7 +50,6 @@ def cmd_sim(args: argparse.Namespace) -> int:
 
     from ..cell import load_cell
     from ..errors import InputError
-    from .bag import write_run_bag
     from .pouring import pour_route_of
     from .quality_check import QualityCheckParams, run_quality_check
     from .sweep import run_many
@@ -82,12 +84,12 @@ def cmd_sim(args: argparse.Namespace) -> int:
         params = QualityCheckParams(duration=args.duration, architecture=arch,
                                     arrival_interval=args.arrival,
                                     controller=ControllerOptions(belt_runs_while_working=belt))
+        record = bool(args.bag) and label == variants[0][0]
         if args.runs == 1:
-            runs[label] = [run_quality_check(scene, args.seed, params,
-                                             record=bool(args.bag) and label == variants[0][0])]
+            runs[label] = [run_quality_check(scene, args.seed, params, record=record)]
         else:
             runs[label] = run_many(scene, range(args.seed, args.seed + args.runs), params,
-                                   workers=args.workers)
+                                   workers=args.workers, record=record)
     load = os.getloadavg()
     first = runs[variants[0][0]][0]
     print(f"twin of {cell.scene.name}: {args.duration:g} s simulated x {args.runs} run(s) "
@@ -97,9 +99,23 @@ def cmd_sim(args: argparse.Namespace) -> int:
     for name, rs in runs.items():
         _print_architecture(name, rs, np)
     if args.bag:
-        write_run_bag(args.bag, first.record)
-        print(f"wrote a ROS 2 bag of the first safepath run to {args.bag}")
+        _write_bags(args.bag, runs[variants[0][0]], f"{variants[0][0]} run")
     return 0
+
+
+def _write_bags(folder: str, rs: list[Any], what: str) -> None:
+    """The bag of each recorded run: ``folder`` itself for one run, ``folder/seed_<seed>``
+    for several."""
+    from .bag import write_run_bag
+
+    if len(rs) == 1:
+        write_run_bag(folder, rs[0].record)
+        print(f"wrote a ROS 2 bag of the {what} to {folder}")
+        return
+    for r in rs:
+        write_run_bag(Path(folder) / f"seed_{r.seed}", r.record)
+    print(f"wrote {len(rs)} ROS 2 bags of the {what}s to {folder}/seed_<seed> "
+          f"(seeds {rs[0].seed}..{rs[-1].seed})")
 
 
 def _print_architecture(arch: str, rs: list[Any], np: Any) -> None:
@@ -150,6 +166,10 @@ def _print_architecture(arch: str, rs: list[Any], np: Any) -> None:
               f"{sum(r.belt_moving_at_sensor for r in rs):.2f} s; picks with no vial at the "
               f"sensor {sum(r.empty_picks for r in rs)}; {sum(r.waiting_motions for r in rs)} "
               f"motions with the next vial waiting at the sensor (in the clearance check)")
+    warned = Counter(w for r in rs for w in r.warnings)
+    if warned:
+        print(f"  controller warned  {sum(warned.values())}x: " + "; ".join(
+            f"{n}x {w}" for w, n in warned.most_common()))
     print(f"  computation        {wall:.1f} s for {sim:.0f} s simulated "
           f"({sim / max(wall, 1e-9):.0f}x real time with the clearance check)")
 
@@ -158,7 +178,6 @@ def _cmd_pouring(args: argparse.Namespace, cell: Any) -> int:
     """Run the pouring twin over seeds and print its figures."""
     import numpy as np
 
-    from .bag import write_run_bag
     from .pouring import PouringParams, run_pouring
     from .sweep import run_many
 
@@ -168,9 +187,8 @@ def _cmd_pouring(args: argparse.Namespace, cell: Any) -> int:
         rs = [run_pouring(scene, args.seed, params, record=bool(args.bag))]
     else:
         rs = run_many(scene, range(args.seed, args.seed + args.runs), params,
-                      workers=args.workers)
+                      workers=args.workers, record=bool(args.bag))
     load = os.getloadavg()
-    first = rs[0]
     print(f"twin of {cell.scene.name}: PourController closed loop, {args.runs} run(s) "
           f"(seeds {args.seed}..{args.seed + args.runs - 1}); robot {cell.robot.name}, "
           f"physics 1 kHz; scale every {params.period * 1000:g} ms, noise "
@@ -187,8 +205,7 @@ def _cmd_pouring(args: argparse.Namespace, cell: Any) -> int:
           f"the clearance check), load "
           f"{load[0]:.2f} {load[1]:.2f} {load[2]:.2f} on {os.cpu_count()} CPUs")
     if args.bag:
-        write_run_bag(args.bag, first.record)
-        print(f"wrote a ROS 2 bag of the first run to {args.bag}")
+        _write_bags(args.bag, rs, "pouring run")
     return 0
 
 

@@ -50,6 +50,7 @@ from .arm import CANCELED, ArmResult
 from .bag import RunRecord
 from .clearance import ExecutedClearance, MotionWorld, executed_clearance, tcp_deviation
 from .conveyor import Conveyor, VerdictService, Vial
+from .kept_warnings import kept_warnings
 from .twin import GripperResult, RobotTwin, TwinOptions
 
 if TYPE_CHECKING:
@@ -164,6 +165,8 @@ class QualityCheckRun:
             with it in the cell).
         queued_motions: Motion goals during which vials stood on the belt behind the
             sensor (checked with them in the cell, where they were at each state).
+        warnings: The cell controller's warnings during the run, in order (kept here,
+            not logged: see :mod:`safepath.sim.kept_warnings`).
     """
 
     seed: int
@@ -194,6 +197,7 @@ class QualityCheckRun:
     belt_commanded_at_sensor: float = 0.0
     waiting_motions: int = 0
     queued_motions: int = 0
+    warnings: tuple[str, ...] = ()
 
     @property
     def vials_per_minute(self) -> float:
@@ -613,16 +617,19 @@ def run_quality_check(cell: str | Path, seed: int, params: QualityCheckParams | 
     if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or seed < 0:
         raise InputError(f"expected an integer >= 0, got {seed!r}", key="seed")
     loaded, trajs = _planned(str(cell), params.architecture)
-    run = _Cell(loaded, trajs, int(seed), params)
-    t0 = time.perf_counter()
-    for name in params.controller.routes:
-        run.dispatch(run.ctl.on_route_ready(name, trajs[name], 0.0))
-    while run.twin.now < params.duration - 1e-9 and not run.faults:
-        nxt = min(run.twin.now + params.tick, params.duration)
-        if run.events:
-            nxt = min(nxt, max(run.events[0][0], run.twin.now + run.twin.options.timestep))
-        run.step(nxt)
-    wall = time.perf_counter() - t0
+    from ..cells.quality_check import controller
+
+    with kept_warnings(controller.__name__) as kept:
+        run = _Cell(loaded, trajs, int(seed), params)
+        t0 = time.perf_counter()
+        for name in params.controller.routes:
+            run.dispatch(run.ctl.on_route_ready(name, trajs[name], 0.0))
+        while run.twin.now < params.duration - 1e-9 and not run.faults:
+            nxt = min(run.twin.now + params.tick, params.duration)
+            if run.events:
+                nxt = min(nxt, max(run.events[0][0], run.twin.now + run.twin.options.timestep))
+            run.step(nxt)
+        wall = time.perf_counter() - t0
     t1 = time.perf_counter()
     clearance = _clearance(run)
     deviation = _tcp_deviation(run)
@@ -655,7 +662,7 @@ def run_quality_check(cell: str | Path, seed: int, params: QualityCheckParams | 
         belt_moving_at_sensor=run.belt_moving_at_sensor,
         belt_commanded_at_sensor=run.belt_commanded_at_sensor,
         waiting_motions=len(_waiting_motions(run)),
-        queued_motions=len(_queued_motions(run)))
+        queued_motions=len(_queued_motions(run)), warnings=tuple(kept))
 
 
 def events_json(run: QualityCheckRun) -> list[tuple[float, str]]:

@@ -24,7 +24,8 @@ __all__ = ["run_many"]
 
 def run_many(cell: str | Path, seeds: Iterable[int],
              params: Sequence[QualityCheckParams | PouringParams] | QualityCheckParams
-             | PouringParams | None = None, *, workers: int | None = None) -> list[Any]:
+             | PouringParams | None = None, *, workers: int | None = None,
+             record: bool = False) -> list[Any]:
     """Every combination of ``params`` and ``seeds``, params-major, in that order.
 
     Args:
@@ -34,6 +35,8 @@ def run_many(cell: str | Path, seeds: Iterable[int],
             quality-check cell): :class:`QualityCheckParams` run the quality-check twin,
             :class:`PouringParams` the pouring twin.
         workers: Processes (default: the CPUs; 1 runs in this process).
+        record: Keep every run's bag material (``record=True`` of each run; sent back
+            from the workers with the run).
 
     Raises:
         InputError: No seed, or ``workers`` < 1.
@@ -47,18 +50,19 @@ def run_many(cell: str | Path, seeds: Iterable[int],
     workers = workers if workers is not None else (os.cpu_count() or 1)
     if isinstance(workers, bool) or not isinstance(workers, int) or workers < 1:
         raise InputError(f"expected an integer >= 1, got {workers!r}", key="workers")
-    jobs = [(str(cell), seed, p) for p in sets for seed in seed_list]
+    jobs = [(str(cell), seed, p, record) for p in sets for seed in seed_list]
     if workers == 1:
         return [_run(*job) for job in jobs]
     with ProcessPoolExecutor(max_workers=min(workers, len(jobs))) as pool:
         return list(pool.map(_run, *zip(*jobs, strict=True)))
 
 
-def _run(cell: str, seed: int, params: QualityCheckParams | PouringParams) -> Any:
+def _run(cell: str, seed: int, params: QualityCheckParams | PouringParams,
+         record: bool = False) -> Any:
     """One run, of the twin the parameters are for."""
     if isinstance(params, PouringParams):
-        return run_pouring(cell, seed, params)
+        return run_pouring(cell, seed, params, record=record)
     if isinstance(params, QualityCheckParams):
-        return run_quality_check(cell, seed, params)
+        return run_quality_check(cell, seed, params, record=record)
     raise InputError(f"expected QualityCheckParams or PouringParams, got "
                      f"{type(params).__name__}", key="params")

@@ -27,6 +27,11 @@ log sees a save's line an instant before the file changes: the save has landed o
 file's hash is the line's ``sha256_after`` (the session tells its pages only then). If
 the rename fails (a full disk, a permission), a line ``{"time", "client", "file",
 "undone": <time of the save's line>, "reason"}`` withdraws the save's line.
+
+No write follows a link (see :mod:`safepath._io`): ``poses.yaml``, its backup
+``poses.yaml~`` and ``poses.log`` must be regular files, or the save (and the start that
+would finish a killed save) is refused naming the file; a leftover temporary file that is
+not a regular file is removed, never read.
 """
 
 from __future__ import annotations
@@ -36,7 +41,7 @@ import hashlib
 import json
 import logging
 import os
-import shutil
+import stat
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from datetime import datetime, timezone
@@ -45,7 +50,7 @@ from typing import Any
 
 import numpy as np
 
-from .._io import leftover_temporaries
+from .._io import keep_backup, leftover_temporaries, open_no_follow, read_bytes
 from ..cell import Cell
 from ..errors import ConfigError, PoseError, SafepathError
 from ..poses import load_poses, save_poses
@@ -158,9 +163,9 @@ class PosesStore:
         self.log_path = None if self.path is None else self.path.with_name(LOG_NAME)
         if self.path is not None and self.log_path is not None \
                 and leftover_temporaries(self.path):
-            with open(self.log_path, "a", encoding="utf-8") as log_file:
+            with self._open_log() as log_file:
                 fcntl.flock(log_file, fcntl.LOCK_EX)
-                self._recover()
+                self._recover(log_file)
         # The cell's own poses are the version in force while there is no file.
         self._initial = {k: np.array(q) for k, q in cell.poses.items()} \
             if self.path is None or not self.path.exists() else None
@@ -216,9 +221,9 @@ class PosesStore:
                               "file; build it with Cell(..., poses_path=PATH) to save its "
                               "poses to PATH", key="poses_path")
         self.path.parent.mkdir(parents=True, exist_ok=True)
-        with open(self.log_path, "a", encoding="utf-8") as log_file:
+        with self._open_log() as log_file:
             fcntl.flock(log_file, fcntl.LOCK_EX)
-            self._recover()
+            self._recover(log_file)
             current = self.read()
             if current.digest != base.digest:
                 changes = differences(base.poses, current.poses)
@@ -254,42 +259,66 @@ class PosesStore:
         log.info("%s saved by %s", self.path, client)
         return new
 
-    def _recover(self) -> None:
+    def _open_log(self) -> Any:
+        """The save log, opened to read and append (created if missing), never through a
+        link.
+
+        Raises:
+            PoseError: ``poses.log`` is a symbolic link or not a regular file.
+        """
+        assert self.log_path is not None
+        fd = open_no_follow(self.log_path, os.O_RDWR | os.O_APPEND | os.O_CREAT,
+                            error=PoseError)
+        return os.fdopen(fd, "a+", encoding="utf-8")
+
+    def _recover(self, log_file: Any) -> None:
         """Finish a save killed between its log line and its rename; remove the temporary
         files of saves killed before their line, and a torn last line. (Under the log's
-        lock: no save of this file is under way.)"""
+        lock, ``log_file``: no save of this file is under way.)
+
+        Raises:
+            PoseError: A killed save cannot be finished: ``poses.yaml`` or its backup
+                name is a link or not a regular file (nothing is changed).
+        """
         assert self.path is not None and self.log_path is not None
         leftovers = leftover_temporaries(self.path)
         if not leftovers:
             return
-        last = _last_entry(self.log_path)
+        last = _last_entry(log_file)
         on_disk = _digest(self._bytes())
         for tmp in leftovers:
-            logged = (last is not None and on_disk == last.get("sha256_before")
+            try:
+                regular = stat.S_ISREG(os.lstat(tmp).st_mode)
+            except FileNotFoundError:
+                continue
+            logged = (regular and last is not None and on_disk == last.get("sha256_before")
                       and on_disk != last.get("sha256_after")
-                      and _digest(tmp.read_bytes()) == last.get("sha256_after"))
+                      and _digest(read_bytes(tmp, error=PoseError))
+                      == last.get("sha256_after"))
             if logged:
                 assert last is not None
-                if self.path.exists():
-                    shutil.copy2(self.path, self.path.with_name(self.path.name + "~"))
+                keep_backup(self.path, error=PoseError)
                 os.replace(tmp, self.path)
                 _fsync_folder(self.path.parent)
                 on_disk = str(last["sha256_after"])
                 log.warning("%s: finished the save logged at %s by %s (the saving process "
                             "stopped before replacing the file)", self.path,
                             last.get("time"), last.get("client"))
+            elif not regular:  # no writer of ours left it: removed, never read
+                tmp.unlink(missing_ok=True)
+                log.warning("%s: removed %s, which is not a regular file (a save's "
+                            "temporary file is)", self.path, tmp.name)
             else:
                 tmp.unlink(missing_ok=True)
                 log.info("%s: removed %s, left by a save that stopped before its log line",
                          self.path, tmp.name)
 
     def _bytes(self) -> bytes | None:
-        if self.path is None:
+        """The poses file's bytes, None if there is none (read as every file is read:
+        :func:`safepath._io.read_bytes`)."""
+        if self.path is None or not os.path.lexists(self.path):
             return None
-        try:
-            return self.path.read_bytes()
-        except FileNotFoundError:
-            return None
+        return read_bytes(self.path, error=PoseError)
 
 
 def _digest(raw: bytes | None) -> str:
@@ -318,20 +347,18 @@ def _fsync_folder(folder: Path) -> None:
         os.close(fd)
 
 
-def _last_entry(log_path: Path) -> dict[str, Any] | None:
-    """The log's last whole line, parsed; a torn last line (a kill while it was written,
-    before its save renamed anything) is cut off first."""
-    try:
-        with open(log_path, "rb+") as handle:
-            size = handle.seek(0, os.SEEK_END)
-            handle.seek(max(0, size - _TAIL))
-            tail = handle.read()
-            if tail and not tail.endswith(b"\n"):
-                keep = tail.rfind(b"\n") + 1
-                handle.truncate(size - len(tail) + keep)
-                tail = tail[:keep]
-    except FileNotFoundError:
-        return None
+def _last_entry(log_file: Any) -> dict[str, Any] | None:
+    """The last whole line of the open log ``log_file``, parsed; a torn last line (a kill
+    while it was written, before its save renamed anything) is cut off first."""
+    log_file.flush()
+    fd = log_file.fileno()
+    size = os.fstat(fd).st_size
+    start = max(0, size - _TAIL)
+    tail = os.pread(fd, size - start, start)
+    if tail and not tail.endswith(b"\n"):
+        keep = tail.rfind(b"\n") + 1
+        os.ftruncate(fd, start + keep)
+        tail = tail[:keep]
     lines = tail.splitlines()
     if not lines:
         return None

@@ -48,3 +48,29 @@ def test_the_benchmark_runs(repo_root: Path) -> None:
                           capture_output=True, text=True, timeout=300)
     assert proc.returncode == 0, proc.stderr[-2000:]
     assert "simulated / real time" in proc.stdout and "load average" in proc.stdout
+
+
+def test_sim_runs_with_a_bag_write_one_bag_per_run_and_print_no_log_lines(
+        repo_root: Path, tmp_path: Path) -> None:
+    """Issue 35: ``--runs 2 --bag DIR`` ran everything, then failed (the pooled runs kept
+    no record); the controller's warnings from the pool's workers came before the report.
+    Seed 0 at one vial every 2 s: the sequential runs warn (a verdict that did not come,
+    one that came late)."""
+    bags = tmp_path / "bags"
+    entry = Path(sys.executable).with_name("safepath")
+    proc = subprocess.run([str(entry), "sim", "scenes/quality_check_cell", "--runs", "2",
+                           "--duration", "60", "--arrival", "2", "--seed", "0",
+                           "--workers", "2", "--bag", str(bags)], cwd=repo_root,
+                          capture_output=True, text=True, timeout=600)
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    assert proc.stderr == ""  # no WARNING line of a worker
+    sequential = proc.stdout.split("[sequential]")[1]
+    assert "controller warned" in sequential and "no verdict within 5 s" in sequential
+    assert f"wrote 2 ROS 2 bags of the safepath runs to {bags}" in proc.stdout
+    last = []
+    for seed in (0, 1):
+        bag = read_bag(bags / f"seed_{seed}")
+        states = bag.on(JOINT_STATES)
+        assert states and bag.on(ARM_GOALS)
+        last.append(list(states[-1].msg.position))
+    assert last[0] != last[1]  # each run's own bag
