@@ -12,6 +12,7 @@ topic                              type                                one messa
                                    ``sensor_msgs/msg/PointCloud2``     delivery (stamp inside)
 ``/safepath/monitor/decision``     ``std_msgs/msg/String`` (JSON)      per decision
 ``/safepath/monitor/replacement``  ``trajectory_msgs/msg/JointTrajectory``  per replacement goal
+``/safepath/monitor/goal``         ``trajectory_msgs/msg/JointTrajectory``  per motion sent whole
 ``/joint_states``                  ``sensor_msgs/msg/JointState``      the robot's state
 ``/safepath/monitor/truth``        ``std_msgs/msg/String`` (JSON)      simulations only: the
                                                                        obstacle's true centre
@@ -36,17 +37,19 @@ from typing import Any
 import numpy as np
 
 from ..errors import RosError
+from ..trajectory import Trajectory
 from .monitor import Decision
 from .observations import Cloud, Scan
 from .options import MonitorOptions
 
 __all__ = ["MonitorRecorder", "MonitorRun", "read_monitor_bag", "decision_dict",
            "scan_message", "cloud_message", "CONFIG_TOPIC", "DECISION_TOPIC",
-           "REPLACEMENT_TOPIC", "TRUTH_TOPIC", "JOINT_STATES_TOPIC"]
+           "REPLACEMENT_TOPIC", "GOAL_TOPIC", "TRUTH_TOPIC", "JOINT_STATES_TOPIC"]
 
 CONFIG_TOPIC = "/safepath/monitor/config"
 DECISION_TOPIC = "/safepath/monitor/decision"
 REPLACEMENT_TOPIC = "/safepath/monitor/replacement"
+GOAL_TOPIC = "/safepath/monitor/goal"
 TRUTH_TOPIC = "/safepath/monitor/truth"
 JOINT_STATES_TOPIC = "/joint_states"
 _NS = 1_000_000_000
@@ -161,6 +164,16 @@ class MonitorRecorder:
                                    backend="rosbags")
             self._add(d.time, 3, REPLACEMENT_TOPIC, "trajectory_msgs/msg/JointTrajectory",
                       msg)
+
+    def goal(self, time: float, traj: Trajectory, start: float) -> None:
+        """A motion sent whole as a goal at ``time`` [s], stamped ``start`` (the
+        verified motions the monitor follows; its replacements come with
+        :meth:`decision`)."""
+        from ..ros.goals import joint_trajectory
+
+        msg = joint_trajectory(traj, robot_joint_names=list(self.joint_names),
+                               stamp_ns=round(start * _NS), backend="rosbags")
+        self._add(time, 3, GOAL_TOPIC, "trajectory_msgs/msg/JointTrajectory", msg)
 
     def joint_state(self, time: float, q: np.ndarray, qd: np.ndarray) -> None:
         """The robot's state at ``time`` [s]."""

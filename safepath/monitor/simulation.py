@@ -13,11 +13,12 @@ from __future__ import annotations
 
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
-from typing import Any
+from typing import Any, cast
 
 import numpy as np
 
 from ..cell import Cell
+from ..execution import ControllerModel, Interpolation
 from ..trajectory import Trajectory
 from .monitor import Decision, Monitor
 from .observations import Cloud, Scan
@@ -157,6 +158,36 @@ class SimResult:
     replacements: list[tuple[float, Trajectory]] = field(default_factory=list)
 
 
+class _Captures:
+    """A sensor capturing every ``period`` [s] from 0, each capture delivered ``latency``
+    [s] later."""
+
+    def __init__(self, period: float, latency: float) -> None:
+        self.period, self.latency = period, latency
+        self.next = 0.0
+        self.waiting: list[tuple[float, float]] = []  # (delivery, capture)
+
+    def due(self, t: float) -> list[float]:
+        """The capture times delivered by ``t`` and not before."""
+        while self.next <= t + 1e-12:
+            self.waiting.append((self.next + self.latency, self.next))
+            self.next += self.period
+        due = [c for c in self.waiting if c[0] <= t + 1e-12]
+        self.waiting = [c for c in self.waiting if c[0] > t + 1e-12]
+        return [capture for _, capture in due]
+
+
+def _observation(kind: str, obstacle: MovingSphere, capture: float, sensor: str,
+                 sensor_pose: np.ndarray, points: int, rng: np.random.Generator
+                 ) -> Cloud | Scan:
+    """What the sensor captures of the obstacle at ``capture`` [s]."""
+    if kind == "cloud":
+        return Cloud(capture, sensor, camera_cloud(obstacle, capture, sensor_pose, points,
+                                                   rng))
+    return Scan(capture, sensor, lidar_scan(obstacle, capture, sensor_pose), -np.pi,
+                2 * np.pi / 360, 0.05, 8.0)
+
+
 def simulate(monitor: Monitor, motions: Sequence[tuple[Trajectory, str | None]],
              obstacle: MovingSphere, *, sensor: str, sensor_pose: np.ndarray,
              kind: str = "cloud", period: float = 1 / 30, latency: float = 0.01,
@@ -188,28 +219,27 @@ def simulate(monitor: Monitor, motions: Sequence[tuple[Trajectory, str | None]],
     rng = np.random.default_rng(seed)
     queue = list(motions)
     traj, held = queue.pop(0)
+    arm = ControllerModel(traj.q[0], interpolation=cast(
+        Interpolation, monitor.cell.robot.controller.interpolation))
+
+    def send(goal: Trajectory, start: float) -> None:
+        """The arm's controller takes a goal stamped ``start`` (at that instant)."""
+        arm.take(goal.t - goal.t[0], goal.q, goal.qd, goal.qdd, start=start)
+        if recorder is not None:
+            recorder.goal(start, goal, start)
+
     monitor.follow(traj, start=0.0, held=held)
-    cmd, cmd_start, motion = traj, 0.0, 0
+    send(traj, 0.0)
+    cmd, motion = traj, 0
     pending: list[tuple[float, Trajectory]] = []
     res = SimResult(np.zeros(0), np.zeros((0, traj.dof)), np.zeros((0, traj.dof)),
                     np.zeros((0, 3)), np.zeros(0, dtype=int))
     ts, qs, qds, obs, mot = [], [], [], [], []
-    next_capture = 0.0
-    captures: list[tuple[float, float]] = []  # (delivery, capture)
+    captures = _Captures(period, latency)
     t = 0.0
     while t <= until:
-        while next_capture <= t + 1e-12:
-            captures.append((next_capture + latency, next_capture))
-            next_capture += period
-        for delivery, capture in [c for c in captures if c[0] <= t + 1e-12]:
-            captures.remove((delivery, capture))
-            o: Cloud | Scan
-            if kind == "cloud":
-                o = Cloud(capture, sensor, camera_cloud(obstacle, capture, sensor_pose,
-                                                        points, rng))
-            else:
-                o = Scan(capture, sensor, lidar_scan(obstacle, capture, sensor_pose),
-                         -np.pi, 2 * np.pi / 360, 0.05, 8.0)
+        for capture in captures.due(t):
+            o = _observation(kind, obstacle, capture, sensor, sensor_pose, points, rng)
             d = monitor.observe(o, t)
             res.decisions.append(d)
             if recorder is not None:
@@ -224,12 +254,14 @@ def simulate(monitor: Monitor, motions: Sequence[tuple[Trajectory, str | None]],
                     queue = list(new)
                     traj, held = queue.pop(0)
                     monitor.follow(traj, start=t, held=held)
+                    send(traj, t)
                     res.replacements.append((t, traj))
-                    cmd, cmd_start, motion, pending = traj, t, motion + 1, []
+                    cmd, motion, pending = traj, motion + 1, []
         for start, rep in [p for p in pending if p[0] <= t + 1e-12]:
             pending.remove((start, rep))
-            cmd, cmd_start = rep, start
-        q, qd, _ = cmd.sample([t - cmd_start])
+            arm.take(rep.t - rep.t[0], rep.q, rep.qd, rep.qdd, start=start)
+            cmd = rep
+        q, qd, _, _ = arm.sample(np.array([t]))
         ts.append(t)
         qs.append(q[0])
         qds.append(qd[0])
@@ -239,11 +271,12 @@ def simulate(monitor: Monitor, motions: Sequence[tuple[Trajectory, str | None]],
         if recorder is not None and len(ts) % 5 == 1:
             recorder.joint_state(t, q[0], qd[0])
             recorder.truth(t, obs[-1], obstacle.radius)
-        at_end = t - cmd_start >= cmd.duration - 1e-9 and not pending
+        at_end = t >= arm.end - 1e-9 and not pending
         if at_end and cmd.info.get("monitor") != "stop" and monitor.last.scale > 0 and queue:
             nxt, held = queue.pop(0)
             monitor.follow(nxt, start=t, held=held)
-            cmd, cmd_start, motion = nxt, t, motion + 1
+            send(nxt, t)
+            cmd, motion = nxt, motion + 1
         t = round(t + dt, 9)
     res.t, res.q, res.qd = np.array(ts), np.array(qs), np.array(qds)
     res.obstacle, res.motion = np.array(obs), np.array(mot)

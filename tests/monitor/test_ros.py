@@ -7,6 +7,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from quintic_join import quintic_state
 
 from safepath import Cell
 from safepath.errors import ConfigError
@@ -19,8 +20,17 @@ from safepath.monitor.node import (
     load_node_parameters,
     parameters_from_mapping,
 )
-from safepath.monitor.ros import MonitorRecorder, cloud_message, read_monitor_bag, scan_message
+from safepath.monitor.ros import (
+    GOAL_TOPIC,
+    REPLACEMENT_TOPIC,
+    MonitorRecorder,
+    MonitorRun,
+    cloud_message,
+    read_monitor_bag,
+    scan_message,
+)
 from safepath.monitor.simulation import MovingSphere, simulate
+from safepath.ros.bag import read_bag
 from safepath.ros.messages import deserialize, serialize, typestore
 
 from .conftest import CAMERA, Phase1, make_monitor
@@ -111,6 +121,33 @@ def test_a_recorded_run_replays_from_its_bag(cell: Cell, phase1: Phase1, tmp_pat
     np.testing.assert_allclose(r, obstacle.radius, atol=1e-5)
     assert run.joint_positions.shape[1] == 6 and len(run.truth) == len(run.joint_times)
     assert run.parameters["approach_speed"] == 1.6
+    _goals_continue_and_are_what_ran(path, run)
+
+
+def _goals_continue_and_are_what_ran(path: Path, run: MonitorRun) -> None:
+    """The bag's goals (the motions sent whole and the replacements), each taken at its
+    stamp and joined by an independent quintic, continue one another exactly and are
+    the motion the recorded joint states followed."""
+    contents = read_bag(path)
+    goals = []
+    for m in sorted(contents.on(GOAL_TOPIC) + contents.on(REPLACEMENT_TOPIC),
+                    key=lambda m: m.timestamp):
+        stamp = m.msg.header.stamp.sec + m.msg.header.stamp.nanosec * 1e-9
+        pts = m.msg.points
+        t = stamp + np.array([p.time_from_start.sec + p.time_from_start.nanosec * 1e-9
+                              for p in pts])
+        goals.append((stamp, t, *(np.array([getattr(p, k) for p in pts])
+                                  for k in ("positions", "velocities", "accelerations"))))
+    assert len(contents.on(GOAL_TOPIC)) >= 1 and len(goals) >= 3
+    for prev, nxt in zip(goals, goals[1:], strict=False):
+        state = quintic_state(*prev[1:], nxt[0])
+        first = int(np.searchsorted(nxt[1], nxt[0] - 1e-6))
+        for x, s in zip((nxt[2], nxt[3], nxt[4]), state, strict=True):
+            np.testing.assert_allclose(x[first], s, atol=1e-6)
+    stamps = np.array([g[0] for g in goals])
+    for time, q in zip(run.joint_times, run.joint_positions, strict=True):
+        g = goals[int(np.searchsorted(stamps, time + 1e-9, side="right")) - 1]
+        np.testing.assert_allclose(q, quintic_state(*g[1:], time)[0], atol=1e-6)
 
 
 def test_example_parameters_validate_and_errors_name_the_key(tmp_path: Path) -> None:
