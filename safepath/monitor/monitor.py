@@ -368,15 +368,12 @@ class Monitor:
                   default=0.0)
         parts = [self._sources[s].elements for s in fresh]
         E = np.vstack(parts) if parts else np.zeros((0, 4))  # noqa: N806
-        from . import _kernels
 
         tau_c, _ = self.state_at(now)
         if o.self_filter is not None and len(E):
             E = self._without_robot(E, now - age, tau_c)  # noqa: N806
             counts = replace(counts, robot=self._self_filtered)
-        E = self._unparked(E)  # noqa: N806  (parked bodies that stay: add_static_box)
-        elements = _kernels.bucket(E, o.cell_size) if len(E) else (
-            E, np.zeros((0, 4)), np.zeros(1, np.int64), np.zeros((0, 4)), np.zeros(1, np.int64))
+        parked = self._parked_mask(E)
         switch = self._switch_time(now + o.command_latency)
         tau_l, r_l = self.state_at(switch)
         # A new profile starts from the raw profile half a width later (see
@@ -384,7 +381,7 @@ class Monitor:
         current = self._timing_at(switch)
         raw = current.raw_state(switch + self._path.width / 2) \
             if current is not None else (tau_l, r_l)
-        a = assess(self._path, self._sweep, elements, age, tau_c, raw[0], raw[1], o)
+        a = self._assess(E, parked, age, tau_c, raw)
         base = dict(separation_now=a.separation_now, separation_path=a.separation_path,
                     protective_distance=a.protective_distance,
                     separation_kept=a.separation_kept, stopping_time=a.stopping_time,
@@ -628,13 +625,11 @@ class Monitor:
         parts = [s.elements for s in self._sources.values()]
         return np.vstack(parts) if parts else np.zeros((0, 4))
 
-    def _unparked(self, E: np.ndarray) -> np.ndarray:  # noqa: N803
-        """``E`` without the elements of the parked bodies that stay; a parked body that
-        moved is dropped (its elements stay: an obstacle again) and the next stop says
+    def _parked_mask(self, E: np.ndarray) -> np.ndarray:  # noqa: N803
+        """Which elements of ``E`` belong to the parked bodies that stay; a parked body
+        that moved is dropped (an obstacle like any other again) and the next stop says
         so."""
-        if not self._parked:
-            return E
-        keep = np.ones(len(E), dtype=bool)
+        parked = np.zeros(len(E), dtype=bool)
         for body in list(self._parked):
             mask, moved = body.watch(E)
             if moved:
@@ -643,5 +638,34 @@ class Monitor:
                 log.warning("monitor: %s", self._parked_note)
                 self.stats["parked_dropped"] = self.stats.get("parked_dropped", 0) + 1
             else:
-                keep &= ~mask
-        return E if keep.all() else np.ascontiguousarray(E[keep])
+                parked |= mask
+        return parked
+
+    def _assess(self, E: np.ndarray, parked: np.ndarray, age: float,  # noqa: N803
+                tau_c: float, raw: tuple[float, float]) -> Assessment:
+        """The protective-distance test of every element: those of parked bodies with
+        their own ``v_h`` (``parked_speed``), the others with ``approach_speed``; the
+        tighter outcome counts."""
+        from . import _kernels
+
+        assert self._path is not None and self._sweep is not None
+        o = self.options
+
+        def test(elements: np.ndarray, v_h: float) -> Assessment:
+            bucketed = _kernels.bucket(elements, o.cell_size) if len(elements) else (
+                elements, np.zeros((0, 4)), np.zeros(1, np.int64), np.zeros((0, 4)),
+                np.zeros(1, np.int64))
+            assert self._path is not None and self._sweep is not None
+            return assess(self._path, self._sweep, bucketed, age, tau_c, raw[0], raw[1],
+                          o, approach_speed=v_h)
+
+        slower = o.parked_approach_speed < o.approach_speed
+        if not (slower and parked.any()):
+            return test(E, o.approach_speed)
+        others = test(np.ascontiguousarray(E[~parked]), o.approach_speed)
+        still = test(np.ascontiguousarray(E[parked]), o.parked_approach_speed)
+        tight = min((others, still), key=lambda x: (x.scale, x.separation_kept
+                                                    - x.protective_distance))
+        return replace(tight, separation_now=min(others.separation_now,
+                                                 still.separation_now),
+                       separation_path=min(others.separation_path, still.separation_path))

@@ -78,7 +78,7 @@ class NodeParameters:
 _NODE_NUMBERS = ("replan_margin",)
 _OPTION_KEYS = ("approach_speed", "min_separation", "sensor_uncertainty", "robot_uncertainty",
                 "stale_after", "command_latency", "hold_time", "replan_after", "min_scale",
-                "horizon")
+                "horizon", "parked_speed")
 
 
 def parameters_from_mapping(raw: Mapping[str, Any], *, path: Path | None = None

@@ -74,6 +74,14 @@ class MonitorOptions:
             last ``rest_window``, at most this [m/s] (and no side of its latest box
             more than ``REPLAN_MOVED`` from the window's median).
         rest_window: How long a body must be seen at rest before a re-plan [s].
+        parked_speed: How fast a body re-planned around (parked, at rest) can start to
+            move [m/s]: its elements stay in the protective-distance test with this
+            ``v_h``. None (default): ``approach_speed``; a person standing still may
+            walk off at once, so the arm keeps the same protective distance from a
+            parked body as from any other, and a re-plan only changes the path. Set it
+            lower only for bodies that cannot move faster (objects that nobody carries
+            or that only a slow conveyor moves): the guarantee holds under that
+            assumption.
     """
 
     sensors: Mapping[str, Any] = field(default_factory=dict)
@@ -99,6 +107,7 @@ class MonitorOptions:
     replan_cluster: float = 0.1
     rest_speed: float = 0.02
     rest_window: float = 1.0
+    parked_speed: float | None = None
 
     def __post_init__(self) -> None:
         sensors = {}
@@ -119,6 +128,8 @@ class MonitorOptions:
             _positive(name, float(getattr(self, name)), zero=True)
         if not 0 < self.min_scale <= 1:
             raise ConfigError(f"must lie in (0, 1], got {self.min_scale}", key="min_scale")
+        if self.parked_speed is not None:
+            _positive("parked_speed", float(self.parked_speed), zero=True)
         if self.scene_filter is not None:
             _positive("scene_filter", float(self.scene_filter), zero=True)
         if self.self_filter is not None:
@@ -128,6 +139,12 @@ class MonitorOptions:
             if w.shape != (6,) or not np.all(np.isfinite(w)) or np.any(w[:3] >= w[3:]):
                 raise ConfigError("workspace is (xmin, ymin, zmin, xmax, ymax, zmax) with "
                                   "min < max", key="workspace")
+
+    @property
+    def parked_approach_speed(self) -> float:
+        """``v_h`` of parked bodies [m/s] (``parked_speed``, else ``approach_speed``)."""
+        return self.approach_speed if self.parked_speed is None else float(
+            min(self.parked_speed, self.approach_speed))
 
     @property
     def constant_terms(self) -> float:

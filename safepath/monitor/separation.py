@@ -13,7 +13,11 @@ with the robot at path parameter ``tau_c``, a speed scale ``k`` is *safe* when::
 * ``D(k)``: the separation lower bound between the observed elements and *every*
   robot state on the path from ``tau_c`` to where that profile is at rest (the
   enclosing spheres at the sampled states, minus half the sampling spacing).
-* ``v_h * (...)``: ISO/TS 15066's ``S_h``, how far a person walks meanwhile.
+* ``v_h * (...)``: ISO/TS 15066's ``S_h``, how far a person walks meanwhile. Bodies a
+  re-plan went around are tested with their own ``v_h`` (``MonitorOptions.parked_speed``,
+  by default ``approach_speed``); with ``v_h = 0`` (a body that cannot move) a scale is
+  also safe when ``D(k)`` is no smaller than the separation now: the robot may move
+  away from a body it stopped next to, never toward it.
 
 This is ISO/TS 15066's ``S_p = S_h + S_r + S_s + C + Z_d + Z_r`` with the robot's
 terms ``S_r + S_s`` (its travel during reaction and stopping) not bounded by a speed
@@ -100,7 +104,7 @@ class _Prefix:
 
 def assess(path: MonitoredPath, sweep: PathSweep, elements: tuple[np.ndarray, ...],
            age: float, tau_c: float, tau_l: float, r_l: float,
-           options: MonitorOptions) -> Assessment:
+           options: MonitorOptions, *, approach_speed: float | None = None) -> Assessment:
     """Test the speed scales for one decision (see the module doc).
 
     Args:
@@ -113,8 +117,11 @@ def assess(path: MonitoredPath, sweep: PathSweep, elements: tuple[np.ndarray, ..
             averaging width after ``now + T_cmd``) [s].
         r_l: Raw speed there, in [0, 1].
         options: Monitor options.
+        approach_speed: ``v_h`` of these elements [m/s] (default
+            ``options.approach_speed``; parked bodies have their own).
     """
     o = options
+    v_h = o.approach_speed if approach_speed is None else float(approach_speed)
     grid = path.grid(tau_l)
     tau, _, qd, qdd = grid
     K = _kernels()  # noqa: N806
@@ -136,12 +143,16 @@ def assess(path: MonitoredPath, sweep: PathSweep, elements: tuple[np.ndarray, ..
     horizon = min(tau_c + o.horizon, path.end)
     s1 = sweep.index_at(max(far, horizon)) + 2
     prefix = _Prefix(sweep, s0, min(s1, sweep.tau.size), elements, o.range_cap)
+    # Bodies that cannot move (v_h = 0) cannot close the distance: a path that never
+    # comes closer to them than the robot is now is safe even inside C + Z_d + Z_r
+    # (the robot may back away from a body it stopped next to).
+    floor = prefix.until(tau_c) if v_h == 0.0 else np.inf
 
     def margin(scale: float, brake_after: float) -> tuple[float, float]:
         # A stop may hold the speed for up to BRAKE_HOLDS[-1] before braking.
         where, t_rest, _ = end_of(scale, brake_after + BRAKE_HOLDS[-1])
-        needed = o.approach_speed * (age + o.command_latency + t_rest) + o.constant_terms
-        return prefix.until(where), needed
+        needed = v_h * (age + o.command_latency + t_rest) + o.constant_terms
+        return prefix.until(where), min(needed, floor)
 
     # Largest safe scale on the grid of multiples of scale_step (bisection; the chosen
     # one is tested itself, so a non-monotone case can only make it more cautious).
@@ -162,8 +173,8 @@ def assess(path: MonitoredPath, sweep: PathSweep, elements: tuple[np.ndarray, ..
             chosen = 0.0
     where0, t_stop, _ = end_of(r_l, BRAKE_HOLDS[-1])
     if chosen == 0.0:
-        kept, needed = prefix.until(where0), (
-            o.approach_speed * (age + o.command_latency + t_stop) + o.constant_terms)
+        kept, needed = prefix.until(where0), min(
+            v_h * (age + o.command_latency + t_stop) + o.constant_terms, floor)
     travel = sweep.travel_between(tau_l, where0)
     return Assessment(chosen, prefix.until(tau_c), prefix.until(horizon), kept, needed,
                       t_stop, travel, prefix.closest())

@@ -6,7 +6,8 @@ Each run (:func:`run_live_safety`) draws from its seed alone (:meth:`LiveSafetyD
 * **a body**: one crossing the cell from any direction at up to 1.6 m/s (a person-sized
   or an arm-sized :class:`~safepath.sim.obstacles.MovingBody`), or a small object that
   walks in at up to 1.6 m/s and parks on the route (within 5 cm of the TCP's path), beside
-  it (10-25 cm off), or on it and then walks away again (:class:`ParkingBody`);
+  it (10-25 cm off), or on it and then walks away again (:class:`ParkingBody`), never
+  standing inside the arm (drawn again when it would, before it enters or once parked);
 * **sensor silences**: the laser's, the camera's or both sensors' messages dropped for
   30 ms to 1.2 s;
 * **a kill**: none, at a random instant, 0-5 ms before the end of a motion (as the
@@ -54,6 +55,10 @@ DURATION = 14.0
 TOP_SPEED = 1.6
 #: How long a re-plan's answer takes to reach the node [s] (drawn per request).
 REPLAN_LATENCY = (0.08, 0.6)
+#: A parking body stands at least this far from the arm's enclosing spheres [m].
+_CLEAR = 0.005
+#: Parking draws tried before a seed is refused.
+_REDRAWS = 50
 #: The twin's gripper action takes this long [s] (TwinOptions' default).
 _GRIPPER_TIME = 0.5
 
@@ -160,9 +165,17 @@ class LiveSafetyDraw:
             k = 0 if len(motions) == 1 or rng.uniform() < 0.8 else int(
                 rng.integers(1, len(motions)))
             motion, begins = motions[k]
-            tau = float(rng.uniform(0.15, 0.95)) * motion.duration
-            tcp = np.asarray(robot.tcp_position(motion.sample([tau])[0][0]), dtype=float)
-            body = _parking(rng, kind, tcp, begins + tau)
+            arm = _ArmClear(core, motions)
+            for _ in range(_REDRAWS):  # a body that would stand inside the arm: again
+                tau = float(rng.uniform(0.15, 0.95)) * motion.duration
+                tcp = np.asarray(robot.tcp_position(motion.sample([tau])[0][0]),
+                                 dtype=float)
+                body = _parking(rng, kind, tcp, begins + tau)
+                if arm.clear(body):
+                    break
+            else:
+                raise InputError(f"seed {seed}: no parking spot clear of the arm in "
+                                 f"{_REDRAWS} draws", key="seed")
         silences = tuple(_silence(rng, duration)
                          for _ in range(int(rng.choice(3, p=(0.5, 0.35, 0.15)))))
         kill = _KILLS[int(rng.choice(len(_KILLS), p=_KILL_SHARE))]
@@ -241,6 +254,42 @@ def _parking(rng: np.random.Generator, kind: BodyKind, tcp: np.ndarray, due: flo
                        (float(start[0]), float(start[1])),
                        (float(speed * u[0]), float(speed * u[1])), enter, arrive,
                        depart, away, away_for)
+
+
+class _ArmClear:
+    """Whether a parking body stays clear of the arm where it stands still: before it
+    enters (at its start) and once parked (from its arrival), against the arm's
+    enclosing spheres at its undisturbed pose then. The twin's body passes through the
+    arm (it has no contacts); a real one cannot stand inside it, and the sensors cannot
+    see one that does."""
+
+    def __init__(self, core: MonitorNodeCore, motions: list[tuple[Any, float]]) -> None:
+        from ..monitor.sweep import RobotSpheres
+
+        assert core.monitor is not None
+        cell = core.monitor.cell
+        self.robot = cell.robot
+        self.spheres = RobotSpheres.build(cell.robot, cell.scene, None)
+        self.motions = motions
+
+    def _pose(self, t: float) -> np.ndarray:
+        """The arm's undisturbed joint position at ``t`` [s]."""
+        traj, begins = self.motions[0]
+        for m, b in self.motions:
+            if b <= t:
+                traj, begins = m, b
+        return traj.sample([min(max(t - begins, 0.0), traj.duration)])[0][0]
+
+    def clear(self, body: ParkingBody) -> bool:
+        for t in (0.0, body.leave):
+            centers, _ = self.spheres.place(self.robot, self._pose(t)[None])
+            c = body.at(t)
+            radial = np.maximum(np.linalg.norm(centers[0][:, :2] - c[:2], axis=1)
+                                - body.radius, 0.0)
+            axial = np.maximum(np.abs(centers[0][:, 2] - c[2]) - body.height / 2, 0.0)
+            if np.any(np.hypot(radial, axial) < self.spheres.radii + _CLEAR):
+                return False
+        return True
 
 
 def _silence(rng: np.random.Generator, duration: float) -> Silence:

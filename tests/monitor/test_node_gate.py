@@ -195,7 +195,8 @@ def test_a_replan_answered_while_killed_waits_for_reset(cell_dir: Path) -> None:
     lidar = [0.9, 0.6, 0.30]
     params = parameters_from_mapping({"scene": str(cell_dir), "scan_frame": "laser",
                                       "scan_xyz": lidar, "stale_after": 0.15,
-                                      "replan_after": 0.5, "replan_margin": 0.03})
+                                      "replan_after": 0.5, "replan_margin": 0.03,
+                                      "parked_speed": 0.0})  # a box: it never moves
     core = MonitorNodeCore(params)
     core.configure()
     core.activate(0.0)

@@ -186,7 +186,7 @@ def _park(cell: Cell, planned: dict[str, Trajectory], case: Case, gap: float | N
         offset = motion.info.get("time_offset", 0.0)
         if offset <= traj.t[k] <= offset + motion.t[-1]:
             break
-    m = make_monitor(cell)
+    m = make_monitor(cell, parked_speed=0.0)  # an object: it moves only when moved
     m.follow(motion, start=0.0, held=held)
     fcl = FclSeparation(cell, held)
     rng = np.random.default_rng(seed)

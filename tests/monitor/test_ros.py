@@ -227,7 +227,8 @@ def test_node_core_replans_around_an_obstacle_that_stays(cell_dir: Path, found: 
     lidar = [0.9, 0.6, 0.30]
     params = parameters_from_mapping({"scene": str(cell_dir), "scan_frame": "laser",
                                       "scan_xyz": lidar, "stale_after": 0.15,
-                                      "replan_after": 0.5, "replan_margin": 0.03})
+                                      "replan_after": 0.5, "replan_margin": 0.03,
+                                      "parked_speed": 0.0})  # a box: it never moves
     core = MonitorNodeCore(params)
     core.configure()
     core.activate(0.0)

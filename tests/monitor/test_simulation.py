@@ -90,7 +90,7 @@ def test_scan_sees_the_obstacle_too(cell: Cell, phase1: Phase1) -> None:
 
 
 def test_obstacle_that_stays_is_planned_around(cell: Cell, phase1: Phase1) -> None:
-    monitor = make_monitor(cell, replan_after=1.0)
+    monitor = make_monitor(cell, replan_after=1.0, parked_speed=0.0)  # a box: it never moves
     obstacle = MovingSphere.approach(TARGET + [0.8, 0, 0], TARGET, 0.5, 0.2, 1.8)
     plans: list[Trajectory] = []
 
