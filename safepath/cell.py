@@ -322,11 +322,19 @@ def check_poses(cell: Cell, options: CheckOptions | None = None) -> list[PoseChe
     """Check every taught pose, with the gripper empty and, where the scene says the
     object may be held there, holding it (with that pose's allowed contacts)."""
     out = []
-    empty_checkers: dict[str, CollisionChecker] = {}
+    # One checker per gripper state and set of allowed contacts, not per pose: poses
+    # that share them share it (a file of many poses costs one checker or a few).
+    checkers: dict[tuple[bool, tuple[int, ...]], CollisionChecker] = {}
+    contacts = cell.scene.allowed_contacts
+
+    def checker(held: bool, name: str) -> CollisionChecker:
+        key = (held, tuple(i for i, c in enumerate(contacts) if name in c.at))
+        if key not in checkers:
+            checkers[key] = cell.checker(held=held, at=name, options=options)
+        return checkers[key]
+
     for name, q in cell.poses.items():
-        checker = empty_checkers.setdefault(name, cell.checker(at=name, options=options))
-        out.append(PoseCheck(name, False, checker.check(q)))
+        out.append(PoseCheck(name, False, checker(False, name).check(q)))
         if cell.scene.grasp is not None and name in cell.scene.grasp.poses:
-            held = cell.checker(held=True, at=name, options=options)
-            out.append(PoseCheck(name, True, held.check(q)))
+            out.append(PoseCheck(name, True, checker(True, name).check(q)))
     return out

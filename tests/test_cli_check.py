@@ -191,3 +191,40 @@ def test_check_refuses_a_line_target_out_of_reach(repo_root: Path, cell_copy: Pa
     (line,) = [ln for ln in result.stdout.splitlines() if ln.startswith("unreachable")]
     assert f"{routes}, route 'phase2_unsafe', step '0 line tcp(3.000,0.000,0.200)'" in line
     assert "no inverse-kinematics solution" in line
+
+
+def test_many_poses_share_their_checkers(cell_copy: Path, cell: Cell,
+                                         monkeypatch: pytest.MonkeyPatch) -> None:
+    """2,000 poses are checked with one collision checker per gripper state and set of
+    allowed contacts (a checker per pose once made 30,000 poses need 22 GB), and each
+    pose's report is the one a checker of its own gives."""
+    import safepath.cell as cell_module
+    from safepath import load_cell
+    from safepath.cell import check_poses
+
+    rng = np.random.default_rng(5)
+    base = cell.pose("high1")
+    poses = dict(cell.poses)
+    poses.update({f"extra_{i}": base + rng.uniform(-0.05, 0.05, base.size)
+                  for i in range(2000)})
+    (cell_copy / "poses.yaml").write_text(dump_poses(poses))
+    big = load_cell(cell_copy)
+    built: list[object] = []
+    real = cell_module.CollisionChecker
+
+    def counting(*args: object, **kwargs: object) -> object:
+        built.append(kwargs.get("allowed"))
+        return real(*args, **kwargs)
+
+    monkeypatch.setattr(cell_module, "CollisionChecker", counting)
+    checks = check_poses(big)
+    monkeypatch.undo()
+    assert len(checks) == 2000 + sum(2 if n in big.scene.grasp.poses else 1
+                                     for n in cell.poses)
+    distinct = {(c.held, tuple(big.scene.contacts_at(c.pose))) for c in checks}
+    assert len(built) == len(distinct) <= 2 * (len(cell.poses) + 1)
+    for c in checks[::250]:
+        own = big.checker(held=c.held, at=c.pose).check(big.pose(c.pose))
+        assert own.collisions == c.report.collisions
+        assert own.closest_pair == c.report.closest_pair
+        assert own.clearance == pytest.approx(c.report.clearance, abs=1e-12)
