@@ -196,7 +196,8 @@ class Robot:
         """Describe the first joint outside its limits, or None."""
         for i, name in enumerate(self.joint_names):
             if not (self.lower[i] <= q[i] <= self.upper[i]):
-                return (f"{name} = {q[i]:.5f} rad is outside its limits "
+                value = f"{q[i]:.5f}" if abs(q[i]) < 1e6 else f"{q[i]:.6g}"
+                return (f"{name} = {value} rad is outside its limits "
                         f"[{self.lower[i]:.5f}, {self.upper[i]:.5f}]")
         return None
 

@@ -105,6 +105,10 @@ def test_duplicate_within_one_layout(tmp_path: Path, robot: Robot, layout: str) 
         ("grip: [0.0, .inf, 0.0, 0.0, 0.0, 0.0]\n", "grip", "joint_2 is not finite"),
         ("poses:\n  grip: [0.0, 0.0, 0.0, 0.0, 0.0, 3.5]\n", "poses.grip",
          r"joint_6 = 3\.50000 rad is outside its limits"),
+        ("poses:\n  grip: [1.0e+308, 0.0, 0.0, 0.0, 0.0, 0.0]\n", "poses.grip",
+         r"joint_1 = 1e\+308 rad is outside its limits \[-2\.96000"),  # not 309 digits
+        ('poses:\n  grip: [0.0, "0.5", 0.0, 0.0, 0.0, 0.0]\n', "poses.grip",
+         "value 1 is not a number"),
         ("poses:\n  grip: [0.0, 0.0, 0.0, 0.0, zero, 0.0]\n", "poses.grip",
          "value 4 is not a number"),
         ("poses:\n  grip: [0.0, 0.0, 0.0, 0.0, true, 0.0]\n", "poses.grip",

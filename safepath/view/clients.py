@@ -28,8 +28,9 @@ from typing import Any
 import numpy as np
 import viser
 
+from .._io import as_float, as_vector
 from ..cell import Cell
-from ..errors import SafepathError
+from ..errors import PoseError, SafepathError
 from .access import Access
 from .editor import PoseEditor
 from .edits import PoseEdits, PoseStatus
@@ -188,15 +189,28 @@ class ClientEditor:
         self.update_access()
         return status
 
-    def set_joint(self, j: int, value: float) -> PoseStatus:
-        """Edit joint ``j`` of the selected pose."""
+    def set_joint(self, j: int, value: Any) -> PoseStatus:
+        """Edit joint ``j`` of the selected pose.
+
+        Raises:
+            PoseError: ``value`` is not a finite number (a string is refused, not read).
+        """
         self._check("edit poses")
+        value = as_float(value, path=None, key=self.cell.robot.joint_names[j],
+                         error=PoseError)
         self._drop_pending()
         return self.editor.set_joint(j, value)
 
     def set_joints(self, q: Any) -> PoseStatus:
-        """Edit the selected pose to ``q`` [rad]."""
+        """Edit the selected pose to ``q`` [rad].
+
+        Raises:
+            PoseError: ``q`` is not a list of finite numbers (strings are refused).
+        """
         self._check("edit poses")
+        if not isinstance(q, np.ndarray) or q.dtype.kind not in "fi":
+            q = np.asarray(as_vector(list(q) if isinstance(q, np.ndarray) else q, None,
+                                     path=None, key="joints", error=PoseError))
         self._drop_pending()
         return self.editor.set_joints(q)
 
@@ -376,7 +390,7 @@ class ClientEditor:
            else self.edit_pose(e.target.value))
         for j, joint_box in enumerate(w.joints):
             on(joint_box, functools.partial(
-                lambda j, e: self.set_joint(j, float(e.target.value)), j))
+                lambda j, e: self.set_joint(j, e.target.value), j))
         on(w.gizmo_enabled, lambda e: self.update_access())
         on(w.reset, lambda e: self.reset_pose(), button=True)
         on(w.take_saved, lambda e: self.take_saved(), button=True)

@@ -19,6 +19,7 @@ import numpy as np
 import pytest
 
 from safepath import InputError, SafepathError, load_poses
+from safepath.errors import PoseError
 from safepath.poses import dump_poses
 from safepath.view import ReviewSession, ViewOptions
 from safepath.view.access import Access, AccessDenied
@@ -201,6 +202,29 @@ def test_a_page_saves_only_what_it_showed(cell_copy: Path,
             page.confirm_save()
         saved = load_poses(cell_copy / "poses.yaml", session.cell.robot)
         assert saved["low1"][0] == 1.4319 and np.array_equal(saved["safe"], q)
+    finally:
+        session.stop()
+
+
+def test_a_joint_value_that_is_not_a_number_is_refused(
+        cell_copy: Path, raw_pages: Callable[[ReviewSession], Any]) -> None:
+    """A page's joint value must be a number: a numeric string (or a boolean) is refused
+    naming the joint, and nothing is edited or saved."""
+    session = ReviewSession(cell_copy, options=ViewOptions(
+        port=0, plan_on_start=False, replan_on_save=False)).start()
+    try:
+        page = raw_pages(session)
+        with session.locked():
+            page.edit_pose("low1")
+            before = page.edits.q("low1").copy()
+            for bad in ("1.43", True, None, float("nan")):
+                with pytest.raises(PoseError, match="'joint_1'"):
+                    page.set_joint(0, bad)
+            with pytest.raises(PoseError, match="joints"):
+                page.set_joints(["1.43", 0, 0, 0, 0, 0])
+            np.testing.assert_array_equal(page.edits.q("low1"), before)
+            page.set_joint(0, 1.4318)  # a number is taken
+        assert page.edits.q("low1")[0] == 1.4318
     finally:
         session.stop()
 
