@@ -58,6 +58,7 @@ def cmd_plan(args: argparse.Namespace) -> int:
     options = PlanOptions(planner=PlannerOptions(planner=args.planner, time_limit=args.time_limit,
                                                  seed=args.seed),
                           timing=TimingOptions(speed_scale=args.speed), baseline=True)
+    _note_jit_kernels()
     t0 = time.perf_counter()
     trajectories = plan_cell(cell, options, routes=routes)
     wall = time.perf_counter() - t0
@@ -87,24 +88,25 @@ def cmd_plan(args: argparse.Namespace) -> int:
     print(f"wrote {len(trajectories)} trajectories (JSON, CSV) and summary.json to {out}")
     if bag is not None:
         print(f"wrote a ROS 2 bag of the cycle ({' -> '.join(t.route for t in cycle)}) to {bag}")
-    _note_jit_kernels()
     return 0
 
 
 def _note_jit_kernels() -> None:
-    """Say on standard error when the kernels were not compiled ahead of time for these
-    sources (none built, or built from other sources: any edit of a kernel module, the
-    monitor's included, needs a new build): numba then imports and loads them during the
-    first route, most of a second of this process."""
+    """Say on standard error, before planning, when the kernels were not compiled ahead
+    of time for these sources (none built, or built from other sources: any edit of a
+    kernel module, the monitor's included, needs a new build): numba then compiles or
+    loads them during the first route, which waits for it (most of a second from
+    numba's cache; minutes on a fresh or busy machine, with nothing else to show)."""
     import os
     import sys
 
     from . import _aot
 
     if _aot.compiled() is None and os.environ.get(_aot.ENV_MODE, "1") != "0":
-        print(f"safepath plan: note: {_aot.status()}; the first route paid for loading "
-              "numba's kernels: `safepath build-kernels` compiles them ahead of time",
-              file=sys.stderr)
+        print(f"safepath plan: note: {_aot.status()}; the first route waits for numba "
+              "to compile or load the kernels (under a second from its cache, minutes "
+              "on a fresh or busy machine): `safepath build-kernels` compiles them ahead "
+              "of time", file=sys.stderr, flush=True)
 
 
 def _summary_row(traj: Any) -> dict[str, Any]:

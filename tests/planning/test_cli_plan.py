@@ -115,8 +115,8 @@ def test_a_bag_that_cannot_be_written_leaves_no_output(tmp_path: Path,
 
 def test_a_plan_without_compiled_kernels_says_so(tmp_path: Path) -> None:
     """Without a build of the kernels for these sources (an empty kernel cache here) the
-    first route loads numba's kernels, most of a second: a plan says so, once, on
-    standard error, and how to build them."""
+    first route waits for numba's kernels (minutes on a fresh or busy machine): a plan
+    says so before it plans, once, on standard error, and how to build them."""
     env = {k: v for k, v in os.environ.items() if k != "SAFEPATH_AOT"}
     env["SAFEPATH_KERNEL_CACHE"] = str(tmp_path / "no-kernels")
     proc = subprocess.run(_safepath() + ["plan", str(BUNDLED), "--out", str(tmp_path / "out"),
