@@ -39,3 +39,38 @@ def make_monitor(cell: Cell, **changes: object) -> Monitor:
     """A monitor with the test camera and fast sensor timing (30 Hz camera)."""
     settings: dict[str, object] = {"sensors": {"cam": CAMERA}, "stale_after": 0.06, **changes}
     return Monitor(cell, MonitorOptions(**settings))  # type: ignore[arg-type]
+
+
+class BoxOnRoute:
+    """A node core on phase 1 (its lidar at 0.9, 0.6, 0.3 m, re-plans after 0.5 s, a
+    parked body taken as a box that never moves: ``parked_speed`` 0), active, the vial
+    gripped, and a ball of 1 m radius resting on phase 1's route; :meth:`scan` is the
+    lidar's scan of it delivered at ``t``."""
+
+    LIDAR = (0.9, 0.6, 0.30)
+
+    def __init__(self, cell_dir: object) -> None:
+        from safepath.monitor.node import MonitorNodeCore, parameters_from_mapping
+        from safepath.monitor.simulation import MovingSphere
+
+        params = parameters_from_mapping({
+            "scene": str(cell_dir), "scan_frame": "laser", "scan_xyz": list(self.LIDAR),
+            "stale_after": 0.15, "replan_after": 0.5, "replan_margin": 0.03,
+            "parked_speed": 0.0})
+        self.core = MonitorNodeCore(params)
+        self.core.configure()
+        self.core.activate(0.0)
+        self.core.on_gripper_done(0.0)
+        self.pose = np.eye(4)
+        self.pose[:3, 3] = self.LIDAR
+        self.obstacle = MovingSphere.approach([0.33, 0.30, 0.30], [0.0, 0.0, 0.3], 0.0, 0.0,
+                                              1.0)
+
+    def scan(self, t: float) -> list[object]:
+        from safepath.monitor.observations import Scan
+        from safepath.monitor.ros import scan_message
+        from safepath.monitor.simulation import lidar_scan
+
+        msg = scan_message(Scan(t, "laser", lidar_scan(self.obstacle, t, self.pose), -np.pi,
+                                2 * np.pi / 360, 0.05, 8.0))
+        return self.core.on_scan(msg, t)  # type: ignore[return-value]

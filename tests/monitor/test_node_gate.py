@@ -22,8 +22,9 @@ from safepath.monitor.node import (
     Publish,
     Replan,
     SendGoal,
-    parameters_from_mapping,
 )
+
+from .conftest import BoxOnRoute
 
 TICK = 0.02
 
@@ -187,29 +188,10 @@ def test_an_inactive_node_sends_its_stop_and_holds_the_rest(cell_dir: Path) -> N
 
 
 def test_a_replan_answered_while_killed_waits_for_reset(cell_dir: Path) -> None:
-    from safepath.monitor.observations import Scan
     from safepath.monitor.replan import replan
-    from safepath.monitor.ros import scan_message
-    from safepath.monitor.simulation import MovingSphere, lidar_scan
 
-    lidar = [0.9, 0.6, 0.30]
-    params = parameters_from_mapping({"scene": str(cell_dir), "scan_frame": "laser",
-                                      "scan_xyz": lidar, "stale_after": 0.15,
-                                      "replan_after": 0.5, "replan_margin": 0.03,
-                                      "parked_speed": 0.0})  # a box: it never moves
-    core = MonitorNodeCore(params)
-    core.configure()
-    core.activate(0.0)
-    core.on_gripper_done(0.0)
-    pose = np.eye(4)
-    pose[:3, 3] = lidar
-    obstacle = MovingSphere.approach([0.33, 0.30, 0.30], [0.0, 0.0, 0.3], 0.0, 0.0, 1.0)
-
-    def scan(t: float) -> list[Command]:
-        msg = scan_message(Scan(t, "laser", lidar_scan(obstacle, t, pose), -np.pi,
-                                2 * np.pi / 360, 0.05, 8.0))
-        return core.on_scan(msg, t)
-
+    box = BoxOnRoute(cell_dir)
+    core, scan = box.core, box.scan
     request = None
     t = 0.0
     while request is None and t < 8.0:

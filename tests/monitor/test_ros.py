@@ -33,7 +33,7 @@ from safepath.monitor.simulation import MovingSphere, simulate
 from safepath.ros.bag import read_bag
 from safepath.ros.messages import deserialize, serialize, typestore
 
-from .conftest import CAMERA, Phase1, make_monitor
+from .conftest import CAMERA, BoxOnRoute, Phase1, make_monitor
 
 ROOT = Path(__file__).resolve().parents[2]
 EXAMPLES = ROOT / "examples" / "ros2"
@@ -222,36 +222,19 @@ def test_example_monitor_node_compiles(tmp_path: Path) -> None:
 def test_node_core_replans_around_an_obstacle_that_stays(cell_dir: Path, found: bool) -> None:
     from safepath.monitor.node import Replan
     from safepath.monitor.replan import replan
-    from safepath.monitor.simulation import lidar_scan
 
-    lidar = [0.9, 0.6, 0.30]
-    params = parameters_from_mapping({"scene": str(cell_dir), "scan_frame": "laser",
-                                      "scan_xyz": lidar, "stale_after": 0.15,
-                                      "replan_after": 0.5, "replan_margin": 0.03,
-                                      "parked_speed": 0.0})  # a box: it never moves
-    core = MonitorNodeCore(params)
-    core.configure()
-    core.activate(0.0)
-    core.on_gripper_done(0.0)
-    pose = np.eye(4)
-    pose[:3, 3] = lidar
-    obstacle = MovingSphere.approach([0.33, 0.30, 0.30], [0.0, 0.0, 0.3], 0.0, 0.0, 1.0)
+    box = BoxOnRoute(cell_dir)
+    core = box.core
     request = None
     t = 0.0
     while request is None and t < 8.0:
         t = round(t + 1 / 30, 6)
-        ranges = lidar_scan(obstacle, t, pose)
-        msg = scan_message(Scan(t, "laser", ranges, -np.pi, 2 * np.pi / 360, 0.05, 8.0))
-        for c in core.on_scan(msg, t):
-            if isinstance(c, Replan):
-                request = c
+        request = next((c for c in box.scan(t) if isinstance(c, Replan)), None)
     assert request is not None and request.held == "vial" and request.route == "phase1"
     if not found:  # the planner found no way: stopped, saying why
         assert core.on_replan_failed(request.request, "no way (test)", t) == []
         t = round(t + 1 / 30, 6)
-        msg = scan_message(Scan(t, "laser", lidar_scan(obstacle, t, pose), -np.pi,
-                                2 * np.pi / 360, 0.05, 8.0))
-        published = [c for c in core.on_scan(msg, t) if not isinstance(c, Replan)]
+        published = [c for c in box.scan(t) if not isinstance(c, Replan)]
         decision = published[0].decision  # type: ignore[attr-defined]
         assert decision.kind == "stop" and "no way (test)" in decision.reason
         return
