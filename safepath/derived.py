@@ -35,6 +35,7 @@ import json
 import logging
 import math
 import os
+import secrets
 from collections.abc import Callable, Hashable, Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -43,11 +44,17 @@ from typing import Any, Generic, Protocol, TypeVar
 import numpy as np
 
 from ._digest import blake2b, sha256
+from ._io import read_bytes
+from .errors import InputError
 
 __all__ = ["DerivedKind", "StoredKind", "Derived", "DerivedValues", "CACHE_ENV",
            "disk_folder", "read_entry"]
 
 log = logging.getLogger(__name__)
+
+#: The largest cache entry read back [bytes] (entries are a robot's fitted geometry:
+#: kilobytes to a few megabytes).
+_ENTRY_LIMIT = 256 << 20
 
 T = TypeVar("T")
 
@@ -263,13 +270,12 @@ def _load_or_make(kind: StoredKind[T], make: Callable[[], T], options: Hashable,
     if where is None:
         return kind.from_arrays(kind.to_arrays(make()))
     path = where / f"{_entry_name(kind, [kind.name, repr(options), *inputs()])}.part"
-    try:
-        raw = path.read_bytes()
-    except FileNotFoundError:
-        raw = None
-    except OSError as exc:
-        log.debug("robot-part cache %s not read: %s", path, exc)
-        raw = None
+    raw = None
+    if os.path.lexists(path):
+        try:  # a regular file only: a pipe or device planted there is never opened
+            raw = read_bytes(path, error=InputError, limit=_ENTRY_LIMIT)
+        except InputError as exc:
+            log.debug("robot-part cache %s not read: %s", path, exc)
     if raw is not None:
         try:
             return kind.from_arrays(read_entry(raw))
@@ -278,8 +284,13 @@ def _load_or_make(kind: StoredKind[T], make: Callable[[], T], options: Hashable,
     arrays = kind.to_arrays(make())
     try:
         where.mkdir(parents=True, exist_ok=True)
-        part = path.with_name(f"{path.name}.{os.getpid()}.tmp")
-        part.write_bytes(_encode(arrays))
+        part = path.with_name(f"{path.name}.{os.getpid()}.{secrets.token_hex(4)}.tmp")
+        # Created exclusively, never through a link; the rename replaces a link at
+        # ``path`` itself, not what it points to.
+        fd = os.open(part, os.O_WRONLY | os.O_CREAT | os.O_EXCL | os.O_NOFOLLOW
+                     | os.O_CLOEXEC, 0o600)
+        with os.fdopen(fd, "wb") as out:
+            out.write(_encode(arrays))
         os.replace(part, path)
     except (OSError, TypeError) as exc:
         log.debug("robot-part cache %s not written: %s", path, exc)

@@ -89,6 +89,33 @@ def test_a_damaged_entry_is_ignored_with_a_warning_and_made_again(
     assert read_entry(entry.read_bytes()).keys() == made.keys()  # written anew
 
 
+@pytest.mark.parametrize("plant", ["fifo", "link"])
+def test_a_pipe_or_link_planted_as_an_entry_neither_hangs_nor_writes_through(
+        cell: Cell, tmp_path: Path, monkeypatch: pytest.MonkeyPatch, plant: str) -> None:
+    """A named pipe at an entry's name is not opened (reading it would block for ever);
+    a link there to another file is not written through: the entry is made again and
+    replaces the link itself, the file it pointed to keeps its content."""
+    import os
+
+    monkeypatch.setenv(CACHE_ENV, str(tmp_path))
+    options = LayerOptions()
+    made = _arrays(cell, _made(cell, options))
+    (entry,) = (tmp_path / "robot-parts").glob("*.part")
+    entry.unlink()
+    victim = tmp_path / "victim.txt"
+    victim.write_text("mine\n")
+    if plant == "fifo":
+        os.mkfifo(entry)
+    else:
+        entry.symlink_to(victim)
+    again = _arrays(cell, _made(cell, options))
+    for name in made:
+        np.testing.assert_array_equal(made[name], again[name], err_msg=name)
+    assert victim.read_text() == "mine\n"
+    assert entry.is_file() and not entry.is_symlink()  # the entry, written anew
+    assert read_entry(entry.read_bytes()).keys() == made.keys()
+
+
 def test_other_options_or_geometry_are_another_entry(cell: Cell, tmp_path: Path,
                                                      monkeypatch: pytest.MonkeyPatch) -> None:
     monkeypatch.setenv(CACHE_ENV, str(tmp_path))
