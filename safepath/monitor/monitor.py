@@ -463,15 +463,12 @@ class Monitor:
         itself is on the path at every instant."""
         if self.controller is None:
             return time
-        t_abs = self.controller.running[0]
-        if self._any_instant and self._path is not None and \
-                self._path.knot != KNOT_NS / 1e9:
-            # On a path's own knots a replacement's knots are the path's while it keeps
-            # the verified timing (see MonitoredPath.knot).
-            k = int(np.searchsorted(t_abs, time - 1e-9, side="left"))
-            return time if k >= t_abs.size else float(t_abs[k])
-        if self._any_instant:
+        # On a path's own knots a replacement's knots are the path's while it keeps the
+        # verified timing (see MonitoredPath.knot): snap there too.
+        own_knots = self._path is not None and self._path.knot != KNOT_NS / 1e9
+        if self._any_instant and not own_knots:
             return time
+        t_abs = self.controller.running[0]
         k = int(np.searchsorted(t_abs, time - 1e-9, side="left"))
         return time if k >= t_abs.size else float(t_abs[k])
 
