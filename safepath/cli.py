@@ -1,7 +1,9 @@
 """The ``safepath`` command line.
 
 Every command turns a :class:`~safepath.errors.SafepathError` into one line on
-standard error and exit status 2; an unsafe result (a pose in collision) is exit 1.
+standard error: exit status 2 for bad input (an ``InputError``), 1 for no safe result (a
+pose in collision, a route that cannot be planned, timed or verified within its
+margins and limits).
 """
 
 from __future__ import annotations
@@ -13,7 +15,7 @@ from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-from .errors import SafepathError
+from .errors import InputError, PlanningError, SafepathError, TimingError, VerificationError
 
 if TYPE_CHECKING:
     from .cell import Cell
@@ -22,6 +24,8 @@ __all__ = ["main"]
 
 EXIT_UNSAFE = 1
 EXIT_ERROR = 2
+#: Errors that say no safe result exists (exit 1), unless they are bad input.
+_NO_SAFE_RESULT = (PlanningError, TimingError, VerificationError)
 
 
 def _fmt_pair(pair: tuple[str, str] | None) -> str:
@@ -180,7 +184,11 @@ def main(argv: Sequence[str] | None = None) -> int:
         return int(args.func(args))
     except SafepathError as exc:
         print(f"safepath {args.command}: error: {exc}", file=sys.stderr)
-        return EXIT_ERROR
+        # Bad input is 2; a route that cannot be planned, timed or verified safely (a
+        # collision, a margin not kept, an unreachable target) is no safe result: 1,
+        # as 'check' says of a pose in collision.
+        return EXIT_ERROR if isinstance(exc, InputError) or not isinstance(
+            exc, _NO_SAFE_RESULT) else EXIT_UNSAFE
     except KeyboardInterrupt:
         print(f"safepath {args.command}: interrupted", file=sys.stderr)
         return 130

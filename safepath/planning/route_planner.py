@@ -20,7 +20,7 @@ from pathlib import Path
 import numpy as np
 
 from ..cell import Cell
-from ..collision import CollisionChecker, Pair
+from ..collision import CollisionChecker, Pair, SegmentReport
 from ..errors import IKError, PlanningError, SafepathError, TimingError
 from ..routes import Route, Step, after_chain
 from ..timing import TimedPiece
@@ -246,11 +246,24 @@ def _line_path(cell: Cell, checker: CollisionChecker, q: np.ndarray, goal: np.nd
     waypoints = cartesian_line(robot, q, goal, options=options.line, step_name=label)
     report = checker.check_path(waypoints)
     if not report.valid:
-        why = report.limit_violation or ", ".join(f"{a} / {b}" for a, b in report.collisions)
-        raise IKError(f"the line collides ({why})", step=label,
+        raise IKError(_line_failure(checker, report), step=label,
                       fraction=report.fraction or 0.0,
                       position=robot.tcp_position(report.q) if report.q is not None else None)
     return waypoints
+
+
+def _line_failure(checker: CollisionChecker, report: SegmentReport) -> str:
+    """Why a line's state is refused, as ``safepath check`` would say it: outside the
+    limits, in contact (the pairs), or closer than a pair's margin (how close)."""
+    if report.limit_violation:
+        return f"the line leaves the joint limits ({report.limit_violation})"
+    state = checker.check(report.q) if report.q is not None else None
+    if state is not None and state.clearance > 0.0 and state.margin_violations:
+        worst = min(state.margin_violations, key=lambda v: v[1] - v[2])
+        (a, b), distance, margin = worst
+        return (f"the line comes within {1000 * distance:.1f} mm of {a} / {b}, below its "
+                f"margin of {1000 * margin:.0f} mm (no contact)")
+    return f"the line collides ({', '.join(f'{a} / {b}' for a, b in report.collisions)})"
 
 
 def _time_and_verify(cell: Cell, chunks: list[tuple[list[Segment], WorldState] | PourChunk],

@@ -126,3 +126,27 @@ def test_a_plan_without_compiled_kernels_says_so(tmp_path: Path) -> None:
     lines = proc.stderr.splitlines()
     assert len(lines) == 1 and lines[0].startswith("safepath plan: note: numba JIT"), proc.stderr
     assert "safepath build-kernels" in lines[0]
+
+
+def test_a_line_short_of_its_margin_is_named_so_and_is_no_safe_result(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """The camera asks for 60 mm: 'check' passes (its poses only fall below margin), and
+    'plan' refuses the line down to the plate, saying it keeps less than the margin and
+    no contact, with exit 1 (no safe result, as 'check' says of a collision), not 2 (bad
+    input)."""
+    import shutil
+
+    cell = tmp_path / "cell"
+    shutil.copytree(BUNDLED, cell)
+    scene = cell / "scene.yaml"
+    text = scene.read_text()
+    assert text.count("\n  camera:\n") == 1
+    scene.write_text(text.replace("\n  camera:\n", "\n  camera:\n    margin: 0.06\n"))
+    assert main(["check", str(cell)]) == 0
+    capsys.readouterr()
+    assert main(["plan", str(cell), "--route", "phase1", "--out", str(tmp_path / "out")]) == 1
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "step '4 line low1'" in err[0], err
+    assert "/ camera, below its margin of 60 mm (no contact)" in err[0]
+    assert "collides" not in err[0]
+    assert not (tmp_path / "out").exists()
