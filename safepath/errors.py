@@ -248,15 +248,17 @@ class IKError(PlanningError):
     """A Cartesian motion could not be followed by inverse kinematics.
 
     Attributes:
-        fraction: Where along the line it failed, in [0, 1].
+        fraction: Where along the line it failed, in [0, 1]; None for a target that is
+            no line (a ``move`` to a TCP pose).
         position: The TCP target position there [m], world frame.
     """
 
-    def __init__(self, reason: str, *, step: str | None = None, fraction: float = 0.0,
-                 position: Any = None):
+    def __init__(self, reason: str, *, step: str | None = None,
+                 fraction: float | None = 0.0, position: Any = None):
         self.fraction = fraction
         self.position = position
-        super().__init__(f"{reason} at {fraction:.0%} of the line", step=step)
+        where = "" if fraction is None else f" at {fraction:.0%} of the line"
+        super().__init__(f"{reason}{where}", step=step)
 
 
 class TimingError(SafepathError):

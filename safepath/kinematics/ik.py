@@ -85,5 +85,5 @@ def solve_ik(robot: Robot, T_world_tcp: pin.SE3, q_init: np.ndarray, *,
     left = float(np.linalg.norm(T_world_tcp.translation
                                 - pin.updateFramePlacement(model, data, fid).translation))
     raise IKError(f"no inverse-kinematics solution for the target in {options.max_iterations} "
-                  f"iterations ({left * 1000:.1f} mm away)", step=step, fraction=1.0,
+                  f"iterations ({left * 1000:.1f} mm away)", step=step, fraction=None,
                   position=np.array(T_world_tcp.translation))
