@@ -29,6 +29,7 @@ __all__ = [
     "TimingError",
     "ExecutedLimitError",
     "VerificationError",
+    "UnprovenClearance",
     "TrajectoryError",
     "RosError",
     "unknown_name",
@@ -296,6 +297,26 @@ class VerificationError(SafepathError):
         self.step = step
         where = f" in step '{step}'" if step else ""
         super().__init__(f"{reason} at t={time:.3f} s{where}")
+
+
+class UnprovenClearance(VerificationError):
+    """A timed trajectory whose certified clearance bound against an object stays
+    negative after the release check's finer check: by the verifier's own figures,
+    contact between two samples is not ruled out, so it is never released.
+
+    Attributes:
+        pair: The pair (robot link or held object, environment object).
+        bound: The certified lower bound on the pair's distance there [m] (negative).
+        time: Trajectory time where the interval that bound covers starts [s].
+        q: The joint vector there [rad].
+        step: Route step it belongs to.
+    """
+
+    def __init__(self, reason: str, *, pair: tuple[str, str], bound: float, time: float,
+                 q: Any, step: str | None = None):
+        self.pair = pair
+        self.bound = bound
+        super().__init__(reason, time=time, q=q, pairs=[pair], step=step)
 
 
 class TrajectoryError(InputError):
