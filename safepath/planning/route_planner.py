@@ -29,7 +29,8 @@ from ..verify import check_verifiable
 from ._chunks import Segment, TimedPieces, assemble, time_chunk, time_segments
 from ._pour_chunk import PourChunk, plan_pour_chunk
 from .cartesian import cartesian_line
-from .constraints import check_landing, check_tilt, tilt_bound
+from .constraints import check_tilt, tilt_bound
+from .landing import check_landing
 from .options import PlanOptions
 from .sampling import plan_joint_path
 from .world import CheckerCache, WorldState, initial_world
@@ -164,7 +165,7 @@ def _plan(cell: Cell, route: Route, world: WorldState, options: PlanOptions,
     carried = check_tilt(cell, route, traj)  # orientation path constraints (max_tilt)
     if tilt_bound(route) is not None:
         traj.info["carried_tilt"] = {"max": carried, "bound": tilt_bound(route)}
-    landing = check_landing(cell, route, traj)  # pours land in their receptacles (into)
+    landing = check_landing(cell, route, traj)  # no pour can spill outside (into)
     pours = [c.figures for c in paths.chunks if isinstance(c, PourChunk)]
     if pours:
         traj.info["pours"] = {k: v for f in pours for k, v in f.items()}
