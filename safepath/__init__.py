@@ -27,6 +27,7 @@ from .errors import (
     SafepathError,
     TimingError,
     TrajectoryError,
+    UnprovenClearance,
     VerificationError,
 )
 from .planning import (
@@ -94,6 +95,7 @@ __all__ = [
     "ToolSpec",
     "ControllerSpec",
     "TrajectoryError",
+    "UnprovenClearance",
     "VerificationError",
     "check_poses",
     "dump_poses",

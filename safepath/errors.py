@@ -29,6 +29,7 @@ __all__ = [
     "TimingError",
     "ExecutedLimitError",
     "VerificationError",
+    "UnprovenClearance",
     "TrajectoryError",
     "RosError",
     "unknown_name",
@@ -226,21 +227,30 @@ class PlannerTimeout(PlanningError):
 
 
 class PourLandingError(PlanningError):
-    """A pour step's lip leaves its receptacle's opening: the pour lands outside.
+    """A pour can spill outside its receptacle: while the held container is tipped past
+    its spill angle, a point of its opening's rim leaves the receptacle's opening (inside
+    its wall) or dips below its top, or the step pours into nothing.
 
     Attributes:
-        receptacle: The scene object the step pours into.
-        time: Time of the first sample outside [s] (the route's clock).
-        lip: The lip's world position there [m].
-        overshoot: How far outside the opening the lip is there [m].
+        receptacle: The scene object the step pours into (None: the step names none).
+        time: Time of the worst sample [s] (the route's clock).
+        lip: The rim point's world position there [m].
+        overshoot: How far outside the opening (or below the top) it is there [m].
+        distance: Its distance from the receptacle's axis [m] (a box's: along the side
+            it crosses; nan when it pours into nothing).
+        limit: The most that distance may be: the opening's half-width inside the wall
+            [m] (nan when it pours into nothing).
     """
 
-    def __init__(self, reason: str, *, step: str, receptacle: str, time: float, lip: Any,
-                 overshoot: float):
+    def __init__(self, reason: str, *, step: str, receptacle: str | None, time: float,
+                 lip: Any, overshoot: float, distance: float = float("nan"),
+                 limit: float = float("nan")):
         self.receptacle = receptacle
         self.time = time
         self.lip = lip
         self.overshoot = overshoot
+        self.distance = distance
+        self.limit = limit
         super().__init__(reason, step=step)
 
 
@@ -298,6 +308,26 @@ class VerificationError(SafepathError):
         self.step = step
         where = f" in step '{step}'" if step else ""
         super().__init__(f"{reason} at t={time:.3f} s{where}")
+
+
+class UnprovenClearance(VerificationError):
+    """A timed trajectory whose certified clearance bound against an object stays
+    negative after the release check's finer check: by the verifier's own figures,
+    contact between two samples is not ruled out, so it is never released.
+
+    Attributes:
+        pair: The pair (robot link or held object, environment object).
+        bound: The certified lower bound on the pair's distance there [m] (negative).
+        time: Trajectory time where the interval that bound covers starts [s].
+        q: The joint vector there [rad].
+        step: Route step it belongs to.
+    """
+
+    def __init__(self, reason: str, *, pair: tuple[str, str], bound: float, time: float,
+                 q: Any, step: str | None = None):
+        self.pair = pair
+        self.bound = bound
+        super().__init__(reason, time=time, q=q, pairs=[pair], step=step)
 
 
 class TrajectoryError(InputError):

@@ -24,7 +24,7 @@ pour, :func:`safepath.planning.pour.plan_barista`); a tilt alone is
 names the receptacle (a scene object, a vertical cylinder or an upright box) the pour
 must land in: at every released sample of the step the cup's lip (the tilt's pivot, or
 for a circle the pivot of its tilt, carried with the cup) lies above the receptacle and
-within its opening (:func:`safepath.planning.constraints.check_landing`).
+within its opening (:func:`safepath.planning.landing.check_landing`).
 
 Part of the routes format (any cell's routes may tilt and circle a held object), so it
 stays in the library; the pouring cell's own logic is :mod:`safepath.cells.pouring`.

@@ -127,7 +127,7 @@ class Step:
         into: The receptacle a ``tilt`` or ``circle`` pours into (a scene object), or
             None: at every released sample of the step the cup's pouring lip (the
             tilt's ``pivot``, carried by the cup) lies above the receptacle's opening
-            (:func:`safepath.planning.constraints.check_landing`).
+            (:func:`safepath.planning.landing.check_landing`).
     """
 
     kind: StepKind

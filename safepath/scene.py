@@ -10,6 +10,7 @@ on its conveyor), each restricted to the taught poses where it happens.
 from __future__ import annotations
 
 import dataclasses
+import math
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -22,7 +23,8 @@ from ._io import as_float, check_names
 from .errors import ConfigError
 from .tool import ToolSpec
 
-__all__ = ["Shape", "SceneObject", "AllowedContact", "Grasp", "Scene", "placement", "SIZE_KEYS"]
+__all__ = ["Shape", "SceneObject", "AllowedContact", "Grasp", "Scene", "placement", "SIZE_KEYS",
+           "DEFAULT_WALL", "DEFAULT_SPILL_ANGLE"]
 
 ShapeKind = Literal["box", "cylinder", "sphere", "capsule"]
 #: The size keys of each shape kind, in the order of :attr:`Shape.size`.
@@ -33,6 +35,12 @@ SIZE_KEYS: dict[str, tuple[str, ...]] = {
     "sphere": ("radius",),
 }
 
+#: Wall thickness of a receptacle whose scene gives none [m]: a thick-walled bowl's rim, so
+#: that a pour is never judged against an opening wider than the real one by more.
+DEFAULT_WALL = 0.005
+#: Spill angle of a container a pour step tilts whose scene gives none [rad]: a cup full to
+#: the brim spills at any tilt.
+DEFAULT_SPILL_ANGLE = 0.0
 #: Alias in ``allowed_contacts`` for the tool's contact links (the gripper jaws).
 GRIPPER = "gripper"
 
@@ -126,6 +134,13 @@ class SceneObject:
         margin: Safety margin the robot keeps from it [m], or None for the scene's.
         movable: Whether the gripper may pick it (it then moves with the TCP).
         color: RGB in [0, 1] for viewers.
+        wall: Thickness of its walls at the top [m], as a receptacle a pour lands in
+            (``into``): the opening is its top face less this all round. None:
+            :data:`DEFAULT_WALL`.
+        spill_angle: As a held container (its open end its local +z face), the tilt of
+            its axis from the vertical past which its content can reach the rim [rad].
+            None: it holds nothing that can pour, unless a pour step tilts it (then
+            :data:`DEFAULT_SPILL_ANGLE`).
     """
 
     name: str
@@ -134,6 +149,8 @@ class SceneObject:
     margin: float | None = None
     movable: bool = False
     color: tuple[float, float, float] = (0.6, 0.6, 0.6)
+    wall: float | None = None
+    spill_angle: float | None = None
 
     def __post_init__(self) -> None:
         if not isinstance(self.name, str) or not self.name:
@@ -149,6 +166,15 @@ class SceneObject:
         if not isinstance(self.movable, bool):
             raise ConfigError(f"expected True or False, got {self.movable!r}",
                               key=f"{where}.movable")
+        if self.wall is not None:
+            object.__setattr__(self, "wall", _number(self.wall, f"{where}.wall",
+                                                     non_negative=True))
+        if self.spill_angle is not None:
+            angle = _number(self.spill_angle, f"{where}.spill_angle", non_negative=True)
+            if angle > math.pi:
+                raise ConfigError(f"a tilt in [0, pi] [rad], got {angle!r}",
+                                  key=f"{where}.spill_angle")
+            object.__setattr__(self, "spill_angle", angle)
         rgb = tuple(_number(c, f"{where}.color") for c in self.color)
         if len(rgb) != 3 or any(c < 0 or c > 1 for c in rgb):
             raise ConfigError(f"expected three components in [0, 1], got {self.color!r}",

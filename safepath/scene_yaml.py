@@ -27,7 +27,7 @@ __all__ = ["load_scene"]
 _SCENE_KEYS = ("name", "robot", "margin", "objects", "grasp", "allowed_contacts", "note",
                "locked_joints", "tool")
 _OBJECT_KEYS = ("shape", "size", "radius", "length", "xyz", "rpy", "margin", "movable",
-                "color", "note")
+                "color", "note", "wall", "spill_angle")
 _CONTACT_KEYS = ("between", "at", "max_depth", "reason")
 _GRASP_KEYS = ("object", "xyz", "rpy", "poses")
 
@@ -104,8 +104,14 @@ def _parse_object(name: str, raw: Any, path: Path) -> SceneObject:
         raise ConfigError(f"a {kind} has no '{extra[0]}' (it takes "
                           f"{', '.join(SIZE_KEYS[kind])})", path=path, key=f"{key}.{extra[0]}")
     shape = Shape(kind, tuple(size))  # type: ignore[arg-type]  # kind checked above
-    return SceneObject(name, shape, placement(xyz, rpy), margin, movable,
-                       (rgb[0], rgb[1], rgb[2]))
+    wall, spill = (None if raw.get(k) is None else
+                   as_float(raw[k], path=path, key=f"{key}.{k}", non_negative=True)
+                   for k in ("wall", "spill_angle"))
+    try:
+        return SceneObject(name, shape, placement(xyz, rpy), margin, movable,
+                           (rgb[0], rgb[1], rgb[2]), wall=wall, spill_angle=spill)
+    except ConfigError as exc:
+        raise ConfigError(exc.reason, path=path, key=exc.key) from None
 
 
 def _parse_contact(i: int, raw: Any, path: Path, objects: Mapping[str, SceneObject]

@@ -156,8 +156,14 @@ def describe(figures: dict[str, dict[str, Any]]) -> list[str]:
                 f"{math.degrees(f['orientation_error']):.3f} deg); peak TCP speed "
                 f"{f['max_tcp_speed']:.4f} m/s (limit {f['tcp_speed_bound']:.3f}); cup "
                 f"angular speed <= {math.degrees(f['max_angular_speed']):.3f} deg/s")
-        if "landing" in f:
-            land = f["landing"]
-            lines[-1] += (f"; lands in '{land['into']}' (lip >= {land['margin'] * 1000:.1f} "
-                          f"mm inside its edge, >= {land['height'] * 1000:.0f} mm above it)")
+        land = f.get("landing")
+        if land is not None and land["margin"] is not None:
+            spill = math.degrees(land["spill_angle"])
+            lines[-1] += (f"; lands in '{land['into']}' (past the {spill:.0f} deg spill angle "
+                          f"for {land['pouring_time']:.1f} s: the whole opening >= "
+                          f"{land['margin'] * 1000:.1f} mm inside its wall, "
+                          f">= {land['height'] * 1000:.0f} mm above it)")
+        elif land is not None:
+            lines[-1] += (f"; never past the {math.degrees(land['spill_angle']):.0f} deg spill "
+                          "angle")
     return lines

@@ -29,7 +29,8 @@ from ..verify import check_verifiable
 from ._chunks import Segment, TimedPieces, assemble, time_chunk, time_segments
 from ._pour_chunk import PourChunk, plan_pour_chunk
 from .cartesian import cartesian_line
-from .constraints import check_landing, check_tilt, tilt_bound
+from .constraints import check_tilt, tilt_bound
+from .landing import check_landing
 from .options import PlanOptions
 from .sampling import plan_joint_path
 from .world import CheckerCache, WorldState, initial_world
@@ -157,14 +158,14 @@ def _plan(cell: Cell, route: Route, world: WorldState, options: PlanOptions,
     labels = route.labels()
     paths = _plan_paths(cell, route, world, options, cache, labels)
     plan_time = time.perf_counter() - t_start
-    pieces, chunk_ends, min_clear, closest, deviation = _time_and_verify(
+    pieces, chunk_ends, (min_clear, bound), closest, deviation = _time_and_verify(
         cell, paths.chunks, options, cache, labels, timed)
     traj = assemble(cell, route, labels, pieces, chunk_ends, paths.actions)
     _check_position_limits(cell, traj)
     carried = check_tilt(cell, route, traj)  # orientation path constraints (max_tilt)
     if tilt_bound(route) is not None:
         traj.info["carried_tilt"] = {"max": carried, "bound": tilt_bound(route)}
-    landing = check_landing(cell, route, traj)  # pours land in their receptacles (into)
+    landing = check_landing(cell, route, traj)  # no pour can spill outside (into)
     pours = [c.figures for c in paths.chunks if isinstance(c, PourChunk)]
     if pours:
         traj.info["pours"] = {k: v for f in pours for k, v in f.items()}
@@ -175,11 +176,10 @@ def _plan(cell: Cell, route: Route, world: WorldState, options: PlanOptions,
         "shortcut_time": paths.shortcut_time,
         "total_time": time.perf_counter() - t_start,
         "min_clearance": min_clear,
-        # A lower bound of the clearance at every instant of the motion the controller
-        # executes: the verifier's samples are within half the resolution of its figure,
-        # every instant within half the resolution of a sample along the knots' straight
-        # joint segments, and the executed (quintic) motion within ``deviation`` of those.
-        "clearance_bound": min_clear - options.check.resolution - deviation,
+        # The verifier's certified lower bound of the clearance at every instant of the
+        # motion the controller executes, the smallest of the pieces': never negative
+        # (the release criterion; safepath.verify._between).
+        "clearance_bound": bound,
         "knot_deviation": deviation,
         "closest_pair": list(closest) if closest else None,
         "seed": options.planner.seed,
@@ -269,18 +269,19 @@ def _line_failure(checker: CollisionChecker, report: SegmentReport) -> str:
 def _time_and_verify(cell: Cell, chunks: list[tuple[list[Segment], WorldState] | PourChunk],
                      options: PlanOptions, cache: CheckerCache, labels: list[str],
                      timed: TimedPieces
-                     ) -> tuple[list[tuple[TimedPiece, list[int]]], list[float], float,
-                                Pair | None, float]:
+                     ) -> tuple[list[tuple[TimedPiece, list[int]]], list[float],
+                                tuple[float, float], Pair | None, float]:
     """Time and verify chunk by chunk: the timed pieces (with the step of each knot),
     when each chunk ends [s] (gripper events happen there), the smallest clearance the
-    verifier found [m] with its pair, and the largest distance [m] a point of the robot or
-    held object may stray between two knots from where the knots' straight joint
-    segments put it (see :func:`_knot_deviation`)."""
+    verifier found and the smallest of its certified clearance bounds [m], the pair of
+    that clearance, and the largest distance [m] a point of the robot or held object may
+    stray between two knots from where the knots' straight joint segments put it (see
+    :func:`_knot_deviation`)."""
     pieces: list[tuple[TimedPiece, list[int]]] = []
     chunk_ends: list[float] = []
     elapsed = 0.0
     min_clear, closest = float("inf"), None
-    deviation = 0.0
+    bound, deviation = float("inf"), 0.0
     for chunk in chunks:
         verified = [(chunk.piece, chunk.steps_of_knots, chunk.result)] \
             if isinstance(chunk, PourChunk) else time_chunk(cell, *chunk, options, cache, labels,
@@ -292,11 +293,12 @@ def _time_and_verify(cell: Cell, chunks: list[tuple[list[Segment], WorldState] |
         for piece, steps_of_knots, result in verified:
             if result.min_clearance < min_clear:
                 min_clear, closest = result.min_clearance, result.closest_pair
+            bound = min(bound, result.clearance_bound)
             pieces.append((piece, steps_of_knots))
             elapsed += float(piece.t[-1])
             deviation = max(deviation, _knot_deviation(cell, piece, weights))
         chunk_ends.append(elapsed)
-    return pieces, chunk_ends, min_clear, closest, deviation
+    return pieces, chunk_ends, (min_clear, bound), closest, deviation
 
 
 def _knot_deviation(cell: Cell, piece: TimedPiece, weights: np.ndarray) -> float:

@@ -590,14 +590,21 @@ class Layer:
         if joint == 0:
             return T_joint_geom[:3]
         if cache.jdone[s, joint]:
-            T_world_joint = cache.jpose[s, joint]
-        else:
-            import pinocchio as pin
+            return np.asarray(cache.jpose[s, joint] @ T_joint_geom)
+        return self.pose_at(grid.state(q, s), m)
 
-            data = self._model.createData()
-            pin.forwardKinematics(self._model, data, grid.state(q, s))
-            T_world_joint = data.oMi[joint].homogeneous[:3]
-        return np.asarray(T_world_joint @ T_joint_geom)
+    def pose_at(self, q: np.ndarray, m: int) -> np.ndarray:
+        """World pose (3 x 4) of moving body ``m``'s geometry frame at the joint positions
+        ``q`` [rad] (pinocchio's kinematics: for states off the grid)."""
+        import pinocchio as pin
+
+        joint = int(self._kin[5][m])
+        T_joint_geom = self._homogeneous[m]
+        if joint == 0:
+            return T_joint_geom[:3]
+        data = self._model.createData()
+        pin.forwardKinematics(self._model, data, np.asarray(q, dtype=float))
+        return np.asarray(data.oMi[joint].homogeneous[:3] @ T_joint_geom)
 
     @functools.cached_property
     def _homogeneous(self) -> np.ndarray:

@@ -34,6 +34,7 @@ import numpy as np
 from ..errors import VerificationError
 from ..robot import Robot
 from ..scene import GRIPPER, AllowedContact, Scene
+from ._between import Between, clearance_bound, unproven
 from ._bodies import (
     Body,
     check_verifiable,
@@ -77,6 +78,9 @@ class VerifyResult:
         closest_pair: Its pair (None with an inf clearance).
         pair_checks: Pair checks made with FCL.
         bound_checks: Pair bounds evaluated by the conservative layer.
+        clearance_bound: Certified lower bound on the clearance at every instant of the
+            executed motion, between samples too [m]: never negative, the release
+            criterion (inf without environment pairs; :mod:`safepath.verify._between`).
     """
 
     samples: int
@@ -85,6 +89,7 @@ class VerifyResult:
     closest_pair: Pair | None
     pair_checks: int = 0
     bound_checks: int = 0
+    clearance_bound: float = float("inf")
 
 
 @dataclass(frozen=True)
@@ -387,9 +392,16 @@ class FclVerifier:
                 safety judgement (collisions, margins, allowed depths) does not
                 depend on it.
 
+        Release criterion: every sample keeps what its pairs must keep, and the
+        certified clearance bound (:attr:`VerifyResult.clearance_bound`, between the
+        samples too) is not negative; where the grid's figure does not prove it, a finer
+        check subdivides the intervals (:mod:`safepath.verify._between`).
+
         Raises:
             VerificationError: A sample collides, comes closer than a margin, or
                 penetrates deeper than an allowed contact's depth.
+            UnprovenClearance: The certified clearance bound of a pair stays negative
+                after the finer check (names the pair and the bound).
         """
         q = np.asarray(q, dtype=float)
         grid = self.grid(q)
@@ -414,12 +426,26 @@ class FclVerifier:
                 time=float(t[k]), q=grid.state(q, fail_at), pairs=names,
                 step=steps[k] if steps is not None else None)
         run.clearance(*left)
+        between = self._between(run, t, q, grid)
+        if not between.proven:
+            k = int(grid.knot_of[between.sample + 1])
+            raise unproven(between, self._names(between.pair), grid, (t, q),
+                           steps[k] if steps is not None else None)
         if run.closest < 0:  # none (or none below ``known``)
             return VerifyResult(grid.samples, len(run.checked), float("inf"), None,
-                                run.pair_checks, int(run.memory.stats[0]))
+                                run.pair_checks, int(run.memory.stats[0]), between.bound)
         return VerifyResult(grid.samples, len(run.checked), run.min_clear,
                             self._names(run.closest), run.pair_checks,
-                            int(run.memory.stats[0]))
+                            int(run.memory.stats[0]), between.bound)
+
+    def _between(self, run: _Run, t: np.ndarray, q: np.ndarray, grid: Grid) -> Between:
+        """The certified clearance bound of the run's clearance pairs at every instant."""
+        todo, (first, stop) = run.entries
+        keep = self._tracked[todo]
+        return clearance_bound(run, grid, (np.asarray(t, dtype=float), q),
+                               (todo[keep], first[keep], stop[keep]),
+                               self._weights[self._table[:, 0].astype(np.int64)],
+                               self.robot.acceleration_limits, run.min_clear, self.resolution)
 
 
 class StagedVerifier:
@@ -564,6 +590,24 @@ class _Run:
         if env and depth == 0.0 and d < self.min_clear:
             self.min_clear, self.closest = d, p
         return d
+
+    def distance(self, p: int, s: int) -> float:
+        """FCL distance of pair p at sample s [m] (not kept as a clearance)."""
+        import fcl
+
+        return float(fcl.distance(*self._objects(p, s), self._dist_req, fcl.DistanceResult()))
+
+    def distance_at(self, p: int, q: np.ndarray) -> float:
+        """FCL distance of environment pair p at the joint positions ``q`` [m] (off the
+        grid: its body placed with pinocchio's kinematics)."""
+        import fcl
+
+        i, j, _, _ = self.v._pairs[p]
+        T, self._placed[i] = self.v._layer.pose_at(q, i), -1
+        self.v._movers[i].fcl.setTransform(fcl.Transform(T[:, :3], T[:, 3]))  # type: ignore[attr-defined]
+        self.pair_checks += 1
+        return float(fcl.distance(self.v._movers[i].fcl, self.v._env[j].fcl, self._dist_req,
+                                  fcl.DistanceResult()))
 
     def _fails(self, p: int, s: int) -> bool:
         """FCL's judgement of pair p at sample s: in collision, inside its margin, or

@@ -132,13 +132,37 @@ def test_the_barista_pour_is_a_route_step(cell: Cell, planned: dict[str, Traject
     from_axis = np.hypot(lip[:, 0] - bowl[0], lip[:, 1] - bowl[1])
     assert from_axis.max() <= 0.036 and lip[:, 2].min() > bowl[2] + 0.03
     assert figures["landing"]["into"] == "bowl"
-    assert figures["landing"]["margin"] == pytest.approx(
-        0.070 - from_axis[on_circle].max(), abs=1e-9)
+    # The whole rim of the cup's opening (radius 35 mm, 50 mm above its centre), tipped
+    # past its 45 deg spill angle all along the circle, stays inside the bowl's 70 mm
+    # radius less its 3 mm wall; the figure is that room less the check's allowances
+    # (the rim followed at 360 points, its motion between samples): under 0.5 mm.
+    reach = _rim_reach(cell, traj.q[on_circle], bowl)
+    assert reach.max() < 0.067
+    margin = figures["landing"]["margin"]
+    assert 0.067 - reach.max() - 5e-4 < margin <= 0.067 - reach.max()
+    assert figures["landing"]["spill_angle"] == pytest.approx(0.7854)
+
+
+def _rim_reach(cell: Cell, q: np.ndarray, bowl: np.ndarray) -> np.ndarray:
+    """Per state, the largest distance of the cup's rim (3600 points) from the bowl's
+    axis [m]."""
+    cup = cell.scene.objects["cup"]
+    radius, length = cup.shape.size
+    phi = np.linspace(0.0, 2 * math.pi, 3600, endpoint=False)
+    rim = np.stack([radius * np.cos(phi), radius * np.sin(phi), np.full_like(phi, length / 2),
+                    np.ones_like(phi)])
+    grasp = cell.scene.grasp.T_tcp_object
+    out = []
+    for qk in q:
+        p = cell.robot.frame_pose(qk).homogeneous @ grasp @ rim
+        out.append(np.hypot(p[0] - bowl[0], p[1] - bowl[1]).max())
+    return np.array(out)
 
 
 def test_a_pour_landing_outside_its_receptacle_is_refused(cell: Cell) -> None:
     """The barista circle as it was (centre 3 cm towards the robot) carried the lip out
-    to 76 mm from the bowl's axis, 6 mm beyond its rim: refused, naming the step."""
+    to 76 mm from the bowl's axis, and the rest of the cup's opening further: refused,
+    naming the step, the distance and the limit (70 mm less the 3 mm wall)."""
     from safepath.errors import PourLandingError
 
     tilt = Tilt((0.035, 0.04, 0.0), axis=(-1, 0, 0), angle=1.6232)
@@ -147,11 +171,14 @@ def test_a_pour_landing_outside_its_receptacle_is_refused(cell: Cell) -> None:
         Step("circle", None, pour=Circle((-0.03, 0.0)), tcp_speed=0.05, into="bowl")))
     with pytest.raises(PourLandingError, match="outside 'bowl'") as info:
         plan_route(cell, route, world=WorldState(held="cup"))
-    assert info.value.step == "1 circle r30mm" and info.value.receptacle == "bowl"
-    assert 0.005 < info.value.overshoot < 0.0065
+    err = info.value
+    assert err.step == "1 circle r30mm" and err.receptacle == "bowl"
+    assert err.limit == pytest.approx(0.067) and err.distance > 0.076
+    assert err.overshoot == pytest.approx(err.distance - err.limit)
     bowl = cell.scene.objects["bowl"].T_world_object[:3, 3]
-    assert np.hypot(*(info.value.lip[:2] - bowl[:2])) == pytest.approx(
-        0.070 + info.value.overshoot, abs=1e-9)
+    from_axis = np.hypot(*(err.lip[:2] - bowl[:2]))  # the rim point, measured here
+    assert from_axis <= err.distance < from_axis + 1e-3  # plus the check's allowances
+    assert f"{err.distance * 1000:.1f} mm" in str(err) and "67.0 mm" in str(err)
     # into names a scene object, on pour steps only.
     with pytest.raises(ConfigError, match="into"):
         Step("move", Target("home"), into="bowl")
@@ -164,9 +191,18 @@ def test_a_tilt_with_nothing_held_is_refused(cell: Cell) -> None:
     with pytest.raises(PlanningError, match="holds nothing") as info:
         plan_route(cell, route)
     assert info.value.step == "0 tilt 57.3deg"
-    # Held, the same route plans, from Python as from routes.yaml.
-    traj = plan_route(cell, route, world=WorldState(held="cup"))
-    assert abs(math.degrees(_tilts(cell, traj.q[-1:])[0]) - 57.3) < 1.0
+    # Held, it tips the cup past its 45 deg spill angle and pours into nothing: refused.
+    from safepath.errors import PourLandingError
+
+    with pytest.raises(PourLandingError, match="pours into nothing") as spilt:
+        plan_route(cell, route, world=WorldState(held="cup"))
+    assert spilt.value.step == "0 tilt 57.3deg" and spilt.value.receptacle is None
+    # Below its spill angle, the same tilt plans, from Python as from routes.yaml.
+    low = Route("low", "above_bowl", (
+        Step("tilt", None, pour=Tilt((0.035, 0.04, 0.0), axis=(-1, 0, 0), angle=0.7),
+             max_angular_speed=0.3),))
+    traj = plan_route(cell, low, world=WorldState(held="cup"))
+    assert abs(math.degrees(_tilts(cell, traj.q[-1:])[0]) - 40.1) < 1.0
 
 
 def test_plan_writes_the_pours_like_any_route(tmp_path: Path,
