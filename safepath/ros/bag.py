@@ -326,6 +326,12 @@ def write_bag(path: str | Path, trajectories: Iterable[Trajectory], *,
 def read_bag(path: str | Path) -> BagContents:
     """Read every message of a ROS 2 bag (any storage) with the safepath type store.
 
+    Returns:
+        A :class:`BagContents`: ``topics`` (message type by topic) and ``messages``, each
+        a :class:`BagMessage` with ``topic``, ``timestamp`` (log time [ns]) and ``msg``
+        (the deserialised ``rosbags`` message: ``msg.points``, ``msg.header.stamp``, ...);
+        ``contents.on(topic)`` lists one topic's messages in log-time order.
+
     Raises:
         RosError: No bag at ``path``, a corrupt bag, or a type the store does not know.
     """
