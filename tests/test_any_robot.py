@@ -381,3 +381,22 @@ def test_a_bare_urdf_robot_with_a_tool_travels_to_a_worker() -> None:
     np.testing.assert_allclose(again.acceleration_limits, ARM_ACC)
     np.testing.assert_allclose(again.velocity_limits, 1.0)
     assert again.model is not robot.model
+
+
+def test_plan_applies_the_allowed_contacts_of_the_poses_it_is_told(cell: safepath.Cell
+                                                                   ) -> None:
+    """plan() between two configurations takes no pose's allowed contacts unless told
+    which taught poses they are: down to the plate with the vial held, the vial touches
+    the plate at low1 (allowed there) and the line is refused without goal_pose, planned
+    and verified with it; a pose the scene never names is refused with a did-you-mean."""
+    robot, scene = cell.robot, cell.scene
+    high1, low1 = cell.pose("high1"), cell.pose("low1")
+    with pytest.raises(safepath.PlanningError, match="vial / test_plate"):
+        safepath.plan(robot, scene, high1, low1, kind="line", held=True)
+    traj = safepath.plan(robot, scene, high1, low1, kind="line", held=True,
+                         start_pose="high1", goal_pose="low1")
+    np.testing.assert_allclose(traj.q[-1], low1, atol=1e-9)
+    assert traj.info["clearance_bound"] >= 0.0
+    with pytest.raises(safepath.ConfigError, match="did you mean 'low1'") as info:
+        safepath.plan(robot, scene, high1, low1, goal_pose="lowl")
+    assert info.value.key == "goal_pose"
