@@ -9,6 +9,7 @@ from __future__ import annotations
 from collections.abc import Mapping
 from dataclasses import KW_ONLY, dataclass
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -155,6 +156,42 @@ class Cell:
             raise PoseError(unknown_name("pose", name, self.poses), path=self.poses_path,
                             key=name)
         return self.poses[name]
+
+    def pose_from_tcp(self, position: Any, orientation: Any = None, *, near: str,
+                      frame: str | None = None) -> np.ndarray:
+        """Teach a pose by its TCP: the joint vector [rad] that puts the TCP (or
+        ``frame``, rigidly attached to it) at ``position``, found by inverse kinematics
+        started at the taught pose ``near`` (deterministic: the solution on its branch).
+
+        Args:
+            position: World position [m] (x, y, z).
+            orientation: World orientation as a unit quaternion (x, y, z, w); None keeps
+                the TCP's orientation at ``near``.
+            near: The taught pose the solve starts from.
+            frame: A robot frame moving rigidly with the TCP to place instead of it.
+
+        Raises:
+            PoseError: ``near`` is no taught pose, or no solution within the joint limits
+                from it (out of reach, or at a joint limit).
+            ConfigError: A malformed position or orientation (key ``position`` or
+                ``orientation``), or a frame that does not move with the TCP.
+        """
+        import pinocchio as pin
+
+        from .tcp_targets import CartesianTarget, solve_target
+
+        q0 = self.pose(near)
+        if orientation is None:
+            orientation = tuple(float(v) for v in
+                                pin.Quaternion(self.robot.frame_pose(q0).rotation).coeffs())
+        try:
+            target = CartesianTarget(tuple(np.asarray(position, dtype=float).reshape(-1)),
+                                     tuple(np.asarray(orientation, dtype=float).reshape(-1)),
+                                     frame)
+        except (TypeError, ValueError) as exc:
+            raise ConfigError(f"expected numbers: {exc}", key="position") from None
+        q = solve_target(self.robot, target, q0, key="position")
+        return self.robot.as_joint_vector(q, name="position")
 
     def _check_poses_file(self) -> None:
         """Refuse to look a pose up in a poses file that does not exist, naming it."""

@@ -196,7 +196,7 @@ def main(argv: Sequence[str] | None = None) -> int:
 
 #: The modules that add the other commands, by command.
 _EXTRA_MODULES = {"plan": "safepath._plan_cli", "view": "safepath.view.cli",
-                  "sim": "safepath.sim.cli"}
+                  "sim": "safepath.sim.cli", "teach": "safepath._teach_cli"}
 #: The commands defined in this module.
 _OWN_COMMANDS = ("check", "robot-pairs", "build-kernels")
 

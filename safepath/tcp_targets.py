@@ -170,6 +170,7 @@ def solve_target(robot: Robot, target: CartesianTarget, q_init: np.ndarray, *,
     try:
         return solve_ik(robot, T, np.asarray(q_init, dtype=float), step=key)
     except IKError:
-        raise PoseError(f"no inverse-kinematics solution for position {list(target.position)} "
-                        f"from the `ik_start` pose (out of reach, or at a joint limit)", path=path,
-                        key=key) from None
+        where = ", ".join(f"{float(v):.4g}" for v in target.position)
+        raise PoseError(f"no inverse-kinematics solution for position [{where}] from the "
+                        "pose it starts at (`ik_start`, `--near`): out of reach, or at a "
+                        "joint limit", path=path, key=key) from None
