@@ -372,3 +372,45 @@ def draw_path(server: viser.ViserServer, path: str, tcp: np.ndarray, level: np.n
     colors = np.repeat(table[seg_level][:, None, :], 2, axis=1)
     return server.scene.add_line_segments(path, points, colors, thickness=3.0,
                                           thickness_units="screen", visible=visible)
+
+
+#: Direction from the cell's centre to the first view's camera (front right, above).
+VIEW_DIRECTION = np.array([0.48, -0.74, 0.6]) / np.linalg.norm([0.48, -0.74, 0.6])
+
+
+def cell_framing(cell: Any) -> tuple[tuple[float, float, float], tuple[float, float, float]]:
+    """The first view's camera position and look-at point [m]: the box holding every
+    frame of the robot at each taught pose and every scene object within the robot's
+    reach (a table larger than the reach is cut to it), seen from
+    :data:`VIEW_DIRECTION` at a distance that fits it."""
+    robot = cell.robot
+    data = robot.model.createData()
+    frames = []
+    for q in [*cell.poses.values(), np.clip(np.zeros(robot.dof), robot.lower, robot.upper)]:
+        pin.framesForwardKinematics(robot.model, data, np.asarray(q, dtype=float))
+        frames.append(np.array([f.translation for f in data.oMf]))
+    points = np.vstack(frames)
+    base = points[0]  # the universe frame: where the robot stands
+    reach = float(np.linalg.norm(points - base, axis=1).max()) + 0.1
+    lo, hi = points.min(axis=0), points.max(axis=0)
+    for obj in cell.scene.objects.values():
+        c, r = obj.T_world_object[:3, 3], _bounding_radius(obj.shape)
+        o_lo, o_hi = np.maximum(c - r, base - reach), np.minimum(c + r, base + reach)
+        if np.all(o_lo <= o_hi):
+            lo, hi = np.minimum(lo, o_lo), np.maximum(hi, o_hi)
+    center = (lo + hi) / 2
+    radius = max(float(np.linalg.norm(hi - lo)) / 2, 0.2)
+    eye = center + VIEW_DIRECTION * 1.5 * radius
+    return (tuple(float(v) for v in eye),  # type: ignore[return-value]
+            tuple(float(v) for v in center))
+
+
+def _bounding_radius(shape: Any) -> float:
+    """Radius of a sphere about the shape's centre that holds it [m]."""
+    size = np.asarray(shape.size, dtype=float)
+    if shape.kind == "box":
+        return float(np.linalg.norm(size) / 2)
+    if shape.kind == "sphere":
+        return float(size[0])
+    radius, length = size[0], size[1]
+    return float(np.hypot(radius, length / 2) + (radius if shape.kind == "capsule" else 0.0))

@@ -47,7 +47,7 @@ from .options import ViewOptions
 from .pages import Pages
 from .panel import NO_ROUTE, Panel, build_panel
 from .plans import Plans
-from .scene_nodes import CellNodes, PoseFrames, RobotNodes, configure_lighting
+from .scene_nodes import CellNodes, PoseFrames, RobotNodes, cell_framing, configure_lighting
 from .stage import ShownState, Stage
 from .store import PosesStore
 from .sync import SharedPoses
@@ -135,8 +135,9 @@ class ReviewSession:
 
     def _build(self, server: viser.ViserServer) -> None:
         cell = self.cell
-        server.initial_camera.position = (0.46, -0.54, 0.65)
-        server.initial_camera.look_at = (-0.02, 0.2, 0.05)
+        eye, centre = cell_framing(cell)  # the whole cell, robot and objects
+        server.initial_camera.position = eye
+        server.initial_camera.look_at = centre
         idle = next(iter(self.routes.values())).start if self.routes else next(iter(cell.poses))
         with self._lock, server.atomic():
             configure_lighting(server)

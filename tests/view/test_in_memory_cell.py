@@ -91,3 +91,27 @@ def test_edits_are_saved_to_the_poses_path_the_cell_names(sessions: list[ReviewS
     with pytest.raises(ConfigError) as info:
         ReviewSession(ur5_cell(poses_path=path), options=ViewOptions(port=0))
     assert info.value.path == path and "beside_wall" in str(info.value)
+
+
+@pytest.mark.parametrize("folder", ["scenes/quality_check_cell", "scenes/pouring_cell",
+                                    "examples/cells/panda_cell"])
+def test_the_first_view_frames_the_whole_cell(folder: str) -> None:
+    """The first view looks at each cell, not at a fixed spot: the robot's TCP at every
+    pose and every object's centre within its reach lie within 42 degrees of the view's
+    axis."""
+    import numpy as np
+
+    from safepath import load_cell
+    from safepath.view.scene_nodes import cell_framing
+
+    cell = load_cell(Path(__file__).resolve().parents[2] / folder)
+    eye, centre = (np.array(x) for x in cell_framing(cell))
+    axis = (centre - eye) / np.linalg.norm(centre - eye)
+    reach = max(np.linalg.norm(cell.robot.tcp_position(q)) for q in cell.poses.values())
+    points = [o.T_world_object[:3, 3] for o in cell.scene.objects.values()
+              if np.linalg.norm(o.T_world_object[:3, 3]) <= reach]
+    points += [cell.robot.tcp_position(q) for q in cell.poses.values()]
+    assert len(points) > len(cell.poses)
+    for p in points:
+        v = (p - eye) / np.linalg.norm(p - eye)
+        assert np.degrees(np.arccos(np.clip(v @ axis, -1, 1))) <= 42.0, p
