@@ -362,7 +362,14 @@ def _resolve(cell: Cell, step: Step, q: np.ndarray, label: str, options: PlanOpt
     else:
         T = cell.robot.frame_pose(q_init)
         T.translation = T.translation + np.asarray(target.offset)
-    return solve_ik(cell.robot, T, q_init, options=options.line, step=label), None
+    try:
+        return solve_ik(cell.robot, T, q_init, options=options.line, step=label), None
+    except IKError as exc:
+        if step.kind != "line":
+            raise
+        # A line's target is its end: where along the line it failed.
+        raise IKError(str(exc.reason), step=label, fraction=1.0,
+                      position=exc.position) from None
 
 
 def _gripper(cell: Cell, world: WorldState, step: Step, q: np.ndarray, label: str,
