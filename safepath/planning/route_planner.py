@@ -21,7 +21,7 @@ import numpy as np
 
 from ..cell import Cell
 from ..collision import CollisionChecker, Pair, SegmentReport
-from ..errors import IKError, PlanningError, SafepathError, TimingError
+from ..errors import ConfigError, IKError, PlanningError, SafepathError, TimingError
 from ..routes import Route, Step, after_chain
 from ..timing import TimedPiece
 from ..trajectory import Trajectory
@@ -72,6 +72,11 @@ def plan_cell(cell: Cell, options: PlanOptions | None = None, *,
     check_verifiable(cell.robot, cell.scene)
     if routes is None:
         routes = cell.route_table()
+    elif not isinstance(routes, Mapping) or not all(
+            isinstance(r, Route) for r in routes.values()):
+        raise ConfigError("expected a mapping of route names to Routes (e.g. "
+                          "{'phase1': cell.route_table()['phase1']}), got "
+                          f"{type(routes).__name__}", key="routes")
     cache = CheckerCache(cell, options)
     timed = TimedPieces()
     worlds: dict[str, WorldState] = {}

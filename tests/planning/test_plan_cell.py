@@ -279,3 +279,13 @@ def test_a_checker_and_verifier_made_for_other_contacts_judge_as_new_ones(
         for q in states[:10]:
             np.testing.assert_array_equal(verifier.bounds_at(q).bounds,
                                           new.bounds_at(q).bounds)
+
+
+def test_routes_given_as_a_list_are_a_typed_error(bundled_cell: Cell) -> None:
+    """plan_cell(routes=...) takes a mapping of names to Routes: a list of names is a
+    ConfigError naming the argument (it was a bare TypeError deep in route ordering)."""
+    from safepath import ConfigError, plan_cell
+
+    with pytest.raises(ConfigError, match="mapping of route names") as info:
+        plan_cell(bundled_cell, routes=["phase1"])  # type: ignore[arg-type]
+    assert info.value.key == "routes"
