@@ -136,16 +136,21 @@ def _print_architecture(arch: str, rs: list[Any], np: Any) -> None:
     sim = sum(r.duration for r in rs)
     wall = sum(r.wall_time + r.clearance_time for r in rs)
     print(f"\n[{arch}]")
+    unfinished = sum(r.in_progress for r in rs)
     print(f"  vials per minute   {vpm.mean():.2f} (runs {vpm.min():.2f}-{vpm.max():.2f}); "
-          f"{sum(len(r.cycles) for r in rs)} cycles, {sum(r.vials_arrived for r in rs)} "
-          f"vials arrived, {sum(r.packaging for r in rs)} packaged, "
-          f"{sum(r.rejected for r in rs)} rejected, "
+          f"{sum(len(r.cycles) for r in rs)} cycles: {sum(r.packaging for r in rs)} "
+          f"packaged, {sum(r.rejected for r in rs)} rejected"
+          + (f" (+{unfinished} vial(s) whose cycle the run's end cut short)"
+             if unfinished else "")
+          + f"; {sum(r.vials_arrived for r in rs)} vials arrived, "
           f"{sum(r.unsafe_packaged for r in rs)} unsafe packaged")
     print(f"  cycle time [s]     min {_pct(cycles, 0):.2f}  median {_pct(cycles, 50):.2f}  "
           f"p90 {_pct(cycles, 90):.2f}  max {_pct(cycles, 100):.2f}")
     print(f"  idle               robot {100 * sum(r.robot_idle for r in rs) / total:.0f} %, "
           f"conveyor stopped {100 * sum(r.conveyor_idle for r in rs) / total:.0f} %")
-    print("  verdicts           " + ", ".join(f"{k}: {v}" for k, v in sorted(reasons.items())))
+    timeouts = sorted({r.verdict_timeout for r in rs})
+    print("  verdicts           " + ", ".join(f"{k}: {v}" for k, v in sorted(reasons.items()))
+          + f" (time-out {', '.join(f'{t:g}' for t in timeouts)} s)")
     print("  tracking [mrad]    " + "  ".join(f"{n} {1000 * e:.2f}"
                                               for n, e in zip(names, tracking, strict=True)))
     print("  speed / limit      " + "  ".join(f"{n} {s:.3f}"

@@ -54,21 +54,21 @@ def test_sim_runs_with_a_bag_write_one_bag_per_run_and_print_no_log_lines(
         repo_root: Path, tmp_path: Path) -> None:
     """Issue 35: ``--runs 2 --bag DIR`` ran everything, then failed (the pooled runs kept
     no record); the controller's warnings from the pool's workers came before the report.
-    Seed 0 at one vial every 2 s: the sequential runs warn (a verdict that did not come,
-    one that came late)."""
+    Seed 6: the test zone's first answer is lost or malformed (its 5 % + 5 %), so both
+    architectures' controllers warn."""
     bags = tmp_path / "bags"
     entry = Path(sys.executable).with_name("safepath")
     proc = subprocess.run([str(entry), "sim", "scenes/quality_check_cell", "--runs", "2",
-                           "--duration", "60", "--arrival", "2", "--seed", "0",
+                           "--duration", "60", "--arrival", "2", "--seed", "6",
                            "--workers", "2", "--bag", str(bags)], cwd=repo_root,
                           capture_output=True, text=True, timeout=600)
     assert proc.returncode == 0, proc.stderr[-2000:]
     assert proc.stderr == ""  # no WARNING line of a worker
-    sequential = proc.stdout.split("[sequential]")[1]
-    assert "controller warned" in sequential and "no verdict within 5 s" in sequential
+    safepath, sequential = proc.stdout.split("[sequential]")
+    assert "controller warned" in safepath and "controller warned" in sequential
     assert f"wrote 2 ROS 2 bags of the safepath runs to {bags}" in proc.stdout
     last = []
-    for seed in (0, 1):
+    for seed in (6, 7):
         bag = read_bag(bags / f"seed_{seed}")
         states = bag.on(JOINT_STATES)
         assert states and bag.on(ARM_GOALS)
