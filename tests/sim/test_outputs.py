@@ -5,6 +5,7 @@ from __future__ import annotations
 import subprocess
 import sys
 from pathlib import Path
+from typing import Any
 
 from safepath.ros import read_bag
 from safepath.sim.bag import ARM_GOALS, EVENTS, JOINT_STATES, TOOL_GOALS, write_run_bag
@@ -74,3 +75,26 @@ def test_sim_runs_with_a_bag_write_one_bag_per_run_and_print_no_log_lines(
         assert states and bag.on(ARM_GOALS)
         last.append(list(states[-1].msg.position))
     assert last[0] != last[1]  # each run's own bag
+
+
+def test_the_pour_twin_takes_a_target_and_a_tolerance(repo_root: Path, capsys: Any,
+                                                      monkeypatch: Any) -> None:
+    """Issue 35: ``PouringParams`` has ``target`` and ``tolerance`` but ``safepath sim``
+    offered neither. They reach the controller (it stops on the target given), and a bad
+    value is one line naming the option, exit 2."""
+    from safepath.cli import main
+
+    monkeypatch.chdir(repo_root)
+    assert main(["sim", "scenes/pouring_cell", "--target", "60", "--tolerance", "2",
+                 "--seed", "3"]) == 0
+    line = next(ln for ln in capsys.readouterr().out.splitlines() if "final mass" in ln)
+    mean = float(line.split("mean")[1].split()[0])
+    assert abs(mean - 60.0) <= 2.0 and "within 60 +- 2 g: 1 of 1" in line, line
+    for argv, key in ((["--target", "-5"], "--target"), (["--tolerance", "abc"], "--tolerance"),
+                      (["--target", "nan"], "--target"), (["--tolerance", "0"], "--tolerance")):
+        assert main(["sim", "scenes/pouring_cell", *argv]) == 2
+        err = capsys.readouterr().err
+        assert err.count("\n") == 1 and f"key '{key}'" in err, err
+    assert main(["sim", "scenes/quality_check_cell", "--target", "50"]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "key '--target'" in err and "no pour" in err
