@@ -93,13 +93,10 @@ class QualityCheckParams:
         p_unsafe: Probability that a vial is unsafe.
         verdict: The test zone's service (its ``period`` is set to
             :data:`SEQUENTIAL_PERIOD` for the sequential architecture unless given).
-        controller: The state machine's route names and time-outs. Where the verdict is
-            read from publications (``verdict.period``: the sequential architecture) and
-            ``controller.verdict_timeout`` is None, the time-out is the longest answer
-            of those publications, ``period`` + the inference's longest ``latency``
-            (:attr:`VerdictService.longest_answer`: 6.5 s by default), so that no verdict
-            times out because of the baseline's own time-out; a given
-            ``verdict_timeout`` is used as given.
+        controller: The state machine's route names and time-outs. With the verdict read
+            from publications (``verdict.period``) and no ``verdict_timeout`` given, the
+            time-out is their longest answer, period + longest inference
+            (:attr:`VerdictService.longest_answer`, 6.5 s); a given one is kept.
         twin: How the robot is simulated.
         tick: Period of the node's timer [s].
         conveyor_latency: Answer time of the conveyor service [s].
@@ -148,12 +145,10 @@ class QualityCheckRun:
             back at the conveyor).
         packaging: Vials placed on the packaging line by a reported cycle.
         rejected: Vials dropped into the reject bin by a reported cycle (with
-            ``packaging``: one per cycle, ``len(cycles)`` in all, unless a cycle picked
-            no vial: ``empty_picks``).
-        unsafe_packaged: Unsafe vials placed on the packaging line, by any cycle, ended
-            or not (must be 0).
-        in_progress: Vials picked whose cycle had not ended when the run did (placed or
-            not: at most one), in no count but ``unsafe_packaged``.
+            ``packaging``, ``len(cycles)`` in all, but for ``empty_picks``).
+        unsafe_packaged: Unsafe vials placed on the packaging line by any cycle (must
+            be 0).
+        in_progress: Vials picked whose cycle the run's end cut short (at most one).
         reasons: How often each verdict reason occurred.
         faults: The controller's faults, in words.
         robot_idle: Time the arm had no goal [s].

@@ -58,7 +58,9 @@ def test_a_verdict_timeout_sends_the_vial_to_the_reject_bin(cell_dir) -> None:
 
 
 def test_the_twin_is_deterministic_and_safe_verdicts_reach_packaging(cell_dir) -> None:
-    params = _params(p_timeout=0.0, p_malformed=0.0)
+    # 50 s: seed 7's second cycle, its first safe vial, ends between 40 and 50 s (a vial
+    # counts as packaged once its cycle has ended).
+    params = replace(_params(p_timeout=0.0, p_malformed=0.0), duration=50.0)
     a = run_quality_check(str(cell_dir), 7, params)
     b = run_quality_check(str(cell_dir), 7, params)
     assert a.cycle_times.tolist() == b.cycle_times.tolist()
