@@ -32,6 +32,11 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--belt-runs", action="store_true",
                    help="quality-check cell: also run safepath with the belt running while "
                         "the robot works (ControllerOptions(belt_runs_while_working=True))")
+    p.add_argument("--target", default=None,
+                   help="pouring cell: mass to pour [g] (default 100)")
+    p.add_argument("--tolerance", default=None,
+                   help="pouring cell: a final mass within target +- tolerance counts as "
+                        "within tolerance [g] (default 3.5)")
     p.add_argument("--obstacles", action="store_true",
                    help="run the monitor node's core with a moving body crossing the cell, "
                         "seen by a simulated laser scanner and depth camera")
@@ -59,6 +64,7 @@ def cmd_sim(args: argparse.Namespace) -> int:
         raise InputError(f"{args.bag} exists already; choose a new bag path", key="--bag")
     if args.runs < 1:
         raise InputError(f"expected >= 1, got {args.runs}", key="--runs")
+    _check_pour_only(args, cell)
     if args.obstacles:
         from .obstacles import cmd_obstacles
 
@@ -136,16 +142,21 @@ def _print_architecture(arch: str, rs: list[Any], np: Any) -> None:
     sim = sum(r.duration for r in rs)
     wall = sum(r.wall_time + r.clearance_time for r in rs)
     print(f"\n[{arch}]")
+    unfinished = sum(r.in_progress for r in rs)
     print(f"  vials per minute   {vpm.mean():.2f} (runs {vpm.min():.2f}-{vpm.max():.2f}); "
-          f"{sum(len(r.cycles) for r in rs)} cycles, {sum(r.vials_arrived for r in rs)} "
-          f"vials arrived, {sum(r.packaging for r in rs)} packaged, "
-          f"{sum(r.rejected for r in rs)} rejected, "
+          f"{sum(len(r.cycles) for r in rs)} cycles: {sum(r.packaging for r in rs)} "
+          f"packaged, {sum(r.rejected for r in rs)} rejected"
+          + (f" (+{unfinished} vial(s) whose cycle the run's end cut short)"
+             if unfinished else "")
+          + f"; {sum(r.vials_arrived for r in rs)} vials arrived, "
           f"{sum(r.unsafe_packaged for r in rs)} unsafe packaged")
     print(f"  cycle time [s]     min {_pct(cycles, 0):.2f}  median {_pct(cycles, 50):.2f}  "
           f"p90 {_pct(cycles, 90):.2f}  max {_pct(cycles, 100):.2f}")
     print(f"  idle               robot {100 * sum(r.robot_idle for r in rs) / total:.0f} %, "
           f"conveyor stopped {100 * sum(r.conveyor_idle for r in rs) / total:.0f} %")
-    print("  verdicts           " + ", ".join(f"{k}: {v}" for k, v in sorted(reasons.items())))
+    timeouts = sorted({r.verdict_timeout for r in rs})
+    print("  verdicts           " + ", ".join(f"{k}: {v}" for k, v in sorted(reasons.items()))
+          + f" (time-out {', '.join(f'{t:g}' for t in timeouts)} s)")
     print("  tracking [mrad]    " + "  ".join(f"{n} {1000 * e:.2f}"
                                               for n, e in zip(names, tracking, strict=True)))
     print("  speed / limit      " + "  ".join(f"{n} {s:.3f}"
@@ -178,10 +189,10 @@ def _cmd_pouring(args: argparse.Namespace, cell: Any) -> int:
     """Run the pouring twin over seeds and print its figures."""
     import numpy as np
 
-    from .pouring import PouringParams, run_pouring
+    from .pouring import run_pouring
     from .sweep import run_many
 
-    params = PouringParams()
+    params = _pouring_params(args)
     scene = str(cell.folder)
     if args.runs == 1:
         rs = [run_pouring(scene, args.seed, params, record=bool(args.bag))]
@@ -207,6 +218,50 @@ def _cmd_pouring(args: argparse.Namespace, cell: Any) -> int:
     if args.bag:
         _write_bags(args.bag, rs, "pouring run")
     return 0
+
+
+def _check_pour_only(args: argparse.Namespace, cell: Any) -> None:
+    """``--target`` and ``--tolerance`` are the pouring twin's: refused elsewhere.
+
+    Raises:
+        InputError: One is given to another twin, naming it.
+    """
+    from ..errors import InputError
+    from .pouring import pour_route_of
+
+    pouring = not args.obstacles and pour_route_of(cell) is not None
+    for flag in ("target", "tolerance"):
+        if getattr(args, flag, None) is not None and not pouring:
+            raise InputError(f"only the pouring twin takes it (cell '{cell.scene.name}' "
+                             f"{'runs --obstacles' if args.obstacles else 'has no pour'})",
+                             key=f"--{flag}")
+
+
+def _pouring_params(args: argparse.Namespace) -> Any:
+    """The pouring twin's parameters from ``--target`` and ``--tolerance``.
+
+    Raises:
+        InputError: A value that is not a finite number > 0, naming the option.
+    """
+    from ..errors import InputError
+    from .pouring import PouringParams
+
+    given: dict[str, float] = {}
+    for key in ("target", "tolerance"):
+        text = getattr(args, key, None)
+        if text is None:
+            continue
+        try:
+            given[key] = float(text)
+        except ValueError:
+            raise InputError(f"expected a number [g], got {text!r}", key=f"--{key}") from None
+    try:
+        default = PouringParams()
+        return PouringParams(target=given.get("target", default.target),
+                             tolerance=given.get("tolerance", default.tolerance))
+    except InputError as exc:
+        raise InputError(f"expected a finite number > 0 [g], got {getattr(args, str(exc.key))!r}",
+                         key=f"--{exc.key}") from exc
 
 
 def _print_pouring(rs: list[Any], np: Any) -> None:

@@ -139,6 +139,13 @@ class VerdictService:
     p_malformed: float = 0.05
     period: float | None = None
 
+    @property
+    def longest_answer(self) -> float:
+        """The longest time from a request to its answer [s]: the longest inference, plus a
+        whole ``period`` when the answer waits for the next publication (it is read at the
+        first publication after the inference, less than a period after it)."""
+        return float(self.latency[1]) + (self.period or 0.0)
+
     def answer(self, vial: Vial | None, now: float, rng: np.random.Generator) -> VerdictAnswer:
         """The answer to a request made at ``now`` about ``vial``."""
         low, high = self.latency

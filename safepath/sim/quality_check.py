@@ -17,8 +17,9 @@ Two architectures run on the same twin:
   request (the rewritten node of ``examples/ros2/quality_check_node.py``);
 * ``sequential``: the brief's: every route step rest to rest
   (:func:`~safepath.sim.stop_and_go.stop_and_go`), the verdict read from the test zone's
-  publications every 5 s; the same state machine sequences the cell, so the difference
-  is the architecture, not the bookkeeping.
+  publications every 5 s, with a time-out those publications can meet (their period plus
+  the longest inference, 6.5 s); the same state machine sequences the cell, so the
+  difference is the architecture, not the bookkeeping.
 
 ``QualityCheckParams(controller=ControllerOptions(belt_runs_while_working=True))`` runs
 the ``safepath`` architecture with the belt running while the robot works: the next vial
@@ -59,9 +60,12 @@ if TYPE_CHECKING:
     from ..trajectory import Trajectory
 
 __all__ = ["QualityCheckParams", "QualityCheckRun", "run_quality_check", "ARCHITECTURES",
-           "WAITING_VIAL", "waiting_vial_cell", "QUEUED_VIAL", "queued_vials_cell"]
+           "WAITING_VIAL", "waiting_vial_cell", "QUEUED_VIAL", "queued_vials_cell",
+           "SEQUENTIAL_PERIOD"]
 
 Architecture = Literal["safepath", "sequential"]
+#: The brief's test zone publishes its verdict every 5 s (seed 000) [s].
+SEQUENTIAL_PERIOD = 5.0
 ARCHITECTURES: tuple[str, ...] = ("safepath", "sequential")
 
 
@@ -87,9 +91,12 @@ class QualityCheckParams:
             10 mm margin from a vial queued 35 mm behind it; vials touching, 16 mm
             apart, are hit by the jaws at ``grip`` whatever the route).
         p_unsafe: Probability that a vial is unsafe.
-        verdict: The test zone's service (its ``period`` is set to 5 s for the
-            sequential architecture unless given).
-        controller: The state machine's route names and time-outs.
+        verdict: The test zone's service (its ``period`` is set to
+            :data:`SEQUENTIAL_PERIOD` for the sequential architecture unless given).
+        controller: The state machine's route names and time-outs. With the verdict read
+            from publications (``verdict.period``) and no ``verdict_timeout`` given, the
+            time-out is their longest answer, period + longest inference
+            (:attr:`VerdictService.longest_answer`, 6.5 s); a given one is kept.
         twin: How the robot is simulated.
         tick: Period of the node's timer [s].
         conveyor_latency: Answer time of the conveyor service [s].
@@ -134,10 +141,14 @@ class QualityCheckRun:
             check excluded, each given apart).
         clearance_time: Computation time of the executed-clearance check [s].
         vials_arrived: Vials put on the belt.
-        cycles: The controller's cycle reports, in order.
-        packaging: Vials placed on the packaging line.
-        rejected: Vials dropped into the reject bin.
-        unsafe_packaged: Unsafe vials placed on the packaging line (must be 0).
+        cycles: The controller's cycle reports, in order (a cycle ends with the arm
+            back at the conveyor).
+        packaging: Vials placed on the packaging line by a reported cycle.
+        rejected: Vials dropped into the reject bin by a reported cycle (with
+            ``packaging``, ``len(cycles)`` in all, but for ``empty_picks``).
+        unsafe_packaged: Unsafe vials placed on the packaging line by any cycle (must
+            be 0).
+        in_progress: Vials picked whose cycle the run's end cut short (at most one).
         reasons: How often each verdict reason occurred.
         faults: The controller's faults, in words.
         robot_idle: Time the arm had no goal [s].
@@ -167,6 +178,8 @@ class QualityCheckRun:
             sensor (checked with them in the cell, where they were at each state).
         warnings: The cell controller's warnings during the run, in order (kept here,
             not logged: see :mod:`safepath.sim.kept_warnings`).
+        verdict_timeout: The controller's verdict time-out in force [s] (see
+            :class:`QualityCheckParams`).
     """
 
     seed: int
@@ -198,6 +211,8 @@ class QualityCheckRun:
     waiting_motions: int = 0
     queued_motions: int = 0
     warnings: tuple[str, ...] = ()
+    in_progress: int = 0
+    verdict_timeout: float = math.nan
 
     @property
     def vials_per_minute(self) -> float:
@@ -362,16 +377,19 @@ class _Cell:
         from ..cells.quality_check.controller import QualityCheckController
 
         self.cell, self.trajs, self.params = cell, trajs, params
-        self.ctl = QualityCheckController(params.controller)
+        self.verdict = params.verdict
+        if params.architecture == "sequential" and self.verdict.period is None:
+            self.verdict = replace(self.verdict, period=SEQUENTIAL_PERIOD)
         opts = params.controller
+        if opts.verdict_timeout is None and self.verdict.period is not None:
+            # A time-out the test zone's publications can meet (an explicit one is kept).
+            opts = replace(opts, verdict_timeout=self.verdict.longest_answer)
+        self.ctl = QualityCheckController(opts)
         start = trajs[opts.phase1_route].q[0]
         self.twin = RobotTwin(cell.robot, cell.scene, start, options=params.twin)
         self.conveyor = Conveyor(params.belt_length, params.belt_speed, params.vial_spacing,
                                  params.arrival_interval, params.p_unsafe,
                                  rng=np.random.default_rng([seed, 1]))
-        self.verdict = params.verdict
-        if params.architecture == "sequential" and self.verdict.period is None:
-            self.verdict = replace(self.verdict, period=5.0)
         self.verdict_rng = np.random.default_rng([seed, 2])
         self.events: list[tuple[float, int, str, Any]] = []
         self._seq = 0
@@ -388,6 +406,8 @@ class _Cell:
         self.robot_idle = 0.0
         self.faults: list[str] = []
         self.reports: list[CycleReport] = []
+        self.placed: Vial | None = None  # placed by phase 2, its cycle not yet reported
+        self.handled: list[Vial] = []  # the vial of each reported cycle (placed by it)
         self.record = RunRecord()
 
     # -- commands --------------------------------------------------------------------
@@ -416,6 +436,9 @@ class _Cell:
                 self.twin.cancel_arm_goal(cmd.goal_id)
             elif isinstance(cmd, c.CycleReport):
                 self.reports.append(cmd)
+                if self.placed is not None:
+                    self.handled.append(self.placed)
+                    self.placed = None
                 self.record.events.append((self.twin.now, {"type": "cycle", **{
                     k: getattr(cmd, k) for k in ("cycle", "verdict", "reason", "route",
                                                  "cycle_time")}}))
@@ -468,7 +491,7 @@ class _Cell:
             if cmd.route != opts.phase1_route and self.vial is not None:
                 where = "packaging" if cmd.route == opts.safe_route else "reject"
                 self.vial.placed = (where, now)
-                self.vial = None
+                self.placed, self.vial = self.vial, None
         self.dispatch(self.ctl.on_goal_result(result.goal_id, result.success, result.message,
                                               now))
 
@@ -636,6 +659,7 @@ def run_quality_check(cell: str | Path, seed: int, params: QualityCheckParams | 
     clearance_time = time.perf_counter() - t1
     vials = run.conveyor.arrived
     cycles = tuple(run.reports)
+    handled = run.handled
     rec = run.twin.recording
     material = None
     if record:
@@ -648,10 +672,11 @@ def run_quality_check(cell: str | Path, seed: int, params: QualityCheckParams | 
         seed=int(seed), architecture=params.architecture, duration=run.twin.now,
         wall_time=wall, clearance_time=clearance_time, vials_arrived=len(vials),
         cycles=cycles,
-        packaging=sum(1 for v in vials if v.placed and v.placed[0] == "packaging"),
-        rejected=sum(1 for v in vials if v.placed and v.placed[0] == "reject"),
+        packaging=sum(1 for v in handled if v.placed and v.placed[0] == "packaging"),
+        rejected=sum(1 for v in handled if v.placed and v.placed[0] == "reject"),
         unsafe_packaged=sum(1 for v in vials if v.unsafe and v.placed
                             and v.placed[0] == "packaging"),
+        in_progress=sum(1 for v in vials if v.picked is not None) - len(handled),
         reasons=dict(Counter(c.reason for c in cycles)), faults=tuple(run.faults),
         robot_idle=run.robot_idle, conveyor_idle=run.conveyor.stopped_time,
         tracking=rec.tracking.copy(), speed_ratio=rec.speed_ratio.copy(),
@@ -662,7 +687,8 @@ def run_quality_check(cell: str | Path, seed: int, params: QualityCheckParams | 
         belt_moving_at_sensor=run.belt_moving_at_sensor,
         belt_commanded_at_sensor=run.belt_commanded_at_sensor,
         waiting_motions=len(_waiting_motions(run)),
-        queued_motions=len(_queued_motions(run)), warnings=tuple(kept))
+        queued_motions=len(_queued_motions(run)), warnings=tuple(kept),
+        verdict_timeout=run.ctl.options.verdict_wait)
 
 
 def events_json(run: QualityCheckRun) -> list[tuple[float, str]]:

@@ -39,10 +39,12 @@ from safepath.ros.bag import (
 from safepath.ros.commands import CancelGoal, Fault
 from safepath.trajectory import GripperEvent, Trajectory
 
-#: How far from 100 g the closed-loop pours end [g]. It was 2 g while stops braked at the
-#: acceleration limits with unbounded jerk; the jerk-limited stop (the monitor's re-timing,
-#: braking at 0.9 of the limits through a moving average) takes longer, and the pour
-#: controller's prediction does not yet account for that: measured 2.5-3.1 g.
+#: How far from 100 g the closed-loop pours end [g]. The jerk-limited stop (the monitor's
+#: re-timing) braked from its first knot while the predictor assumed the tilt ran on for
+#: ``stop_lead``: 97.2-99.7 g here. The stop now holds the tilt's knots until then and the
+#: predictor's table of what the stop pours is dense (99.7-100.3 g here); what a stop pours
+#: still steps by grams between neighbouring knots where the braking takes longer, and the
+#: controller stops on the nearer side of such a step.
 POUR_TOLERANCE = 3.5
 
 ROOT = Path(__file__).resolve().parents[2]

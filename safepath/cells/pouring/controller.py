@@ -183,14 +183,32 @@ class PourController:
             self._tare = float(np.mean(recent)) if recent else 0.0
             self._early = []
         self._predictor.add(mass - self._tare, stamp - self._t0)
-        if self._state is PourState.POURING:
-            tau = now + self.options.stop_lead - self._t0
-        else:
-            tau = now - self._t0
-        predicted = self._predictor.predict(tau)
-        if predicted is not None and predicted >= self.options.target:
+        predicted = self._stop_now(now)
+        if predicted is not None:
             return self._end_pour(now, f"final mass {predicted:.1f} g predicted", predicted)
         return []
+
+    def _stop_now(self, now: float) -> float | None:
+        """The final mass predicted for ending the pour now, if now is the moment to
+        (None: not yet).
+
+        Holding at the end of the tilt: once the target is predicted. While tilting, the
+        stop brakes ``stop_lead`` from now; it ends the pour now when the target is
+        predicted, or when braking from the next reading (a scale period later) would end
+        farther beyond the target than braking now ends short of it (what the stop pours
+        is not smooth in where it brakes: the next chance may pour grams more)."""
+        target = self.options.target
+        if self._state is not PourState.POURING:
+            predicted = self._predictor.predict(now - self._t0)
+            return predicted if predicted is not None and predicted >= target else None
+        tau = now + self.options.stop_lead - self._t0
+        predicted = self._predictor.predict(tau)
+        if predicted is None or predicted >= target:
+            return predicted
+        later = self._predictor.predict(tau + self._predictor.flow.period)
+        if later is not None and later - target > target - predicted:
+            return predicted
+        return None
 
     def on_goal_result(self, goal_id: int, success: bool, message: str,
                        now: float) -> list[PourCommand]:

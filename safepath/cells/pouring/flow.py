@@ -239,30 +239,71 @@ def _finish(model: FlowModel, t_motion: np.ndarray, tilt_motion: np.ndarray,
                    _readings(model, t_all, mass, float(t_all[-1])), gain)
 
 
-def calibrate_still(stop: Callable[[float], tuple[np.ndarray, np.ndarray, float]],
+def calibrate_still(stop: Callable[[float], tuple[np.ndarray, np.ndarray, float] | None],
                     tilt_of_t: Callable[[float], float], duration: float, model: FlowModel,
-                    *, samples: int = 6) -> Callable[[float], float]:
+                    *, samples: int = 6, spacing: float | None = None,
+                    tolerance: float | None = None, finest: float = 0.004
+                    ) -> Callable[[float], float]:
     """What the stop and the return pour from a tilt, per unit flow gain [s], measured
-    on the real stop and planned return at ``samples`` events past the spill angle and
-    interpolated in the tilt (the controller's model of its own motions)."""
+    on the real stop and planned return at ``samples`` events past the spill angle (or
+    events ``spacing`` [s] apart, when given) and interpolated in the tilt (the
+    controller's model of its own motions). ``stop`` returns the history from the event
+    on, or None where no stop can be made (that event is left out).
+
+    With ``tolerance`` [s] (per unit gain), an interval whose midpoint differs from the
+    chord by more than it is halved, down to ``finest`` [s] of motion time: what a
+    jerk-limited stop pours can step up from one knot to the next where braking takes
+    longer, and a chord over the step predicts grams too few just after it."""
     shape = dataclasses.replace(model, gain=1.0)
     times = np.linspace(0.0, duration, 400)
     tilts = np.array([tilt_of_t(float(t)) for t in times])
     first = times[np.argmax(tilts > model.spill_angle)] if (tilts > model.spill_angle).any() \
         else duration
-    events = np.linspace(first, duration * 0.999, samples)
-    at, integral = [], []
-    for event in events:
-        t, tilt, _ = stop(float(event))
+    end = duration * 0.999
+    if spacing is not None:
+        if not (math.isfinite(spacing) and spacing > 0):
+            raise ConfigError(f"must be > 0 [s], got {spacing!r}", key="spacing")
+        samples = max(samples, int(math.ceil((end - first) / spacing)) + 1)
+
+    def measure(event: float) -> float | None:
+        history = stop(event)
+        if history is None:
+            return None
+        t, tilt, _ = history
         rate = shape.rate(tilt)
-        at.append(tilt_of_t(float(event)))
-        integral.append(float(np.sum(0.5 * (rate[1:] + rate[:-1]) * np.diff(t))))
-    xs, ys = np.array(at), np.array(integral)
+        return float(np.sum(0.5 * (rate[1:] + rate[:-1]) * np.diff(t)))
+
+    table = {float(e): measure(float(e)) for e in np.linspace(first, end, samples)}
+    if tolerance is not None:
+        _refine(table, measure, tolerance, finest)
+    events = [e for e in sorted(table) if table[e] is not None]
+    if not events:
+        raise ConfigError("no stop could be made at any event past the spill angle",
+                          key="stop")
+    xs = np.array([tilt_of_t(e) for e in events])
+    ys = np.array([table[e] for e in events], dtype=float)
 
     def still(theta: float) -> float:
         return float(np.interp(theta, xs, ys, left=0.0))
 
     return still
+
+
+def _refine(table: dict[float, float | None], measure: Callable[[float], float | None],
+            tolerance: float, finest: float) -> None:
+    """Halve the intervals of ``table`` (event -> value) whose midpoint is farther than
+    ``tolerance`` from their chord, until they are ``finest`` long."""
+    pending = sorted(table)
+    intervals = list(zip(pending[:-1], pending[1:], strict=True))
+    while intervals:
+        a, b = intervals.pop()
+        ya, yb = table[a], table[b]
+        if b - a <= finest or ya is None or yb is None:
+            continue
+        mid = 0.5 * (a + b)
+        ym = table[mid] = measure(mid)
+        if ym is not None and abs(ym - 0.5 * (ya + yb)) > tolerance:
+            intervals += [(a, mid), (mid, b)]
 
 
 def _move(delta: float, speed: float, accel: float, dt: float) -> np.ndarray:

@@ -28,7 +28,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from ...errors import InputError
+from ...errors import InputError, TimingError
 from ...execution import LIMITS_KEY, robot_limits
 from ...trajectory import Trajectory
 
@@ -38,7 +38,18 @@ if TYPE_CHECKING:
     from ...timing import PathSpline, TimedPiece, TimingOptions
     from .flow import FlowModel
 
-__all__ = ["MassPredictor", "PourStopper"]
+__all__ = ["MassPredictor", "PourStopper", "STILL_SPACING"]
+
+#: Motion time between the events at which :meth:`PourStopper.calibrate_still` measures
+#: the stop and the return [s]. What they pour is not smooth in the event (the
+#: jerk-limited stop takes 0.24 s at one knot and 0.57 s at the next where the path bends),
+#: so the table is dense rather than a few points joined by chords.
+STILL_SPACING = 0.025
+
+#: Where the table's chord between two events misses its midpoint by more than this per
+#: unit gain [s] (0.1 g at a gain of 100 g/s/rad^1.5), the interval is halved down to a
+#: knot (:func:`~safepath.cells.pouring.flow.calibrate_still`).
+STILL_TOLERANCE = 0.001
 
 
 class MassPredictor:
@@ -112,10 +123,14 @@ class MassPredictor:
         return x ** 1.5 * self._brake_time + x ** 2.5 / (2.5 * self._return_speed)
 
     def predict(self, tau: float) -> float | None:
-        """Final mass if braking began at motion time ``tau`` [g] (None: no fit yet)."""
+        """Final mass if braking began at motion time ``tau`` [g] (None: no fit yet): at
+        the first knot of the motion at or after ``tau``, as :meth:`PourStopper.stop`
+        brakes."""
         gain = self.gain
         if gain is None:
             return None
+        k = int(np.searchsorted(self._t, tau))
+        tau = float(self._t[k]) if 0 < k < self._t.size else tau
         return gain * (self.poured(tau) + self.coming(self.tilt(tau)))
 
 
@@ -170,21 +185,49 @@ class PourStopper:
             self._path_tau = t[k0:]
             return (t[k0:] - t[k0], motion.s[k0:], traj.q[k0:], traj.qd[k0:], traj.qdd[k0:],
                     k0, kb)
-        # The motion's own time is the path parameter: the stop follows the motion at its
-        # own speed, then brakes along it, jerk-limited and checked as executed (the
-        # monitor's re-timing, :class:`safepath.monitor.profile.MonitoredPath`).
-        path = self.path
-        lead = path.width / 2
-        _, stop = path.replacement(float(t[k0]), 0.0, max(float(t[kb] - t[k0]) - lead, 0.0),
-                                   before=None, tau0=float(t[k0]) + lead, r0=1.0,
-                                   kind="stop")
-        tau = np.asarray(stop.info["path_tau"])
+        # The motion's own time is the path parameter: the stop holds the motion's own
+        # knots k0..kb, then brakes along it from knot kb, jerk-limited and checked as
+        # executed (the monitor's re-timing, :class:`safepath.monitor.profile.MonitoredPath`,
+        # whose followed profile changes from its start on). Braking from k0 instead would
+        # begin before the goal can reach the trajectory controller, and pour less than
+        # :class:`MassPredictor` predicts for braking at ``tau_brake``.
+        kb, stop = self._braking(kb)
+        tau = np.concatenate([t[k0:kb], [t[kb]], np.asarray(stop.info["path_tau"])[1:]])
         s = np.interp(tau, t, motion.s)
-        q, qd, qdd = stop.q.copy(), stop.qd.copy(), stop.qdd.copy()
-        # The first knot is the motion's own knot k0 (the averaging rounds it by ~1e-15).
-        q[0], qd[0], qdd[0] = traj.q[k0], traj.qd[k0], traj.qdd[k0]
-        self._path_tau = np.concatenate([[t[k0]], tau[1:]])
-        return stop.t, s, q, qd, qdd, k0, kb
+        # The first braking knot is the motion's own knot kb (the averaging rounds it by
+        # ~1e-15).
+        held = slice(k0, kb + 1)
+        q = np.vstack([traj.q[held], stop.q[1:]])
+        qd = np.vstack([traj.qd[held], stop.qd[1:]])
+        qdd = np.vstack([traj.qdd[held], stop.qdd[1:]])
+        tt = np.concatenate([t[held] - t[k0], float(t[kb] - t[k0]) + stop.t[1:]])
+        self._path_tau = tau
+        return tt, s, q, qd, qdd, k0, kb
+
+    def _braking(self, kb: int) -> tuple[int, Trajectory]:
+        """Braking along the path from the motion's knot ``kb`` on, or from a later knot
+        if that comes to rest sooner: the jerk-limited profile comes to rest at a knot, and
+        where it reaches the knot before with almost no speed left it creeps over the last
+        interval (0.24 s of braking from one knot, 2.1 s from the one before it on the
+        pouring cell's tilt, with the cup still tipped). The knots after ``kb`` are tried
+        while each comes to rest sooner than the one before."""
+        t = self.motion.trajectory.t
+        lead = self.path.width / 2
+
+        def brake(k: int) -> Trajectory:
+            return self.path.replacement(float(t[k]), 0.0, 0.0, before=None,
+                                         tau0=float(t[k]) + lead, r0=1.0, kind="stop")[1]
+
+        best = brake(kb)
+        while kb + 1 < t.size - 1:
+            try:
+                later = brake(kb + 1)
+            except TimingError:
+                break
+            if t[kb + 1] + later.duration >= t[kb] + best.duration:
+                break
+            kb, best = kb + 1, later
+        return kb, best
 
     def stop(self, tau_now: float, tau_brake: float) -> Trajectory:
         """The stop goal when the arm is at motion time ``tau_now`` [s] and braking may
@@ -261,25 +304,46 @@ class PourStopper:
         return piece, s_rest
 
     def stop_and_back(self, tau: float) -> tuple[np.ndarray, np.ndarray]:
-        """Times from ``tau`` [s] and tilts [rad] of braking at ``tau`` and returning."""
+        """Times from ``tau`` [s] and tilts [rad] of braking at ``tau`` and returning (the
+        stop's first knot is at or before ``tau``: the history starts at ``tau`` itself,
+        so that nothing poured before ``tau`` is counted twice)."""
         tt, s, *_ = self._stop_arrays(tau, tau)
         piece, s_rest = self._back_piece(float(s[-1]))
         times = np.concatenate([tt, tt[-1] + piece.t[1:]])
-        return times, self.tilt_at(np.concatenate([s, s_rest - piece.s[1:]]))
+        tilts = self.tilt_at(np.concatenate([s, s_rest - piece.s[1:]]))
+        times = times - (tau - float(self._path_tau[0]))  # from tau
+        later = times > 0.0
+        first = float(np.interp(0.0, times, tilts))
+        return np.concatenate([[0.0], times[later]]), np.concatenate([[first], tilts[later]])
 
-    def calibrate_still(self, flow: FlowModel, *, samples: int = 6) -> Callable[[float], float]:
+    def calibrate_still(self, flow: FlowModel, *, samples: int | None = None,
+                        spacing: float = STILL_SPACING) -> Callable[[float], float]:
         """What the stop and the return pour from a tilt, per unit gain [s], measured on
-        this stopper's own stops and returns (for :class:`MassPredictor`)."""
+        this stopper's own stops and returns (for :class:`MassPredictor`), at events
+        ``spacing`` [s] of motion time apart past the spill angle (``samples``: that many
+        events instead). Events at which no stop can be timed are left out."""
+        from ...errors import SafepathError
         from .flow import calibrate_still
 
         traj = self.motion.trajectory
 
-        def stop(event: float) -> tuple[np.ndarray, np.ndarray, float]:
-            t, tilt = self.stop_and_back(event)
+        def knot(event: float) -> float:  # where a stop decided at ``event`` brakes
+            return float(traj.t[min(int(np.searchsorted(traj.t, event)), traj.t.size - 1)])
+
+        def stop(event: float) -> tuple[np.ndarray, np.ndarray, float] | None:
+            try:
+                t, tilt = self.stop_and_back(knot(event))
+            except SafepathError:  # the controller faults if it decides there
+                return None
             return t, tilt, 0.0
 
-        return calibrate_still(stop, lambda x: float(np.interp(x, traj.t, self.motion.tilt)),
-                               traj.duration, flow, samples=samples)
+        def tilt_of_t(event: float) -> float:
+            return float(np.interp(knot(event), traj.t, self.motion.tilt))
+
+        return calibrate_still(stop, tilt_of_t,
+                               traj.duration, flow, samples=samples or 6,
+                               spacing=None if samples else spacing,
+                               tolerance=STILL_TOLERANCE, finest=self.path.knot)
 
 
 class _Reversed:

@@ -25,7 +25,13 @@ __all__ = [
     "MoveArm",
     "RequestVerdict",
     "SetConveyor",
+    "VERDICT_TIMEOUT",
 ]
+
+
+#: The verdict time-out when none is given [s]: a service answering each request (the
+#: rewritten node's test zone answers in 0.2-1.5 s).
+VERDICT_TIMEOUT = 5.0
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -36,7 +42,10 @@ class ControllerOptions:
         phase1_route: Conveyor -> test plate -> out of the camera's view.
         safe_route: Test plate -> packaging line -> back to the conveyor.
         unsafe_route: Test plate -> reject bin -> back to the conveyor.
-        verdict_timeout: Longest wait for the verdict before deciding 'unsafe' [s].
+        verdict_timeout: Longest wait for the verdict before deciding 'unsafe' [s]; None:
+            :data:`VERDICT_TIMEOUT` (a caller that knows how its test zone answers, e.g.
+            the twin's sequential baseline reading a publication every 5 s, sets it from
+            that; see :attr:`verdict_wait`).
         motion_timeout_margin: Time allowed beyond a motion's duration [s].
         gripper_timeout: Longest gripper action [s].
         conveyor_timeout: Longest conveyor service call [s].
@@ -48,7 +57,7 @@ class ControllerOptions:
     phase1_route: str = "phase1"
     safe_route: str = "phase2_safe"
     unsafe_route: str = "phase2_unsafe"
-    verdict_timeout: float = 5.0
+    verdict_timeout: float | None = None
     motion_timeout_margin: float = 5.0
     gripper_timeout: float = 5.0
     conveyor_timeout: float = 5.0
@@ -65,8 +74,17 @@ class ControllerOptions:
         for name in ("verdict_timeout", "motion_timeout_margin", "gripper_timeout",
                      "conveyor_timeout"):
             value = getattr(self, name)
-            if not isinstance(value, (int, float)) or not math.isfinite(value) or value <= 0:
+            if name == "verdict_timeout" and value is None:
+                continue
+            if isinstance(value, bool) or not isinstance(value, (int, float)) \
+                    or not math.isfinite(value) or value <= 0:
                 raise InputError(f"must be > 0 [s], got {value!r}", key=name)
+
+    @property
+    def verdict_wait(self) -> float:
+        """The verdict time-out in force [s]: ``verdict_timeout``, else
+        :data:`VERDICT_TIMEOUT`."""
+        return VERDICT_TIMEOUT if self.verdict_timeout is None else float(self.verdict_timeout)
 
     @property
     def routes(self) -> tuple[str, str, str]:

@@ -230,7 +230,7 @@ class QualityCheckController:
             return []
         if pending.kind == "verdict":
             self._verdict_time = now - pending.sent
-            reason = f"no verdict within {self.options.verdict_timeout:g} s"
+            reason = f"no verdict within {self.options.verdict_wait:g} s"
             logger.warning("vial treated as unsafe: %s", reason)
             return self._decide("unsafe", reason, now)
         return self._fault(f"{pending.kind} goal {pending.goal_id} overdue "
@@ -322,7 +322,7 @@ class QualityCheckController:
             self._state = CellState.VERDICT
             request_id = self._new_id()
             self._pending = _Pending(request_id, "verdict", now,
-                                     now + self.options.verdict_timeout)
+                                     now + self.options.verdict_wait)
             return [RequestVerdict(request_id)]
         if self._state is CellState.PHASE2:
             self._cycles += 1
