@@ -126,6 +126,11 @@ def test_kill_brakes_the_tilt_on_its_path_and_nothing_follows(pour: Pour) -> Non
     goals = [c for _, c in commands_of(run, SendArmGoal)]
     assert [g.purpose for g in goals] == ["pour", "stop"]
     stop = goals[1].trajectory
+    # A kill is never postponed: it brakes from the first knot after the kill, not
+    # stop_lead later (the lead the mass predictor's ordinary stop uses).
+    spacing = float(np.max(np.diff(pour.motion.trajectory.t)))
+    assert stop.info["brake_at"] - stop.info["time_offset"] <= 2 * spacing + 1e-9
+    assert 2 * spacing < ctrl.options.stop_lead
     # Braked along the tilt's path: it comes to rest at a state q(s) of the verified path,
     # before the tilt's end, within the limits, and the arm stays there.
     s_rest = stop.info["s_rest"]

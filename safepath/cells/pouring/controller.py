@@ -272,7 +272,7 @@ class PourController:
             return []
         if self._state is PourState.POURING and self._pending is not None:
             try:
-                stop = self._stop_goal(now)
+                stop = self._stop_goal(now, lead=0.0)  # a kill brakes at once
             except SafepathError as exc:  # no braking within the limits: cancel instead
                 return self._fault(f"killed (no path-consistent stop: {exc})")
             return [stop, *self._fault("killed", cancel=False)]
@@ -316,9 +316,12 @@ class PourController:
             return [self.report]
         return []
 
-    def _stop_goal(self, now: float) -> SendArmGoal:
+    def _stop_goal(self, now: float, *, lead: float | None = None) -> SendArmGoal:
+        """The stop braking ``lead`` after ``now`` (default ``stop_lead``, the lead the
+        mass predictor assumes; a kill braking at once gives 0)."""
         tau = now - self._t0
-        stop = self._stopper.stop(tau, tau + self.options.stop_lead)
+        lead = self.options.stop_lead if lead is None else lead
+        stop = self._stopper.stop(tau, tau + lead)
         return self._arm_goal("stop", stop, self._t0 + stop.info["time_offset"])
 
     def _end_pour(self, now: float, reason: str, predicted: float | None) -> list[PourCommand]:
