@@ -37,6 +37,45 @@ def derived_jerk_limits(acceleration_limits: Sequence[float] | np.ndarray) -> np
     return np.asarray(acceleration_limits, dtype=float) / JERK_RAMP_TIME
 
 
+def joint_vector(q: Any, joint_names: Sequence[str], lower: np.ndarray, upper: np.ndarray,
+                 *, name: str = "q", path: Path | None = None,
+                 check_limits: bool = True) -> np.ndarray:
+    """Validate a joint vector against a robot's joints: right length, finite, inside
+    ``lower`` .. ``upper`` (:meth:`Robot.as_joint_vector`; the runtime planner checks
+    a pose update with it before any worker is free).
+
+    Raises:
+        PoseError: Naming the pose and the offending joint.
+    """
+    try:
+        arr = np.asarray(q, dtype=float).reshape(-1)
+    except (TypeError, ValueError):
+        raise PoseError(f"not a vector of numbers: {brief(q)}", path=path, key=name) from None
+    if arr.shape != (len(joint_names),):
+        raise PoseError(f"expected {len(joint_names)} joint values, got {arr.size}", path=path,
+                        key=name)
+    bad = np.flatnonzero(~np.isfinite(arr))
+    if bad.size:
+        raise PoseError(f"{joint_names[bad[0]]} is not finite ({arr[bad[0]]})",
+                        path=path, key=name)
+    if check_limits:
+        violation = limit_violation(arr, joint_names, lower, upper)
+        if violation:
+            raise PoseError(violation, path=path, key=name)
+    return arr
+
+
+def limit_violation(q: np.ndarray, joint_names: Sequence[str], lower: np.ndarray,
+                    upper: np.ndarray) -> str | None:
+    """Describe the first joint of ``q`` outside ``lower`` .. ``upper``, or None."""
+    for i, name in enumerate(joint_names):
+        if not (lower[i] <= q[i] <= upper[i]):
+            value = f"{q[i]:.5f}" if abs(q[i]) < 1e6 else f"{q[i]:.6g}"
+            return (f"{name} = {value} rad is outside its limits "
+                    f"[{lower[i]:.5f}, {upper[i]:.5f}]")
+    return None
+
+
 class Robot:
     """A serial arm: Pinocchio model, collision geometry, limits and TCP.
 
@@ -170,22 +209,8 @@ class Robot:
         Raises:
             PoseError: Naming the pose and the offending joint.
         """
-        try:
-            arr = np.asarray(q, dtype=float).reshape(-1)
-        except (TypeError, ValueError):
-            raise PoseError(f"not a vector of numbers: {brief(q)}", path=path, key=name) from None
-        if arr.shape != (self.dof,):
-            raise PoseError(f"expected {self.dof} joint values, got {arr.size}", path=path,
-                            key=name)
-        bad = np.flatnonzero(~np.isfinite(arr))
-        if bad.size:
-            raise PoseError(f"{self.joint_names[bad[0]]} is not finite ({arr[bad[0]]})",
-                            path=path, key=name)
-        if check_limits:
-            violation = self.limit_violation(arr)
-            if violation:
-                raise PoseError(violation, path=path, key=name)
-        return arr
+        return joint_vector(q, self.joint_names, self.lower, self.upper, name=name,
+                            path=path, check_limits=check_limits)
 
     def within_limits(self, q: np.ndarray, tol: float = 0.0) -> bool:
         """Whether every joint lies inside its position limits (± ``tol`` [rad])."""
@@ -194,12 +219,7 @@ class Robot:
 
     def limit_violation(self, q: np.ndarray) -> str | None:
         """Describe the first joint outside its limits, or None."""
-        for i, name in enumerate(self.joint_names):
-            if not (self.lower[i] <= q[i] <= self.upper[i]):
-                value = f"{q[i]:.5f}" if abs(q[i]) < 1e6 else f"{q[i]:.6g}"
-                return (f"{name} = {value} rad is outside its limits "
-                        f"[{self.lower[i]:.5f}, {self.upper[i]:.5f}]")
-        return None
+        return limit_violation(q, self.joint_names, self.lower, self.upper)
 
     def frame_pose(self, q: np.ndarray, frame: str | None = None) -> pin.SE3:
         """Pose of ``frame`` (default: the TCP) in the world frame at ``q``."""

@@ -110,6 +110,8 @@ class Core:
         self._floor_state: tuple[int, dict[str, np.ndarray]] = (0, {})
         self._resolved: dict[int, dict[str, np.ndarray] | None] = {}
         self.options = options
+        #: The cell's pose names and robot joints, once a worker has loaded it.
+        self._cell: dict[str, Any] = {}
         self._cache: OrderedDict[tuple[Any, ...], bytes] = OrderedDict()
         self._deadlines = Deadlines()
         self.context = multiprocessing.get_context(start_method)
@@ -120,6 +122,33 @@ class Core:
         for slot in self.slots:
             slot.thread.start()
         _LIVE.add(self)
+
+    def learn(self, cell: dict[str, Any]) -> None:
+        """What a loaded worker says of its cell (pose names, robot joints)."""
+        if cell:
+            with self.cond:
+                self._cell = dict(cell)
+
+    def precheck(self, poses: dict[str, Any]) -> None:
+        """Check a pose update as far as no worker is needed (known names; joint count,
+        finite, inside the limits), once a worker has told the cell's joints.
+
+        Raises:
+            PoseError: Naming the pose and why.
+        """
+        from .._io import check_names
+        from ..errors import PoseError
+        from ..robot import joint_vector
+
+        with self.cond:
+            cell = self._cell
+        if "poses" not in cell or "joints" not in cell:
+            return
+        names, lower, upper = cell["joints"]
+        for name, q in poses.items():
+            check_names([name], cell["poses"], path=None, key=str(name), what="pose",
+                        error=PoseError)
+            joint_vector(q, names, np.asarray(lower), np.asarray(upper), name=str(name))
 
     # -- requests --------------------------------------------------------------------------
     def submit(self, kind: str, payload: dict[str, Any], timeout: float | None,

@@ -52,6 +52,9 @@ class Loaded(NamedTuple):
     proc: BaseProcess
     conn: Connection
     entries: dict[tuple[Any, ...], bytes] = {}
+    #: The loaded cell's taught pose names and its robot's joints (names, lower and
+    #: upper limits), for checks the caller makes without a worker.
+    cell: dict[str, Any] = {}
 
 
 def emit(record: logging.LogRecord) -> None:
@@ -250,7 +253,8 @@ class Launcher:
         if isinstance(info, dict):
             log.info("planner worker %d ready in %.2f s", proc.pid,
                      time.perf_counter() - t_start)
-            return Loaded(proc, parent, info.get("entries", {}))
+            return Loaded(proc, parent, info.get("entries", {}),
+                          {k: info[k] for k in ("poses", "joints") if k in info})
         error = info
         if not self._closed:
             log.warning("planner worker for %s could not start: %s", self._scene, error)

@@ -54,6 +54,9 @@ class SlotOwner(Protocol):
     def remember(self, version: int, entries: dict[tuple[Any, ...], bytes]) -> None:
         """Keep a worker's results for poses ``version`` in the result cache."""
 
+    def learn(self, cell: dict[str, Any]) -> None:
+        """Keep what a loaded worker says of its cell (pose names, robot joints)."""
+
     def count(self, name: str) -> None:
         """Count one event ``name`` (sent, completed, killed, ...)."""
 
@@ -258,6 +261,7 @@ class Slot:
             return result
         self.worker, self._version = result, 0
         self._core.remember(0, result.entries)  # its warm-up plan, with the loaded poses
+        self._core.learn(result.cell)
         loaded.set_result(None)
         return None
 

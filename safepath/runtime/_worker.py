@@ -224,9 +224,12 @@ def serve(conn: Connection, scene: Path | Cell, options: PlanOptions, log_level:
         conn.send(("error", 0, encode_error(exc)))
         return
     entries = _encode((None, worker.warm_up()))[1]
+    robot = worker.cell.robot
     conn.send(("ready", 0, {"pid": os.getpid(), "entries": entries,
                             "poses": list(worker.base_poses),
-                            "routes": list(worker.routes)}))
+                            "routes": list(worker.routes),
+                            "joints": (tuple(robot.joint_names), robot.lower.tolist(),
+                                       robot.upper.tolist())}))
     while True:
         try:
             message = conn.recv()

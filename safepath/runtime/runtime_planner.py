@@ -224,6 +224,12 @@ class RuntimePlanner:
             raise PoseError(f"expected a mapping of pose names to joint vectors, got "
                             f"{type(poses).__name__}")
         copied = {name: _copy(q) for name, q in poses.items()}
+        try:  # a bad name, length or value is answered at once, whatever the workers do
+            self._core.precheck(copied)
+        except PoseError as exc:
+            refused: Future[None] = Future()
+            refused.set_exception(exc)
+            return refused
         return self._core.submit("validate", {"poses": copied}, None, "the pose update")
 
     def ready(self) -> Future[None]:

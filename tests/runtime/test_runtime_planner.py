@@ -272,6 +272,27 @@ def test_cancel_while_planning_keeps_the_cache_and_swaps_in_the_spare(
     assert before.pids[0] not in after.pids + after.spares
 
 
+def test_a_bad_pose_update_is_answered_at_once_while_the_worker_is_busy(
+        slow: RuntimePlanner) -> None:
+    """Issue 36: right after a cancel (the spare taking over, a new spare loading) and
+    with the worker busy, a pose update with a value outside the limits, a wrong count
+    or an unknown name is refused when update_poses returns, not after the workers
+    (8.7-11.2 s it took)."""
+    slow.ready().result(timeout=LONG)
+    running = slow.plan_cell(seed=25)
+    wait_for(lambda: slow.stats().busy == 1, "the worker to take the request")
+    for update, match in (({"high2": [10.0, 0, 0, 0, 0, 0]}, "joint_1 = 10.00000"),
+                          ({"high2": [0.0, 0.0]}, "expected 6 joint values"),
+                          ({"hihg2": [0.0] * 6}, "did you mean 'high2'")):
+        future = slow.update_poses(update)
+        assert future.done()
+        with pytest.raises(PoseError, match=match):
+            future.result(timeout=0)
+    assert running.cancel()
+    future = slow.update_poses({"high2": [10.0, 0, 0, 0, 0, 0]})  # just after a cancel
+    assert future.done() and isinstance(future.exception(timeout=0), PoseError)
+
+
 def test_ready_waits_for_the_warm_spare(slow: RuntimePlanner) -> None:
     # Issue 28: ready() was done before the spare had loaded, so a fresh plan right
     # after a cancel waited for a new worker to load (3.6-4.0 s against 1.06 s).
