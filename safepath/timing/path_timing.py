@@ -29,7 +29,7 @@ from ..errors import TimingError
 from ..execution import interval_ratios
 from ..robot import Robot
 from . import _smooth, _topp
-from ._path_limits import PathLimits, PathSpline, jet, path_limits
+from ._path_limits import PathLimits, PathSpline, path_limits
 from ._spline import CubicPath
 
 __all__ = ["TimingOptions", "TimedPiece", "PathSpline", "spline_path", "time_path",
@@ -278,10 +278,7 @@ def _time_once(path: PathSpline, limits: PathLimits, f_acc: np.ndarray, f_x: np.
     # nanoseconds, and the quintic join of knots 4 ms apart is sensitive to a 1 ns shift
     # (its jerk by ~0.2 %). The last knot may come a few ns after the motion's end (at rest).
     t = _ns_grid(n, int(np.ceil(duration / (n - 1) * _NS)))
-    s, sd, sdd, _ = _smooth.evaluate(sm, t)
-    q, ps, pss = jet(path, s)
-    qd = ps * sd[:, None]
-    qdd = pss * (sd ** 2)[:, None] + ps * sdd[:, None]
+    s, _, _, q, qd, qdd = _smooth.along(sm, path, t)
     qd[0] = qd[-1] = 0.0  # at rest (not -0.0)
     qdd[0] = qdd[-1] = 0.0
     segment = interval_index(limits.s_way, s, limits.vmax_seg.shape[0])
@@ -299,7 +296,13 @@ def _jerk_window(profile: _topp.Profile, path: PathSpline, limits: PathLimits,
     t = np.arange(0.0, profile.duration, dt)
     s, sd, u = _topp.evaluate(profile, t)
     seg = interval_index(limits.s_way, s, limits.jmax_seg.shape[0])
-    _, ps, pss = jet(path, s)
+    # The path's tangent and curvature between gridpoints, linear in s (a cubic's are
+    # quadratic and linear; gridpoints lie <= grid_step apart): no spline evaluation.
+    grid, at = limits.grid, limits.at_grid
+    k = interval_index(grid, s, grid.size - 1)
+    w = ((s - grid[k]) / (grid[k + 1] - grid[k]))[:, None]
+    ps = at.dq[k] + w * (at.dq[k + 1] - at.dq[k])
+    pss = at.ddq[k] + w * (at.ddq[k + 1] - at.ddq[k])
     acc = (ps * u[:, None] + pss * (sd ** 2)[:, None]) / limits.jmax_seg[seg]
     # At rest (zero acceleration) before and after: the first and last changes count.
     f = np.vstack([np.zeros((1, acc.shape[1])), acc, np.zeros((1, acc.shape[1]))])
