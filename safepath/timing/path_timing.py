@@ -29,6 +29,7 @@ from ..errors import TimingError
 from ..execution import interval_ratios
 from ..robot import Robot
 from . import _smooth, _topp
+from ._blend import blended_points, resampled
 from ._path_limits import PathLimits, PathSpline, path_limits
 from ._spline import CubicPath
 
@@ -134,40 +135,26 @@ def spline_path(waypoints: Sequence[np.ndarray], spacing: float, *,
         waypoints: The polyline.
         spacing: Largest distance between interpolation points [rad].
         corners: Interior waypoints the spline may cut (via points), each with its
-            blend radius [rad]: interpolation points closer than that to the corner
-            (and the corner itself) are left out, so the spline rounds the corner
-            instead of passing through it.
+            blend radius [rad]: the path leaves the polyline that far before the corner
+            and joins it again that far after, along a blend whose curvature is
+            continuous (:mod:`._blend`; a radius over half a segment is reduced to that).
 
     Returns:
         The spline (not-a-knot, :class:`~safepath.timing._spline.CubicPath`, scipy's
         ``CubicSpline`` without its import cost), the path parameter of each input
-        waypoint (its closest point for cut corners), and the spline's interpolation
-        parameters.
+        waypoint (the blend's middle for a blended corner), and the spline's
+        interpolation parameters.
     """
     W = np.asarray(waypoints, dtype=float)
-    seg = np.linalg.norm(np.diff(W, axis=0), axis=1)
-    s_way = np.concatenate([[0.0], np.cumsum(seg)])
-    # Segment k gets m_k points, at fractions j / m_k (j = 1..m_k) of it.
-    m = np.maximum(1, np.ceil(seg / spacing).astype(int))
-    k = np.repeat(np.arange(seg.size), m)
-    frac = (np.arange(k.size) - np.repeat(np.cumsum(m) - m, m) + 1) / m[k]
-    P = np.vstack([W[:1], W[k] + frac[:, None] * (W[k + 1] - W[k])])
-    S = np.concatenate([[0.0], s_way[k] + frac * seg[k]])
-    if any(r > 0 for _, r in corners):
-        keep = np.ones(len(S), dtype=bool)
-        for c, r in corners:
-            if 0 < c < len(W) - 1 and r > 0:
-                keep &= ~(np.abs(S - s_way[c]) < r)
-        keep[0] = keep[-1] = True
-        P = P[keep]
-        # Re-parametrise the kept points by chord length, and map the waypoints.
-        chord = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(P, axis=0), axis=1))])
-        s_way = np.interp(s_way, S[keep], chord)
-        S = chord
+    if any(r > 0 and 0 < c < len(W) - 1 for c, r in corners):
+        P, S, s_way = blended_points(W, corners, spacing)
+        path: PathSpline = CubicPath(S, P)
+        return path, s_way, S
+    P, S, s_way = resampled(W, spacing)
     if len(P) == 2:  # a straight line: a linear "spline"
         P = np.vstack([P[0], 0.5 * (P[0] + P[1]), P[1]])
         S = np.array([0.0, S[-1] / 2, S[-1]])
-    path: PathSpline = CubicPath(S, P)
+    path = CubicPath(S, P)
     return path, s_way, S
 
 
