@@ -28,9 +28,9 @@ from .._knots import interval_index
 from ..errors import TimingError
 from ..execution import interval_ratios
 from ..robot import Robot
-from . import _smooth, _topp
+from . import _scurve, _smooth, _topp
 from ._blend import blended_points, resampled
-from ._path_limits import PathLimits, PathSpline, path_limits
+from ._path_limits import PathLimits, PathSpline, jet, path_limits
 from ._spline import CubicPath
 
 __all__ = ["TimingOptions", "TimedPiece", "PathSpline", "spline_path", "time_path",
@@ -171,7 +171,8 @@ class _Run:
         segment: Input segment of each knot.
         ratios: Per interval between knots, the largest speed, acceleration and jerk
             ratio of the quintic join (3, knots - 1).
-        smoothed: The smoothed profile (maps knot times back to the profile's path).
+        smoothed: The smoothed profile (maps knot times back to the profile's path);
+            None for a closed-form straight motion.
     """
 
     t: np.ndarray
@@ -181,7 +182,7 @@ class _Run:
     qdd: np.ndarray
     segment: np.ndarray
     ratios: np.ndarray
-    smoothed: _smooth.Smoothed
+    smoothed: _smooth.Smoothed | None
 
     @property
     def stretch(self) -> float:
@@ -226,13 +227,15 @@ def time_path(robot: Robot, path: PathSpline, s_way: np.ndarray, *, scales: Sequ
     limits = path_limits(robot, path, s_way, scales, tcp_speeds,
                          speed_scale=options.speed_scale, grid_step=options.grid_step,
                          jerk_scale=options.jerk_scale)
+    if len(s_way) == 2 and tcp_speeds[0] is None and _straight(path, limits):
+        return _release(_time_straight(path, limits, options, where), limits, options, where)
     f_acc = np.ones(limits.grid.size)
     f_x = np.ones(limits.grid.size)
     best: _Run | None = None
     tau_a: float | None = None
     for attempt in range(options.retries):
         run = _time_once(path, limits, f_acc, f_x, options, tau_a, where)
-        tau_a = run.smoothed.tau_a
+        tau_a = run.smoothed.tau_a if run.smoothed is not None else None
         if best is None or run.stretched < best.stretched:
             best = run
         worst = float(run.ratios.max()) if run.ratios.size else 0.0
@@ -243,6 +246,35 @@ def time_path(robot: Robot, path: PathSpline, s_way: np.ndarray, *, scales: Sequ
         _tighten(f_acc, f_x, limits.grid, run)
     assert best is not None  # options.retries >= 1
     return _release(best, limits, options, where)
+
+
+def _straight(path: PathSpline, limits: PathLimits) -> bool:
+    """Whether the path is a straight line (no curvature at any gridpoint)."""
+    curvature = float(np.abs(limits.at_grid.ddq).max())
+    return curvature <= 1e-9 * max(1.0, float(path.x[-1]))
+
+
+def _time_straight(path: PathSpline, limits: PathLimits, options: TimingOptions,
+                   where: str) -> _Run:
+    """The time-optimal jerk-limited motion along a straight path in closed form
+    (:mod:`._scurve`): the joint limits projected on the line, the phases whole knot
+    periods, so that the knots' quintic join is the motion itself."""
+    d = np.abs(limits.at_grid.dq[0])
+    moving = d > 1e-12
+    v, a, j = (float(np.min(lim[0][moving] / d[moving]))
+               for lim in (limits.vmax_seg, limits.amax_seg, limits.jmax_seg))
+    if not (v > 0 and a > 0 and j > 0):
+        raise TimingError("no feasible timing: a limit of the moving joints is 0" + where)
+    curve = _scurve.s_curve(float(path.x[-1]), v, a, j, options.knot_period)
+    t, s, sd, sdd = _scurve.sample(curve)
+    q, ps, pss = jet(path, s)
+    qd = ps * sd[:, None]
+    qdd = pss * (sd ** 2)[:, None] + ps * sdd[:, None]
+    qd[0] = qd[-1] = 0.0  # at rest (not -0.0)
+    qdd[0] = qdd[-1] = 0.0
+    segment = np.zeros(t.size, dtype=np.int64)
+    ratios = np.array(_interval_ratios(t, q, qd, qdd, segment, limits))
+    return _Run(t, s, q, qd, qdd, segment, ratios, None)
 
 
 def _time_once(path: PathSpline, limits: PathLimits, f_acc: np.ndarray, f_x: np.ndarray,
@@ -327,6 +359,7 @@ def _tighten(f_acc: np.ndarray, f_x: np.ndarray, grid: np.ndarray, run: _Run) ->
     gridpoint takes the largest excess of the windows over it, once."""
     v, a, j = run.ratios
     sm = run.smoothed
+    assert sm is not None  # only TOPP-RA's runs are tightened
     over = np.flatnonzero(run.ratios.max(axis=0) > 1.0)
     if over.size == 0:
         return
