@@ -157,7 +157,11 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser.add_argument("--seed", type=int, default=0, help="seed of the problems")
     parser.add_argument("--runs", type=int, default=3, help="timed runs per path (best kept)")
     parser.add_argument("--robots", default="", help="comma-separated (default: all)")
+    parser.add_argument("--save", action="store_true",
+                        help="write the figures to benchmarks/results/timing_quality.json "
+                             "and rewrite benchmarks/results/FIGURES.md")
     args = parser.parse_args(argv)
+    load_before = os.getloadavg()[0] if hasattr(os, "getloadavg") else None
     names = args.robots.split(",") if args.robots else sorted(
         p.name for p in ROBOTS.iterdir() if (p / "controller.yaml").is_file())
     load = f", load average {os.getloadavg()[0]:.2f}" if hasattr(os, "getloadavg") else ""
@@ -188,6 +192,13 @@ def main(argv: Sequence[str] | None = None) -> int:
               f"{'met' if worst[key] <= aim else 'NOT met'}")
     if hasattr(os, "getloadavg"):
         print(f"load average at the end {os.getloadavg()[0]:.2f}")
+    if args.save:
+        from _results import save
+
+        save("timing_quality", {"paths": args.paths, "seed": args.seed, "runs": args.runs,
+                                "aims": {"ms": AIM_MS, "median": AIM_MEDIAN, "p95": AIM_P95,
+                                         "straight": AIM_STRAIGHT},
+                                "robots": figures}, load_before=load_before)
     return 0
 
 

@@ -1,11 +1,14 @@
 """Time-optimal timing of a joint path with TOPP-RA, under the robot's limits, strictly.
 
 The path (a polyline of joint waypoints) is interpolated by a cubic spline through
-evenly spaced points, which rounds the corners a little (the caller re-checks the
-spline for collisions and falls back to stopping at corners). TOPP-RA (our numba kernel
-in :mod:`._topp`) then finds the fastest timing under joint velocity and acceleration
+evenly spaced points; blended via points follow a blend with continuous curvature
+(:mod:`._blend`; the caller re-checks the spline for collisions and falls back to
+stopping at corners). A straight rest-to-rest move is timed in closed form: the
+jerk-limited S-curve along the line (:mod:`._scurve`). Any other path: TOPP-RA (our numba
+kernel in :mod:`._topp`) finds the fastest timing under joint velocity and acceleration
 limits that vary along the path (each route step has its own speed scale and an optional
-TCP speed limit), with a constant path acceleration between gridpoints.
+TCP speed limit), with a constant path acceleration between gridpoints, and two moving
+averages limit its jerk (:mod:`._smooth`).
 
 TOPP-RA enforces the limits at its gridpoints (which follow the spline's pieces, see
 :mod:`._path_limits`); the output knots between them may still exceed a limit a little.
