@@ -42,6 +42,7 @@ def _blend(a: np.ndarray, d_a: np.ndarray, b: np.ndarray, d_b: np.ndarray,
     h_ta = lam - 6 * l3 + 8 * l4 - 3 * l5
     h_tb = -4 * l3 + 7 * l4 - 3 * l5
     curve = a + h_b * (b - a) + tangent * (h_ta * d_a + h_tb * d_b)
+    curve[-1] = b  # exactly (a + (b - a) may differ from b in the last bit)
     arc = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(curve, axis=0), axis=1))])
     count = max(2, int(np.ceil(arc[-1] / spacing)))
     # The fine samples nearest to even arc lengths; the last one is b itself.
@@ -110,8 +111,12 @@ def blended_points(waypoints: np.ndarray, corners: Sequence[tuple[int, float]],
         curve = np.vstack([a[None, :], _blend(a, d_a, b, d_b, s_b - s_a, spacing)])
         along = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(curve, axis=0),
                                                                 axis=1))])
-        parts.append(curve)
-        places.append(s_a + (s_b - s_a) * along / along[-1])
+        # A blend that starts where the one before it ended (each radius half the way
+        # between them) does not repeat that point.
+        first = int(len(parts) > 1 and start >= keep_to and parts[-2].shape[0] > 0
+                    and np.array_equal(parts[-2][-1], a))
+        parts.append(curve[first:])
+        places.append((s_a + (s_b - s_a) * along / along[-1])[first:])
         start = int(np.searchsorted(S, s_b + gap, side="left"))
     parts.append(P[start:])
     places.append(S[start:])

@@ -53,3 +53,15 @@ def test_radius_zero_passes_through_the_corner() -> None:
     waypoints = [np.zeros(3), np.array([1.0, 0.0, 0.0]), np.array([1.0, 1.0, 0.0])]
     path, s_way, _ = spline_path(waypoints, 0.06, corners=[(1, 0.0)])
     np.testing.assert_allclose(path(s_way[1]), waypoints[1], atol=1e-12)  # type: ignore[operator]
+
+
+def test_blends_that_meet_do_not_repeat_a_point() -> None:
+    """Radii larger than half the way between two corners are reduced to it: the two
+    blends meet at the middle of the segment between them, and the spline is valid."""
+    waypoints = [np.zeros(2), np.array([1.0, 0.0]), np.array([1.0, 1.0]), np.array([2.0, 1.0])]
+    path, s_way, knots = spline_path(waypoints, 0.06, corners=[(1, 5.0), (2, 5.0)])
+    assert np.all(np.diff(knots) > 0) and np.all(np.diff(s_way) > 0)
+    # The blends meet in the middle of the segment between the corners, on it.
+    s = np.linspace(0.0, float(path.x[-1]), 2001)
+    q = path(s)  # type: ignore[operator]
+    assert np.linalg.norm(q - np.array([1.0, 0.5]), axis=1).min() < 1e-3
