@@ -27,11 +27,8 @@ __all__ = ["TCP_STEP", "PathSpline", "PathLimits", "Points", "gridpoints", "jet"
 #: Spacing of the points where the TCP's speed per path speed is computed [rad].
 TCP_STEP = 0.015
 #: Share of each joint's jerk limit left to the path's third derivative
-#: (``|q'''(s)| sdot^3``); the rest is for the changes of the path acceleration. The two
-#: rarely peak together: where they do, the knots over a limit get the limits tightened
-#: around them (``time_path``). 0.8 rather than 0.5 gives faster motions at
-#: blended corners (``benchmarks/timing_quality.py``) and in the quality-check cycle.
-JERK_SPEED_SHARE = 0.8
+#: (``|q'''(s)| sdot^3``); the rest is for the changes of the path acceleration.
+JERK_SPEED_SHARE = 0.5
 
 
 class PathSpline(Protocol):
