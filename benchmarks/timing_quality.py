@@ -5,10 +5,10 @@ For each robot folder under ``robots/`` (loaded by name), on fresh seeded proble
 
 * **paths through 1-3 via points**: random polylines inside 80 % of the joint ranges,
   blended at their via points as the planner's first attempt blends them (radius
-  ``min(0.6, 0.4 x either segment)`` [rad]), through :func:`safepath.timing.spline_path`
-  and :func:`safepath.timing.time_path`. Reported: the compute time of ``time_path``
-  (one warm-up call, then the fastest of ``--runs``), and the motion time over the
-  jerk-free time-optimal timing of the same spline (the ``toppra`` library,
+  ``min(0.6, 0.4 x either segment)`` [rad], cut as ``--blend`` says), through
+  :func:`safepath.timing.spline_path` and :func:`safepath.timing.time_path`. Reported: the
+  compute time of ``time_path`` (one warm-up call, then the fastest of ``--runs``), and
+  the motion time over the jerk-free time-optimal timing of the same spline (the ``toppra`` library,
   ``ParametrizeConstAccel``, velocity and acceleration limits, on a 0.002 rad grid: a
   reference only, it ignores jerk and its knots may exceed the acceleration limits);
 * **straight rest-to-rest moves**: the motion time over the analytic jerk-limited
@@ -36,7 +36,8 @@ import numpy as np
 from safepath.execution import executed_peaks
 from safepath.robot import Robot
 from safepath.robot_folder import load_robot
-from safepath.timing import PathSpline, TimedPiece, spline_path, time_path
+from safepath.timing import PathSpline, TimedPiece, TimingOptions, spline_path, time_path
+from safepath.timing.path_timing import CORNER_BLENDS, CornerBlend
 
 ROBOTS = Path(__file__).resolve().parents[1] / "robots"
 #: Grid step of the jerk-free reference [rad].
@@ -46,7 +47,7 @@ REFERENCE_GRID = 0.002
 AIM_MS, AIM_MEDIAN, AIM_P95, AIM_STRAIGHT = 1.0, 1.05, 1.10, 1.01
 
 
-def via_path(robot: Robot, rng: np.random.Generator
+def via_path(robot: Robot, rng: np.random.Generator, blend: CornerBlend
              ) -> tuple[PathSpline, np.ndarray, int]:
     """A random path through 1-3 via points, blended as the planner first tries."""
     segments = int(rng.integers(2, 5))
@@ -56,7 +57,7 @@ def via_path(robot: Robot, rng: np.random.Generator
                                                            strict=True)]
     corners = [(k, min(0.6, 0.4 * lengths[k - 1], 0.4 * lengths[k]))
                for k in range(1, segments)]
-    path, s_way, _ = spline_path(points, 0.06, corners=corners)
+    path, s_way, _ = spline_path(points, 0.06, corners=corners, blend=blend)
     return path, s_way, segments
 
 
@@ -122,13 +123,14 @@ def within(robot: Robot, piece: TimedPiece) -> bool:
                             robot.jerk_limits)) <= 1.0
 
 
-def measure(robot: Robot, paths: int, seed: int, runs: int) -> dict[str, float]:
+def measure(robot: Robot, paths: int, seed: int, runs: int, blend: CornerBlend
+            ) -> dict[str, float]:
     """The figures of one robot."""
     rng = np.random.default_rng(seed)
     ms, ratios, straight, straight_ms = [], [], [], []
     over = 0
     for _ in range(paths):
-        path, s_way, segments = via_path(robot, rng)
+        path, s_way, segments = via_path(robot, rng, blend)
         piece, seconds = timed(robot, path, s_way, segments, runs)
         ms.append(seconds * 1e3)
         ratios.append(float(piece.t[-1]) / jerk_free_duration(robot, path))
@@ -157,6 +159,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser.add_argument("--seed", type=int, default=0, help="seed of the problems")
     parser.add_argument("--runs", type=int, default=3, help="timed runs per path (best kept)")
     parser.add_argument("--robots", default="", help="comma-separated (default: all)")
+    parser.add_argument("--blend", choices=CORNER_BLENDS, default=TimingOptions().corner_blend,
+                        help="how via points are cut (TimingOptions.corner_blend)")
     parser.add_argument("--save", action="store_true",
                         help="write the figures to benchmarks/results/timing_quality.json "
                              "and rewrite benchmarks/results/FIGURES.md")
@@ -167,7 +171,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     load = f", load average {os.getloadavg()[0]:.2f}" if hasattr(os, "getloadavg") else ""
     print(f"timing_quality: python {platform.python_version()} on {platform.machine()}, "
           f"{os.cpu_count()} cores{load}; {args.paths} via-point paths and {args.paths} "
-          f"straight moves per robot, seed {args.seed}")
+          f"straight moves per robot, seed {args.seed}, corner blend {args.blend!r}")
     header = (f"{'robot':<10} {'ms median':>9} {'ms p95':>7}   {'/jerk-free median':>17} "
               f"{'p95':>6} {'max':>6}   {'straight/S-curve median':>23} {'max':>6} {'ms':>5}   "
               f"{'over a limit':>12}")
@@ -175,7 +179,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     print("-" * len(header))
     figures = {}
     for name in names:
-        f = figures[name] = measure(load_robot(name), args.paths, args.seed, args.runs)
+        f = figures[name] = measure(load_robot(name), args.paths, args.seed, args.runs,
+                                    args.blend)
         print(f"{name:<10} {f['ms']:9.2f} {f['ms_p95']:7.2f}   {f['median']:17.3f} "
               f"{f['p95']:6.3f} {f['max']:6.3f}   {f['straight']:23.4f} "
               f"{f['straight_max']:6.4f} {f['straight_ms']:5.2f}   {f['over']:12d}")
@@ -196,6 +201,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         from _results import save
 
         save("timing_quality", {"paths": args.paths, "seed": args.seed, "runs": args.runs,
+                                "blend": args.blend,
                                 "aims": {"ms": AIM_MS, "median": AIM_MEDIAN, "p95": AIM_P95,
                                          "straight": AIM_STRAIGHT},
                                 "robots": figures}, load_before=load_before)

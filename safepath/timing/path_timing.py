@@ -24,6 +24,7 @@ from __future__ import annotations
 import logging
 from collections.abc import Sequence
 from dataclasses import dataclass
+from typing import Literal
 
 import numpy as np
 
@@ -42,6 +43,9 @@ __all__ = ["TimingOptions", "TimedPiece", "PathSpline", "spline_path", "time_pat
 
 log = logging.getLogger(__name__)
 
+CornerBlend = Literal["gap", "g2"]
+#: The ways a blended via point can be cut (:func:`spline_path`).
+CORNER_BLENDS: tuple[str, ...] = ("gap", "g2")
 #: Relative excess of a limit on a knot above which the path is re-timed with locally
 #: tightened limits; a smaller excess is removed by the uniform time stretch, which costs
 #: at most that fraction of the motion time.
@@ -74,6 +78,10 @@ class TimingOptions:
             (0, 1]: shorter is faster, the tightening and stretch then make up the rest.
         jerk_smoothing: Width of the second moving average, in knot periods (at least):
             the jerk then changes over several knots, which the quintic join follows.
+        corner_blend: How blended via points are cut (:func:`spline_path`): ``"gap"``
+            (the spline bridges the interpolation points left out) or ``"g2"`` (a blend
+            with continuous curvature, closer to the corner; its timing is nearer the
+            jerk-free optimum, see ``benchmarks/timing_quality.py``).
     """
 
     speed_scale: float = 1.0
@@ -85,6 +93,7 @@ class TimingOptions:
     jerk_scale: float = 1.0
     jerk_window: float = 1.0
     jerk_smoothing: float = 3.0
+    corner_blend: CornerBlend = "gap"
 
     def __post_init__(self) -> None:
         from ..errors import ConfigError
@@ -103,6 +112,9 @@ class TimingOptions:
             value = getattr(self, key)
             if not 0 < value <= 1:
                 raise ConfigError(f"{key} must lie in (0, 1], got {value}", key=key)
+        if self.corner_blend not in CORNER_BLENDS:
+            raise ConfigError(f"corner_blend must be one of {CORNER_BLENDS}, got "
+                              f"{self.corner_blend!r}", key="corner_blend")
         if not self.jerk_smoothing >= 1:
             raise ConfigError(f"jerk_smoothing must be >= 1 [knot periods], got "
                               f"{self.jerk_smoothing}", key="jerk_smoothing")
@@ -130,30 +142,44 @@ class TimedPiece:
 
 
 def spline_path(waypoints: Sequence[np.ndarray], spacing: float, *,
-                corners: Sequence[tuple[int, float]] = ()
-                ) -> tuple[PathSpline, np.ndarray, np.ndarray]:
+                corners: Sequence[tuple[int, float]] = (),
+                blend: CornerBlend = "gap") -> tuple[PathSpline, np.ndarray, np.ndarray]:
     """A cubic spline through a polyline resampled every ``spacing`` [rad].
 
     Args:
         waypoints: The polyline.
         spacing: Largest distance between interpolation points [rad].
         corners: Interior waypoints the spline may cut (via points), each with its
-            blend radius [rad]: the path leaves the polyline that far before the corner
-            and joins it again that far after, along a blend whose curvature is
-            continuous (:mod:`._blend`; a radius over half a segment is reduced to that).
+            blend radius [rad].
+        blend: How a corner is cut. ``"gap"``: the interpolation points closer than the
+            radius to the corner (and the corner itself) are left out, and the spline
+            bridges the gap. ``"g2"``: the path leaves the polyline the radius before the
+            corner and joins it again the radius after, along a blend whose curvature is
+            continuous (:mod:`._blend`; a radius over half the way to the next corner is
+            reduced to that).
 
     Returns:
         The spline (not-a-knot, :class:`~safepath.timing._spline.CubicPath`, scipy's
         ``CubicSpline`` without its import cost), the path parameter of each input
-        waypoint (the blend's middle for a blended corner), and the spline's
-        interpolation parameters.
+        waypoint (its closest point, or the blend's middle, for a cut corner), and the
+        spline's interpolation parameters.
     """
     W = np.asarray(waypoints, dtype=float)
-    if any(r > 0 and 0 < c < len(W) - 1 for c, r in corners):
-        P, S, s_way = blended_points(W, corners, spacing)
-        path: PathSpline = CubicPath(S, P)
-        return path, s_way, S
+    cut = [(c, r) for c, r in corners if 0 < c < len(W) - 1 and r > 0]
+    if cut and blend == "g2":
+        P, S, s_way = blended_points(W, cut, spacing)
+        return CubicPath(S, P), s_way, S
     P, S, s_way = resampled(W, spacing)
+    if cut:
+        keep = np.ones(len(S), dtype=bool)
+        for c, r in cut:
+            keep &= ~(np.abs(S - s_way[c]) < r)
+        keep[0] = keep[-1] = True
+        P = P[keep]
+        # Re-parametrise the kept points by chord length, and map the waypoints.
+        chord = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(P, axis=0), axis=1))])
+        s_way = np.interp(s_way, S[keep], chord)
+        S = chord
     if len(P) == 2:  # a straight line: a linear "spline"
         P = np.vstack([P[0], 0.5 * (P[0] + P[1]), P[1]])
         S = np.array([0.0, S[-1] / 2, S[-1]])

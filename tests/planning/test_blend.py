@@ -1,4 +1,5 @@
-"""Corner blends (issue 39): the path leaves the polyline ``r`` before a blended corner,
+"""Corner blends with continuous curvature (issue 39, ``spline_path(..., blend="g2")``,
+``TimingOptions(corner_blend="g2")``): the path leaves the polyline ``r`` before a blended corner,
 rejoins it ``r`` after (along the polyline), passes the corner closer than ``r``, and
 keeps every other waypoint exactly."""
 
@@ -25,7 +26,8 @@ def test_a_blend_leaves_and_rejoins_the_polyline_r_from_the_corner(seed: int) ->
                                                          strict=True)]
     radius = float(rng.uniform(0.05, 0.6))
     r = [min(radius, 0.4 * legs[k - 1], 0.4 * legs[k]) for k in (1, 2)]
-    path, s_way, _ = spline_path(waypoints, 0.06, corners=[(1, r[0]), (2, r[1])])
+    path, s_way, _ = spline_path(waypoints, 0.06, corners=[(1, r[0]), (2, r[1])],
+                                   blend="g2")
     s = np.linspace(0.0, float(path.x[-1]), 20001)
     q = path(s)  # type: ignore[operator]
     assert np.all(np.diff(s_way) > 0) and s_way[0] == 0.0 and s_way[-1] == path.x[-1]
@@ -51,7 +53,7 @@ def test_a_blend_leaves_and_rejoins_the_polyline_r_from_the_corner(seed: int) ->
 
 def test_radius_zero_passes_through_the_corner() -> None:
     waypoints = [np.zeros(3), np.array([1.0, 0.0, 0.0]), np.array([1.0, 1.0, 0.0])]
-    path, s_way, _ = spline_path(waypoints, 0.06, corners=[(1, 0.0)])
+    path, s_way, _ = spline_path(waypoints, 0.06, corners=[(1, 0.0)], blend="g2")
     np.testing.assert_allclose(path(s_way[1]), waypoints[1], atol=1e-12)  # type: ignore[operator]
 
 
@@ -59,9 +61,30 @@ def test_blends_that_meet_do_not_repeat_a_point() -> None:
     """Radii larger than half the way between two corners are reduced to it: the two
     blends meet at the middle of the segment between them, and the spline is valid."""
     waypoints = [np.zeros(2), np.array([1.0, 0.0]), np.array([1.0, 1.0]), np.array([2.0, 1.0])]
-    path, s_way, knots = spline_path(waypoints, 0.06, corners=[(1, 5.0), (2, 5.0)])
+    path, s_way, knots = spline_path(waypoints, 0.06, corners=[(1, 5.0), (2, 5.0)],
+                                       blend="g2")
     assert np.all(np.diff(knots) > 0) and np.all(np.diff(s_way) > 0)
     # The blends meet in the middle of the segment between the corners, on it.
     s = np.linspace(0.0, float(path.x[-1]), 2001)
     q = path(s)  # type: ignore[operator]
     assert np.linalg.norm(q - np.array([1.0, 0.5]), axis=1).min() < 1e-3
+
+
+def test_the_planner_blends_as_its_options_say(bundled_cell) -> None:  # noqa: ANN001
+    """``TimingOptions(corner_blend="g2")`` reaches the planner's splines: the route's
+    blended chunk differs from the default's, and both keep every limit as executed."""
+    from safepath import PlanOptions, TimingOptions, plan_cell
+    from safepath.execution import check_executed
+
+    routes = bundled_cell.route_table()
+    robot = bundled_cell.robot
+    plans = {blend: plan_cell(bundled_cell, PlanOptions(timing=TimingOptions(
+        corner_blend=blend)), routes={"phase1": routes["phase1"]})["phase1"]
+        for blend in ("gap", "g2")}
+    assert plans["gap"].q.shape != plans["g2"].q.shape or \
+        not np.array_equal(plans["gap"].q, plans["g2"].q)
+    for traj in plans.values():
+        check_executed(traj.t, traj.q, traj.qd, traj.qdd,
+                       velocity_limits=robot.velocity_limits,
+                       acceleration_limits=robot.acceleration_limits,
+                       jerk_limits=robot.jerk_limits)

