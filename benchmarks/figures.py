@@ -1,8 +1,9 @@
 """The current benchmark figures as one table: ``benchmarks/results/FIGURES.md``.
 
 Reads the JSON files the benchmarks write into ``benchmarks/results/``, each its latest
-saved run (``collision_checks.py``, ``plan_cycle.py``, ``panda_set.py``, ``cold_start.py``,
-``runtime_heartbeat.py``, ``monitor.py``, ``switches.py`` and ``live_safety.py`` with
+saved run (``collision_checks.py``, ``plan_cycle.py``, ``timing_quality.py``,
+``panda_set.py``, ``cold_start.py``, ``runtime_heartbeat.py``, ``monitor.py``,
+``switches.py`` and ``live_safety.py`` with
 ``--save``; ``executed_motion.py``, ``replan.py``, ``twin.py`` and ``peers/run.py``
 always), and writes one row per headline figure, with the command that measures it and
 when, on what and at which load it was measured; then the peer comparison's table from
@@ -249,10 +250,34 @@ def _legacy_context(d: dict[str, Any]) -> dict[str, Any]:
             "load_after": after[0]}
 
 
+def _timing_quality(d: dict[str, Any]) -> list[Row]:
+    robots, aims = d["robots"], d["aims"]
+    ms = ", ".join(f"{k} {v['ms']:.1f}" for k, v in robots.items())
+    ratio = ", ".join(f"{k} {v['median']:.3f} / {v['p95']:.3f}" for k, v in robots.items())
+    straight = ", ".join(f"{k} {v['straight']:.4f}" for k, v in robots.items())
+    over = sum(v["over"] for v in robots.values())
+    near = all(v["median"] <= aims["median"] and v["p95"] <= aims["p95"]
+               for v in robots.values())
+    return [
+        ("time_path per via-point path, median [ms]",
+         f"{ms} (aim ≤ {aims['ms']:.0f} ms, "
+         f"{_met(all(v['ms'] <= aims['ms'] for v in robots.values()))})"),
+        ("motion time over the jerk-free optimum of the same path, median / p95",
+         f"{ratio} (aim ≤ {aims['median']} / {aims['p95']}, "
+         f"{_met(near)}; "
+         f"{over} paths over a limit as executed)"),
+        ("straight moves over the analytic S-curve, median",
+         f"{straight} (aim ≤ {aims['straight']}, "
+         f"{_met(all(v['straight'] <= aims['straight'] for v in robots.values()))})"),
+    ]
+
+
 #: Results file, command that writes it, its reader (in the table's order).
 SOURCES: list[tuple[str, str, Reader]] = [
     ("collision_checks.json", "benchmarks/collision_checks.py --save", _collision_checks),
     ("plan_cycle.json", "benchmarks/plan_cycle.py --save", _plan_cycle),
+    ("timing_quality.json", "benchmarks/timing_quality.py --paths 40 --save",
+     _timing_quality),
     ("panda_set.json", "benchmarks/panda_set.py --save", _panda_set),
     ("peers.json", "make bench-peers", _peers),
     ("cold_start.json", "benchmarks/cold_start.py --save", _cold_start),

@@ -162,9 +162,12 @@ def _report(args, wall, load_before, switches, kinds, step, worst, stats,  # noq
           f" (goals the goal builder refuses: {len(refused)})")
     for line in refused[:5]:
         print("  refused:", line)
-    print(f"decision time with a goal: median {np.median(wg):.2f} ms, p99 "
-          f"{np.percentile(wg, 99):.2f} ms ({wg.size}); without: median {np.median(wo):.2f} ms, "
-          f"p99 {np.percentile(wo, 99):.2f} ms ({wo.size})")
+    def spread(ms: np.ndarray) -> str:  # a few runs may send no goal at all
+        if not ms.size:
+            return "none"
+        return f"median {np.median(ms):.2f} ms, p99 {np.percentile(ms, 99):.2f} ms ({ms.size})"
+
+    print(f"decision time with a goal: {spread(wg)}; without: {spread(wo)}")
     if args.save:
         from _results import save
 

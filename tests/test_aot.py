@@ -126,6 +126,7 @@ def recorded() -> dict[str, list[tuple[Any, ...]]]:
     kernels["backward"] = recorder("topp_backward", saved["backward"])
     kernels["forward"] = recorder("topp_forward", saved["forward"])
     kernels["tridiagonal"] = recorder("topp_tridiagonal", saved["tridiagonal"])
+    kernels["knots"] = recorder("topp_knots", saved["knots"])
     join = _joinkernel.compiled_kernels()
     saved_join = dict(join)
     join["peaks"] = recorder("join_peaks", saved_join["peaks"])

@@ -21,6 +21,8 @@ CASES = [
     ("runtime_recovery.py", ["--runs", "1", "--no-compare"], "timeout overshoot"),
     ("verify.py", ["--runs", "1", "--dense-calls", "1"], "per plan"),
     ("timing.py", ["--runs", "1", "--random", "1"], "median speed-up"),
+    ("timing_quality.py", ["--paths", "1", "--runs", "1", "--robots", "ned3pro"],
+     "median straight move / S-curve"),
     ("view_startup.py", ["--runs", "1"], ""),
     ("cold_start.py", ["--runs", "1", "--warmup", "0"], "first / second plan_cell"),
     ("monitor.py", ["--decisions", "20", "--speeds", "1.6"], "decision latency"),

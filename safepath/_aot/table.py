@@ -119,10 +119,12 @@ ENTRIES: dict[str, Entry] = {
                                     (F2, I1, F3, F2, F1, FLOAT, F1), "void"),
     "monitor_march": Entry(_MONITOR, "march", (F1, F2, F2, F1, FLOAT, FLOAT, FLOAT, F1, F1, F1),
                            "Tuple((i8, i8, b1))"),
-    # TOPP-RA's two passes (safepath.timing._topp).
+    # TOPP-RA's two passes, the spline solve, the smoothed knots (safepath.timing._topp).
     "topp_backward": Entry(_TOPP, "_backward", (F1, F1, F2, F2, F2, F1, F1), INT),
     "topp_forward": Entry(_TOPP, "_forward", (F1, F1, F2, F2, F2, F1, F1, F1), "void"),
     "topp_tridiagonal": Entry(_TOPP, "_tridiagonal", (F1, F1, F1, F2), INT),
+    "topp_knots": Entry(_TOPP, "_knots", (F1, F1, F1, F1, F1, F1, F1, FLOAT, FLOAT, F1, F3, F1,
+                                          F1, F1, F2, F2, F2), "void"),
     # The peaks of a controller's quintic join (safepath._joinkernel).
     "join_peaks": Entry(_JOIN, "_peaks", (F1, F2, F2, F2, FLOAT, F2, F2, F2), "void"),
     "join_sample": Entry(_JOIN, "_sample", (F1, F2, F2, F2, F1, F2, F2, F2), "void"),

@@ -1,12 +1,14 @@
 """Timing: time-optimal, jerk-limited timing of joint paths under the robot's limits.
 
 The layer after collision-checked paths and before the release check: a joint polyline
-becomes a cubic spline (:func:`spline_path`; the spline in ``_spline``), whose
-time-optimal timing under joint velocity and acceleration limits that vary along it
-(``_path_limits``) TOPP-RA finds (our numba kernel, ``_topp``); knots over a limit are
-tightened and timed again, the jerk is limited around them (``_smooth``), and what is
-left is removed by stretching time (:func:`time_path`, in :mod:`.path_timing`). No
-released knot exceeds a limit.
+becomes a cubic spline (:func:`spline_path`; the spline in ``_spline``, blended corners
+with continuous curvature in ``_blend``). A straight move is timed by the closed-form
+jerk-limited S-curve (``_scurve``); on any other path, TOPP-RA finds the time-optimal
+timing under joint velocity and acceleration limits that vary along it (``_path_limits``;
+our numba kernel, ``_topp``), its jerk is limited by two moving averages (``_smooth``),
+knots over a limit are tightened and timed again, and what is left is removed by
+stretching time (:func:`time_path`, in :mod:`.path_timing`). No released knot exceeds a
+limit.
 
 Depends on the robot and its limits only: nothing here imports collision checking,
 planning or the release check.

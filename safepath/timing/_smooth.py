@@ -27,9 +27,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ._topp import Profile
+from ._path_limits import PathSpline, jet
+from ._topp import Profile, compiled_kernels
 
-__all__ = ["Smoothed", "smooth", "evaluate"]
+__all__ = ["Smoothed", "smooth", "evaluate", "along"]
 
 
 @dataclass(frozen=True)
@@ -117,3 +118,27 @@ def evaluate(sm: Smoothed, t: np.ndarray) -> tuple[np.ndarray, ...]:
     s[start], sd[start], sdd[start], sddd[start] = 0.0, 0.0, 0.0, 0.0
     return s, sd, sdd, sddd
 
+
+
+def along(sm: Smoothed, path: PathSpline, t: np.ndarray) -> tuple[np.ndarray, ...]:
+    """The smoothed motion at the increasing times ``t`` [s] along ``path``.
+
+    Returns:
+        ``s, sd, sdd`` (path parameter, speed, acceleration) and the joint positions,
+        velocities and accelerations ``q, qd, qdd`` (len(t), dof): :func:`evaluate` and
+        the chain rule, in one compiled pass where the path is a
+        :class:`~safepath.timing.CubicPath`.
+    """
+    coef = getattr(path, "coefficients", None)
+    if coef is None:
+        s, sd, sdd, _ = evaluate(sm, t)
+        q, ps, pss = jet(path, s)
+        return s, sd, sdd, q, ps * sd[:, None], pss * (sd ** 2)[:, None] + ps * sdd[:, None]
+    p = sm.profile
+    n, dof = t.size, coef.shape[2]
+    s, sd, sdd = np.empty(n), np.empty(n), np.empty(n)
+    q, qd, qdd = np.empty((n, dof)), np.empty((n, dof)), np.empty((n, dof))
+    compiled_kernels()["knots"](np.ascontiguousarray(t, dtype=np.float64), p.t, p.grid, p.sd,
+                                p.u, sm.S1, sm.S2, sm.tau_a, sm.tau_b, path.x, coef, s, sd,
+                                sdd, q, qd, qdd)
+    return s, sd, sdd, q, qd, qdd

@@ -68,6 +68,12 @@ class CubicPath:
         b[-1] = (h[-1] ** 2 * delta[-2] + (2.0 * d + h[-1]) * h[-2] * delta[-1]) / d
         return solve_tridiagonal(ab[2, :-1], ab[1], ab[0, 1:], b)
 
+    @property
+    def coefficients(self) -> np.ndarray:
+        """Each piece's ``y, m, c2, c3`` of ``y + m x + c2 x^2 + c3 x^3`` in the offset
+        ``x`` from its start (pieces, 4, d), C-contiguous."""
+        return self._coef
+
     def __call__(self, s: np.ndarray | float, nu: int = 0) -> np.ndarray:
         """Values (``nu`` = 0) or their first, second or third derivative at ``s``: (len(s), d),
         or (d,) for a scalar ``s``."""

@@ -245,6 +245,85 @@ def _forward(delta: np.ndarray, xmax: np.ndarray, a: np.ndarray, b: np.ndarray,
     x[n - 1] = 0.0
 
 
+def _knots(t: np.ndarray, tp: np.ndarray, grid: np.ndarray, sd: np.ndarray, u: np.ndarray,
+           S1: np.ndarray, S2: np.ndarray, tau_a: float, tau_b: float,  # noqa: N803
+           breaks: np.ndarray, coef: np.ndarray, path_s: np.ndarray, path_sd: np.ndarray,
+           path_sdd: np.ndarray, q: np.ndarray, qd: np.ndarray, qdd: np.ndarray) -> None:
+    """The smoothed motion at the increasing times ``t`` [s]: the profile (times ``tp``,
+    ``grid``, speeds ``sd``, accelerations ``u``, integrals ``S1``, ``S2``) averaged over
+    ``tau_a`` then ``tau_b`` (:mod:`safepath.timing._smooth`), the path parameter, its
+    speed and acceleration written to ``path_s``, ``path_sd``, ``path_sdd``, and the
+    positions, velocities and accelerations along the spline (``breaks``; coefficients
+    (pieces, 4, dof) of ``y + m x + c2 x^2 + c3 x^3``) to ``q``, ``qd``, ``qdd``: one pass
+    for :func:`safepath.timing._smooth.evaluate` and the spline's jet at once."""
+    n = t.size
+    dof = q.shape[1]
+    pieces = breaks.size - 1
+    intervals = u.size
+    length = grid[intervals]
+    t_end = tp[intervals]
+    end = t_end + tau_a + tau_b
+    # The average is a second difference of the second integral: at t, t - tau_a,
+    # t - tau_b and t - tau_a - tau_b, with these signs; each shift walks the profile's
+    # intervals forward (the times increase).
+    shift = np.array([0.0, tau_a, tau_b, tau_a + tau_b])
+    sign = np.array([1.0, -1.0, -1.0, 1.0])
+    at = np.zeros(4, dtype=np.int64)
+    acc = np.zeros(3)
+    for i in range(n):
+        ti = t[i]
+        acc[:] = 0.0
+        for r in range(4):
+            tau = ti - shift[r]
+            if tau <= 0.0:
+                continue
+            if tau >= t_end:  # at rest at the end of the path
+                d = tau - t_end
+                acc[0] += sign[r] * (S2[intervals] + S1[intervals] * d + length * d * d / 2.0)
+                acc[1] += sign[r] * (S1[intervals] + length * d)
+                acc[2] += sign[r] * length
+                continue
+            k = at[r]
+            while k + 1 < intervals and tp[k + 1] <= tau:
+                k += 1
+            at[r] = k
+            d = tau - tp[k]
+            d2 = d * d
+            d3 = d2 * d
+            sk, vk, uk, s1 = grid[k], sd[k], u[k], S1[k]
+            acc[0] += sign[r] * (S2[k] + s1 * d + sk * d2 / 2.0 + vk * d3 / 6.0
+                                 + uk * d3 * d / 24.0)
+            acc[1] += sign[r] * (s1 + sk * d + vk * d2 / 2.0 + uk * d3 / 6.0)
+            acc[2] += sign[r] * (sk + vk * d + uk * d2 / 2.0)
+        w = tau_a * tau_b
+        s = min(max(acc[0] / w, 0.0), length)
+        v = max(acc[1] / w, 0.0)
+        a = acc[2] / w
+        if ti >= end:
+            s, v, a = length, 0.0, 0.0
+        if ti <= 0.0:
+            s, v, a = 0.0, 0.0, 0.0
+        path_s[i] = s
+        path_sd[i] = v
+        path_sdd[i] = a
+        # The spline piece of s (bisection; the ends' pieces extend).
+        lo, hi = 0, pieces
+        while hi - lo > 1:
+            mid = (lo + hi) // 2
+            if breaks[mid] <= s:
+                lo = mid
+            else:
+                hi = mid
+        x = s - breaks[lo]
+        for j in range(dof):
+            y, m, c2, c3 = coef[lo, 0, j], coef[lo, 1, j], coef[lo, 2, j], coef[lo, 3, j]
+            q[i, j] = y + x * (m + x * (c2 + x * c3))
+            d1 = m + x * (2.0 * c2 + 3.0 * x * c3)
+            d2 = 2.0 * c2 + 6.0 * x * c3
+            qd[i, j] = d1 * v
+            qdd[i, j] = d2 * v * v + d1 * a
+
+
 def _tridiagonal(dl: np.ndarray, d: np.ndarray, du: np.ndarray, b: np.ndarray) -> int:
     """Solve the tridiagonal system (sub-diagonal ``dl``, diagonal ``d``, super-diagonal
     ``du``, n >= 3) for the right-hand sides ``b`` (n, k) in place, as LAPACK's ``dgtsv``
@@ -300,4 +379,5 @@ def compiled_kernels() -> dict[str, Callable[..., Any]]:
             _compiled["backward"] = njit(cache=True, nogil=True)(_backward)
             _compiled["forward"] = njit(cache=True, nogil=True)(_forward)
             _compiled["tridiagonal"] = njit(cache=True, nogil=True)(_tridiagonal)
+            _compiled["knots"] = njit(cache=True, nogil=True)(_knots)
         return _compiled

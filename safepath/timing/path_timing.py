@@ -1,11 +1,14 @@
 """Time-optimal timing of a joint path with TOPP-RA, under the robot's limits, strictly.
 
 The path (a polyline of joint waypoints) is interpolated by a cubic spline through
-evenly spaced points, which rounds the corners a little (the caller re-checks the
-spline for collisions and falls back to stopping at corners). TOPP-RA (our numba kernel
-in :mod:`._topp`) then finds the fastest timing under joint velocity and acceleration
+evenly spaced points; blended via points follow a blend with continuous curvature
+(:mod:`._blend`; the caller re-checks the spline for collisions and falls back to
+stopping at corners). A straight rest-to-rest move is timed in closed form: the
+jerk-limited S-curve along the line (:mod:`._scurve`). Any other path: TOPP-RA (our numba
+kernel in :mod:`._topp`) finds the fastest timing under joint velocity and acceleration
 limits that vary along the path (each route step has its own speed scale and an optional
-TCP speed limit), with a constant path acceleration between gridpoints.
+TCP speed limit), with a constant path acceleration between gridpoints, and two moving
+averages limit its jerk (:mod:`._smooth`).
 
 TOPP-RA enforces the limits at its gridpoints (which follow the spline's pieces, see
 :mod:`._path_limits`); the output knots between them may still exceed a limit a little.
@@ -21,6 +24,7 @@ from __future__ import annotations
 import logging
 from collections.abc import Sequence
 from dataclasses import dataclass
+from typing import Literal
 
 import numpy as np
 
@@ -28,7 +32,8 @@ from .._knots import interval_index
 from ..errors import TimingError
 from ..execution import interval_ratios
 from ..robot import Robot
-from . import _smooth, _topp
+from . import _scurve, _smooth, _topp
+from ._blend import blended_points, resampled
 from ._path_limits import PathLimits, PathSpline, jet, path_limits
 from ._spline import CubicPath
 
@@ -38,6 +43,9 @@ __all__ = ["TimingOptions", "TimedPiece", "PathSpline", "spline_path", "time_pat
 
 log = logging.getLogger(__name__)
 
+CornerBlend = Literal["gap", "g2"]
+#: The ways a blended via point can be cut (:func:`spline_path`).
+CORNER_BLENDS: tuple[str, ...] = ("gap", "g2")
 #: Relative excess of a limit on a knot above which the path is re-timed with locally
 #: tightened limits; a smaller excess is removed by the uniform time stretch, which costs
 #: at most that fraction of the motion time.
@@ -70,6 +78,10 @@ class TimingOptions:
             (0, 1]: shorter is faster, the tightening and stretch then make up the rest.
         jerk_smoothing: Width of the second moving average, in knot periods (at least):
             the jerk then changes over several knots, which the quintic join follows.
+        corner_blend: How blended via points are cut (:func:`spline_path`): ``"gap"``
+            (the spline bridges the interpolation points left out) or ``"g2"`` (a blend
+            with continuous curvature, closer to the corner; its timing is nearer the
+            jerk-free optimum, see ``benchmarks/timing_quality.py``).
     """
 
     speed_scale: float = 1.0
@@ -81,6 +93,7 @@ class TimingOptions:
     jerk_scale: float = 1.0
     jerk_window: float = 1.0
     jerk_smoothing: float = 3.0
+    corner_blend: CornerBlend = "gap"
 
     def __post_init__(self) -> None:
         from ..errors import ConfigError
@@ -99,6 +112,9 @@ class TimingOptions:
             value = getattr(self, key)
             if not 0 < value <= 1:
                 raise ConfigError(f"{key} must lie in (0, 1], got {value}", key=key)
+        if self.corner_blend not in CORNER_BLENDS:
+            raise ConfigError(f"corner_blend must be one of {CORNER_BLENDS}, got "
+                              f"{self.corner_blend!r}", key="corner_blend")
         if not self.jerk_smoothing >= 1:
             raise ConfigError(f"jerk_smoothing must be >= 1 [knot periods], got "
                               f"{self.jerk_smoothing}", key="jerk_smoothing")
@@ -126,38 +142,38 @@ class TimedPiece:
 
 
 def spline_path(waypoints: Sequence[np.ndarray], spacing: float, *,
-                corners: Sequence[tuple[int, float]] = ()
-                ) -> tuple[PathSpline, np.ndarray, np.ndarray]:
+                corners: Sequence[tuple[int, float]] = (),
+                blend: CornerBlend = "gap") -> tuple[PathSpline, np.ndarray, np.ndarray]:
     """A cubic spline through a polyline resampled every ``spacing`` [rad].
 
     Args:
         waypoints: The polyline.
         spacing: Largest distance between interpolation points [rad].
         corners: Interior waypoints the spline may cut (via points), each with its
-            blend radius [rad]: interpolation points closer than that to the corner
-            (and the corner itself) are left out, so the spline rounds the corner
-            instead of passing through it.
+            blend radius [rad].
+        blend: How a corner is cut. ``"gap"``: the interpolation points closer than the
+            radius to the corner (and the corner itself) are left out, and the spline
+            bridges the gap. ``"g2"``: the path leaves the polyline the radius before the
+            corner and joins it again the radius after, along a blend whose curvature is
+            continuous (:mod:`._blend`; a radius over half the way to the next corner is
+            reduced to that).
 
     Returns:
         The spline (not-a-knot, :class:`~safepath.timing._spline.CubicPath`, scipy's
         ``CubicSpline`` without its import cost), the path parameter of each input
-        waypoint (its closest point for cut corners), and the spline's interpolation
-        parameters.
+        waypoint (its closest point, or the blend's middle, for a cut corner), and the
+        spline's interpolation parameters.
     """
     W = np.asarray(waypoints, dtype=float)
-    seg = np.linalg.norm(np.diff(W, axis=0), axis=1)
-    s_way = np.concatenate([[0.0], np.cumsum(seg)])
-    # Segment k gets m_k points, at fractions j / m_k (j = 1..m_k) of it.
-    m = np.maximum(1, np.ceil(seg / spacing).astype(int))
-    k = np.repeat(np.arange(seg.size), m)
-    frac = (np.arange(k.size) - np.repeat(np.cumsum(m) - m, m) + 1) / m[k]
-    P = np.vstack([W[:1], W[k] + frac[:, None] * (W[k + 1] - W[k])])
-    S = np.concatenate([[0.0], s_way[k] + frac * seg[k]])
-    if any(r > 0 for _, r in corners):
+    cut = [(c, r) for c, r in corners if 0 < c < len(W) - 1 and r > 0]
+    if cut and blend == "g2":
+        P, S, s_way = blended_points(W, cut, spacing)
+        return CubicPath(S, P), s_way, S
+    P, S, s_way = resampled(W, spacing)
+    if cut:
         keep = np.ones(len(S), dtype=bool)
-        for c, r in corners:
-            if 0 < c < len(W) - 1 and r > 0:
-                keep &= ~(np.abs(S - s_way[c]) < r)
+        for c, r in cut:
+            keep &= ~(np.abs(S - s_way[c]) < r)
         keep[0] = keep[-1] = True
         P = P[keep]
         # Re-parametrise the kept points by chord length, and map the waypoints.
@@ -167,7 +183,7 @@ def spline_path(waypoints: Sequence[np.ndarray], spacing: float, *,
     if len(P) == 2:  # a straight line: a linear "spline"
         P = np.vstack([P[0], 0.5 * (P[0] + P[1]), P[1]])
         S = np.array([0.0, S[-1] / 2, S[-1]])
-    path: PathSpline = CubicPath(S, P)
+    path = CubicPath(S, P)
     return path, s_way, S
 
 
@@ -184,7 +200,8 @@ class _Run:
         segment: Input segment of each knot.
         ratios: Per interval between knots, the largest speed, acceleration and jerk
             ratio of the quintic join (3, knots - 1).
-        smoothed: The smoothed profile (maps knot times back to the profile's path).
+        smoothed: The smoothed profile (maps knot times back to the profile's path);
+            None for a closed-form straight motion.
     """
 
     t: np.ndarray
@@ -194,7 +211,7 @@ class _Run:
     qdd: np.ndarray
     segment: np.ndarray
     ratios: np.ndarray
-    smoothed: _smooth.Smoothed
+    smoothed: _smooth.Smoothed | None
 
     @property
     def stretch(self) -> float:
@@ -239,13 +256,15 @@ def time_path(robot: Robot, path: PathSpline, s_way: np.ndarray, *, scales: Sequ
     limits = path_limits(robot, path, s_way, scales, tcp_speeds,
                          speed_scale=options.speed_scale, grid_step=options.grid_step,
                          jerk_scale=options.jerk_scale)
+    if len(s_way) == 2 and tcp_speeds[0] is None and _straight(path, limits):
+        return _release(_time_straight(path, limits, options, where), limits, options, where)
     f_acc = np.ones(limits.grid.size)
     f_x = np.ones(limits.grid.size)
     best: _Run | None = None
     tau_a: float | None = None
     for attempt in range(options.retries):
         run = _time_once(path, limits, f_acc, f_x, options, tau_a, where)
-        tau_a = run.smoothed.tau_a
+        tau_a = run.smoothed.tau_a if run.smoothed is not None else None
         if best is None or run.stretched < best.stretched:
             best = run
         worst = float(run.ratios.max()) if run.ratios.size else 0.0
@@ -256,6 +275,35 @@ def time_path(robot: Robot, path: PathSpline, s_way: np.ndarray, *, scales: Sequ
         _tighten(f_acc, f_x, limits.grid, run)
     assert best is not None  # options.retries >= 1
     return _release(best, limits, options, where)
+
+
+def _straight(path: PathSpline, limits: PathLimits) -> bool:
+    """Whether the path is a straight line (no curvature at any gridpoint)."""
+    curvature = float(np.abs(limits.at_grid.ddq).max())
+    return curvature <= 1e-9 * max(1.0, float(path.x[-1]))
+
+
+def _time_straight(path: PathSpline, limits: PathLimits, options: TimingOptions,
+                   where: str) -> _Run:
+    """The time-optimal jerk-limited motion along a straight path in closed form
+    (:mod:`._scurve`): the joint limits projected on the line, the phases whole knot
+    periods, so that the knots' quintic join is the motion itself."""
+    d = np.abs(limits.at_grid.dq[0])
+    moving = d > 1e-12
+    v, a, j = (float(np.min(lim[0][moving] / d[moving]))
+               for lim in (limits.vmax_seg, limits.amax_seg, limits.jmax_seg))
+    if not (v > 0 and a > 0 and j > 0):
+        raise TimingError("no feasible timing: a limit of the moving joints is 0" + where)
+    curve = _scurve.s_curve(float(path.x[-1]), v, a, j, options.knot_period)
+    t, s, sd, sdd = _scurve.sample(curve)
+    q, ps, pss = jet(path, s)
+    qd = ps * sd[:, None]
+    qdd = pss * (sd ** 2)[:, None] + ps * sdd[:, None]
+    qd[0] = qd[-1] = 0.0  # at rest (not -0.0)
+    qdd[0] = qdd[-1] = 0.0
+    segment = np.zeros(t.size, dtype=np.int64)
+    ratios = np.array(_interval_ratios(t, q, qd, qdd, segment, limits))
+    return _Run(t, s, q, qd, qdd, segment, ratios, None)
 
 
 def _time_once(path: PathSpline, limits: PathLimits, f_acc: np.ndarray, f_x: np.ndarray,
@@ -278,10 +326,7 @@ def _time_once(path: PathSpline, limits: PathLimits, f_acc: np.ndarray, f_x: np.
     # nanoseconds, and the quintic join of knots 4 ms apart is sensitive to a 1 ns shift
     # (its jerk by ~0.2 %). The last knot may come a few ns after the motion's end (at rest).
     t = _ns_grid(n, int(np.ceil(duration / (n - 1) * _NS)))
-    s, sd, sdd, _ = _smooth.evaluate(sm, t)
-    q, ps, pss = jet(path, s)
-    qd = ps * sd[:, None]
-    qdd = pss * (sd ** 2)[:, None] + ps * sdd[:, None]
+    s, _, _, q, qd, qdd = _smooth.along(sm, path, t)
     qd[0] = qd[-1] = 0.0  # at rest (not -0.0)
     qdd[0] = qdd[-1] = 0.0
     segment = interval_index(limits.s_way, s, limits.vmax_seg.shape[0])
@@ -299,7 +344,13 @@ def _jerk_window(profile: _topp.Profile, path: PathSpline, limits: PathLimits,
     t = np.arange(0.0, profile.duration, dt)
     s, sd, u = _topp.evaluate(profile, t)
     seg = interval_index(limits.s_way, s, limits.jmax_seg.shape[0])
-    _, ps, pss = jet(path, s)
+    # The path's tangent and curvature between gridpoints, linear in s (a cubic's are
+    # quadratic and linear; gridpoints lie <= grid_step apart): no spline evaluation.
+    grid, at = limits.grid, limits.at_grid
+    k = interval_index(grid, s, grid.size - 1)
+    w = ((s - grid[k]) / (grid[k + 1] - grid[k]))[:, None]
+    ps = at.dq[k] + w * (at.dq[k + 1] - at.dq[k])
+    pss = at.ddq[k] + w * (at.ddq[k + 1] - at.ddq[k])
     acc = (ps * u[:, None] + pss * (sd ** 2)[:, None]) / limits.jmax_seg[seg]
     # At rest (zero acceleration) before and after: the first and last changes count.
     f = np.vstack([np.zeros((1, acc.shape[1])), acc, np.zeros((1, acc.shape[1]))])
@@ -337,6 +388,7 @@ def _tighten(f_acc: np.ndarray, f_x: np.ndarray, grid: np.ndarray, run: _Run) ->
     gridpoint takes the largest excess of the windows over it, once."""
     v, a, j = run.ratios
     sm = run.smoothed
+    assert sm is not None  # only TOPP-RA's runs are tightened
     over = np.flatnonzero(run.ratios.max(axis=0) > 1.0)
     if over.size == 0:
         return
