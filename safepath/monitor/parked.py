@@ -253,7 +253,7 @@ def _cuts_in_words(lo0: np.ndarray, hi0: np.ndarray, lo: np.ndarray, hi: np.ndar
     return words
 
 
-@dataclass
+@dataclass(eq=False)  # one body is itself only (its fields are arrays)
 class ParkedBody:
     """A body re-planned around: its absorbed box and its box as measured at rest.
 

@@ -468,3 +468,20 @@ def test_a_start_within_the_margin_of_the_body_moves_away_first(
     assert clear[~head[new.t <= end]][0] >= MARGIN  # where the way back starts
     # A request made in the first stretch away names a step the route knows.
     assert rest_step(cell.route_table()["phase1"], new.step_at(0.1)) == (3, True)
+
+
+def test_the_second_of_two_parked_bodies_moving_is_dropped(
+        cell: Cell, planned: dict[str, Trajectory]) -> None:
+    """Two boxes taken as parked; a body enters the second: it is dropped and the arm
+    stops, as for one box (comparing the bodies' array fields to find the one to drop
+    raised ValueError and took the monitor down; the live-safety suite found it)."""
+    traj, held = _motions(planned["phase1"])[0]
+    m = make_monitor(cell)
+    m.follow(traj, start=0.0, held=held)
+    far = np.array([0.9, -0.6, 0.3])
+    m.add_static_box(far, np.full(3, 0.05))
+    spot = cell.robot.tcp_position(cell.pose("high2")) + [0.0, 0.0, -0.04]
+    m.add_static_box(spot, np.full(3, 0.2))
+    d = m.observe(_cloud(0.1, spot, np.random.default_rng(9)), 0.1)
+    assert m.stats["parked_dropped"] == 1
+    assert d.kind in ("stop", "slow") and "a parked body moved" in d.reason, d.reason
