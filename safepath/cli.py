@@ -32,12 +32,30 @@ def _fmt_pair(pair: tuple[str, str] | None) -> str:
     return "-" if pair is None else f"{pair[0]} / {pair[1]}"
 
 
+def _say_unfinished_save(path: Path | None) -> None:
+    """Warn on standard error when a save of the poses file stopped after its log line
+    and before its rename: the poses checked are those before that save."""
+    from ._io import leftover_temporaries
+
+    if path is None or not leftover_temporaries(path):
+        return
+    from .view.store import unfinished_save
+
+    entry = unfinished_save(path)
+    if entry is not None:
+        print(f"safepath check: warning: {path}: a save logged at {entry.get('time')} by "
+              f"{entry.get('client')} did not finish (its process stopped before replacing "
+              "the file): these are the poses before it; `safepath view` finishes it",
+              file=sys.stderr)
+
+
 def cmd_check(args: argparse.Namespace) -> int:
     """Check every taught pose of a cell."""
     from .cell import check_poses, load_cell
     from .collision import CheckOptions
 
     cell = load_cell(args.scene)
+    _say_unfinished_save(cell.poses_path)
     options = CheckOptions(margin=args.margin)
     rows = check_poses(cell, options)
     grasped = cell.scene.grasp.object if cell.scene.grasp else "object"

@@ -347,6 +347,39 @@ def _fsync_folder(folder: Path) -> None:
         os.close(fd)
 
 
+def unfinished_save(path: str | Path) -> dict[str, Any] | None:
+    """The log entry of a save of ``path`` that stopped between its log line and its
+    rename (a temporary file beside ``path`` holds the logged new poses; ``path`` still
+    holds the ones before), or None. Reads only: the review session finishes such a
+    save when it opens the cell (:class:`PosesStore`)."""
+    path = Path(path)
+    log_path = path.with_name(LOG_NAME)
+    leftovers = leftover_temporaries(path)
+    if not leftovers or not os.path.lexists(log_path) or not os.path.lexists(path):
+        return None
+    try:
+        raw = read_bytes(log_path, error=PoseError)
+        on_disk = _digest(read_bytes(path, error=PoseError))
+    except PoseError:
+        return None
+    lines = [line for line in raw.splitlines() if line.strip()]
+    try:
+        last = json.loads(lines[-1]) if raw.endswith(b"\n") and lines else None
+    except ValueError:
+        return None
+    if not isinstance(last, dict) or on_disk != last.get("sha256_before") \
+            or on_disk == last.get("sha256_after"):
+        return None
+    for tmp in leftovers:
+        try:
+            if stat.S_ISREG(os.lstat(tmp).st_mode) and \
+                    _digest(read_bytes(tmp, error=PoseError)) == last.get("sha256_after"):
+                return last
+        except (OSError, PoseError):
+            continue
+    return None
+
+
 def _last_entry(log_file: Any) -> dict[str, Any] | None:
     """The last whole line of the open log ``log_file``, parsed; a torn last line (a kill
     while it was written, before its save renamed anything) is cut off first."""

@@ -158,7 +158,7 @@ def _killed_save(folder: Path, when: str) -> subprocess.Popen[bytes]:
 @pytest.mark.parametrize("when", ["before the log line", "before the rename",
                                   "after the rename"])
 def test_a_save_killed_at_any_instant_leaves_the_log_and_the_file_agreeing(
-        cell_copy: Path, when: str) -> None:
+        cell_copy: Path, when: str, capsys: pytest.CaptureFixture[str]) -> None:
     poses_file = cell_copy / "poses.yaml"
     os.chmod(poses_file, 0o644)
     before = sha256(poses_file)
@@ -169,6 +169,14 @@ def test_a_save_killed_at_any_instant_leaves_the_log_and_the_file_agreeing(
     # Whenever the file changed, its line is on disk (and names the new content).
     if sha256(poses_file) != before:
         assert lines and lines[-1]["sha256_after"] == sha256(poses_file)
+    # 'safepath check' reads the file as it is, and says when a logged save is unfinished
+    # (it changes nothing: the session below finishes it).
+    from safepath.cli import main
+
+    capsys.readouterr()
+    assert main(["check", str(cell_copy)]) == 0
+    warned = "did not finish" in capsys.readouterr().err
+    assert warned == (when == "before the rename"), when
     # The next start finishes a logged save, forgets an unlogged one, and leaves no
     # temporary file behind.
     session = ReviewSession(cell_copy, options=OPTIONS).start()
