@@ -25,40 +25,9 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT / "tests"))  # the independent quintic the tests use
 
-
-def _quintic(t, P, V, A, at):  # noqa: ANN001, ANN202, N803
-    """(p, v, a) of the quintic join at ``at`` (held at the ends)."""
-    if at <= t[0]:
-        return P[0], V[0], A[0]
-    if at >= t[-1]:
-        return P[-1], 0 * V[-1], 0 * A[-1]
-    i = int(np.clip(np.searchsorted(t, at, side="right") - 1, 0, t.size - 2))
-    T, s = t[i + 1] - t[i], at - t[i]  # noqa: N806
-    h = P[i + 1] - P[i] - V[i] * T - A[i] * T * T / 2
-    dv, da = V[i + 1] - V[i] - A[i] * T, A[i + 1] - A[i]
-    c3 = (10 * h - 4 * dv * T + da * T * T / 2) / T ** 3
-    c4 = (-15 * h + 7 * dv * T - da * T * T) / T ** 4
-    c5 = (6 * h - 3 * dv * T + da * T * T / 2) / T ** 5
-    return (P[i] + V[i] * s + A[i] * s * s / 2 + c3 * s ** 3 + c4 * s ** 4 + c5 * s ** 5,
-            V[i] + A[i] * s + 3 * c3 * s ** 2 + 4 * c4 * s ** 3 + 5 * c5 * s ** 4,
-            A[i] + 6 * c3 * s + 12 * c4 * s ** 2 + 20 * c5 * s ** 3)
-
-
-def _peaks(t, P, V, A, rate=1000.0):  # noqa: ANN001, ANN202, N803
-    T = np.diff(t)[:, None, None]  # noqa: N806
-    m = max(2, int(np.ceil(T.max() * rate)) + 1)
-    s = T * np.linspace(0.0, 1.0, m)[None, None, :]
-    p0, v0, a0 = P[:-1, :, None], V[:-1, :, None], A[:-1, :, None]
-    h = P[1:, :, None] - p0 - v0 * T - a0 * T * T / 2
-    dv, da = V[1:, :, None] - v0 - a0 * T, A[1:, :, None] - a0
-    c3 = (10 * h - 4 * dv * T + da * T * T / 2) / T ** 3
-    c4 = (-15 * h + 7 * dv * T - da * T * T) / T ** 4
-    c5 = (6 * h - 3 * dv * T + da * T * T / 2) / T ** 5
-    v = v0 + a0 * s + 3 * c3 * s ** 2 + 4 * c4 * s ** 3 + 5 * c5 * s ** 4
-    a = a0 + 6 * c3 * s + 12 * c4 * s ** 2 + 20 * c5 * s ** 3
-    j = 6 * c3 + 24 * c4 * s + 60 * c5 * s ** 2
-    return [np.abs(x).max(axis=(0, 2)) for x in (v, a, j)]
+from quintic_join import quintic_peaks, quintic_state  # noqa: E402
 
 
 def main() -> None:
@@ -133,12 +102,12 @@ def main() -> None:
                 refused.append(f"run {run} t={t:.3f} {d.kind}: {exc}")
                 tn, P, V, A = (np.asarray(rep.t), rep.q, rep.qd, rep.qdd)  # noqa: N806
             stamp, *old = running
-            p, v, a = _quintic(old[0] + stamp, *old[1:], at=d.replacement_start)
+            p, v, a = quintic_state(old[0] + stamp, *old[1:], at=d.replacement_start)
             step = max(step, *(float(np.max(np.abs(x - y)))
                                for x, y in ((P[0], p), (V[0], v), (A[0], a))))
             if tn.size > 1:
                 worst = np.maximum(worst, [float(np.max(pk / lim))
-                                           for pk, lim in zip(_peaks(tn, P, V, A), limits,
+                                           for pk, lim in zip(quintic_peaks(tn, P, V, A), limits,
                                                               strict=True)])
             running = (d.replacement_start, tn, P, V, A)
             switches += 1

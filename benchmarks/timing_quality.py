@@ -27,6 +27,7 @@ import argparse
 import os
 import platform
 import statistics
+import sys
 import time
 from collections.abc import Sequence
 from pathlib import Path
@@ -38,6 +39,9 @@ from safepath.robot import Robot
 from safepath.robot_folder import load_robot
 from safepath.timing import PathSpline, TimedPiece, TimingOptions, spline_path, time_path
 from safepath.timing.path_timing import CORNER_BLENDS, CornerBlend
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))  # the references
+from s_curve import s_curve_time  # noqa: E402
 
 ROBOTS = Path(__file__).resolve().parents[1] / "robots"
 #: Grid step of the jerk-free reference [rad].
@@ -78,26 +82,6 @@ def jerk_free_duration(robot: Robot, path: PathSpline) -> float:
         ta.SplineInterpolator(breaks, path(breaks)), gridpoints=grid,
         parametrizer="ParametrizeConstAccel")
     return float(instance.compute_trajectory(0.0, 0.0).duration)
-
-
-def s_curve_time(delta: np.ndarray, vmax: np.ndarray, amax: np.ndarray, jmax: np.ndarray
-                 ) -> float:
-    """Time-optimal rest-to-rest duration of a straight joint move under velocity,
-    acceleration and jerk limits [s] (the 7-phase S-curve along the line)."""
-    d = np.abs(np.asarray(delta, dtype=float))
-    moving = d > 1e-12
-    v, a, j = (float(np.min(x[moving] / d[moving])) for x in (vmax, amax, jmax))
-
-    def ramp(peak: float) -> float:  # time from rest to the speed ``peak``
-        return peak / a + a / j if peak * j >= a * a else 2.0 * np.sqrt(peak / j)
-
-    if v * ramp(v) <= 1.0:  # cruises
-        return 1.0 / v + ramp(v)
-    lo, hi = 0.0, v
-    for _ in range(200):  # the peak speed whose ramps cover the whole move
-        mid = (lo + hi) / 2
-        lo, hi = (mid, hi) if mid * ramp(mid) < 1.0 else (lo, mid)
-    return 2.0 * ramp(lo)
 
 
 def timed(robot: Robot, path: PathSpline, s_way: np.ndarray, segments: int, runs: int
