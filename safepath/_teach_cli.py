@@ -55,11 +55,12 @@ def cmd_teach(args: argparse.Namespace) -> int:
         return 1
     poses = {**cell.poses, name: q}
     save_poses(cell.poses_file(), poses, cell.robot)
-    margin = "" if report.margin_ok else " (below its margin)"
-    print(f"taught '{name}': [{values}] rad, TCP at "
-          f"{', '.join(f'{v:.4f}' for v in cell.robot.tcp_position(q))} m, clearance "
-          f"{report.clearance * 1000:.1f} mm{margin} ({report.closest_pair[0]} / "
-          f"{report.closest_pair[1]}); written to {cell.poses_file()}"
-          if report.closest_pair else f"taught '{name}': [{values}] rad; written to "
+    tcp = ", ".join(f"{v:.4f}" for v in cell.robot.tcp_position(q))
+    clearance = ""
+    if report.closest_pair:
+        margin = "" if report.margin_ok else " (below its margin)"
+        clearance = (f", clearance {report.clearance * 1000:.1f} mm{margin} "
+                     f"({' / '.join(report.closest_pair)})")
+    print(f"taught '{name}': [{values}] rad, TCP at {tcp} m{clearance}; written to "
           f"{cell.poses_file()}")
     return 0
