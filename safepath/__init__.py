@@ -10,8 +10,10 @@ from __future__ import annotations
 import logging
 
 from .cell import Cell, PoseCheck, check_poses, load_cell
+from .cell.poses import dump_poses, load_poses, save_poses
+from .cell.scene_yaml import load_scene
 from .collision import CheckOptions, CollisionChecker, SegmentReport, StateReport
-from .controller_spec import ControllerSpec
+from .description.robot_folder import load_robot, robot_names
 from .errors import (
     CollisionError,
     ConfigError,
@@ -30,6 +32,11 @@ from .errors import (
     UnprovenClearance,
     VerificationError,
 )
+from .model.controller_spec import ControllerSpec
+from .model.robot import Robot
+from .model.scene import AllowedContact, Grasp, Scene, SceneObject, Shape, placement
+from .model.tool import ToolSpec
+from .model.trajectory import GripperEvent, Trajectory, load_trajectory
 from .planning import (
     LineOptions,
     PlannerOptions,
@@ -44,13 +51,6 @@ from .planning import (
     plan_cell,
     plan_route,
 )
-from .poses import dump_poses, load_poses, save_poses
-from .robot import Robot
-from .robot_folder import load_robot, robot_names
-from .scene import AllowedContact, Grasp, Scene, SceneObject, Shape, placement
-from .scene_yaml import load_scene
-from .tool import ToolSpec
-from .trajectory import GripperEvent, Trajectory, load_trajectory
 
 logging.getLogger(__name__).addHandler(logging.NullHandler())
 

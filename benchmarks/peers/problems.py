@@ -244,7 +244,7 @@ def world_spec(robot: Any, scene: Any, *, held: str | None = None,
     """One world state for the adapters: obstacles (boxes and cylinders with 4x4 world
     poses), the held object (attached to the TCP link), and the pairs not to check
     (allowed contacts, expanded from ``gripper`` to the tool's contact links)."""
-    from safepath.scene import GRIPPER
+    from safepath.model.scene import GRIPPER
 
     obstacles = []
     for obj in scene.objects.values():

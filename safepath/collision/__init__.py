@@ -9,7 +9,7 @@ The layer between robot & scene and planning. Its face:
 * the sphere layer (:mod:`.layer`, fits in :mod:`.spheres`) that decides most states
   before coal, exactly, with its numba kernels (``_kernels``, ``_placement``,
   ``_pair_tests``, ``_gjk``; buffers laid out by ``_layout``, packed by ``_pack``, robot
-  parts kept per robot and on disk by :mod:`safepath.derived`);
+  parts kept per robot and on disk by :mod:`safepath.files.derived`);
 * the robot's allowed self pairs (:mod:`.allowed_pairs`) and what every checker of a
   robot takes from it alone (:mod:`.prepare`).
 

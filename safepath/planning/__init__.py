@@ -1,7 +1,7 @@
 """Planning: routes of taught poses to verified, timed trajectories."""
 
+from ..cell.routes import Route, Step, Target, load_routes
 from ..kinematics import LineOptions, solve_ik
-from ..routes import Route, Step, Target, load_routes
 from ..timing import TimingOptions
 from ..verify import FclVerifier, VerifyResult
 from .cartesian import cartesian_line

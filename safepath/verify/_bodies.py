@@ -8,10 +8,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..derived import DerivedKind
 from ..errors import ConfigError
-from ..robot import Robot, is_prismatic
-from ..scene import Scene, Shape
+from ..files.derived import DerivedKind
+from ..model.robot import Robot, is_prismatic
+from ..model.scene import Scene, Shape
 from ._bounds import (
     ShapeSpec,
     joint_kind,

@@ -17,8 +17,8 @@ import numpy as np
 
 from ..cell import Cell
 from ..errors import SafepathError
+from ..model.trajectory import Trajectory
 from ..planning import Route
-from ..trajectory import Trajectory
 from .analysis import affected_routes, analyse_routes, load_plans
 from .backend import PlanBackend, make_backend
 from .options import ViewOptions

@@ -21,9 +21,9 @@ import pytest
 
 from safepath import PlanOptions, load_cell, plan_cell
 from safepath.cell import Cell
+from safepath.model.scene import AllowedContact
+from safepath.model.trajectory import Trajectory
 from safepath.planning import Route, load_routes
-from safepath.scene import AllowedContact
-from safepath.trajectory import Trajectory
 
 ROOT = Path(__file__).resolve().parents[2]
 BUNDLED = ROOT / "scenes" / "quality_check_cell"

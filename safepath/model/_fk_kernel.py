@@ -1,5 +1,5 @@
 """Forward kinematics of the planner's numba kernels: the world frame of every joint of a
-joint table (:mod:`safepath._joint_table`) at a configuration.
+joint table (:mod:`safepath.model._joint_table`) at a configuration.
 
 One code path for the sphere layer (:mod:`safepath.collision._placement`, the whole
 tree) and the inverse kinematics of Cartesian lines (:mod:`safepath.kinematics._ik_kernel`,
@@ -25,7 +25,7 @@ from __future__ import annotations
 
 import math
 
-from ._aot import njit
+from .._aot import njit
 from ._joint_table import FIXED, JF_R, JF_T, JF_V, JF_W, JI_KIND, JI_PARENT, JI_Q
 
 __all__ = ["exp3", "joint_frames"]

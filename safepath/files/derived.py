@@ -43,9 +43,9 @@ from typing import Any, Generic, Protocol, TypeVar
 
 import numpy as np
 
+from ..errors import InputError
 from ._digest import blake2b, sha256
 from ._io import read_bytes
-from .errors import InputError
 
 __all__ = ["DerivedKind", "StoredKind", "Derived", "DerivedValues", "CACHE_ENV",
            "disk_folder", "read_entry"]

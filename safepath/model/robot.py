@@ -1,6 +1,6 @@
 """Robots: kinematics, collision geometry, limits, TCP and tool.
 
-:class:`Robot` is built by :func:`safepath.load_robot` (:mod:`safepath.robot_folder`)
+:class:`Robot` is built by :func:`safepath.load_robot` (:mod:`safepath.description.robot_folder`)
 from a robot folder or an ``example-robot-data`` name, or directly from Pinocchio models.
 """
 
@@ -14,11 +14,11 @@ from typing import Any, Literal
 import numpy as np
 import pinocchio as pin
 
-from ._io import brief
+from ..errors import ConfigError, FrameNotFound, PoseError
+from ..files._io import brief
+from ..files.derived import Derived, DerivedValues
 from ._locked import LockedJoint
 from .controller_spec import ControllerSpec
-from .derived import Derived, DerivedValues
-from .errors import ConfigError, FrameNotFound, PoseError
 from .tool import ToolSpec, check_tool
 
 __all__ = ["Robot", "ToolSpec", "adjacent_link_pairs", "frame_id", "joint_motion",
@@ -176,7 +176,7 @@ class Robot:
         """What is computed from this robot alone and kept for it (sphere fits placed on
         their joints, hulls, reach per joint, the verifier's shapes), made again when its
         models are replaced, a geometry moves or a limit changes: see
-        :mod:`safepath.derived` (``held()`` lists it, ``forget()`` drops it)."""
+        :mod:`safepath.files.derived` (``held()`` lists it, ``forget()`` drops it)."""
         return Derived(self, self._derived)
 
     def geometry_link(self, geom_index: int) -> str:

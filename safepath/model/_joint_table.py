@@ -7,7 +7,7 @@ its motion subspace: a screw whose angular part is a unit vector or zero and who
 part is parallel to it (revolute, prismatic and helical joints). Written by the sphere
 layer (:mod:`safepath.collision._pack`, every joint of the model, the universe first) and
 by Cartesian lines (:mod:`safepath.planning.cartesian`, the chain to the TCP); read by
-:func:`safepath._fk_kernel.joint_frames`.
+:func:`safepath.model._fk_kernel.joint_frames`.
 
 Only constants and a builder: importing this module compiles nothing, and the kernels
 read the constants as compile-time constants (:mod:`safepath._aot` keys its builds on

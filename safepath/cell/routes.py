@@ -25,7 +25,7 @@ A route starts at a taught pose and lists steps::
 Motion steps (``move``, ``line``, and ``via``, a move that never stops) do not stop at
 their end unless ``stop: true`` is given or a gripper action or the route's end follows:
 the robot blends through them. Pour steps (``tilt``, ``circle``: a held cup turned about
-a point of it, a horizontal circle of the TCP) are defined in :mod:`safepath.pour_steps`.
+a point of it, a horizontal circle of the TCP) are defined in :mod:`safepath.cell.pour_steps`.
 """
 
 from __future__ import annotations
@@ -36,7 +36,8 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Literal
 
-from ._io import (
+from ..errors import ConfigError
+from ..files._io import (
     as_float,
     as_str,
     as_vector,
@@ -45,7 +46,6 @@ from ._io import (
     get_key,
     read_mapping,
 )
-from .errors import ConfigError
 from .pour_steps import POUR_KINDS, Circle, Tilt, check_pour_fields, parse_pour_step, parse_speed
 from .tcp_targets import CartesianTarget, is_cartesian, parse_cartesian
 
@@ -120,8 +120,8 @@ class Step:
         max_tilt: Largest angle between the held object's axis and the vertical at
             every released sample of this step [rad], or None (an orientation path
             constraint: "keep the cup upright").
-        pour: What a ``tilt`` or ``circle`` step does (:class:`~safepath.pour_steps.Tilt`,
-            :class:`~safepath.pour_steps.Circle`); None for the other kinds.
+        pour: What a ``tilt`` or ``circle`` step does (:class:`~safepath.cell.pour_steps.Tilt`,
+            :class:`~safepath.cell.pour_steps.Circle`); None for the other kinds.
         max_angular_speed: Bound on the held cup's angular speed during a ``tilt``
             [rad/s] (required there; None elsewhere). A ``circle`` needs ``tcp_speed``.
         into: The receptacle a ``tilt`` or ``circle`` pours into (a scene object), or

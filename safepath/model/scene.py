@@ -19,8 +19,8 @@ from typing import Any, Literal
 import numpy as np
 import pinocchio as pin
 
-from ._io import as_float, check_names
-from .errors import ConfigError
+from ..errors import ConfigError
+from ..files._io import as_float, check_names
 from .tool import ToolSpec
 
 __all__ = ["Shape", "SceneObject", "AllowedContact", "Grasp", "Scene", "placement", "SIZE_KEYS",

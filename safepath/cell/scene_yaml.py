@@ -9,7 +9,8 @@ from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
-from ._io import (
+from ..errors import ConfigError
+from ..files._io import (
     as_float,
     as_str,
     as_vector,
@@ -18,9 +19,8 @@ from ._io import (
     get_key,
     read_mapping,
 )
-from .errors import ConfigError
-from .scene import SIZE_KEYS, AllowedContact, Grasp, Scene, SceneObject, Shape, placement
-from .tool import read_tool
+from ..model.scene import SIZE_KEYS, AllowedContact, Grasp, Scene, SceneObject, Shape, placement
+from ..model.tool import read_tool
 
 __all__ = ["load_scene"]
 

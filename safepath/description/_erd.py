@@ -1,6 +1,6 @@
 """Robots of ``example-robot-data`` as safepath robots.
 
-Gripper joints (fingers, jaws: :func:`safepath._joint_roles.gripper_joints`) are locked
+Gripper joints (fingers, jaws: :func:`safepath.description._joint_roles.gripper_joints`) are locked
 joints (the user gives their positions, else their whole travel is covered, see
 :func:`safepath.load_robot`); a robot that is not a fixed-base arm of bounded 1-DoF joints
 (legged robots and humanoids on a floating base, arms with continuous joints) is refused
@@ -18,12 +18,12 @@ from pathlib import Path
 import numpy as np
 import pinocchio as pin
 
+from ..errors import ConfigError
+from ..model._locked import lock_joints, read_mimics
+from ..model.controller_spec import read_controller
+from ..model.robot import Robot, adjacent_link_pairs
 from ._bare_urdf import Given, convexify, vector_argument, velocity_limits_of
 from ._joint_roles import gripper_joints, refuse_non_arm, tip_frame
-from ._locked import lock_joints, read_mimics
-from .controller_spec import read_controller
-from .errors import ConfigError
-from .robot import Robot, adjacent_link_pairs
 
 __all__ = ["load_erd"]
 
@@ -38,7 +38,7 @@ _KNOWN_ACCELERATION = {
 
 # Jerk limits [rad/s^3]: Franka's published joint limits (libfranka / Franka's robot and
 # interface specifications: 7500, 3750, 5000, 6250, 7500, 10000, 10000). Others: derived
-# from the acceleration limits (safepath.robot.derived_jerk_limits).
+# from the acceleration limits (safepath.model.robot.derived_jerk_limits).
 _KNOWN_JERK = {
     "panda": [7500.0, 3750.0, 5000.0, 6250.0, 7500.0, 10000.0, 10000.0],
 }

@@ -30,7 +30,7 @@ from typing import Any
 import numpy as np
 import pinocchio as pin
 
-from .errors import ConfigError
+from ..errors import ConfigError
 
 __all__ = ["TRAVEL", "LockedJoint", "lock_joints", "read_mimics"]
 

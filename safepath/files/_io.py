@@ -29,7 +29,7 @@ from typing import IO, Any
 
 import yaml
 
-from .errors import ConfigError, InputError, unknown_name
+from ..errors import ConfigError, InputError, unknown_name
 
 try:  # libyaml's parser: about 7x faster than PyYAML's own on the cell's files
     from yaml import CSafeLoader as _SafeBase
@@ -95,7 +95,8 @@ def _check_readable(st: os.stat_result, path: Path, error: type[InputError],
                     path=path)
     if st.st_size > limit:
         raise error(f"file too large ({st.st_size / (1 << 20):.1f} MiB; safepath reads at "
-                    f"most {limit / (1 << 20):g} MiB, safepath._io.MAX_FILE_BYTES)", path=path)
+                    f"most {limit / (1 << 20):g} MiB, safepath.files._io.MAX_FILE_BYTES)",
+                    path=path)
 
 
 def check_readable(path: str | Path, *, error: type[InputError] = ConfigError,
@@ -157,7 +158,7 @@ def read_bytes(path: str | Path, *, error: type[InputError] = ConfigError,
         os.close(fd)
     if left <= 0:
         raise error(f"file too large (grew beyond {limit / (1 << 20):g} MiB while it was "
-                    "read; safepath._io.MAX_FILE_BYTES)", path=path)
+                    "read; safepath.files._io.MAX_FILE_BYTES)", path=path)
     return b"".join(chunks)
 
 

@@ -17,8 +17,8 @@ from typing import Any
 
 import pinocchio as pin
 
-from ._io import as_float, as_str, check_keys, get_key
-from .errors import ConfigError, FrameNotFound
+from ..errors import ConfigError, FrameNotFound
+from ..files._io import as_float, as_str, check_keys, get_key
 
 __all__ = ["ToolSpec", "read_tool", "check_tool"]
 

@@ -13,7 +13,7 @@ the joints at fault, never reduced silently to the joints that fit:
 * any other joint of more than one DoF (spherical, ...) is refused.
 
 Gripper joints are recognised by name (:data:`GRIPPER_WORDS`), with the joints that
-mimic them and those they carry: they are *locked* (see :mod:`safepath._locked`), never
+mimic them and those they carry: they are *locked* (see :mod:`safepath.model._locked`), never
 planned. A robot described by a ``robot.yaml`` lists its planned and locked joints itself.
 """
 
@@ -25,7 +25,7 @@ from pathlib import Path
 
 import pinocchio as pin
 
-from .errors import RobotNotSupported
+from ..errors import RobotNotSupported
 
 __all__ = ["GRIPPER_WORDS", "refuse_non_arm", "gripper_joints", "tip_frame"]
 

@@ -14,7 +14,7 @@ Layouts read:
 A file may hold both (a nested file to which the recorder appended lines). A pose may
 also be given as a TCP pose (position, orientation quaternion (x, y, z, w), optional
 frame, and the ``ik_start:`` pose the inverse kinematics starts from, given before it), solved
-when the file is read: see :mod:`safepath.tcp_targets`. Saving updates the file in place
+when the file is read: see :mod:`safepath.cell.tcp_targets`. Saving updates the file in place
 (round-trip YAML: comments, key order, layout and unchanged values kept; changed values
 at full double precision), atomically, keeping its mode and the previous file as
 ``poses.yaml~``.
@@ -32,9 +32,9 @@ from typing import Any
 
 import numpy as np
 
-from ._io import atomic_write_text, brief, check_names, read_text, read_yaml
-from .errors import PoseError
-from .robot import Robot
+from ..errors import PoseError
+from ..files._io import atomic_write_text, brief, check_names, read_text, read_yaml
+from ..model.robot import Robot
 from .tcp_targets import is_cartesian, parse_cartesian, solve_target
 
 __all__ = ["load_poses", "save_poses", "dump_poses", "POSE_NAME"]
@@ -158,7 +158,7 @@ def save_poses(path: str | Path, poses: Mapping[str, Sequence[float] | np.ndarra
     a changed value is written at full double precision, a pose not in ``poses`` is
     removed, a new one is added under ``poses:``. A file that does not load, or no
     file, is written whole in the nested layout. The file keeps its mode (see
-    :func:`safepath._io.atomic_write`); the previous file, if any, is kept as
+    :func:`safepath.files._io.atomic_write`); the previous file, if any, is kept as
     ``<path>~`` when ``backup`` is true. When validation or writing fails, the file on
     disk is left as it was.
 

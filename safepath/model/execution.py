@@ -13,7 +13,7 @@ two points per joint with
 The ROS 1 ``joint_trajectory_controller`` behind Niryo's
 ``/niryo_robot_follow_joint_trajectory_controller`` (``QuinticSplineSegment``) and
 ros2_kortex's (ros2_control's) join points the same way. Each robot's ``controller.yaml``
-names its interpolation (:attr:`safepath.controller_spec.ControllerSpec
+names its interpolation (:attr:`safepath.model.controller_spec.ControllerSpec
 .interpolation`).
 
 :func:`executed_peaks` finds, per joint, the largest speed, acceleration and jerk of
@@ -22,7 +22,8 @@ its acceleration a cubic: their extremes are at the ends or where the next deriv
 vanishes), speed at the ends, and where the acceleration changes sign inside an interval
 on a grid of at least ``rate`` samples per second plus a bound of what a peak between two
 samples can add (``|jerk| dt^2 / 8``), so every figure is an upper bound of the motion at
-every instant (compiled for quintics: :mod:`safepath._joinkernel`). :func:`check_executed` raises
+every instant (compiled for quintics: :mod:`safepath.model._joinkernel`).
+:func:`check_executed` raises
 :class:`~safepath.errors.ExecutedLimitError` when one is over its limit.
 
 A quintic on an interval, restricted to part of it, is the quintic through its own
@@ -38,7 +39,7 @@ from typing import Literal
 
 import numpy as np
 
-from .errors import ExecutedLimitError
+from ..errors import ExecutedLimitError
 
 __all__ = ["Interpolation", "INTERPOLATIONS", "ExecutedPeaks", "join", "executed_peaks",
            "interval_ratios", "check_executed", "CHECK_RATE", "LIMITS_KEY", "limits_info",

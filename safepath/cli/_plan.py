@@ -38,12 +38,12 @@ def cmd_plan(args: argparse.Namespace) -> int:
     checked before any file is written, every file is written atomically, and the files
     this command wrote are removed again if a later one cannot be written.
     """
-    from ._io import check_names
-    from .cell import load_cell
-    from .errors import ConfigError
-    from .planning import PlannerOptions, PlanOptions, plan_cell
-    from .routes import after_chain
-    from .timing import TimingOptions
+    from ..cell import load_cell
+    from ..cell.routes import after_chain
+    from ..errors import ConfigError
+    from ..files._io import check_names
+    from ..planning import PlannerOptions, PlanOptions, plan_cell
+    from ..timing import TimingOptions
 
     if args.bag and Path(args.bag).exists():
         raise ConfigError(f"{args.bag} exists already; choose a new bag path", key="--bag")
@@ -100,7 +100,7 @@ def _note_jit_kernels() -> None:
     import os
     import sys
 
-    from . import _aot
+    from .. import _aot
 
     if _aot.compiled() is None and os.environ.get(_aot.ENV_MODE, "1") != "0":
         print(f"safepath plan: note: {_aot.status()}; the first route waits for numba "
@@ -128,7 +128,7 @@ def _figure_lines(summary: dict[str, Any]) -> list[str]:
     figures, route by route (measured on the released samples)."""
     import math
 
-    from .planning._pour_chunk import describe
+    from ..planning._pour_chunk import describe
 
     lines = []
     for name, row in summary.items():
@@ -145,14 +145,14 @@ def _write_outputs(out: Path, trajectories: dict[str, Any], summary: dict[str, A
                    bag: Path | None, cycle: list[Any], controller: Any) -> Path | None:
     """Write the bag first (it validates every message before touching the disk and
     appears whole or not at all), then the files; on failure, remove what was written."""
-    from ._io import atomic_write_text
-    from .errors import InputError, SafepathError
+    from ..errors import InputError, SafepathError
+    from ..files._io import atomic_write_text
 
     written: list[Path] = []
     out_existed = out.exists()
     try:
         if bag is not None:
-            from .ros.bag import write_bag
+            from ..ros.bag import write_bag
 
             written.append(write_bag(bag, cycle, controller=controller))
         for name, traj in trajectories.items():
@@ -193,7 +193,7 @@ def _bag_order(cell: Any, routes: dict) -> list[str]:
 def cycle_order(routes: dict) -> list[str]:
     """Every chain of routes from a first route to a last one, back to back: for the
     quality-check cell, phase1, phase2_safe, phase1, phase2_unsafe."""
-    from .routes import after_chain
+    from ..cell.routes import after_chain
 
     followed = {r.after for r in routes.values() if r.after is not None}
     order: list[str] = []

@@ -26,13 +26,13 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from ._io import as_str, as_vector
-from .errors import ConfigError
+from ..errors import ConfigError
+from ..files._io import as_str, as_vector
 
 if TYPE_CHECKING:
     import pinocchio as pin
 
-    from .robot import Robot
+    from ..model.robot import Robot
 
 __all__ = ["UNIT_TOLERANCE", "CartesianTarget", "parse_cartesian", "is_cartesian",
            "quaternion_matrix"]
@@ -157,15 +157,15 @@ def solve_target(robot: Robot, target: CartesianTarget, q_init: np.ndarray, *,
     Raises:
         PoseError: No solution within the joint limits from ``q_init`` (names file, key).
     """
-    from .errors import PoseError
-    from .kinematics import solve_ik
+    from ..errors import PoseError
+    from ..kinematics import solve_ik
 
     try:
         T = target.tcp_pose(robot)
     except ConfigError as exc:
         raise ConfigError(exc.reason, path=path, key=f"{key}.{exc.key}" if key else exc.key
                           ) from None
-    from .errors import IKError
+    from ..errors import IKError
 
     try:
         return solve_ik(robot, T, np.asarray(q_init, dtype=float), step=key)

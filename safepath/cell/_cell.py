@@ -13,17 +13,17 @@ from typing import Any
 
 import numpy as np
 
-from ._io import check_names
-from ._paths import SCENES_DIR
-from .collision import CheckOptions, CollisionChecker, StateReport
-from .errors import ConfigError, PoseError, unknown_name
+from ..collision import CheckOptions, CollisionChecker, StateReport
+from ..description.robot_folder import load_robot
+from ..errors import ConfigError, PoseError, unknown_name
+from ..files._io import check_names
+from ..files._paths import SCENES_DIR
+from ..model.robot import Robot
+from ..model.scene import Scene
+from ..model.tool import check_tool
 from .poses import POSE_NAME, load_poses
-from .robot import Robot
-from .robot_folder import load_robot
 from .routes import Route, check_routes, load_cycle, load_routes
-from .scene import Scene
 from .scene_yaml import load_scene
-from .tool import check_tool
 
 __all__ = ["Cell", "PoseCheck", "load_cell", "check_poses"]
 
@@ -282,7 +282,7 @@ def _load_planning_code() -> None:
     pays for planning, not for loading code."""
     import fcl  # noqa: F401
 
-    from . import _aot
+    from .. import _aot
 
     _aot.load_planning_kernels()
 
@@ -299,7 +299,7 @@ def prepare_robot(robot: Robot) -> None:
     still loads, to be viewed, edited and checked pose by pose; planning refuses it,
     naming the geometry or joint (as for a cell built in Python), so its verifier's part
     is not made here."""
-    from . import collision, verify
+    from .. import collision, verify
 
     collision.prepare_robot(robot)
     if not verify.unverifiable(robot):

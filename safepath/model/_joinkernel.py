@@ -1,6 +1,6 @@
 """The peaks of a quintic join, per interval and joint, and its samples, numba-compiled.
 
-The kernel of :func:`safepath.execution.interval_ratios` (see there for what is bounded
+The kernel of :func:`safepath.model.execution.interval_ratios` (see there for what is bounded
 and how): the same sums as the numpy version it replaced, one interval and joint at a
 time, without the temporary arrays. Compiled ahead of time (:mod:`safepath._aot`), else
 by numba on first use; numba is imported then, not when this module is imported.
@@ -125,7 +125,7 @@ def sample(t: np.ndarray, q: np.ndarray, qd: np.ndarray, qdd: np.ndarray,
            times: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Position, velocity and acceleration of the quintic join of the points at ``times``
     (clamped to the ends), each (len(times), dof); what
-    :func:`safepath.execution.join` gives, compiled (equal to rounding)."""
+    :func:`safepath.model.execution.join` gives, compiled (equal to rounding)."""
     t, q, qd, qdd = (np.ascontiguousarray(x, dtype=np.float64) for x in (t, q, qd, qdd))
     times = np.ascontiguousarray(np.atleast_1d(times), dtype=np.float64)
     shape = (times.size, q.shape[1])
@@ -154,7 +154,7 @@ def compiled_kernels() -> dict[str, Callable[..., Any]]:
     cache, once); see :mod:`safepath._aot`."""
     with _lock:
         if not _compiled:
-            from ._aot import njit
+            from .._aot import njit
 
             _compiled["peaks"] = njit(cache=True, nogil=True)(_peaks)
             _compiled["sample"] = njit(cache=True, nogil=True)(_sample)

@@ -1,6 +1,6 @@
 """Pour steps of a route: a tilt of the held cup about a point of it, and a circle.
 
-Two step kinds extend the routes format (:mod:`safepath.routes`) for pouring::
+Two step kinds extend the routes format (:mod:`safepath.cell.routes`) for pouring::
 
     - tilt: {axis: [-1, 0, 0], angle: 2.0071, pivot: [0.035, 0.04, 0.0]}
       max_angular_speed: 0.0873   # bound on the cup's angular speed [rad/s]
@@ -40,8 +40,8 @@ from typing import Any
 
 import numpy as np
 
-from ._io import as_float, as_vector, check_keys
-from .errors import ConfigError
+from ..errors import ConfigError
+from ..files._io import as_float, as_vector, check_keys
 from .tcp_targets import quaternion_matrix
 
 __all__ = ["Tilt", "Circle", "POUR_KINDS", "parse_pour", "parse_pour_step", "check_pour_fields",
@@ -252,7 +252,7 @@ def parse_pour_step(raw: Mapping[str, Any], kind: str, *, path: Path | None, key
 
 def check_pour_fields(kind: str, pour: Any, max_angular_speed: Any, tcp_speed: Any,
                       max_tilt: Any) -> None:
-    """Check a :class:`~safepath.routes.Step`'s pour fields against its kind.
+    """Check a :class:`~safepath.cell.routes.Step`'s pour fields against its kind.
 
     Raises:
         ConfigError: A tilt without a :class:`Tilt` or a positive ``max_angular_speed``,
@@ -262,7 +262,7 @@ def check_pour_fields(kind: str, pour: Any, max_angular_speed: Any, tcp_speed: A
     is_pour = kind in POUR_KINDS
     want = {"tilt": Tilt, "circle": Circle}.get(kind)
     if want is not None and not isinstance(pour, want):
-        raise ConfigError(f"a {kind} step needs a safepath.pour_steps.{want.__name__}, got "
+        raise ConfigError(f"a {kind} step needs a safepath.cell.pour_steps.{want.__name__}, got "
                           f"{pour!r}", key="pour")
     if not is_pour and pour is not None:
         raise ConfigError(f"a {kind} step has no pour, got {pour!r}", key="pour")

@@ -15,10 +15,10 @@ from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-from .errors import InputError, PlanningError, SafepathError, TimingError, VerificationError
+from ..errors import InputError, PlanningError, SafepathError, TimingError, VerificationError
 
 if TYPE_CHECKING:
-    from .cell import Cell
+    from ..cell import Cell
 
 __all__ = ["main"]
 
@@ -35,11 +35,11 @@ def _fmt_pair(pair: tuple[str, str] | None) -> str:
 def _say_unfinished_save(path: Path | None) -> None:
     """Warn on standard error when a save of the poses file stopped after its log line
     and before its rename: the poses checked are those before that save."""
-    from ._io import leftover_temporaries
+    from ..files._io import leftover_temporaries
 
     if path is None or not leftover_temporaries(path):
         return
-    from .view.store import unfinished_save
+    from ..view.store import unfinished_save
 
     entry = unfinished_save(path)
     if entry is not None:
@@ -51,8 +51,8 @@ def _say_unfinished_save(path: Path | None) -> None:
 
 def cmd_check(args: argparse.Namespace) -> int:
     """Check every taught pose of a cell."""
-    from .cell import check_poses, load_cell
-    from .collision import CheckOptions
+    from ..cell import check_poses, load_cell
+    from ..collision import CheckOptions
 
     cell = load_cell(args.scene)
     _say_unfinished_save(cell.poses_path)
@@ -94,7 +94,7 @@ def cmd_check(args: argparse.Namespace) -> int:
 def _check_routes(cell: Cell) -> int:
     """Print what ``routes.yaml`` holds and one line per target inverse kinematics does
     not reach (named by route and step, as ``plan`` would refuse it); how many."""
-    from .planning.reach import check_targets
+    from ..planning.reach import check_targets
 
     if cell.folder is None or not (cell.folder / "routes.yaml").is_file():
         return 0
@@ -111,8 +111,8 @@ def _check_routes(cell: Cell) -> int:
 def cmd_robot_pairs(args: argparse.Namespace) -> int:
     """Regenerate a robot folder's allowed self-collision pairs, and name the file in its
     robot.yaml if it does not yet (or say how, with --no-wire)."""
-    from .collision import wire_allowed_pairs, write_allowed_pairs
-    from .robot_folder import load_robot
+    from ..collision import wire_allowed_pairs, write_allowed_pairs
+    from ..description.robot_folder import load_robot
 
     bare = Path(args.robot).suffix.lower() == ".urdf"
     robot = None if bare else load_robot(args.robot)
@@ -138,9 +138,9 @@ def cmd_robot_pairs(args: argparse.Namespace) -> int:
 
 def cmd_build_kernels(args: argparse.Namespace) -> int:
     """Compile the numba kernels ahead of time (see :mod:`safepath._aot`)."""
-    from ._aot import cache_root
-    from ._aot.build import build
-    from ._aot.table import ENTRIES
+    from .._aot import cache_root
+    from .._aot.build import build
+    from .._aot.table import ENTRIES
 
     try:
         result = build(force=args.force)
@@ -213,8 +213,8 @@ def main(argv: Sequence[str] | None = None) -> int:
 
 
 #: The modules that add the other commands, by command.
-_EXTRA_MODULES = {"plan": "safepath._plan_cli", "view": "safepath.view.cli",
-                  "sim": "safepath.sim.cli", "teach": "safepath._teach_cli"}
+_EXTRA_MODULES = {"plan": "safepath.cli._plan", "view": "safepath.view.cli",
+                  "sim": "safepath.sim.cli", "teach": "safepath.cli._teach"}
 #: The commands defined in this module.
 _OWN_COMMANDS = ("check", "robot-pairs", "build-kernels")
 

@@ -14,7 +14,7 @@ from pathlib import Path
 
 __all__ = ["ROBOTS_DIR", "SCENES_DIR"]
 
-_DATA = Path(__file__).resolve().parent / "_data"
+_DATA = Path(__file__).resolve().parents[1] / "_data"
 
 #: The bundled robot folders (``robots/<name>/robot.yaml``); ``$SAFEPATH_ROBOTS`` overrides.
 ROBOTS_DIR = Path(os.environ.get("SAFEPATH_ROBOTS", _DATA / "robots"))

@@ -39,9 +39,9 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Literal
 
-from ._io import as_float, as_str, as_vector, check_keys, get_key, read_mapping
-from ._paths import ROBOTS_DIR
-from .errors import ConfigError, InputError
+from ..errors import ConfigError, InputError
+from ..files._io import as_float, as_str, as_vector, check_keys, get_key, read_mapping
+from ..files._paths import ROBOTS_DIR
 from .execution import INTERPOLATIONS
 
 __all__ = ["GripperSpec", "ControllerSpec", "controller_for", "read_controller"]
@@ -153,7 +153,7 @@ class ControllerSpec:
         interpolation: How the controller joins points (``quintic``: position, velocity
             and acceleration matched at both ends, ros2_control's
             ``joint_trajectory_controller`` when points carry all three; ``cubic``;
-            ``linear``): the motion goals are checked as (:mod:`safepath.execution`).
+            ``linear``): the motion goals are checked as (:mod:`safepath.model.execution`).
         cycle: The controller's update period [s]: how often it samples the joined
             motion and commands the joints (the twin runs it at this rate).
         gripper: The gripper's ``GripperCommand`` controller (None: no such gripper).

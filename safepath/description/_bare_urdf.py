@@ -1,16 +1,16 @@
 """A robot from a URDF alone (``load_robot("path/to/arm.urdf")``), without a robot folder.
 
 What a URDF says is taken from it: the joints (gripper joints locked, see
-:mod:`safepath._joint_roles`), the position and velocity limits, the collision shapes, the
-links that touch at their joints (never self-checked); mesh shapes are replaced by their
-convex hulls (which enclose them), as for example-robot-data's robots, and ``package://``
-meshes are looked for in the folders above the URDF. What it cannot say must be given as
-arguments, or the load is refused with a :class:`ConfigError` naming the key and how to
-give it: acceleration limits always (``acceleration_limits=``), velocity limits when the
-URDF's are zero (``velocity_limits=``). The TCP is the chain's last link unless
-``tcp_frame=`` names another frame; a tool is given with ``tool=``. For more (a
-controller, sampled self-collision pairs) write a robot folder: ``robot.yaml`` next to the
-URDF.
+:mod:`safepath.description._joint_roles`), the position and velocity limits, the
+collision shapes, the links that touch at their joints (never self-checked); mesh shapes
+are replaced by their convex hulls (which enclose them), as for example-robot-data's
+robots, and ``package://`` meshes are looked for in the folders above the URDF. What it
+cannot say must be given as arguments, or the load is refused with a
+:class:`ConfigError` naming the key and how to give it: acceleration limits always
+(``acceleration_limits=``), velocity limits when the URDF's are zero
+(``velocity_limits=``). The TCP is the chain's last link unless ``tcp_frame=`` names
+another frame; a tool is given with ``tool=``. For more (a controller, sampled
+self-collision pairs) write a robot folder: ``robot.yaml`` next to the URDF.
 """
 
 from __future__ import annotations
@@ -22,12 +22,12 @@ from pathlib import Path
 import numpy as np
 import pinocchio as pin
 
-from ._io import check_readable
+from ..errors import ConfigError
+from ..files._io import check_readable
+from ..model._locked import lock_joints, read_mimics
+from ..model.robot import Robot, adjacent_link_pairs
+from ..model.tool import ToolSpec
 from ._joint_roles import gripper_joints, refuse_non_arm, tip_frame
-from ._locked import lock_joints, read_mimics
-from .errors import ConfigError
-from .robot import Robot, adjacent_link_pairs
-from .tool import ToolSpec
 
 __all__ = ["Given", "convexify", "load_urdf", "vector_argument", "velocity_limits_of"]
 
@@ -42,7 +42,7 @@ class Given:
         acceleration_limits: [rad/s^2] (required for a URDF alone).
         tcp_frame: The TCP frame (default: guessed, see the loaders).
         tool: The tool that holds objects.
-        locked_joints: Values of the locked (gripper) joints, see :mod:`safepath._locked`.
+        locked_joints: Values of the locked (gripper) joints, see :mod:`safepath.model._locked`.
     """
 
     velocity_limits: Sequence[float] | None = None

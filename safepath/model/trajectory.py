@@ -3,7 +3,7 @@
 A :class:`Trajectory` holds dense knots (time, position, velocity, acceleration), the
 route step every knot belongs to, and the gripper events. Between knots it is joined
 as a trajectory controller joins a goal's points: a quintic polynomial per joint matching
-position, velocity and acceleration at both knots (:mod:`safepath.execution`), so that
+position, velocity and acceleration at both knots (:mod:`safepath.model.execution`), so that
 what :meth:`Trajectory.sample` gives at any instant is what the robot executes when the
 knots are sent as a goal's points. It exports to JSON (lossless) and
 CSV, and reports its duration per step.
@@ -21,13 +21,13 @@ from typing import Any, Literal
 
 import numpy as np
 
-from ._io import atomic_write_text, read_text
+from ..errors import TrajectoryError
+from ..files._io import atomic_write_text, read_text
 from ._knots import interval_index
-from .errors import TrajectoryError
 
 __all__ = ["GripperEvent", "Trajectory", "load_trajectory"]
 
-FORMAT = "safepath.trajectory/1"
+FORMAT = "safepath.model.trajectory/1"
 
 
 @dataclass(frozen=True)

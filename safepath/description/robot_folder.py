@@ -4,10 +4,10 @@ A robot folder (see ``robots/ned3pro``) holds a URDF with primitive collision sh
 a ``robot.yaml`` with what a URDF cannot say (velocity and acceleration limits, the
 TCP frame, the tool), the computed list of link pairs that never need checking, and
 optionally a ``controller.yaml`` (its ROS 2 trajectory controller, see
-:mod:`safepath.controller_spec`). Robots of ``example-robot-data`` (``ur5``,
+:mod:`safepath.model.controller_spec`). Robots of ``example-robot-data`` (``ur5``,
 ``panda``, ...) load by name too; a bundled folder of the same name that holds only a
 ``controller.yaml`` adds their controller settings. A URDF file loads alone too
-(:mod:`safepath._bare_urdf`), with the limits it lacks given as arguments.
+(:mod:`safepath.description._bare_urdf`), with the limits it lacks given as arguments.
 """
 
 from __future__ import annotations
@@ -21,16 +21,16 @@ from typing import Any
 import numpy as np
 import pinocchio as pin
 
+from ..errors import ConfigError, FrameNotFound, RobotNotFound
+from ..files._io import as_str, as_vector, check_readable, get_key, read_mapping, read_yaml
+from ..files._paths import ROBOTS_DIR
+from ..model._locked import TRAVEL, lock_joints, read_mimics
+from ..model.controller_spec import FILE_NAME as CONTROLLER_FILE
+from ..model.controller_spec import ControllerSpec, read_controller
+from ..model.robot import Robot, adjacent_link_pairs, frame_id
+from ..model.tool import ToolSpec, check_tool, read_tool
 from ._bare_urdf import Given, vector_argument
-from ._io import as_str, as_vector, check_readable, get_key, read_mapping, read_yaml
 from ._joint_roles import refuse_non_arm
-from ._locked import TRAVEL, lock_joints, read_mimics
-from ._paths import ROBOTS_DIR
-from .controller_spec import FILE_NAME as CONTROLLER_FILE
-from .controller_spec import ControllerSpec, read_controller
-from .errors import ConfigError, FrameNotFound, RobotNotFound
-from .robot import Robot, adjacent_link_pairs, frame_id
-from .tool import ToolSpec, check_tool, read_tool
 
 __all__ = ["ROBOTS_DIR", "load_robot", "robot_names"]
 
@@ -78,14 +78,14 @@ def load_robot(name_or_path: str | Path, *, acceleration_limits: Sequence[float]
         name_or_path: A folder under ``robots/``, a path to a robot folder or its
             ``robot.yaml``, an ``example-robot-data`` name (its controller settings
             from ``robots/<name>/controller.yaml`` when there is one), or a ``.urdf``
-            file alone (see :mod:`safepath._bare_urdf`: ``acceleration_limits`` are then
+            file alone (see :mod:`safepath.description._bare_urdf`: ``acceleration_limits`` are then
             required).
         velocity_limits: Override the velocity limits [rad/s or m/s] (required for a URDF
             whose ``<limit velocity>`` is zero).
         acceleration_limits: Override the acceleration limits [rad/s^2].
         jerk_limits: Override the jerk limits [rad/s^3] (default: the folder's
             ``jerk_limits``, else derived from the acceleration limits, see
-            :func:`safepath.robot.derived_jerk_limits`).
+            :func:`safepath.model.robot.derived_jerk_limits`).
         locked_joints: ``{joint: position [rad or m] or "travel"}`` for locked joints,
             e.g. ``{"panda_finger_joint1": 0.04}`` (Panda fingers open).
         tcp_frame: Override the TCP frame (default: the folder's ``tcp_frame``, else a

@@ -1,9 +1,9 @@
 """``safepath teach``: a taught pose from a TCP target, written to the cell's poses file.
 
-The joint vector comes from :meth:`safepath.cell.Cell.pose_from_tcp` (inverse kinematics
+The joint vector comes from :meth:`safepath.cell._cell.Cell.pose_from_tcp` (inverse kinematics
 started at ``--near``); it is checked as ``safepath check`` checks a taught pose (limits,
 collision-free with the gripper empty, the allowed contacts of its name) and only then
-written, with :func:`safepath.poses.save_poses` (atomically, the previous file kept as
+written, with :func:`safepath.cell.poses.save_poses` (atomically, the previous file kept as
 ``poses.yaml~``, comments and the other poses' text kept). A pose in collision is exit 1
 and nothing is written; bad input is exit 2.
 """
@@ -34,9 +34,9 @@ def register(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
 
 def cmd_teach(args: argparse.Namespace) -> int:
     """Solve, check, and write the pose; print where it put the TCP."""
-    from .cell import load_cell
-    from .errors import ConfigError, PoseError
-    from .poses import POSE_NAME, save_poses
+    from ..cell import load_cell
+    from ..cell.poses import POSE_NAME, save_poses
+    from ..errors import ConfigError, PoseError
 
     cell = load_cell(args.scene)
     name = str(args.name)
