@@ -6,6 +6,6 @@ readers: :mod:`.poses`, :mod:`.routes` (with the pour steps, :mod:`.pour_steps`)
 :mod:`.tcp_targets` and :mod:`.scene_yaml`.
 """
 
-from ._cell import Cell, PoseCheck, check_poses, load_cell
+from ._cell import Cell, PoseCheck, check_poses, load_cell, prepare_robot
 
-__all__ = ["Cell", "PoseCheck", "load_cell", "check_poses"]
+__all__ = ["Cell", "PoseCheck", "load_cell", "check_poses", "prepare_robot"]

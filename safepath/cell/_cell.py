@@ -25,7 +25,7 @@ from .poses import POSE_NAME, load_poses
 from .routes import Route, check_routes, load_cycle, load_routes
 from .scene_yaml import load_scene
 
-__all__ = ["Cell", "PoseCheck", "load_cell", "check_poses"]
+__all__ = ["Cell", "PoseCheck", "load_cell", "check_poses", "prepare_robot"]
 
 
 @dataclass(eq=False, repr=False)
