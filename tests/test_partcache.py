@@ -152,7 +152,7 @@ def test_load_cell_prepares_what_the_checkers_and_verifiers_take_from_the_robot(
     # verifier's shapes and (with the kernels built) the sphere layer's part are made
     # by load_cell, and the cell's checkers and verifiers use those, not new ones.
     from safepath import _aot, load_cell
-    from safepath.planning import FclVerifier
+    from safepath.verify import FclVerifier
 
     cell = load_cell("quality_check_cell")
     made = cell.robot.derived.held()

@@ -156,7 +156,7 @@ class CellStep:
 def cell_steps(cell: Any) -> list[CellStep]:
     """Every motion step of every route of the cell, in route order, with its world."""
     import safepath
-    from safepath.planning import LineOptions, solve_ik
+    from safepath.kinematics import LineOptions, solve_ik
     from safepath.planning.route_planner import initial_world, route_order
 
     routes = safepath.load_routes(cell.folder, poses=list(cell.poses),

@@ -301,9 +301,9 @@ def prepare_robot(robot: Robot) -> None:
     is not made here."""
     from .. import collision, verify
 
-    collision.prepare_robot(robot)
+    collision.prepare_checkers(robot)
     if not verify.unverifiable(robot):
-        verify.prepare_robot(robot)
+        verify.prepare_verifiers(robot)
 
 
 def _check_scene_against(robot: Robot, scene: Scene, poses: Mapping[str, np.ndarray]) -> None:

@@ -244,6 +244,3 @@ def _load_extra(argv: Sequence[str] | None = None) -> None:
         if register is not None and register not in _EXTRA:
             _EXTRA.append(register)
 
-
-if __name__ == "__main__":  # pragma: no cover
-    sys.exit(main())

@@ -22,7 +22,7 @@ from .allowed_pairs import compute_allowed_pairs, wire_allowed_pairs, write_allo
 from .checker import CollisionChecker
 from .layer import COLLIDES, FREE, OUTSIDE, UNSURE, SphereLayer
 from .options import CheckOptions, LayerOptions
-from .prepare import prepare_robot, robot_part
+from .prepare import prepare_checkers, robot_part
 from .reports import Pair, SegmentReport, StateReport
 
 __all__ = [
@@ -38,7 +38,7 @@ __all__ = [
     "SphereLayer",
     "StateReport",
     "compute_allowed_pairs",
-    "prepare_robot",
+    "prepare_checkers",
     "robot_part",
     "wire_allowed_pairs",
     "write_allowed_pairs",

@@ -17,7 +17,7 @@ from ..model.robot import Robot
 from ._pack import _robot_part
 from .options import LayerOptions
 
-__all__ = ["robot_part", "prepare_robot", "reach_into"]
+__all__ = ["robot_part", "prepare_checkers", "reach_into"]
 
 #: The link of each geometry, and per joint how far its own geometry reaches [m].
 _LINKS_AND_REACH: DerivedKind[tuple[tuple[str, ...], np.ndarray]] = DerivedKind(
@@ -35,7 +35,7 @@ def robot_part(robot: Robot) -> tuple[tuple[str, ...], np.ndarray]:
     return robot.derived.get(_LINKS_AND_REACH, make)
 
 
-def prepare_robot(robot: Robot) -> None:
+def prepare_checkers(robot: Robot) -> None:
     """Make what every collision checker of ``robot`` takes from the robot alone: its
     links and reach, and, where the kernels are compiled ahead of time, its sphere
     layer's part (sphere fits, hull tables: read from the disk cache,

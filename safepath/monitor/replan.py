@@ -53,11 +53,11 @@ from typing import Literal
 
 import numpy as np
 
-from ..cell import Cell
+from ..cell import Cell, Route, Step, Target
 from ..errors import InputError, PlanningError, SafepathError
 from ..model.scene import SceneObject, Shape
 from ..model.trajectory import Trajectory
-from ..planning import PlanOptions, Route, Step, Target, WorldState, initial_world, plan_route
+from ..planning import PlanOptions, WorldState, initial_world, plan_route
 from .escape import START_SLACK, escape_state, start_box
 from .monitor import ReplanRequest
 

@@ -9,8 +9,9 @@ import pytest
 
 from safepath import IKError, Robot, load_robot
 from safepath.cell import Cell
+from safepath.kinematics import LineOptions, solve_ik
 from safepath.kinematics import _ik_kernel as kernel
-from safepath.planning import LineOptions, cartesian_line, solve_ik
+from safepath.planning import cartesian_line
 from safepath.planning.cartesian import line_chain
 
 LINES = [("grip", "high1"), ("high2", "low1"), ("low1", "high2")]

@@ -19,11 +19,12 @@ import pytest
 import yaml
 
 from safepath import Cell, ConfigError, PlanningError, load_cell, load_trajectory
+from safepath.cell import load_routes
 from safepath.cell.pour_steps import Circle, Tilt
 from safepath.cell.routes import Route, Step, Target
 from safepath.cli import main
 from safepath.model.trajectory import Trajectory
-from safepath.planning import WorldState, load_routes, plan_cell, plan_route
+from safepath.planning import WorldState, plan_cell, plan_route
 
 REPO_ROOT = Path(__file__).resolve().parents[2]
 POURING = REPO_ROOT / "scenes" / "pouring_cell"

@@ -52,7 +52,7 @@ def planned(cell: Cell) -> dict[str, Trajectory]:
 
 def test_pick_and_place_keep_the_cup_upright(cell: Cell, planned: dict[str, Trajectory]
                                              ) -> None:
-    from safepath.planning import load_routes
+    from safepath.cell import load_routes
 
     routes = load_routes(POURING, poses=list(cell.poses), objects=list(cell.scene.objects))
     assert set(planned) == {"pick_cup", "slow_pour", "barista_pour", "place_cup"}

@@ -26,8 +26,8 @@ import safepath
 from safepath import PlannerOptions, PlanOptions, UnprovenClearance
 from safepath.model.robot import Robot
 from safepath.model.scene import Scene, SceneObject, Shape
-from safepath.planning import FclVerifier
 from safepath.timing import TimedPiece, spline_path, time_path
+from safepath.verify import FclVerifier
 
 ROOT = Path(__file__).resolve().parents[2]
 #: The arm's reach to its ball's centre and the two balls' radius [m].
