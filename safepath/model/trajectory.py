@@ -28,7 +28,8 @@ from .limits import MotionLimits
 
 __all__ = ["GripperEvent", "Trajectory", "load_trajectory"]
 
-FORMAT = "safepath.model.trajectory/1"
+#: The file format tag (unchanged since trajectories were first written: the module moved).
+FORMAT = "safepath.trajectory/1"
 
 
 @dataclass(frozen=True)

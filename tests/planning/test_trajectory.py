@@ -42,7 +42,7 @@ def test_json_round_trip_is_exact(bundled: Plans, tmp_path: Path) -> None:
     loaded = load_trajectory(path)
     _assert_same(traj, loaded)
     assert loaded.to_json() == text
-    assert json.loads(path.read_text())["format"] == "safepath.model.trajectory/1"
+    assert json.loads(path.read_text())["format"] == "safepath.trajectory/1"
 
 
 def test_csv_header_and_rows(bundled: Plans, tmp_path: Path) -> None:
