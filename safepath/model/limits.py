@@ -73,7 +73,7 @@ class MotionLimits:
             return NotImplemented
         return all(np.array_equal(getattr(self, n), getattr(other, n)) for n in _FIELDS)
 
-    __hash__ = None  # type: ignore[assignment]  (arrays: equal records need not hash alike)
+    __hash__ = None  # type: ignore[assignment]  # arrays inside: not hashable
 
     def columns(self, cols: Sequence[int]) -> MotionLimits:
         """The limits of the joints ``cols``, in that order."""

@@ -19,6 +19,7 @@ from ..files._io import brief
 from ..files.derived import Derived, DerivedValues
 from ._locked import LockedJoint
 from .controller_spec import ControllerSpec
+from .limits import MotionLimits
 from .tool import ToolSpec, check_tool
 
 __all__ = ["Robot", "ToolSpec", "adjacent_link_pairs", "frame_id", "joint_motion",
@@ -162,6 +163,12 @@ class Robot:
     def dof(self) -> int:
         """Number of joints."""
         return int(self.model.nq)
+
+    @property
+    def motion_limits(self) -> MotionLimits:
+        """Its joint velocity, acceleration and jerk limits, as one read-only record (what a
+        trajectory timed for it carries, :attr:`safepath.Trajectory.limits`)."""
+        return MotionLimits(self.velocity_limits, self.acceleration_limits, self.jerk_limits)
 
     @property
     def link_names(self) -> tuple[str, ...]:

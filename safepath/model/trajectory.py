@@ -21,7 +21,7 @@ from typing import Any, Literal
 
 import numpy as np
 
-from ..errors import TrajectoryError
+from ..errors import ConfigError, TrajectoryError
 from ..files._io import atomic_write_text, read_text
 from ._knots import interval_index
 from .limits import MotionLimits
@@ -252,14 +252,20 @@ class Trajectory:
         if not isinstance(data, dict) or data.get("format") != FORMAT:
             raise TrajectoryError(f"not a safepath trajectory (format {FORMAT!r} expected)",
                                   path=path, key="format")
+        info = dict(data.get("info", {}))
+        # Files written before the limits had a field of their own kept them in info.
+        raw = data.get("limits", info.pop("limits", None))
         try:
+            limits = None if raw is None else MotionLimits.from_dict(raw, path=path)
             events = tuple(GripperEvent(**e) for e in data.get("events", []))
             return cls(tuple(data["joint_names"]), np.array(data["t"], dtype=float),
                        np.array(data["q"], dtype=float), np.array(data["qd"], dtype=float),
                        np.array(data["qdd"], dtype=float),
                        np.array(data["step_index"], dtype=int), tuple(data.get("steps", [])),
                        events, str(data.get("robot", "")), str(data.get("route", "")),
-                       dict(data.get("info", {})))
+                       info, limits)
+        except ConfigError as exc:
+            raise TrajectoryError(exc.reason, path=path, key=exc.key) from None
         except KeyError as exc:
             raise TrajectoryError("missing key", path=path, key=str(exc.args[0])) from None
         except TrajectoryError as exc:
