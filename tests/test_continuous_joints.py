@@ -9,6 +9,7 @@ twin's hinges free.
 from __future__ import annotations
 
 import math
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -185,6 +186,20 @@ def test_the_goal_carries_unwrapped_continuous_positions(kinova: safepath.Robot)
     check_start(traj, measured, continuous=names)
     with pytest.raises(TrajectoryError, match="j2s6s200_joint_1"):
         check_start(traj, measured)
+
+
+def test_the_bag_carries_unwrapped_continuous_positions(kinova: safepath.Robot,
+                                                        tmp_path: Path) -> None:
+    from safepath.ros import read_bag, write_bag
+
+    q_goal = Q_UP.copy()
+    q_goal[0] = -2.9
+    traj = safepath.plan(kinova, _floor(), Q_UP, q_goal)
+    bag = write_bag(tmp_path / "jaco", [traj])
+    states = read_bag(bag).on("/joint_states")
+    base = np.array([m.msg.position[m.msg.name.index("j2s6s200_joint_1")] for m in states])
+    assert base[0] == pytest.approx(2.9) and base[-1] == pytest.approx(-2.9 + TURN)
+    assert np.max(np.abs(np.diff(base))) < 0.05  # 50 Hz, no jump of a turn
 
 
 def test_the_twin_leaves_continuous_hinges_free(kinova: safepath.Robot) -> None:
