@@ -2,8 +2,9 @@
 Kinova Jaco (``kinova``: six planned joints, ``j2s6s200_joint_1``, ``_4`` and ``_6``
 continuous): loaded without refusal, the collision geometry and the release check's the
 same a turn away, the short way round across +-pi, straight TCP lines and OMPL across
-the wrap, joint values continuous in the released trajectory and in its ROS 2 goal, the
-twin's hinges free.
+the wrap, joint values continuous in the released trajectory, its ROS 2 goal and bag, the
+twin's hinges free; and on the bundled Kinova Gen3 (``robots/gen3``, 7 DoF, four
+continuous joints).
 """
 
 from __future__ import annotations
@@ -210,3 +211,24 @@ def test_the_twin_leaves_continuous_hinges_free(kinova: safepath.Robot) -> None:
     for name, wraps in zip(kinova.joint_names, WRAPS, strict=True):
         j = model.model.joint(name)
         assert bool(model.model.jnt_limited[j.id]) is (not wraps)
+
+
+# Kinova's "Home" of the Gen3 (ros2_kortex's gen3.srdf, see robots/gen3/README.md) [rad].
+GEN3_HOME = np.array([0.0, 0.26, 3.14, -2.27, 0.0, 0.96, 1.57])
+
+
+def test_the_gen3_turns_its_base_and_wrist_the_short_way() -> None:
+    gen3 = safepath.load_robot("gen3")
+    assert gen3.dof == 7 and gen3.continuous == (True, False, True, False, True, False, True)
+    scene = Scene(name="floor", robot="gen3", objects=[FLOOR])
+    assert CollisionChecker(gen3, scene).check(GEN3_HOME).valid
+    q_start, q_goal = GEN3_HOME.copy(), GEN3_HOME.copy()
+    q_start[0], q_goal[0] = 3.0, -3.0  # across +-pi: 0.28 rad, not 6
+    q_goal[6] += math.radians(300.0)  # the bracelet: 60 degrees the other way
+    traj = safepath.plan(gen3, scene, q_start, q_goal)
+    travel = np.abs(np.diff(traj.q, axis=0)).sum(axis=0)
+    assert travel[0] == pytest.approx(TURN - 6.0, abs=1e-6)
+    assert travel[6] == pytest.approx(math.radians(60.0), abs=1e-6)
+    np.testing.assert_allclose(gen3.frame_pose(traj.q[-1]).homogeneous,
+                               gen3.frame_pose(q_goal).homogeneous, atol=1e-9)
+    assert _continuous_in_time(traj) < 0.01
