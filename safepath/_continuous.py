@@ -34,12 +34,16 @@ _PER_VELOCITY = ("armature", "damping", "friction", "rotorInertia", "rotorGearRa
                  "upperEffortLimit", "lowerVelocityLimit", "upperVelocityLimit")
 
 
-def _revolute_for(joint: pin.JointModel) -> pin.JointModel:
-    """The revolute joint model about the axis of the continuous joint ``joint``."""
-    kind = joint.shortname()
+def _revolute_for(model: pin.Model, j: int) -> pin.JointModel:
+    """The revolute joint model about the axis of ``model``'s continuous joint ``j``."""
+    kind = model.joints[j].shortname()
     if kind == "JointModelRevoluteUnboundedUnaligned":
-        axis = np.asarray(joint.extract().axis, dtype=float)
-        return pin.JointModel(pin.JointModelRevoluteUnaligned(axis))
+        # Its axis is not exposed to Python: read it from the motion subspace (angular
+        # part, in the joint frame; constant for a revolute joint).
+        data = model.createData()
+        pin.forwardKinematics(model, data, pin.neutral(model))
+        axis = np.asarray(data.joints[j].S, dtype=float).reshape(6)[3:]
+        return pin.JointModel(pin.JointModelRevoluteUnaligned(axis / np.linalg.norm(axis)))
     aligned = {"X": pin.JointModelRX, "Y": pin.JointModelRY, "Z": pin.JointModelRZ}
     return pin.JointModel(aligned[kind[-1]]())
 
@@ -68,7 +72,7 @@ def unbound_continuous(model: pin.Model, planned: Collection[str]) -> tuple[pin.
         q = slice(joint.idx_q, joint.idx_q + joint.nq)
         v = slice(joint.idx_v, joint.idx_v + joint.nv)
         if j in wraps:
-            built = _revolute_for(joint)
+            built = _revolute_for(model, j)
             lower, upper = np.array([-np.inf]), np.array([np.inf])
         else:
             built = joint

@@ -289,20 +289,25 @@ def test_the_jaco_with_continuous_joints_loads() -> None:
     assert robot.dof == 6 and sum(robot.continuous) == 3
 
 
-def test_a_continuous_joint_of_an_own_arm_loads(tmp_path: Path) -> None:
-    """A URDF ``continuous`` joint (no ``lower``/``upper``) loads from the URDF alone and
-    from a robot folder: the same arm, its joint4 without position limits, the same
-    placements at every angle as the revolute joint it was."""
-    text = ARM_URDF.read_text().replace(
+@pytest.mark.parametrize("axis", ["0 0 1", "0 0.6 0.8"], ids=["aligned", "unaligned"])
+def test_a_continuous_joint_of_an_own_arm_loads(tmp_path: Path, axis: str) -> None:
+    """A URDF ``continuous`` joint (no ``lower``/``upper``; about a frame axis or any
+    other) loads from the URDF alone and from a robot folder: the same arm, its joint4
+    without position limits, the same placements at every angle as the revolute joint
+    it was."""
+    revolute = ARM_URDF.read_text().replace('<origin xyz="0 0 0.28"/><axis xyz="0 0 1"/>',
+                                            f'<origin xyz="0 0 0.28"/><axis xyz="{axis}"/>')
+    text = revolute.replace(
         '<joint name="joint4" type="revolute">', '<joint name="joint4" type="continuous">'
     ).replace('<limit lower="-3.0" upper="3.0" velocity="3.0" effort="5"/>\n  </joint>\n'
               '  <link name="link4">', '<limit velocity="3.0" effort="5"/>\n  </joint>\n'
               '  <link name="link4">')
-    assert text.count('<limit velocity="3.0" effort="5"/>') == 1
+    assert text.count('<limit velocity="3.0" effort="5"/>') == 1 and text.count(axis) >= 1
+    (tmp_path / "bounded.urdf").write_text(revolute)
     (tmp_path / "arm.urdf").write_text(text)
     folder = _arm_copy(tmp_path)
     (folder / "arm.urdf").write_text(text)
-    bounded = load_robot(ARM_DIR)
+    bounded = load_robot(tmp_path / "bounded.urdf", acceleration_limits=ARM_ACC)
     for robot in (load_robot(tmp_path / "arm.urdf", acceleration_limits=ARM_ACC),
                   load_robot(folder)):
         assert robot.joint_names == ARM_JOINTS
