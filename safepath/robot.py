@@ -117,12 +117,7 @@ class Robot:
         self.joint_names: tuple[str, ...] = tuple(model.names[1:])
         self.lower = np.array(model.lowerPositionLimit, dtype=float)
         self.upper = np.array(model.upperPositionLimit, dtype=float)
-        #: Per joint (in :attr:`joint_names` order), whether it is continuous: a revolute
-        #: joint without position limits (-inf .. +inf in ``model``: a URDF
-        #: ``continuous`` joint, see :mod:`safepath._continuous`). Its coordinate is an
-        #: unwrapped angle [rad]: values a whole turn apart are the same placement, and a
-        #: motion moves it continuously (never by a jump of a turn).
-        self.continuous: tuple[bool, ...] = _continuous_joints(model)
+        self._revolute = _revolute_joints(model)
         self.velocity_limits = np.asarray(velocity_limits, dtype=float)
         self.acceleration_limits = np.asarray(acceleration_limits, dtype=float)
         #: Joint jerk limits [rad/s^3]: the robot folder's ``jerk_limits`` (vendor numbers
@@ -168,6 +163,17 @@ class Robot:
     def dof(self) -> int:
         """Number of joints."""
         return int(self.model.nq)
+
+    @property
+    def continuous(self) -> tuple[bool, ...]:
+        """Per joint (in :attr:`joint_names` order), whether it is continuous: a revolute
+        joint without position limits (:attr:`lower` -inf, :attr:`upper` +inf: a URDF
+        ``continuous`` joint, see :mod:`safepath._continuous`). Its coordinate is an
+        unwrapped angle [rad]: values a whole turn apart are the same placement, and a
+        motion moves it continuously (never by a jump of a turn). Giving such a joint
+        finite limits (``robot.lower[j] = ...``) makes it a bounded revolute joint."""
+        return tuple(bool(r and self.lower[j] == -np.inf and self.upper[j] == np.inf)
+                     for j, r in enumerate(self._revolute))
 
     @property
     def link_names(self) -> tuple[str, ...]:
@@ -270,15 +276,12 @@ class Robot:
         return frame_id(self.model, frame)
 
 
-def _continuous_joints(model: pin.Model) -> tuple[bool, ...]:
-    """Per joint of ``model``: a revolute joint whose position limits are -inf .. +inf."""
+def _revolute_joints(model: pin.Model) -> tuple[bool, ...]:
+    """Per joint of ``model``: whether it is a 1-DoF revolute joint."""
     out = []
     for j in range(1, model.njoints):
         motion = joint_motion(model, j)
-        iq = model.joints[j].idx_q
-        out.append(bool(motion is not None and motion[0] == "revolute"
-                        and model.lowerPositionLimit[iq] == -np.inf
-                        and model.upperPositionLimit[iq] == np.inf))
+        out.append(motion is not None and motion[0] == "revolute")
     return tuple(out)
 
 

@@ -57,6 +57,17 @@ def test_the_jaco_loads_with_its_continuous_joints(kinova: safepath.Robot) -> No
     assert kinova.tcp_frame == "j2s6s200_end_effector"
 
 
+def test_limits_given_to_a_continuous_joint_bound_it() -> None:
+    robot = safepath.load_robot("kinova")
+    q_far = Q_UP.copy()
+    q_far[0] = -2.9
+    assert robot.nearest_turn(q_far, Q_UP)[0] == pytest.approx(-2.9 + TURN)
+    robot.lower[0], robot.upper[0] = -3.0, 3.0
+    assert robot.continuous == (False, *WRAPS[1:])
+    assert robot.nearest_turn(q_far, Q_UP)[0] == -2.9  # the long way: the limits say so
+    assert "j2s6s200_joint_1" in str(robot.limit_violation(Q_UP + np.array([TURN, 0, 0, 0, 0, 0])))
+
+
 def test_the_rebuilt_joints_place_the_links_as_pinocchio_does(kinova: safepath.Robot) -> None:
     """The revolute joint of one angle places every frame where Pinocchio's own
     continuous joint (cos, sin) does."""
