@@ -26,7 +26,7 @@ import numpy as np
 
 from ..collision import CollisionChecker
 from ..errors import PlannerTimeout, PlanningError
-from ..robot import Robot
+from ..model.robot import Robot
 
 if TYPE_CHECKING:
     from .options import PlannerOptions
