@@ -31,7 +31,7 @@ from __future__ import annotations
 import dataclasses
 import itertools
 import math
-from collections.abc import Mapping, Sequence
+from collections.abc import Collection, Mapping, Sequence
 from typing import Any, Literal
 
 import numpy as np
@@ -515,7 +515,7 @@ def split_at_gripper_events(traj: Trajectory) -> list[Trajectory | GripperEvent]
 
 
 def check_start(traj: Trajectory, positions: Mapping[str, float], *,
-                tolerance: float = 0.05) -> None:
+                tolerance: float = 0.05, continuous: Collection[str] = ()) -> None:
     """Refuse to start ``traj`` unless the arm is at its first point.
 
     A trajectory controller given a first point away from the arm's pose bridges the gap
@@ -523,10 +523,18 @@ def check_start(traj: Trajectory, positions: Mapping[str, float], *,
     within the goal tolerance (<= 0.03 rad); the default catches an arm that is
     somewhere else (after a fault, a manual move), not tracking error.
 
+    A continuous joint's measured angle may lie any number of whole turns from the
+    trajectory's (``/joint_states`` may report it wrapped): its difference is taken
+    modulo a turn, as ros2_control's joint_trajectory_controller does for a URDF
+    ``continuous`` joint (it moves its own start by whole turns next to the goal's first
+    point, then follows the points as they are: see docs/ros.md).
+
     Args:
         traj: The trajectory about to be sent.
         positions: Measured joint positions by name [rad] (e.g. from ``/joint_states``).
         tolerance: Largest allowed difference per joint [rad].
+        continuous: Names of the continuous joints (``[n for n, c in
+            zip(robot.joint_names, robot.continuous) if c]``).
 
     Raises:
         TrajectoryError: A joint missing from ``positions`` or too far from the start.
@@ -535,6 +543,8 @@ def check_start(traj: Trajectory, positions: Mapping[str, float], *,
         if name not in positions:
             raise TrajectoryError(f"no measured position for '{name}'", key="positions")
         error = abs(float(positions[name]) - float(traj.q[0, k]))
+        if name in continuous:  # the nearest whole number of turns away
+            error = abs(math.remainder(error, 2.0 * math.pi))
         if not error <= tolerance:
             raise TrajectoryError(f"'{name}' is {error:.4f} rad from the start of route "
                                   f"'{traj.route}' (tolerance {tolerance} rad)",
