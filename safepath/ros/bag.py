@@ -46,10 +46,10 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 from rosbags.rosbag2 import Reader, ReaderError, StoragePlugin, Writer, WriterError
 
-from .._knots import interval_index
-from ..controller_spec import ControllerSpec
 from ..errors import RosError, TrajectoryError
-from ..trajectory import GripperEvent, Trajectory
+from ..model._knots import interval_index
+from ..model.controller_spec import ControllerSpec
+from ..model.trajectory import GripperEvent, Trajectory
 from .goals import (
     controller_of,
     follow_joint_trajectory_goal,
@@ -60,7 +60,7 @@ from .gripper import gripper_command_goal
 from .messages import deserialize, serialize, typestore
 
 if TYPE_CHECKING:
-    from .._locked import LockedJoint
+    from ..model._locked import LockedJoint
 
 __all__ = ["ARM_GOAL_TOPIC", "BagContents", "BagMessage", "GRIPPER_GOAL_TOPIC", "GRIPPER_TOPIC",
            "JOINT_STATES_TOPIC", "ROUTE_TOPIC", "TRAJECTORY_TOPIC", "read_bag", "write_bag"]

@@ -19,7 +19,7 @@ from typing import Any
 import numpy as np
 import viser
 
-from ..robot import Robot
+from ..model.robot import Robot
 
 __all__ = ["NO_ROUTE", "NO_POSE", "JOINT_DECIMALS", "typed_joint", "show_joint", "Panel",
            "EditPanel", "build_panel", "build_edit_panel", "clearance_plot_data",

@@ -28,11 +28,11 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from ..._digest import sha256
-from ...derived import DerivedKind
 from ...errors import InputError, TimingError
-from ...execution import LIMITS_KEY, robot_limits
-from ...trajectory import Trajectory
+from ...files._digest import sha256
+from ...files.derived import DerivedKind
+from ...model.execution import LIMITS_KEY, robot_limits
+from ...model.trajectory import Trajectory
 
 if TYPE_CHECKING:
     from ...cell import Cell
