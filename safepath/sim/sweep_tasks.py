@@ -18,6 +18,8 @@ any backend.
 
 from __future__ import annotations
 
+import dataclasses
+import json
 from dataclasses import dataclass
 from typing import Any
 
@@ -26,6 +28,11 @@ from .pouring import PouringParams, run_pouring
 from .quality_check import QualityCheckParams, run_quality_check
 
 __all__ = ["PouringTask", "QualityCheckTask"]
+
+
+def _data(params: Any) -> dict[str, Any]:
+    """Frozen parameters as JSON data (nested dataclasses as objects), for an identity."""
+    return dict(json.loads(json.dumps(dataclasses.asdict(params), default=repr)))
 
 
 def _kept(run: Any) -> bool:
@@ -63,7 +70,7 @@ class PouringTask:
 
     def identity(self) -> dict[str, Any]:
         """The twin, the scene and the parameters."""
-        return {"kind": "pouring twin", "scene": self.scene, "params": repr(self.params)}
+        return {"kind": "pouring twin", "scene": self.scene, "params": _data(self.params)}
 
     def labels(self) -> dict[str, str]:
         """The report's words."""
@@ -121,7 +128,7 @@ class QualityCheckTask:
     def identity(self) -> dict[str, Any]:
         """The twin, the scene and each variant's parameters."""
         return {"kind": "quality-check twin", "scene": self.scene,
-                "variants": [[key, repr(params)] for key, params in self.variants]}
+                "variants": {key: _data(params) for key, params in self.variants}}
 
     def labels(self) -> dict[str, str]:
         """The report's words."""

@@ -12,14 +12,18 @@ _W, _H = 560, 220
 _LEFT, _RIGHT, _TOP, _BOTTOM = 52, 16, 14, 42
 
 
-def _num(value: float) -> str:
-    """A tick's number, short."""
-    return f"{value:.4g}"
+def _num(value: float, other: float | None = None) -> str:
+    """A tick's number, short, with the digits that tell it from ``other``."""
+    for digits in (4, 6, 9, 17):
+        text = f"{value:.{digits}g}"
+        if other is None or text != f"{other:.{digits}g}":
+            return text
+    return text
 
 
 def histogram_svg(dist: Distribution) -> str:
     """The distribution's histogram: bars, axes, the range and the largest count."""
-    head = (f'<svg class="plot" data-key="{escape(dist.key)}" xmlns="http://www.w3.org/2000/svg" '
+    head = (f'<svg class="plot" data-key="{escape(dist.key)}" '
             f'width="{_W}" height="{_H}" viewBox="0 0 {_W} {_H}" role="img" '
             f'aria-label="{escape(dist.label)}">')
     if not dist.counts:
@@ -42,9 +46,10 @@ def histogram_svg(dist: Distribution) -> str:
         f'<line x1="{_LEFT}" y1="{_TOP}" x2="{_LEFT}" y2="{base}" stroke="#333"/>',
         f'<text x="{_LEFT - 4}" y="{_TOP + 10}" text-anchor="end" font-size="11">{top}</text>',
         f'<text x="{_LEFT - 4}" y="{base}" text-anchor="end" font-size="11">0</text>',
-        f'<text x="{_LEFT}" y="{base + 16}" font-size="11">{_num(dist.edges[0])}</text>',
+        f'<text x="{_LEFT}" y="{base + 16}" font-size="11">'
+        f"{_num(dist.edges[0], dist.edges[-1])}</text>",
         f'<text x="{_LEFT + plot_w}" y="{base + 16}" text-anchor="end" font-size="11">'
-        f"{_num(dist.edges[-1])}</text>",
+        f"{_num(dist.edges[-1], dist.edges[0])}</text>",
         f'<text x="{_LEFT + plot_w / 2}" y="{base + 34}" text-anchor="middle" '
         f'font-size="12">{escape(dist.label)}</text>',
         f'<text x="14" y="{_TOP + plot_h / 2}" text-anchor="middle" font-size="11" '

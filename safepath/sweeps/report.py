@@ -116,7 +116,7 @@ def report_lines(report: Mapping[str, Any]) -> list[str]:
 _STYLE = ("body{font-family:sans-serif;margin:24px;color:#222;max-width:1200px}"
           "table{border-collapse:collapse}td,th{border-bottom:1px solid #ddd;padding:4px 10px;"
           "text-align:left}code{background:#f4f4f4;padding:1px 4px}"
-          ".plots{display:flex;flex-wrap:wrap;gap:18px}.plots figure{margin:0}"
+          ".plots{display:flex;flex-wrap:wrap;gap:18px}.plots figure{margin:0;width:560px}"
           "figcaption{font-size:13px;color:#444}.bad{color:#a00}")
 
 

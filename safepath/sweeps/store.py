@@ -147,10 +147,10 @@ class ResultStore:
 
 
 def _differs(found: dict[str, Any], wanted: dict[str, Any]) -> str:
-    """The first header key whose value differs, in words."""
+    """The first header key whose value differs (dotted, into nested objects), in words."""
     for key in sorted(set(found) | set(wanted)):
         if found.get(key) != wanted.get(key):
             if isinstance(found.get(key), dict) and isinstance(wanted.get(key), dict):
                 return f"{key}.{_differs(found[key], wanted[key])}"
-            return f"'{key}' is {found.get(key)!r:.80}, this sweep's {wanted.get(key)!r:.80}"
+            return f"{key} is {found.get(key)!r:.60}, this sweep's {wanted.get(key)!r:.60}"
     return "same"
