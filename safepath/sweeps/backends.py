@@ -1,8 +1,9 @@
 """Where a sweep's tasks run: this process, a local process pool (the default), or Ray.
 
-A backend sends the task (pickled once per worker process, or put once in Ray's object
-store) and each seed, runs :func:`~safepath.sweeps.task.execute` there, and yields each
-seed's result as it finishes, in whatever order they finish: the sweep writes them down
+A backend sends the task (pickled with each seed for the local pool, a few hundred bytes;
+put once in Ray's object store for Ray) and each seed, runs
+:func:`~safepath.sweeps.task.execute` there, and yields each seed's result as it
+finishes, in whatever order they finish: the sweep writes them down
 keyed by seed, so the order changes nothing of the results.
 """
 
