@@ -27,7 +27,7 @@ from ..sweeps import TaskResult
 from .pouring import PouringParams, run_pouring
 from .quality_check import QualityCheckParams, run_quality_check
 
-__all__ = ["PouringTask", "QualityCheckTask"]
+__all__ = ["PouringTask", "QualityCheckTask", "LiveSafetyTask"]
 
 
 def _data(params: Any) -> dict[str, Any]:
@@ -146,6 +146,67 @@ class QualityCheckTask:
                     f"{key}.clearance": f"executed clearance [mm] ({key})",
                     f"{key}.robot_idle": f"robot idle [%] ({key})"}
         return out
+
+    def replay(self, seed: int) -> str:
+        """The command that runs ``seed`` alone."""
+        return self.replay_command.format(seed=seed)
+
+
+@dataclass(frozen=True)
+class LiveSafetyTask:
+    """One run of the live-safety suite per seed (the body, silences and kill it draws).
+
+    Attributes:
+        scene: The cell's scene folder (a path every worker can read).
+        duration: Simulated time per run [s].
+        replay_command: The command of one seed, ``{seed}`` in place of the seed.
+    """
+
+    scene: str
+    duration: float
+    replay_command: str
+
+    def __call__(self, seed: int) -> TaskResult:
+        """Run the suite's seed ``seed``."""
+        from .live_safety import run_live_safety
+
+        run = run_live_safety(self.scene, seed, duration=self.duration)
+        obstacle = run.obstacle
+        return TaskResult(
+            figures={"closest_moving": 1000 * obstacle.closest_moving,
+                     "commanded_speed": obstacle.commanded_speed.ratio,
+                     "commanded_acceleration": obstacle.commanded_acceleration.ratio,
+                     "commanded_jerk": obstacle.commanded_jerk.ratio,
+                     "replan_requests": float(run.replan_requests)},
+            checks={"passed": run.ok,
+                    "no_contact_moving": not run.contact_moving,
+                    "separation_kept": obstacle.closest_moving >= run.min_separation,
+                    "no_goal_after_kill": not run.goals_after_kill,
+                    "no_deferred_stop": run.stats.get("deferred", 0) == 0,
+                    "stops_within_limits": run.stats.get("stops_over_limit", 0) == 0,
+                    "switches_continuous": run.switch_steps == 0,
+                    "nothing_dropped": not run.dropped})
+
+    def identity(self) -> dict[str, Any]:
+        """The suite, the scene and the run's duration."""
+        return {"kind": "live-safety suite", "scene": self.scene, "duration": self.duration}
+
+    def labels(self) -> dict[str, str]:
+        """The report's words."""
+        return {
+            "passed": "runs that passed every invariant of the suite",
+            "no_contact_moving": "runs without contact while the arm moves",
+            "separation_kept": "runs keeping the protective minimum while moving",
+            "no_goal_after_kill": "runs with no goal after a kill (but its stop)",
+            "no_deferred_stop": "runs with no deferred stop",
+            "stops_within_limits": "runs with every stop within the limits",
+            "switches_continuous": "runs whose goal switches never step the controller",
+            "nothing_dropped": "runs dropping no held object",
+            "closest_moving": "closest approach while the arm moves [mm]",
+            "commanded_speed": "commanded speed / limit, largest",
+            "commanded_acceleration": "commanded acceleration / limit, largest",
+            "commanded_jerk": "commanded jerk / limit, largest",
+            "replan_requests": "re-plan requests per run"}
 
     def replay(self, seed: int) -> str:
         """The command that runs ``seed`` alone."""

@@ -62,3 +62,21 @@ def test_failed_pours_are_listed_with_their_replay_command(repo_root: Path, tmp_
         (4, "safepath sim scenes/pouring_cell --seed 4 --runs 1")]
     masses = next(d for d in outcome.report["distributions"] if d["key"] == "final_mass")
     assert masses["count"] == 2 and masses["max"] < 1.0
+
+
+def test_the_live_safety_suite_as_a_sweep_reports_its_runs(cell_dir: Path, tmp_path: Path
+                                                           ) -> None:
+    """Each seed's checks are the suite's own judgement of the same run."""
+    from safepath.sim.live_safety import run_live_safety
+    from safepath.sim.sweep_tasks import LiveSafetyTask
+
+    task = LiveSafetyTask(str(cell_dir), 3.0, "replay {seed}")
+    outcome = run_sweep(task, [24, 25], tmp_path / "live",
+                        SweepOptions(workers=1, progress=False, title="live"))
+    direct = run_live_safety(str(cell_dir), 24, duration=3.0)
+    result = outcome.results[24]
+    assert result.checks["passed"] == direct.ok
+    assert result.figures["closest_moving"] == 1000 * direct.obstacle.closest_moving
+    assert result.figures["commanded_jerk"] == direct.obstacle.commanded_jerk.ratio
+    assert {r["key"] for r in outcome.report["rates"]} >= {"passed", "separation_kept",
+                                                           "no_goal_after_kill"}
