@@ -17,7 +17,7 @@ from typing import Protocol
 from ..errors import InputError
 from .task import Finished, SweepTask, execute
 
-__all__ = ["Backend", "InProcess", "LocalPool", "make_backend"]
+__all__ = ["Backend", "InProcess", "LocalPool", "make_backend", "check_options"]
 
 
 class Backend(Protocol):
@@ -76,6 +76,23 @@ class LocalPool:
         """The pool closes with each run."""
 
 
+def check_options(workers: int | None, cluster: str | None) -> None:
+    """Refuse backend options that name no backend.
+
+    Raises:
+        InputError: ``workers`` < 1, or a cluster address other than ``auto`` or
+            ``ray://HOST:PORT``.
+    """
+    if workers is not None and (isinstance(workers, bool) or not isinstance(workers, int)
+                                or workers < 1):
+        raise InputError(f"expected an integer >= 1, got {workers!r}", key="--workers")
+    if cluster is not None and cluster != "auto" and not (
+            isinstance(cluster, str) and cluster.startswith("ray://")
+            and len(cluster) > len("ray://")):
+        raise InputError(f"expected 'auto' or 'ray://HOST:PORT', got {cluster!r}",
+                         key="--cluster")
+
+
 def make_backend(*, workers: int | None = None, cluster: str | None = None) -> Backend:
     """The backend the options name.
 
@@ -87,16 +104,10 @@ def make_backend(*, workers: int | None = None, cluster: str | None = None) -> B
             sweep); ``ray://HOST:PORT`` for a Ray cluster's client server.
 
     Raises:
-        InputError: ``workers`` < 1, or a cluster address of another form.
+        InputError: Options that name no backend (:func:`check_options`).
     """
-    if workers is not None and (isinstance(workers, bool) or not isinstance(workers, int)
-                                or workers < 1):
-        raise InputError(f"expected an integer >= 1, got {workers!r}", key="--workers")
+    check_options(workers, cluster)
     if cluster is not None:
-        if cluster != "auto" and not (cluster.startswith("ray://")
-                                      and len(cluster) > len("ray://")):
-            raise InputError(f"expected 'auto' or 'ray://HOST:PORT', got {cluster!r}",
-                             key="--cluster")
         from ._ray import RayCluster
 
         return RayCluster(cluster, workers=workers)

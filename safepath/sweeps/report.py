@@ -98,8 +98,13 @@ def build_report(title: str, results: Mapping[int, TaskResult], labels: Mapping[
     }
 
 
+#: Failed seeds :func:`report_lines` lists (all of them are in the report's files).
+LINES_OF_FAILURES = 20
+
+
 def report_lines(report: Mapping[str, Any]) -> list[str]:
-    """The report in a few lines of text (the command line prints them)."""
+    """The report in a few lines of text (the command line prints them): the rates, the
+    distributions, and the first :data:`LINES_OF_FAILURES` failed seeds."""
     lines = [f"{report['title']}: {report['seeds']['count']} runs"]
     lines += [f"  {r['text']}" for r in report["rates"]]
     for d in report["distributions"]:
@@ -107,9 +112,13 @@ def report_lines(report: Mapping[str, Any]) -> list[str]:
             lines.append(f"  {d['label']}: mean {d['mean']:.4g}, std {d['std']:.3g}, "
                          f"min {d['min']:.4g}, median {d['median']:.4g}, max {d['max']:.4g} "
                          f"({int(d['count'])} values)")
-    for f in report["failures"]:
+    failures = report["failures"]
+    for f in failures[:LINES_OF_FAILURES]:
         why = f["error"] or ", ".join(f["failed"])
         lines.append(f"  FAILED seed {f['seed']}: {why}; replay: {f['replay']}")
+    if len(failures) > LINES_OF_FAILURES:
+        lines.append(f"  ... and {len(failures) - LINES_OF_FAILURES} more failed seeds: "
+                     "report.html, report.json")
     return lines
 
 

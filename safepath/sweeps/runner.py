@@ -17,7 +17,7 @@ from pathlib import Path
 from typing import Any
 
 from ..errors import InputError
-from .backends import make_backend
+from .backends import check_options, make_backend
 from .progress import Progress
 from .report import build_report, write_report
 from .store import ResultStore
@@ -45,6 +45,9 @@ class SweepOptions:
     cluster: str | None = None
     progress: bool = True
     title: str = "sweep"
+
+    def __post_init__(self) -> None:
+        check_options(self.workers, self.cluster)
 
 
 @dataclass(frozen=True)
@@ -90,7 +93,8 @@ def run_sweep(task: SweepTask, seeds: Iterable[int], out: str | Path,
         options: Backend and progress.
 
     Raises:
-        InputError: No seed, bad options, or ``out`` holds another sweep's results.
+        InputError: No seed, bad options (:class:`SweepOptions`), or ``out`` holds
+            another sweep's results.
     """
     options = options or SweepOptions()
     seed_list = _seed_list(seeds)

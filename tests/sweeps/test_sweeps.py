@@ -76,7 +76,9 @@ def test_another_task_or_a_broken_middle_line_is_refused(task: Any, cell_dir: Pa
     with pytest.raises(InputError, match="twice"):
         run_sweep(task, [1, 1], tmp_path / "twice", QUIET)
     with pytest.raises(InputError, match="--cluster"):
-        run_sweep(task, [1], tmp_path / "bad", SweepOptions(cluster="http://host:1"))
+        SweepOptions(cluster="http://host:1")
+    with pytest.raises(InputError, match="--workers"):
+        SweepOptions(workers=0)
 
 
 def test_this_process_a_local_pool_and_ray_give_the_same_results(task: Any, tmp_path: Path
