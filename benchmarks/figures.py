@@ -225,8 +225,8 @@ def _live_safety(d: dict[str, Any]) -> list[Row]:
 
 def _sweeps(d: dict[str, Any]) -> list[Row]:
     rows = d["backends"]
-    one, two = rows["local pool, 1 process"], rows["local pool, 2 processes"]
-    text = (f"{one['per_s']:.2f} / {two['per_s']:.2f} runs/s on 1 / 2 processes "
+    one, two = rows["this process"], rows["local pool, 2 processes"]
+    text = (f"{one['per_s']:.2f} / {two['per_s']:.2f} runs/s in 1 process / a pool of 2 "
             f"({two['per_s'] / one['per_s']:.2f}x)")
     ray = rows.get("Ray, local runtime of 2 CPUs")
     if ray is not None:

@@ -3,14 +3,14 @@ overhead against the pool on the same machine.
 
 Runs the same sweep (``safepath.sweeps.run_sweep``: the quality-check twin, safepath
 architecture, ``--duration`` simulated seconds, a vial every 2 s, seeds 0 .. ``--runs`` - 1)
-into a fresh folder with each backend: a local pool of 1 and of 2 processes
-(``LocalPool``), then Ray (a local runtime started with 2 CPUs, ``cluster="auto"``; its
-start and shutdown timed apart). This process plans the cell first, so the pool's forked
-workers start planned; Ray's workers are new processes that plan once each (part of what
-Ray costs here). Prints seconds and seeds per second per backend, the speed-up of two
-processes over one, Ray against the pool of 2, the machine's load before and after, and
-checks that every backend wrote the same results. ``--save`` writes
-``benchmarks/results/sweeps.json``.
+into a fresh folder with each backend: 1 process (``workers=1``: this one) and a local
+pool of 2, then Ray (a local runtime of 2 CPUs started here, its start and shutdown timed
+apart; ``cluster="auto"`` finds it). This process plans the cell first, so the pool's
+forked workers start planned; Ray's workers are new processes that import safepath and
+plan once each (part of what Ray costs here). Prints seconds and seeds per second per
+backend, the speed-up of two processes over one, Ray against the pool of 2, the
+machine's load before and after, and checks that every backend wrote the same results.
+``--save`` writes ``benchmarks/results/sweeps.json``.
 
     .venv/bin/python benchmarks/sweeps.py [--runs 16] [--duration 30] [--no-ray] [--save]
 """
@@ -37,18 +37,13 @@ def _lines(folder: Path) -> dict[int, Any]:
     return {row["seed"]: row["result"] for row in rows}
 
 
-def _timed(task: Any, seeds: range, folder: Path, backend: Any) -> float:
-    """Wall time [s] of the whole sweep on ``backend`` (results file, report included)."""
-    from safepath.sweeps import runner
+def _timed(task: Any, seeds: range, folder: Path, **backend: Any) -> float:
+    """Wall time [s] of the whole sweep (results file, report included)."""
+    from safepath.sweeps import SweepOptions, run_sweep
 
-    original = runner.make_backend
-    runner.make_backend = lambda **_: backend  # type: ignore[assignment]
-    try:
-        t0 = time.perf_counter()
-        runner.run_sweep(task, seeds, folder, runner.SweepOptions(progress=False))
-        return time.perf_counter() - t0
-    finally:
-        runner.make_backend = original
+    t0 = time.perf_counter()
+    run_sweep(task, seeds, folder, SweepOptions(progress=False, **backend))
+    return time.perf_counter() - t0
 
 
 def main() -> None:
@@ -62,7 +57,6 @@ def main() -> None:
 
     from safepath.sim.quality_check import QualityCheckParams
     from safepath.sim.sweep_tasks import QualityCheckTask
-    from safepath.sweeps.backends import LocalPool
     from safepath.sweeps.task import execute
 
     params = QualityCheckParams(duration=args.duration, arrival_interval=2.0)
@@ -73,19 +67,20 @@ def main() -> None:
     rows: dict[str, dict[str, float]] = {}
     with tempfile.TemporaryDirectory(prefix="sweeps-bench-") as tmp:
         for workers in (1, 2):
-            wall = _timed(task, seeds, Path(tmp) / f"pool{workers}", LocalPool(workers))
-            rows[f"local pool, {workers} process{'es' if workers > 1 else ''}"] = {
+            wall = _timed(task, seeds, Path(tmp) / f"pool{workers}", workers=workers)
+            rows["this process" if workers == 1 else f"local pool, {workers} processes"] = {
                 "wall_s": wall, "per_s": args.runs / wall}
         same = True
         if not args.no_ray:
-            from safepath.sweeps._ray import RayCluster
+            import ray
 
+            # Started here, timed apart: the sweep finds it running and leaves it be.
             t0 = time.perf_counter()
-            ray_backend = RayCluster("auto", workers=2)
+            ray.init(num_cpus=2, include_dashboard=False, log_to_driver=False)
             start = time.perf_counter() - t0
-            wall = _timed(task, seeds, Path(tmp) / "ray", ray_backend)
+            wall = _timed(task, seeds, Path(tmp) / "ray", workers=2, cluster="auto")
             t0 = time.perf_counter()
-            ray_backend.close()
+            ray.shutdown()
             stop = time.perf_counter() - t0
             rows["Ray, local runtime of 2 CPUs"] = {"wall_s": wall, "per_s": args.runs / wall,
                                                     "start_s": start, "shutdown_s": stop}

@@ -82,6 +82,29 @@ def _seed_list(seeds: Iterable[int]) -> list[int]:
     return out
 
 
+def _run_missing(task: SweepTask, todo: list[int], store: ResultStore,
+                 options: SweepOptions, total: int) -> tuple[list[int], str]:
+    """Run the seeds the file lacks, each written down as it finishes.
+
+    Returns:
+        The seeds run, in the order they finished, and where they ran.
+    """
+    if not todo:
+        return [], "none (every seed was in the file)"
+    backend = make_backend(workers=options.workers, cluster=options.cluster)
+    bar = Progress(total, total - len(todo), enabled=options.progress, label=options.title)
+    ran: list[int] = []
+    try:
+        for seed, data, duration in backend.run(task, todo):
+            result = store.append(seed, data, duration)
+            ran.append(seed)
+            bar.advance(failed=not result.ok)
+    finally:
+        bar.close()
+        backend.close()
+    return ran, backend.name
+
+
 def run_sweep(task: SweepTask, seeds: Iterable[int], out: str | Path,
               options: SweepOptions | None = None) -> SweepOutcome:
     """Run ``task`` for every seed not yet in ``out``, then write its report.
@@ -102,28 +125,12 @@ def run_sweep(task: SweepTask, seeds: Iterable[int], out: str | Path,
     if folder.exists() and not folder.is_dir():
         raise InputError("exists and is no folder", path=folder, key="--out")
     t0 = time.perf_counter()
-    ran: list[int] = []
     with ResultStore(folder / RESULTS, task.identity()) as store:
         todo = [s for s in seed_list if s not in store.finished]
-        backend = make_backend(workers=options.workers, cluster=options.cluster) \
-            if todo else None
-        try:
-            bar = Progress(len(seed_list), len(seed_list) - len(todo),
-                           enabled=options.progress and bool(todo), label=options.title)
-            try:
-                for seed, data, duration in (backend.run(task, todo) if backend else ()):
-                    result = store.append(seed, data, duration)
-                    ran.append(seed)
-                    bar.advance(failed=not result.ok)
-            finally:
-                bar.close()
-        finally:
-            if backend is not None:
-                backend.close()
+        ran, where = _run_missing(task, todo, store, options, len(seed_list))
         results = {s: store.finished[s] for s in sorted(seed_list)}
         computed = sum(store.times[s] for s in seed_list)
     load = os.getloadavg()
-    where = backend.name if backend else "none (every seed was in the file)"
     run = {"backend": where,
            "seeds run now": len(ran), "wall time now [s]": round(time.perf_counter() - t0, 2),
            "computation of all seeds [s]": round(computed, 2),
