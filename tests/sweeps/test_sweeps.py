@@ -94,7 +94,7 @@ def test_this_process_a_local_pool_and_ray_give_the_same_results(task: Any, tmp_
                        SweepOptions(workers=2, cluster="auto", progress=False, title="quick"))
     assert not ray.is_initialized()  # the runtime the sweep started is shut down
     assert here.backend == "this process" and "pool of 2" in pool.backend
-    assert on_ray.backend.startswith("Ray at auto (2 CPUs)")
+    assert on_ray.backend.startswith("Ray at auto")
     assert _by_seed(tmp_path / "here") == _by_seed(tmp_path / "pool") \
         == _by_seed(tmp_path / "ray")
     assert _figures(here.report) == _figures(pool.report) == _figures(on_ray.report)
