@@ -14,7 +14,7 @@ import logging
 from collections.abc import Iterator, Sequence
 from typing import Any
 
-from ..errors import InputError
+from ..errors import InputError, WorkerLost
 from .task import Finished, SweepTask, execute
 
 __all__ = ["RayCluster"]
@@ -40,6 +40,7 @@ class RayCluster:
 
     Raises:
         InputError: Ray is not installed, or no cluster answers at ``address``.
+        WorkerLost: (from :meth:`run`) Ray lost a worker or a node while seeds ran.
     """
 
     def __init__(self, address: str, *, workers: int | None = None) -> None:
@@ -79,6 +80,10 @@ class RayCluster:
                 done, pending = ray.wait(pending, num_returns=1)
                 for ref in done:
                     yield ray.get(ref)
+        except ray.exceptions.RayError as exc:  # a worker or node lost, not a seed's error
+            raise WorkerLost(f"Ray lost a seed's worker ({type(exc).__name__}: {exc}"[:300]
+                             + "): the seeds finished before are kept; run the sweep again "
+                             "to finish the others") from None
         finally:
             for ref in pending:  # a stop (Ctrl-C, an error): run no more
                 ray.cancel(ref)

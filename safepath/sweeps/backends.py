@@ -12,9 +12,10 @@ from __future__ import annotations
 import os
 from collections.abc import Iterator, Sequence
 from concurrent.futures import FIRST_COMPLETED, Future, ProcessPoolExecutor, wait
+from concurrent.futures.process import BrokenProcessPool
 from typing import Protocol
 
-from ..errors import InputError
+from ..errors import InputError, WorkerLost
 from .task import Finished, SweepTask, execute
 
 __all__ = ["Backend", "InProcess", "LocalPool", "make_backend", "check_options"]
@@ -52,6 +53,9 @@ class LocalPool:
 
     Args:
         workers: Processes (>= 1).
+
+    Raises:
+        WorkerLost: (from :meth:`run`) A worker process died (killed, out of memory).
     """
 
     def __init__(self, workers: int) -> None:
@@ -68,6 +72,10 @@ class LocalPool:
                     done, pending = wait(pending, return_when=FIRST_COMPLETED)
                     for future in done:
                         yield future.result()
+            except BrokenProcessPool as exc:
+                raise WorkerLost(f"a worker process of the pool died ({exc}): the seeds "
+                                 "finished before are kept; run the sweep again to finish "
+                                 "the others") from None
             finally:
                 for future in pending:  # a stop (Ctrl-C, an error): start no more
                     future.cancel()

@@ -4,13 +4,14 @@ results bit for bit in this process, on a local pool and on Ray."""
 from __future__ import annotations
 
 import json
+import os
 from pathlib import Path
 from typing import Any
 
 import pytest
 
-from safepath.errors import InputError
-from safepath.sweeps import RESULTS, SweepOptions, run_sweep
+from safepath.errors import InputError, WorkerLost
+from safepath.sweeps import RESULTS, SweepOptions, TaskResult, run_sweep
 from safepath.sweeps.store import ResultStore
 
 from .conftest import quick_task
@@ -101,3 +102,33 @@ def test_this_process_a_local_pool_and_ray_give_the_same_results(task: Any, tmp_
     # The results are the runs' own: the arm moved (a clearance was measured) in some seed.
     assert any(d["count"] for d in here.report["distributions"]
                if d["key"] == "safepath.clearance")
+
+
+class _DiesAtSeed2:
+    """A task whose worker process dies at seed 2 (as an out-of-memory kill would)."""
+
+    def __call__(self, seed: int) -> TaskResult:
+        if seed == 2:
+            os._exit(3)
+        return TaskResult(figures={"seed": float(seed)})
+
+    def identity(self) -> dict[str, Any]:
+        return {"kind": "dies at seed 2"}
+
+    def labels(self) -> dict[str, str]:
+        return {}
+
+    def replay(self, seed: int) -> str:
+        return f"replay {seed}"
+
+
+def test_a_worker_that_dies_is_a_typed_error_and_the_finished_seeds_stay(tmp_path: Path
+                                                                         ) -> None:
+    with pytest.raises(WorkerLost, match="run the sweep again"):
+        run_sweep(_DiesAtSeed2(), [2], tmp_path / "dies",
+                  SweepOptions(workers=2, progress=False))
+    out = tmp_path / "dies"
+    run_sweep(_DiesAtSeed2(), [0, 1], out, SweepOptions(workers=2, progress=False))
+    with pytest.raises(WorkerLost):
+        run_sweep(_DiesAtSeed2(), [0, 1, 2], out, SweepOptions(workers=2, progress=False))
+    assert sorted(_by_seed(out)) == [0, 1]
