@@ -106,7 +106,7 @@ def _sweep(args: argparse.Namespace, duration: float) -> int:
     outcome = run_sweep(LiveSafetyTask(str(CELL), duration, replay),
                         range(args.seed, args.seed + args.runs), args.out,
                         SweepOptions(workers=args.workers, cluster=args.cluster,
-                                     title="live-safety suite"))
+                                     progress=True, title="live-safety suite"))
     for line in report_lines(outcome.report):
         print(line)
     print(f"ran {len(outcome.ran)} of {args.runs} seeds on {outcome.backend}")

@@ -73,7 +73,7 @@ def cmd_sweep(args: argparse.Namespace, cell: Any, pouring: Any | None) -> int:
     title = f"{kind} twin of {cell.scene.name}"
     outcome = run_sweep(task, range(args.seed, args.seed + args.runs), args.out,
                         SweepOptions(workers=args.workers, cluster=args.cluster,
-                                     title=title))
+                                     progress=True, title=title))
     for line in report_lines(outcome.report):
         print(line)
     print(f"ran {len(outcome.ran)} of {args.runs} seeds on {outcome.backend} (the others "

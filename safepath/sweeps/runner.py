@@ -37,13 +37,14 @@ class SweepOptions:
         workers: Local processes (default: the CPUs; 1: this process), or the CPUs of a
             local Ray runtime started for ``cluster="auto"``.
         cluster: None (this machine), ``auto`` or ``ray://HOST:PORT`` (Ray).
-        progress: Draw a progress bar on standard error.
+        progress: Draw a progress bar on standard error (the command line's; the library
+            prints nothing by default).
         title: The report's title.
     """
 
     workers: int | None = None
     cluster: str | None = None
-    progress: bool = True
+    progress: bool = False
     title: str = "sweep"
 
     def __post_init__(self) -> None:

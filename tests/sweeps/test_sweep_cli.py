@@ -20,8 +20,9 @@ def test_the_command_writes_the_sweep_and_a_second_start_runs_nothing(
     argv = ["sim", str(cell_dir), "--runs", "2", "--seed", "5", "--duration", "12",
             "--arrival", "2", "--workers", "1", "--out", str(out)]
     assert main(argv) == 0
-    text = capsys.readouterr().out
+    text, bar = capsys.readouterr()
     assert "ran 2 of 2 seeds on this process" in text
+    assert "2/2" in bar  # the progress bar, on standard error
     report = json.loads((out / "report.json").read_text())
     assert report["seeds"] == {"count": 2, "first": 5, "last": 6}
     keys = [d["key"] for d in report["distributions"]]
