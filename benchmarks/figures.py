@@ -3,7 +3,7 @@
 Reads the JSON files the benchmarks write into ``benchmarks/results/``, each its latest
 saved run (``collision_checks.py``, ``plan_cycle.py``, ``timing_quality.py``,
 ``panda_set.py``, ``cold_start.py``, ``runtime_heartbeat.py``, ``monitor.py``,
-``switches.py`` and ``live_safety.py`` with
+``switches.py``, ``live_safety.py`` and ``sweeps.py`` with
 ``--save``; ``executed_motion.py``, ``replan.py``, ``twin.py`` and ``peers/run.py``
 always), and writes one row per headline figure, with the command that measures it and
 when, on what and at which load it was measured; then the peer comparison's table from
@@ -230,6 +230,22 @@ def _live_safety(d: dict[str, Any]) -> list[Row]:
     return rows
 
 
+def _sweeps(d: dict[str, Any]) -> list[Row]:
+    rows = d["backends"]
+    one, two = rows["this process"], rows["local pool, 2 processes"]
+    text = (f"{one['per_s']:.2f} / {two['per_s']:.2f} runs/s in 1 process / a pool of 2 "
+            f"({two['per_s'] / one['per_s']:.2f}x)")
+    ray = rows.get("Ray, local runtime of 2 CPUs")
+    if ray is not None:
+        text += (f"; Ray (local, 2 CPUs) {ray['per_s']:.2f} runs/s, "
+                 f"{(ray['wall_s'] - two['wall_s']) / d['runs'] * 1000:+.0f} ms per run against "
+                 f"the pool of 2, its start {ray['start_s']:.1f} s apart")
+    text += "; the same results on every backend" if d["same_results"] \
+        else "; **results differ between backends**"
+    return [(f"sweeps: {d['runs']} quality-check twin runs of {d['duration_s']:g} s simulated",
+             text)]
+
+
 def _peers(d: dict[str, Any]) -> list[Row]:
     sp = d["summary"]["panda"]
     ours, rp = sp["safepath"], sp.get("roboplan", {})
@@ -298,6 +314,7 @@ SOURCES: list[tuple[str, str, Reader]] = [
      _executed_motion),
     ("replan.json", "benchmarks/replan.py", _replan),
     ("twin.json", "benchmarks/twin.py", _twin),
+    ("sweeps.json", "benchmarks/sweeps.py --save", _sweeps),
 ]
 
 

@@ -32,6 +32,8 @@ CASES = [
     ("panda_set.py", ["--limit", "2"], "the same, CPU time"),
     ("pour.py", ["--runs", "2", "--events", "20"], "seed measured ~103 g"),
     ("pour_controller.py", ["--runs", "1"], "final masses"),
+    ("sweeps.py", ["--runs", "2", "--duration", "5", "--no-ray"],
+     "the same results on every backend: yes"),
     ("planners_any_arm.py", ["--seeds", "1", "--time-limit", "0.2", "--robots", "ur5",
                              "--planners", "RRT,SORRTstar"], "first path"),
 ]
