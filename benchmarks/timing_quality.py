@@ -16,7 +16,9 @@ For each robot folder under ``robots/`` (loaded by name), on fresh seeded proble
 
 and, for every timed path, whether the controller's quintic join of the released knots
 stays within the velocity, acceleration and jerk limits (the count of paths over a
-limit must be 0). The machine's load average is printed before and after.
+limit must be 0), and how many TOPP-RA runs each via-point path took (more than one: its
+first run's knots needed more than a small time stretch and it was re-timed). The
+machine's load average is printed before and after.
 
 Run: ``.venv/bin/python benchmarks/timing_quality.py [--paths 40] [--seed 0]``.
 """
@@ -113,9 +115,11 @@ def measure(robot: Robot, paths: int, seed: int, runs: int, blend: CornerBlend
     rng = np.random.default_rng(seed)
     ms, ratios, straight, straight_ms = [], [], [], []
     over = 0
+    topp_runs = []
     for _ in range(paths):
         path, s_way, segments = via_path(robot, rng, blend)
         piece, seconds = timed(robot, path, s_way, segments, runs)
+        topp_runs.append(piece.runs)
         ms.append(seconds * 1e3)
         ratios.append(float(piece.t[-1]) / jerk_free_duration(robot, path))
         over += not within(robot, piece)
@@ -133,7 +137,8 @@ def measure(robot: Robot, paths: int, seed: int, runs: int, blend: CornerBlend
             "median": float(np.median(r)), "p95": float(np.percentile(r, 95)),
             "max": float(r.max()), "straight": float(np.median(straight)),
             "straight_max": float(np.max(straight)), "straight_ms": statistics.median(straight_ms),
-            "over": over}
+            "over": over, "runs_mean": float(np.mean(topp_runs)),
+            "retimed": float(np.mean(np.asarray(topp_runs) > 1))}
 
 
 def main(argv: Sequence[str] | None = None) -> int:
@@ -158,7 +163,7 @@ def main(argv: Sequence[str] | None = None) -> int:
           f"straight moves per robot, seed {args.seed}, corner blend {args.blend!r}")
     header = (f"{'robot':<10} {'ms median':>9} {'ms p95':>7}   {'/jerk-free median':>17} "
               f"{'p95':>6} {'max':>6}   {'straight/S-curve median':>23} {'max':>6} {'ms':>5}   "
-              f"{'over a limit':>12}")
+              f"{'over a limit':>12}   {'TOPP-RA runs':>12} {'re-timed':>8}")
     print(header)
     print("-" * len(header))
     figures = {}
@@ -167,10 +172,12 @@ def main(argv: Sequence[str] | None = None) -> int:
                                     args.blend)
         print(f"{name:<10} {f['ms']:9.2f} {f['ms_p95']:7.2f}   {f['median']:17.3f} "
               f"{f['p95']:6.3f} {f['max']:6.3f}   {f['straight']:23.4f} "
-              f"{f['straight_max']:6.4f} {f['straight_ms']:5.2f}   {f['over']:12d}")
+              f"{f['straight_max']:6.4f} {f['straight_ms']:5.2f}   {f['over']:12d}   "
+              f"{f['runs_mean']:12.2f} {f['retimed']:8.0%}")
     print("(ms: time_path per path, median of the fastest of the runs; /jerk-free: motion time "
           "over toppra's jerk-free optimum of the same spline; over a limit: paths whose "
-          "quintic join exceeds a limit)")
+          "quintic join exceeds a limit; TOPP-RA runs: mean per via-point path (TimedPiece.runs), "
+          "re-timed: share of them timed more than once)")
     worst = {k: max(f[k] for f in figures.values()) for k in ("ms", "median", "p95",
                                                               "straight")}
     for key, aim, what in (("ms", AIM_MS, "median compute per via-point path [ms]"),
