@@ -13,7 +13,7 @@ For each path:
 
 * **safepath**: ``time_path`` (jerk-limited); its knots joined as ros2_control's
   joint_trajectory_controller joins a goal's points (a quintic per joint) and checked at
-  every instant (:func:`safepath.execution.executed_peaks`);
+  every instant (:func:`safepath.model.execution.executed_peaks`);
 * **jerk-free optimum**: TOPP-RA (safepath's kernel) on the same grid and limits without
   the jerk bound: the shortest motion without jerk limits (a lower bound);
 * **toppra** (the library; random set, constant limits): ``TOPPRA([velocity,
@@ -51,7 +51,7 @@ from unittest import mock
 import numpy as np
 
 import safepath
-from safepath.execution import executed_peaks
+from safepath.model.execution import executed_peaks
 from safepath.planning import _chunks
 from safepath.planning import pour as _pour
 from safepath.timing import TimingOptions, _path_limits, _topp, spline_path, time_path

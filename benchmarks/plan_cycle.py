@@ -37,7 +37,7 @@ from unittest import mock
 import numpy as np
 
 from safepath import Cell, PlannerOptions, PlanOptions, Route, load_cell, load_routes, plan_cell
-from safepath.trajectory import Trajectory
+from safepath.model.trajectory import Trajectory
 
 CELL_DIR = Path(__file__).resolve().parents[1] / "scenes" / "quality_check_cell"
 OUTCOMES = {"safe": ("phase1", "phase2_safe"), "unsafe": ("phase1", "phase2_unsafe")}

@@ -76,9 +76,9 @@ def replan_latency(repeats: int) -> dict:
 
 def cloud_times(clouds: int, points: int) -> dict:
     from safepath import load_cell, plan_cell
+    from safepath.model.trajectory import Trajectory
     from safepath.monitor import Cloud, Monitor, MonitorOptions
     from safepath.ros import split_at_gripper_events
-    from safepath.trajectory import Trajectory
 
     cell = load_cell(CELL)
     traj = plan_cell(cell, routes={"phase1": cell.route_table()["phase1"]})["phase1"]

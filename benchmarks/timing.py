@@ -43,8 +43,8 @@ from unittest import mock
 import numpy as np
 
 from safepath import Cell, PlanOptions, load_cell, load_routes, plan_cell
+from safepath.model.robot import Robot
 from safepath.planning import _chunks
-from safepath.robot import Robot
 from safepath.timing import PathSpline, TimingOptions, _topp, spline_path
 
 ROOT = Path(__file__).resolve().parents[1]

@@ -36,9 +36,9 @@ from pathlib import Path
 
 import numpy as np
 
-from safepath.execution import executed_peaks
-from safepath.robot import Robot
-from safepath.robot_folder import load_robot
+from safepath.description.robot_folder import load_robot
+from safepath.model.execution import executed_peaks
+from safepath.model.robot import Robot
 from safepath.timing import PathSpline, TimedPiece, TimingOptions, spline_path, time_path
 from safepath.timing.path_timing import CORNER_BLENDS, CornerBlend
 

@@ -22,7 +22,7 @@ from typing import Any
 
 import safepath
 from safepath import PlannerOptions, PlanOptions
-from safepath.trajectory import Trajectory
+from safepath.model.trajectory import Trajectory
 
 ROOT = Path(__file__).resolve().parent.parent
 PEERS = ROOT / "benchmarks" / "peers"

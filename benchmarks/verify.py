@@ -34,8 +34,7 @@ import numpy as np
 import pinocchio as pin
 
 from safepath import load_cell, plan_cell
-from safepath.planning import FclVerifier, VerifyResult
-from safepath.verify import StagedVerifier
+from safepath.verify import FclVerifier, StagedVerifier, VerifyResult
 
 CELL_DIR = Path(__file__).resolve().parents[1] / "scenes" / "quality_check_cell"
 #: Aim for the verifier's time per warm plan of the cell [s].

@@ -9,9 +9,22 @@ from __future__ import annotations
 
 import logging
 
-from .cell import Cell, PoseCheck, check_poses, load_cell
+from .cell import (
+    Cell,
+    PoseCheck,
+    Route,
+    Step,
+    Target,
+    check_poses,
+    dump_poses,
+    load_cell,
+    load_poses,
+    load_routes,
+    load_scene,
+    save_poses,
+)
 from .collision import CheckOptions, CollisionChecker, SegmentReport, StateReport
-from .controller_spec import ControllerSpec
+from .description import load_robot, robot_names
 from .errors import (
     CollisionError,
     ConfigError,
@@ -30,27 +43,14 @@ from .errors import (
     UnprovenClearance,
     VerificationError,
 )
-from .planning import (
-    LineOptions,
-    PlannerOptions,
-    PlanOptions,
-    Route,
-    Step,
-    Target,
-    TimingOptions,
-    WorldState,
-    load_routes,
-    plan,
-    plan_cell,
-    plan_route,
-)
-from .poses import dump_poses, load_poses, save_poses
-from .robot import Robot
-from .robot_folder import load_robot, robot_names
-from .scene import AllowedContact, Grasp, Scene, SceneObject, Shape, placement
-from .scene_yaml import load_scene
-from .tool import ToolSpec
-from .trajectory import GripperEvent, Trajectory, load_trajectory
+from .kinematics import LineOptions
+from .model.controller_spec import ControllerSpec
+from .model.robot import Robot
+from .model.scene import AllowedContact, Grasp, Scene, SceneObject, Shape, placement
+from .model.tool import ToolSpec
+from .model.trajectory import GripperEvent, Trajectory, load_trajectory
+from .planning import PlannerOptions, PlanOptions, WorldState, plan, plan_cell, plan_route
+from .timing import TimingOptions
 
 logging.getLogger(__name__).addHandler(logging.NullHandler())
 

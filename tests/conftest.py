@@ -23,8 +23,8 @@ from safepath import Cell, Robot, load_cell
 # A kernel call whose arguments do not match its ahead-of-time signature raises in the
 # tests (a user's process runs numba's JIT kernel instead); child processes inherit it.
 os.environ.setdefault("SAFEPATH_AOT_STRICT", "1")
-# The disk cache of what is computed from a robot alone (safepath.derived): one of the session's
-# own, empty at its start, never the user's.
+# The disk cache of what is computed from a robot alone (safepath.files.derived): one of
+# the session's own, empty at its start, never the user's.
 os.environ.setdefault("SAFEPATH_CACHE", tempfile.mkdtemp(prefix="safepath-tests-cache-"))
 
 #: The repository root (``tests/`` is one level below it).

@@ -35,7 +35,7 @@ from safepath import (
 )
 from safepath.cli import main
 from safepath.errors import RobotNotSupported
-from safepath.robot import adjacent_link_pairs
+from safepath.model.robot import adjacent_link_pairs
 
 ARM_DIR = Path(__file__).resolve().parent / "data" / "box_arm"
 ARM_URDF = ARM_DIR / "arm.urdf"

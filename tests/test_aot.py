@@ -98,9 +98,9 @@ def test_table_signatures_are_the_ones_numba_infers() -> None:
 def recorded() -> dict[str, list[tuple[Any, ...]]]:
     """Arguments of real kernel calls: the bundled cell and the Panda cell planned (the
     first KEEP calls of every kernel, copied before the call: kernels write into some)."""
-    from safepath import _joinkernel
     from safepath.collision import _kernels as _fastkernels
     from safepath.kinematics import _ik_kernel
+    from safepath.model import _joinkernel
     from safepath.monitor import _kernels as _monitor_kernels
     from safepath.timing import _topp
     from safepath.verify import _kernel as _verify_kernel

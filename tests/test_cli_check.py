@@ -12,7 +12,7 @@ import pinocchio as pin
 import pytest
 
 from safepath import Cell, dump_poses
-from safepath.planning import solve_ik
+from safepath.kinematics import solve_ik
 
 ENTRY = Path(sys.executable).with_name("safepath")
 ROW = re.compile(r"^(\w+)\s+(empty|vial)\s+(ok|OUT)\s+(yes|NO)\s+(-?\d+\.\d)\s+(ok|LOW)\s+(.*)$")
@@ -198,7 +198,7 @@ def test_many_poses_share_their_checkers(cell_copy: Path, cell: Cell,
     """2,000 poses are checked with one collision checker per gripper state and set of
     allowed contacts (a checker per pose once made 30,000 poses need 22 GB), and each
     pose's report is the one a checker of its own gives."""
-    import safepath.cell as cell_module
+    import safepath.cell._cell as cell_module
     from safepath import load_cell
     from safepath.cell import check_poses
 

@@ -22,7 +22,7 @@ from safepath import (
     check_poses,
     placement,
 )
-from safepath.planning import solve_ik
+from safepath.kinematics import solve_ik
 
 GRIPPER_LINKS = {"mors_1", "mors_2", "base_gripper_1", "hand_link"}
 # Shoulder pitched forward, elbow folded down: the gripper comes back onto the base.

@@ -211,7 +211,7 @@ def test_robot_and_controller_files_refuse_unknown_keys(tmp_path: Any) -> None:
     import shutil
 
     from safepath import load_robot
-    from safepath.robot_folder import ROBOTS_DIR
+    from safepath.description.robot_folder import ROBOTS_DIR
 
     folder = tmp_path / "arm"
     shutil.copytree(ROBOTS_DIR / "ned3pro", folder)

@@ -9,7 +9,7 @@ import pytest
 import yaml
 
 from safepath import load_cell, load_robot, load_routes, robot_names
-from safepath.robot_folder import ROBOTS_DIR
+from safepath.description.robot_folder import ROBOTS_DIR
 
 REPO_ROOT = Path(__file__).resolve().parents[1]
 ALL_ROBOT_DIRS = sorted(p for p in (REPO_ROOT / "robots").iterdir() if p.is_dir())

@@ -18,7 +18,7 @@ from safepath import CheckOptions, CollisionChecker, load_cell, load_robot
 from safepath.cell import Cell
 from safepath.collision import COLLIDES, FREE, UNSURE
 from safepath.collision.spheres import fit_spheres, surface_points
-from safepath.robot import Robot
+from safepath.model.robot import Robot
 
 ROBOTS = ["ned3pro", "gen3_lite", "panda", "ur5"]
 
@@ -127,8 +127,8 @@ def test_inner_spheres_lie_inside_their_shape(name: str) -> None:
 def test_kernel_kinematics_match_pinocchio(cell: Cell) -> None:
     """The planner's kernels' one forward kinematics (the sphere layer's and the lines'
     IK's), over every joint of the robot's joint table, against Pinocchio."""
-    from safepath._fk_kernel import joint_frames
-    from safepath._joint_table import WORLD, joint_table
+    from safepath.model._fk_kernel import joint_frames
+    from safepath.model._joint_table import WORLD, joint_table
 
     for robot in (cell.robot, load_robot("panda")):
         model = robot.model

@@ -15,7 +15,7 @@ import numpy as np
 import pytest
 
 from safepath import ConfigError, PoseError, Robot, load_cell, load_poses, save_poses
-from safepath._io import MAX_FILE_BYTES
+from safepath.files._io import MAX_FILE_BYTES
 
 ENTRY = Path(sys.executable).with_name("safepath")
 GRIP = [-0.0168, -0.0208, -0.8436, -0.0459, -0.6519, -0.0245]
@@ -140,7 +140,7 @@ def test_a_link_planted_after_the_check_is_replaced_not_followed(
     save_poses(path, {"grip": GRIP}, robot, backup=False)
     old = path.read_bytes()
     (tmp_path / "poses.yaml~").symlink_to(victim)
-    monkeypatch.setattr("safepath._io.check_replaceable", lambda *a, **k: None)
+    monkeypatch.setattr("safepath.files._io.check_replaceable", lambda *a, **k: None)
     save_poses(path, {"grip": GRIP, "high1": HIGH1}, robot)
     assert victim.read_text() == "not yours to overwrite\n"
     backup = tmp_path / "poses.yaml~"

@@ -35,7 +35,7 @@ def test_import_safepath_and_its_command_line_load_no_heavy_package() -> None:
     (after_import, after_parser) = _loaded_after(
         "import safepath\n"
         "mark()\n"
-        "from safepath.cli import _load_extra, build_parser\n"
+        "from safepath.cli._main import _load_extra, build_parser\n"
         "_load_extra()\n"
         "build_parser().parse_args(['plan', 'scenes/quality_check_cell'])\n"
         "mark()\n")

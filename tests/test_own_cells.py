@@ -196,7 +196,7 @@ def test_a_robot_keeps_its_locked_joints_and_changed_limits_in_a_worker() -> Non
     """A robot sends its changes with it: a worker that loads it again by name plans
     exactly as this process does (before, only the acceleration limits and the locked
     joints travelled: halved velocity limits were lost, the plans differed)."""
-    from safepath.robot_folder import CARRIED
+    from safepath.description.robot_folder import CARRIED
     from safepath.runtime import RuntimePlanner
 
     robot = safepath.load_robot("panda", locked_joints={"panda_finger_joint1": 0.04})

@@ -27,7 +27,7 @@ import os, sys
 from pathlib import Path
 import safepath
 from safepath import load_cell, load_robot
-from safepath._paths import ROBOTS_DIR, SCENES_DIR
+from safepath.files._paths import ROBOTS_DIR, SCENES_DIR
 
 package = Path(safepath.__file__).resolve().parent
 assert Path(sys.prefix).resolve() in package.parents, package

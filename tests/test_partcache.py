@@ -1,4 +1,4 @@
-"""The disk cache of what the sphere layer makes from a robot alone (``safepath.derived``,
+"""The disk cache of what the sphere layer makes from a robot alone (``safepath.files.derived``,
 its stored kind): an entry read back is the part made afresh, bit for bit; a damaged
 entry is ignored with a warning and made again; other options or geometry are another
 entry; ``SAFEPATH_CACHE=0`` writes nothing; ``load_cell`` makes (or reads) it, and what
@@ -17,7 +17,7 @@ from safepath import CollisionChecker
 from safepath.cell import Cell
 from safepath.collision import CheckOptions, LayerOptions
 from safepath.collision.layer import SphereLayer
-from safepath.derived import CACHE_ENV, StoredKind, disk_folder, read_entry
+from safepath.files.derived import CACHE_ENV, StoredKind, disk_folder, read_entry
 
 
 def _stored(cell: Cell, options: LayerOptions) -> tuple[StoredKind[Any], Any]:
@@ -80,7 +80,7 @@ def test_a_damaged_entry_is_ignored_with_a_warning_and_made_again(
         entry.write_bytes(raw[: len(raw) // 2])
     else:  # one byte of an array changed: the digest tells
         entry.write_bytes(raw[:-9] + bytes([raw[-9] ^ 0x10]) + raw[-8:])
-    with caplog.at_level(logging.WARNING, logger="safepath.derived"):
+    with caplog.at_level(logging.WARNING, logger="safepath.files.derived"):
         again = _arrays(cell, _made(cell, options))
     assert any("ignored" in r.getMessage() and entry.name in r.getMessage()
                for r in caplog.records)
@@ -152,7 +152,7 @@ def test_load_cell_prepares_what_the_checkers_and_verifiers_take_from_the_robot(
     # verifier's shapes and (with the kernels built) the sphere layer's part are made
     # by load_cell, and the cell's checkers and verifiers use those, not new ones.
     from safepath import _aot, load_cell
-    from safepath.planning import FclVerifier
+    from safepath.verify import FclVerifier
 
     cell = load_cell("quality_check_cell")
     made = cell.robot.derived.held()

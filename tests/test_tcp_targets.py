@@ -12,8 +12,8 @@ import pytest
 import yaml
 
 from safepath import ConfigError, load_cell, load_robot
-from safepath.planning import load_routes
-from safepath.tcp_targets import CartesianTarget, quaternion_matrix
+from safepath.cell import load_routes
+from safepath.cell.tcp_targets import CartesianTarget, quaternion_matrix
 
 REPO_ROOT = Path(__file__).resolve().parents[1]
 POURING = REPO_ROOT / "scenes" / "pouring_cell"

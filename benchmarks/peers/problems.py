@@ -156,7 +156,7 @@ class CellStep:
 def cell_steps(cell: Any) -> list[CellStep]:
     """Every motion step of every route of the cell, in route order, with its world."""
     import safepath
-    from safepath.planning import LineOptions, solve_ik
+    from safepath.kinematics import LineOptions, solve_ik
     from safepath.planning.route_planner import initial_world, route_order
 
     routes = safepath.load_routes(cell.folder, poses=list(cell.poses),
@@ -244,7 +244,7 @@ def world_spec(robot: Any, scene: Any, *, held: str | None = None,
     """One world state for the adapters: obstacles (boxes and cylinders with 4x4 world
     poses), the held object (attached to the TCP link), and the pairs not to check
     (allowed contacts, expanded from ``gripper`` to the tool's contact links)."""
-    from safepath.scene import GRIPPER
+    from safepath.model.scene import GRIPPER
 
     obstacles = []
     for obj in scene.objects.values():

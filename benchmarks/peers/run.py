@@ -8,7 +8,7 @@
    ``panda_problems.json``) and runs every planner's adapter on it in a subprocess,
    safepath's in the project venv, each peer's in its own;
 3. re-checks every returned timed path with the same independent checker
-   (:class:`safepath.planning.FclVerifier`, resolution 2 mm, margin 0), and checks it
+   (:class:`safepath.verify.FclVerifier`, resolution 2 mm, margin 0), and checks it
    starts at the start, ends at the goal and stays inside the position limits;
 4. prints the table (with ratios to safepath), writes ``benchmarks/results/peers.json``
    and the bar chart ``benchmarks/results/peers.png``.
@@ -167,7 +167,7 @@ def run_adapter(name: str, python: str, job: dict, work: Path, timeout: float) -
 # -- verification --------------------------------------------------------------------------
 def _verifier(robot: Any, scene: Any, *, held: str | None = None,
               resting: dict | None = None, allowed: tuple = ()) -> Any:
-    from safepath.planning import FclVerifier
+    from safepath.verify import FclVerifier
 
     return FclVerifier(robot, scene, held=held, resting=resting, allowed=allowed,
                        resolution=RESOLUTION, margin=0.0, enforce_margin=False)

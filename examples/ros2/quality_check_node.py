@@ -55,8 +55,8 @@ from safepath.cells.quality_check.controller import (
     SetConveyor,
 )
 from safepath.errors import SafepathError
+from safepath.model.trajectory import Trajectory
 from safepath.ros import goals
-from safepath.trajectory import Trajectory
 
 NIRYO_SUCCESS = 1  # niryo_robot_msgs/CommandStatus.SUCCESS
 SENSOR_QOS = QoSProfile(reliability=ReliabilityPolicy.RELIABLE, history=HistoryPolicy.KEEP_LAST,

@@ -38,7 +38,7 @@ from pathlib import Path
 from types import ModuleType
 from typing import Any
 
-from .._digest import sha256
+from ..files._digest import sha256
 from .table import ENTRIES, MODULES, PLANNING_MODULES
 
 __all__ = ["njit", "compiled", "status", "source_key", "build_dir", "cache_root",

@@ -59,10 +59,10 @@ _VERIFY_RECORDS = "safepath.verify._records"
 _IK = "safepath.kinematics._ik_kernel"
 _TOPP = "safepath.timing._topp"
 _MONITOR = "safepath.monitor._kernels"
-_JOIN = "safepath._joinkernel"
+_JOIN = "safepath.model._joinkernel"
 #: The planner's one forward kinematics (the sphere layer's and the lines' IK's) and the
 #: joint table's columns it compiles in.
-_FK = ("safepath._fk_kernel", "safepath._joint_table")
+_FK = ("safepath.model._fk_kernel", "safepath.model._joint_table")
 #: A placed shape of the verifier: a tuple of 17 floats (its record's fields, in order).
 _SHAPE = "UniTuple(f8, 17)"
 #: The verifier's hull tables: vertices, neighbour starts, neighbour rows, climbs' starts.
@@ -125,7 +125,7 @@ ENTRIES: dict[str, Entry] = {
     "topp_tridiagonal": Entry(_TOPP, "_tridiagonal", (F1, F1, F1, F2), INT),
     "topp_knots": Entry(_TOPP, "_knots", (F1, F1, F1, F1, F1, F1, F1, FLOAT, FLOAT, F1, F3, F1,
                                           F1, F1, F2, F2, F2), "void"),
-    # The peaks of a controller's quintic join (safepath._joinkernel).
+    # The peaks of a controller's quintic join (safepath.model._joinkernel).
     "join_peaks": Entry(_JOIN, "_peaks", (F1, F2, F2, F2, FLOAT, F2, F2, F2), "void"),
     "join_sample": Entry(_JOIN, "_sample", (F1, F2, F2, F2, F1, F2, F2, F2), "void"),
 }

@@ -9,7 +9,7 @@ The layer between robot & scene and planning. Its face:
 * the sphere layer (:mod:`.layer`, fits in :mod:`.spheres`) that decides most states
   before coal, exactly, with its numba kernels (``_kernels``, ``_placement``,
   ``_pair_tests``, ``_gjk``; buffers laid out by ``_layout``, packed by ``_pack``, robot
-  parts kept per robot and on disk by :mod:`safepath.derived`);
+  parts kept per robot and on disk by :mod:`safepath.files.derived`);
 * the robot's allowed self pairs (:mod:`.allowed_pairs`) and what every checker of a
   robot takes from it alone (:mod:`.prepare`).
 
@@ -22,7 +22,7 @@ from .allowed_pairs import compute_allowed_pairs, wire_allowed_pairs, write_allo
 from .checker import CollisionChecker
 from .layer import COLLIDES, FREE, OUTSIDE, UNSURE, SphereLayer
 from .options import CheckOptions, LayerOptions
-from .prepare import prepare_robot, robot_part
+from .prepare import prepare_checkers, robot_part
 from .reports import Pair, SegmentReport, StateReport
 
 __all__ = [
@@ -38,7 +38,7 @@ __all__ = [
     "SphereLayer",
     "StateReport",
     "compute_allowed_pairs",
-    "prepare_robot",
+    "prepare_checkers",
     "robot_part",
     "wire_allowed_pairs",
     "write_allowed_pairs",

@@ -34,7 +34,7 @@ import math
 import numpy as np
 
 from .._aot import njit
-from .._joint_table import JF_W, JF_WIDTH, JI_KIND, JI_PARENT, JI_Q, JI_WIDTH, PRISMATIC
+from ..model._joint_table import JF_W, JF_WIDTH, JI_KIND, JI_PARENT, JI_Q, JI_WIDTH, PRISMATIC
 from ._layout import (
     C_FREE_EPS,
     C_PROOF_EPS,

@@ -3,7 +3,7 @@
 All data of one checker travels in two flat buffers, ``fb`` (float64) and ``ib`` (int64),
 laid out by :func:`safepath.collision._pack.pack` (one call argument each keeps numba's
 dispatch cheap: the single-state API is called millions of times by planners): an int
-header of block positions (H_*), the joint table (rows of :mod:`safepath._joint_table`,
+header of block positions (H_*), the joint table (rows of :mod:`safepath.model._joint_table`,
 row j for the model's joint j: H_J its floats, H_JI its ints), the constants (C_*), the
 rows of the movers (GW, GIW wide) and of the environment objects, and the shape kinds.
 A kernel call's scratch (``wf``, ``wi``) is laid out here too (W_*, WI_*).

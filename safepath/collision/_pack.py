@@ -20,9 +20,9 @@ from typing import Any
 import numpy as np
 import pinocchio as pin
 
-from .._joint_table import HELICAL, JI_KIND, WORLD, joint_table
-from ..derived import StoredKind
-from ..robot import Robot, is_prismatic
+from ..files.derived import StoredKind
+from ..model._joint_table import HELICAL, JI_KIND, WORLD, joint_table
+from ..model.robot import Robot, is_prismatic
 from . import _layout as K  # noqa: N812  (constants only: imports no kernel)
 from .options import LayerOptions
 from .spheres import SphereFit, fit_spheres
@@ -82,7 +82,7 @@ class _RobotPart:
 
 def _robot_part(robot: Robot, options: LayerOptions) -> _RobotPart:
     """The robot's joints and shapes, made by the first checker of the robot (or read
-    from the disk cache, :mod:`safepath.derived`, where a process made them before)."""
+    from the disk cache, :mod:`safepath.files.derived`, where a process made them before)."""
     from .spheres import _fit_key
 
     model, geoms = robot.model, robot.collision_model.geometryObjects
@@ -147,7 +147,7 @@ ROBOT_PART: StoredKind[_RobotPart] = StoredKind(
 
 
 def _joints(model: pin.Model) -> tuple[np.ndarray, np.ndarray]:
-    """The joint table (:mod:`safepath._joint_table`) of every joint of ``model``, row j
+    """The joint table (:mod:`safepath.model._joint_table`) of every joint of ``model``, row j
     for joint j (row 0: the universe, fixed at the origin).
 
     Raises:

@@ -14,7 +14,7 @@ from collections.abc import Callable, Collection, Iterable, Sequence
 
 import numpy as np
 
-from ..scene import GRIPPER, AllowedContact
+from ..model.scene import GRIPPER, AllowedContact
 from .reports import Pair
 
 __all__ = ["candidate_pairs", "allowed_depths", "allowed_rows"]

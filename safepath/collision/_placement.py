@@ -1,7 +1,7 @@
 """Kernels of the sphere layer: kinematics and placement.
 
 The world frames of the checker's joints (the planner's one forward kinematics,
-:func:`safepath._fk_kernel.joint_frames`, over the joint table in the buffers), and the
+:func:`safepath.model._fk_kernel.joint_frames`, over the joint table in the buffers), and the
 world placement of a mover's spheres and primitive frame (the rows
 :mod:`safepath.collision._layout` describes), for :mod:`safepath.collision._pair_tests`
 and :mod:`safepath.collision._kernels`. Compiled without numba's reference counting, like
@@ -20,8 +20,8 @@ from __future__ import annotations
 import math
 
 from .._aot import njit
-from .._fk_kernel import joint_frames
-from .._joint_table import JF_WIDTH, JI_WIDTH
+from ..model._fk_kernel import joint_frames
+from ..model._joint_table import JF_WIDTH, JI_WIDTH
 from ._layout import (
     G_POS,
     G_ROT,

@@ -21,8 +21,8 @@ from pathlib import Path
 import numpy as np
 import pinocchio as pin
 
-from .._io import atomic_write_text, read_text, read_yaml
-from ..robot import Robot, adjacent_link_pairs
+from ..files._io import atomic_write_text, read_text, read_yaml
+from ..model.robot import Robot, adjacent_link_pairs
 
 __all__ = ["PairStats", "compute_allowed_pairs", "write_allowed_pairs", "wire_allowed_pairs"]
 

@@ -27,8 +27,8 @@ import numpy as np
 import pinocchio as pin
 
 from ..errors import ConfigError, InputError
-from ..robot import Robot, is_prismatic
-from ..scene import AllowedContact, Scene, SceneObject
+from ..model.robot import Robot, is_prismatic
+from ..model.scene import AllowedContact, Scene, SceneObject
 from ._pack import LayerSource
 from ._pairs import allowed_depths, allowed_rows, candidate_pairs
 from .layer import COLLIDES, FREE, OUTSIDE, UNSURE, SphereLayer

@@ -3,7 +3,7 @@
 The link of each geometry and, per joint, how far its own geometry reaches from its origin
 (:func:`robot_part`, for the checker's displacement bound), and the sphere layer's part
 of the robot (sphere fits, hull tables: :func:`safepath.collision._pack._robot_part`),
-both kept by the robot (:mod:`safepath.derived`).
+both kept by the robot (:mod:`safepath.files.derived`).
 """
 
 from __future__ import annotations
@@ -12,12 +12,12 @@ from typing import Any
 
 import numpy as np
 
-from ..derived import DerivedKind
-from ..robot import Robot
+from ..files.derived import DerivedKind
+from ..model.robot import Robot
 from ._pack import _robot_part
 from .options import LayerOptions
 
-__all__ = ["robot_part", "prepare_robot", "reach_into"]
+__all__ = ["robot_part", "prepare_checkers", "reach_into"]
 
 #: The link of each geometry, and per joint how far its own geometry reaches [m].
 _LINKS_AND_REACH: DerivedKind[tuple[tuple[str, ...], np.ndarray]] = DerivedKind(
@@ -35,11 +35,11 @@ def robot_part(robot: Robot) -> tuple[tuple[str, ...], np.ndarray]:
     return robot.derived.get(_LINKS_AND_REACH, make)
 
 
-def prepare_robot(robot: Robot) -> None:
+def prepare_checkers(robot: Robot) -> None:
     """Make what every collision checker of ``robot`` takes from the robot alone: its
     links and reach, and, where the kernels are compiled ahead of time, its sphere
     layer's part (sphere fits, hull tables: read from the disk cache,
-    :mod:`safepath.derived`, where a process made them before). Without
+    :mod:`safepath.files.derived`, where a process made them before). Without
     them the part waits for the first check, which imports numba anyway. A shape the
     layer cannot fit is left to the checkers (they stay exact)."""
     from .. import _aot

@@ -25,7 +25,7 @@ from typing import Any
 
 import numpy as np
 
-from .._digest import blake2b
+from ..files._digest import blake2b
 
 __all__ = ["SphereFit", "fit_spheres", "surface_points"]
 

@@ -8,9 +8,9 @@ a whole line is one call. Imported lazily by :mod:`~safepath.planning.cartesian`
 numba's on-disk cache (``cache=True``, in ``__pycache__`` next to this file).
 
 The chain (``safepath.planning.cartesian.line_chain``) is a joint table
-(:mod:`safepath._joint_table`: ``joint_f``, ``joint_i``) of the joints from the root to
+(:mod:`safepath.model._joint_table`: ``joint_f``, ``joint_i``) of the joints from the root to
 the TCP's parent joint, in order, each the parent of the next; its joint frames come from
-the planner's one forward kinematics (:func:`safepath._fk_kernel.joint_frames`).
+the planner's one forward kinematics (:func:`safepath.model._fk_kernel.joint_frames`).
 ``frame_f`` holds the TCP placement in the last joint (rotation 0-8 row-major,
 translation 9-11). Results agree with Pinocchio to rounding
 (tests/planning/test_cartesian.py compares them).
@@ -25,8 +25,8 @@ import math
 import numpy as np
 
 from .._aot import njit
-from .._fk_kernel import exp3, joint_frames
-from .._joint_table import JF_V, JF_W, JI_Q
+from ..model._fk_kernel import exp3, joint_frames
+from ..model._joint_table import JF_V, JF_W, JI_Q
 
 __all__ = ["OK", "NO_SOLUTION", "JUMP", "tcp_pose", "tcp_jacobian", "log6", "jlog6",
            "solve", "line_path"]

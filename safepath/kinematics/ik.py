@@ -14,7 +14,7 @@ import numpy as np
 import pinocchio as pin
 
 from ..errors import IKError
-from ..robot import Robot
+from ..model.robot import Robot
 
 __all__ = ["DAMPING", "LineOptions", "solve_ik"]
 

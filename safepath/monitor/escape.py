@@ -27,7 +27,7 @@ import numpy as np
 
 from ..cell import Cell
 from ..collision import CollisionChecker
-from ..scene import SceneObject, Shape
+from ..model.scene import SceneObject, Shape
 
 __all__ = ["StartBox", "start_box", "escape_state", "box_clearance", "START_SLACK",
            "ESCAPE_STEP"]

@@ -36,8 +36,8 @@ import numpy as np
 
 from ..cell import Cell
 from ..errors import InputError, TimingError
-from ..execution import ControllerModel, Interpolation, Switch
-from ..trajectory import Trajectory
+from ..model.execution import ControllerModel, Interpolation, Switch
+from ..model.trajectory import Trajectory
 from .elements import OBSTACLES, scene_arrays, to_elements
 from .observations import Counts, ObservationError
 from .options import MonitorOptions
@@ -109,7 +109,7 @@ class Decision:
         latched: Whether the kill switch is latched.
         elapsed: Computation time of the decision [s].
         switch: How the controller takes the replacement at ``replacement_start``
-            (:class:`safepath.execution.Switch`: its state then, and any step).
+            (:class:`safepath.model.execution.Switch`: its state then, and any step).
     """
 
     time: float

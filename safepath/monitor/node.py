@@ -34,8 +34,8 @@ from typing import Any, Literal
 import numpy as np
 
 from ..errors import ConfigError
-from ..scene import placement
-from ..trajectory import GripperEvent, Trajectory
+from ..model.scene import placement
+from ..model.trajectory import GripperEvent, Trajectory
 from .monitor import Decision, Monitor, ReplanRequest
 from .options import MonitorOptions
 
@@ -151,7 +151,7 @@ def load_node_parameters(path: str | Path, node: str = NODE_NAME) -> NodeParamet
     Raises:
         ConfigError: Missing file, node or ``ros__parameters``, or a bad parameter.
     """
-    from .._io import read_yaml
+    from ..files._io import read_yaml
 
     path = Path(path)
     data = read_yaml(path)

@@ -17,9 +17,9 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..errors import TimingError
-from ..execution import LIMITS_KEY, interval_ratios, robot_limits
-from ..robot import Robot
-from ..trajectory import Trajectory
+from ..model.execution import LIMITS_KEY, interval_ratios, robot_limits
+from ..model.robot import Robot
+from ..model.trajectory import Trajectory
 
 __all__ = ["MonitoredPath", "Timing"]
 
@@ -211,7 +211,7 @@ class MonitoredPath:
         """Positions, velocities and accelerations of the verified trajectory at path
         parameters ``tau`` (clamped to its ends): its knots' quintic join, compiled (a
         replacement samples it at every knot, for every candidate profile)."""
-        from .._joinkernel import sample
+        from ..model._joinkernel import sample
 
         tr = self.traj
         return sample(tr.t, tr.q, tr.qd, tr.qdd, np.asarray(tau, dtype=float))

@@ -53,11 +53,11 @@ from typing import Literal
 
 import numpy as np
 
-from ..cell import Cell
+from ..cell import Cell, Route, Step, Target
 from ..errors import InputError, PlanningError, SafepathError
-from ..planning import PlanOptions, Route, Step, Target, WorldState, initial_world, plan_route
-from ..scene import SceneObject, Shape
-from ..trajectory import Trajectory
+from ..model.scene import SceneObject, Shape
+from ..model.trajectory import Trajectory
+from ..planning import PlanOptions, WorldState, initial_world, plan_route
 from .escape import START_SLACK, escape_state, start_box
 from .monitor import ReplanRequest
 
@@ -177,7 +177,7 @@ def _absolute(cell: Cell, route: Route, index: int) -> Target | None:
         return None
     import pinocchio as pin
 
-    from ..tcp_targets import CartesianTarget
+    from ..cell.tcp_targets import CartesianTarget
 
     T = cell.robot.frame_pose(cell.pose(start))
     x, y, z, w = (float(v) for v in pin.Quaternion(T.rotation).coeffs())
@@ -254,7 +254,7 @@ def _partial_lines(cell: Cell, route: Route, first: int, q_rest: np.ndarray,
     then each of the free ``moves`` (to the end of the line or of a step after it)."""
     import pinocchio as pin
 
-    from ..tcp_targets import CartesianTarget
+    from ..cell.tcp_targets import CartesianTarget
 
     own, labels = route.steps[first], route.labels()
     end = _absolute(cell, route, first)

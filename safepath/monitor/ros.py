@@ -37,7 +37,7 @@ from typing import Any
 import numpy as np
 
 from ..errors import RosError
-from ..trajectory import Trajectory
+from ..model.trajectory import Trajectory
 from .monitor import Decision
 from .observations import Cloud, Scan
 from .options import MonitorOptions

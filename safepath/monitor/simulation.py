@@ -18,8 +18,8 @@ from typing import Any, cast
 import numpy as np
 
 from ..cell import Cell
-from ..execution import ControllerModel, Interpolation
-from ..trajectory import Trajectory
+from ..model.execution import ControllerModel, Interpolation
+from ..model.trajectory import Trajectory
 from .monitor import Decision, Monitor
 from .observations import Cloud, Scan
 

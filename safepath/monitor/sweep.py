@@ -21,8 +21,8 @@ import numpy as np
 import pinocchio as pin
 
 from ..collision.spheres import fit_spheres
-from ..robot import Robot
-from ..scene import Scene
+from ..model.robot import Robot
+from ..model.scene import Scene
 
 __all__ = ["PathSweep", "RobotSpheres"]
 

@@ -15,13 +15,13 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from .._knots import interval_index
+from ..cell.routes import Route, Step
 from ..errors import PlanningError, VerificationError
-from ..execution import LIMITS_KEY, robot_limits
-from ..routes import Route, Step
-from ..scene import AllowedContact
+from ..model._knots import interval_index
+from ..model.execution import LIMITS_KEY, robot_limits
+from ..model.scene import AllowedContact
+from ..model.trajectory import GripperEvent, Trajectory
 from ..timing import TimedPiece, TimingOptions, spline_path, time_path
-from ..trajectory import GripperEvent, Trajectory
 from ..verify import VerifyResult
 
 if TYPE_CHECKING:

@@ -12,8 +12,8 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from ..cell.pour_steps import Circle, Tilt
 from ..errors import PlanningError
-from ..pour_steps import Circle, Tilt
 from ..timing import TimedPiece
 from ..verify import VerifyResult
 from .pour import (
@@ -28,7 +28,7 @@ from .pour import (
 
 if TYPE_CHECKING:
     from ..cell import Cell
-    from ..routes import Route
+    from ..cell.routes import Route
     from .options import PlanOptions
     from .world import CheckerCache, WorldState
 

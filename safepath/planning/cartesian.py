@@ -24,11 +24,11 @@ from dataclasses import dataclass
 import numpy as np
 import pinocchio as pin
 
-from .._joint_table import WORLD, joint_table
-from ..derived import DerivedKind
 from ..errors import ConfigError, IKError
+from ..files.derived import DerivedKind
 from ..kinematics.ik import DAMPING, LineOptions
-from ..robot import Robot
+from ..model._joint_table import WORLD, joint_table
+from ..model.robot import Robot
 
 __all__ = ["cartesian_line"]
 
@@ -87,7 +87,7 @@ def cartesian_line(robot: Robot, q_start: np.ndarray, q_goal: np.ndarray, *,
 @dataclass(frozen=True)
 class _Chain:
     """The kinematic chain from the root to the TCP for the kernel: a joint table
-    (:mod:`safepath._joint_table`) and the TCP's placement in its last joint (layout in
+    (:mod:`safepath.model._joint_table`) and the TCP's placement in its last joint (layout in
     :mod:`safepath.kinematics._ik_kernel`)."""
 
     joint_f: np.ndarray
@@ -95,13 +95,13 @@ class _Chain:
     frame_f: np.ndarray
 
 
-#: The chain to the TCP, kept by the robot per TCP frame (:mod:`safepath.derived`).
+#: The chain to the TCP, kept by the robot per TCP frame (:mod:`safepath.files.derived`).
 LINE_CHAIN: DerivedKind[_Chain] = DerivedKind("Cartesian lines' joint chain to the TCP")
 
 
 def line_chain(robot: Robot) -> _Chain:
     """The robot's chain to its TCP, made once per robot and TCP frame (kept by the
-    robot: :mod:`safepath.derived`).
+    robot: :mod:`safepath.files.derived`).
 
     Raises:
         ConfigError: A joint on the chain does not move as a screw of constant axis

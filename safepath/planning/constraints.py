@@ -20,8 +20,8 @@ from ..errors import ConfigError, PlanningError
 
 if TYPE_CHECKING:
     from ..cell import Cell
-    from ..routes import Route
-    from ..trajectory import Trajectory
+    from ..cell.routes import Route
+    from ..model.trajectory import Trajectory
 
 __all__ = ["tilt_profile", "check_tilt", "tilt_bound"]
 

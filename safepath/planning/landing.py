@@ -3,9 +3,9 @@ its spill angle, over the receptacle's opening inside its walls.
 
 What can pour is the content, through the container's opening (its local +z face: the
 rim of a cylinder's top, the edge of a box's), once the container is tipped past its
-spill angle (:attr:`~safepath.scene.SceneObject.spill_angle`, the tilt of its axis from
+spill angle (:attr:`~safepath.model.scene.SceneObject.spill_angle`, the tilt of its axis from
 the vertical at which its content reaches the rim; a container a pour step tilts without
-one may spill at any tilt, :data:`~safepath.scene.DEFAULT_SPILL_ANGLE`). Up to 90 deg the
+one may spill at any tilt, :data:`~safepath.model.scene.DEFAULT_SPILL_ANGLE`). Up to 90 deg the
 content leaves over the rim's lowest part; past it the opening faces down and it may fall
 through the whole of it: the check follows every point of the rim. What leaves the rim is
 taken to fall straight down (the rim's own horizontal speed is not added).
@@ -13,8 +13,8 @@ taken to fall straight down (the rim's own horizontal speed is not added).
 So at every released sample of a pour step (``tilt``, ``circle``) where the container is
 tipped past its spill angle, every rim point must lie, seen from above, inside the
 opening of the step's receptacle (``into``: an upright cylinder's disc, an upright box's
-rectangle) less its wall (:attr:`~safepath.scene.SceneObject.wall`, else
-:data:`~safepath.scene.DEFAULT_WALL`), and above its top. Two allowances are added to each
+rectangle) less its wall (:attr:`~safepath.model.scene.SceneObject.wall`, else
+:data:`~safepath.model.scene.DEFAULT_WALL`), and above its top. Two allowances are added to each
 rim point's distance: the rim is followed at :data:`RIM_POINTS` points (a point of a
 circle between two of them is at most ``2 r sin(pi / 2n)`` from one), and the rim moves
 between released samples (a rim point between two is within half its step of one of
@@ -30,15 +30,15 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from ..cell.pour_steps import POUR_KINDS
 from ..errors import ConfigError, PourLandingError
-from ..pour_steps import POUR_KINDS
-from ..scene import DEFAULT_SPILL_ANGLE, DEFAULT_WALL
+from ..model.scene import DEFAULT_SPILL_ANGLE, DEFAULT_WALL
 
 if TYPE_CHECKING:
     from ..cell import Cell
-    from ..routes import Route
-    from ..scene import SceneObject
-    from ..trajectory import Trajectory
+    from ..cell.routes import Route
+    from ..model.scene import SceneObject
+    from ..model.trajectory import Trajectory
 
 __all__ = ["RIM_POINTS", "check_landing", "rim_points"]
 

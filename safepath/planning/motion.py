@@ -2,7 +2,7 @@
 
 The shortest way from a robot and a scene to a verified trajectory, for a user who has
 no taught poses or routes: the two configurations become the poses ``start`` and
-``goal`` of an in-memory :class:`~safepath.cell.Cell`, with one route of one step, and
+``goal`` of an in-memory :class:`~safepath.cell._cell.Cell`, with one route of one step, and
 go through the same planner, timing and independent re-check as a cell's routes.
 """
 
@@ -11,13 +11,13 @@ from __future__ import annotations
 import dataclasses
 from typing import Any, Literal
 
-from .._io import check_names
 from ..cell import Cell
+from ..cell.routes import Route, Step, Target
 from ..errors import ConfigError
-from ..robot import Robot
-from ..routes import Route, Step, Target
-from ..scene import Scene
-from ..trajectory import Trajectory
+from ..files._io import check_names
+from ..model.robot import Robot
+from ..model.scene import Scene
+from ..model.trajectory import Trajectory
 from .route_planner import PlanOptions, WorldState, initial_world, plan_route
 
 __all__ = ["plan"]

@@ -6,9 +6,9 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .._io import check_names
 from ..collision import CheckOptions
 from ..errors import ConfigError
+from ..files._io import check_names
 from ..kinematics import LineOptions
 from ..timing import TimingOptions
 from .pour import PourOptions

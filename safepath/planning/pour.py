@@ -22,7 +22,7 @@ excess at the knots), distance to the reference path and tilt error (a
 ``angle_tolerance``), collisions (the cell's checker), and the independent FCL verifier.
 
 These are planning primitives, not the pouring cell's application: a route's ``tilt`` and
-``circle`` steps (:mod:`safepath.pour_steps`) are planned with them inside
+``circle`` steps (:mod:`safepath.cell.pour_steps`) are planned with them inside
 :func:`~safepath.planning.plan_cell`, so they stay below it. What the pouring cell does with
 them (the flow model, the scale, the controller that stops the tilt) is
 :mod:`safepath.cells.pouring`.
@@ -39,10 +39,10 @@ import numpy as np
 import pinocchio as pin
 
 from ..errors import ConfigError, IKError, PlanningError
-from ..execution import LIMITS_KEY, robot_limits
 from ..kinematics import LineOptions, solve_ik
+from ..model.execution import LIMITS_KEY, robot_limits
+from ..model.trajectory import Trajectory
 from ..timing import PathSpline, TimingOptions, spline_path, stretch_knots, time_path
-from ..trajectory import Trajectory
 from ..verify import FclVerifier, VerifyResult
 
 if TYPE_CHECKING:
@@ -336,7 +336,7 @@ def _plan(cell: Cell, q_start: np.ndarray, parts: list[tuple[PoseCurve, int, flo
 def _speeds(robot: object, q: np.ndarray, qd: np.ndarray, T_knots: np.ndarray
             ) -> tuple[np.ndarray, np.ndarray]:
     """TCP speed [m/s] and angular speed [rad/s] at the knots (Jacobian times qd)."""
-    from ..robot import Robot
+    from ..model.robot import Robot
 
     assert isinstance(robot, Robot)
     model, data = robot.model, robot.model.createData()

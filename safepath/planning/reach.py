@@ -16,8 +16,8 @@ from pathlib import Path
 import numpy as np
 
 from ..cell import Cell
+from ..cell.routes import Route
 from ..errors import IKError
-from ..routes import Route
 from .options import PlanOptions
 from .route_planner import _resolve
 

@@ -20,11 +20,11 @@ from pathlib import Path
 import numpy as np
 
 from ..cell import Cell
+from ..cell.routes import Route, Step, after_chain
 from ..collision import CollisionChecker, Pair, SegmentReport
 from ..errors import ConfigError, IKError, PlanningError, SafepathError, TimingError
-from ..routes import Route, Step, after_chain
+from ..model.trajectory import Trajectory
 from ..timing import TimedPiece
-from ..trajectory import Trajectory
 from ..verify import check_verifiable
 from ._chunks import Segment, TimedPieces, assemble, time_chunk, time_segments
 from ._pour_chunk import PourChunk, plan_pour_chunk

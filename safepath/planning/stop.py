@@ -20,7 +20,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..errors import TimingError
-from ..robot import Robot
+from ..model.robot import Robot
 from ..timing import PathSpline
 
 __all__ = ["StopPlanner", "Stop", "path_state"]

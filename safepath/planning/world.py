@@ -13,7 +13,7 @@ import numpy as np
 
 from ..cell import Cell
 from ..collision import CheckOptions, CollisionChecker
-from ..scene import AllowedContact
+from ..model.scene import AllowedContact
 from ..verify import FclVerifier, StagedVerifier
 from .options import PlanOptions
 

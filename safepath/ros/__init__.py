@@ -5,7 +5,7 @@ works without a ROS 2 installation; in a sourced ROS 2 workspace the goal builde
 return the native ``rclpy`` message classes instead (``backend="auto"``).
 
 * :mod:`safepath.ros.goals`: ``JointTrajectory``, ``FollowJointTrajectory``,
-  Niryo ``RobotMove`` and ``Tool`` goals from a :class:`~safepath.trajectory.Trajectory`;
+  Niryo ``RobotMove`` and ``Tool`` goals from a :class:`~safepath.model.trajectory.Trajectory`;
   the controller's names, tolerances and timing come from the trajectory's robot
   (its folder's ``controller.yaml``).
 * :mod:`safepath.ros.gripper`: ``control_msgs/GripperCommand`` goals from the ``gripper``

@@ -45,10 +45,10 @@ from typing import Any
 import numpy as np
 from rosbags.rosbag2 import Reader, ReaderError, StoragePlugin, Writer, WriterError
 
-from .._knots import interval_index
-from ..controller_spec import ControllerSpec
 from ..errors import RosError, TrajectoryError
-from ..trajectory import GripperEvent, Trajectory
+from ..model._knots import interval_index
+from ..model.controller_spec import ControllerSpec
+from ..model.trajectory import GripperEvent, Trajectory
 from .goals import (
     controller_of,
     follow_joint_trajectory_goal,

@@ -1,8 +1,8 @@
-"""ROS 2 goals from a timed :class:`~safepath.trajectory.Trajectory`.
+"""ROS 2 goals from a timed :class:`~safepath.model.trajectory.Trajectory`.
 
 The robot's trajectory controller (action name, joint order, goal tolerances, point
 spacing) comes from the trajectory's own robot: the ``controller.yaml`` of its folder
-(:class:`~safepath.controller_spec.ControllerSpec`), looked up by the robot
+(:class:`~safepath.model.controller_spec.ControllerSpec`), looked up by the robot
 name the trajectory records, or given as ``controller=robot.controller``. Robots without
 such a file get settings derived from their joint names.
 
@@ -37,12 +37,12 @@ from typing import Any, Literal
 
 import numpy as np
 
-from .._io import check_names
-from .._knots import interval_index
-from ..controller_spec import ControllerSpec, controller_for
 from ..errors import InputError, TrajectoryError
-from ..execution import check_executed, limits_of
-from ..trajectory import GripperEvent, Trajectory
+from ..files._io import check_names
+from ..model._knots import interval_index
+from ..model.controller_spec import ControllerSpec, controller_for
+from ..model.execution import check_executed, limits_of
+from ..model.trajectory import GripperEvent, Trajectory
 from .messages import Backend, MessageFactory, message_factory
 
 __all__ = [
@@ -214,7 +214,7 @@ def _bundled_limits(robot: str, joint_names: tuple[str, ...]
                     ) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
     """The limits of the bundled or example-robot-data robot named ``robot`` (None when
     there is none by that name, or its joints are not ``joint_names``)."""
-    from ..robot_folder import load_robot, robot_names
+    from ..description.robot_folder import load_robot, robot_names
 
     if not robot or robot not in robot_names():
         return None
@@ -274,7 +274,7 @@ def joint_trajectory(traj: Trajectory, *, period: float | None = None,
     Columns come in the controller's joint order, whatever the order in ``traj``.
 
     Before the message is built, the motion the controller executes from these points is
-    checked at every instant (:func:`safepath.execution.check_executed`: speed on a >= 1
+    checked at every instant (:func:`safepath.model.execution.check_executed`: speed on a >= 1
     kHz grid with a bound between samples, acceleration and jerk exactly) against the
     joint limits the trajectory was timed under; nothing over a limit is ever returned.
 

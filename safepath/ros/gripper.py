@@ -4,7 +4,7 @@ A gripper driven by ros2_controllers' ``GripperActionController`` (the Gen3 Lite
 ros2_kortex, and most grippers MoveIt drives) takes one position (the driven joint's, in
 [rad] or [m]) and a ``max_effort``. The action name, the joint, its range and the open and
 closed positions are facts about the robot: the ``gripper`` section of its folder's
-``controller.yaml`` (:class:`~safepath.controller_spec.GripperSpec`). Robots
+``controller.yaml`` (:class:`~safepath.model.controller_spec.GripperSpec`). Robots
 without one (the Ned3 Pro, driven through Niryo's tools commander, see
 :func:`safepath.ros.goals.tool_goal`) get a typed error, never a guessed action.
 """
@@ -13,20 +13,20 @@ from __future__ import annotations
 
 from typing import TYPE_CHECKING, Any, Literal
 
-from .._io import check_names
-from .._paths import ROBOTS_DIR
-from ..controller_spec import (
+from ..errors import InputError
+from ..files._io import check_names
+from ..files._paths import ROBOTS_DIR
+from ..model.controller_spec import (
     FILE_NAME,
     ControllerSpec,
     GripperSpec,
     controller_for,
 )
-from ..errors import InputError
-from ..trajectory import GripperEvent, Trajectory
+from ..model.trajectory import GripperEvent, Trajectory
 from .messages import Backend, message_factory
 
 if TYPE_CHECKING:
-    from ..robot import Robot
+    from ..model.robot import Robot
 
 __all__ = ["GRIPPER_COMMAND_TYPES", "gripper_command_goal", "gripper_command_goals",
            "gripper_of"]
@@ -47,7 +47,7 @@ def gripper_of(robot: Robot | ControllerSpec | str) -> GripperSpec:
         InputError: ``robot`` has no ``gripper`` section in its ``controller.yaml``
             (key ``robot``), or is not a robot, controller or name.
     """
-    from ..robot import Robot
+    from ..model.robot import Robot
 
     if isinstance(robot, Robot):
         controller, name = robot.controller, robot.name

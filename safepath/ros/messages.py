@@ -31,8 +31,8 @@ from rosbags.serde import SerdeError
 from rosbags.typesys import Stores, TypesysError, get_types_from_msg, get_typestore
 from rosbags.typesys.store import Typestore
 
-from .._io import check_names
 from ..errors import InputError, RosError
+from ..files._io import check_names
 
 __all__ = [
     "Backend",

@@ -136,9 +136,9 @@ class Core:
         Raises:
             PoseError: Naming the pose and why.
         """
-        from .._io import check_names
         from ..errors import PoseError
-        from ..robot import joint_vector
+        from ..files._io import check_names
+        from ..model.robot import joint_vector
 
         with self.cond:
             cell = self._cell

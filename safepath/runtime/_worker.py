@@ -38,11 +38,11 @@ from typing import Any
 import numpy as np
 
 from .._aot import PLANNING_MODULES
-from .._io import check_names
-from ..cell import Cell
+from ..cell import Cell, Route
+from ..cell.routes import after_chain
 from ..errors import PoseError
-from ..planning import PlanOptions, Route, WorldState, plan_cell, plan_route
-from ..routes import after_chain
+from ..files._io import check_names
+from ..planning import PlanOptions, WorldState, plan_cell, plan_route
 from ._transport import encode_error, picklable_record
 
 __all__ = ["serve"]

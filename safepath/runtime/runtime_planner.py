@@ -40,8 +40,8 @@ import numpy as np
 
 from ..cell import Cell
 from ..errors import ConfigError, InputError, PoseError
+from ..model.trajectory import Trajectory
 from ..planning import PlanOptions, WorldState
-from ..trajectory import Trajectory
 from ._core import Core, RuntimeStats
 
 __all__ = ["RuntimePlanner", "RuntimeStats"]
@@ -61,10 +61,10 @@ class RuntimePlanner:
 
     Args:
         scene: The scene folder (``scene.yaml``, ``poses.yaml``, ``routes.yaml``), or a
-            :class:`~safepath.cell.Cell` with its routes (built in Python; its robot must
+            :class:`~safepath.cell._cell.Cell` with its routes (built in Python; its robot must
             come from :func:`~safepath.load_robot`, which the workers call again; its
             locked joints and any limits, TCP frame, tool or controller changed since
-            travel with it, see :data:`safepath.robot_folder.CARRIED`).
+            travel with it, see :data:`safepath.description.robot_folder.CARRIED`).
         options: Planning options (default: ``PlanOptions()``).
         workers: Worker processes; requests are spread over them, each runs one at a time.
         start_method: ``spawn`` (default) or ``forkserver``; never ``fork``, which is

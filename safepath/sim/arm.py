@@ -4,12 +4,12 @@ It takes the goal messages safepath emits (:func:`safepath.ros.follow_joint_traj
 rosbags or rclpy classes) and does what ``joint_trajectory_controller`` does with them:
 
 * **joins the points** as the robot's ``controller.yaml`` says (``interpolation``,
-  :func:`safepath.execution.join`: quintic when points carry positions, velocities and
+  :func:`safepath.model.execution.join`: quintic when points carry positions, velocities and
   accelerations);
 * **samples the joined motion every controller cycle** (``cycle``) as the drives'
   setpoint; between two cycles the drives extrapolate it at the sampled velocity (a
   first-order hold: the Ned's 25 Hz controller would otherwise command a staircase);
-* **switches** as :class:`safepath.execution.ControllerModel` says (the one model of the
+* **switches** as :class:`safepath.model.execution.ControllerModel` says (the one model of the
   controller the monitor builds its replacements against): a goal is taken at its
   ``header.stamp`` (0: on receipt; a stamp later than its arrival is the command latency
   the sender stated, and the running goal goes on until then; one in the past is taken
@@ -35,8 +35,8 @@ from typing import Any
 
 import numpy as np
 
-from ..controller_spec import ControllerSpec
-from ..execution import ControllerModel
+from ..model.controller_spec import ControllerSpec
+from ..model.execution import ControllerModel
 from .model import RobotModel
 
 __all__ = ["ArmServer", "ArmFeedback", "ArmResult", "SUCCESSFUL", "INVALID_GOAL",

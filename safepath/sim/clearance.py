@@ -19,9 +19,9 @@ import numpy as np
 if TYPE_CHECKING:
     from ..cell import Cell
     from ..collision import CollisionChecker
-    from ..robot import Robot
-    from ..scene import AllowedContact
-    from ..trajectory import Trajectory
+    from ..model.robot import Robot
+    from ..model.scene import AllowedContact
+    from ..model.trajectory import Trajectory
 
 __all__ = ["ExecutedClearance", "MotionWorld", "allowed_by_step", "ClearanceMeter",
            "ExecutedMotion", "executed_clearance", "tcp_deviation"]

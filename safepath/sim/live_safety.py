@@ -144,7 +144,7 @@ class LiveSafetyDraw:
     def draw(cls, seed: int, core: MonitorNodeCore, *, duration: float = DURATION
              ) -> LiveSafetyDraw:
         """The draws of run ``seed`` on the route of a configured node core."""
-        from ..trajectory import Trajectory
+        from ..model.trajectory import Trajectory
 
         rng = np.random.default_rng([seed, 34])
         assert core.monitor is not None

@@ -5,7 +5,7 @@ from a second copy of its description:
 
 * **bodies and joints** from the Pinocchio model (``robot.model``): one body per joint,
   placed by ``jointPlacements`` (the joint frame in its parent joint's frame), a hinge or
-  slide along the joint's axis (:func:`safepath.robot.joint_motion`), position limits;
+  slide along the joint's axis (:func:`safepath.model.robot.joint_motion`), position limits;
 * **inertias** from ``robot.model.inertias`` (mass, centre of mass, rotational inertia
   about it in the joint frame; links joined by fixed joints are already merged there);
 * **shapes** from the collision model (``robot.collision_model``: coal boxes,
@@ -41,8 +41,8 @@ import numpy as np
 from ..errors import ConfigError, InputError
 
 if TYPE_CHECKING:
-    from ..robot import Robot
-    from ..scene import Scene
+    from ..model.robot import Robot
+    from ..model.scene import Scene
 
 __all__ = ["ServoGains", "RobotModel", "build_robot_model", "TIMESTEP"]
 
@@ -183,7 +183,7 @@ def _scene_xml(scene: Scene) -> list[str]:
 def _body_xml(robot: Robot, j: int, children: dict[int, list[int]], geoms: dict[int, list[str]],
               gains: ServoGains) -> str:
     """The body of joint ``j`` and, nested, its children's."""
-    from ..robot import joint_motion
+    from ..model.robot import joint_motion
 
     model = robot.model
     M = model.jointPlacements[j]  # noqa: N806

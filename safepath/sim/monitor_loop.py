@@ -16,7 +16,7 @@ and the sensors that see it.
 
 Every arm goal sent (:class:`ArmGoal`) and every gripper action with where the arm was
 (:class:`GripperAction`) is kept, and the motion the trajectory controller commands (its
-:class:`~safepath.execution.ControllerModel`, ``twin.arm.commanded``) is sampled at every
+:class:`~safepath.model.execution.ControllerModel`, ``twin.arm.commanded``) is sampled at every
 physics step for its largest speed, acceleration and jerk against the robot's limits
 (:meth:`MonitorTwin.commanded_peaks`), so a run can be judged: a gripper action away from
 the pose its route plans it at drops (or misses) the object.
@@ -143,7 +143,7 @@ class MonitorTwin:
     extra_world: str = ""
 
     def __post_init__(self) -> None:
-        from ..trajectory import Trajectory
+        from ..model.trajectory import Trajectory
 
         monitor = self.core.monitor
         if monitor is None:

@@ -53,8 +53,8 @@ if TYPE_CHECKING:
     from ..cell import Cell
     from ..cells.pouring.commands import PourReport
     from ..cells.pouring.flow import FlowModel
+    from ..model.trajectory import GripperEvent, Trajectory
     from ..planning.pour import PourMotion
-    from ..trajectory import GripperEvent, Trajectory
 
 __all__ = ["PouringParams", "PouringRun", "run_pouring", "pour_plan", "pour_route_of"]
 
@@ -200,11 +200,11 @@ def pour_plan(scene: str, pour_route: str | None = None, pick_and_place: bool = 
         SafepathError: Planning failed.
     """
     from .. import load_cell
+    from ..cell.pour_steps import Tilt
     from ..cells.pouring.flow import FlowModel
     from ..cells.pouring.parts import PourStopper
     from ..planning.pour import PourOptions, plan_tilt
     from ..planning.route_planner import plan_cell
-    from ..pour_steps import Tilt
     from ..ros.goals import split_at_gripper_events
 
     cell = load_cell(scene)

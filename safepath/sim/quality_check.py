@@ -57,7 +57,7 @@ from .twin import GripperResult, RobotTwin, TwinOptions
 if TYPE_CHECKING:
     from ..cell import Cell
     from ..cells.quality_check.commands import Command, ControllerOptions, CycleReport
-    from ..trajectory import Trajectory
+    from ..model.trajectory import Trajectory
 
 __all__ = ["QualityCheckParams", "QualityCheckRun", "run_quality_check", "ARCHITECTURES",
            "WAITING_VIAL", "waiting_vial_cell", "QUEUED_VIAL", "queued_vials_cell",
@@ -265,7 +265,7 @@ def waiting_vial_cell(cell: Cell) -> Cell:
     """
     import dataclasses
 
-    from ..scene import AllowedContact
+    from ..model.scene import AllowedContact
 
     scene = cell.scene
     if scene.grasp is None:
@@ -345,7 +345,7 @@ def queued_vials_cell(cell: Cell, behind: tuple[float, ...], *, riding_in: float
         objects[name] = dataclasses.replace(vial, name=name, movable=False, T_world_object=T)
     contacts = tuple(scene.allowed_contacts)
     if riding_in is not None:
-        from ..scene import AllowedContact
+        from ..model.scene import AllowedContact
 
         T = vial.T_world_object.copy()  # noqa: N806
         T[:3, 3] += riding_in * axis

@@ -15,7 +15,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from ..trajectory import GripperEvent, Trajectory
+from ..model.trajectory import GripperEvent, Trajectory
 
 if TYPE_CHECKING:
     from ..cell import Cell

@@ -21,8 +21,8 @@ from .arm import ArmResult, ArmServer
 from .model import TIMESTEP, ServoGains, build_robot_model
 
 if TYPE_CHECKING:
-    from ..robot import Robot
-    from ..scene import Scene
+    from ..model.robot import Robot
+    from ..model.scene import Scene
 
 __all__ = ["TwinOptions", "RobotTwin", "GripperResult", "GripperServer", "Recording"]
 

@@ -16,8 +16,8 @@ from typing import Protocol
 
 import numpy as np
 
-from .._knots import interval_index
-from ..robot import Robot
+from ..model._knots import interval_index
+from ..model.robot import Robot
 from . import _topp
 
 __all__ = ["AHEAD_MARGIN", "TCP_STEP", "PathSpline", "PathLimits", "Points",

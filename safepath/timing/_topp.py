@@ -30,7 +30,7 @@ from typing import Any
 
 import numpy as np
 
-from .._knots import interval_index
+from ..model._knots import interval_index
 
 __all__ = ["Profile", "acceleration_rows", "compiled_kernels", "evaluate", "parametrize",
            "solve"]

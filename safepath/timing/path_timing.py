@@ -34,10 +34,10 @@ from typing import Literal
 
 import numpy as np
 
-from .._knots import interval_index
 from ..errors import TimingError
-from ..execution import interval_ratios
-from ..robot import Robot
+from ..model._knots import interval_index
+from ..model.execution import interval_ratios
+from ..model.robot import Robot
 from . import _scurve, _smooth, _topp
 from ._blend import blended_points, resampled
 from ._path_limits import PathLimits, PathSpline, jet, path_limits
@@ -244,7 +244,7 @@ def time_path(robot: Robot, path: PathSpline, s_way: np.ndarray, *, scales: Sequ
 
     TOPP-RA's profile is smoothed by two moving averages (:mod:`._smooth`), sampled every
     ``options.knot_period``, and the quintic join of the knots (how a trajectory
-    controller executes them, :mod:`safepath.execution`) is checked against the joint
+    controller executes them, :mod:`safepath.model.execution`) is checked against the joint
     speed, acceleration and jerk limits on every interval. Where it exceeds one, the
     limits along the part of the path that interval averaged are tightened and the path
     is timed again (``options.retries`` runs in all); what is left is removed by

@@ -17,13 +17,13 @@ verifier shows of itself (:class:`CheckedPair`, :class:`Body`, :class:`Grid`,
 :class:`StateBounds`),
 :func:`check_verifiable` (refuses, before planning, what it cannot check; :func:`unverifiable`
 lists it),
-:func:`prepare_robot` (what every verifier of a robot takes from it alone) and
+:func:`prepare_verifiers` (what every verifier of a robot takes from it alone) and
 :func:`fcl_shape`.
 """
 
 from __future__ import annotations
 
-from ._bodies import Body, check_verifiable, fcl_shape, prepare_robot, unverifiable
+from ._bodies import Body, check_verifiable, fcl_shape, prepare_verifiers, unverifiable
 from ._bounds import Grid
 from .verifier import CheckedPair, FclVerifier, StagedVerifier, StateBounds, VerifyResult
 
@@ -37,6 +37,6 @@ __all__ = [
     "VerifyResult",
     "check_verifiable",
     "fcl_shape",
-    "prepare_robot",
+    "prepare_verifiers",
     "unverifiable",
 ]

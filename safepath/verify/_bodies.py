@@ -8,10 +8,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..derived import DerivedKind
 from ..errors import ConfigError
-from ..robot import Robot, is_prismatic
-from ..scene import Scene, Shape
+from ..files.derived import DerivedKind
+from ..model.robot import Robot, is_prismatic
+from ..model.scene import Scene, Shape
 from ._bounds import (
     ShapeSpec,
     joint_kind,
@@ -22,7 +22,7 @@ from ._bounds import (
 )
 
 __all__ = ["Body", "check_verifiable", "unverifiable", "fcl_shape", "robot_bodies",
-           "held_bodies", "environment_bodies", "prepare_robot"]
+           "held_bodies", "environment_bodies", "prepare_verifiers"]
 
 
 def _supported(geometry: object) -> bool:
@@ -175,7 +175,7 @@ def robot_bodies(robot: Robot) -> tuple[list[Body], np.ndarray, tuple[np.ndarray
         for b, shape in zip(bodies, shapes, strict=True)], weights, tables
 
 
-def prepare_robot(robot: Robot) -> None:
+def prepare_verifiers(robot: Robot) -> None:
     """Make what every verifier of ``robot`` takes from the robot alone (its FCL shapes,
     layer shapes, motion weights and joint tables; kept by the robot), as loading a cell
     does so that its first plan pays for planning only.

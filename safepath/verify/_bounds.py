@@ -24,7 +24,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from ..errors import ConfigError
-from ..robot import joint_motion
+from ..model.robot import joint_motion
 
 if TYPE_CHECKING:
     import pinocchio as pin

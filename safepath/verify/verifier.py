@@ -32,8 +32,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..errors import VerificationError
-from ..robot import Robot
-from ..scene import GRIPPER, AllowedContact, Scene
+from ..model.robot import Robot
+from ..model.scene import GRIPPER, AllowedContact, Scene
 from ._between import Between, clearance_bound, unproven
 from ._bodies import (
     Body,

@@ -17,13 +17,13 @@ from pathlib import Path
 
 import numpy as np
 
-from .._knots import interval_index
-from ..cell import Cell
+from ..cell import Cell, Route
 from ..collision import CheckOptions, CollisionChecker, StateReport
 from ..errors import ConfigError, TrajectoryError
-from ..planning import Route, WorldState, initial_world
-from ..scene import AllowedContact
-from ..trajectory import Trajectory, load_trajectory
+from ..model._knots import interval_index
+from ..model.scene import AllowedContact
+from ..model.trajectory import Trajectory, load_trajectory
+from ..planning import WorldState, initial_world
 
 __all__ = ["GREEN", "YELLOW", "RED", "CLEAR_ENOUGH", "RouteReview", "analyse_routes",
            "check_plan", "load_plans", "affected_routes", "routes_of"]

@@ -19,10 +19,10 @@ from typing import Any, Literal, Protocol
 
 import numpy as np
 
-from .._io import check_names
 from ..cell import Cell
 from ..errors import InputError
-from ..trajectory import Trajectory
+from ..files._io import check_names
+from ..model.trajectory import Trajectory
 
 __all__ = ["PlanBackend", "ProcessPlanBackend", "RuntimePlanBackend", "make_backend",
            "plan_in_worker"]
@@ -59,8 +59,8 @@ def plan_in_worker(source: str | Cell, poses: dict[str, list[float]],
         SafepathError: Whatever loading or planning raised.
     """
     from ..cell import load_cell
+    from ..cell.routes import after_chain
     from ..planning import PlannerOptions, PlanOptions, plan_cell
-    from ..routes import after_chain
 
     cell = source if isinstance(source, Cell) else load_cell(source)
     for name, q in poses.items():

@@ -28,9 +28,9 @@ from typing import Any
 import numpy as np
 import viser
 
-from .._io import as_float, as_vector
 from ..cell import Cell
 from ..errors import PoseError, SafepathError
+from ..files._io import as_float, as_vector
 from .access import Access
 from .editor import PoseEditor
 from .edits import PoseEdits, PoseStatus

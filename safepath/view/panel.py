@@ -18,7 +18,7 @@ from typing import Any
 import numpy as np
 import viser
 
-from ..robot import Robot
+from ..model.robot import Robot
 
 __all__ = ["NO_ROUTE", "NO_POSE", "JOINT_DECIMALS", "Panel", "EditPanel", "build_panel",
            "build_edit_panel", "clearance_plot_data", "speed_plot_data"]

@@ -15,10 +15,9 @@ from typing import Any
 
 import numpy as np
 
-from ..cell import Cell
+from ..cell import Cell, Route
 from ..errors import SafepathError
-from ..planning import Route
-from ..trajectory import Trajectory
+from ..model.trajectory import Trajectory
 from .analysis import affected_routes, analyse_routes, load_plans
 from .backend import PlanBackend, make_backend
 from .options import ViewOptions

@@ -17,8 +17,8 @@ import numpy as np
 import pinocchio as pin
 import viser
 
-from ..robot import Robot
-from ..scene import Scene
+from ..model.robot import Robot
+from ..model.scene import Scene
 from .analysis import GREEN, RED, YELLOW
 
 __all__ = ["Rgb", "Scope", "RobotStyle", "HIGHLIGHT", "LEVEL_COLORS", "ShapeNode",
@@ -173,7 +173,7 @@ def coal_mesh(geometry: Any) -> tuple[np.ndarray, np.ndarray] | None:
 
 def _hull_mesh(points: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """``(vertices, faces)`` of a ``coal.ConvexBase`` that keeps only its points (the
-    fingers' whole-travel hulls of :mod:`safepath._locked`): every point a vertex, the
+    fingers' whole-travel hulls of :mod:`safepath.model._locked`): every point a vertex, the
     faces the triangles of the points' convex hull, turned outwards."""
     from scipy.spatial import ConvexHull
 
@@ -185,7 +185,7 @@ def _hull_mesh(points: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 
 
 def coal_shape(geometry: Any) -> tuple[str, tuple[float, ...]] | None:
-    """``(kind, size)`` of a coal primitive (see :class:`~safepath.scene.Shape`)."""
+    """``(kind, size)`` of a coal primitive (see :class:`~safepath.model.scene.Shape`)."""
     import coal
 
     if isinstance(geometry, coal.Box):

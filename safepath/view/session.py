@@ -36,7 +36,7 @@ import viser
 
 from ..cell import Cell, load_cell
 from ..errors import SafepathError
-from ..trajectory import Trajectory
+from ..model.trajectory import Trajectory
 from ._ports import choose_port, is_loopback
 from .access import Access, new_token
 from .analysis import CLEAR_ENOUGH, RouteReview, load_plans, routes_of
@@ -65,7 +65,7 @@ class ReviewSession:
     """A browser session to review, edit and re-plan one cell.
 
     Args:
-        scene: The scene folder, or a :class:`~safepath.cell.Cell` built in Python
+        scene: The scene folder, or a :class:`~safepath.cell._cell.Cell` built in Python
             (the session works on a copy: the cell's poses change only through a save).
             Edits of such a cell are saved to its ``poses_path`` (created by the first
             save if it does not exist); without one, saving is refused with a

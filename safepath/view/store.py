@@ -28,7 +28,7 @@ file's hash is the line's ``sha256_after`` (the session tells its pages only the
 the rename fails (a full disk, a permission), a line ``{"time", "client", "file",
 "undone": <time of the save's line>, "reason"}`` withdraws the save's line.
 
-No write follows a link (see :mod:`safepath._io`): ``poses.yaml``, its backup
+No write follows a link (see :mod:`safepath.files._io`): ``poses.yaml``, its backup
 ``poses.yaml~`` and ``poses.log`` must be regular files, or the save (and the start that
 would finish a killed save) is refused naming the file; a leftover temporary file that is
 not a regular file is removed, never read.
@@ -50,10 +50,10 @@ from typing import Any
 
 import numpy as np
 
-from .._io import keep_backup, leftover_temporaries, open_no_follow, read_bytes
 from ..cell import Cell
+from ..cell.poses import load_poses, save_poses
 from ..errors import ConfigError, PoseError, SafepathError
-from ..poses import load_poses, save_poses
+from ..files._io import keep_backup, leftover_temporaries, open_no_follow, read_bytes
 
 __all__ = ["PoseChange", "PosesChanged", "PosesSnapshot", "PosesStore", "differences"]
 
@@ -315,7 +315,7 @@ class PosesStore:
 
     def _bytes(self) -> bytes | None:
         """The poses file's bytes, None if there is none (read as every file is read:
-        :func:`safepath._io.read_bytes`)."""
+        :func:`safepath.files._io.read_bytes`)."""
         if self.path is None or not os.path.lexists(self.path):
             return None
         return read_bytes(self.path, error=PoseError)

@@ -18,9 +18,9 @@ from typing import Any
 
 import numpy as np
 
-from .._io import check_names
 from ..cell import Cell
 from ..errors import InputError, SafepathError
+from ..files._io import check_names
 from ..planning import initial_world
 from .analysis import CLEAR_ENOUGH, RouteReview, StepCheckers
 from .panel import Panel, clearance_plot_data, speed_plot_data

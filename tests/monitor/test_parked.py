@@ -17,6 +17,7 @@ import pytest
 
 from safepath import Cell, PlanOptions, SafepathError, Trajectory, plan_cell
 from safepath.collision import CheckOptions, CollisionChecker
+from safepath.model.scene import SceneObject, Shape
 from safepath.monitor import Cloud, Decision, Monitor, ReplanRequest
 from safepath.monitor.escape import START_SLACK, box_clearance, start_box
 from safepath.monitor.parked import (
@@ -31,7 +32,6 @@ from safepath.monitor.replan import ESCAPE_SUFFIX, replan, rest_step, step_role,
 from safepath.monitor.simulation import FclSeparation, MovingSphere, camera_cloud
 from safepath.monitor.sweep import RobotSpheres
 from safepath.ros import split_at_gripper_events
-from safepath.scene import SceneObject, Shape
 
 from .conftest import CAMERA, make_monitor
 from .test_replan import CASES, MARGIN, Case

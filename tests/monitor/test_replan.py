@@ -20,9 +20,9 @@ import pytest
 
 from safepath import Cell, PlanOptions, SafepathError, Trajectory, plan_cell
 from safepath.collision import CollisionChecker
+from safepath.model.scene import SceneObject, Shape
 from safepath.monitor import Cloud, ReplanRequest
 from safepath.monitor.replan import replan, step_role, world_at
-from safepath.scene import SceneObject, Shape
 from safepath.verify import FclVerifier
 
 from .conftest import CAMERA, Phase1, make_monitor

@@ -134,7 +134,7 @@ def test_replan_refuses_an_unknown_step(cell: Cell, phase1: Phase1) -> None:
 def _scene_with(cell: Cell, center: np.ndarray, size: np.ndarray):  # noqa: ANN202
     from dataclasses import replace
 
-    from safepath.scene import SceneObject, Shape
+    from safepath.model.scene import SceneObject, Shape
 
     T = np.eye(4)
     T[:3, 3] = center

@@ -10,7 +10,7 @@ import pytest
 from quintic_join import quintic_peaks, quintic_state
 
 from safepath import Cell
-from safepath.execution import ControllerModel
+from safepath.model.execution import ControllerModel
 from safepath.monitor import Scan
 from safepath.ros import joint_trajectory
 

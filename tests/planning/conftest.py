@@ -20,10 +20,9 @@ import numpy as np
 import pytest
 
 from safepath import PlanOptions, load_cell, plan_cell
-from safepath.cell import Cell
-from safepath.planning import Route, load_routes
-from safepath.scene import AllowedContact
-from safepath.trajectory import Trajectory
+from safepath.cell import Cell, Route, load_routes
+from safepath.model.scene import AllowedContact
+from safepath.model.trajectory import Trajectory
 
 ROOT = Path(__file__).resolve().parents[2]
 BUNDLED = ROOT / "scenes" / "quality_check_cell"

@@ -74,7 +74,7 @@ def test_the_planner_blends_as_its_options_say(bundled_cell) -> None:  # noqa: A
     """``TimingOptions(corner_blend="g2")`` reaches the planner's splines: the route's
     blended chunk differs from the default's, and both keep every limit as executed."""
     from safepath import PlanOptions, TimingOptions, plan_cell
-    from safepath.execution import check_executed
+    from safepath.model.execution import check_executed
 
     routes = bundled_cell.route_table()
     robot = bundled_cell.robot

@@ -9,8 +9,9 @@ import pytest
 
 from safepath import IKError, Robot, load_robot
 from safepath.cell import Cell
+from safepath.kinematics import LineOptions, solve_ik
 from safepath.kinematics import _ik_kernel as kernel
-from safepath.planning import LineOptions, cartesian_line, solve_ik
+from safepath.planning import cartesian_line
 from safepath.planning.cartesian import line_chain
 
 LINES = [("grip", "high1"), ("high2", "low1"), ("low1", "high2")]
@@ -254,7 +255,7 @@ def test_joint_jump_is_reported_where_it_happens(bundled_cell: Cell) -> None:
 def test_joint_motion_reads_every_joint_kind_of_the_screw_robot() -> None:
     """One place reads joint types (collision weights, the sphere layer's bounds and the
     verifier all ask it): aligned and unaligned, revolute and prismatic; helical is none."""
-    from safepath.robot import is_prismatic, joint_motion
+    from safepath.model.robot import is_prismatic, joint_motion
 
     model = _screw_robot().model
     found = [joint_motion(model, j) for j in range(1, model.njoints)]
@@ -267,7 +268,7 @@ def test_joint_motion_reads_every_joint_kind_of_the_screw_robot() -> None:
 
 
 def test_interval_index_is_the_one_knot_lookup() -> None:
-    from safepath._knots import interval_index
+    from safepath.model._knots import interval_index
 
     t = np.array([0.0, 0.5, 1.0, 2.0])
     assert interval_index(t, [-1.0, 0.0, 0.49, 0.5, 1.99, 2.0, 9.0], t.size - 1).tolist() == [

@@ -13,7 +13,7 @@ import textwrap
 from concurrent.futures import ThreadPoolExecutor
 
 from safepath import PlannerOptions, PlanOptions, load_cell, plan_cell
-from safepath.trajectory import Trajectory
+from safepath.model.trajectory import Trajectory
 
 from .conftest import DETOUR, ROOT, route_routes, trajectory_digest
 

@@ -10,8 +10,8 @@ import numpy as np
 
 from safepath import CheckOptions, CollisionChecker, PlannerOptions, PlanOptions
 from safepath.cell import Cell
+from safepath.model.trajectory import Trajectory
 from safepath.planning import plan_cell, plan_joint_path
-from safepath.trajectory import Trajectory
 
 from .conftest import DETOUR, Plans, dense_times, route_routes
 

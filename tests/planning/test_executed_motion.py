@@ -18,10 +18,10 @@ from quintic_join import quintic_peaks as _quintic_peaks
 
 import safepath
 from safepath.errors import ExecutedLimitError
-from safepath.execution import robot_limits
+from safepath.model.execution import robot_limits
+from safepath.model.trajectory import Trajectory
 from safepath.ros import joint_trajectory
 from safepath.timing import TimingOptions, spline_path, time_path
-from safepath.trajectory import Trajectory
 
 ROOT = Path(__file__).resolve().parents[2]
 ROBOTS = ("ned3pro", "gen3_lite", "panda", "ur5")

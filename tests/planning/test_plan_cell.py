@@ -241,9 +241,9 @@ def test_a_checker_and_verifier_made_for_other_contacts_judge_as_new_ones(
     contacts from the first one (``with_allowed``): the same pairs, margins, layer
     tables and answers as ones made from scratch."""
     from safepath import plan_cell
-    from safepath.planning import FclVerifier
     from safepath.planning.options import PlanOptions
     from safepath.planning.world import CheckerCache
+    from safepath.verify import FclVerifier
 
     plan_cell(bundled_cell)
     options = PlanOptions().check

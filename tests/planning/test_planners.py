@@ -27,8 +27,8 @@ import pytest
 
 from safepath import CheckOptions, ConfigError, PlannerOptions, PlannerTimeout, load_robot
 from safepath.collision import CollisionChecker
+from safepath.model.scene import Scene, SceneObject, Shape, placement
 from safepath.planning.sampling import PLANNERS, default_range, plan_joint_path
-from safepath.scene import Scene, SceneObject, Shape, placement
 
 ROBOTS = ("ned3pro", "ur5", "panda")
 

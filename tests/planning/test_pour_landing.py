@@ -17,10 +17,10 @@ import numpy as np
 import pytest
 
 from safepath import Cell, ConfigError, load_cell, load_scene
+from safepath.cell.pour_steps import Tilt
+from safepath.cell.routes import Route, Step
 from safepath.errors import PourLandingError
 from safepath.planning import WorldState, plan_route
-from safepath.pour_steps import Tilt
-from safepath.routes import Route, Step
 
 POURING = Path(__file__).resolve().parents[2] / "scenes" / "pouring_cell"
 LIP = (0.035, 0.04, 0.0)  # the tilt's pivot in the TCP frame, as routes.yaml has it

@@ -19,11 +19,12 @@ import pytest
 import yaml
 
 from safepath import Cell, ConfigError, PlanningError, load_cell, load_trajectory
+from safepath.cell import load_routes
+from safepath.cell.pour_steps import Circle, Tilt
+from safepath.cell.routes import Route, Step, Target
 from safepath.cli import main
-from safepath.planning import WorldState, load_routes, plan_cell, plan_route
-from safepath.pour_steps import Circle, Tilt
-from safepath.routes import Route, Step, Target
-from safepath.trajectory import Trajectory
+from safepath.model.trajectory import Trajectory
+from safepath.planning import WorldState, plan_cell, plan_route
 
 REPO_ROOT = Path(__file__).resolve().parents[2]
 POURING = REPO_ROOT / "scenes" / "pouring_cell"
@@ -253,7 +254,7 @@ def test_plan_writes_the_pours_like_any_route(tmp_path: Path,
 def test_a_cycle_that_does_not_hold_together_is_refused(tmp_path: Path) -> None:
     """A cycle naming an unknown route, or putting the cup down before the pours (the
     pours then start holding a cup that is on the table), names the file and key."""
-    from safepath.routes import load_cycle
+    from safepath.cell.routes import load_cycle
 
     text = (POURING / "routes.yaml").read_text()
     good = "cycle: [pick_cup, slow_pour, barista_pour, place_cup]"

@@ -15,10 +15,10 @@ import pinocchio as pin
 import pytest
 
 from safepath import Cell, PlanningError, load_cell
+from safepath.cell.routes import Route, Step, Target
+from safepath.model.trajectory import Trajectory
 from safepath.planning import WorldState, plan_cell, plan_route
 from safepath.planning.pour import PourMotion, PourOptions, plan_barista, plan_tilt, tilt_curve
-from safepath.routes import Route, Step, Target
-from safepath.trajectory import Trajectory
 
 REPO_ROOT = Path(__file__).resolve().parents[2]
 POURING = REPO_ROOT / "scenes" / "pouring_cell"
@@ -52,7 +52,7 @@ def planned(cell: Cell) -> dict[str, Trajectory]:
 
 def test_pick_and_place_keep_the_cup_upright(cell: Cell, planned: dict[str, Trajectory]
                                              ) -> None:
-    from safepath.planning import load_routes
+    from safepath.cell import load_routes
 
     routes = load_routes(POURING, poses=list(cell.poses), objects=list(cell.scene.objects))
     assert set(planned) == {"pick_cup", "slow_pour", "barista_pour", "place_cup"}

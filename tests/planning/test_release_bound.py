@@ -24,10 +24,10 @@ from quintic_join import quintic_state
 
 import safepath
 from safepath import PlannerOptions, PlanOptions, UnprovenClearance
-from safepath.planning import FclVerifier
-from safepath.robot import Robot
-from safepath.scene import Scene, SceneObject, Shape
+from safepath.model.robot import Robot
+from safepath.model.scene import Scene, SceneObject, Shape
 from safepath.timing import TimedPiece, spline_path, time_path
+from safepath.verify import FclVerifier
 
 ROOT = Path(__file__).resolve().parents[2]
 #: The arm's reach to its ball's centre and the two balls' radius [m].

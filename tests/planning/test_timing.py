@@ -28,7 +28,7 @@ from safepath import (
 )
 from safepath.cell import Cell
 from safepath.errors import TimingError
-from safepath.robot import Robot
+from safepath.model.robot import Robot
 from safepath.timing import (
     PathSpline,
     TimedPiece,

@@ -24,11 +24,18 @@ from scipy.spatial import ConvexHull
 
 from safepath import CheckOptions, ConfigError, VerificationError, plan_cell
 from safepath.cell import Cell
-from safepath.planning import FclVerifier, VerifyResult, initial_world
-from safepath.robot import Robot
-from safepath.scene import AllowedContact, Scene, SceneObject, Shape
+from safepath.model.robot import Robot
+from safepath.model.scene import AllowedContact, Scene, SceneObject, Shape
+from safepath.planning import initial_world
 from safepath.timing import TimedPiece, spline_path, time_path
-from safepath.verify import Body, CheckedPair, check_verifiable, fcl_shape
+from safepath.verify import (
+    Body,
+    CheckedPair,
+    FclVerifier,
+    VerifyResult,
+    check_verifiable,
+    fcl_shape,
+)
 from safepath.verify._bodies import robot_bodies
 from safepath.verify._bounds import (
     Grid,

@@ -13,6 +13,7 @@ from rosbags.rosbag2 import Reader
 from rosbags.typesys import Stores, get_types_from_msg, get_typestore
 
 from safepath.errors import RosError, TrajectoryError
+from safepath.model.trajectory import Trajectory
 from safepath.ros import bag as bag_module
 from safepath.ros.bag import (
     GRIPPER_TOPIC,
@@ -23,7 +24,6 @@ from safepath.ros.bag import (
     write_bag,
 )
 from safepath.ros.goals import joint_trajectory, split_at_gripper_events
-from safepath.trajectory import Trajectory
 
 from .test_messages import NED_JOINT_NAMES, assert_same, phase1, phase2
 

@@ -13,9 +13,10 @@ import numpy as np
 import pytest
 
 from safepath import load_robot
-from safepath.controller_spec import GripperSpec
+from safepath.description.robot_folder import ROBOTS_DIR
 from safepath.errors import ConfigError, InputError
-from safepath.robot_folder import ROBOTS_DIR
+from safepath.model.controller_spec import GripperSpec
+from safepath.model.trajectory import GripperEvent, Trajectory
 from safepath.ros.bag import (
     ARM_GOAL_TOPIC,
     GRIPPER_GOAL_TOPIC,
@@ -28,7 +29,6 @@ from safepath.ros.bag import (
 from safepath.ros.goals import follow_joint_trajectory_goal, split_at_gripper_events
 from safepath.ros.gripper import gripper_command_goal, gripper_command_goals, gripper_of
 from safepath.ros.messages import deserialize, serialize
-from safepath.trajectory import GripperEvent, Trajectory
 
 from .test_messages import assert_same, round_trip
 

@@ -16,8 +16,9 @@ import pytest
 from rosbags.typesys import get_types_from_msg
 from rosbags.typesys.base import Nodetype
 
-from safepath.controller_spec import controller_for
 from safepath.errors import InputError, RosError, TrajectoryError
+from safepath.model.controller_spec import controller_for
+from safepath.model.trajectory import GripperEvent, Trajectory
 from safepath.ros import goals
 from safepath.ros.goals import (
     check_start,
@@ -29,7 +30,6 @@ from safepath.ros.goals import (
     tool_goals,
 )
 from safepath.ros.messages import DEFINITIONS, deserialize, message_factory, serialize, typestore
-from safepath.trajectory import GripperEvent, Trajectory
 
 NED_JOINT_NAMES = tuple(f"joint_{i}" for i in range(1, 7))
 #: Niryo's niryo_controllers.yaml, as robots/ned3pro/controller.yaml must give them [rad].

@@ -28,6 +28,7 @@ from safepath.cells.pouring.dry_run import PourSim, commands_of
 from safepath.cells.pouring.flow import FlowModel
 from safepath.cells.pouring.parts import MassPredictor, PourStopper
 from safepath.errors import InputError
+from safepath.model.trajectory import GripperEvent, Trajectory
 from safepath.planning.pour import PourMotion, PourOptions, plan_barista, plan_tilt, tilt_curve
 from safepath.ros.bag import (
     ARM_GOAL_TOPIC,
@@ -37,7 +38,6 @@ from safepath.ros.bag import (
     write_bag,
 )
 from safepath.ros.commands import CancelGoal, Fault
-from safepath.trajectory import GripperEvent, Trajectory
 
 #: How far from 100 g the closed-loop pours end [g]. The jerk-limited stop (the monitor's
 #: re-timing) braked from its first knot while the predictor assumed the tilt ran on for

@@ -18,9 +18,9 @@ from safepath.cells.pouring.dry_run import PourSim, commands_of
 from safepath.cells.pouring.flow import FlowModel
 from safepath.cells.pouring.setup import PourParameters, PourSetup, build_pour
 from safepath.errors import InputError, TrajectoryError
+from safepath.model.trajectory import Trajectory
 from safepath.ros.goals import follow_joint_trajectory_goal, split_at_gripper_events
 from safepath.ros.gripper import gripper_command_goal
-from safepath.trajectory import Trajectory
 
 ROOT = Path(__file__).resolve().parents[2]
 EXAMPLES = ROOT / "examples" / "ros2"

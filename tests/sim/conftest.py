@@ -11,9 +11,9 @@ import pytest
 from safepath import PlanOptions, Trajectory, plan_cell
 from safepath.cell import Cell
 from safepath.collision import CheckOptions, CollisionChecker
+from safepath.model.trajectory import GripperEvent
 from safepath.ros.goals import split_at_gripper_events
 from safepath.sim.clearance import allowed_by_step
-from safepath.trajectory import GripperEvent
 
 
 @pytest.fixture(scope="session")

@@ -118,7 +118,7 @@ def test_the_commanded_motion_of_an_obstacle_run_stays_within_the_limits(
 
 
 def test_a_kill_with_no_lead_is_pressed_at_the_motions_end_and_holds(cell_dir: Path) -> None:
-    from safepath.execution import executed_peaks
+    from safepath.model.execution import executed_peaks
 
     core = MonitorNodeCore(NodeParameters(scene=str(cell_dir), route="phase1"))
     core.configure()

@@ -34,7 +34,7 @@ def test_a_pool_of_runs_gives_what_the_runs_give_alone(cell_dir: Path) -> None:
 
 
 def test_the_command_line_does_not_import_mujoco(repo_root: Path) -> None:
-    code = ("import sys\nfrom safepath.cli import _load_extra, build_parser\n_load_extra()\n"
+    code = ("import sys\nfrom safepath.cli._main import _load_extra, build_parser\n_load_extra()\n"
             "build_parser().parse_args(['sim', 'scenes/quality_check_cell'])\n"
             "print('mujoco' in sys.modules)\n")
     out = subprocess.run([sys.executable, "-c", code], cwd=repo_root, capture_output=True,

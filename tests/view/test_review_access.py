@@ -19,8 +19,8 @@ import numpy as np
 import pytest
 
 from safepath import InputError, SafepathError, load_poses
+from safepath.cell.poses import dump_poses
 from safepath.errors import PoseError
-from safepath.poses import dump_poses
 from safepath.view import ReviewSession, ViewOptions
 from safepath.view.access import Access, AccessDenied
 from safepath.view.store import PosesChanged

@@ -49,8 +49,8 @@ from typing import TYPE_CHECKING, Literal
 import numpy as np
 
 from ...errors import InputError, SafepathError
+from ...model.trajectory import GripperEvent, Trajectory
 from ...ros.commands import CancelGoal, Fault
-from ...trajectory import GripperEvent, Trajectory
 from .commands import (
     PourCommand,
     PourControllerOptions,

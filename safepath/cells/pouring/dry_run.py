@@ -18,9 +18,9 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ...cell import Cell
+from ...model.trajectory import Trajectory
 from ...planning.pour import cup_axis_in_tcp, tilt_of
 from ...ros.commands import CancelGoal, Fault
-from ...trajectory import Trajectory
 from .controller import PourCommand, PourController, PourReport, SendArmGoal, SendGripperGoal
 from .flow import FlowModel
 

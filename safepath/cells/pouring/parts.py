@@ -29,8 +29,8 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from ...errors import InputError, TimingError
-from ...execution import LIMITS_KEY, robot_limits
-from ...trajectory import Trajectory
+from ...model.execution import LIMITS_KEY, robot_limits
+from ...model.trajectory import Trajectory
 
 if TYPE_CHECKING:
     from ...cell import Cell

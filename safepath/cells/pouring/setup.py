@@ -16,9 +16,9 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from ..._io import check_keys
 from ...errors import InputError
-from ...trajectory import GripperEvent, Trajectory
+from ...files._io import check_keys
+from ...model.trajectory import GripperEvent, Trajectory
 
 if TYPE_CHECKING:
     from ...cell import Cell

@@ -12,8 +12,8 @@ from dataclasses import dataclass, field
 from typing import Literal
 
 from ...errors import InputError
+from ...model.trajectory import GripperEvent, Trajectory
 from ...ros.commands import CancelGoal, Fault
-from ...trajectory import GripperEvent, Trajectory
 
 __all__ = [
     "ActuateGripper",

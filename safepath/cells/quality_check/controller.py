@@ -39,10 +39,10 @@ import logging
 from dataclasses import dataclass
 from typing import Literal
 
-from ..._io import check_names
 from ...errors import InputError, TrajectoryError
+from ...files._io import check_names
+from ...model.trajectory import GripperEvent, Trajectory
 from ...ros.goals import split_at_gripper_events
-from ...trajectory import GripperEvent, Trajectory
 from .commands import (
     ActuateGripper,
     CancelGoal,

@@ -1,0 +1,161 @@
+"""The peaks of a quintic join, per interval and joint, and its samples, numba-compiled.
+
+The kernel of :func:`safepath.model.execution.interval_ratios` (see there for what is bounded
+and how): the same sums as the numpy version it replaced, one interval and joint at a
+time, without the temporary arrays. Compiled ahead of time (:mod:`safepath._aot`), else
+by numba on first use; numba is imported then, not when this module is imported.
+"""
+
+from __future__ import annotations
+
+import math
+import threading
+from collections.abc import Callable
+from typing import Any
+
+import numpy as np
+
+__all__ = ["compiled_kernels", "peaks", "sample"]
+
+_lock = threading.Lock()
+_compiled: dict[str, Callable[..., Any]] = {}
+
+
+def _peaks(t: np.ndarray, q: np.ndarray, qd: np.ndarray, qdd: np.ndarray, rate: float,
+           v_out: np.ndarray, a_out: np.ndarray, j_out: np.ndarray) -> None:
+    """For the quintic join of points ``(t, q, qd, qdd)``, per interval and joint: a bound
+    of |v| (exact at the ends and where the acceleration keeps its sign, sampled at
+    ``rate`` elsewhere plus ``|j| dt^2 / 8``), and the exact max |a| and |j|, into the
+    outputs (intervals, dof)."""
+    n, dof = t.size - 1, q.shape[1]
+    for k in range(n):
+        h = t[k + 1] - t[k]
+        m = max(4, int(math.ceil(h * rate)) + 1)
+        for d in range(dof):
+            # The quintic matching position, velocity and acceleration at both ends.
+            v0, acc0 = qd[k, d], qdd[k, d]
+            dp = q[k + 1, d] - q[k, d] - v0 * h - acc0 * h * h / 2.0
+            dv = qd[k + 1, d] - v0 - acc0 * h
+            da = qdd[k + 1, d] - acc0
+            c1, c2 = v0, acc0 / 2.0
+            c3 = (10.0 * dp - 4.0 * dv * h + da * h * h / 2.0) / h ** 3
+            c4 = (-15.0 * dp + 7.0 * dv * h - da * h * h) / h ** 4
+            c5 = (6.0 * dp - 3.0 * dv * h + da * h * h / 2.0) / h ** 5
+            # Jerk 6 c3 + 24 c4 t + 60 c5 t^2: the ends and the vertex.
+            j0 = 6.0 * c3
+            j1 = 6.0 * c3 + h * (24.0 * c4 + 60.0 * c5 * h)
+            jp = max(abs(j0), abs(j1))
+            if c5 != 0.0:
+                tv = -24.0 * c4 / (120.0 * c5)
+                if 0.0 < tv < h:
+                    jp = max(jp, abs(6.0 * c3 + tv * (24.0 * c4 + 60.0 * c5 * tv)))
+            # Acceleration 2 c2 + 6 c3 t + 12 c4 t^2 + 20 c5 t^3: the ends and where the
+            # jerk vanishes.
+            a0 = 2.0 * c2
+            a1 = 2.0 * c2 + h * (6.0 * c3 + h * (12.0 * c4 + 20.0 * c5 * h))
+            a_lo = min(a0, a1)
+            a_hi = max(a0, a1)
+            qa, qb, qc = 60.0 * c5, 24.0 * c4, 6.0 * c3
+            for r_i in range(2):
+                r = -1.0
+                if qa != 0.0:
+                    disc = qb * qb - 4.0 * qa * qc
+                    if disc >= 0.0:
+                        sq = math.sqrt(disc)
+                        r = (-qb + sq) / (2.0 * qa) if r_i == 0 else (-qb - sq) / (2.0 * qa)
+                elif r_i == 0 and qb != 0.0:
+                    r = -qc / qb
+                if 0.0 < r < h:
+                    a = 2.0 * c2 + r * (6.0 * c3 + r * (12.0 * c4 + 20.0 * c5 * r))
+                    a_lo = min(a_lo, a)
+                    a_hi = max(a_hi, a)
+            ap = max(abs(a_lo), abs(a_hi))
+            # Speed c1 + 2 c2 t + 3 c3 t^2 + 4 c4 t^3 + 5 c5 t^4.
+            v1 = c1 + h * (2.0 * c2 + h * (3.0 * c3 + h * (4.0 * c4 + 5.0 * c5 * h)))
+            vp = max(abs(c1), abs(v1))
+            if a_lo < 0.0 < a_hi:  # the speed may peak inside
+                dt = h / (m - 1)
+                sampled = vp
+                for i in range(1, m - 1):
+                    x = i * dt
+                    v = c1 + x * (2.0 * c2 + x * (3.0 * c3 + x * (4.0 * c4 + 5.0 * c5 * x)))
+                    sampled = max(sampled, abs(v))
+                vp = max(vp, sampled + jp * dt * dt / 8.0)
+            v_out[k, d] = vp
+            a_out[k, d] = ap
+            j_out[k, d] = jp
+
+
+def _sample(t: np.ndarray, q: np.ndarray, qd: np.ndarray, qdd: np.ndarray,
+            times: np.ndarray, p_out: np.ndarray, v_out: np.ndarray, a_out: np.ndarray
+            ) -> None:
+    """Position, velocity and acceleration of the quintic join of points ``(t, q, qd,
+    qdd)`` (at least two) at ``times``, clamped to the ends (the end points themselves
+    there), into the outputs (len(times), dof)."""
+    n, dof = t.size, q.shape[1]
+    for i in range(times.size):
+        x = times[i]
+        if x <= t[0] or x >= t[n - 1]:
+            e = 0 if x <= t[0] else n - 1
+            for d in range(dof):
+                p_out[i, d], v_out[i, d], a_out[i, d] = q[e, d], qd[e, d], qdd[e, d]
+            continue
+        lo, hi = 0, n - 1  # t[lo] <= x < t[hi]
+        while hi - lo > 1:
+            mid = (lo + hi) // 2
+            if t[mid] <= x:
+                lo = mid
+            else:
+                hi = mid
+        h, s = t[lo + 1] - t[lo], x - t[lo]
+        for d in range(dof):
+            v0, acc0 = qd[lo, d], qdd[lo, d]
+            dp = q[lo + 1, d] - q[lo, d] - v0 * h - acc0 * h * h / 2.0
+            dv = qd[lo + 1, d] - v0 - acc0 * h
+            da = qdd[lo + 1, d] - acc0
+            c3 = (10.0 * dp - 4.0 * dv * h + da * h * h / 2.0) / h ** 3
+            c4 = (-15.0 * dp + 7.0 * dv * h - da * h * h) / h ** 4
+            c5 = (6.0 * dp - 3.0 * dv * h + da * h * h / 2.0) / h ** 5
+            p_out[i, d] = q[lo, d] + s * (v0 + s * (acc0 / 2.0 + s * (c3 + s * (c4 + c5 * s))))
+            v_out[i, d] = v0 + s * (acc0 + s * (3.0 * c3 + s * (4.0 * c4 + 5.0 * c5 * s)))
+            a_out[i, d] = acc0 + s * (6.0 * c3 + s * (12.0 * c4 + 20.0 * c5 * s))
+
+
+def sample(t: np.ndarray, q: np.ndarray, qd: np.ndarray, qdd: np.ndarray,
+           times: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Position, velocity and acceleration of the quintic join of the points at ``times``
+    (clamped to the ends), each (len(times), dof); what
+    :func:`safepath.model.execution.join` gives, compiled (equal to rounding)."""
+    t, q, qd, qdd = (np.ascontiguousarray(x, dtype=np.float64) for x in (t, q, qd, qdd))
+    times = np.ascontiguousarray(np.atleast_1d(times), dtype=np.float64)
+    shape = (times.size, q.shape[1])
+    if t.size == 1:
+        return (np.repeat(q, times.size, 0), np.repeat(qd, times.size, 0),
+                np.repeat(qdd, times.size, 0))
+    p, v, a = np.empty(shape), np.empty(shape), np.empty(shape)
+    compiled_kernels()["sample"](t, q, qd, qdd, times, p, v, a)
+    return p, v, a
+
+
+def peaks(t: np.ndarray, q: np.ndarray, qd: np.ndarray, qdd: np.ndarray, rate: float
+          ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Speed bound, acceleration and jerk peaks of the quintic join of the points, per
+    interval and joint (see :func:`_peaks`)."""
+    kernel = compiled_kernels()["peaks"]
+    t, q, qd, qdd = (np.ascontiguousarray(x, dtype=np.float64) for x in (t, q, qd, qdd))
+    shape = (t.size - 1, q.shape[1])
+    v, a, j = np.empty(shape), np.empty(shape), np.empty(shape)
+    kernel(t, q, qd, qdd, float(rate), v, a, j)
+    return v, a, j
+
+
+def compiled_kernels() -> dict[str, Callable[..., Any]]:
+    """The compiled kernel: ahead of time, else numba's (compiled, or loaded from numba's
+    cache, once); see :mod:`safepath._aot`."""
+    with _lock:
+        if not _compiled:
+            from .._aot import njit
+
+            _compiled["peaks"] = njit(cache=True, nogil=True)(_peaks)
+            _compiled["sample"] = njit(cache=True, nogil=True)(_sample)
+        return _compiled

@@ -1,0 +1,80 @@
+"""The joint table: a kinematic tree as the planner's numba kernels read it.
+
+One row per joint, parents before children, in two arrays: floats ``(n, JF_WIDTH)`` and
+ints ``(n, JI_WIDTH)``, their columns named below. A joint's local placement at its
+coordinate ``x`` is its placement in the parent joint's frame times ``exp6(S x)``, ``S``
+its motion subspace: a screw whose angular part is a unit vector or zero and whose linear
+part is parallel to it (revolute, prismatic and helical joints). Written by the sphere
+layer (:mod:`safepath.collision._pack`, every joint of the model, the universe first) and
+by Cartesian lines (:mod:`safepath.planning.cartesian`, the chain to the TCP); read by
+:func:`safepath.model._fk_kernel.joint_frames`.
+
+Only constants and a builder: importing this module compiles nothing, and the kernels
+read the constants as compile-time constants (:mod:`safepath._aot` keys its builds on
+this file's source).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+import numpy as np
+import pinocchio as pin
+
+__all__ = ["JF_R", "JF_T", "JF_V", "JF_W", "JF_WIDTH", "JI_PARENT", "JI_KIND", "JI_Q",
+           "JI_WIDTH", "FIXED", "REVOLUTE", "PRISMATIC", "HELICAL", "WORLD", "joint_table"]
+
+# Float columns.
+#: The placement's rotation in the parent joint's frame, row-major (9 columns).
+JF_R = 0
+#: The placement's translation in the parent joint's frame [m] (3 columns).
+JF_T = 9
+#: The screw's linear part [m per unit of the coordinate] (3 columns).
+JF_V = 12
+#: The screw's angular part [rad per unit of the coordinate] (3 columns).
+JF_W = 15
+JF_WIDTH = 18
+
+# Int columns.
+#: The parent joint's row; WORLD for a joint placed in the world frame.
+JI_PARENT = 0
+#: The kind of joint (FIXED, REVOLUTE, PRISMATIC, HELICAL).
+JI_KIND = 1
+#: The index of its coordinate in ``q`` (0 for a fixed joint).
+JI_Q = 2
+JI_WIDTH = 3
+
+WORLD = -1
+FIXED, REVOLUTE, PRISMATIC, HELICAL = 0, 1, 2, 3
+
+
+def joint_table(model: pin.Model, joints: Sequence[int], parents: Sequence[int]
+                ) -> tuple[np.ndarray, np.ndarray]:
+    """The rows of ``model``'s joints ``joints`` (pinocchio indices, each a revolute,
+    prismatic or helical joint; 0, the universe, is a fixed row at the origin), whose
+    parents are the rows ``parents`` (WORLD: the world frame).
+
+    Returns:
+        The float table (n, JF_WIDTH) and the int table (n, JI_WIDTH).
+    """
+    data = model.createData()
+    pin.forwardKinematics(model, data, pin.neutral(model))
+    jf = np.zeros((len(joints), JF_WIDTH))
+    ji = np.zeros((len(joints), JI_WIDTH), dtype=np.int64)
+    for row, (j, parent) in enumerate(zip(joints, parents, strict=True)):
+        ji[row, JI_PARENT] = parent
+        if j == 0:
+            jf[row, JF_R:JF_R + 9] = np.eye(3).ravel()
+            ji[row, JI_KIND] = FIXED
+            continue
+        placement = model.jointPlacements[j]
+        S = np.asarray(data.joints[j].S, dtype=float).reshape(6)
+        jf[row, JF_R:JF_R + 9] = placement.rotation.reshape(9)
+        jf[row, JF_T:JF_T + 3] = placement.translation
+        jf[row, JF_V:JF_V + 3] = S[:3]
+        jf[row, JF_W:JF_W + 3] = S[3:]
+        angular, linear = np.linalg.norm(S[3:]) > 0.5, np.linalg.norm(S[:3]) > 0.0
+        ji[row, JI_KIND] = (HELICAL if angular and linear else REVOLUTE if angular
+                            else PRISMATIC)
+        ji[row, JI_Q] = model.joints[j].idx_q
+    return jf, ji
