@@ -5,7 +5,7 @@ The problems and the check are ``tests/timing_suite.py``'s (the test suite runs 
 bounded subset): polylines of 2-4 route steps with their own speed scales and TCP speed
 limits, blended at their via points, timed by :func:`safepath.timing.time_path`; the
 controller's quintic join of the released knots checked against each interval's step
-limits at 0 tolerance (``safepath.execution.interval_ratios``). Printed per robot: paths,
+limits at 0 tolerance (``safepath.model.execution.interval_ratios``). Printed per robot: paths,
 overruns (must be 0), the largest ratio seen, the TOPP-RA runs per path and the share
 re-timed, and the wall time; the machine's load before and after.
 

@@ -7,7 +7,7 @@ Shared by ``tests/planning/test_timing_suite.py`` (a bounded subset) and
 scale in [0.2, 1] (or 1), a TCP speed limit in [0.05, 0.5] m/s on some, via points
 blended as the planner's first attempt blends them (``min(0.6, 0.4 x either segment)``
 [rad]), cut the ``"gap"`` or the ``"g2"`` way. The check: the quintic join of the
-released knots (``safepath.execution.interval_ratios``), each interval against the
+released knots (``safepath.model.execution.interval_ratios``), each interval against the
 limits of the slower step of its two knots, every ratio <= 1.0.
 """
 
@@ -18,9 +18,9 @@ from pathlib import Path
 
 import numpy as np
 
-from safepath.execution import interval_ratios
-from safepath.robot import Robot
-from safepath.robot_folder import load_robot
+from safepath.description.robot_folder import load_robot
+from safepath.model.execution import interval_ratios
+from safepath.model.robot import Robot
 from safepath.timing import TimedPiece, TimingOptions, spline_path, time_path
 
 ROBOTS_DIR = Path(__file__).resolve().parents[1] / "robots"

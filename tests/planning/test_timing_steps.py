@@ -12,8 +12,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from safepath.execution import interval_ratios
-from safepath.robot_folder import load_robot
+from safepath.description.robot_folder import load_robot
+from safepath.model.execution import interval_ratios
 from safepath.timing import _path_limits, spline_path, time_path
 
 ROBOTS = ("gen3_lite", "ned3pro", "panda", "ur5")
