@@ -6,7 +6,8 @@ Shared by ``tests/planning/test_timing_suite.py`` (a bounded subset) and
 2-4 segments inside 80 % of the joint ranges, each segment its own route step: a speed
 scale in [0.2, 1] (or 1), a TCP speed limit in [0.05, 0.5] m/s on some, via points
 blended as the planner's first attempt blends them (``min(0.6, 0.4 x either segment)``
-[rad]), cut the ``"gap"`` or the ``"g2"`` way. The check: the quintic join of the
+[rad]), cut the ``"gap"`` or the ``"g2"`` way, timed with or without
+``limits_ahead``. The check: the quintic join of the
 released knots (``safepath.model.execution.interval_ratios``), each interval against the
 limits of the slower step of its two knots, every ratio <= 1.0.
 """
@@ -60,8 +61,9 @@ def timed_problem(robot: Robot, rng: np.random.Generator) -> tuple[TimedPiece, n
     tcp = [float(v) if rng.random() < 0.3 else None
            for v in rng.uniform(0.05, 0.5, segments)]
     path, s_way, _ = spline_path(points, 0.06, corners=corners, blend=blend)
+    options = TimingOptions(corner_blend=blend, limits_ahead=bool(rng.random() < 0.5))
     piece = time_path(robot, path, s_way, scales=scales.tolist(), tcp_speeds=tcp,
-                      options=TimingOptions(corner_blend=blend))
+                      options=options)
     return piece, scales
 
 

@@ -6,10 +6,10 @@ with continuous curvature in ``_blend``). A straight move is timed by the closed
 jerk-limited S-curve (``_scurve``); on any other path, TOPP-RA finds the time-optimal
 timing under joint velocity and acceleration limits that vary along it (``_path_limits``;
 our numba kernel, ``_topp``), its jerk is limited by two moving averages (``_smooth``;
-the steps' limits hold as far around each step as the averages reach), knots whose
-excess would take more than a small stretch are tightened and timed again, and what is
-left is removed by stretching time (:func:`time_path`, in :mod:`.path_timing`). No
-released knot exceeds a limit.
+optionally the steps' limits held as far around each step as the averages reach),
+knots whose excess would take more than a small stretch are tightened and timed again,
+and what is left is removed by stretching time (:func:`time_path`, in
+:mod:`.path_timing`). No released knot exceeds a limit.
 
 Depends on the robot and its limits only: nothing here imports collision checking,
 planning or the release check.

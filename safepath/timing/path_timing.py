@@ -9,10 +9,10 @@ kernel in :mod:`._topp`) finds the fastest timing under joint velocity and accel
 limits that vary along the path (each route step has its own speed scale and an optional
 TCP speed limit), with a constant path acceleration between gridpoints, and two moving
 averages limit its jerk (:mod:`._smooth`). The averages mix the profile's speeds over
-their width, so a step's speed scale and TCP speed limit hold on TOPP-RA's grid from as
-far before and after the step as the averages reach (``ahead`` of
-:func:`~safepath.timing.path_limits`): a slower step is not entered at the faster one's
-speed.
+their width; with ``TimingOptions(limits_ahead=True)`` a step's speed scale and TCP speed
+limit hold on TOPP-RA's grid from as far before and after the step as the averages reach
+(``ahead`` of :func:`~safepath.timing.path_limits`), so that a slower step is not
+entered at the faster one's speed.
 
 TOPP-RA enforces the limits at its gridpoints (which follow the spline's pieces, see
 :mod:`._path_limits`); the output knots between them may still exceed a limit a little.
@@ -90,6 +90,13 @@ class TimingOptions:
             (the spline bridges the interpolation points left out) or ``"g2"`` (a blend
             with continuous curvature, closer to the corner; its timing is nearer the
             jerk-free optimum, see ``benchmarks/timing_quality.py``).
+        limits_ahead: Hold each route step's speed scale and TCP speed limit on TOPP-RA's
+            grid as far around the step as the moving averages reach
+            (:func:`~safepath.timing.path_limits` ``ahead``), so that a path whose steps
+            have different limits is timed in one run instead of being re-timed where
+            the averages carried a faster step's speed into a slower one. Off by default
+            for now: it changes the bundled cells' motions slightly, and some of the
+            monitor's scenario tests are calibrated on them.
     """
 
     speed_scale: float = 1.0
@@ -102,6 +109,7 @@ class TimingOptions:
     jerk_window: float = 1.0
     jerk_smoothing: float = 3.0
     corner_blend: CornerBlend = "gap"
+    limits_ahead: bool = False
 
     def __post_init__(self) -> None:
         from ..errors import ConfigError
@@ -268,7 +276,8 @@ def time_path(robot: Robot, path: PathSpline, s_way: np.ndarray, *, scales: Sequ
     limits = path_limits(robot, path, s_way, scales, tcp_speeds,
                          speed_scale=options.speed_scale, grid_step=options.grid_step,
                          jerk_scale=options.jerk_scale,
-                         ahead=_widest_window(robot, options))
+                         ahead=_widest_window(robot, options) if options.limits_ahead
+                         else 0.0)
     if len(s_way) == 2 and tcp_speeds[0] is None and _straight(path, limits):
         return _release(_time_straight(path, limits, options, where), limits, options, where)
     f_acc = np.ones(limits.grid.size)

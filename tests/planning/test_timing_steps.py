@@ -1,7 +1,8 @@
-"""Route steps with different limits timed in one pass (issue 39): a step's speed scale and
-TCP speed limit hold on TOPP-RA's grid as far around the step as the jerk smoothing's
-moving averages reach, so the first run's knots already keep the slower step's limits as
-executed (their quintic join), with no re-timing.
+"""Route steps with different limits timed in one pass (issue 39,
+``TimingOptions(limits_ahead=True)``): a step's speed scale and TCP speed limit hold on
+TOPP-RA's grid as far around the step as the jerk smoothing's moving averages reach, so
+the first run's knots already keep the slower step's limits as executed (their quintic
+join), with no re-timing.
 
 On the four bundled robots, each a two-step straight path (the step boundary in the
 middle); the executed limits are each interval's smaller-scaled step's, at 0 tolerance.
@@ -14,7 +15,7 @@ import pytest
 
 from safepath.description.robot_folder import load_robot
 from safepath.model.execution import interval_ratios
-from safepath.timing import _path_limits, spline_path, time_path
+from safepath.timing import TimingOptions, _path_limits, spline_path, time_path
 
 ROBOTS = ("gen3_lite", "ned3pro", "panda", "ur5")
 #: (speed scales, TCP speed limits [m/s]) of the two steps.
@@ -32,7 +33,8 @@ def test_a_slower_step_is_timed_in_one_run_within_its_limits(
     lo, hi = robot.lower * 0.6, robot.upper * 0.6
     a, b = (lo + rng.random(robot.dof) * (hi - lo) for _ in range(2))
     path, s_way, _ = spline_path([a, 0.5 * (a + b), b], 0.06)
-    piece = time_path(robot, path, s_way, scales=list(scales), tcp_speeds=list(tcp))
+    piece = time_path(robot, path, s_way, scales=list(scales), tcp_speeds=list(tcp),
+                      options=TimingOptions(limits_ahead=True))
     assert piece.runs == 1
     step_scale = np.asarray(scales)[piece.segment]
     interval = np.minimum(step_scale[:-1], step_scale[1:])[:, None]
