@@ -19,6 +19,7 @@ from ..files._io import brief
 from ..files.derived import Derived, DerivedValues
 from ._locked import LockedJoint
 from .controller_spec import ControllerSpec
+from .limits import MotionLimits
 from .tool import ToolSpec, check_tool
 
 __all__ = ["Robot", "ToolSpec", "adjacent_link_pairs", "frame_id", "joint_motion",
@@ -117,6 +118,7 @@ class Robot:
         self.joint_names: tuple[str, ...] = tuple(model.names[1:])
         self.lower = np.array(model.lowerPositionLimit, dtype=float)
         self.upper = np.array(model.upperPositionLimit, dtype=float)
+        self._revolute = _revolute_joints(model)
         self.velocity_limits = np.asarray(velocity_limits, dtype=float)
         self.acceleration_limits = np.asarray(acceleration_limits, dtype=float)
         #: Joint jerk limits [rad/s^3]: the robot folder's ``jerk_limits`` (vendor numbers
@@ -162,6 +164,23 @@ class Robot:
     def dof(self) -> int:
         """Number of joints."""
         return int(self.model.nq)
+
+    @property
+    def motion_limits(self) -> MotionLimits:
+        """Its joint velocity, acceleration and jerk limits, as one read-only record (what a
+        trajectory timed for it carries, :attr:`safepath.Trajectory.limits`)."""
+        return MotionLimits(self.velocity_limits, self.acceleration_limits, self.jerk_limits)
+
+    @property
+    def continuous(self) -> tuple[bool, ...]:
+        """Per joint (in :attr:`joint_names` order), whether it is continuous: a revolute
+        joint without position limits (:attr:`lower` -inf, :attr:`upper` +inf: a URDF
+        ``continuous`` joint, see :mod:`safepath.description._continuous`). Its coordinate is an
+        unwrapped angle [rad]: values a whole turn apart are the same placement, and a
+        motion moves it continuously (never by a jump of a turn). Giving such a joint
+        finite limits (``robot.lower[j] = ...``) makes it a bounded revolute joint."""
+        return tuple(bool(r and self.lower[j] == -np.inf and self.upper[j] == np.inf)
+                     for j, r in enumerate(self._revolute))
 
     @property
     def link_names(self) -> tuple[str, ...]:
@@ -221,6 +240,15 @@ class Robot:
         """Describe the first joint outside its limits, or None."""
         return limit_violation(q, self.joint_names, self.lower, self.upper)
 
+    def nearest_turn(self, q: np.ndarray, q_near: np.ndarray) -> np.ndarray:
+        """``q`` [rad] with each continuous joint (:attr:`continuous`) moved by whole turns
+        to the value nearest ``q_near`` (within pi): the same placement, reached from
+        ``q_near`` the short way round. Other joints are as in ``q``."""
+        out = np.array(q, dtype=float)
+        for j in np.flatnonzero(self.continuous):
+            out[j] -= 2.0 * np.pi * np.round((out[j] - q_near[j]) / (2.0 * np.pi))
+        return out
+
     def frame_pose(self, q: np.ndarray, frame: str | None = None) -> pin.SE3:
         """Pose of ``frame`` (default: the TCP) in the world frame at ``q``."""
         fid = self.tcp_frame_id if frame is None else self._frame_id(frame)
@@ -253,6 +281,15 @@ class Robot:
         if not self.model.existFrame(frame):
             raise FrameNotFound(frame, [f.name for f in self.model.frames])
         return frame_id(self.model, frame)
+
+
+def _revolute_joints(model: pin.Model) -> tuple[bool, ...]:
+    """Per joint of ``model``: whether it is a 1-DoF revolute joint."""
+    out = []
+    for j in range(1, model.njoints):
+        motion = joint_motion(model, j)
+        out.append(motion is not None and motion[0] == "revolute")
+    return tuple(out)
 
 
 def frame_id(model: pin.Model, name: str) -> int:

@@ -21,9 +21,10 @@ from typing import Any, Literal
 
 import numpy as np
 
-from ..errors import TrajectoryError
+from ..errors import ConfigError, TrajectoryError
 from ..files._io import atomic_write_text, read_text
 from ._knots import interval_index
+from .limits import MotionLimits
 
 __all__ = ["GripperEvent", "Trajectory", "load_trajectory"]
 
@@ -64,6 +65,9 @@ class Trajectory:
         robot: Robot name.
         route: Route name.
         info: Free-form facts (planning time, clearance, ...), JSON-serialisable.
+        limits: The joint speed limits it was timed under, which its goals' executed
+            motion is checked against (None: a trajectory built without them; a goal
+            of it then needs ``limits=``).
     """
 
     joint_names: tuple[str, ...]
@@ -77,6 +81,7 @@ class Trajectory:
     robot: str = ""
     route: str = ""
     info: dict[str, Any] = field(default_factory=dict, compare=False)
+    limits: MotionLimits | None = None
 
     def __post_init__(self) -> None:
         n = len(self.joint_names)
@@ -106,6 +111,13 @@ class Trajectory:
             raise TrajectoryError("step index out of range", key="step_index")
         object.__setattr__(self, "step_index", idx)
         object.__setattr__(self, "joint_names", tuple(self.joint_names))
+        if self.limits is not None:
+            if not isinstance(self.limits, MotionLimits):
+                raise TrajectoryError(f"expected MotionLimits, got "
+                                      f"{type(self.limits).__name__}", key="limits")
+            if self.limits.dof != n:
+                raise TrajectoryError(f"expected limits of {n} joints, got "
+                                      f"{self.limits.dof}", key="limits")
 
     def __eq__(self, other: object) -> bool:
         """Equal when every field is equal (arrays element by element, exactly)."""
@@ -113,8 +125,10 @@ class Trajectory:
             return NotImplemented
         arrays = ("t", "q", "qd", "qdd", "step_index")
         return (all(np.array_equal(getattr(self, a), getattr(other, a)) for a in arrays)
-                and (self.joint_names, self.steps, self.events, self.robot, self.route)
-                == (other.joint_names, other.steps, other.events, other.robot, other.route))
+                and (self.joint_names, self.steps, self.events, self.robot, self.route,
+                     self.limits)
+                == (other.joint_names, other.steps, other.events, other.robot, other.route,
+                    other.limits))
 
     __hash__ = None  # type: ignore[assignment]  # mutable arrays inside
 
@@ -179,7 +193,7 @@ class Trajectory:
         q[-1], qd[-1], qdd[-1] = self.q[-1], self.qd[-1], self.qdd[-1]
         k = interval_index(self.t, times, self.t.size)
         return Trajectory(self.joint_names, times, q, qd, qdd, self.step_index[k], self.steps,
-                          self.events, self.robot, self.route, dict(self.info))
+                          self.events, self.robot, self.route, dict(self.info), self.limits)
 
     # -- export ----------------------------------------------------------------------------
     def to_dict(self) -> dict[str, Any]:
@@ -192,6 +206,7 @@ class Trajectory:
             "steps": list(self.steps),
             "events": [e.__dict__ for e in self.events],
             "info": self.info,
+            **({} if self.limits is None else {"limits": self.limits.to_dict()}),
             "t": self.t.tolist(),
             "q": self.q.tolist(),
             "qd": self.qd.tolist(),
@@ -237,14 +252,20 @@ class Trajectory:
         if not isinstance(data, dict) or data.get("format") != FORMAT:
             raise TrajectoryError(f"not a safepath trajectory (format {FORMAT!r} expected)",
                                   path=path, key="format")
+        info = dict(data.get("info", {}))
+        # Files written before the limits had a field of their own kept them in info.
+        raw = data.get("limits", info.pop("limits", None))
         try:
+            limits = None if raw is None else MotionLimits.from_dict(raw, path=path)
             events = tuple(GripperEvent(**e) for e in data.get("events", []))
             return cls(tuple(data["joint_names"]), np.array(data["t"], dtype=float),
                        np.array(data["q"], dtype=float), np.array(data["qd"], dtype=float),
                        np.array(data["qdd"], dtype=float),
                        np.array(data["step_index"], dtype=int), tuple(data.get("steps", [])),
                        events, str(data.get("robot", "")), str(data.get("route", "")),
-                       dict(data.get("info", {})))
+                       info, limits)
+        except ConfigError as exc:
+            raise TrajectoryError(exc.reason, path=path, key=exc.key) from None
         except KeyError as exc:
             raise TrajectoryError("missing key", path=path, key=str(exc.args[0])) from None
         except TrajectoryError as exc:

@@ -189,9 +189,12 @@ def build_edit_panel(gui: Any, robot: Robot, poses: list[str], *, token: bool
 
 
 def _joint_box(gui: Any, name: str, lower: float, upper: float) -> Any:
-    """A joint's number box: no bounds (never clamped in the page), 7 decimals."""
-    box = gui.add_number(f"{name} [rad]", 0.0, step=JOINT_STEP, disabled=True,
-                         hint=f"limits [{lower:.3f}, {upper:.3f}] rad: a value outside them "
-                              "is shown and refused, never clamped")
+    """A joint's number box: no bounds (never clamped in the page), 7 decimals; a
+    continuous joint's (no limits) takes any angle, beyond +-pi too."""
+    hint = (f"limits [{lower:.3f}, {upper:.3f}] rad: a value outside them is shown and "
+            "refused, never clamped") if np.isfinite(lower) or np.isfinite(upper) else (
+        "continuous joint: any angle [rad], beyond +-pi too (a whole turn is the same "
+        "placement; a motion goes the short way round)")
+    box = gui.add_number(f"{name} [rad]", 0.0, step=JOINT_STEP, disabled=True, hint=hint)
     box.precision = JOINT_DECIMALS  # viser derives 3 decimals from the step
     return box

@@ -16,6 +16,7 @@ from safepath import load_robot
 from safepath.description.robot_folder import ROBOTS_DIR
 from safepath.errors import ConfigError, InputError
 from safepath.model.controller_spec import GripperSpec
+from safepath.model.limits import MotionLimits
 from safepath.model.trajectory import GripperEvent, Trajectory
 from safepath.ros.bag import (
     ARM_GOAL_TOPIC,
@@ -52,11 +53,10 @@ def gen3_route(events: bool = True) -> Trajectory:
     evs = (GripperEvent(0.0, "open", "start"), GripperEvent(1.0, "close", "grasp", "cup")) \
         if events else ()
     robot = load_robot("gen3_lite")
-    fast = {"limits": {"velocity": (10 * robot.velocity_limits).tolist(),
-                       "acceleration": (10 * robot.acceleration_limits).tolist(),
-                       "jerk": (10 * robot.jerk_limits).tolist()}}
+    fast = MotionLimits(10 * robot.velocity_limits, 10 * robot.acceleration_limits,
+                        10 * robot.jerk_limits)
     return Trajectory(GEN3, t, q, qd, qdd, np.repeat([0, 1], [21, 20]), ("to_b", "to_c"),
-                      evs, "gen3_lite", "pick", fast)
+                      evs, "gen3_lite", "pick", limits=fast)
 
 
 def test_gen3_lite_controllers_come_from_its_folder() -> None:

@@ -29,7 +29,6 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from ...errors import InputError, TimingError
-from ...model.execution import LIMITS_KEY, robot_limits
 from ...model.trajectory import Trajectory
 
 if TYPE_CHECKING:
@@ -251,9 +250,8 @@ class PourStopper:
         return Trajectory(traj.joint_names, tt, q, qd, qdd, np.zeros(tt.size, dtype=int),
                           ("stop",), (), traj.robot, f"{traj.route}:stop",
                           {"time_offset": float(traj.t[k0]), "brake_at": float(traj.t[kb]),
-                           LIMITS_KEY: robot_limits(self.robot),
                            "path_tau": np.asarray(self._path_tau).tolist(),
-                           "s_rest": float(s[-1])})
+                           "s_rest": float(s[-1])}, self.robot.motion_limits)
 
     def until(self, stop: Trajectory) -> Trajectory:
         """The part of the tilt that ran before ``stop`` (one of :meth:`stop`'s) took over,
@@ -287,7 +285,7 @@ class PourStopper:
         return Trajectory(traj.joint_names, piece.t, piece.q, piece.qd, piece.qdd,
                           np.zeros(piece.t.size, dtype=int), ("return",), (), traj.robot,
                           f"{traj.route}:return",
-                          {"s_from": s_rest, LIMITS_KEY: robot_limits(self.robot)})
+                          {"s_from": s_rest}, self.robot.motion_limits)
 
     def _back_piece(self, s_rest: float) -> tuple[TimedPiece, float]:
         from ...timing import time_path
