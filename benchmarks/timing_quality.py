@@ -3,9 +3,10 @@
 For each robot folder under ``robots/`` (loaded by name), on fresh seeded problems
 (``--seed``):
 
-* **paths through 1-3 via points**: random polylines inside 80 % of the joint ranges,
-  blended at their via points as the planner's first attempt blends them (radius
-  ``min(0.6, 0.4 x either segment)`` [rad], cut as ``--blend`` says), through
+* **paths through 1-3 via points**: random polylines inside 80 % of the joint ranges
+  (one turn for a continuous joint), blended at their via points as the planner's first
+  attempt blends them (radius ``min(0.6, 0.4 x either segment)`` [rad], cut as
+  ``--blend`` says), through
   :func:`safepath.timing.spline_path` and :func:`safepath.timing.time_path`. Reported: the
   compute time of ``time_path`` (one warm-up call, then the fastest of ``--runs``), and
   the motion time over the jerk-free time-optimal timing of the same spline (the ``toppra`` library,
@@ -44,6 +45,7 @@ from safepath.timing.path_timing import CORNER_BLENDS, CornerBlend
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))  # the references
 from s_curve import s_curve_time  # noqa: E402
+from timing_suite import sampling_box  # noqa: E402
 
 ROBOTS = Path(__file__).resolve().parents[1] / "robots"
 #: Grid step of the jerk-free reference [rad].
@@ -57,7 +59,7 @@ def via_path(robot: Robot, rng: np.random.Generator, blend: CornerBlend
              ) -> tuple[PathSpline, np.ndarray, int]:
     """A random path through 1-3 via points, blended as the planner first tries."""
     segments = int(rng.integers(2, 5))
-    lo, hi = robot.lower * 0.8, robot.upper * 0.8
+    lo, hi = sampling_box(robot)
     points = [lo + rng.random(robot.dof) * (hi - lo) for _ in range(segments + 1)]
     lengths = [float(np.linalg.norm(b - a)) for a, b in zip(points[:-1], points[1:],
                                                            strict=True)]
@@ -124,7 +126,7 @@ def measure(robot: Robot, paths: int, seed: int, runs: int, blend: CornerBlend
         ratios.append(float(piece.t[-1]) / jerk_free_duration(robot, path))
         over += not within(robot, piece)
     for _ in range(paths):
-        lo, hi = robot.lower * 0.8, robot.upper * 0.8
+        lo, hi = sampling_box(robot)
         a, b = (lo + rng.random(robot.dof) * (hi - lo) for _ in range(2))
         path, s_way, _ = spline_path([a, b], 0.06)
         piece, seconds = timed(robot, path, s_way, 1, runs)

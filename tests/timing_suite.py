@@ -3,11 +3,11 @@
 
 Shared by ``tests/planning/test_timing_suite.py`` (a bounded subset) and
 ``benchmarks/timing_suite.py`` (as many paths as asked). Each problem is a polyline of
-2-4 segments inside 80 % of the joint ranges, each segment its own route step: a speed
-scale in [0.2, 1] (or 1), a TCP speed limit in [0.05, 0.5] m/s on some, via points
-blended as the planner's first attempt blends them (``min(0.6, 0.4 x either segment)``
-[rad]), cut the ``"gap"`` or the ``"g2"`` way, timed with or without
-``limits_ahead``. The check: the quintic join of the
+2-4 segments inside 80 % of the joint ranges (one turn for a continuous joint), each
+segment its own route step: a speed scale in [0.2, 1] (or 1), a TCP speed limit in
+[0.05, 0.5] m/s on some, via points blended as the planner's first attempt blends them
+(``min(0.6, 0.4 x either segment)`` [rad]), cut the ``"gap"`` or the ``"g2"`` way,
+timed with or without ``limits_ahead``. The check: the quintic join of the
 released knots (``safepath.model.execution.interval_ratios``), each interval against the
 limits of the slower step of its two knots, every ratio <= 1.0.
 """
@@ -47,10 +47,18 @@ class Outcome:
     duration: float
 
 
+def sampling_box(robot: Robot) -> tuple[np.ndarray, np.ndarray]:
+    """Where random joint positions are drawn [rad]: 80 % of each joint's range, and one
+    turn (-pi, pi) for a continuous joint (its limits are infinite)."""
+    bounded = np.isfinite(robot.lower) & np.isfinite(robot.upper)
+    return (np.where(bounded, robot.lower * 0.8, -np.pi),
+            np.where(bounded, robot.upper * 0.8, np.pi))
+
+
 def timed_problem(robot: Robot, rng: np.random.Generator) -> tuple[TimedPiece, np.ndarray]:
     """One random problem timed: the piece and each segment's speed scale."""
     segments = int(rng.integers(2, 5))
-    lo, hi = robot.lower * 0.8, robot.upper * 0.8
+    lo, hi = sampling_box(robot)
     points = [lo + rng.random(robot.dof) * (hi - lo) for _ in range(segments + 1)]
     lengths = [float(np.linalg.norm(b - a)) for a, b in zip(points[:-1], points[1:],
                                                            strict=True)]
