@@ -163,8 +163,8 @@ def main(argv: Sequence[str] | None = None) -> int:
 
     cell = load_cell(CELL_DIR)
     routes = load_routes(cell.folder, poses=list(cell.poses), objects=list(cell.scene.objects))
-    timing = TimingOptions(limits_ahead=args.limits_ahead)
-    options = PlanOptions(planner=PlannerOptions(seed=args.seed), timing=timing)
+    timing_options = TimingOptions(limits_ahead=args.limits_ahead)
+    options = PlanOptions(planner=PlannerOptions(seed=args.seed), timing=timing_options)
     load_before = os.getloadavg()[0] if hasattr(os, "getloadavg") else None
     load = f", load average {load_before:.1f}" if load_before is not None else ""
     print(f"plan_cycle: cell {cell.scene.name}, robot {cell.robot.name}, seed {args.seed}, "
@@ -223,7 +223,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     header = f"{'route':<28} {'blended':>8} {'stop&go':>8} {'ratio':>6}"
     print(header)
     print("-" * len(header))
-    baseline_options = PlanOptions(planner=PlannerOptions(seed=args.seed), timing=timing,
+    baseline_options = PlanOptions(planner=PlannerOptions(seed=args.seed), timing=timing_options,
                                    baseline=True)
     _, _, all_trajectories = plan_outcome(cell, routes, list(routes), baseline_options)
     for name, traj in all_trajectories.items():
