@@ -57,6 +57,13 @@ def _collision_checks(d: dict[str, Any]) -> list[Row]:
     return rows
 
 
+def _check_poses(d: dict[str, Any]) -> list[Row]:
+    return [(f"`safepath check` of {_n(v['poses'])} poses (Ned3 Pro cell, random poses)",
+             f"{_n(v['poses_per_s'])} poses/s, check {v['check_s']:.1f} s, process "
+             f"{v['check_process_s']:.1f} s, peak {v['check_process_peak_mb']:.0f} MB")
+            for v in d["sizes"].values()]
+
+
 def _plan_cycle(d: dict[str, Any]) -> list[Row]:
     out = d["outcomes"]
     wall = ", ".join(f"{k} {v['median_ms']:.0f} / {v['p95_ms']:.0f} ms" for k, v in out.items())
@@ -275,6 +282,7 @@ def _timing_quality(d: dict[str, Any]) -> list[Row]:
 #: Results file, command that writes it, its reader (in the table's order).
 SOURCES: list[tuple[str, str, Reader]] = [
     ("collision_checks.json", "benchmarks/collision_checks.py --save", _collision_checks),
+    ("check_poses.json", "benchmarks/check_poses.py --save", _check_poses),
     ("plan_cycle.json", "benchmarks/plan_cycle.py --save", _plan_cycle),
     ("timing_quality.json", "benchmarks/timing_quality.py --paths 40 --save",
      _timing_quality),

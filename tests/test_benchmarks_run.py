@@ -16,6 +16,7 @@ ROOT = Path(__file__).resolve().parents[1]
 
 CASES = [
     ("collision_checks.py", ["--n", "300"], "state checks/s"),
+    ("check_poses.py", ["--sizes", "40", "--seed", "3"], "poses/s"),
     ("plan_cycle.py", ["--runs", "1"], "motion time against the stop-and-go baseline"),
     ("runtime_heartbeat.py", ["--runs", "1"], "heartbeat gap"),
     ("runtime_recovery.py", ["--runs", "1", "--no-compare"], "timeout overshoot"),

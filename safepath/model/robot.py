@@ -32,6 +32,20 @@ __all__ = ["Robot", "ToolSpec", "adjacent_link_pairs", "frame_id", "joint_motion
 JERK_RAMP_TIME = 0.05
 
 
+def _limit_vector(values: Sequence[float] | np.ndarray, dof: int, key: str,
+                  path: Path | None = None) -> np.ndarray:
+    """``values`` as ``dof`` finite positive limits, or a ConfigError naming ``key``."""
+    try:
+        arr = np.array(values, dtype=float)
+    except (TypeError, ValueError):
+        raise ConfigError(f"need {dof} finite positive values, got {values!r}", path=path,
+                          key=key) from None
+    if arr.shape != (dof,) or not np.all(np.isfinite(arr)) or np.any(arr <= 0):
+        raise ConfigError(f"need {dof} finite positive values, got {arr.tolist()}",
+                          path=path, key=key)
+    return arr
+
+
 def derived_jerk_limits(acceleration_limits: Sequence[float] | np.ndarray) -> np.ndarray:
     """Jerk limits [rad/s^3] derived from acceleration limits [rad/s^2] when no vendor
     publishes any: full acceleration reached in :data:`JERK_RAMP_TIME`."""
@@ -119,21 +133,16 @@ class Robot:
         self.lower = np.array(model.lowerPositionLimit, dtype=float)
         self.upper = np.array(model.upperPositionLimit, dtype=float)
         self._revolute = _revolute_joints(model)
-        self.velocity_limits = np.asarray(velocity_limits, dtype=float)
-        self.acceleration_limits = np.asarray(acceleration_limits, dtype=float)
-        #: Joint jerk limits [rad/s^3]: the robot folder's ``jerk_limits`` (vendor numbers
-        #: where published), else :func:`derived_jerk_limits` of the acceleration limits.
-        self.jerk_limits = (derived_jerk_limits(self.acceleration_limits)
-                            if jerk_limits is None else np.asarray(jerk_limits, dtype=float))
         if model.nq != model.nv or model.nq != len(self.joint_names):
             raise ConfigError("only arms of revolute/prismatic 1-DoF joints are supported",
                               path=source, key="urdf")
-        for label, arr in (("velocity_limits", self.velocity_limits),
-                           ("acceleration_limits", self.acceleration_limits),
-                           ("jerk_limits", self.jerk_limits)):
-            if arr.shape != (self.dof,) or not np.all(np.isfinite(arr)) or np.any(arr <= 0):
-                raise ConfigError(f"need {self.dof} finite positive values, got {arr.tolist()}",
-                                  path=source, key=label)
+        vel = _limit_vector(velocity_limits, self.dof, "velocity_limits", source)
+        acc = _limit_vector(acceleration_limits, self.dof, "acceleration_limits", source)
+        # Jerk limits [rad/s^3]: the robot folder's ``jerk_limits`` (vendor numbers where
+        # published), else :func:`derived_jerk_limits` of the acceleration limits.
+        jerk = (derived_jerk_limits(acc) if jerk_limits is None
+                else _limit_vector(jerk_limits, self.dof, "jerk_limits", source))
+        self._motion = MotionLimits(vel, acc, jerk)
         if not model.existFrame(tcp_frame):
             raise FrameNotFound(tcp_frame, [f.name for f in model.frames], path=source,
                                 key="tcp_frame")
@@ -167,9 +176,56 @@ class Robot:
 
     @property
     def motion_limits(self) -> MotionLimits:
-        """Its joint velocity, acceleration and jerk limits, as one read-only record (what a
-        trajectory timed for it carries, :attr:`safepath.Trajectory.limits`)."""
-        return MotionLimits(self.velocity_limits, self.acceleration_limits, self.jerk_limits)
+        """Its joint velocity, acceleration and jerk limits, one read-only record (what a
+        trajectory timed for it carries, :attr:`safepath.Trajectory.limits`). Replaced
+        whole, never changed in place: ``robot.motion_limits = MotionLimits(...)``, or
+        one of :attr:`velocity_limits`, :attr:`acceleration_limits`, :attr:`jerk_limits`
+        assigned a new array.
+
+        Raises:
+            ConfigError: Not a :class:`MotionLimits` of this robot's joints.
+        """
+        return self._motion
+
+    @motion_limits.setter
+    def motion_limits(self, value: MotionLimits) -> None:
+        if not isinstance(value, MotionLimits) or value.dof != self.dof:
+            raise ConfigError(f"expected MotionLimits of {self.dof} joints, got {value!r}",
+                              key="motion_limits")
+        self._motion = value
+
+    @property
+    def velocity_limits(self) -> np.ndarray:
+        """Joint velocity limits [rad/s or m/s] (read-only; assign a new array)."""
+        return self._motion.velocity
+
+    @velocity_limits.setter
+    def velocity_limits(self, value: Sequence[float] | np.ndarray) -> None:
+        m = self._motion
+        self._motion = MotionLimits(_limit_vector(value, self.dof, "velocity_limits"),
+                                    m.acceleration, m.jerk)
+
+    @property
+    def acceleration_limits(self) -> np.ndarray:
+        """Joint acceleration limits [rad/s^2 or m/s^2] (read-only; assign a new array)."""
+        return self._motion.acceleration
+
+    @acceleration_limits.setter
+    def acceleration_limits(self, value: Sequence[float] | np.ndarray) -> None:
+        m = self._motion
+        self._motion = MotionLimits(m.velocity, _limit_vector(value, self.dof,
+                                                              "acceleration_limits"), m.jerk)
+
+    @property
+    def jerk_limits(self) -> np.ndarray:
+        """Joint jerk limits [rad/s^3 or m/s^3] (read-only; assign a new array)."""
+        return self._motion.jerk
+
+    @jerk_limits.setter
+    def jerk_limits(self, value: Sequence[float] | np.ndarray) -> None:
+        m = self._motion
+        self._motion = MotionLimits(m.velocity, m.acceleration,
+                                    _limit_vector(value, self.dof, "jerk_limits"))
 
     @property
     def continuous(self) -> tuple[bool, ...]:

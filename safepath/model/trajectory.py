@@ -20,6 +20,7 @@ from pathlib import Path
 from typing import Any, Literal
 
 import numpy as np
+import orjson
 
 from ..errors import ConfigError, TrajectoryError
 from ..files._io import atomic_write_text, read_text
@@ -27,6 +28,9 @@ from ._knots import interval_index
 from .limits import MotionLimits
 
 __all__ = ["GripperEvent", "Trajectory", "load_trajectory"]
+
+#: The knot arrays of a trajectory's JSON form, in their order after the rest.
+_ARRAYS = ("t", "q", "qd", "qdd", "step_index")
 
 #: The file format tag (unchanged since trajectories were first written: the module moved).
 FORMAT = "safepath.trajectory/1"
@@ -198,6 +202,12 @@ class Trajectory:
     # -- export ----------------------------------------------------------------------------
     def to_dict(self) -> dict[str, Any]:
         """Lossless JSON-compatible form (floats at full precision)."""
+        return {**self.to_dict_head(),
+                **{name: getattr(self, name).tolist() for name in _ARRAYS}}
+
+    def to_dict_head(self) -> dict[str, Any]:
+        """:meth:`to_dict` without the knot arrays (``t``, ``q``, ``qd``, ``qdd``,
+        ``step_index``), which follow it in that order."""
         return {
             "format": FORMAT,
             "robot": self.robot,
@@ -207,16 +217,16 @@ class Trajectory:
             "events": [e.__dict__ for e in self.events],
             "info": self.info,
             **({} if self.limits is None else {"limits": self.limits.to_dict()}),
-            "t": self.t.tolist(),
-            "q": self.q.tolist(),
-            "qd": self.qd.tolist(),
-            "qdd": self.qdd.tolist(),
-            "step_index": self.step_index.tolist(),
         }
 
     def to_json(self, path: str | Path | None = None) -> str:
-        """JSON text; written atomically to ``path`` when given."""
-        text = json.dumps(self.to_dict(), indent=None, separators=(",", ":"))
+        """JSON text (the form of :meth:`to_dict`); written atomically to ``path`` when
+        given. The knot arrays are written by orjson (shortest round-trip text of every
+        float, as Python's ``repr``, ~15x faster); the rest by :mod:`json`."""
+        form = self.to_dict_head()
+        head = json.dumps(form, indent=None, separators=(",", ":"))
+        arrays = "".join(f',"{name}":{_json_array(getattr(self, name))}' for name in _ARRAYS)
+        text = head[:-1] + arrays + "}"
         if path is not None:
             atomic_write_text(path, text + "\n")
         return text
@@ -229,14 +239,16 @@ class Trajectory:
         writer.writerow(["t", "step"] + [f"q_{n}" for n in self.joint_names]
                         + [f"qd_{n}" for n in self.joint_names]
                         + [f"qdd_{n}" for n in self.joint_names])
-        # Each step's cell quoted by the csv writer once; the numbers are Python floats'
-        # repr (shortest round-trip, never quoted), joined row by row: the same text as
-        # one writerow per knot, in a fraction of the time.
+        # Each step's cell quoted by the csv writer once; the numbers are the shortest
+        # text that reads back as the same float (orjson's, as Python's repr; never
+        # quoted), the rows cut from one array's JSON text: a fraction of the time of
+        # one writerow per knot.
         cells = [_csv_cell(name) for name in traj.steps or ("",)]
         index = traj.step_index.tolist() if traj.steps else [0] * traj.t.size
-        rows = np.hstack([traj.q, traj.qd, traj.qdd]).tolist()
-        buf.writelines(f"{tk!r},{cells[i]},{','.join(map(repr, row))}\n"
-                       for tk, i, row in zip(traj.t.tolist(), index, rows, strict=True))
+        times = _json_array(traj.t)[1:-1].split(",")
+        rows = _json_array(np.hstack([traj.q, traj.qd, traj.qdd]))[2:-2].split("],[")
+        buf.writelines(f"{tk},{cells[i]},{row}\n"
+                       for tk, i, row in zip(times, index, rows, strict=True))
         text = buf.getvalue()
         if path is not None:
             atomic_write_text(path, text)
@@ -292,3 +304,9 @@ def _csv_cell(text: str) -> str:
     one = io.StringIO()
     csv.writer(one, lineterminator="\n").writerow([text])
     return one.getvalue()[:-1]
+
+
+def _json_array(arr: np.ndarray) -> str:
+    """JSON text of a finite numeric array: every float the shortest text that reads back
+    as the same value (``-0.0`` kept), ints as ints."""
+    return orjson.dumps(np.ascontiguousarray(arr), option=orjson.OPT_SERIALIZE_NUMPY).decode()
