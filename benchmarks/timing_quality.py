@@ -3,9 +3,10 @@
 For each robot folder under ``robots/`` (loaded by name), on fresh seeded problems
 (``--seed``):
 
-* **paths through 1-3 via points**: random polylines inside 80 % of the joint ranges,
-  blended at their via points as the planner's first attempt blends them (radius
-  ``min(0.6, 0.4 x either segment)`` [rad], cut as ``--blend`` says), through
+* **paths through 1-3 via points**: random polylines inside 80 % of the joint ranges
+  (one turn for a continuous joint), blended at their via points as the planner's first
+  attempt blends them (radius ``min(0.6, 0.4 x either segment)`` [rad], cut as
+  ``--blend`` says), through
   :func:`safepath.timing.spline_path` and :func:`safepath.timing.time_path`. Reported: the
   compute time of ``time_path`` (one warm-up call, then the fastest of ``--runs``), and
   the motion time over the jerk-free time-optimal timing of the same spline (the ``toppra`` library,
@@ -16,7 +17,9 @@ For each robot folder under ``robots/`` (loaded by name), on fresh seeded proble
 
 and, for every timed path, whether the controller's quintic join of the released knots
 stays within the velocity, acceleration and jerk limits (the count of paths over a
-limit must be 0). The machine's load average is printed before and after.
+limit must be 0), and how many TOPP-RA runs each via-point path took (more than one: its
+first run's knots needed more than a small time stretch and it was re-timed). The
+machine's load average is printed before and after.
 
 Run: ``.venv/bin/python benchmarks/timing_quality.py [--paths 40] [--seed 0]``.
 """
@@ -42,6 +45,7 @@ from safepath.timing.path_timing import CORNER_BLENDS, CornerBlend
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))  # the references
 from s_curve import s_curve_time  # noqa: E402
+from timing_suite import sampling_box  # noqa: E402
 
 ROBOTS = Path(__file__).resolve().parents[1] / "robots"
 #: Grid step of the jerk-free reference [rad].
@@ -55,7 +59,7 @@ def via_path(robot: Robot, rng: np.random.Generator, blend: CornerBlend
              ) -> tuple[PathSpline, np.ndarray, int]:
     """A random path through 1-3 via points, blended as the planner first tries."""
     segments = int(rng.integers(2, 5))
-    lo, hi = robot.lower * 0.8, robot.upper * 0.8
+    lo, hi = sampling_box(robot)
     points = [lo + rng.random(robot.dof) * (hi - lo) for _ in range(segments + 1)]
     lengths = [float(np.linalg.norm(b - a)) for a, b in zip(points[:-1], points[1:],
                                                            strict=True)]
@@ -113,14 +117,16 @@ def measure(robot: Robot, paths: int, seed: int, runs: int, blend: CornerBlend
     rng = np.random.default_rng(seed)
     ms, ratios, straight, straight_ms = [], [], [], []
     over = 0
+    topp_runs = []
     for _ in range(paths):
         path, s_way, segments = via_path(robot, rng, blend)
         piece, seconds = timed(robot, path, s_way, segments, runs)
+        topp_runs.append(piece.runs)
         ms.append(seconds * 1e3)
         ratios.append(float(piece.t[-1]) / jerk_free_duration(robot, path))
         over += not within(robot, piece)
     for _ in range(paths):
-        lo, hi = robot.lower * 0.8, robot.upper * 0.8
+        lo, hi = sampling_box(robot)
         a, b = (lo + rng.random(robot.dof) * (hi - lo) for _ in range(2))
         path, s_way, _ = spline_path([a, b], 0.06)
         piece, seconds = timed(robot, path, s_way, 1, runs)
@@ -133,7 +139,8 @@ def measure(robot: Robot, paths: int, seed: int, runs: int, blend: CornerBlend
             "median": float(np.median(r)), "p95": float(np.percentile(r, 95)),
             "max": float(r.max()), "straight": float(np.median(straight)),
             "straight_max": float(np.max(straight)), "straight_ms": statistics.median(straight_ms),
-            "over": over}
+            "over": over, "runs_mean": float(np.mean(topp_runs)),
+            "retimed": float(np.mean(np.asarray(topp_runs) > 1))}
 
 
 def main(argv: Sequence[str] | None = None) -> int:
@@ -158,7 +165,7 @@ def main(argv: Sequence[str] | None = None) -> int:
           f"straight moves per robot, seed {args.seed}, corner blend {args.blend!r}")
     header = (f"{'robot':<10} {'ms median':>9} {'ms p95':>7}   {'/jerk-free median':>17} "
               f"{'p95':>6} {'max':>6}   {'straight/S-curve median':>23} {'max':>6} {'ms':>5}   "
-              f"{'over a limit':>12}")
+              f"{'over a limit':>12}   {'TOPP-RA runs':>12} {'re-timed':>8}")
     print(header)
     print("-" * len(header))
     figures = {}
@@ -167,10 +174,12 @@ def main(argv: Sequence[str] | None = None) -> int:
                                     args.blend)
         print(f"{name:<10} {f['ms']:9.2f} {f['ms_p95']:7.2f}   {f['median']:17.3f} "
               f"{f['p95']:6.3f} {f['max']:6.3f}   {f['straight']:23.4f} "
-              f"{f['straight_max']:6.4f} {f['straight_ms']:5.2f}   {f['over']:12d}")
+              f"{f['straight_max']:6.4f} {f['straight_ms']:5.2f}   {f['over']:12d}   "
+              f"{f['runs_mean']:12.2f} {f['retimed']:8.0%}")
     print("(ms: time_path per path, median of the fastest of the runs; /jerk-free: motion time "
           "over toppra's jerk-free optimum of the same spline; over a limit: paths whose "
-          "quintic join exceeds a limit)")
+          "quintic join exceeds a limit; TOPP-RA runs: mean per via-point path (TimedPiece.runs), "
+          "re-timed: share of them timed more than once)")
     worst = {k: max(f[k] for f in figures.values()) for k in ("ms", "median", "p95",
                                                               "straight")}
     for key, aim, what in (("ms", AIM_MS, "median compute per via-point path [ms]"),

@@ -9,8 +9,7 @@ boundaries, where the smaller limits of the two segments hold.
 
 from __future__ import annotations
 
-import dataclasses
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from functools import cached_property
 from typing import Protocol
@@ -21,11 +20,14 @@ from ..model._knots import interval_index
 from ..model.robot import Robot
 from . import _topp
 
-__all__ = ["TCP_STEP", "PathSpline", "PathLimits", "Points", "gridpoints", "jet",
-           "path_limits", "row_max"]
+__all__ = ["AHEAD_MARGIN", "TCP_STEP", "PathSpline", "PathLimits", "Points",
+           "ahead_of_steps", "gridpoints", "jet", "path_limits", "row_max", "sliding_min"]
 
 #: Spacing of the points where the TCP's speed per path speed is computed [rad].
 TCP_STEP = 0.015
+#: Margin of the reach of :func:`ahead_of_steps` over half the averages' width at the
+#: speed bound.
+AHEAD_MARGIN = 1.2
 #: Share of each joint's jerk limit left to the path's third derivative
 #: (``|q'''(s)| sdot^3``); the rest is for the changes of the path acceleration.
 JERK_SPEED_SHARE = 0.5
@@ -110,7 +112,7 @@ class PathLimits:
 
 def path_limits(robot: Robot, path: PathSpline, s_way: np.ndarray, scales: Sequence[float],
                 tcp_speeds: Sequence[float | None], *, speed_scale: float, grid_step: float,
-                jerk_scale: float = 1.0) -> PathLimits:
+                jerk_scale: float = 1.0, ahead: float = 0.0) -> PathLimits:
     """TOPP-RA's grid along ``path`` and the limits there.
 
     Args:
@@ -122,6 +124,12 @@ def path_limits(robot: Robot, path: PathSpline, s_way: np.ndarray, scales: Seque
         speed_scale: Global speed scale, in (0, 1].
         grid_step: Largest spacing of the gridpoints [rad].
         jerk_scale: Fraction of the jerk limits (on top of the speed scales), in (0, 1].
+        ahead: Time [s] over which the timing averages the profile (the moving averages'
+            total width): a segment's speed scale and TCP speed limit hold on TOPP-RA's
+            grid from as far before the segment's start and after its end as the path
+            covers in half that time (:func:`ahead_of_steps`), so that the averages
+            carry no speed or acceleration of a faster segment into a slower one. The
+            limits the knots are checked against (``*_seg``) stay the segments' own.
     """
     grid = gridpoints(path.x, s_way, grid_step)
     seg_scales = np.asarray(scales, dtype=float) * speed_scale
@@ -131,26 +139,62 @@ def path_limits(robot: Robot, path: PathSpline, s_way: np.ndarray, scales: Seque
     # smaller limits of the two hold there.
     seg_before = np.clip(np.searchsorted(s_way, grid, side="left") - 1, 0, last)
     scale_grid = np.minimum(seg_scales[seg_of_grid], seg_scales[seg_before])
-    at_grid = _points(robot, path, grid, scale_grid)
-    at_grid = dataclasses.replace(at_grid, xmax=np.minimum(
-        at_grid.xmax, _jerk_xmax(robot, path, grid, scale_grid * jerk_scale)))
-    if any(v is not None for v in tcp_speeds):
-        v_seg = np.array([np.inf if v is None else v for v in tcp_speeds])
-        v_grid = np.minimum(v_seg[seg_of_grid], v_seg[seg_before])
-        at_grid = dataclasses.replace(at_grid, xmax=np.minimum(
-            at_grid.xmax, _tcp_xmax(robot, path, s_way, grid, v_grid)))
+    v_seg = np.array([np.inf if v is None else v for v in tcp_speeds])
+    v_grid = np.minimum(v_seg[seg_of_grid], v_seg[seg_before])
+    _, dq, ddq = jet(path, grid)
+    bound = _Bounds(robot, path, s_way, grid, dq, jerk_scale, np.isfinite(v_seg).any())
+    if ahead > 0.0 and (np.ptp(seg_scales) > 0.0 or np.unique(v_seg).size > 1):
+        scale_grid, v_grid = ahead_of_steps(grid, bound, ahead, scale_grid, v_grid)
+    at_grid = Points(dq, ddq, scale_grid[:, None] * robot.acceleration_limits,
+                     bound(scale_grid, v_grid))
     return PathLimits(grid, at_grid, s_way, seg_scales[:, None] * robot.velocity_limits,
                       seg_scales[:, None] * robot.acceleration_limits,
                       (seg_scales * jerk_scale)[:, None] * robot.jerk_limits)
 
 
-def _jerk_xmax(robot: Robot, path: PathSpline, grid: np.ndarray, scale: np.ndarray
-               ) -> np.ndarray:
-    """Bound on ``x`` at ``grid`` that keeps the path's third-derivative term of every
-    joint's jerk, ``|q'''_j(s)| sdot^3``, within :data:`JERK_SPEED_SHARE` of its limit
-    (``q'''`` of the pieces on both sides of a gridpoint)."""
-    eps = 1e-9 * max(1.0, float(grid[-1]))
-    d3 = np.maximum(np.abs(path(grid, 3)), np.abs(path(np.maximum(grid - eps, 0.0), 3)))
+class _Bounds:
+    """The bound on ``x = sdot^2`` at the gridpoints for given speed scales and TCP speed
+    limits there (the path's derivatives and the TCP's rate computed once).
+
+    Args:
+        robot: Limits and kinematics.
+        path: The spline.
+        s_way: Path parameter of the segment boundaries.
+        grid: The gridpoints.
+        dq: The path's tangent at the gridpoints.
+        jerk_scale: Fraction of the jerk limits.
+        tcp: Whether any segment limits the TCP's speed.
+    """
+
+    def __init__(self, robot: Robot, path: PathSpline, s_way: np.ndarray, grid: np.ndarray,
+                 dq: np.ndarray, jerk_scale: float, tcp: bool) -> None:
+        self._robot = robot
+        self._dq = dq
+        self._jerk_scale = jerk_scale
+        eps = 1e-9 * max(1.0, float(grid[-1]))
+        # q''' of the pieces on both sides of each gridpoint.
+        self._d3 = np.maximum(np.abs(path(grid, 3)),
+                              np.abs(path(np.maximum(grid - eps, 0.0), 3)))
+        self._rate = _tcp_rate(robot, path, s_way, grid) if tcp else None
+
+    def __call__(self, scale: np.ndarray, v_tcp: np.ndarray) -> np.ndarray:
+        """The bound [1/s^2] under the speed ``scale`` and TCP speed limits ``v_tcp``
+        [m/s] (inf: none) at each gridpoint: joint velocities, the path's
+        third-derivative term of the jerk, the TCP's speed."""
+        xmax = np.minimum(_speed_bound(self._robot, self._dq, scale) ** 2,
+                          _jerk_xmax(self._robot, self._d3, scale * self._jerk_scale))
+        if self._rate is None:
+            return xmax
+        with np.errstate(divide="ignore"):
+            tcp = np.where(np.isfinite(v_tcp) & (self._rate >= 1e-9),
+                           (v_tcp / np.maximum(self._rate, 1e-9)) ** 2, np.inf)
+        return np.minimum(xmax, tcp)
+
+
+def _jerk_xmax(robot: Robot, d3: np.ndarray, scale: np.ndarray) -> np.ndarray:
+    """Bound on ``x`` that keeps the path's third-derivative term of every joint's jerk,
+    ``|q'''_j(s)| sdot^3``, within :data:`JERK_SPEED_SHARE` of its limit, where the
+    path's third derivative is ``d3`` (points, dof)."""
     jmax = JERK_SPEED_SHARE * scale[:, None] * robot.jerk_limits
     with np.errstate(divide="ignore", over="ignore"):
         sd = np.min(np.where(d3 > 1e-12, (jmax / np.maximum(d3, 1e-300)) ** (1.0 / 3.0),
@@ -158,21 +202,15 @@ def _jerk_xmax(robot: Robot, path: PathSpline, grid: np.ndarray, scale: np.ndarr
     return np.minimum(sd, np.sqrt(_topp.X_CAP)) ** 2
 
 
-def _tcp_xmax(robot: Robot, path: PathSpline, s_way: np.ndarray, grid: np.ndarray,
-              v_tcp: np.ndarray) -> np.ndarray:
-    """Bound on ``x`` at ``grid`` that keeps the TCP at most ``v_tcp`` [m/s] fast (inf
-    where there is no limit): ``sdot <= v_tcp / |dp/ds|``.
-
-    ``|dp/ds|`` comes from finite differences of the TCP position on a grid of its own,
-    :data:`TCP_STEP` apart (forward kinematics is the costly part; the rate varies
-    slowly), linear in between.
-    """
+def _tcp_rate(robot: Robot, path: PathSpline, s_way: np.ndarray, grid: np.ndarray
+              ) -> np.ndarray:
+    """The TCP's speed per path speed ``|dp/ds|`` at ``grid`` [m/rad], from finite
+    differences of the TCP position on a grid of its own, :data:`TCP_STEP` apart
+    (forward kinematics is the costly part; the rate varies slowly), linear in between.
+    The TCP is at most ``v_tcp`` [m/s] fast where ``sdot <= v_tcp / |dp/ds|``."""
     samples = gridpoints(path.x, s_way, TCP_STEP)
     p = robot.tcp_positions(path(samples))
-    rate = np.interp(grid, samples, np.linalg.norm(np.gradient(p, samples, axis=0), axis=1))
-    with np.errstate(divide="ignore"):
-        return np.where(np.isfinite(v_tcp) & (rate >= 1e-9),
-                        (v_tcp / np.maximum(rate, 1e-9)) ** 2, np.inf)
+    return np.interp(grid, samples, np.linalg.norm(np.gradient(p, samples, axis=0), axis=1))
 
 
 def gridpoints(breaks: np.ndarray, s_way: np.ndarray, step: float) -> np.ndarray:
@@ -201,15 +239,60 @@ def gridpoints(breaks: np.ndarray, s_way: np.ndarray, step: float) -> np.ndarray
     return np.insert(grid, np.searchsorted(grid, s_way[~on]), s_way[~on])
 
 
-def _points(robot: Robot, path: PathSpline, s: np.ndarray, scale: np.ndarray) -> Points:
-    """The path at ``s`` and the joint limits there, scaled by ``scale`` (per point)."""
-    _, dq, ddq = jet(path, s)
-    # sdot <= scale vmax_j / |q'_j| for every joint j.
+def ahead_of_steps(grid: np.ndarray, bound: Callable[[np.ndarray, np.ndarray], np.ndarray],
+                   ahead: float, scale: np.ndarray, v_tcp: np.ndarray
+                   ) -> tuple[np.ndarray, np.ndarray]:
+    """The speed scales and TCP speed limits at the gridpoints, each the smallest within
+    reach of the gridpoint.
+
+    The two moving averages give the motion at time ``t`` the mean speed of the profile
+    over ``[t - ahead, t]``, at about the profile's place at ``t - ahead / 2``: the
+    speeds averaged into a gridpoint come from no farther along the path than the
+    profile covers in ``ahead / 2`` [s] around it. The reach is that time at the speed
+    the limits allow there (:data:`AHEAD_MARGIN` for the change of speed within it), once
+    with the steps' own limits and again with those the first pass brought near a slower
+    step, which the profile keeps to there.
+
+    Args:
+        grid: The gridpoints.
+        bound: The bound on ``sdot^2`` at the gridpoints under given scales and TCP speed
+            limits.
+        ahead: The averages' total width [s].
+        scale: The steps' speed scale at each gridpoint.
+        v_tcp: The steps' TCP speed limit at each gridpoint [m/s] (inf: none).
+    """
+    near = (scale, v_tcp)
+    for _ in range(2):
+        reach = AHEAD_MARGIN * 0.5 * ahead * np.sqrt(bound(*near))
+        lo = np.searchsorted(grid, grid - reach, side="left")
+        hi = np.searchsorted(grid, grid + reach, side="right")
+        near = (sliding_min(scale, lo, hi), sliding_min(v_tcp, lo, hi))
+    return near
+
+
+def sliding_min(values: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
+    """The smallest of ``values[lo[i]:hi[i]]`` for every ``i`` (each range non-empty),
+    from a table of the minima over power-of-two spans (no loop over ``i``)."""
+    n = values.size
+    table = [np.asarray(values, dtype=float)]
+    span = 1
+    while 2 * span <= n:
+        table.append(np.minimum(table[-1][:-span], table[-1][span:]))
+        span *= 2
+    level = np.floor(np.log2(np.maximum(hi - lo, 1))).astype(np.int64)
+    out = np.empty(n)
+    for k in np.unique(level):
+        at = np.flatnonzero(level == k)
+        out[at] = np.minimum(table[k][lo[at]], table[k][hi[at] - (1 << k)])
+    return out
+
+
+def _speed_bound(robot: Robot, dq: np.ndarray, scale: np.ndarray) -> np.ndarray:
+    """The largest path speed the joint velocity limits allow at each point [1/s]."""
     peak = row_max(np.abs(dq) / robot.velocity_limits)
     with np.errstate(divide="ignore"):
         sd_max = np.where(peak > 1e-12, scale / np.maximum(peak, 1e-300), np.inf)
-    xmax = np.minimum(sd_max, np.sqrt(_topp.X_CAP)) ** 2
-    return Points(dq, ddq, scale[:, None] * robot.acceleration_limits, xmax)
+    return np.minimum(sd_max, np.sqrt(_topp.X_CAP))
 
 
 def row_max(values: np.ndarray) -> np.ndarray:

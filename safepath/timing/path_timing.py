@@ -8,19 +8,25 @@ jerk-limited S-curve along the line (:mod:`._scurve`). Any other path: TOPP-RA (
 kernel in :mod:`._topp`) finds the fastest timing under joint velocity and acceleration
 limits that vary along the path (each route step has its own speed scale and an optional
 TCP speed limit), with a constant path acceleration between gridpoints, and two moving
-averages limit its jerk (:mod:`._smooth`).
+averages limit its jerk (:mod:`._smooth`). The averages mix the profile's speeds over
+their width; with ``TimingOptions(limits_ahead=True)`` a step's speed scale and TCP speed
+limit hold on TOPP-RA's grid from as far before and after the step as the averages reach
+(``ahead`` of :func:`~safepath.timing.path_limits`), so that a slower step is not
+entered at the faster one's speed.
 
 TOPP-RA enforces the limits at its gridpoints (which follow the spline's pieces, see
 :mod:`._path_limits`); the output knots between them may still exceed a limit a little.
-Knots over a limit by more than :data:`RETIME_ABOVE` get the limits tightened around them
-and the path is timed again (``retries`` runs in all); what is left is removed by
-stretching time uniformly, which divides velocities by ``k`` and accelerations by
-``k^2``. No released knot exceeds a limit: the ratios of the released knots are checked,
-and a :class:`~safepath.errors.TimingError` is raised rather than release one over 1.0.
+Knots whose excess would take a time stretch of more than :data:`RETIME_ABOVE` get the
+limits tightened around them and the path is timed again (``retries`` runs in all); what
+is left is removed by stretching time uniformly, which divides velocities by ``k`` and
+accelerations by ``k^2``. No released knot exceeds a limit: the ratios of the released
+knots are checked, and a :class:`~safepath.errors.TimingError` is raised rather than
+release one over 1.0.
 """
 
 from __future__ import annotations
 
+import dataclasses
 import logging
 from collections.abc import Sequence
 from dataclasses import dataclass
@@ -46,9 +52,11 @@ log = logging.getLogger(__name__)
 CornerBlend = Literal["gap", "g2"]
 #: The ways a blended via point can be cut (:func:`spline_path`).
 CORNER_BLENDS: tuple[str, ...] = ("gap", "g2")
-#: Relative excess of a limit on a knot above which the path is re-timed with locally
-#: tightened limits; a smaller excess is removed by the uniform time stretch, which costs
-#: at most that fraction of the motion time.
+#: Time stretch (relative, above 1) that the knots' excess over the limits would need,
+#: above which the path is re-timed with locally tightened limits; a smaller excess is
+#: removed by the uniform time stretch, which costs at most that fraction of the motion
+#: time (a jerk excess ``e`` needs a stretch of ``e^(1/3)``, an acceleration excess
+#: ``e^(1/2)``).
 RETIME_ABOVE = 1e-2
 #: Margin the final stretch leaves below every limit (relative), so that the released
 #: ratios stay <= 1.0 however they are rounded.
@@ -82,6 +90,13 @@ class TimingOptions:
             (the spline bridges the interpolation points left out) or ``"g2"`` (a blend
             with continuous curvature, closer to the corner; its timing is nearer the
             jerk-free optimum, see ``benchmarks/timing_quality.py``).
+        limits_ahead: Hold each route step's speed scale and TCP speed limit on TOPP-RA's
+            grid as far around the step as the moving averages reach
+            (:func:`~safepath.timing.path_limits` ``ahead``), so that a path whose steps
+            have different limits is timed in one run instead of being re-timed where
+            the averages carried a faster step's speed into a slower one. Off by default
+            for now: it changes the bundled cells' motions slightly, and some of the
+            monitor's scenario tests are calibrated on them.
     """
 
     speed_scale: float = 1.0
@@ -94,6 +109,7 @@ class TimingOptions:
     jerk_window: float = 1.0
     jerk_smoothing: float = 3.0
     corner_blend: CornerBlend = "gap"
+    limits_ahead: bool = False
 
     def __post_init__(self) -> None:
         from ..errors import ConfigError
@@ -131,6 +147,9 @@ class TimedPiece:
         qdd: Accelerations [rad/s^2].
         s: Path parameter of each knot.
         segment: Index of the input polyline segment of each knot.
+        runs: TOPP-RA runs its timing took (1 when the first run's knots needed no more
+            than a small time stretch; 0 for a closed-form straight move or a piece not
+            timed by :func:`time_path`).
     """
 
     t: np.ndarray
@@ -139,6 +158,7 @@ class TimedPiece:
     qdd: np.ndarray
     s: np.ndarray
     segment: np.ndarray
+    runs: int = 0
 
 
 def spline_path(waypoints: Sequence[np.ndarray], spacing: float, *,
@@ -255,26 +275,29 @@ def time_path(robot: Robot, path: PathSpline, s_way: np.ndarray, *, scales: Sequ
     where = f" (step '{step}')" if step else ""
     limits = path_limits(robot, path, s_way, scales, tcp_speeds,
                          speed_scale=options.speed_scale, grid_step=options.grid_step,
-                         jerk_scale=options.jerk_scale)
+                         jerk_scale=options.jerk_scale,
+                         ahead=_widest_window(robot, options) if options.limits_ahead
+                         else 0.0)
     if len(s_way) == 2 and tcp_speeds[0] is None and _straight(path, limits):
         return _release(_time_straight(path, limits, options, where), limits, options, where)
     f_acc = np.ones(limits.grid.size)
     f_x = np.ones(limits.grid.size)
     best: _Run | None = None
     tau_a: float | None = None
+    runs = 0
     for attempt in range(options.retries):
+        runs += 1
         run = _time_once(path, limits, f_acc, f_x, options, tau_a, where)
         tau_a = run.smoothed.tau_a if run.smoothed is not None else None
         if best is None or run.stretched < best.stretched:
             best = run
-        worst = float(run.ratios.max()) if run.ratios.size else 0.0
-        if worst <= 1.0 + RETIME_ABOVE or attempt + 1 == options.retries:
+        if run.stretch <= 1.0 + RETIME_ABOVE or attempt + 1 == options.retries:
             break
-        log.debug("timing attempt %d exceeds limits by %.3f %%; tightening locally", attempt,
-                  (worst - 1) * 100)
+        log.debug("timing attempt %d needs a time stretch of %.6f; tightening locally",
+                  attempt, run.stretch)
         _tighten(f_acc, f_x, limits.grid, run)
     assert best is not None  # options.retries >= 1
-    return _release(best, limits, options, where)
+    return dataclasses.replace(_release(best, limits, options, where), runs=runs)
 
 
 def _straight(path: PathSpline, limits: PathLimits) -> bool:
@@ -318,7 +341,7 @@ def _time_once(path: PathSpline, limits: PathLimits, f_acc: np.ndarray, f_x: np.
         raise TimingError(f"TOPP-RA gave a duration of {profile.duration} s" + where)
     if tau_a is None:
         tau_a = _jerk_window(profile, path, limits, options)
-    tau_b = max(options.jerk_smoothing * options.knot_period, 0.15 * tau_a)
+    tau_b = _second_window(tau_a, options)
     sm = _smooth.smooth(profile, tau_a, tau_b)
     duration = sm.duration
     n = max(2, int(np.ceil(duration / options.knot_period)) + 1)
@@ -332,6 +355,21 @@ def _time_once(path: PathSpline, limits: PathLimits, f_acc: np.ndarray, f_x: np.
     segment = interval_index(limits.s_way, s, limits.vmax_seg.shape[0])
     ratios = np.array(_interval_ratios(t, q, qd, qdd, segment, limits))
     return _Run(t, s, q, qd, qdd, segment, ratios, sm)
+
+
+def _widest_window(robot: Robot, options: TimingOptions) -> float:
+    """The total width of the two moving averages [s] on a profile whose joint
+    accelerations swing between their limits (twice a limit over the jerk limit, for
+    the joint where that takes longest; :func:`_jerk_window`)."""
+    swing = 2.0 * float(np.max(robot.acceleration_limits
+                               / (options.jerk_scale * robot.jerk_limits)))
+    tau_a = max(swing * options.jerk_window, options.knot_period)
+    return tau_a + _second_window(tau_a, options)
+
+
+def _second_window(tau_a: float, options: TimingOptions) -> float:
+    """Width of the second moving average [s] after a first of ``tau_a`` [s]."""
+    return max(options.jerk_smoothing * options.knot_period, 0.15 * tau_a)
 
 
 def _jerk_window(profile: _topp.Profile, path: PathSpline, limits: PathLimits,

@@ -1,0 +1,68 @@
+"""Randomized timing suite: seeded random via-point paths on every bundled robot, 0 overruns
+as executed.
+
+The problems and the check are ``tests/timing_suite.py``'s (the test suite runs a
+bounded subset): polylines of 2-4 route steps with their own speed scales and TCP speed
+limits, blended at their via points, timed by :func:`safepath.timing.time_path`; the
+controller's quintic join of the released knots checked against each interval's step
+limits at 0 tolerance (``safepath.model.execution.interval_ratios``). Printed per robot: paths,
+overruns (must be 0), the largest ratio seen, the TOPP-RA runs per path and the share
+re-timed, and the wall time; the machine's load before and after.
+
+Run: ``.venv/bin/python benchmarks/timing_suite.py [--paths 1000] [--seed 0]``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import platform
+import sys
+import time
+from collections.abc import Sequence
+from pathlib import Path
+
+import numpy as np
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))  # the suite
+from timing_suite import robot_names, run_suite  # noqa: E402
+
+
+def _load() -> str:
+    return f"{os.getloadavg()[0]:.2f}" if hasattr(os, "getloadavg") else "n/a"
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """Run the suite and print the report; returns 1 if any path overran a limit."""
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--paths", type=int, default=1000, help="random paths per robot")
+    parser.add_argument("--seed", type=int, default=0, help="seed of the problems")
+    parser.add_argument("--robots", default="", help="comma-separated (default: all)")
+    args = parser.parse_args(argv)
+    names = args.robots.split(",") if args.robots else robot_names()
+    print(f"timing_suite: python {platform.python_version()} on {platform.machine()}, "
+          f"{os.cpu_count()} cores, load average {_load()}; {args.paths} random via-point "
+          f"paths per robot, seed {args.seed}")
+    header = (f"{'robot':<10} {'paths':>6} {'overruns':>8} {'worst ratio':>11} "
+              f"{'TOPP-RA runs':>12} {'re-timed':>8} {'s':>7}")
+    print(header)
+    print("-" * len(header))
+    overruns = 0
+    for name in names:
+        t0 = time.perf_counter()
+        outcomes = run_suite(name, args.paths, args.seed)
+        seconds = time.perf_counter() - t0
+        worst = np.array([o.worst for o in outcomes])
+        runs = np.array([o.runs for o in outcomes])
+        over = int(np.sum(worst > 1.0))
+        overruns += over
+        print(f"{name:<10} {len(outcomes):6d} {over:8d} {worst.max():11.6f} "
+              f"{runs.mean():12.2f} {np.mean(runs > 1):8.0%} {seconds:7.1f}")
+    print("(overruns: paths whose quintic join exceeds a velocity, acceleration or jerk "
+          "limit of their steps; worst ratio: the largest seen, <= 1 required)")
+    print(f"overruns in all: {overruns}; load average at the end {_load()}")
+    return 1 if overruns else 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
