@@ -3,7 +3,7 @@
 Reads the JSON files the benchmarks write into ``benchmarks/results/``, each its latest
 saved run (``collision_checks.py``, ``plan_cycle.py``, ``timing_quality.py``,
 ``panda_set.py``, ``cold_start.py``, ``runtime_heartbeat.py``, ``monitor.py``,
-``switches.py`` and ``live_safety.py`` with
+``switches.py``, ``live_safety.py`` and ``sweeps.py`` with
 ``--save``; ``executed_motion.py``, ``replan.py``, ``twin.py`` and ``peers/run.py``
 always), and writes one row per headline figure, with the command that measures it and
 when, on what and at which load it was measured; then the peer comparison's table from
@@ -55,6 +55,13 @@ def _collision_checks(d: dict[str, Any]) -> list[Row]:
                      f"{_n(min(grid))}-{_n(max(grid))} /s (aim ≥ {_n(d['aim_grid_states'])}, "
                      f"{_met(min(grid) >= d['aim_grid_states'])})"))
     return rows
+
+
+def _check_poses(d: dict[str, Any]) -> list[Row]:
+    return [(f"`safepath check` of {_n(v['poses'])} poses (Ned3 Pro cell, random poses)",
+             f"{_n(v['poses_per_s'])} poses/s, check {v['check_s']:.1f} s, process "
+             f"{v['check_process_s']:.1f} s, peak {v['check_process_peak_mb']:.0f} MB")
+            for v in d["sizes"].values()]
 
 
 def _plan_cycle(d: dict[str, Any]) -> list[Row]:
@@ -223,6 +230,22 @@ def _live_safety(d: dict[str, Any]) -> list[Row]:
     return rows
 
 
+def _sweeps(d: dict[str, Any]) -> list[Row]:
+    rows = d["backends"]
+    one, two = rows["this process"], rows["local pool, 2 processes"]
+    text = (f"{one['per_s']:.2f} / {two['per_s']:.2f} runs/s in 1 process / a pool of 2 "
+            f"({two['per_s'] / one['per_s']:.2f}x)")
+    ray = rows.get("Ray, local runtime of 2 CPUs")
+    if ray is not None:
+        text += (f"; Ray (local, 2 CPUs) {ray['per_s']:.2f} runs/s, "
+                 f"{(ray['wall_s'] - two['wall_s']) / d['runs'] * 1000:+.0f} ms per run against "
+                 f"the pool of 2, its start {ray['start_s']:.1f} s apart")
+    text += "; the same results on every backend" if d["same_results"] \
+        else "; **results differ between backends**"
+    return [(f"sweeps: {d['runs']} quality-check twin runs of {d['duration_s']:g} s simulated",
+             text)]
+
+
 def _peers(d: dict[str, Any]) -> list[Row]:
     sp = d["summary"]["panda"]
     ours, rp = sp["safepath"], sp.get("roboplan", {})
@@ -275,6 +298,7 @@ def _timing_quality(d: dict[str, Any]) -> list[Row]:
 #: Results file, command that writes it, its reader (in the table's order).
 SOURCES: list[tuple[str, str, Reader]] = [
     ("collision_checks.json", "benchmarks/collision_checks.py --save", _collision_checks),
+    ("check_poses.json", "benchmarks/check_poses.py --save", _check_poses),
     ("plan_cycle.json", "benchmarks/plan_cycle.py --save", _plan_cycle),
     ("timing_quality.json", "benchmarks/timing_quality.py --paths 40 --save",
      _timing_quality),
@@ -290,6 +314,7 @@ SOURCES: list[tuple[str, str, Reader]] = [
      _executed_motion),
     ("replan.json", "benchmarks/replan.py", _replan),
     ("twin.json", "benchmarks/twin.py", _twin),
+    ("sweeps.json", "benchmarks/sweeps.py --save", _sweeps),
 ]
 
 

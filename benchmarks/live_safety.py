@@ -12,7 +12,13 @@ controller's state; held objects dropped; re-plan requests, how many succeeded a
 the others did not; and the seed of every failing run (``--seed S --runs 1`` replays it).
 Exits 1 when a run fails.
 
+With ``--out DIR`` the runs are a sweep (``safepath.sweeps``, docs/sweeps.md): each seed's
+invariants and figures written to ``DIR/results.jsonl`` as it finishes (a restart runs only
+the missing seeds), on the local pool or on Ray (``--cluster auto|ray://HOST:PORT``), and
+the report in ``DIR/report.html`` / ``report.json``; the report's lines are printed.
+
     .venv/bin/python benchmarks/live_safety.py [--runs 200] [--seed 0] [--workers 2] [--save]
+    .venv/bin/python benchmarks/live_safety.py --runs 10000 --out out/live-safety [--cluster auto]
 """
 
 from __future__ import annotations
@@ -60,10 +66,15 @@ def main(argv: list[str] | None = None) -> int:
                         help="simulated time per run [s] (default: the suite's, 14 s)")
     parser.add_argument("--save", action="store_true",
                         help="write benchmarks/results/live_safety.json")
+    parser.add_argument("--out", default=None, help="run as a resumable sweep into DIR")
+    parser.add_argument("--cluster", default=None,
+                        help="with --out: run on Ray, 'auto' or ray://HOST:PORT")
     args = parser.parse_args(argv)
     from safepath.sim.live_safety import DURATION
 
     duration = args.duration or DURATION
+    if args.out:
+        return _sweep(args, duration)
     load_before = os.getloadavg()
     seeds = list(range(args.seed, args.seed + args.runs))
     started = time.perf_counter()
@@ -82,6 +93,24 @@ def main(argv: list[str] | None = None) -> int:
                              "workers": args.workers, "wall_time": wall, **figures},
              load_before=load_before[0])
     return 1 if figures["failing_seeds"] else 0
+
+
+def _sweep(args: argparse.Namespace, duration: float) -> int:
+    """The suite as a sweep into ``--out``: prints the report's lines."""
+    from safepath.sim.sweep_tasks import LiveSafetyTask
+    from safepath.sweeps import SweepOptions, run_sweep
+    from safepath.sweeps.report import report_lines
+
+    replay = "python benchmarks/live_safety.py --seed {seed} --runs 1" + (
+        f" --duration {duration:g}" if args.duration else "")
+    outcome = run_sweep(LiveSafetyTask(str(CELL), duration, replay),
+                        range(args.seed, args.seed + args.runs), args.out,
+                        SweepOptions(workers=args.workers, cluster=args.cluster,
+                                     progress=True, title="live-safety suite"))
+    for line in report_lines(outcome.report):
+        print(line)
+    print(f"ran {len(outcome.ran)} of {args.runs} seeds on {outcome.backend}")
+    return 1 if outcome.report["failures"] else 0
 
 
 def no_way_by_rule(outcome: str) -> bool:

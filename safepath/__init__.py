@@ -45,6 +45,7 @@ from .errors import (
 )
 from .kinematics import LineOptions
 from .model.controller_spec import ControllerSpec
+from .model.limits import MotionLimits
 from .model.robot import Robot
 from .model.scene import AllowedContact, Grasp, Scene, SceneObject, Shape, placement
 from .model.tool import ToolSpec
@@ -67,6 +68,7 @@ __all__ = [
     "Grasp",
     "GripperEvent",
     "LineOptions",
+    "MotionLimits",
     "PlanOptions",
     "PlannerOptions",
     "Route",

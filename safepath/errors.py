@@ -32,6 +32,7 @@ __all__ = [
     "UnprovenClearance",
     "TrajectoryError",
     "RosError",
+    "WorkerLost",
     "unknown_name",
 ]
 
@@ -336,3 +337,11 @@ class TrajectoryError(InputError):
 
 class RosError(SafepathError):
     """A ROS 2 message or bag could not be built, written or read."""
+
+
+class WorkerLost(SafepathError):
+    """A sweep's worker process died, or its Ray cluster was lost, while seeds ran.
+
+    The seeds finished before are on disk (the sweep's results file); running the same
+    sweep again finishes the others.
+    """

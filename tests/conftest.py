@@ -90,6 +90,7 @@ def cell_copy(tmp_path: Path) -> Path:
 GROUPS = {
     "view/test_browser.py": "chromium",
     "monitor/test_replay_browser.py": "chromium",
+    "sweeps/test_report_browser.py": "chromium",
 }
 #: Files whose every test runs alone on the machine (the `exclusive` mark, per file).
 EXCLUSIVE = (

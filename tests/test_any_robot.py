@@ -1,7 +1,8 @@
 """Any robot, faithfully (issue 28): a hand-written URDF arm loads and plans with or
 without a robot folder, any robot holds an object through a tool of its own, velocity
-limits can be given, and robots that are not fixed-base arms of bounded joints (continuous
-joints, floating bases, grippers planned as arm joints) are refused or locked, saying so.
+limits can be given, continuous joints are planned without position limits, and robots that
+are not fixed-base arms (floating bases, grippers planned as arm joints) are refused or
+locked, saying so.
 
 The arm is ``tests/data/box_arm``: box and cylinder links that overlap at their joints
 and a one-finger gripper on a prismatic joint.
@@ -9,6 +10,7 @@ and a one-finger gripper on a prismatic joint.
 
 from __future__ import annotations
 
+import math
 import shutil
 from pathlib import Path
 
@@ -280,28 +282,45 @@ def test_velocity_override_of_a_folder_robot() -> None:
 
 
 # ------------------------------------------------------------------------------------------
-# 4. Continuous joints are refused, never dropped
+# 4. Continuous joints are planned (without position limits), never refused or dropped
 # ------------------------------------------------------------------------------------------
-def test_the_jaco_with_continuous_joints_is_refused() -> None:
-    with pytest.raises(RobotNotSupported) as info:
-        load_robot("kinova")
-    assert info.value.joints == ["j2s6s200_joint_1", "j2s6s200_joint_4", "j2s6s200_joint_6"]
-    assert "continuous" in str(info.value) and 'type="revolute"' in str(info.value)
-    assert isinstance(info.value, ConfigError)
+def test_the_jaco_with_continuous_joints_loads() -> None:
+    robot = load_robot("kinova")  # formerly RobotNotSupported (tests/test_continuous_joints.py)
+    assert robot.dof == 6 and sum(robot.continuous) == 3
 
 
-def test_a_continuous_joint_of_an_own_arm_is_refused(tmp_path: Path) -> None:
-    text = ARM_URDF.read_text().replace('<joint name="joint4" type="revolute">',
-                                        '<joint name="joint4" type="continuous">')
+@pytest.mark.parametrize("axis", ["0 0 1", "0 0.6 0.8"], ids=["aligned", "unaligned"])
+def test_a_continuous_joint_of_an_own_arm_loads(tmp_path: Path, axis: str) -> None:
+    """A URDF ``continuous`` joint (no ``lower``/``upper``; about a frame axis or any
+    other) loads from the URDF alone and from a robot folder: the same arm, its joint4
+    without position limits, the same placements at every angle as the revolute joint
+    it was."""
+    revolute = ARM_URDF.read_text().replace('<origin xyz="0 0 0.28"/><axis xyz="0 0 1"/>',
+                                            f'<origin xyz="0 0 0.28"/><axis xyz="{axis}"/>')
+    text = revolute.replace(
+        '<joint name="joint4" type="revolute">', '<joint name="joint4" type="continuous">'
+    ).replace('<limit lower="-3.0" upper="3.0" velocity="3.0" effort="5"/>\n  </joint>\n'
+              '  <link name="link4">', '<limit velocity="3.0" effort="5"/>\n  </joint>\n'
+              '  <link name="link4">')
+    assert text.count('<limit velocity="3.0" effort="5"/>') == 1 and text.count(axis) >= 1
+    (tmp_path / "bounded.urdf").write_text(revolute)
     (tmp_path / "arm.urdf").write_text(text)
-    with pytest.raises(RobotNotSupported) as info:
-        load_robot(tmp_path / "arm.urdf", acceleration_limits=ARM_ACC)
-    assert info.value.joints == ["joint4"] and info.value.path == tmp_path / "arm.urdf"
     folder = _arm_copy(tmp_path)
     (folder / "arm.urdf").write_text(text)
-    with pytest.raises(RobotNotSupported) as info:
-        load_robot(folder)
-    assert info.value.joints == ["joint4"]
+    bounded = load_robot(tmp_path / "bounded.urdf", acceleration_limits=ARM_ACC)
+    for robot in (load_robot(tmp_path / "arm.urdf", acceleration_limits=ARM_ACC),
+                  load_robot(folder)):
+        assert robot.joint_names == ARM_JOINTS
+        assert robot.continuous == (False, False, False, True)
+        assert robot.lower[3] == -np.inf and robot.upper[3] == np.inf
+        assert robot.velocity_limits[3] == 3.0
+        for q4 in (-2.0, 2.5, 2.5 + 2 * np.pi, -9.0):
+            q = np.array([0.3, 0.4, 0.5, q4])
+            assert robot.limit_violation(q) is None
+            np.testing.assert_allclose(
+                robot.frame_pose(q).homogeneous,
+                bounded.frame_pose(np.array([0.3, 0.4, 0.5, math.remainder(q4, 2 * np.pi)])
+                                   ).homogeneous, atol=1e-12)
 
 
 # ------------------------------------------------------------------------------------------

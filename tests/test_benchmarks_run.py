@@ -16,6 +16,7 @@ ROOT = Path(__file__).resolve().parents[1]
 
 CASES = [
     ("collision_checks.py", ["--n", "300"], "state checks/s"),
+    ("check_poses.py", ["--sizes", "40", "--seed", "3"], "poses/s"),
     ("plan_cycle.py", ["--runs", "1"], "motion time against the stop-and-go baseline"),
     ("runtime_heartbeat.py", ["--runs", "1"], "heartbeat gap"),
     ("runtime_recovery.py", ["--runs", "1", "--no-compare"], "timeout overshoot"),
@@ -31,6 +32,8 @@ CASES = [
     ("panda_set.py", ["--limit", "2"], "the same, CPU time"),
     ("pour.py", ["--runs", "2", "--events", "20"], "seed measured ~103 g"),
     ("pour_controller.py", ["--runs", "1"], "final masses"),
+    ("sweeps.py", ["--runs", "2", "--duration", "5", "--no-ray"],
+     "the same results on every backend: yes"),
     ("planners_any_arm.py", ["--seeds", "1", "--time-limit", "0.2", "--robots", "ur5",
                              "--planners", "RRT,SORRTstar"], "first path"),
 ]

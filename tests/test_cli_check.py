@@ -6,6 +6,7 @@ import re
 import subprocess
 import sys
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pinocchio as pin
@@ -228,3 +229,46 @@ def test_many_poses_share_their_checkers(cell_copy: Path, cell: Cell,
         assert own.collisions == c.report.collisions
         assert own.closest_pair == c.report.closest_pair
         assert own.clearance == pytest.approx(c.report.clearance, abs=1e-12)
+
+
+def _coal_verdict(checker: object, q: np.ndarray) -> tuple[Any, ...]:
+    """A state's verdict from coal alone, every pair read (what ``check`` reported before
+    it read only what its answer needs): colliding pairs, the distance of every pair of
+    names and the margin each keeps."""
+    from safepath.collision import CollisionChecker
+
+    assert isinstance(checker, CollisionChecker)
+    return tuple(checker.collisions(q)), dict(checker.distances(q)), checker.margins()
+
+
+@pytest.mark.parametrize("seed", [11, 12])
+def test_pose_checks_give_coal_s_verdicts(cell: Cell, seed: int) -> None:
+    """``check`` on 300 random poses (inside the limits, and near the taught poses where
+    the margins and the allowed contacts matter), empty and holding the vial at a pose
+    with contacts: exactly coal's colliding pairs, clearance, closest pair and margin
+    shortfalls, though it asks coal for collisions only where the sphere layer cannot
+    prove a state free and reads every distance only near contact. (coal starts each
+    distance query from the last one's answer: distances agree to 1e-6 m, and of two
+    pairs that close, such as the two jaws, either may be named the closest.)"""
+    rng = np.random.default_rng(seed)
+    lo, hi = cell.robot.lower, cell.robot.upper
+    taught = np.array(list(cell.poses.values()))
+    near = taught[rng.integers(0, len(taught), 150)] + rng.normal(0.0, 0.05, (150, lo.size))
+    states = np.vstack([rng.uniform(lo, hi, (150, lo.size)), np.clip(near, lo, hi)])
+    kinds = {"free": 0, "colliding": 0, "short": 0}
+    for held, at in ((False, None), (True, "grip"), (False, "grip")):
+        checker = cell.checker(held=held, at=at)
+        for q in states:
+            report = checker.check(q)
+            collisions, dists, margins = _coal_verdict(checker, q)
+            assert report.collisions == collisions
+            assert report.clearance == pytest.approx(min(dists.values()), abs=1e-6)
+            assert dists[report.closest_pair] == pytest.approx(report.clearance, abs=1e-6)
+            short = {p: d for p, d, _ in report.margin_violations}
+            assert short.keys() == {p for p, d in dists.items() if d < margins[p]}
+            assert all(d == pytest.approx(dists[p], abs=1e-6) for p, d in short.items())
+            assert all(m == margins[p] for p, _, m in report.margin_violations)
+            assert list(short.values()) == sorted(short.values())
+            kinds["colliding" if report.collisions else
+                  "short" if report.margin_violations else "free"] += 1
+    assert min(kinds.values()) >= 20, kinds  # every kind of verdict was compared

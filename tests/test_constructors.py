@@ -133,6 +133,8 @@ def test_scene_checks_its_parts() -> None:
     (lambda: Step("open", Target("b")), "target", "no target"),
     (lambda: Step("jump", Target("b")), "kind", "unknown step kind"),
     (lambda: Step("move", Target("b"), stop="yes"), "stop", "True or False"),
+    (lambda: Step("line", Target("b"), via=True), "via", "never stops"),
+    (lambda: Step("move", Target("b"), stop=True, via=True), "via", "never stops"),
     (lambda: Target("b", (0.0, math.nan, 0.0)), "offset", "finite"),
     (lambda: Target(None), "offset", "non-zero"),
     (lambda: Route("r", "a", ()), "steps", "non-empty"),

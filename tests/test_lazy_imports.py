@@ -17,7 +17,7 @@ import pytest
 ROOT = Path(__file__).resolve().parents[1]
 CELL = ROOT / "scenes" / "quality_check_cell"
 #: Packages that cost tenths of a second to import, or are optional.
-HEAVY = ("viser", "rosbags", "matplotlib", "scipy", "toppra", "ompl", "numba", "fcl")
+HEAVY = ("viser", "rosbags", "matplotlib", "scipy", "toppra", "ompl", "numba", "fcl", "ray")
 
 
 def _loaded_after(code: str, **env: str) -> list[set[str]]:
@@ -81,3 +81,13 @@ def test_load_cell_loads_the_release_check_and_the_built_kernels_but_not_numba(a
     assert packages.isdisjoint({"numba", "llvmlite"})
     assert ("safepath.verify._kernel" in kernels) is built
     assert ("safepath.kinematics._ik_kernel" in kernels) is built
+
+
+def test_a_sweep_on_this_machine_loads_no_ray() -> None:
+    """Ray (the optional ``cluster`` extra) loads only for a sweep on a cluster."""
+    (after,) = _loaded_after(
+        "import safepath.sweeps, safepath.sim.sweep_tasks, safepath.sim.sweep_cli\n"
+        "from safepath.sweeps.backends import make_backend\n"
+        "make_backend(workers=2).close()\n"
+        "mark()\n")
+    assert "safepath" in after and "ray" not in after

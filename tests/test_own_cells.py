@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import json
 import pickle
+import shutil
 from pathlib import Path
 
 import numpy as np
@@ -139,6 +140,26 @@ def test_cli_plans_the_yaml_cells_and_writes_a_bag(cell: str, tmp_path: Path,
     names = UR5_JOINTS if cell == "ur5_cell" else PANDA_JOINTS
     assert all(m.msg.joint_names == names for m in contents.on("/safepath/trajectory"))
     assert (out / "summary.json").exists()
+
+
+def test_cli_bag_gives_the_locked_fingers_their_value_and_names_a_via(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """``plan --bag`` of the Panda cell with its fingers locked at 2 cm: ``/joint_states``
+    holds both finger joints (the second mimics the first) at 0.02 m, so RViz draws the
+    hand; summary.json names the route's ``via: ready`` as a via."""
+    cell = tmp_path / "panda_cell"
+    shutil.copytree(CELLS / "panda_cell", cell)
+    with (cell / "scene.yaml").open("a") as f:
+        f.write("\nlocked_joints: {panda_finger_joint1: 0.02}\n")
+    out, bag = tmp_path / "out", tmp_path / "bag"
+    assert main(["plan", str(cell), "--out", str(out), "--bag", str(bag)]) == 0
+    states = read_bag(bag).on("/joint_states")
+    fingers = ["panda_finger_joint1", "panda_finger_joint2"]
+    assert states and all(m.msg.name == [*PANDA_JOINTS, *fingers] for m in states)
+    assert all(np.array_equal(m.msg.position[7:], [0.02, 0.02]) for m in states)
+    assert all(np.array_equal(m.msg.velocity[7:], [0.0, 0.0]) for m in states)
+    steps = json.loads((out / "summary.json").read_text())["left_to_right"]["step_durations"]
+    assert list(steps)[3:] == ["3 move right", "4 via ready"]
 
 
 def test_plan_between_two_configurations() -> None:

@@ -10,6 +10,7 @@ import pinocchio as pin
 import pytest
 import yaml
 
+import safepath
 from safepath import (
     CollisionChecker,
     ConfigError,
@@ -362,3 +363,30 @@ def test_panda_meshes_are_replaced_by_enclosing_convex_hulls(panda: Robot) -> No
         assert nearest.max() <= 1e-6 * size, geom.name
         checked += 1
     assert checked >= 8
+
+
+def test_the_limits_are_one_record_replaced_whole_never_changed_in_place() -> None:
+    """Issue 37: a robot's velocity, acceleration and jerk limits are one read-only
+    MotionLimits record; assigning an array replaces the record (checked), writing into
+    one is refused."""
+    robot = safepath.load_robot("ned3pro")
+    before = robot.motion_limits
+    with pytest.raises(ValueError):
+        robot.velocity_limits[0] = 100.0
+    with pytest.raises(ValueError):
+        robot.motion_limits.jerk[2] = 1.0
+    robot.velocity_limits = robot.velocity_limits * 0.5
+    assert robot.motion_limits is not before
+    np.testing.assert_array_equal(robot.velocity_limits, before.velocity * 0.5)
+    np.testing.assert_array_equal(robot.jerk_limits, before.jerk)
+    with pytest.raises(safepath.ConfigError) as info:
+        robot.acceleration_limits = [1.0, 2.0]
+    assert info.value.key == "acceleration_limits"
+    with pytest.raises(safepath.ConfigError) as info:
+        robot.jerk_limits = np.full(robot.dof, np.nan)
+    assert info.value.key == "jerk_limits"
+    with pytest.raises(safepath.ConfigError) as info:
+        robot.motion_limits = safepath.MotionLimits([1.0], [1.0], [1.0])
+    assert info.value.key == "motion_limits"
+    robot.motion_limits = before
+    assert robot.motion_limits == before

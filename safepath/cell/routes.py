@@ -128,6 +128,8 @@ class Step:
             None: at every released sample of the step the cup's pouring lip (the
             tilt's ``pivot``, carried by the cup) lies above the receptacle's opening
             (:func:`safepath.planning.landing.check_landing`).
+        via: Whether the step is a ``via`` point: a ``move`` that never stops (its
+            label says ``via``; it plans and times as a move with ``stop`` False).
     """
 
     kind: StepKind
@@ -140,9 +142,13 @@ class Step:
     pour: Tilt | Circle | None = None
     max_angular_speed: float | None = None
     into: str | None = None
+    via: bool = False
 
     def __post_init__(self) -> None:
         check_names([self.kind], _STEP_KINDS, path=None, key="kind", what="step kind")
+        if not isinstance(self.via, bool) or (self.via and (self.kind != "move" or self.stop)):
+            raise ConfigError(f"via marks a move that never stops, got via={self.via!r} on a "
+                              f"{self.kind} step with stop={self.stop!r}", key="via")
         if self.into is not None and (self.kind not in POUR_KINDS
                                       or not isinstance(self.into, str) or not self.into):
             raise ConfigError(f"into names the receptacle of a tilt or circle step, got "
@@ -177,9 +183,9 @@ class Step:
         return self.kind in ("move", "line", *POUR_KINDS)
 
     def label(self, index: int) -> str:
-        """Short unique name, e.g. ``2 line high1``."""
+        """Short unique name, e.g. ``2 line high1`` (``5 via high2`` for a via point)."""
         what = self.target if self.target is not None else (self.pour or self.object or "")
-        return f"{index} {self.kind} {what}".rstrip()
+        return f"{index} {'via' if self.via else self.kind} {what}".rstrip()
 
 
 @dataclass(frozen=True)
@@ -476,7 +482,7 @@ def _parse_step(raw: Any, path: Path, key: str, poses: Sequence[str], objects: S
     if kind == "via":
         if stop:
             raise ConfigError("a via point never stops", path=path, key=f"{key}.stop")
-        return Step("move", target, None, speed, tcp_speed, False, max_tilt)
+        return Step("move", target, None, speed, tcp_speed, False, max_tilt, via=True)
     return Step(kind, target, None, speed, tcp_speed, stop, max_tilt)  # type: ignore[arg-type]
 
 

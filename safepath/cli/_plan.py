@@ -66,7 +66,7 @@ def cmd_plan(args: argparse.Namespace) -> int:
     summary = {name: _summary_row(traj) for name, traj in trajectories.items()}
     cycle = [trajectories[name] for name in _bag_order(cell, routes)] if args.bag else []
     bag = _write_outputs(out, trajectories, summary, Path(args.bag) if args.bag else None,
-                         cycle, cell.robot.controller)
+                         cycle, cell.robot)
     header = (f"{'route':<15} {'steps':>5} {'plan[ms]':>9} {'motion[s]':>10} "
               f"{'stop&go[s]':>11} {'ratio':>6} {'clearance[mm]':>14} {'bound[mm]':>10}  "
               f"closest pair")
@@ -142,9 +142,10 @@ def _figure_lines(summary: dict[str, Any]) -> list[str]:
 
 
 def _write_outputs(out: Path, trajectories: dict[str, Any], summary: dict[str, Any],
-                   bag: Path | None, cycle: list[Any], controller: Any) -> Path | None:
+                   bag: Path | None, cycle: list[Any], robot: Any) -> Path | None:
     """Write the bag first (it validates every message before touching the disk and
-    appears whole or not at all), then the files; on failure, remove what was written."""
+    appears whole or not at all; the robot's controller addresses it, its locked joints
+    are in ``/joint_states``), then the files; on failure, remove what was written."""
     from ..errors import InputError, SafepathError
     from ..files._io import atomic_write_text
 
@@ -154,7 +155,8 @@ def _write_outputs(out: Path, trajectories: dict[str, Any], summary: dict[str, A
         if bag is not None:
             from ..ros.bag import write_bag
 
-            written.append(write_bag(bag, cycle, controller=controller))
+            written.append(write_bag(bag, cycle, controller=robot.controller,
+                                     locked_joints=robot.locked_joints))
         for name, traj in trajectories.items():
             for path, write in ((out / f"{name}.json", traj.to_json),
                                 (out / f"{name}.csv", traj.to_csv)):

@@ -69,7 +69,11 @@ def compute_allowed_pairs(robot: Robot, *, samples: int = 100_000, seed: int = 0
     data, gdata = model.createData(), pin.GeometryData(gmodel)
     rng = np.random.default_rng(seed)
     hits = dict.fromkeys(candidates, 0)
-    Q = rng.uniform(robot.lower, robot.upper, size=(samples, robot.dof))
+    # A continuous joint (no limits) takes every placement within one turn.
+    wraps = np.asarray(robot.continuous, dtype=bool)
+    lower = np.where(wraps, -np.pi, robot.lower)
+    upper = np.where(wraps, np.pi, robot.upper)
+    Q = rng.uniform(lower, upper, size=(samples, robot.dof))
     for q in Q:
         pin.computeCollisions(model, data, gmodel, gdata, q, False)
         touched = {index[k] for k, res in enumerate(gdata.collisionResults) if res.isCollision()}

@@ -29,6 +29,7 @@ import pinocchio as pin
 from ..errors import ConfigError, InputError
 from ..model.robot import Robot, is_prismatic
 from ..model.scene import AllowedContact, Scene, SceneObject
+from ._margins import PairMargins
 from ._pack import LayerSource
 from ._pairs import allowed_depths, allowed_rows, candidate_pairs
 from .layer import COLLIDES, FREE, OUTSIDE, UNSURE, SphereLayer
@@ -382,13 +383,16 @@ class CollisionChecker:
         over the shapes of a link; allowed contacts excluded)."""
         pin.computeDistances(self.robot.model, self._data, self.geometry_model,
                              self._dist_gdata, q)
-        results = self._dist_gdata.distanceResults
-        best: dict[Pair, float] = {}
-        for k in self._dist_pairs:
-            name, d = self._pair_names[k], float(results[k].min_distance)
-            if d < best.get(name, float("inf")):
-                best[name] = d
-        return list(best.items())
+        return self._distance_pairs.distances(self._dist_gdata.distanceResults)
+
+    def margins(self) -> dict[Pair, float]:
+        """The margin [m] each robot-environment pair of names keeps (allowed contacts
+        excluded; the largest over the shapes of a link)."""
+        return dict(self._distance_pairs.margin_of)
+
+    @functools.cached_property
+    def _distance_pairs(self) -> PairMargins:
+        return PairMargins(self._dist_pairs, self._pair_names, self._pair_margin.tolist())
 
     def clearance(self, q: np.ndarray) -> tuple[float, Pair | None]:
         """Smallest robot-environment distance at ``q`` [m], and its pair."""
@@ -406,24 +410,19 @@ class CollisionChecker:
         """
         q = self.robot.as_joint_vector(q, check_limits=False)
         violation = self.robot.limit_violation(q)
-        collisions = tuple(self.collisions(q))
-        dists = self.distances(q)
-        clearance, closest = float("inf"), None
-        margin_bad = []
-        margin_of: dict[Pair, float] = {}
-        for k in self._dist_pairs:
-            name = self._pair_names[k]
-            margin_of[name] = max(margin_of.get(name, 0.0), float(self._pair_margin[k]))
-        for p, d in dists:
-            if d < clearance:
-                clearance, closest = d, p
-            m = margin_of[p]
-            if d < m:
-                margin_bad.append((p, d, m))
-        margin_bad.sort(key=lambda item: item[1])
+        if not self._layer_built:
+            self._bind_layer()
+        # A state the sphere layer proves free has no colliding pair (its shapes enclose
+        # the robot's and the pairs' margins): coal is asked for distances only.
+        free = self._classify is not None and self._classify(q, self._F, self._I) == FREE
+        collisions = () if free else tuple(self.collisions(q))
+        closest = pin.computeDistances(self.robot.model, self._data, self.geometry_model,
+                                       self._dist_gdata, q)
+        clearance, pair, short = self._distance_pairs.report(
+            self._dist_gdata.distanceResults, closest)
         return StateReport(q=q, within_limits=violation is None, limit_violation=violation,
-                           collisions=collisions, clearance=clearance, closest_pair=closest,
-                           margin_violations=tuple(margin_bad))
+                           collisions=collisions, clearance=clearance, closest_pair=pair,
+                           margin_violations=short)
 
     # -- segments --------------------------------------------------------------------------
     def segment_states(self, q0: np.ndarray, q1: np.ndarray) -> int:

@@ -27,6 +27,7 @@ from ..files._io import check_readable
 from ..model._locked import lock_joints, read_mimics
 from ..model.robot import Robot, adjacent_link_pairs
 from ..model.tool import ToolSpec
+from ._continuous import unbound_continuous
 from ._joint_roles import gripper_joints, refuse_non_arm, tip_frame
 
 __all__ = ["Given", "convexify", "load_urdf", "vector_argument", "velocity_limits_of"]
@@ -95,7 +96,7 @@ def load_urdf(urdf: Path, given: Given) -> Robot:
     Raises:
         ConfigError: A URDF Pinocchio cannot read, a missing mesh, missing acceleration
             limits, zero velocity limits (each names the key and how to give it).
-        RobotNotSupported: A floating base, continuous or multi-DoF joints, a branching
+        RobotNotSupported: A floating base, multi-DoF joints, a branching
             robot without ``tcp_frame``.
     """
     # ``package://NAME/...`` meshes are looked for in the folders above the URDF (the
@@ -116,6 +117,7 @@ def load_urdf(urdf: Path, given: Given) -> Robot:
     gripper = gripper_joints(full, mimics)
     arm = [str(n) for n in full.names[1:] if n not in gripper]
     refuse_non_arm(full, robot=name, path=urdf, planned=arm)
+    full, _ = unbound_continuous(full, arm)
     tcp = given.tcp_frame if given.tcp_frame is not None \
         else tip_frame(full, arm, robot=name, path=urdf)
     model, (geom, visual), locked = lock_joints(full, [geom, visual], arm, given.locked_joints,

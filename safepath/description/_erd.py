@@ -2,8 +2,9 @@
 
 Gripper joints (fingers, jaws: :func:`safepath.description._joint_roles.gripper_joints`) are locked
 joints (the user gives their positions, else their whole travel is covered, see
-:func:`safepath.load_robot`); a robot that is not a fixed-base arm of bounded 1-DoF joints
-(legged robots and humanoids on a floating base, arms with continuous joints) is refused
+:func:`safepath.load_robot`); continuous joints are planned as revolute joints without
+position limits (:mod:`safepath.description._continuous`); a robot that is not a fixed-base arm of
+1-DoF joints (legged robots and humanoids on a floating base) is refused
 with :class:`~safepath.errors.RobotNotSupported`, never reduced to the joints that fit;
 mesh collision geometry is replaced by its convex hull (which encloses it: a wrapped
 non-convex mesh misses contacts); the SRDF's disabled pairs and adjacent links are skipped.
@@ -23,6 +24,7 @@ from ..model._locked import lock_joints, read_mimics
 from ..model.controller_spec import read_controller
 from ..model.robot import Robot, adjacent_link_pairs
 from ._bare_urdf import Given, convexify, vector_argument, velocity_limits_of
+from ._continuous import unbound_continuous
 from ._joint_roles import gripper_joints, refuse_non_arm, tip_frame
 
 __all__ = ["load_erd"]
@@ -63,7 +65,7 @@ def load_erd(name: str, given: Given, *, controller_path: Path | None = None) ->
             (None: settings derived from its joint names).
 
     Raises:
-        RobotNotSupported: Not a fixed-base arm of bounded 1-DoF joints (names them).
+        RobotNotSupported: Not a fixed-base arm of 1-DoF joints (names them).
         ConfigError: example-robot-data or Pinocchio cannot load it, zero velocity limits.
     """
     from example_robot_data.robots_loader import ROBOTS
@@ -84,6 +86,7 @@ def load_erd(name: str, given: Given, *, controller_path: Path | None = None) ->
     hint = (f"; if it is an arm on a fixed base, load its URDF: load_robot('{urdf}', "
             "acceleration_limits=[...])") if urdf else ""
     refuse_non_arm(model, robot=name, path=urdf, planned=arm, hint=hint)
+    model, _ = unbound_continuous(model, arm)
     tcp = given.tcp_frame if given.tcp_frame is not None else _guess_tcp(model, name, arm)
     geom = convexify(geom)
     model, (geom, visual), locked = lock_joints(
@@ -117,8 +120,13 @@ def _srdf_disabled_pairs(path: Path) -> list[tuple[str, str]]:
 
 
 def _guess_tcp(model: pin.Model, name: str, arm: Sequence[str]) -> str:
-    """A frame of a usual TCP name, else the last link of the arm's chain."""
+    """A frame of a usual TCP name (or one ending in ``end_effector``: Kinova's), else the
+    last link of the arm's chain."""
     for candidate in ("panda_hand_tcp", "panda_hand", "tool0", "ee_link", "tcp"):
         if model.existFrame(candidate):
             return candidate
+    ends = [str(f.name) for f in model.frames
+            if f.type == pin.FrameType.BODY and str(f.name).endswith("end_effector")]
+    if len(ends) == 1:
+        return ends[0]
     return tip_frame(model, arm, robot=name)

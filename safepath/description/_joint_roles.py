@@ -1,15 +1,14 @@
 """Which joints of a robot description safepath plans, which it locks, and which robots
 it refuses.
 
-safepath plans for fixed-base arms of revolute and prismatic joints with finite limits.
-A description that is something else is refused with :class:`RobotNotSupported` naming
-the joints at fault, never reduced silently to the joints that fit:
+safepath plans for fixed-base arms of revolute, continuous and prismatic joints (a
+continuous joint is planned as a revolute joint without position limits, see
+:mod:`safepath.description._continuous`). A description that is something else is refused with
+:class:`RobotNotSupported` naming the joints at fault, never reduced silently to the
+joints that fit:
 
 * a floating base (a ``floating`` or ``planar`` URDF joint, or example-robot-data's
   free-flyer root: legged robots, humanoids, drones) is not an arm;
-* a continuous joint (URDF ``continuous``: an unbounded revolute joint) is refused: give
-  it limits (URDF ``type="revolute"`` with ``<limit lower=... upper=...>``) in a robot
-  folder of your own;
 * any other joint of more than one DoF (spherical, ...) is refused.
 
 Gripper joints are recognised by name (:data:`GRIPPER_WORDS`), with the joints that
@@ -26,6 +25,7 @@ from pathlib import Path
 import pinocchio as pin
 
 from ..errors import RobotNotSupported
+from ._continuous import CONTINUOUS_KINDS
 
 __all__ = ["GRIPPER_WORDS", "refuse_non_arm", "gripper_joints", "tip_frame"]
 
@@ -34,31 +34,28 @@ __all__ = ["GRIPPER_WORDS", "refuse_non_arm", "gripper_joints", "tip_frame"]
 GRIPPER_WORDS = ("finger", "gripper", "jaw", "claw", "thumb", "knuckle")
 _GRIPPER = re.compile("|".join(GRIPPER_WORDS), re.IGNORECASE)
 
-_CONTINUOUS = ("JointModelRUBX", "JointModelRUBY", "JointModelRUBZ",
-               "JointModelRevoluteUnboundedUnaligned")
-_HOW_TO_BOUND = ("safepath plans for joints with position limits: make a robot folder "
-                 "(robot.yaml, see docs/your_own_robot_and_cell.md) whose URDF gives "
-                 "{which} type=\"revolute\" and <limit lower=... upper=...>")
 
 
 def refuse_non_arm(model: pin.Model, *, robot: str, path: Path | None = None,
                    planned: Collection[str] | None = None, hint: str = "") -> None:
-    """Refuse a description that is not a fixed-base arm of bounded 1-DoF joints.
+    """Refuse a description that is not a fixed-base arm of 1-DoF joints (continuous
+    joints count as 1-DoF: :func:`~safepath.description._continuous.unbound_continuous`
+    makes them so).
 
     Args:
         model: The description as Pinocchio builds it (every joint movable).
         robot: The robot's name, for the message.
         path: The file, for the message.
         planned: The joints to be planned (None: every joint); only these are checked
-            for continuous and multi-DoF joints (a locked one says its own error).
+            for multi-DoF joints (a locked one says its own error).
         hint: What the user can do instead, appended to a floating-base refusal.
 
     Raises:
-        RobotNotSupported: A floating base, a continuous joint or a joint of several DoF.
+        RobotNotSupported: A floating base or a joint of several DoF.
     """
     floating = [str(model.names[j]) for j in range(1, model.njoints)
                 if model.parents[j] == 0 and model.joints[j].nq > 1
-                and model.joints[j].shortname() not in _CONTINUOUS]
+                and model.joints[j].shortname() not in CONTINUOUS_KINDS]
     if floating:
         roots = ", ".join(f"'{n}' ({model.joints[model.getJointId(n)].shortname()})"
                           for n in floating)
@@ -69,15 +66,9 @@ def refuse_non_arm(model: pin.Model, *, robot: str, path: Path | None = None,
     names = [str(model.names[j]) for j in range(1, model.njoints)
              if planned is None or model.names[j] in planned]
     kinds = {n: model.joints[model.getJointId(n)].shortname() for n in names}
-    continuous = [n for n in names if kinds[n] in _CONTINUOUS]
-    if continuous:
-        which = "them" if len(continuous) > 1 else "it"
-        raise RobotNotSupported(
-            f"'{robot}' has continuous (unbounded) joints {continuous}: "
-            + _HOW_TO_BOUND.format(which=which), robot=robot, joints=continuous, path=path,
-            key="joints")
-    multi = [n for n in names if model.joints[model.getJointId(n)].nq != 1
-             or model.joints[model.getJointId(n)].nv != 1]
+    multi = [n for n in names if kinds[n] not in CONTINUOUS_KINDS
+             and (model.joints[model.getJointId(n)].nq != 1
+                  or model.joints[model.getJointId(n)].nv != 1)]
     if multi:
         raise RobotNotSupported(
             f"'{robot}' has joints of several DoF {[f'{n} ({kinds[n]})' for n in multi]}: "

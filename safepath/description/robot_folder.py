@@ -30,6 +30,7 @@ from ..model.controller_spec import ControllerSpec, read_controller
 from ..model.robot import Robot, adjacent_link_pairs, frame_id
 from ..model.tool import ToolSpec, check_tool, read_tool
 from ._bare_urdf import Given, vector_argument
+from ._continuous import unbound_continuous
 from ._joint_roles import refuse_non_arm
 
 __all__ = ["ROBOTS_DIR", "load_robot", "robot_names"]
@@ -70,9 +71,11 @@ def load_robot(name_or_path: str | Path, *, acceleration_limits: Sequence[float]
     was chosen. Without a ``robot.yaml`` (a URDF file, an example-robot-data name),
     gripper joints are found by name (``finger``, ``gripper``, ``jaw``, ...) and locked.
 
-    A description that is not a fixed-base arm of bounded 1-DoF joints (a floating base,
-    continuous joints) is refused with :class:`~safepath.errors.RobotNotSupported` naming
-    the joints; no joint is ever dropped.
+    A continuous (unbounded) joint is planned as a revolute joint of one unwrapped angle
+    without position limits (:attr:`Robot.continuous`; the short way round). A description
+    that is not a fixed-base arm of 1-DoF joints (a floating base, a spherical joint) is
+    refused with :class:`~safepath.errors.RobotNotSupported` naming the joints; no joint is
+    ever dropped.
 
     Args:
         name_or_path: A folder under ``robots/``, a path to a robot folder or its
@@ -96,7 +99,7 @@ def load_robot(name_or_path: str | Path, *, acceleration_limits: Sequence[float]
     Raises:
         RobotNotFound: The name is neither a folder nor an example-robot-data robot
             (names the closest, in any case).
-        RobotNotSupported: Not a fixed-base arm of bounded 1-DoF joints.
+        RobotNotSupported: Not a fixed-base arm of 1-DoF joints.
         ConfigError: The robot files are malformed (names file and key), a limit is
             missing (names the argument that gives it), or a locked joint is unknown,
             not lockable, or given a value outside its limits.
@@ -239,6 +242,7 @@ def _load_folder(folder: Path, locked_values: Mapping[str, float | str] | None =
     if not isinstance(locked_names, list) or not all(isinstance(j, str) for j in locked_names):
         raise ConfigError("expected a list of joint names", path=spec_path, key="locked_joints")
     refuse_non_arm(full, robot=name, path=urdf, planned=joints)
+    full, _ = unbound_continuous(full, joints)
     model_joints = list(full.names[1:])
     if joints != [j for j in model_joints if j not in locked_names]:
         raise ConfigError(f"joints {joints} and locked_joints {locked_names} are not the "

@@ -42,8 +42,8 @@ import numpy as np
 from ..errors import ExecutedLimitError
 
 __all__ = ["Interpolation", "INTERPOLATIONS", "ExecutedPeaks", "join", "executed_peaks",
-           "interval_ratios", "check_executed", "CHECK_RATE", "LIMITS_KEY", "limits_info",
-           "limits_of", "robot_limits", "ControllerModel", "Switch", "SWITCH_TOLERANCE"]
+           "interval_ratios", "check_executed", "CHECK_RATE", "ControllerModel", "Switch",
+           "SWITCH_TOLERANCE"]
 
 Interpolation = Literal["quintic", "cubic", "linear"]
 #: The ways a controller joins points, as ``controller.yaml`` names them.
@@ -292,42 +292,6 @@ def check_executed(t: np.ndarray, q: np.ndarray, qd: np.ndarray, qdd: np.ndarray
             out.append(worst)
         ratios = (out[0], out[1], out[2])
     return ratios
-
-
-#: The key of :attr:`safepath.Trajectory.info` holding the joint limits a trajectory was
-#: timed under (what its goals are checked against).
-LIMITS_KEY = "limits"
-
-
-def limits_info(velocity: np.ndarray, acceleration: np.ndarray, jerk: np.ndarray
-                ) -> dict[str, list[float]]:
-    """The joint limits, as a trajectory's ``info["limits"]`` records them (JSON lists)."""
-    return {"velocity": [float(v) for v in velocity],
-            "acceleration": [float(v) for v in acceleration],
-            "jerk": [float(v) for v in jerk]}
-
-
-def limits_of(info: dict, dof: int) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
-    """The joint limits a trajectory's ``info`` records (velocity, acceleration, jerk), or
-    None when it records none or they are malformed."""
-    raw = info.get(LIMITS_KEY)
-    if not isinstance(raw, dict):
-        return None
-    try:
-        out = tuple(np.asarray(raw[k], dtype=float) for k in ("velocity", "acceleration",
-                                                               "jerk"))
-    except (KeyError, TypeError, ValueError):
-        return None
-    if any(a.shape != (dof,) or not np.all(np.isfinite(a)) or np.any(a <= 0) for a in out):
-        return None
-    return out  # type: ignore[return-value]
-
-
-def robot_limits(robot: object) -> dict[str, list[float]]:
-    """A robot's joint limits as a trajectory's ``info["limits"]`` records them: what its
-    goals are checked against (:func:`safepath.ros.joint_trajectory`)."""
-    return limits_info(robot.velocity_limits, robot.acceleration_limits,  # type: ignore[attr-defined]
-                       robot.jerk_limits)  # type: ignore[attr-defined]
 
 
 #: Two times closer than this [s] are the same instant for a goal switch (a point at the

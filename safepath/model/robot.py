@@ -19,6 +19,7 @@ from ..files._io import brief
 from ..files.derived import Derived, DerivedValues
 from ._locked import LockedJoint
 from .controller_spec import ControllerSpec
+from .limits import MotionLimits
 from .tool import ToolSpec, check_tool
 
 __all__ = ["Robot", "ToolSpec", "adjacent_link_pairs", "frame_id", "joint_motion",
@@ -29,6 +30,20 @@ __all__ = ["Robot", "ToolSpec", "adjacent_link_pairs", "frame_id", "joint_motion
 #: 20 Hz acceleration bandwidth, well inside what servo and stepper drives follow (see
 #: ``robots/ned3pro/README.md``).
 JERK_RAMP_TIME = 0.05
+
+
+def _limit_vector(values: Sequence[float] | np.ndarray, dof: int, key: str,
+                  path: Path | None = None) -> np.ndarray:
+    """``values`` as ``dof`` finite positive limits, or a ConfigError naming ``key``."""
+    try:
+        arr = np.array(values, dtype=float)
+    except (TypeError, ValueError):
+        raise ConfigError(f"need {dof} finite positive values, got {values!r}", path=path,
+                          key=key) from None
+    if arr.shape != (dof,) or not np.all(np.isfinite(arr)) or np.any(arr <= 0):
+        raise ConfigError(f"need {dof} finite positive values, got {arr.tolist()}",
+                          path=path, key=key)
+    return arr
 
 
 def derived_jerk_limits(acceleration_limits: Sequence[float] | np.ndarray) -> np.ndarray:
@@ -117,21 +132,17 @@ class Robot:
         self.joint_names: tuple[str, ...] = tuple(model.names[1:])
         self.lower = np.array(model.lowerPositionLimit, dtype=float)
         self.upper = np.array(model.upperPositionLimit, dtype=float)
-        self.velocity_limits = np.asarray(velocity_limits, dtype=float)
-        self.acceleration_limits = np.asarray(acceleration_limits, dtype=float)
-        #: Joint jerk limits [rad/s^3]: the robot folder's ``jerk_limits`` (vendor numbers
-        #: where published), else :func:`derived_jerk_limits` of the acceleration limits.
-        self.jerk_limits = (derived_jerk_limits(self.acceleration_limits)
-                            if jerk_limits is None else np.asarray(jerk_limits, dtype=float))
+        self._revolute = _revolute_joints(model)
         if model.nq != model.nv or model.nq != len(self.joint_names):
             raise ConfigError("only arms of revolute/prismatic 1-DoF joints are supported",
                               path=source, key="urdf")
-        for label, arr in (("velocity_limits", self.velocity_limits),
-                           ("acceleration_limits", self.acceleration_limits),
-                           ("jerk_limits", self.jerk_limits)):
-            if arr.shape != (self.dof,) or not np.all(np.isfinite(arr)) or np.any(arr <= 0):
-                raise ConfigError(f"need {self.dof} finite positive values, got {arr.tolist()}",
-                                  path=source, key=label)
+        vel = _limit_vector(velocity_limits, self.dof, "velocity_limits", source)
+        acc = _limit_vector(acceleration_limits, self.dof, "acceleration_limits", source)
+        # Jerk limits [rad/s^3]: the robot folder's ``jerk_limits`` (vendor numbers where
+        # published), else :func:`derived_jerk_limits` of the acceleration limits.
+        jerk = (derived_jerk_limits(acc) if jerk_limits is None
+                else _limit_vector(jerk_limits, self.dof, "jerk_limits", source))
+        self._motion = MotionLimits(vel, acc, jerk)
         if not model.existFrame(tcp_frame):
             raise FrameNotFound(tcp_frame, [f.name for f in model.frames], path=source,
                                 key="tcp_frame")
@@ -162,6 +173,70 @@ class Robot:
     def dof(self) -> int:
         """Number of joints."""
         return int(self.model.nq)
+
+    @property
+    def motion_limits(self) -> MotionLimits:
+        """Its joint velocity, acceleration and jerk limits, one read-only record (what a
+        trajectory timed for it carries, :attr:`safepath.Trajectory.limits`). Replaced
+        whole, never changed in place: ``robot.motion_limits = MotionLimits(...)``, or
+        one of :attr:`velocity_limits`, :attr:`acceleration_limits`, :attr:`jerk_limits`
+        assigned a new array.
+
+        Raises:
+            ConfigError: Not a :class:`MotionLimits` of this robot's joints.
+        """
+        return self._motion
+
+    @motion_limits.setter
+    def motion_limits(self, value: MotionLimits) -> None:
+        if not isinstance(value, MotionLimits) or value.dof != self.dof:
+            raise ConfigError(f"expected MotionLimits of {self.dof} joints, got {value!r}",
+                              key="motion_limits")
+        self._motion = value
+
+    @property
+    def velocity_limits(self) -> np.ndarray:
+        """Joint velocity limits [rad/s or m/s] (read-only; assign a new array)."""
+        return self._motion.velocity
+
+    @velocity_limits.setter
+    def velocity_limits(self, value: Sequence[float] | np.ndarray) -> None:
+        m = self._motion
+        self._motion = MotionLimits(_limit_vector(value, self.dof, "velocity_limits"),
+                                    m.acceleration, m.jerk)
+
+    @property
+    def acceleration_limits(self) -> np.ndarray:
+        """Joint acceleration limits [rad/s^2 or m/s^2] (read-only; assign a new array)."""
+        return self._motion.acceleration
+
+    @acceleration_limits.setter
+    def acceleration_limits(self, value: Sequence[float] | np.ndarray) -> None:
+        m = self._motion
+        self._motion = MotionLimits(m.velocity, _limit_vector(value, self.dof,
+                                                              "acceleration_limits"), m.jerk)
+
+    @property
+    def jerk_limits(self) -> np.ndarray:
+        """Joint jerk limits [rad/s^3 or m/s^3] (read-only; assign a new array)."""
+        return self._motion.jerk
+
+    @jerk_limits.setter
+    def jerk_limits(self, value: Sequence[float] | np.ndarray) -> None:
+        m = self._motion
+        self._motion = MotionLimits(m.velocity, m.acceleration,
+                                    _limit_vector(value, self.dof, "jerk_limits"))
+
+    @property
+    def continuous(self) -> tuple[bool, ...]:
+        """Per joint (in :attr:`joint_names` order), whether it is continuous: a revolute
+        joint without position limits (:attr:`lower` -inf, :attr:`upper` +inf: a URDF
+        ``continuous`` joint, see :mod:`safepath.description._continuous`). Its coordinate is an
+        unwrapped angle [rad]: values a whole turn apart are the same placement, and a
+        motion moves it continuously (never by a jump of a turn). Giving such a joint
+        finite limits (``robot.lower[j] = ...``) makes it a bounded revolute joint."""
+        return tuple(bool(r and self.lower[j] == -np.inf and self.upper[j] == np.inf)
+                     for j, r in enumerate(self._revolute))
 
     @property
     def link_names(self) -> tuple[str, ...]:
@@ -221,6 +296,15 @@ class Robot:
         """Describe the first joint outside its limits, or None."""
         return limit_violation(q, self.joint_names, self.lower, self.upper)
 
+    def nearest_turn(self, q: np.ndarray, q_near: np.ndarray) -> np.ndarray:
+        """``q`` [rad] with each continuous joint (:attr:`continuous`) moved by whole turns
+        to the value nearest ``q_near`` (within pi): the same placement, reached from
+        ``q_near`` the short way round. Other joints are as in ``q``."""
+        out = np.array(q, dtype=float)
+        for j in np.flatnonzero(self.continuous):
+            out[j] -= 2.0 * np.pi * np.round((out[j] - q_near[j]) / (2.0 * np.pi))
+        return out
+
     def frame_pose(self, q: np.ndarray, frame: str | None = None) -> pin.SE3:
         """Pose of ``frame`` (default: the TCP) in the world frame at ``q``."""
         fid = self.tcp_frame_id if frame is None else self._frame_id(frame)
@@ -253,6 +337,15 @@ class Robot:
         if not self.model.existFrame(frame):
             raise FrameNotFound(frame, [f.name for f in self.model.frames])
         return frame_id(self.model, frame)
+
+
+def _revolute_joints(model: pin.Model) -> tuple[bool, ...]:
+    """Per joint of ``model``: whether it is a 1-DoF revolute joint."""
+    out = []
+    for j in range(1, model.njoints):
+        motion = joint_motion(model, j)
+        out.append(motion is not None and motion[0] == "revolute")
+    return tuple(out)
 
 
 def frame_id(model: pin.Model, name: str) -> int:

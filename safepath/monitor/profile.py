@@ -17,7 +17,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..errors import TimingError
-from ..model.execution import LIMITS_KEY, interval_ratios, robot_limits
+from ..model.execution import interval_ratios
 from ..model.robot import Robot
 from ..model.trajectory import Trajectory
 
@@ -407,6 +407,6 @@ class MonitoredPath:
         knot = np.clip(np.searchsorted(tr.t, tau, side="right") - 1, 0, tr.t.size - 1)
         info = {"monitor": kind, "speed_scale": scale, "path_start": float(tau[0]),
                 "path_tau": tau.tolist(), "source_route": tr.route,
-                "executed_ratios": list(peaks), LIMITS_KEY: robot_limits(self.robot)}
+                "executed_ratios": list(peaks)}
         return Trajectory(tr.joint_names, t, q, v, a, tr.step_index[knot],
-                          tr.steps, (), tr.robot, tr.route, info)
+                          tr.steps, (), tr.robot, tr.route, info, self.robot.motion_limits)

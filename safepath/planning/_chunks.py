@@ -18,7 +18,6 @@ import numpy as np
 from ..cell.routes import Route, Step
 from ..errors import PlanningError, VerificationError
 from ..model._knots import interval_index
-from ..model.execution import LIMITS_KEY, robot_limits
 from ..model.scene import AllowedContact
 from ..model.trajectory import GripperEvent, Trajectory
 from ..timing import TimedPiece, TimingOptions, spline_path, time_path
@@ -278,4 +277,4 @@ def assemble(cell: Cell, route: Route, labels: list[str],
         events.append(GripperEvent(when, step.kind, labels[i], obj))  # type: ignore[arg-type]
     return Trajectory(cell.robot.joint_names, t, np.vstack(q_all), np.vstack(qd_all),
                       np.vstack(qdd_all), np.concatenate(idx_all), tuple(labels), tuple(events),
-                      cell.robot.name, route.name, {LIMITS_KEY: robot_limits(cell.robot)})
+                      cell.robot.name, route.name, limits=cell.robot.motion_limits)

@@ -26,6 +26,7 @@ import numpy as np
 
 from ..collision import CollisionChecker
 from ..errors import PlannerTimeout, PlanningError
+from ..model.robot import Robot
 
 if TYPE_CHECKING:
     from .options import PlannerOptions
@@ -127,6 +128,19 @@ def solve(checker: CollisionChecker, q_start: np.ndarray, q_goal: np.ndarray,
     return Solution(states, elapsed, attempts)
 
 
+def sampling_bounds(robot: Robot, q_start: np.ndarray, q_goal: np.ndarray
+                    ) -> tuple[np.ndarray, np.ndarray]:
+    """Where OMPL samples [rad or m]: the position limits, and for a continuous joint
+    (no limits) the start and goal values widened by half a turn each way. That window
+    holds every angle of the joint at least once, so no way round is left out, and a
+    path stays within a turn and a half of its ends (it never winds up)."""
+    lower, upper = robot.lower.copy(), robot.upper.copy()
+    for j in np.flatnonzero(robot.continuous):
+        lower[j] = min(q_start[j], q_goal[j]) - np.pi
+        upper[j] = max(q_start[j], q_goal[j]) + np.pi
+    return lower, upper
+
+
 def _termination(ob: Any, deadline: float, iterations: int | None) -> Any:
     """Stop at ``deadline`` (``time.perf_counter``) or after ``iterations`` planner
     iterations (OMPL evaluates the condition once per iteration)."""
@@ -152,9 +166,10 @@ def _setup(checker: CollisionChecker, q_start: np.ndarray,
     n = robot.dof
     space = ob.RealVectorStateSpace(n)
     bounds = ob.RealVectorBounds(n)
+    lower, upper = sampling_bounds(robot, q_start, q_goal)
     for i in range(n):
-        bounds.setLow(i, float(robot.lower[i]))
-        bounds.setHigh(i, float(robot.upper[i]))
+        bounds.setLow(i, float(lower[i]))
+        bounds.setHigh(i, float(upper[i]))
     space.setBounds(bounds)
     setup = og.SimpleSetup(space)
 

@@ -39,7 +39,9 @@ def cartesian_line(robot: Robot, q_start: np.ndarray, q_goal: np.ndarray, *,
                    options: LineOptions = LineOptions(), step_name: str | None = None
                    ) -> list[np.ndarray]:
     """Joint waypoints that move the TCP in a straight line from its pose at
-    ``q_start`` to its pose at ``q_goal``; the last waypoint is ``q_goal`` itself.
+    ``q_start`` to its pose at ``q_goal``; the last waypoint is ``q_goal`` itself, its
+    continuous joints (:attr:`Robot.continuous`) moved by whole turns to where the line
+    took them (the joint values are continuous along the line, never a turn apart).
 
     Every waypoint before the last puts the TCP on the line within the IK tolerances.
 
@@ -76,11 +78,12 @@ def cartesian_line(robot: Robot, q_start: np.ndarray, q_goal: np.ndarray, *,
         raise IKError(f"joint jump of {jump:.3f} rad for a {length / n * 1000:.1f} mm TCP "
                       "step (singularity or branch switch)", step=step_name, fraction=s,
                       position=position)
-    gap = float(np.max(np.abs(path[-1] - q_goal)))
+    end = robot.nearest_turn(q_goal, path[-1])
+    gap = float(np.max(np.abs(path[-1] - end)))
     if gap > options.goal_tolerance:
         raise IKError(f"the line ends {gap:.3f} rad away from the taught pose (another IK "
                       "branch)", step=step_name, fraction=1.0, position=p1.copy())
-    path[-1] = q_goal
+    path[-1] = end
     return list(path)
 
 
@@ -116,7 +119,7 @@ def _make_chain(robot: Robot) -> _Chain:
     data = model.createData()
     frame = model.frames[robot.tcp_frame_id]
     joints = [j for j in model.supports[frame.parentJoint] if j != 0]
-    q_test = np.clip(np.full(model.nq, 0.7), robot.lower, robot.upper)
+    q_test = np.clip(np.full(model.nq, 0.7), robot.lower, robot.upper)  # inside, finite
     pin.forwardKinematics(model, data, q_test)
     for j in joints:
         S = np.asarray(data.joints[j].S, dtype=float).reshape(6)

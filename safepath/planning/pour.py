@@ -40,7 +40,6 @@ import pinocchio as pin
 
 from ..errors import ConfigError, IKError, PlanningError
 from ..kinematics import LineOptions, solve_ik
-from ..model.execution import LIMITS_KEY, robot_limits
 from ..model.trajectory import Trajectory
 from ..timing import PathSpline, TimingOptions, spline_path, stretch_knots, time_path
 from ..verify import FclVerifier, VerifyResult
@@ -327,8 +326,8 @@ def _plan(cell: Cell, q_start: np.ndarray, parts: list[tuple[PoseCurve, int, flo
     result = verifier.verify(t, q, qd, steps=[names[i] for i in step_index])
     traj = Trajectory(robot.joint_names, t, q, qd, qdd, step_index, tuple(names),
                       robot=robot.name, route="+".join(names),
-                      info={"min_clearance": result.min_clearance, "time_stretch": stretch,
-                            LIMITS_KEY: robot_limits(robot)})
+                      info={"min_clearance": result.min_clearance, "time_stretch": stretch},
+                      limits=robot.motion_limits)
     tilt = np.array([tilt_of(T[:3, :3], axis) for T in T_knots])
     return PourMotion(traj, path, s, tilt, pos_err, ang_err, v_tcp, w_cup, result)
 

@@ -225,10 +225,14 @@ def _plan_paths(cell: Cell, route: Route, world: WorldState, options: PlanOption
             world = _gripper(cell, world, step, q, labels[i], options)
             continue
         goal, goal_name = _resolve(cell, step, q, labels[i], options)
+        # A continuous joint goes the short way round: its goal is the value a whole number
+        # of turns from the pose's nearest the joint's value now (the same placement).
+        goal = cell.robot.nearest_turn(goal, q)
         if step.kind == "line":
             allowed = cell.scene.contacts_at(pose_name) + cell.scene.contacts_at(goal_name)
             waypoints = _line_path(cell, cache.checker(world, allowed), q, goal, options,
                                    labels[i])
+            goal = waypoints[-1]  # a turn away from ``goal`` if the line turned that far
         else:
             allowed = ()
             seeded = replace(options.planner, seed=options.planner.seed + i)

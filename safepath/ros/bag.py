@@ -18,8 +18,9 @@ topic                    type                                one message
 
 ``/joint_states`` holds the controller's joints and, for a robot whose ``controller.yaml``
 has a ``gripper`` section and a cycle with gripper events, its gripper joint (open or
-closed after each event, the other position before the first), so that RViz draws the
-fingers. The bag is stamped from ``start_time_ns`` (default: now).
+closed after each event, the other position before the first), and the locked joints
+given as ``locked_joints`` at their values (``safepath plan --bag`` gives the cell's robot's),
+so that RViz draws the fingers. The bag is stamped from ``start_time_ns`` (default: now).
 
 With ``goals=True`` the bag also holds the goals a node sends, as it would send them:
 ``/safepath/arm_goal`` (``control_msgs/action/FollowJointTrajectory_Goal``, per motion,
@@ -40,7 +41,7 @@ import time
 from collections.abc import Iterable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 from rosbags.rosbag2 import Reader, ReaderError, StoragePlugin, Writer, WriterError
@@ -57,6 +58,9 @@ from .goals import (
 )
 from .gripper import gripper_command_goal
 from .messages import deserialize, serialize, typestore
+
+if TYPE_CHECKING:
+    from ..model._locked import LockedJoint
 
 __all__ = ["ARM_GOAL_TOPIC", "BagContents", "BagMessage", "GRIPPER_GOAL_TOPIC", "GRIPPER_TOPIC",
            "JOINT_STATES_TOPIC", "ROUTE_TOPIC", "TRAJECTORY_TOPIC", "read_bag", "write_bag"]
@@ -139,19 +143,49 @@ def _gripper_positions(trajs: Sequence[Trajectory], starts_ns: Sequence[int],
     return values[np.searchsorted([t for t, _ in changes], times, side="right")]
 
 
+def _locked_states(locked: Sequence[LockedJoint], names: tuple[str, ...], spec: ControllerSpec,
+                   fingers: np.ndarray | None, size: int) -> dict[str, np.ndarray]:
+    """The positions ``/joint_states`` gives the joints outside ``names``, at each of
+    ``size`` times: the gripper joint of ``spec`` from its events (``fingers``), every
+    locked joint at its value, a mimic joint following its driver; a joint locked over
+    its whole travel (no value) that no gripper event places has no position and is left
+    out (logged)."""
+    out: dict[str, np.ndarray] = {}
+    grip = spec.gripper.joint if spec.gripper is not None else None
+    if fingers is not None and grip is not None:
+        out[grip] = fingers
+    unplaced = []
+    for joint in locked:
+        if joint.name in names or joint.name in out:
+            continue
+        if joint.value is not None:
+            out[joint.name] = np.full(size, joint.value)
+        elif joint.follows is not None and joint.follows[0] in out:
+            driver, multiplier, offset = joint.follows
+            out[joint.name] = out[driver] * multiplier + offset
+        else:
+            unplaced.append(joint.name)
+    if unplaced:
+        logger.warning("/joint_states leaves out %s: locked over their whole travel, they "
+                       "have no position (give them a value in locked_joints)", unplaced)
+    return out
+
+
 def _joint_states(trajs: Sequence[Trajectory], starts_ns: Sequence[int], total_ns: int,
                   rate: float, names: tuple[str, ...], start_time_ns: int,
-                  spec: ControllerSpec) -> list[tuple[int, Any]]:
+                  spec: ControllerSpec, locked: Sequence[LockedJoint]) -> list[tuple[int, Any]]:
     """``/joint_states`` every 1/``rate`` over the whole cycle, from the true motion; with
-    the gripper joint of ``spec``'s ``gripper`` section (RViz draws the fingers from it)."""
+    the gripper joint of ``spec``'s ``gripper`` section and the robot's ``locked`` joints
+    (:func:`_locked_states`: RViz draws the fingers from them)."""
     types = typestore().types
     step_ns = round(_NS / rate)
     times = np.arange(0, total_ns + step_ns, step_ns, dtype=np.int64)
     which = interval_index(np.asarray(starts_ns), times, len(trajs))
     fingers = _gripper_positions(trajs, starts_ns, spec, times) \
         if spec.gripper is not None and spec.gripper.joint not in names else None
-    all_names = [*names, spec.gripper.joint] if fingers is not None and spec.gripper \
-        else list(names)
+    held = _locked_states(locked, names, spec, fingers, times.size)
+    all_names = [*names, *held]
+    held_q = np.column_stack([*held.values()]) if held else np.zeros((times.size, 0))
     out: list[tuple[int, Any]] = []
     for k, traj in enumerate(trajs):
         mine = times[which == k]
@@ -159,10 +193,8 @@ def _joint_states(trajs: Sequence[Trajectory], starts_ns: Sequence[int], total_n
             continue
         cols = [traj.joint_names.index(n) for n in names]
         q, qd, _ = traj.sample(traj.t[0] + (mine - starts_ns[k]) / _NS)
-        q, qd = q[:, cols], qd[:, cols]
-        if fingers is not None:
-            q = np.column_stack([q, fingers[which == k]])
-            qd = np.column_stack([qd, np.zeros(mine.size)])
+        q = np.column_stack([q[:, cols], held_q[which == k]])
+        qd = np.column_stack([qd[:, cols], np.zeros((mine.size, len(held)))])
         for j, t_ns in enumerate(mine):
             stamp_ns = start_time_ns + int(t_ns)
             header = types["std_msgs/msg/Header"](
@@ -230,7 +262,8 @@ def write_bag(path: str | Path, trajectories: Iterable[Trajectory], *,
               joint_state_rate: float | None = None, period: float | None = None,
               robot_joint_names: Sequence[str] | None = None,
               controller: ControllerSpec | None = None,
-              start_time_ns: int | None = None, goals: bool = False) -> Path:
+              start_time_ns: int | None = None, goals: bool = False,
+              locked_joints: Sequence[LockedJoint] = ()) -> Path:
     """Write a ROS 2 bag (MCAP) of a cycle; see the module docstring for its layout.
 
     Each trajectory starts where the previous one ends, on one clock from
@@ -254,6 +287,10 @@ def write_bag(path: str | Path, trajectories: Iterable[Trajectory], *,
         goals: Also write the arm's ``FollowJointTrajectory`` goals and, for a robot with
             a ``gripper`` section in its ``controller.yaml``, the ``GripperCommand`` goals
             of its gripper events.
+        locked_joints: The robot's locked joints (:attr:`safepath.Robot.locked_joints`,
+            a gripper's): ``/joint_states`` gives each its locked value (a mimic joint
+            its driver's, mapped); one locked over its whole travel has no value and is
+            left out unless it is, or mimics, the gripper joint that gripper events place.
 
     Returns:
         ``path``.
@@ -290,7 +327,7 @@ def write_bag(path: str | Path, trajectories: Iterable[Trajectory], *,
     _check_joins(trajs, names)
     records += [(t, 3, JOINT_STATES_TOPIC, m) for t, m in
                 _joint_states(trajs, starts_ns, clock_ns, joint_state_rate, names,
-                              start_time_ns, spec)]
+                              start_time_ns, spec, locked_joints)]
     records.sort(key=lambda r: (r[0], r[1]))
 
     if path.exists():

@@ -29,10 +29,9 @@ with :func:`safepath.ros.messages.serialize`), native ``rclpy`` messages, or ``a
 from __future__ import annotations
 
 import dataclasses
-import functools
 import itertools
 import math
-from collections.abc import Mapping, Sequence
+from collections.abc import Collection, Mapping, Sequence
 from typing import Any, Literal
 
 import numpy as np
@@ -41,7 +40,9 @@ from ..errors import InputError, TrajectoryError
 from ..files._io import check_names
 from ..model._knots import interval_index
 from ..model.controller_spec import ControllerSpec, controller_for
-from ..model.execution import check_executed, limits_of
+from ..model.execution import check_executed
+from ..model.limits import MotionLimits
+from ..model.robot import Robot
 from ..model.trajectory import GripperEvent, Trajectory
 from .messages import Backend, MessageFactory, message_factory
 
@@ -156,7 +157,7 @@ def _period_ns(period: float) -> int:
 
 def _points(traj: Trajectory, period: float | None, robot_joint_names: Sequence[str] | None,
             controller: ControllerSpec | None,
-            limits: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None) -> _Points:
+            limits: MotionLimits | None = None) -> _Points:
     """The goal's points: every knot of ``traj`` (times from its start), and where two
     knots are more than ``period`` [s] apart, points of the quintic between them (which
     joins them into the same quintic), in the controller's joint order; then the motion
@@ -190,54 +191,33 @@ def _points(traj: Trajectory, period: float | None, robot_joint_names: Sequence[
 
 
 def _check_executed(traj: Trajectory, pts: _Points, spec: ControllerSpec,
-                    limits: tuple[np.ndarray, np.ndarray, np.ndarray] | None,
-                    cols: list[int]) -> None:
+                    limits: MotionLimits | None, cols: list[int]) -> None:
     """Check the motion ``spec``'s controller executes from ``pts`` against the limits the
-    trajectory was timed under (``limits``, else its ``info["limits"]``)."""
-    limits = limits if limits is not None else limits_of(traj.info, traj.dof)
-    if limits is None:
-        limits = _bundled_limits(traj.robot, traj.joint_names)
+    trajectory was timed under (``limits``, else its own :attr:`~Trajectory.limits`)."""
+    limits = limits if limits is not None else traj.limits
     if limits is None:
         raise TrajectoryError(
-            "the trajectory records no joint limits (info['limits']) and names no bundled "
-            "robot to check the motion the controller executes against; pass limits=robot",
-            key="limits")
-    vmax, amax, jmax = (np.asarray(x, dtype=float)[cols] for x in limits)
+            "the trajectory carries no joint limits to check the motion the controller "
+            "executes against: pass limits=robot (or its motion_limits)", key="limits")
+    if limits.dof != traj.dof:
+        raise TrajectoryError(f"expected the limits of {traj.dof} joints, got {limits.dof}",
+                              key="limits")
+    vmax, amax, jmax = (x[cols] for x in limits.arrays())
     check_executed(pts.time_ns / _NS, pts.q, pts.qd, pts.qdd, velocity_limits=vmax,
                    acceleration_limits=amax, jerk_limits=jmax,
                    interpolation=spec.interpolation,  # type: ignore[arg-type]
                    what=f"goal of '{traj.route or traj.robot or 'trajectory'}'")
 
 
-@functools.lru_cache(maxsize=8)
-def _bundled_limits(robot: str, joint_names: tuple[str, ...]
-                    ) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
-    """The limits of the bundled or example-robot-data robot named ``robot`` (None when
-    there is none by that name, or its joints are not ``joint_names``)."""
-    from ..description.robot_folder import load_robot, robot_names
-
-    if not robot or robot not in robot_names():
-        return None
-    loaded = load_robot(robot)
-    if sorted(loaded.joint_names) != sorted(joint_names):
-        return None
-    cols = [loaded.joint_names.index(n) for n in joint_names]
-    return (loaded.velocity_limits[cols], loaded.acceleration_limits[cols],
-            loaded.jerk_limits[cols])
-
-
-def _limits(limits: Any) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
-    """``limits=`` of the goal builders: a robot (anything with velocity, acceleration and
-    jerk limits), or None for the trajectory's own ``info["limits"]``."""
-    if limits is None:
-        return None
-    try:
-        return (np.asarray(limits.velocity_limits, dtype=float),
-                np.asarray(limits.acceleration_limits, dtype=float),
-                np.asarray(limits.jerk_limits, dtype=float))
-    except AttributeError:
-        raise TrajectoryError(f"expected a robot (velocity, acceleration and jerk limits), "
-                              f"got {type(limits).__name__}", key="limits") from None
+def _limits(limits: MotionLimits | Robot | None) -> MotionLimits | None:
+    """``limits=`` of the goal builders: a robot or its :class:`MotionLimits`, or None for
+    the trajectory's own."""
+    if limits is None or isinstance(limits, MotionLimits):
+        return limits
+    if isinstance(limits, Robot):
+        return limits.motion_limits
+    raise TrajectoryError(f"expected a robot or MotionLimits, got {type(limits).__name__}",
+                          key="limits")
 
 
 def _duration(f: MessageFactory, time_ns: int) -> Any:
@@ -262,7 +242,7 @@ def _build_joint_trajectory(f: MessageFactory, pts: _Points, stamp_ns: int) -> A
 def joint_trajectory(traj: Trajectory, *, period: float | None = None,
                      robot_joint_names: Sequence[str] | None = None,
                      controller: ControllerSpec | None = None, stamp_ns: int = 0,
-                     limits: Any = None, backend: Backend = "auto") -> Any:
+                     limits: MotionLimits | Robot | None = None, backend: Backend = "auto") -> Any:
     """``trajectory_msgs/msg/JointTrajectory`` of ``traj``'s knots.
 
     Points carry positions [rad], velocities [rad/s], accelerations [rad/s^2] and
@@ -285,8 +265,9 @@ def joint_trajectory(traj: Trajectory, *, period: float | None = None,
         controller: The robot's trajectory controller; default: the one of the robot
             ``traj`` names (see :func:`controller_of`).
         stamp_ns: ``header.stamp`` [ns]; 0 asks the controller to start on receipt.
-        limits: The robot whose velocity, acceleration and jerk limits the executed
-            motion is checked against; default: the trajectory's ``info["limits"]``.
+        limits: The robot (or its :class:`~safepath.model.limits.MotionLimits`) whose
+            velocity, acceleration and jerk limits the executed motion is checked
+            against; default: the trajectory's own :attr:`~Trajectory.limits`.
         backend: ``auto``, ``rosbags`` or ``rclpy`` (see
             :func:`safepath.ros.messages.message_factory`).
 
@@ -309,7 +290,7 @@ def follow_joint_trajectory_goal(
         goal_tolerance: Sequence[float] | None | Literal["controller"] = "controller",
         goal_time_tolerance: float | None = None,
         controller: ControllerSpec | None = None, stamp_ns: int = 0,
-        limits: Any = None, backend: Backend = "auto") -> Any:
+        limits: MotionLimits | Robot | None = None, backend: Backend = "auto") -> Any:
     """``control_msgs/action/FollowJointTrajectory_Goal`` for the arm's trajectory controller.
 
     Send it to the controller's ``follow_joint_trajectory_action``
@@ -326,8 +307,8 @@ def follow_joint_trajectory_goal(
             the controller's.
         controller: The robot's trajectory controller; default: the one of the robot
             ``traj`` names (see :func:`controller_of`).
-        limits: The robot whose limits the executed motion is checked against (see
-            :func:`joint_trajectory`); default: the trajectory's ``info["limits"]``.
+        limits: The robot (or its limits) the executed motion is checked against (see
+            :func:`joint_trajectory`); default: the trajectory's own.
         stamp_ns: ``trajectory.header.stamp`` [ns]: the clock time of the trajectory's
             t = 0 (0: start on receipt). A stamp in the past makes the controller join the
             trajectory where it is by then (how a stop replaces a running motion).
@@ -490,7 +471,7 @@ def trajectory_between(traj: Trajectory, t_from: float, t_to: float,
     knot = interval_index(traj.t, times, traj.t.size)
     info = {**traj.info, "segment": index, "time_offset": t_from}
     return Trajectory(traj.joint_names, times - t_from, q, qd, qdd, traj.step_index[knot],
-                      traj.steps, (), traj.robot, traj.route, info)
+                      traj.steps, (), traj.robot, traj.route, info, traj.limits)
 
 
 def split_at_gripper_events(traj: Trajectory) -> list[Trajectory | GripperEvent]:
@@ -534,7 +515,7 @@ def split_at_gripper_events(traj: Trajectory) -> list[Trajectory | GripperEvent]
 
 
 def check_start(traj: Trajectory, positions: Mapping[str, float], *,
-                tolerance: float = 0.05) -> None:
+                tolerance: float = 0.05, continuous: Collection[str] = ()) -> None:
     """Refuse to start ``traj`` unless the arm is at its first point.
 
     A trajectory controller given a first point away from the arm's pose bridges the gap
@@ -542,10 +523,18 @@ def check_start(traj: Trajectory, positions: Mapping[str, float], *,
     within the goal tolerance (<= 0.03 rad); the default catches an arm that is
     somewhere else (after a fault, a manual move), not tracking error.
 
+    A continuous joint's measured angle may lie any number of whole turns from the
+    trajectory's (``/joint_states`` may report it wrapped): its difference is taken
+    modulo a turn, as ros2_control's joint_trajectory_controller does for a URDF
+    ``continuous`` joint (it moves its own start by whole turns next to the goal's first
+    point, then follows the points as they are: see docs/ros.md).
+
     Args:
         traj: The trajectory about to be sent.
         positions: Measured joint positions by name [rad] (e.g. from ``/joint_states``).
         tolerance: Largest allowed difference per joint [rad].
+        continuous: Names of the continuous joints (``[n for n, c in
+            zip(robot.joint_names, robot.continuous) if c]``).
 
     Raises:
         TrajectoryError: A joint missing from ``positions`` or too far from the start.
@@ -554,6 +543,8 @@ def check_start(traj: Trajectory, positions: Mapping[str, float], *,
         if name not in positions:
             raise TrajectoryError(f"no measured position for '{name}'", key="positions")
         error = abs(float(positions[name]) - float(traj.q[0, k]))
+        if name in continuous:  # the nearest whole number of turns away
+            error = abs(math.remainder(error, 2.0 * math.pi))
         if not error <= tolerance:
             raise TrajectoryError(f"'{name}' is {error:.4f} rad from the start of route "
                                   f"'{traj.route}' (tolerance {tolerance} rad)",

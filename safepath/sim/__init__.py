@@ -8,7 +8,8 @@
 * :mod:`~safepath.sim.quality_check`: the quality-check cell closed loop
   (:func:`run_quality_check`); :mod:`~safepath.sim.pouring`: the pouring cell closed loop
   (:func:`run_pouring`); :mod:`~safepath.sim.sweep` many runs on a process pool,
-  :mod:`~safepath.sim.bag` a run's ROS 2 bag;
+  :mod:`~safepath.sim.bag` a run's ROS 2 bag; :mod:`~safepath.sim.sweep_tasks` the runs as
+  tasks of a resumable sweep (:mod:`safepath.sweeps`: local pool or Ray, with a report);
 * :mod:`~safepath.sim.monitor_loop`: the monitor node's core closed loop.
 
 MuJoCo is imported only when a model is built, so importing this package stays light.

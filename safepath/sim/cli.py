@@ -37,6 +37,14 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--tolerance", default=None,
                    help="pouring cell: a final mass within target +- tolerance counts as "
                         "within tolerance [g] (default 3.5)")
+    p.add_argument("--out", default=None,
+                   help="run the seeds as a sweep into this folder: results.jsonl (each run "
+                        "as it finishes; started again, only the missing seeds run), "
+                        "report.html, report.json (docs/sweeps.md)")
+    p.add_argument("--cluster", default=None,
+                   help="run the sweep's seeds on Ray: 'auto' (the cluster of this machine, "
+                        "else a local Ray runtime) or ray://HOST:PORT; needs --out and "
+                        "pip install 'safepath[cluster]'")
     p.add_argument("--obstacles", action="store_true",
                    help="run the monitor node's core with a moving body crossing the cell, "
                         "seen by a simulated laser scanner and depth camera")
@@ -50,34 +58,72 @@ def _pct(values: Any, q: float) -> float:
 
 
 def cmd_sim(args: argparse.Namespace) -> int:
-    """Run the quality-check twin in both architectures and print the figures."""
-    import numpy as np
-
+    """Run the cell's twin (quality check, pour, or obstacles) and print the figures."""
     from ..cell import load_cell
-    from ..errors import InputError
     from .pouring import pour_route_of
-    from .quality_check import QualityCheckParams, run_quality_check
-    from .sweep import run_many
 
     cell = load_cell(args.scene)
-    if args.bag and Path(args.bag).exists():
-        raise InputError(f"{args.bag} exists already; choose a new bag path", key="--bag")
-    if args.runs < 1:
-        raise InputError(f"expected >= 1, got {args.runs}", key="--runs")
-    _check_pour_only(args, cell)
+    sweep = _check_args(args, cell)
     if args.obstacles:
         from .obstacles import cmd_obstacles
 
         return cmd_obstacles(args, cell)
     if pour_route_of(cell) is not None:
+        if sweep:
+            from .sweep_cli import cmd_sweep
+
+            return cmd_sweep(args, cell, _pouring_params(args))
         return _cmd_pouring(args, cell)
+    _check_quality_check_routes(cell)
+    if sweep:
+        from .sweep_cli import cmd_sweep
+
+        return cmd_sweep(args, cell, None)
+    return _cmd_quality_check(args, cell)
+
+
+def _check_args(args: argparse.Namespace, cell: Any) -> bool:
+    """Whether the command is a sweep (``--out`` or ``--cluster``).
+
+    Raises:
+        InputError: An existing ``--bag``, ``--runs`` < 1, an option of another twin, or
+            ``--bag`` / ``--obstacles`` with a sweep.
+    """
+    from ..errors import InputError
+
+    if args.bag and Path(args.bag).exists():
+        raise InputError(f"{args.bag} exists already; choose a new bag path", key="--bag")
+    if args.runs < 1:
+        raise InputError(f"expected >= 1, got {args.runs}", key="--runs")
+    _check_pour_only(args, cell)
+    sweep = bool(args.out or args.cluster)
+    if sweep and (args.bag or args.obstacles):
+        flag = "--bag" if args.bag else "--obstacles"
+        raise InputError(f"{flag} is not part of a sweep (--out, --cluster): run it without",
+                         key=flag)
+    return sweep
+
+
+def _check_quality_check_routes(cell: Any) -> None:
+    """Raises InputError when the cell lacks the quality-check routes."""
     from ..cells.quality_check.commands import ControllerOptions
+    from ..errors import InputError
 
     missing = [r for r in ControllerOptions().routes if r not in cell.route_table()]
     if missing:
         raise InputError(f"cell '{cell.scene.name}' has no pour (a route starting with a "
                          f"tilt) and lacks the quality-check routes {missing}: the twin "
                          "runs neither controller on it", key="scene")
+
+
+def _cmd_quality_check(args: argparse.Namespace, cell: Any) -> int:
+    """Run the quality-check twin in both architectures and print the figures."""
+    import numpy as np
+
+    from ..cells.quality_check.commands import ControllerOptions
+    from .quality_check import QualityCheckParams, run_quality_check
+    from .sweep import run_many
+
     scene = str(cell.folder)
     runs: dict[str, list[Any]] = {}
     Arch = Literal["safepath", "sequential"]

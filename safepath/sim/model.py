@@ -208,7 +208,7 @@ def _body_xml(robot: Robot, j: int, children: dict[int, list[int]], geoms: dict[
         f'quat="{_f(_quat_wxyz(M.rotation))}" gravcomp="{1 if gains.gravity_compensation else 0}">',
         f'<inertial pos="{_f(inertia.lever)}" mass="{mass:.10g}" fullinertia="{full}"/>',
         f'<joint name={quoteattr(model.names[j])} type="{mj_kind}" axis="{_f(axis)}" '
-        f'range="{lo:.10g} {hi:.10g}" limited="true" armature="{gains.armature:.10g}" '
+        f'{_range(lo, hi)} armature="{gains.armature:.10g}" '
         f'actuatorfrcrange="{-effort:.10g} {effort:.10g}" actuatorfrclimited="true" {gravcomp}/>',
         *geoms.get(j, []),
         *(_body_xml(robot, c, children, geoms, gains) for c in children.get(j, [])),
@@ -296,6 +296,14 @@ def build_robot_model(robot: Robot, scene: Scene | None = None, *,
         mj.actuator_forcelimited[a] = 1
     return RobotModel(mj, tuple(robot.joint_names), qpos_index, kp, kd, effort, gains, xml,
                       len(scene_geoms))
+
+
+def _range(lower: float, upper: float) -> str:
+    """A MuJoCo joint's range attributes: none for a continuous joint (no position limits,
+    :attr:`safepath.Robot.continuous`): the hinge turns freely, any number of turns."""
+    if np.isinf(lower) and np.isinf(upper):
+        return 'limited="false"'
+    return f'range="{lower:.10g} {upper:.10g}" limited="true"'
 
 
 def _gains(mj: Any, robot: Robot, qpos_index: np.ndarray, gains: ServoGains

@@ -3,8 +3,9 @@
 :func:`run_many` maps :func:`~safepath.sim.quality_check.run_quality_check` or
 :func:`~safepath.sim.pouring.run_pouring` (plain, picklable functions of
 ``(cell, seed, params)``; chosen by the parameters' type) over seeds and parameter sets with
-``concurrent.futures.ProcessPoolExecutor``. A cluster user hands the same function and
-arguments to their engine's ``map`` (Dask, Ray, ...) instead; nothing here schedules.
+``concurrent.futures.ProcessPoolExecutor`` and returns the runs themselves (with their
+bag material when asked). Many seeds streamed to disk, resumable, on the pool or on Ray,
+with a report: :mod:`safepath.sweeps` with the tasks of :mod:`safepath.sim.sweep_tasks`.
 """
 
 from __future__ import annotations

@@ -168,7 +168,7 @@ def _step_worlds(cell: Cell, traj: Trajectory, world: WorldState,
             goal = target if target in poses else None
             allowed.append(scene.contacts_at(pose_name) + scene.contacts_at(goal))
             pose_name = goal
-        elif kind == "move":
+        elif kind in ("move", "via"):
             allowed.append(())
             pose_name = target if target in poses else None
         else:

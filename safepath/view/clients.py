@@ -34,7 +34,7 @@ from ..files._io import as_float, as_vector
 from .access import Access
 from .editor import PoseEditor
 from .edits import PoseEdits, PoseStatus
-from .panel import NO_POSE, build_edit_panel
+from .panel import NO_POSE, build_edit_panel, typed_joint
 from .scene_nodes import PoseFrames
 from .stage import Stage
 
@@ -390,7 +390,7 @@ class ClientEditor:
            else self.edit_pose(e.target.value))
         for j, joint_box in enumerate(w.joints):
             on(joint_box, functools.partial(
-                lambda j, e: self.set_joint(j, e.target.value), j))
+                lambda j, e: self.set_joint(j, typed_joint(e.target.value)), j))
         on(w.gizmo_enabled, lambda e: self.update_access())
         on(w.reset, lambda e: self.reset_pose(), button=True)
         on(w.take_saved, lambda e: self.take_saved(), button=True)

@@ -19,7 +19,7 @@ from ..cell import Cell
 from ..errors import SafepathError
 from ..planning import initial_world
 from .edits import PoseEdits, PoseStatus
-from .panel import NO_POSE, EditPanel
+from .panel import NO_POSE, EditPanel, show_joint
 from .scene_nodes import PoseFrames, pose_of
 from .stage import Stage
 
@@ -148,7 +148,7 @@ class PoseEditor:
             self.gizmo.visible = enabled
         if self.widgets is not None:
             for joint_box, v in zip(self.widgets.joints, status.q, strict=True):
-                joint_box.value = float(v)
+                show_joint(joint_box, float(v))
             mark = "" if status.pose not in self.edits.edits else " (edited, not saved)"
             self.widgets.pose_state.content = (f"**{status.pose}**{mark}\n\n"
                                                f"{status.summary()}")

@@ -12,6 +12,7 @@ save, reload.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 from typing import Any
 
@@ -20,14 +21,19 @@ import viser
 
 from ..model.robot import Robot
 
-__all__ = ["NO_ROUTE", "NO_POSE", "JOINT_DECIMALS", "Panel", "EditPanel", "build_panel",
-           "build_edit_panel", "clearance_plot_data", "speed_plot_data"]
+__all__ = ["NO_ROUTE", "NO_POSE", "JOINT_DECIMALS", "typed_joint", "show_joint", "Panel",
+           "EditPanel", "build_panel", "build_edit_panel", "clearance_plot_data",
+           "speed_plot_data"]
 
 #: Dropdown entries meaning "nothing selected".
 NO_ROUTE = "(no plan yet)"
 NO_POSE = "(review routes)"
-#: Decimals a joint box shows and takes [rad]: 0.1 urad, finer than any encoder.
+#: Decimals a joint box shows and takes [rad]: 0.1 urad, finer than any encoder. A value
+#: typed or pasted with more is rounded to them (:func:`typed_joint`), never cut.
 JOINT_DECIMALS = 7
+#: Decimals the page's box lets through: its input (Mantine's NumberInput) drops the
+#: digits beyond its precision, which would cut a longer value instead of rounding it.
+_BOX_DECIMALS = 16
 #: Step of a joint box's arrow keys [rad].
 JOINT_STEP = 0.001
 
@@ -189,9 +195,31 @@ def build_edit_panel(gui: Any, robot: Robot, poses: list[str], *, token: bool
 
 
 def _joint_box(gui: Any, name: str, lower: float, upper: float) -> Any:
-    """A joint's number box: no bounds (never clamped in the page), 7 decimals."""
-    box = gui.add_number(f"{name} [rad]", 0.0, step=JOINT_STEP, disabled=True,
-                         hint=f"limits [{lower:.3f}, {upper:.3f}] rad: a value outside them "
-                              "is shown and refused, never clamped")
-    box.precision = JOINT_DECIMALS  # viser derives 3 decimals from the step
+    """A joint's number box: no bounds (never clamped in the page); it shows the values
+    the server gives it (:func:`show_joint`: 7 decimals) and lets every typed digit
+    through to the server, which rounds (:func:`typed_joint`). A continuous joint's (no
+    limits) takes any angle, beyond +-pi too."""
+    hint = (f"limits [{lower:.3f}, {upper:.3f}] rad: a value outside them is shown and "
+            "refused, never clamped") if np.isfinite(lower) or np.isfinite(upper) else (
+        "continuous joint: any angle [rad], beyond +-pi too (a whole turn is the same "
+        "placement; a motion goes the short way round)")
+    box = gui.add_number(f"{name} [rad]", 0.0, step=JOINT_STEP, disabled=True, hint=hint)
+    box.precision = _BOX_DECIMALS  # viser derives 3 decimals from the step
     return box
+
+
+def typed_joint(value: Any) -> Any:
+    """A value typed into a joint box, rounded to :data:`JOINT_DECIMALS` [rad]; anything
+    but a number is passed on as it came (the edit refuses it, naming the joint)."""
+    if isinstance(value, (int, float)) and not isinstance(value, bool) \
+            and math.isfinite(value):
+        return round(float(value), JOINT_DECIMALS)
+    return value
+
+
+def show_joint(box: Any, value: float) -> None:
+    """Show joint value ``value`` [rad] in ``box``, rounded to :data:`JOINT_DECIMALS`;
+    unless the box holds what was typed into it and rounded to ``value``, which stays
+    as typed (so the server never rewrites a box under the user's fingers)."""
+    if typed_joint(box.value) != value:
+        box.value = round(value, JOINT_DECIMALS)

@@ -43,7 +43,7 @@ NOISE = 0.003
 #: Observation period [s].
 PERIOD = 1 / 30
 #: Phase 2 to the reject bin: a sphere beside the turn back to high2, after the release.
-BESIDE = Case("phase2_unsafe", "7 move high2", 0.5, (0.04, 0.0, 0.0))
+BESIDE = Case("phase2_unsafe", "7 via high2", 0.5, (0.04, 0.0, 0.0))
 
 
 # -- the rules alone ---------------------------------------------------------------------

@@ -51,13 +51,13 @@ _TO_BIN = "3 move unsafe+0.000,+0.000,+0.060"
 CASES = [
     # A way exists: the box is on a free move, clear of the approach lines and poses.
     Case("phase1", "3 move high2", 0.5, _OUT),         # stops in the lift, beside the turn
-    Case("phase2_safe", "8 move high1", 0.5, _OUT),
+    Case("phase2_safe", "8 via high1", 0.5, _OUT),
     *(Case("phase2_unsafe", _TO_BIN, 0.5, o) for o in ((0.0, 0.0, 0.0), _UP, _DOWN, _OUT, _IN,
                                                         _LEFT, _RIGHT)),
-    Case("phase2_unsafe", "7 move high2", 0.5, _OUT),
-    Case("phase2_unsafe", "7 move high2", 0.5, _LEFT),
-    Case("phase2_unsafe", "8 move high1", 0.5, _IN),
-    Case("phase2_unsafe", "8 move high1", 0.5, _LEFT),
+    Case("phase2_unsafe", "7 via high2", 0.5, _OUT),
+    Case("phase2_unsafe", "7 via high2", 0.5, _LEFT),
+    Case("phase2_unsafe", "8 via high1", 0.5, _IN),
+    Case("phase2_unsafe", "8 via high1", 0.5, _LEFT),
     # No way: the box blocks an approach line still ahead.
     Case("phase1", "3 move high2", 0.5),
     Case("phase1", "3 move high2", 0.5, _IN),

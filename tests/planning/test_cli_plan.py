@@ -71,6 +71,11 @@ def test_route_option_plans_the_route_and_what_it_follows(
     written = sorted(p.name for p in out.glob("*.json"))
     assert written == ["phase1.json", "phase2_unsafe.json", "summary.json"]
     assert "phase2_safe" not in capsys.readouterr().out
+    # summary.json names each step as routes.yaml writes it: the via points as via.
+    steps = list(json.loads((out / "summary.json").read_text())["phase2_unsafe"]
+                 ["step_durations"])
+    assert steps[3] == "3 move unsafe+0.000,+0.000,+0.060"
+    assert steps[7:9] == ["7 via high2", "8 via high1"]
 
 
 def test_bag_of_the_cycle_holds_both_outcomes_back_to_back(tmp_path: Path) -> None:

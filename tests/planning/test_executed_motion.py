@@ -10,6 +10,7 @@ acceleration and jerk limits.
 
 from __future__ import annotations
 
+import dataclasses
 from pathlib import Path
 
 import numpy as np
@@ -18,7 +19,6 @@ from quintic_join import quintic_peaks as _quintic_peaks
 
 import safepath
 from safepath.errors import ExecutedLimitError
-from safepath.model.execution import robot_limits
 from safepath.model.trajectory import Trajectory
 from safepath.ros import joint_trajectory
 from safepath.timing import TimingOptions, spline_path, time_path
@@ -67,7 +67,7 @@ def test_random_paths_within_limits_as_executed(robots: dict[str, safepath.Robot
         assert np.allclose(piece.q, path(piece.s), atol=1e-12)
         traj = Trajectory(robot.joint_names, piece.t, piece.q, piece.qd, piece.qdd,
                           np.zeros(piece.t.size, dtype=int), ("move",), robot=robot.name,
-                          info={"limits": robot_limits(robot)})
+                          limits=robot.motion_limits)
         msg = joint_trajectory(traj, controller=robot.controller, backend="rosbags")
         t, P, V, A = _message_arrays(msg)  # noqa: N806
         assert np.array_equal(P[0], pts[0]) and np.allclose(P[-1], pts[-1], atol=1e-12)
@@ -100,11 +100,15 @@ def test_goal_over_a_limit_is_refused(robots: dict[str, safepath.Robot]) -> None
     with pytest.raises(ExecutedLimitError) as info:
         joint_trajectory(anonymous, limits=robot, backend="rosbags")
     assert info.value.key in ("acceleration", "jerk") and info.value.ratio > 1.0
-    # A trajectory naming a bundled robot is checked against that robot's limits.
+    # Naming a bundled robot gives no limits (they are never re-loaded by name): the
+    # limits a trajectory carries are those it is checked against.
     named = Trajectory(robot.joint_names, t, q, qd, qdd, np.zeros(t.size, dtype=int),
                        ("move",), robot=robot.name)
-    with pytest.raises(ExecutedLimitError):
+    with pytest.raises(safepath.errors.TrajectoryError, match="limits"):
         joint_trajectory(named, backend="rosbags")
+    carried = dataclasses.replace(named, limits=robot.motion_limits)
+    with pytest.raises(ExecutedLimitError):
+        joint_trajectory(carried, backend="rosbags")
 
 
 def test_clearance_bound_holds_at_every_instant_as_executed() -> None:

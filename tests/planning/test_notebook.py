@@ -1,15 +1,23 @@
-"""``notebooks/quality_check_cell.ipynb`` runs top to bottom and draws its figures.
+"""The notebooks run top to bottom, with the command the README gives, and draw their
+figures.
 
-The kernel is this interpreter (the virtualenv's), through a kernel spec written to a
-temporary folder, so the test needs no Jupyter installation beyond the dev extras and
-does not depend on which kernels the machine has registered.
+The command is read from the README (``.venv/bin/jupyter nbconvert --to notebook --execute
+notebooks/NAME.ipynb --output-dir out/notebooks``) and run as written, with this
+interpreter's folder for ``.venv/bin`` and a temporary output folder; Jupyter's user and
+system folders are emptied (``JUPYTER_PATH``, ``JUPYTER_DATA_DIR``), so the notebook's
+``python3`` kernel is the ipykernel installed beside nbconvert, whatever kernels the
+machine has registered.
 """
 
 from __future__ import annotations
 
-import json
+import os
+import re
+import shlex
+import subprocess
 import sys
 from pathlib import Path
+from typing import Any
 
 import pytest
 
@@ -17,22 +25,35 @@ from .conftest import ROOT
 
 NOTEBOOK = ROOT / "notebooks" / "quality_check_cell.ipynb"
 POURING = ROOT / "notebooks" / "pouring_cell.ipynb"
-KERNEL = "safepath-test-venv"
 
 
-def _kernel_manager(kernel_dir: Path) -> object:
-    from jupyter_client.kernelspec import KernelSpecManager
-    from jupyter_client.manager import AsyncKernelManager
+def readme_command(notebook: Path) -> list[str]:
+    """The README's command that runs ``notebook``, as an argument list."""
+    text = (ROOT / "README.md").read_text()
+    lines = [line[2:] for line in text.splitlines() if line.startswith("$ ")
+             and "nbconvert" in line and f"notebooks/{notebook.name}" in line]
+    assert len(lines) == 1, f"the README gives no single command for {notebook.name}"
+    return shlex.split(lines[0])
 
-    spec = kernel_dir / KERNEL
-    spec.mkdir(parents=True)
-    (spec / "kernel.json").write_text(json.dumps({
-        "argv": [sys.executable, "-m", "ipykernel_launcher", "-f", "{connection_file}"],
-        "display_name": "safepath (test venv)",
-        "language": "python",
-    }))
-    specs = KernelSpecManager(kernel_dirs=[str(kernel_dir)], ensure_native_kernel=False)
-    return AsyncKernelManager(kernel_name=KERNEL, kernel_spec_manager=specs)
+
+def run_as_the_readme_says(notebook: Path, tmp_path: Path) -> Any:
+    """Run the README's command for ``notebook`` (output into ``tmp_path``) and read the
+    executed notebook back."""
+    import nbformat
+
+    argv = readme_command(notebook)
+    assert argv[0] == ".venv/bin/jupyter" and "--execute" in argv
+    argv[0] = str(Path(sys.executable).with_name("jupyter"))
+    out = argv.index("--output-dir")
+    argv[out + 1] = str(tmp_path / "out")
+    empty = tmp_path / "jupyter"
+    env = {**os.environ, "JUPYTER_PATH": str(empty), "JUPYTER_DATA_DIR": str(empty),
+           "JUPYTER_CONFIG_DIR": str(empty), "JUPYTER_PLATFORM_DIRS": "1"}
+    proc = subprocess.run(argv, cwd=ROOT, env=env, capture_output=True, text=True,
+                          timeout=900)
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    assert re.search(r"Writing \d+ bytes", proc.stderr), proc.stderr[-3000:]
+    return nbformat.read(tmp_path / "out" / notebook.name, as_version=4)
 
 
 @pytest.mark.parametrize("path", [NOTEBOOK, POURING], ids=lambda p: p.name)
@@ -47,15 +68,7 @@ def test_notebook_is_committed_without_outputs(path: Path) -> None:
 
 
 def test_notebook_runs_and_plots(tmp_path: Path) -> None:
-    nbformat = pytest.importorskip("nbformat")
-    nbclient = pytest.importorskip("nbclient")
-    pytest.importorskip("ipykernel")
-    pytest.importorskip("matplotlib")
-    nb = nbformat.read(NOTEBOOK, as_version=4)
-    client = nbclient.NotebookClient(
-        nb, km=_kernel_manager(tmp_path / "kernels"), timeout=120,
-        resources={"metadata": {"path": str(NOTEBOOK.parent)}})
-    client.execute()  # raises CellExecutionError on the first failing cell
+    nb = run_as_the_readme_says(NOTEBOOK, tmp_path)
     outputs = [o for c in nb.cells if c.cell_type == "code" for o in c.outputs]
     assert not [o for o in outputs if o.output_type == "error"]
     images = [o for o in outputs if o.output_type == "display_data"
@@ -74,15 +87,7 @@ def test_notebook_runs_and_plots(tmp_path: Path) -> None:
 
 
 def test_pouring_notebook_runs_and_plots(tmp_path: Path) -> None:
-    nbformat = pytest.importorskip("nbformat")
-    nbclient = pytest.importorskip("nbclient")
-    pytest.importorskip("ipykernel")
-    pytest.importorskip("matplotlib")
-    nb = nbformat.read(POURING, as_version=4)
-    client = nbclient.NotebookClient(
-        nb, km=_kernel_manager(tmp_path / "kernels"), timeout=300,
-        resources={"metadata": {"path": str(POURING.parent)}})
-    client.execute()
+    nb = run_as_the_readme_says(POURING, tmp_path)
     outputs = [o for c in nb.cells if c.cell_type == "code" for o in c.outputs]
     assert not [o for o in outputs if o.output_type == "error"]
     images = [o for o in outputs if o.output_type == "display_data"

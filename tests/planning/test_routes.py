@@ -78,7 +78,9 @@ def test_bundled_routes_load_as_written(bundled_cell: Cell) -> None:
     assert safe.steps[6].target == Target(None, (0.0, 0.0, 0.05))  # {up: 0.05}
     via = safe.steps[7]  # via: high2 is a move that never stops
     assert via.kind == "move" and not via.stop and via.target == Target("high2")
+    assert via.via and not safe.steps[3].via
     assert p1.labels()[3] == "3 move high2"
+    assert safe.labels()[7:9] == ["7 via high2", "8 via high1"]  # named as written
     assert route_order({k: routes[k] for k in reversed(list(routes))})[0] == "phase1"
 
 

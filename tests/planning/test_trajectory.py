@@ -11,7 +11,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from safepath import GripperEvent, Trajectory, TrajectoryError, load_trajectory
+import safepath
+from safepath import GripperEvent, MotionLimits, Trajectory, TrajectoryError, load_trajectory
 
 from .conftest import Plans
 
@@ -33,6 +34,7 @@ def _assert_same(a: Trajectory, b: Trajectory) -> None:
     assert (a.joint_names, a.steps, a.events, a.robot, a.route) == \
         (b.joint_names, b.steps, b.events, b.robot, b.route)
     assert a.info == b.info
+    assert a.limits == b.limits
 
 
 def test_json_round_trip_is_exact(bundled: Plans, tmp_path: Path) -> None:
@@ -42,7 +44,52 @@ def test_json_round_trip_is_exact(bundled: Plans, tmp_path: Path) -> None:
     loaded = load_trajectory(path)
     _assert_same(traj, loaded)
     assert loaded.to_json() == text
-    assert json.loads(path.read_text())["format"] == "safepath.model.trajectory/1"
+    assert json.loads(path.read_text())["format"] == "safepath.trajectory/1"
+    assert loaded.limits is not None and loaded.limits == traj.limits
+
+
+def test_a_planned_trajectory_carries_its_robots_limits_read_only(bundled: Plans) -> None:
+    """Issue 37: the limits a trajectory was timed under are one typed record on it (not
+    an ``info`` dictionary), equal to its robot's, and nobody can change them in place."""
+    traj = bundled.trajectories["phase1"]
+    robot = safepath.load_robot("ned3pro")
+    assert isinstance(traj.limits, MotionLimits) and traj.limits == robot.motion_limits
+    assert "limits" not in traj.info
+    with pytest.raises(ValueError):
+        traj.limits.jerk[0] = 1.0
+    with pytest.raises(dataclasses.FrozenInstanceError):
+        traj.limits.velocity = traj.limits.velocity * 2  # type: ignore[misc]
+
+
+def test_a_file_written_with_the_limits_in_info_loads_them(tmp_path: Path) -> None:
+    """Trajectory files whose limits sat in ``info["limits"]`` load them as the record."""
+    limits = MotionLimits([1.0, 2.0], [3.0, 4.0], [50.0, 60.0])
+    data = dataclasses.replace(_small(), limits=limits).to_dict()
+    data["info"] = {**data["info"], "limits": data.pop("limits")}
+    (tmp_path / "old.json").write_text(json.dumps(data))
+    loaded = load_trajectory(tmp_path / "old.json")
+    assert loaded.limits == limits and loaded.info == {"k": 1}
+
+
+@pytest.mark.parametrize("bad, key", [
+    ({"velocity": [1.0, 0.0], "acceleration": [1, 1], "jerk": [1, 1]}, "limits.velocity"),
+    ({"velocity": [1.0, 1.0], "acceleration": [1, "x"], "jerk": [1, 1]},
+     "limits.acceleration"),
+    ({"velocity": [1.0, 1.0], "acceleration": [1, 1], "jerk": [1, float("nan")]},
+     "limits.jerk"),
+    ({"velocity": [1.0, 1.0], "acceleration": [1, 1]}, "limits"),
+    ({"velocity": [1.0], "acceleration": [1, 1], "jerk": [1, 1]}, "limits.jerk"),
+    ({"velocity": [1.0, 1.0, 1.0], "acceleration": [1, 1, 1], "jerk": [1, 1, 1]},
+     "limits"),
+])
+def test_bad_limits_in_a_file_are_refused_naming_them(tmp_path: Path, bad: dict,
+                                                       key: str) -> None:
+    data = _small().to_dict()
+    data["limits"] = bad
+    (tmp_path / "bad.json").write_text(json.dumps(data))
+    with pytest.raises(TrajectoryError) as info:
+        load_trajectory(tmp_path / "bad.json")
+    assert info.value.key == key and info.value.path == tmp_path / "bad.json"
 
 
 def test_csv_header_and_rows(bundled: Plans, tmp_path: Path) -> None:
@@ -64,8 +111,9 @@ def test_csv_header_and_rows(bundled: Plans, tmp_path: Path) -> None:
 
 @pytest.mark.parametrize("steps", ["as planned", "quoted", "empty"])
 def test_csv_is_what_the_csv_writer_writes_row_by_row(bundled: Plans, steps: str) -> None:
-    """The rows are joined by hand (fast); they read as the csv writer writes them, step
-    names that need quoting included."""
+    """The rows are joined by hand (fast); they read as the csv writer's rows do, step
+    names that need quoting included, and every number reads back as the same float
+    (written as its shortest round-trip text, not necessarily ``repr``'s spelling)."""
     traj = bundled.trajectories["phase1"]
     if steps != "as planned":
         names = tuple(f'{s}, "{i}"\n' if steps == "quoted" else "" for i, s in
@@ -78,7 +126,12 @@ def test_csv_is_what_the_csv_writer_writes_row_by_row(bundled: Plans, steps: str
         writer.writerow([repr(float(traj.t[k])), traj.steps[traj.step_index[k]]]
                         + [repr(float(v)) for v in np.hstack([traj.q[k], traj.qd[k],
                                                               traj.qdd[k]])])
-    assert traj.to_csv() == buf.getvalue()
+    ours = list(csv.reader(io.StringIO(traj.to_csv())))
+    theirs = list(csv.reader(io.StringIO(buf.getvalue())))
+    assert ours[0] == theirs[0] and len(ours) == len(theirs)
+    assert [r[1] for r in ours] == [r[1] for r in theirs]
+    numbers = [[float(v) for v in r[:1] + r[2:]] for r in ours[1:]]
+    assert numbers == [[float(v) for v in r[:1] + r[2:]] for r in theirs[1:]]
 
 
 def test_sample_at_knots_returns_knots(bundled: Plans) -> None:

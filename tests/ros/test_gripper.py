@@ -3,6 +3,7 @@ the optional gripper section of the schema, and bags with the goals a node sends
 
 from __future__ import annotations
 
+import logging
 import math
 import shutil
 import struct
@@ -16,6 +17,7 @@ from safepath import load_robot
 from safepath.description.robot_folder import ROBOTS_DIR
 from safepath.errors import ConfigError, InputError
 from safepath.model.controller_spec import GripperSpec
+from safepath.model.limits import MotionLimits
 from safepath.model.trajectory import GripperEvent, Trajectory
 from safepath.ros.bag import (
     ARM_GOAL_TOPIC,
@@ -52,11 +54,10 @@ def gen3_route(events: bool = True) -> Trajectory:
     evs = (GripperEvent(0.0, "open", "start"), GripperEvent(1.0, "close", "grasp", "cup")) \
         if events else ()
     robot = load_robot("gen3_lite")
-    fast = {"limits": {"velocity": (10 * robot.velocity_limits).tolist(),
-                       "acceleration": (10 * robot.acceleration_limits).tolist(),
-                       "jerk": (10 * robot.jerk_limits).tolist()}}
+    fast = MotionLimits(10 * robot.velocity_limits, 10 * robot.acceleration_limits,
+                        10 * robot.jerk_limits)
     return Trajectory(GEN3, t, q, qd, qdd, np.repeat([0, 1], [21, 20]), ("to_b", "to_c"),
-                      evs, "gen3_lite", "pick", fast)
+                      evs, "gen3_lite", "pick", limits=fast)
 
 
 def test_gen3_lite_controllers_come_from_its_folder() -> None:
@@ -224,3 +225,40 @@ def test_bag_with_goals(tmp_path: Path) -> None:
     # gripper goal topic.
     plain = read_bag(write_bag(tmp_path / "plain", [traj]))
     assert ARM_GOAL_TOPIC not in plain.topics and GRIPPER_GOAL_TOPIC not in plain.topics
+
+
+def test_bag_joint_states_hold_the_locked_fingers(tmp_path: Path,
+                                                  caplog: pytest.LogCaptureFixture) -> None:
+    """Given the robot's locked joints, ``/joint_states`` holds every finger joint: the
+    gripper joint from the events and the three that mimic it (URDF ``<mimic>``) mapped
+    from it; locked over their whole travel with no gripper event, they have no value
+    and are left out, with a warning naming them."""
+    robot = load_robot("gen3_lite")
+    locked = robot.locked_joints
+    assert all(j.value is None for j in locked)  # the fingers cover their whole travel
+    traj = gen3_route()
+    bag = read_bag(write_bag(tmp_path / "pick", [traj], locked_joints=locked))
+    states = bag.on(JOINT_STATES_TOPIC)
+    grip = "right_finger_bottom_joint"
+    mimics = [j for j in locked if j.follows is not None]
+    assert {j.follows[0] for j in mimics if j.follows} == {grip} and len(mimics) == 3
+    for m in states:
+        assert m.msg.name == [*GEN3, grip, *(j.name for j in mimics)]
+        position = dict(zip(m.msg.name, m.msg.position, strict=True))
+        for j in mimics:
+            assert j.follows is not None
+            assert position[j.name] == pytest.approx(position[grip] * j.follows[1]
+                                                     + j.follows[2])
+    assert {round(float(m.msg.position[6]), 3) for m in states} == {0.0, 0.8}
+    # With a value, every finger is at it; without events and values, none is given.
+    held = load_robot("gen3_lite", locked_joints={grip: 0.5}).locked_joints
+    bag = read_bag(write_bag(tmp_path / "held", [gen3_route(events=False)],
+                             locked_joints=held))
+    expected = {j.name: j.value for j in held}
+    for m in bag.on(JOINT_STATES_TOPIC):
+        assert dict(zip(m.msg.name[6:], m.msg.position[6:], strict=True)) == expected
+    with caplog.at_level(logging.WARNING, logger="safepath.ros.bag"):
+        bag = read_bag(write_bag(tmp_path / "none", [gen3_route(events=False)],
+                                 locked_joints=locked))
+    assert all(m.msg.name == list(GEN3) for m in bag.on(JOINT_STATES_TOPIC))
+    assert all(j.name in caplog.text for j in locked) and "whole travel" in caplog.text

@@ -18,6 +18,7 @@ from rosbags.typesys.base import Nodetype
 
 from safepath.errors import InputError, RosError, TrajectoryError
 from safepath.model.controller_spec import controller_for
+from safepath.model.limits import MotionLimits
 from safepath.model.trajectory import GripperEvent, Trajectory
 from safepath.ros import goals
 from safepath.ros.goals import (
@@ -73,7 +74,7 @@ def quintic_route(route: str, poses: list[str], events: tuple[tuple[int, str], .
     return Trajectory(joint_names, np.concatenate(t), np.concatenate(q), np.concatenate(qd),
                       np.concatenate(qdd), np.concatenate(idx),
                       tuple(f"to_{p}" for p in poses[1:]), evs, "ned3pro", route,
-                      {"limits": FAST_LIMITS})
+                      limits=MotionLimits.from_dict(FAST_LIMITS))
 
 
 #: Limits 10x the Ned3 Pro's, which the test trajectories record (see quintic_route).
@@ -318,10 +319,10 @@ def test_time_from_start_is_rounded_to_the_nanosecond() -> None:
 def test_columns_follow_the_robot_order() -> None:
     traj = motion1()
     order = [5, 0, 3, 1, 4, 2]
-    limits = {k: [v[i] for i in order] for k, v in FAST_LIMITS.items()}
     shuffled = Trajectory(tuple(traj.joint_names[k] for k in order), traj.t, traj.q[:, order],
                           traj.qd[:, order], traj.qdd[:, order], traj.step_index, traj.steps,
-                          traj.events, traj.robot, traj.route, {"limits": limits})
+                          traj.events, traj.robot, traj.route,
+                          limits=MotionLimits.from_dict(FAST_LIMITS).columns(order))
     a = joint_trajectory(traj, backend="rosbags")
     b = joint_trajectory(shuffled, backend="rosbags")
     assert_same(a, b)
@@ -346,12 +347,12 @@ def test_joint_names_must_match_the_robot() -> None:
             build(wrong, backend="rosbags")
         assert info.value.key == "joint_names"
     five = Trajectory(NED_JOINT_NAMES[:5], traj.t, traj.q[:, :5], traj.qd[:, :5],
-                      traj.qdd[:, :5], traj.step_index, traj.steps, robot="ned3pro")
+                      traj.qdd[:, :5], traj.step_index, traj.steps, robot="ned3pro",
+                      limits=MotionLimits.from_dict(FAST_LIMITS).columns(range(5)))
     with pytest.raises(TrajectoryError):
         joint_trajectory(five, backend="rosbags")
     # A robot without a controller file: its own joints, in its own order.
-    anonymous = dataclasses.replace(five, robot="", info={"limits": {
-        k: v[:5] for k, v in FAST_LIMITS.items()}})
+    anonymous = dataclasses.replace(five, robot="")
     assert joint_trajectory(anonymous, backend="rosbags").joint_names == list(
         NED_JOINT_NAMES[:5])
     with pytest.raises(TrajectoryError):

@@ -117,6 +117,27 @@ def test_closed_loop_final_mass_within_the_tolerance(pour: Pour) -> None:
     assert all(abs(m - 100.0) <= POUR_TOLERANCE for m in finals), finals
 
 
+def test_the_stop_table_is_made_once_per_tilt(pour: Pour) -> None:
+    """What the stops and returns pour from each tilt (hundreds of stops: seconds) is
+    measured once per tilt: another stopper or controller of the same tilt, or of the
+    same tilt planned again, gets the same table; made again from scratch it holds the
+    same numbers; another spill angle or another tilt is another table."""
+    cell, robot = pour.cell, pour.cell.robot
+    assert PourStopper(cell, pour.motion).calibrate_still(FlowModel()) is pour.still
+    replanned = Pour(cell)  # the same tilt, planned again (and its stopper and table)
+    assert replanned.motion is not pour.motion and replanned.still is pour.still
+    tilts = np.linspace(0.0, math.radians(116.0), 500)
+    values = [pour.still(float(x)) for x in tilts]
+    assert max(values) > 0.1  # past the spill angle the stops pour
+    robot.derived.forget()
+    fresh = PourStopper(cell, pour.motion).calibrate_still(FlowModel())
+    assert fresh is not pour.still
+    assert [fresh(float(x)) for x in tilts] == values  # bit for bit
+    wider = PourStopper(cell, pour.motion).calibrate_still(
+        FlowModel(spill_angle=math.radians(80.0)))
+    assert wider is not fresh and wider(math.radians(100.0)) < fresh(math.radians(100.0))
+
+
 def test_kill_brakes_the_tilt_on_its_path_and_nothing_follows(pour: Pour) -> None:
     truth = FlowModel(gain=40.0, latency=0.1, seed=4)
     ctrl = pour.controller()

@@ -469,7 +469,9 @@ def test_joint_boxes_refuse_out_of_limit_values_keep_precision_and_follow_rights
     """Issue 30, in the page: a read-only page's joint boxes are disabled and its prompt
     says where the token comes from; a value typed outside the limits is neither clamped
     nor saved (the refusal starts "not saved:"), even when the click that takes the
-    focus is "Save poses"; a typed 1.4318 is saved as 1.4318, after the page showed it."""
+    focus is "Save poses"; a typed 1.4318 is saved as 1.4318, after the page showed it;
+    a value typed with more than the box's 7 decimals is rounded to them (issue 35: it
+    was cut), and a value the server sets is shown rounded."""
     token = "review-token-42"
     session = ReviewSession(cell_copy, options=ViewOptions(
         port=0, token=token, plan_on_start=False, replan_on_save=False)).start()
@@ -498,6 +500,17 @@ def test_joint_boxes_refuse_out_of_limit_values_keep_precision_and_follow_rights
         click(browser, "Unlock editing")
         wait_for(lambda: not box(browser, "joint_2 [rad]")["disabled"], 10.0,
                  "the joint boxes stayed disabled after the unlock")
+
+        # 7 decimals, rounded, never cut (issue 35): 0.123456789 typed is 0.1234568, and
+        # a value the server sets (0.23456789) shows as 0.2345679.
+        type_in_box(browser, "joint_2 [rad]", "0.123456789")
+        wait_for(lambda: page.edits.q("low1")[1] == 0.1234568, 10.0,
+                 f"typed 0.123456789, the server has {page.edits.q('low1')[1]!r}")
+        with session.locked():
+            page.set_joint(1, 0.23456789)
+        wait_for(lambda: box(browser, "joint_2 [rad]")["value"] == "0.2345679", 10.0,
+                 f"the box shows {box(browser, 'joint_2 [rad]')}")
+        assert page.edits.q("low1")[1] == 0.23456789  # shown rounded, held in full
 
         # Outside the limits: shown as typed, refused at Save, never clamped to 0.44.
         type_in_box(browser, "joint_2 [rad]", "5")

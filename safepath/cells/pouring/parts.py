@@ -29,7 +29,8 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from ...errors import InputError, TimingError
-from ...model.execution import LIMITS_KEY, robot_limits
+from ...files._digest import sha256
+from ...files.derived import DerivedKind
 from ...model.trajectory import Trajectory
 
 if TYPE_CHECKING:
@@ -50,6 +51,9 @@ STILL_SPACING = 0.025
 #: unit gain [s] (0.1 g at a gain of 100 g/s/rad^1.5), the interval is halved down to a
 #: knot (:func:`~safepath.cells.pouring.flow.calibrate_still`).
 STILL_TOLERANCE = 0.001
+
+#: The table of :meth:`PourStopper.calibrate_still`, kept per robot by what it is made of.
+_STILL: DerivedKind[Callable[[float], float]] = DerivedKind("pour stop-and-return table")
 
 
 class MassPredictor:
@@ -158,6 +162,7 @@ class PourStopper:
         self.robot, self.motion = robot, motion
         held = cell.scene.grasp.object if cell.scene.grasp is not None else None
         self.verifier = FclVerifier(robot, cell.scene, held=held, resting={})
+        self._scene = (cell.scene, held)
         traj = motion.trajectory
         #: The tilt as a path to re-time: its own time is the path parameter (the stops).
         self.path = MonitoredPath(traj, robot)
@@ -251,9 +256,8 @@ class PourStopper:
         return Trajectory(traj.joint_names, tt, q, qd, qdd, np.zeros(tt.size, dtype=int),
                           ("stop",), (), traj.robot, f"{traj.route}:stop",
                           {"time_offset": float(traj.t[k0]), "brake_at": float(traj.t[kb]),
-                           LIMITS_KEY: robot_limits(self.robot),
                            "path_tau": np.asarray(self._path_tau).tolist(),
-                           "s_rest": float(s[-1])})
+                           "s_rest": float(s[-1])}, self.robot.motion_limits)
 
     def until(self, stop: Trajectory) -> Trajectory:
         """The part of the tilt that ran before ``stop`` (one of :meth:`stop`'s) took over,
@@ -287,7 +291,7 @@ class PourStopper:
         return Trajectory(traj.joint_names, piece.t, piece.q, piece.qd, piece.qdd,
                           np.zeros(piece.t.size, dtype=int), ("return",), (), traj.robot,
                           f"{traj.route}:return",
-                          {"s_from": s_rest, LIMITS_KEY: robot_limits(self.robot)})
+                          {"s_from": s_rest}, self.robot.motion_limits)
 
     def _back_piece(self, s_rest: float) -> tuple[TimedPiece, float]:
         from ...timing import time_path
@@ -321,7 +325,41 @@ class PourStopper:
         """What the stop and the return pour from a tilt, per unit gain [s], measured on
         this stopper's own stops and returns (for :class:`MassPredictor`), at events
         ``spacing`` [s] of motion time apart past the spill angle (``samples``: that many
-        events instead). Events at which no stop can be timed are left out."""
+        events instead). Events at which no stop can be timed are left out.
+
+        Measuring takes hundreds of stops and returns (seconds); the table is kept with
+        the robot (:attr:`safepath.Robot.derived`, in memory) for everything it is made
+        from: the tilt, the scene, the robot's limits, the return's speed and timing, the
+        spill angle and ``samples`` / ``spacing``. Another stopper of the same tilt (a
+        controller per pour) gets the same table at once."""
+        key = (self._digest(), float(flow.spill_angle), samples, float(spacing))
+        return self.robot.derived.get(_STILL, lambda: self._measure_still(flow, samples,
+                                                                          spacing),
+                                      options=key)
+
+    def _digest(self) -> str:
+        """A digest of everything the stops and the returns are made from, but the robot's
+        shapes (which :attr:`safepath.Robot.derived` keeps apart)."""
+        motion, traj, robot = self.motion, self.motion.trajectory, self.robot
+        x = np.asarray(motion.path.x, dtype=float)
+        scene, held = self._scene
+        placed = [o.T_world_object for o in scene.objects.values()]
+        if scene.grasp is not None:
+            placed.append(scene.grasp.T_tcp_object)
+        parts = [traj.t, traj.q, traj.qd, traj.qdd, motion.s, motion.tilt, x,
+                 *(np.asarray(motion.path(x, nu), dtype=float) for nu in range(3)),
+                 robot.velocity_limits, robot.acceleration_limits, robot.jerk_limits,
+                 *placed]
+        h = sha256()
+        for a in parts:
+            a = np.ascontiguousarray(a, dtype=float)
+            h.update(f"{a.shape}".encode() + a.tobytes())
+        h.update(repr((traj.joint_names, scene, held, robot.controller,
+                       self.return_tcp_speed, self.timing, self.path.knot)).encode())
+        return str(h.hexdigest())
+
+    def _measure_still(self, flow: FlowModel, samples: int | None,
+                       spacing: float) -> Callable[[float], float]:
         from ...errors import SafepathError
         from .flow import calibrate_still
 

@@ -1,0 +1,68 @@
+"""A state's clearance, closest pair and margin shortfalls from coal's distances, reading
+only what the answer needs.
+
+coal computes the distance of every robot-environment pair in one call, which also names
+the closest pair; reading each pair's result back into Python costs more than computing
+it. So one result is read when the state is farther from everything than the largest
+margin (no pair can fall short of its margin), and every result only near contact.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from typing import Any
+
+from .reports import Pair
+
+__all__ = ["PairMargins"]
+
+
+class PairMargins:
+    """The distance pairs of a checker and the margin of each pair of names.
+
+    Args:
+        pairs: Index of each distance pair in coal's pair list.
+        names: Names of every pair of coal's list (by index).
+        margins: Margin of every pair of coal's list [m] (by index).
+    """
+
+    def __init__(self, pairs: Sequence[int], names: Sequence[Pair],
+                 margins: Sequence[float]) -> None:
+        self.pairs = list(pairs)
+        self.names = [names[k] for k in self.pairs]
+        #: Margin of each pair of names [m]: the largest of its shapes' pairs.
+        self.margin_of: dict[Pair, float] = {}
+        for k, name in zip(self.pairs, self.names, strict=True):
+            self.margin_of[name] = max(self.margin_of.get(name, 0.0), float(margins[k]))
+        self.largest = max(self.margin_of.values(), default=0.0)
+        self._name_of = dict(zip(self.pairs, self.names, strict=True))
+
+    def distances(self, results: Any) -> list[tuple[Pair, float]]:
+        """Distance [m] of every pair of names (the smallest over their shapes), in the
+        order the pairs first come, from coal's ``distanceResults``."""
+        best: dict[Pair, float] = {}
+        for k, name in zip(self.pairs, self.names, strict=True):
+            d = float(results[k].min_distance)
+            if d < best.get(name, float("inf")):
+                best[name] = d
+        return list(best.items())
+
+    def report(self, results: Any, closest: int
+               ) -> tuple[float, Pair | None, tuple[tuple[Pair, float, float], ...]]:
+        """Clearance [m], closest pair and margin shortfalls (pair, distance, margin;
+        smallest distance first) from coal's ``distanceResults`` and the index of the
+        closest pair that ``computeDistances`` returned."""
+        name = self._name_of.get(closest)
+        if name is None:  # no distance pair
+            return float("inf"), None, ()
+        clearance = float(results[closest].min_distance)
+        if clearance >= self.largest:  # farther from everything than any margin
+            return clearance, name, ()
+        clearance, pair, short = float("inf"), None, []
+        for p, d in self.distances(results):
+            if d < clearance:
+                clearance, pair = d, p
+            if d < self.margin_of[p]:
+                short.append((p, d, self.margin_of[p]))
+        short.sort(key=lambda item: item[1])
+        return clearance, pair, tuple(short)
