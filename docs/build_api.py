@@ -60,7 +60,7 @@ _REFERENCE = re.compile(r":(?:py:)?(?:mod|func|data|const|class|meth|attr|exc|ob
 
 def _resolves(target: str) -> bool:
     """Whether a dotted name is a module, or an object or attribute reached from one (an
-    instance attribute counts when the class annotates it or assigns ``self.<name>``)."""
+    instance attribute counts when the class annotates or assigns ``self.<name>``)."""
     parts = target.split(".")
     for cut in range(len(parts), 0, -1):
         try:
@@ -71,8 +71,8 @@ def _resolves(target: str) -> bool:
             if hasattr(obj, name):
                 obj = getattr(obj, name)
             elif i == len(parts) - 1 and isinstance(obj, type):
-                return name in getattr(obj, "__annotations__", {}) \
-                    or f"self.{name} =" in inspect.getsource(obj)
+                return name in getattr(obj, "__annotations__", {}) or bool(
+                    re.search(rf"self\.{name}\s*[:=]", inspect.getsource(obj)))
             else:
                 return False
         return True
