@@ -4,7 +4,7 @@ VENV ?= .venv
 BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed
 
-.PHONY: setup kernels browser demo test lint bench bench-peers view clean
+.PHONY: setup kernels browser demo test lint docs bench bench-peers view clean
 
 $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
@@ -31,12 +31,17 @@ demo: $(STAMP) kernels
 	$(BIN)/safepath check scenes/quality_check_cell
 	$(BIN)/safepath plan scenes/quality_check_cell --out out/quality_check_cell
 
-RUFF := $(BIN)/ruff check safepath tests benchmarks examples
+RUFF := $(BIN)/ruff check safepath tests benchmarks examples docs
 MYPY := $(BIN)/mypy safepath
 
 lint: $(STAMP)
 	$(RUFF)
 	$(MYPY)
+
+## The HTML API reference from the docstrings (pdoc) into out/api/ (open out/api/index.html);
+## a warning of pdoc's, or a cross-reference to a safepath name that names nothing, fails it.
+docs: $(STAMP)
+	$(BIN)/python docs/build_api.py out/api
 
 ## Lint, type-check and run the project's tests, then print the wall time they took.
 ## (The peers' smoke test, which installs their venvs, runs only in `make bench-peers`.)

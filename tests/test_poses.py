@@ -192,6 +192,34 @@ def test_dump_and_save_round_trip_at_full_precision(tmp_path: Path, cell, robot:
         np.testing.assert_array_equal(again[name], q)  # bit-exact
 
 
+def test_names_yaml_reads_as_booleans_or_null_round_trip_quoted(tmp_path: Path,
+                                                                 robot: Robot) -> None:
+    """(Found by tests/properties/test_poses_round_trip.py.) A pose named on, no or null
+    is written quoted and reads back under its name; written bare by hand, it is an error
+    naming it, not a pose renamed True."""
+    path = tmp_path / "poses.yaml"
+    poses = {"on": np.array(GRIP), "null": np.array(HIGH1)}
+    save_poses(path, poses, robot)
+    assert list(load_poses(path, robot)) == ["on", "null"]
+    save_poses(path, {"null": np.array(GRIP), "no": np.array(HIGH1)}, robot)
+    assert list(load_poses(path, robot)) == ["null", "no"]
+    with pytest.raises(PoseError, match="quote it") as err:
+        load_poses(_write(tmp_path, f"poses:\n  on: {GRIP}\n", "bare.yaml"), robot)
+    assert err.value.key == "True"
+
+
+def test_saving_over_a_file_keeps_every_bit(tmp_path: Path, robot: Robot) -> None:
+    """(Found by tests/properties/test_poses_round_trip.py.) Saved over a file, a 0.0
+    that becomes -0.0 is written, and a value that stays reads back as it was (ruamel's
+    own text of some long values drops a digit)."""
+    path = tmp_path / "poses.yaml"
+    before = [0.0, 8.840633872400459e-189, 0.0, 0.0, 0.0, 0.0]
+    save_poses(path, {"grip": before}, robot)
+    after = [-0.0, 8.840633872400459e-189, 0.0, 0.0, 0.0, 1e-12]
+    save_poses(path, {"grip": after, "high1": HIGH1}, robot)
+    assert load_poses(path, robot)["grip"].tobytes() == np.array(after).tobytes()
+
+
 def test_save_keeps_a_backup(tmp_path: Path, robot: Robot) -> None:
     path = _write(tmp_path, _flat("grip", GRIP))
     old = path.read_bytes()

@@ -31,6 +31,7 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+import yaml
 
 from ..errors import PoseError
 from ..files._io import atomic_write_text, brief, check_names, read_text, read_yaml
@@ -87,8 +88,10 @@ def _entries(data: dict, path: Path) -> dict[str, tuple[str, object]]:
     """Pose name to (YAML key, raw value): top-level entries and those under ``poses:``."""
     raw: dict[str, tuple[str, object]] = {}
     for key, value in data.items():
+        _check_text(key, path)
         if key == "poses" and isinstance(value, dict):
             for name, q in value.items():
+                _check_text(name, path)
                 _add(raw, str(name), f"poses.{name}", q, path)
         elif key == "poses" and value is None:
             continue
@@ -133,6 +136,28 @@ def _pose(name: str, key: str, q: object, robot: Robot, path: Path) -> np.ndarra
     return robot.as_joint_vector(q, name=key, path=path)
 
 
+def _check_text(name: object, path: Path) -> None:
+    """Refuse a pose name YAML read as something other than text (``on``, ``no``,
+    ``null``... unquoted are booleans or null): it would come back under another name."""
+    if not isinstance(name, str):
+        raise PoseError(f"the name read as {name!r} is not text: YAML reads on, off, yes, "
+                        "no, true, false and null unquoted as booleans or null; quote it",
+                        path=path, key=str(name))
+
+
+def _name_text(name: str) -> str:
+    """``name`` as a YAML key that reads back as that text: single-quoted when YAML 1.1
+    (PyYAML, which reads the file) would read it bare as a boolean or null."""
+    return name if yaml.safe_load(name) == name else f"'{name}'"
+
+
+def _same_bits(a: float | np.ndarray, b: float | np.ndarray) -> bool:
+    """Whether two values or joint vectors hold the same doubles bit for bit (-0.0 is not
+    0.0)."""
+    x, y = np.asarray(a, dtype=float), np.asarray(b, dtype=float)
+    return x.shape == y.shape and x.tobytes() == y.tobytes()
+
+
 def _add(raw: dict[str, tuple[str, object]], name: str, key: str, q: object, path: Path) -> None:
     if name in raw:
         raise PoseError(f"pose '{name}' is defined twice", path=path, key=key)
@@ -144,7 +169,7 @@ def dump_poses(poses: Mapping[str, Sequence[float] | np.ndarray]) -> str:
     lines = ["poses:"]
     for name, q in poses.items():
         values = ", ".join(_float_text(v) for v in np.asarray(q, dtype=float))
-        lines.append(f"  {name}: [{values}]")
+        lines.append(f"  {_name_text(name)}: [{values}]")
     return "\n".join(lines) + "\n"
 
 
@@ -154,7 +179,8 @@ def save_poses(path: str | Path, poses: Mapping[str, Sequence[float] | np.ndarra
     """Validate ``poses`` and atomically write them to ``path``.
 
     An existing file that loads is updated in place: its comments, its key order, its
-    layout (nested or flat) and the text of every value that does not change are kept;
+    layout (nested or flat) and the text of every value that does not change are kept
+    (bit for bit: -0.0 is a change);
     a changed value is written at full double precision, a pose not in ``poses`` is
     removed, a new one is added under ``poses:``. A file that does not load, or no
     file, is written whole in the nested layout. The file keeps its mode (see
@@ -199,13 +225,13 @@ def _updated_text(path: Path, poses: dict[str, np.ndarray], robot: Robot) -> str
         return None
     from ruamel.yaml.comments import CommentedMap
 
-    yaml = _round_trip_yaml()
-    data = yaml.load(text)
+    round_trip = _round_trip_yaml()
+    data = round_trip.load(text)
     if not isinstance(data, CommentedMap):  # an empty file
         return None
     _merge(data, current, poses)
     out = io.StringIO()
-    yaml.dump(data, out)
+    round_trip.dump(data, out)
     return out.getvalue()
 
 
@@ -213,6 +239,7 @@ def _merge(data: Any, current: dict[str, np.ndarray], poses: dict[str, np.ndarra
     """Make the round-trip document ``data`` (whose poses are ``current``) hold ``poses``,
     touching only what changes."""
     from ruamel.yaml.comments import CommentedMap
+    from ruamel.yaml.scalarstring import SingleQuotedScalarString
 
     nested = data.get("poses") if isinstance(data.get("poses"), dict) else None
 
@@ -226,12 +253,16 @@ def _merge(data: Any, current: dict[str, np.ndarray], poses: dict[str, np.ndarra
         if name not in current:
             if nested is None:
                 data["poses"] = nested = CommentedMap()
-            nested[name] = _flow_list(q)
-        elif not np.array_equal(current[name], q):
+            key = name if _name_text(name) == name else SingleQuotedScalarString(name)
+            nested[key] = _flow_list(q)
+        elif not _same_bits(current[name], q):
             node = home(name)[name]
             if isinstance(node, list) and len(node) == len(q):
-                for i, v in enumerate(q):  # values that stay keep their text
-                    if float(node[i]) != float(v):
+                # Values that stay keep their text; what stays is what the file reads as
+                # (current), bit for bit: ruamel's own reading of a value may differ from it
+                # in the last bit, and -0.0 == 0.0.
+                for i, v in enumerate(q):
+                    if not _same_bits(current[name][i], v):
                         node[i] = float(v)
             else:  # a TCP pose edited in joint space
                 home(name)[name] = _flow_list(q)
@@ -241,17 +272,28 @@ def _round_trip_yaml() -> Any:
     """A ruamel round-trip YAML that writes floats as PyYAML reads them back."""
     from ruamel.yaml import YAML
     from ruamel.yaml.representer import RoundTripRepresenter
+    from ruamel.yaml.scalarfloat import ScalarFloat
 
     class Representer(RoundTripRepresenter):
         pass
 
-    Representer.add_representer(
-        float, lambda r, v: r.represent_scalar("tag:yaml.org,2002:float", _float_text(v)))
-    yaml = YAML()
-    yaml.Representer = Representer
-    yaml.width = 1 << 16  # a pose stays on its line
-    yaml.preserve_quotes = True
-    return yaml
+    def exact(r: Any, v: float) -> Any:
+        return r.represent_scalar("tag:yaml.org,2002:float", _float_text(v))
+
+    def kept(r: Any, v: ScalarFloat) -> Any:
+        # A value read from the file keeps its layout, unless ruamel's re-emitted text
+        # would read back as another double (it drops a digit of some long mantissas).
+        node = RoundTripRepresenter.represent_scalar_float(r, v)
+        read = yaml.safe_load(node.value)
+        return node if isinstance(read, float) and _same_bits(read, v) else exact(r, v)
+
+    Representer.add_representer(float, exact)
+    Representer.add_representer(ScalarFloat, kept)
+    round_trip = YAML()
+    round_trip.Representer = Representer
+    round_trip.width = 1 << 16  # a pose stays on its line
+    round_trip.preserve_quotes = True
+    return round_trip
 
 
 def _flow_list(q: np.ndarray) -> Any:

@@ -11,7 +11,7 @@ placement. :attr:`safepath.Robot.continuous` names those joints, and each layer 
 the planner takes the short way round, nothing checks a position limit on them.
 
 Only planned joints are rebuilt; a continuous joint that is locked keeps Pinocchio's form
-(:mod:`safepath._locked` holds it at its value).
+(:mod:`safepath.model._locked` holds it at its value).
 """
 
 from __future__ import annotations

@@ -208,6 +208,47 @@ def _cholesky_solve(A, b, x):  # noqa: N803
 
 
 @njit(cache=True, nogil=True)
+def _error_pose(R, p, R_target, p_target, Re, pe):  # noqa: N803
+    """The error pose (Re, pe) = TCP^-1 target of the TCP (R, p) and the target
+    (R_target, p_target), in the TCP frame; returns the position error [m]."""
+    dx, dy, dz = p_target[0] - p[0], p_target[1] - p[1], p_target[2] - p[2]
+    for r in range(3):
+        pe[r] = R[0, r] * dx + R[1, r] * dy + R[2, r] * dz
+        for c in range(3):
+            Re[r, c] = (R[0, r] * R_target[0, c] + R[1, r] * R_target[1, c]
+                        + R[2, r] * R_target[2, c])
+    return math.sqrt(dx * dx + dy * dy + dz * dz)
+
+
+@njit(cache=True, nogil=True)
+def _damped_step(J, Jl, err, damping, lower, upper, q, Jt, A, x):  # noqa: N803
+    """One damped least-squares step on the 6-D error ``err``, with the Jacobians of the
+    frame (J) and of log6 (Jl): q += Jt^T (Jt Jt^T + damping I)^-1 err with Jt = Jl J,
+    each joint then clipped to its limits (Jt, A, x: workspaces)."""
+    nq = q.shape[0]
+    for r in range(6):  # Jt = Jlog6 J; A = Jt Jt^T + damping I
+        for c in range(nq):
+            s = 0.0
+            for m in range(6):
+                s += Jl[r, m] * J[m, c]
+            Jt[r, c] = s
+    for r in range(6):
+        for c in range(r + 1):
+            s = 0.0
+            for m in range(nq):
+                s += Jt[r, m] * Jt[c, m]
+            A[r, c] = s
+            A[c, r] = s
+        A[r, r] += damping
+    _cholesky_solve(A, err, x)
+    for c in range(nq):
+        s = 0.0
+        for r in range(6):
+            s += Jt[r, c] * x[r]
+        q[c] = min(max(q[c] + s, lower[c]), upper[c])
+
+
+@njit(cache=True, nogil=True)
 def solve(joint_f, joint_i, frame_f, R_target, p_target, q, lower, upper, params,  # noqa: N803
           max_iterations):
     """Damped least squares from ``q`` (updated in place) towards the TCP pose
@@ -222,38 +263,14 @@ def solve(joint_f, joint_i, frame_f, R_target, p_target, q, lower, upper, params
     A, x = np.empty((6, 6)), np.empty(6)
     for it in range(max_iterations):
         _fk(joint_f, joint_i, frame_f, q, Rw, pw, R, p)
-        dx, dy, dz = p_target[0] - p[0], p_target[1] - p[1], p_target[2] - p[2]
-        for r in range(3):  # the error pose (Re, pe): TCP^-1 target
-            pe[r] = R[0, r] * dx + R[1, r] * dy + R[2, r] * dz
-            for c in range(3):
-                Re[r, c] = (R[0, r] * R_target[0, c] + R[1, r] * R_target[1, c]
-                            + R[2, r] * R_target[2, c])
+        position_error = _error_pose(R, p, R_target, p_target, Re, pe)
         t = _log6(Re, pe, w, err)
-        if (math.sqrt(dx * dx + dy * dy + dz * dz) < params[0]
+        if (position_error < params[0]
                 and math.sqrt(w[0] * w[0] + w[1] * w[1] + w[2] * w[2]) < params[1]):
             return it
         _jacobian(joint_f, joint_i, Rw, pw, R, p, J)
         _jlog6(pe, t, w, Jl, Re, E)
-        for r in range(6):  # Jt = Jlog6 J; A = Jt Jt^T + damping I
-            for c in range(nq):
-                s = 0.0
-                for m in range(6):
-                    s += Jl[r, m] * J[m, c]
-                Jt[r, c] = s
-        for r in range(6):
-            for c in range(r + 1):
-                s = 0.0
-                for m in range(nq):
-                    s += Jt[r, m] * Jt[c, m]
-                A[r, c] = s
-                A[c, r] = s
-            A[r, r] += params[3]
-        _cholesky_solve(A, err, x)
-        for c in range(nq):
-            s = 0.0
-            for r in range(6):
-                s += Jt[r, c] * x[r]
-            q[c] = min(max(q[c] + s, lower[c]), upper[c])
+        _damped_step(J, Jl, err, params[3], lower, upper, q, Jt, A, x)
     return -1
 
 

@@ -13,8 +13,8 @@ two points per joint with
 The ROS 1 ``joint_trajectory_controller`` behind Niryo's
 ``/niryo_robot_follow_joint_trajectory_controller`` (``QuinticSplineSegment``) and
 ros2_kortex's (ros2_control's) join points the same way. Each robot's ``controller.yaml``
-names its interpolation (:attr:`safepath.model.controller_spec.ControllerSpec
-.interpolation`).
+names its interpolation (the ``interpolation`` of
+:class:`safepath.model.controller_spec.ControllerSpec`).
 
 :func:`executed_peaks` finds, per joint, the largest speed, acceleration and jerk of
 that joined motion: acceleration and jerk exactly (the jerk of a quintic is a quadratic,

@@ -13,9 +13,10 @@ tilt keeps, and each small step of a stepwise tilt pours a bounded amount.
 
 The defaults are the brief's cup (70 x 100 mm outside) with walls of a few millimetres,
 holding rice (0.8 g/cm^3); the fill (115 g) and the repose (0: the rice treated as a
-liquid) were fitted, with the flow gain of :class:`~safepath.cells.pouring.flow.
-FlowModel`, to the brief's two measured figures (``scenes/pouring_cell/README.md`` says
-what was fitted to what; ``benchmarks/pour.py`` prints the result).
+liquid) were fitted, with the flow gain of
+:class:`~safepath.cells.pouring.flow.FlowModel`, to the brief's two measured figures
+(``scenes/pouring_cell/README.md`` says what was fitted to what; ``benchmarks/pour.py``
+prints the result).
 """
 
 from __future__ import annotations
