@@ -62,6 +62,9 @@ RETIME_ABOVE = 1e-2
 #: ratios stay <= 1.0 however they are rounded.
 _SLACK = 1e-6
 _NS = 1_000_000_000
+#: Chord across a ``"gap"`` blend, relative to the way along the polyline it replaces,
+#: below which the corner counts as a turn-back and is passed through, not cut.
+_TURN_BACK = 1e-9
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -191,10 +194,7 @@ def spline_path(waypoints: Sequence[np.ndarray], spacing: float, *,
         return CubicPath(S, P), s_way, S
     P, S, s_way = resampled(W, spacing)
     if cut:
-        keep = np.ones(len(S), dtype=bool)
-        for c, r in cut:
-            keep &= ~(np.abs(S - s_way[c]) < r)
-        keep[0] = keep[-1] = True
+        keep = _gap_kept(P, S, s_way, cut)
         P = P[keep]
         # Re-parametrise the kept points by chord length, and map the waypoints.
         chord = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(P, axis=0), axis=1))])
@@ -205,6 +205,27 @@ def spline_path(waypoints: Sequence[np.ndarray], spacing: float, *,
         S = np.array([0.0, S[-1] / 2, S[-1]])
     path = CubicPath(S, P)
     return path, s_way, S
+
+
+def _gap_kept(P: np.ndarray, S: np.ndarray, s_way: np.ndarray,  # noqa: N803
+              cut: Sequence[tuple[int, float]]) -> np.ndarray:
+    """Which interpolation points the ``"gap"`` blends keep: those farther than the radius
+    from each cut corner. A corner where the path turns back exactly the way it came
+    (its gap's two sides coincide: the spline's parameter could not increase across it)
+    (its gap's two sides coincide, to :data:`_TURN_BACK` of the way between them, and the
+    spline's chord-length parameter could not increase across it) is not cut: the path
+    passes through it, at rest (its direction reverses there)."""
+    keep = np.ones(len(S), dtype=bool)
+    keep[0] = keep[-1] = True
+    for c, r in cut:
+        trial = keep & ~(np.abs(S - s_way[c]) < r)
+        trial[0] = trial[-1] = True
+        before = int(np.flatnonzero(trial & (S < s_way[c]))[-1])
+        after = int(np.flatnonzero(trial & (S > s_way[c]))[0])
+        if np.linalg.norm(P[after] - P[before]) <= _TURN_BACK * (S[after] - S[before]):
+            continue
+        keep = trial
+    return keep
 
 
 @dataclass(frozen=True)

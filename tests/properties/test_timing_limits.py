@@ -8,9 +8,9 @@ released knots (their quintic join, :func:`safepath.model.execution.interval_rat
 exceeds no velocity, acceleration or jerk limit on any interval: every ratio is at most
 1.0, with no tolerance. (Jerk limits raised fourfold inside ``time_path`` make it fail.)
 
-A path that turns back exactly the way it came at a blended via point is left out: the
-spline fails there (a ``ValueError``, found by this property; the strict xfail below
-turns green when that is fixed).
+A path that turns back exactly the way it came at a blended via point (found by this
+property: the spline raised a ``ValueError`` there) is timed too; the example test below
+keeps the case.
 """
 
 from __future__ import annotations
@@ -40,14 +40,6 @@ def _robot(name: str) -> Robot:
     return load_robot(name)
 
 
-def _turns_back(before: np.ndarray, corner: np.ndarray, after: np.ndarray) -> bool:
-    """Whether the path goes back exactly the way it came at ``corner`` (see
-    :func:`test_a_path_turning_back_at_a_blended_via_point_is_timed`)."""
-    incoming, outgoing = corner - before, after - corner
-    cos = incoming @ outgoing / (np.linalg.norm(incoming) * np.linalg.norm(outgoing))
-    return bool(cos <= -1.0 + 1e-12)
-
-
 @st.composite
 def _paths(draw: st.DrawFn, robot: Robot) -> tuple[list[np.ndarray], list, list, list]:
     """Waypoints, corners (via point, blend radius [rad]), step scales and TCP speed
@@ -58,7 +50,6 @@ def _paths(draw: st.DrawFn, robot: Robot) -> tuple[list[np.ndarray], list, list,
         assume(np.max(np.abs(b - a)) >= MIN_STEP)
     radii = st.sampled_from([0.0, 0.1, 0.3, 0.6])
     corners = [(k, draw(radii)) for k in range(1, vias + 1)]
-    assume(not any(r > 0 and _turns_back(*waypoints[k - 1:k + 2]) for k, r in corners))
     scales = [draw(st.floats(0.2, 1.0)) for _ in range(vias + 1)]
     tcp = [draw(st.one_of(st.none(), st.floats(0.05, 0.5))) for _ in range(vias + 1)]
     return waypoints, corners, scales, tcp
@@ -83,13 +74,17 @@ def test_timed_paths_keep_the_limits_as_executed(name: str) -> None:
     within()
 
 
-@pytest.mark.xfail(strict=True, raises=ValueError,
-                   reason="found by the property above: spline_path leaves coincident "
-                          "points where a path turns back exactly at a blended via point")
-def test_a_path_turning_back_at_a_blended_via_point_is_timed() -> None:
+@pytest.mark.parametrize("blend", ["gap", "g2"])
+def test_a_path_turning_back_at_a_blended_via_point_is_timed(blend: str) -> None:
     robot = _robot("ned3pro")
     a, b = np.zeros(robot.dof), np.zeros(robot.dof)
     a[1] = -1.0
-    path, s_way, _ = spline_path([a, b, a], SPACING, corners=[(1, 0.1)])
+    path, s_way, _ = spline_path([a, b, a], SPACING, corners=[(1, 0.1)], blend=blend)
     piece = time_path(robot, path, s_way, scales=[1.0, 1.0], tcp_speeds=[None, None])
     np.testing.assert_array_equal(piece.q[-1], a)
+    ratios = interval_ratios(piece.t, piece.q, piece.qd, piece.qdd,
+                             vmax=robot.velocity_limits, amax=robot.acceleration_limits,
+                             jmax=robot.jerk_limits)
+    assert max(float(np.max(r)) for r in ratios) <= 1.0
+    if blend == "gap":  # not cut: the path passes through the via point
+        np.testing.assert_allclose(path(s_way[1]), b, atol=1e-12)
