@@ -43,22 +43,42 @@ def test_all_inf_scan_continues_and_nan_is_counted(cell: Cell, phase1: Phase1) -
     assert d.kind == "continue" and d.counts.used == 0 and d.separation_now == np.inf
 
 
-def test_close_reading_stops_and_neg_inf_counts_as_too_close(cell: Cell, phase1: Phase1
-                                                             ) -> None:
+def _protective_distance(cell: Cell, phase1: Phase1, at: float) -> float:
+    """The motion's protective distance at full speed at time ``at`` [m]: what the
+    monitor tests a reading far from the robot (a point 3 m out) against."""
     m = make_monitor(cell)
     traj, held = phase1.motions[0]
+    m.follow(traj, start=0.0, held=held)
+    d = m.observe(Cloud(at, "cam", _world_to_cam(np.array([[3.0, 0.3, 0.4]]))), at)
+    assert d.kind == "continue" and d.separation_kept > d.protective_distance > 0.0
+    return d.protective_distance
+
+
+def test_close_reading_stops_and_neg_inf_counts_as_too_close(cell: Cell, phase1: Phase1
+                                                             ) -> None:
+    # The camera moved out along +x so that the point 0.05 m in front of it (range_min)
+    # lies about 0.1 m beyond the motion's own protective distance: far, the robot
+    # continues (the separation grows by at most the shift).
+    traj, held = phase1.motions[0]
+    probe = make_monitor(cell)
+    probe.follow(traj, start=0.0, held=held)
+    point = CAMERA[:3, 3] + CAMERA[:3, 0] * 0.05
+    sep = probe.observe(Cloud(0.5, "cam", _world_to_cam(point[None, :])), 0.5).separation_kept
+    camera = CAMERA.copy()
+    camera[0, 3] += max(0.0, _protective_distance(cell, phase1, 0.5) + 0.1 - sep)
+    m = make_monitor(cell, sensors={"cam": camera})
     m.follow(traj, start=0.0, held=held)
     m.observe(_scan(0.0, np.full(360, np.inf)), 0.0)
     ranges = np.full(360, np.inf)
     ranges[180] = -np.inf  # beam along +x of the camera: something at range_min
     d = m.observe(_scan(0.5, ranges), 0.5)
     assert d.counts.too_close == 1 and d.counts.used == 1
-    # A point 0.05 m from a camera 1.2 m from the robot: far, the robot continues.
+    assert d.separation_kept >= d.protective_distance + 0.05
     assert d.kind == "continue"
     # The same reading taken right beside the arm: it stops, along its path.
     q_now = traj.sample([0.55])[0][0]
     tcp = cell.robot.tcp_position(q_now)
-    near = Cloud(0.55, "cam", _world_to_cam(tcp[None, :] + [0.12, 0.0, 0.0]))
+    near = Cloud(0.55, "cam", (tcp[None, :] + [0.12, 0.0, 0.0] - camera[:3, 3]) @ camera[:3, :3])
     d = m.observe(near, 0.55)
     assert d.kind == "stop" and d.scale == 0.0
     assert d.separation_now < d.protective_distance
@@ -129,17 +149,27 @@ def test_kill_switch_latches_until_reset(cell: Cell, phase1: Phase1) -> None:
 
 
 def test_user_obstacles_box_and_sphere(cell: Cell, phase1: Phase1) -> None:
-    m = make_monitor(cell, sensors={})
     traj, held = phase1.motions[0]
-    m.follow(traj, start=0.0, held=held)
+    protective = _protective_distance(cell, phase1, 0.0)
     T = np.eye(4)
-    T[:3, 3] = [1.2, 0.0, 0.2]
-    d = m.observe(Obstacles(0.0, spheres=[[1.5, 0.0, 0.2, 0.05]], boxes=((T, [0.1, 0.1, 0.1]),)),
-                  0.0)
-    assert d.kind == "continue" and d.counts.used > 1 and d.separation_now < 1.0
+    T[:3, 3] = [3.0, 0.0, 0.2]
+    m = make_monitor(cell, sensors={})
+    m.follow(traj, start=0.0, held=held)
+    # Along +x the box's separation from the robot grows as fast as the box moves (the
+    # robot's nearest point is behind it): a box 3 m out shows where to put one a given
+    # separation away.
+    beyond = m.observe(Obstacles(0.0, boxes=((T, [0.1, 0.1, 0.1]),)), 0.0).separation_kept
+    # A box 0.1 m beyond the motion's protective distance (a sphere behind it): continue.
+    T[0, 3] -= beyond - (protective + 0.1)
+    m = make_monitor(cell, sensors={})
+    m.follow(traj, start=0.0, held=held)
+    d = m.observe(Obstacles(0.0, spheres=[[T[0, 3] + 0.3, 0.0, 0.2, 0.05]],
+                            boxes=((T, [0.1, 0.1, 0.1]),)), 0.0)
+    assert d.kind == "continue" and d.counts.used > 1
+    assert np.isclose(d.separation_now, protective + 0.1, atol=1e-3)
     assert d.separation_kept >= d.protective_distance
-    # The same box 0.1 m nearer is inside the protective distance: stop.
-    T[:3, 3] = [0.9, 0.0, 0.2]
+    # The same box at half the protective distance: no speed keeps it, stop.
+    T[0, 3] -= 0.5 * protective + 0.1
     d = m.observe(Obstacles(0.01, boxes=((T, [0.1, 0.1, 0.1]),)), 0.01)
     assert d.kind == "stop" and d.separation_kept < d.protective_distance
     with pytest.raises(ObservationError, match="boxes"):
