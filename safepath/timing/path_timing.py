@@ -91,15 +91,16 @@ class TimingOptions:
             the jerk then changes over several knots, which the quintic join follows.
         corner_blend: How blended via points are cut (:func:`spline_path`): ``"gap"``
             (the spline bridges the interpolation points left out) or ``"g2"`` (a blend
-            with continuous curvature, closer to the corner; its timing is nearer the
-            jerk-free optimum, see ``benchmarks/timing_quality.py``).
+            with continuous curvature, closer to the corner; the default: its timing is
+            nearer the jerk-free optimum, see ``benchmarks/timing_quality.py``).
         limits_ahead: Hold each route step's speed scale and TCP speed limit on TOPP-RA's
             grid as far around the step as the moving averages reach
             (:func:`~safepath.timing.path_limits` ``ahead``), so that a path whose steps
             have different limits is timed in one run instead of being re-timed where
             the averages carried a faster step's speed into a slower one. Off by default
-            for now: it changes the bundled cells' motions slightly, and some of the
-            monitor's scenario tests are calibrated on them.
+            for now: with it the bundled cell's stops fall elsewhere, and the monitor's
+            re-plan closed loop (``tests/monitor/test_parked.py``) re-planned fewer of
+            its parked bodies (10 of 14 with a way, against 16 of 19).
     """
 
     speed_scale: float = 1.0
@@ -111,7 +112,7 @@ class TimingOptions:
     jerk_scale: float = 1.0
     jerk_window: float = 1.0
     jerk_smoothing: float = 3.0
-    corner_blend: CornerBlend = "gap"
+    corner_blend: CornerBlend = "g2"
     limits_ahead: bool = False
 
     def __post_init__(self) -> None:
