@@ -89,6 +89,13 @@ def _sweep(args: argparse.Namespace, names: list[str]) -> int:
     replay = (f".venv/bin/python benchmarks/timing_suite.py --paths 1 --seed {{seed}} "
               f"--robots {','.join(names)} --out out/timing-seed-{{seed}}")
     task = TimingSuiteTask(tuple(names), replay)
+    if args.cluster:
+        # A Ray worker's path starts with this script's folder, where "timing_suite" is
+        # this script: the suite's module travels by value instead.
+        import ray.cloudpickle
+        import timing_suite
+
+        ray.cloudpickle.register_pickle_by_value(timing_suite)
     print(f"timing_suite sweep: {args.paths} seeds from {args.seed}, one path per robot "
           f"each, into {args.out}; load average {_load()}", flush=True)
     outcome = run_sweep(task, range(args.seed, args.seed + args.paths), args.out,

@@ -15,7 +15,6 @@ limits of the slower step of its two knots, every ratio <= 1.0.
 
 from __future__ import annotations
 
-import functools
 import zlib
 from dataclasses import dataclass
 from pathlib import Path
@@ -104,10 +103,17 @@ def run_suite(name: str, paths: int, seed: int) -> list[Outcome]:
     return out
 
 
-@functools.cache
+#: The robots this process loaded, by name (a plain dict, not ``functools.cache``: a
+#: cache wrapper pickles by reference, which a Ray worker cannot resolve, see
+#: ``benchmarks/timing_suite.py``).
+_ROBOTS: dict[str, Robot] = {}
+
+
 def suite_robot(name: str) -> Robot:
     """The robot ``name``, loaded once per process (a sweep worker keeps it for its seeds)."""
-    return load_robot(name)
+    if name not in _ROBOTS:
+        _ROBOTS[name] = load_robot(name)
+    return _ROBOTS[name]
 
 
 def path_rng(seed: int, name: str) -> np.random.Generator:
