@@ -158,15 +158,13 @@ PLAIN_OR_NOT = [
 
 @pytest.mark.parametrize(("text", "plain"), PLAIN_OR_NOT)
 def test_plain_pose_lines_read_exactly_as_yaml(text: str, plain: bool) -> None:
-    import yaml
-
     from safepath.cell._plain_poses import read_plain
-    from safepath.files._io import _StrictLoader
+    from safepath.files._io import parse_yaml
 
     got = read_plain(text)
     assert (got is not None) == plain
     if got is not None:
-        expected = yaml.load(text, Loader=_StrictLoader)  # noqa: S506 - a SafeLoader
+        expected = parse_yaml(text, Path("poses.yaml"))  # what the YAML path reads
         assert repr(got) == repr(expected)  # same types, -0.0 kept, same order
 
 
