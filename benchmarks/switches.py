@@ -28,6 +28,7 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / "tests"))  # the independent quintic the tests use
 
 from quintic_join import quintic_peaks, quintic_state  # noqa: E402
+from random_decisions import decisions, goal_points  # noqa: E402
 
 
 def main() -> None:
@@ -41,8 +42,8 @@ def main() -> None:
 
     from safepath import Trajectory, load_cell, plan_cell
     from safepath.errors import ExecutedLimitError
-    from safepath.monitor import Monitor, MonitorOptions, Scan
-    from safepath.ros import joint_trajectory, split_at_gripper_events
+    from safepath.monitor import Monitor, MonitorOptions
+    from safepath.ros import split_at_gripper_events
 
     cell = load_cell(ROOT / "scenes" / "quality_check_cell")
     robot = cell.robot
@@ -53,13 +54,6 @@ def main() -> None:
     camera = np.eye(4)
     camera[:3, 3] = [1.2, 0.3, 0.4]
     limits = (robot.velocity_limits, robot.acceleration_limits, robot.jerk_limits)
-
-    def points(tr: Trajectory) -> tuple[np.ndarray, ...]:
-        msg = joint_trajectory(tr, controller=robot.controller, backend="rosbags")
-        t = np.array([p.time_from_start.sec + p.time_from_start.nanosec * 1e-9
-                      for p in msg.points])
-        return (t, *(np.array([list(getattr(p, f)) for p in msg.points])
-                     for f in ("positions", "velocities", "accelerations")))
 
     rng = np.random.default_rng(args.seed)
     switches, step, worst = 0, 0.0, np.zeros(3)
@@ -73,31 +67,18 @@ def main() -> None:
         mon = Monitor(cell, MonitorOptions(sensors={"cam": camera}, stale_after=0.06,
                                            hold_time=0.1))
         mon.follow(m, start=0.0, held=held)
-        running = (0.0, *points(m))
+        running = (0.0, *goal_points(m, robot.controller))
         kill_at = rng.uniform(0, m.duration) if rng.uniform() < 0.3 else None
         silent_from = rng.uniform(0, m.duration) if rng.uniform() < 0.2 else None
-        near_from = rng.uniform(0, m.duration)
-        near_to = near_from + rng.uniform(0.05, 1.0)
-        distance = rng.uniform(0.3, 1.2)
-        t = 0.0
-        while t < m.duration + 1.0:
-            t += 1 / 30 + rng.uniform(-0.005, 0.005)
-            if kill_at is not None and kill_at <= t:
-                d, kill_at = mon.kill(t), None
-            elif silent_from is not None and silent_from <= t < silent_from + 0.3:
-                d = mon.tick(t)
-            else:
-                ranges = np.full(360, np.inf)
-                if near_from <= t <= near_to:
-                    ranges[170:190] = distance
-                d = mon.observe(Scan(t, "cam", ranges, -np.pi, 2 * np.pi / 360, 0.05, 8.0), t)
+        for t, d in decisions(mon, m.duration, rng, kill_at=kill_at, silent_from=silent_from,
+                              jitter=0.005):
             rep = d.replacement
             (with_goal if rep is not None else without).append(d.elapsed)
             if rep is None:
                 continue
             kinds[d.kind] = kinds.get(d.kind, 0) + 1
             try:
-                tn, P, V, A = points(rep)  # noqa: N806
+                tn, P, V, A = goal_points(rep, robot.controller)  # noqa: N806
             except ExecutedLimitError as exc:  # the goal builder refuses it: counted
                 refused.append(f"run {run} t={t:.3f} {d.kind}: {exc}")
                 tn, P, V, A = (np.asarray(rep.t), rep.q, rep.qd, rep.qdd)  # noqa: N806

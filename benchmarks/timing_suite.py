@@ -9,7 +9,15 @@ limits at 0 tolerance (``safepath.model.execution.interval_ratios``). Printed pe
 overruns (must be 0), the largest ratio seen, the TOPP-RA runs per path and the share
 re-timed, and the wall time; the machine's load before and after.
 
-Run: ``.venv/bin/python benchmarks/timing_suite.py [--paths 1000] [--seed 0]``.
+With ``--out DIR`` the suite is a resumable sweep (``safepath.sweeps``, docs/sweeps.md) of
+``tests/timing_suite.TimingSuiteTask``: seed ``s`` times one path per robot, the results
+go to ``DIR/results.jsonl`` as they finish (started again, only the missing seeds run),
+on the local pool (``--workers``) or Ray (``--cluster auto``); printed per robot: the
+overruns with the Wilson 95 % interval on their rate and the seed of each, which
+``--paths 1 --seed S --out DIR2`` replays alone.
+
+Run: ``.venv/bin/python benchmarks/timing_suite.py [--paths 1000] [--seed 0]``, or
+``.venv/bin/python benchmarks/timing_suite.py --paths 100000 --out out/timing [--cluster auto]``.
 """
 
 from __future__ import annotations
@@ -25,7 +33,7 @@ from pathlib import Path
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))  # the suite
-from timing_suite import robot_names, run_suite  # noqa: E402
+from timing_suite import TimingSuiteTask, robot_names, run_suite  # noqa: E402
 
 
 def _load() -> str:
@@ -38,8 +46,16 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser.add_argument("--paths", type=int, default=1000, help="random paths per robot")
     parser.add_argument("--seed", type=int, default=0, help="seed of the problems")
     parser.add_argument("--robots", default="", help="comma-separated (default: all)")
+    parser.add_argument("--out", default=None,
+                        help="run as a resumable sweep into this folder (one path per robot "
+                             "per seed)")
+    parser.add_argument("--workers", type=int, default=None,
+                        help="sweep: local processes (default: the CPUs)")
+    parser.add_argument("--cluster", default=None, help="sweep: 'auto' or ray://HOST:PORT")
     args = parser.parse_args(argv)
     names = args.robots.split(",") if args.robots else robot_names()
+    if args.out:
+        return _sweep(args, names)
     print(f"timing_suite: python {platform.python_version()} on {platform.machine()}, "
           f"{os.cpu_count()} cores, load average {_load()}; {args.paths} random via-point "
           f"paths per robot, seed {args.seed}")
@@ -61,6 +77,44 @@ def main(argv: Sequence[str] | None = None) -> int:
     print("(overruns: paths whose quintic join exceeds a velocity, acceleration or jerk "
           "limit of their steps; worst ratio: the largest seen, <= 1 required)")
     print(f"overruns in all: {overruns}; load average at the end {_load()}")
+    return 1 if overruns else 0
+
+
+def _sweep(args: argparse.Namespace, names: list[str]) -> int:
+    """The suite as a sweep into ``--out``: the report's lines, then the overruns per robot
+    with the Wilson interval on their rate and their seeds."""
+    from safepath.sweeps import SweepOptions, run_sweep, wilson_interval
+    from safepath.sweeps.report import report_lines
+
+    replay = (f".venv/bin/python benchmarks/timing_suite.py --paths 1 --seed {{seed}} "
+              f"--robots {','.join(names)} --out out/timing-seed-{{seed}}")
+    task = TimingSuiteTask(tuple(names), replay)
+    if args.cluster:
+        # A Ray worker's path starts with this script's folder, where "timing_suite" is
+        # this script: the suite's module travels by value instead.
+        import ray.cloudpickle
+        import timing_suite
+
+        ray.cloudpickle.register_pickle_by_value(timing_suite)
+    print(f"timing_suite sweep: {args.paths} seeds from {args.seed}, one path per robot "
+          f"each, into {args.out}; load average {_load()}", flush=True)
+    outcome = run_sweep(task, range(args.seed, args.seed + args.paths), args.out,
+                        SweepOptions(workers=args.workers, cluster=args.cluster,
+                                     progress=True, title="timing suite"))
+    for line in report_lines(outcome.report):
+        print(line)
+    overruns = 0
+    for name in names:
+        seeds = [s for s, r in outcome.results.items()
+                 if not r.checks.get(f"{name}.no_overrun", False)]
+        low, high = wilson_interval(len(seeds), len(outcome.results))
+        overruns += len(seeds)
+        print(f"{name}: overruns {len(seeds)} / {len(outcome.results)}, "
+              f"{100 * len(seeds) / len(outcome.results):.4f} % [{100 * low:.4f}, "
+              f"{100 * high:.4f}] 95 % CI; seeds: {seeds[:20] if seeds else 'none'}"
+              + (" ..." if len(seeds) > 20 else ""))
+    print(f"overruns in all: {overruns}; ran {len(outcome.ran)} of {args.paths} seeds on "
+          f"{outcome.backend}; load average at the end {_load()}")
     return 1 if overruns else 0
 
 

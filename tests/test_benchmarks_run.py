@@ -47,3 +47,16 @@ def test_benchmark_script_runs(script: str, args: list[str], expected: str) -> N
     assert proc.returncode == 0, proc.stderr[-2000:]
     assert proc.stdout.strip(), "the script printed nothing"
     assert expected in proc.stdout
+
+
+def test_timing_suite_with_out_is_a_resumable_sweep(tmp_path: Path) -> None:
+    """``--out``: the overruns per robot with their interval, and a second start that
+    runs nothing."""
+    argv = [sys.executable, str(ROOT / "benchmarks" / "timing_suite.py"), "--paths", "2",
+            "--robots", "ned3pro", "--workers", "1", "--out", str(tmp_path / "t")]
+    first = subprocess.run(argv, cwd=ROOT, capture_output=True, text=True, timeout=300)
+    assert first.returncode == 0, first.stderr[-2000:]
+    assert "ned3pro: overruns 0 / 2, 0.0000 % [0.0000, 65.7620] 95 % CI" in first.stdout
+    assert "ran 2 of 2 seeds on this process" in first.stdout
+    again = subprocess.run(argv, cwd=ROOT, capture_output=True, text=True, timeout=300)
+    assert "overruns in all: 0; ran 0 of 2 seeds" in again.stdout, again.stderr[-2000:]

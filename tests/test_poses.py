@@ -136,6 +136,58 @@ def test_malformed_yaml(tmp_path: Path, robot: Robot, text: str) -> None:
     assert "\n" not in str(info.value)  # one line for the command line
 
 
+# The plain lines a file of many poses is made of are read without PyYAML's nodes
+# (cell/_plain_poses.py); what they give must be what YAML gives, bit for bit and type
+# for type, and anything the fast reader does not read exactly must go to YAML.
+PLAIN_OR_NOT = [
+    ("poses:\n  a: [1.0, -0.0, 0, -0, 12, -1.5e-07]\n  b-2: [0.5,0.25]\n", True),
+    ("poses:\n  a: [1.0]\nb: [2.0]\nposes_2: [ 1.0 , 2 ]", True),
+    ("a: [1.0e+400, -1.5e-3]\nposes: [1.0]\n", True),
+    ("a: [1e-05]\n", False),  # YAML 1.1: a string (no point), not a number
+    ("a: [1.0e5]\n", False),  # a string too (an exponent needs its sign)
+    ("a: [01, 0x1f]\n", False),  # octal and hex integers
+    ("a: [1_000.0]\n", False),
+    ("On: [1.0]\n", False), ("null: [1.0]\n", False), ("NO: [1.0]\n", False),
+    ("poses:\n  a: [1.0]\nb: [2.0]\n  c: [1.0]\n", False),  # malformed
+    ("a: [1.0]\na: [2.0]\n", False), ("poses:\n  a: [1.0]\nposes: [1.0]\n", False),
+    ("a: [1.0] # note\n", False), ("a: [1.0]\n\nb: [2.0]\n", False), ("a: []\n", False),
+    ("a: [1.0, ]\n", False), ("a: [.5]\n", False), ("a: [+1.0]\n", False),
+    ("a: [1.0]\r\n", False), ("poses:\n", False), ("", False), ("---\na: [1.0]\n", False),
+]
+
+
+@pytest.mark.parametrize(("text", "plain"), PLAIN_OR_NOT)
+def test_plain_pose_lines_read_exactly_as_yaml(text: str, plain: bool) -> None:
+    from safepath.cell._plain_poses import read_plain
+    from safepath.files._io import parse_yaml
+
+    got = read_plain(text)
+    assert (got is not None) == plain
+    if got is not None:
+        expected = parse_yaml(text, Path("poses.yaml"))  # what the YAML path reads
+        assert repr(got) == repr(expected)  # same types, -0.0 kept, same order
+
+
+def test_a_dumped_file_of_many_poses_reads_as_yaml_reads_it(tmp_path: Path,
+                                                           robot: Robot) -> None:
+    """dump_poses' layout (full-precision floats, ``1.0e-05`` and ``-5.0e-324`` among
+    them) read by load_poses equals the same file read by YAML, bit for bit."""
+    import yaml
+
+    from safepath.cell._plain_poses import read_plain
+
+    rng = np.random.default_rng(7)
+    poses = {f"p{i}": rng.uniform(robot.lower, robot.upper) for i in range(300)}
+    poses["tiny"] = np.array([1e-05, -5e-324, 0.0, -0.0, 1.0, 2.5e-10])
+    path = _write(tmp_path, dump_poses(poses))
+    assert read_plain(path.read_text()) is not None
+    by_yaml = yaml.safe_load(path.read_text())["poses"]
+    loaded = load_poses(path, robot)
+    assert list(loaded) == list(by_yaml)
+    for name, q in loaded.items():
+        assert q.tobytes() == np.array(by_yaml[name], dtype=float).tobytes()
+
+
 def test_not_a_mapping(tmp_path: Path, robot: Robot) -> None:
     path = _write(tmp_path, "- [0, 0, 0, 0, 0, 0]\n")
     with pytest.raises(PoseError, match="expected a mapping"):

@@ -2,7 +2,8 @@
 ``time_path`` and checked as a controller executes them, at 0 tolerance.
 
 Shared by ``tests/planning/test_timing_suite.py`` (a bounded subset) and
-``benchmarks/timing_suite.py`` (as many paths as asked). Each problem is a polyline of
+``benchmarks/timing_suite.py`` (as many paths as asked; with ``--out``, a resumable sweep
+of :class:`TimingSuiteTask`: one path per robot for each seed). Each problem is a polyline of
 2-4 segments inside 80 % of the joint ranges (one turn for a continuous joint), each
 segment its own route step: a speed scale in [0.2, 1] (or 1), a TCP speed limit in
 [0.05, 0.5] m/s on some, via points blended as the planner's first attempt blends them
@@ -14,14 +15,17 @@ limits of the slower step of its two knots, every ratio <= 1.0.
 
 from __future__ import annotations
 
+import zlib
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
 from safepath.description.robot_folder import load_robot
 from safepath.model.execution import interval_ratios
 from safepath.model.robot import Robot
+from safepath.sweeps import TaskResult
 from safepath.timing import TimedPiece, TimingOptions, spline_path, time_path
 
 ROBOTS_DIR = Path(__file__).resolve().parents[1] / "robots"
@@ -97,3 +101,69 @@ def run_suite(name: str, paths: int, seed: int) -> list[Outcome]:
         out.append(Outcome(executed_worst(robot, piece, scales), piece.runs,
                            float(piece.t[-1])))
     return out
+
+
+#: The robots this process loaded, by name (a plain dict, not ``functools.cache``: a
+#: cache wrapper pickles by reference, which a Ray worker cannot resolve, see
+#: ``benchmarks/timing_suite.py``).
+_ROBOTS: dict[str, Robot] = {}
+
+
+def suite_robot(name: str) -> Robot:
+    """The robot ``name``, loaded once per process (a sweep worker keeps it for its seeds)."""
+    if name not in _ROBOTS:
+        _ROBOTS[name] = load_robot(name)
+    return _ROBOTS[name]
+
+
+def path_rng(seed: int, name: str) -> np.random.Generator:
+    """The generator of seed ``seed``'s path on robot ``name``: the seed and the name
+    alone (not the robot's place in a list), so a path replays with any ``--robots``."""
+    return np.random.default_rng([seed, zlib.crc32(name.encode())])
+
+
+@dataclass(frozen=True)
+class TimingSuiteTask:
+    """The suite as a sweep task (:mod:`safepath.sweeps`): for each seed, one random
+    via-point path per robot, timed and checked as executed.
+
+    Attributes:
+        robots: The bundled robots' names.
+        replay_command: The command of one seed, ``{seed}`` in place of the seed.
+    """
+
+    robots: tuple[str, ...]
+    replay_command: str
+
+    def __call__(self, seed: int) -> TaskResult:
+        """Time seed ``seed``'s path on each robot: the largest executed ratio [-], the
+        TOPP-RA runs and the motion time [s]; the check: no ratio over 1.0."""
+        figures: dict[str, float | tuple[float, ...]] = {}
+        checks: dict[str, bool] = {}
+        for name in self.robots:
+            robot = suite_robot(name)
+            piece, scales = timed_problem(robot, path_rng(seed, name))
+            worst = executed_worst(robot, piece, scales)
+            figures |= {f"{name}.worst_ratio": worst, f"{name}.toppra_runs": float(piece.runs),
+                        f"{name}.duration": float(piece.t[-1])}
+            checks[f"{name}.no_overrun"] = worst <= 1.0
+        return TaskResult(figures=figures, checks=checks)
+
+    def identity(self) -> dict[str, Any]:
+        """The suite and its robots."""
+        return {"kind": "timing suite", "robots": list(self.robots)}
+
+    def labels(self) -> dict[str, str]:
+        """The report's words."""
+        out: dict[str, str] = {}
+        for name in self.robots:
+            out[f"{name}.no_overrun"] = f"paths executed within every limit ({name})"
+        for name in self.robots:
+            out |= {f"{name}.worst_ratio": f"largest executed limit ratio ({name})",
+                    f"{name}.toppra_runs": f"TOPP-RA runs per path ({name})",
+                    f"{name}.duration": f"motion time [s] ({name})"}
+        return out
+
+    def replay(self, seed: int) -> str:
+        """The command that runs ``seed`` alone."""
+        return self.replay_command.format(seed=seed)

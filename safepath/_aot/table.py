@@ -57,7 +57,7 @@ _VERIFY_DISTANCE = "safepath.verify._distance"
 #: The records the release check's walk reads (no kernel: its source shapes the build).
 _VERIFY_RECORDS = "safepath.verify._records"
 _IK = "safepath.kinematics._ik_kernel"
-_TOPP = "safepath.timing._topp"
+_TOPP = "safepath.timing._topp_kernels"
 _MONITOR = "safepath.monitor._kernels"
 _JOIN = "safepath.model._joinkernel"
 #: The planner's one forward kinematics (the sphere layer's and the lines' IK's) and the
@@ -119,11 +119,11 @@ ENTRIES: dict[str, Entry] = {
                                     (F2, I1, F3, F2, F1, FLOAT, F1), "void"),
     "monitor_march": Entry(_MONITOR, "march", (F1, F2, F2, F1, FLOAT, FLOAT, FLOAT, F1, F1, F1),
                            "Tuple((i8, i8, b1))"),
-    # TOPP-RA's two passes, the spline solve, the smoothed knots (safepath.timing._topp).
-    "topp_backward": Entry(_TOPP, "_backward", (F1, F1, F2, F2, F2, F1, F1), INT),
-    "topp_forward": Entry(_TOPP, "_forward", (F1, F1, F2, F2, F2, F1, F1, F1), "void"),
-    "topp_tridiagonal": Entry(_TOPP, "_tridiagonal", (F1, F1, F1, F2), INT),
-    "topp_knots": Entry(_TOPP, "_knots", (F1, F1, F1, F1, F1, F1, F1, FLOAT, FLOAT, F1, F3, F1,
+    # TOPP-RA's two passes, the spline solve, the smoothed knots (safepath.timing._topp_kernels).
+    "topp_backward": Entry(_TOPP, "backward", (F1, F1, F2, F2, F2, F1, F1), INT),
+    "topp_forward": Entry(_TOPP, "forward", (F1, F1, F2, F2, F2, F1, F1, F1), "void"),
+    "topp_tridiagonal": Entry(_TOPP, "tridiagonal", (F1, F1, F1, F2), INT),
+    "topp_knots": Entry(_TOPP, "knots", (F1, F1, F1, F1, F1, F1, F1, FLOAT, FLOAT, F1, F3, F1,
                                           F1, F1, F2, F2, F2), "void"),
     # The peaks of a controller's quintic join (safepath.model._joinkernel).
     "join_peaks": Entry(_JOIN, "_peaks", (F1, F2, F2, F2, FLOAT, F2, F2, F2), "void"),

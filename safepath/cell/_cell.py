@@ -6,7 +6,7 @@ Built in Python (``Cell(robot, scene, poses, routes=...)``) or loaded from a sce
 
 from __future__ import annotations
 
-from collections.abc import Mapping
+from collections.abc import Iterator, Mapping
 from dataclasses import KW_ONLY, dataclass
 from pathlib import Path
 from typing import Any
@@ -25,7 +25,8 @@ from .poses import POSE_NAME, load_poses
 from .routes import Route, check_routes, load_cycle, load_routes
 from .scene_yaml import load_scene
 
-__all__ = ["Cell", "PoseCheck", "load_cell", "check_poses", "prepare_robot"]
+__all__ = ["Cell", "PoseCheck", "load_cell", "check_poses", "iter_pose_checks",
+           "prepare_robot"]
 
 
 @dataclass(eq=False, repr=False)
@@ -79,13 +80,7 @@ class Cell:
         if self.scene.tool is not None and self.scene.tool != self.robot.tool:
             check_tool(self.scene.tool, self.robot.model, path=self.scene.path)
             self.robot = self.robot.with_tool(self.scene.tool)
-        poses: dict[str, np.ndarray] = {}
-        for name, q in self.poses.items():
-            if not isinstance(name, str) or not POSE_NAME.match(name):
-                raise PoseError(f"'{name}' is not a valid pose name", path=self.poses_path,
-                                key=str(name))
-            poses[name] = self.robot.as_joint_vector(q, name=name, path=self.poses_path)
-        self.poses = poses
+        self.poses = poses = _valid_poses(self.poses, self.robot, self.poses_path)
         _check_scene_against(self.robot, self.scene, poses)
         if self.routes is not None:
             self.routes = check_routes(self.routes, poses=list(poses),
@@ -333,6 +328,29 @@ def _check_robot_is_the_scenes(robot: Robot, scene: Scene) -> None:
                           path=scene.path, key="robot")
 
 
+def _valid_poses(given: Mapping[Any, Any], robot: Robot, path: Path | None
+                 ) -> dict[str, np.ndarray]:
+    """Pose name to joint vector, every name and vector checked (joint vectors that are
+    already in-limit float vectors are checked all at once and kept).
+
+    Raises:
+        PoseError: A bad name, or a vector of the wrong length, not finite or outside
+            the limits (the first in order, as :meth:`Robot.as_joint_vector` says).
+    """
+    vectors = list(given.values())
+    if all(isinstance(q, np.ndarray) and q.dtype == np.float64 and q.shape == (robot.dof,)
+           for q in vectors) and all(isinstance(n, str) and POSE_NAME.match(n) for n in given):
+        Q = np.array(vectors).reshape(len(vectors), robot.dof)  # noqa: N806
+        if np.all(np.isfinite(Q) & (Q >= robot.lower) & (Q <= robot.upper)):
+            return dict(given)
+    poses: dict[str, np.ndarray] = {}
+    for name, q in given.items():  # in order: the first bad name or vector is named
+        if not isinstance(name, str) or not POSE_NAME.match(name):
+            raise PoseError(f"'{name}' is not a valid pose name", path=path, key=str(name))
+        poses[name] = robot.as_joint_vector(q, name=name, path=path)
+    return poses
+
+
 def _check_fits(robot: Robot, scene: Scene) -> None:
     if scene.grasp is None:
         return
@@ -358,20 +376,35 @@ def _check_fits(robot: Robot, scene: Scene) -> None:
 def check_poses(cell: Cell, options: CheckOptions | None = None) -> list[PoseCheck]:
     """Check every taught pose, with the gripper empty and, where the scene says the
     object may be held there, holding it (with that pose's allowed contacts)."""
-    out = []
+    return list(iter_pose_checks(cell, options))
+
+
+def iter_pose_checks(cell: Cell, options: CheckOptions | None = None) -> Iterator[PoseCheck]:
+    """:func:`check_poses` one check at a time, in the same order (nothing kept: a file
+    of many poses is reported while it is checked)."""
     # One checker per gripper state and set of allowed contacts, not per pose: poses
-    # that share them share it (a file of many poses costs one checker or a few).
+    # that share them share it; the sphere layer classifies each checker's poses in one
+    # call, and coal is asked for collisions only where it cannot prove a pose free.
+    names = list(cell.poses)
+    grasp = cell.scene.grasp
+    states = [(False, n) for n in names]
+    if grasp is not None:
+        states = [s for n in names for s in ((False, n), (True, n))[:1 + (n in grasp.poses)]]
+    keys = [_checker_key(cell, held, name) for held, name in states]
+    Q = np.array([cell.poses[name] for _, name in states], dtype=float)  # noqa: N806
+    Q = Q.reshape(len(states), cell.robot.dof)  # noqa: N806
     checkers: dict[tuple[bool, tuple[int, ...]], CollisionChecker] = {}
+    free = np.zeros(len(states), dtype=bool)
+    for key in dict.fromkeys(keys):
+        rows = [i for i, k in enumerate(keys) if k == key]
+        checkers[key] = cell.checker(held=key[0], at=states[rows[0]][1], options=options)
+        free[rows] = checkers[key].proven_free(Q[rows])
+    del Q
+    for i, ((held, name), key) in enumerate(zip(states, keys, strict=True)):
+        yield PoseCheck(name, held, checkers[key].check(cell.poses[name], free=bool(free[i])))
+
+
+def _checker_key(cell: Cell, held: bool, name: str) -> tuple[bool, tuple[int, ...]]:
+    """The gripper state and the allowed contacts (their indices) of a pose."""
     contacts = cell.scene.allowed_contacts
-
-    def checker(held: bool, name: str) -> CollisionChecker:
-        key = (held, tuple(i for i, c in enumerate(contacts) if name in c.at))
-        if key not in checkers:
-            checkers[key] = cell.checker(held=held, at=name, options=options)
-        return checkers[key]
-
-    for name, q in cell.poses.items():
-        out.append(PoseCheck(name, False, checker(False, name).check(q)))
-        if cell.scene.grasp is not None and name in cell.scene.grasp.poses:
-            out.append(PoseCheck(name, True, checker(True, name).check(q)))
-    return out
+    return held, tuple(i for i, c in enumerate(contacts) if name in c.at)

@@ -34,8 +34,9 @@ import numpy as np
 import yaml
 
 from ..errors import PoseError
-from ..files._io import atomic_write_text, brief, check_names, read_text, read_yaml
+from ..files._io import atomic_write_text, brief, check_names, parse_yaml, read_text
 from ..model.robot import Robot
+from ._plain_poses import read_plain
 from .tcp_targets import is_cartesian, parse_cartesian, solve_target
 
 __all__ = ["load_poses", "save_poses", "dump_poses", "POSE_NAME"]
@@ -64,7 +65,10 @@ def load_poses(path: str | Path, robot: Robot, *, names: Sequence[str] | None = 
             value outside the joint limits, a bad or unknown name; names file and key.
     """
     path = Path(path)
-    data = read_yaml(path, error=PoseError)
+    text = read_text(path, error=PoseError)
+    data = read_plain(text)  # the common layouts, fast; anything else: YAML
+    if data is None:
+        data = parse_yaml(text, path, error=PoseError)
     if data is None:
         data = {}
     if not isinstance(data, dict):

@@ -51,13 +51,12 @@ def _say_unfinished_save(path: Path | None) -> None:
 
 def cmd_check(args: argparse.Namespace) -> int:
     """Check every taught pose of a cell."""
-    from ..cell import check_poses, load_cell
+    from ..cell import iter_pose_checks, load_cell
     from ..collision import CheckOptions
 
     cell = load_cell(args.scene)
     _say_unfinished_save(cell.poses_path)
     options = CheckOptions(margin=args.margin)
-    rows = check_poses(cell, options)
     grasped = cell.scene.grasp.object if cell.scene.grasp else "object"
     print(f"cell {cell.scene.name}: robot {cell.robot.name}, {len(cell.poses)} poses, "
           f"margin {cell.scene.margin * 1000 if args.margin is None else args.margin * 1000:.0f}"
@@ -66,11 +65,12 @@ def cmd_check(args: argparse.Namespace) -> int:
               f"{'margin':<7} pair")
     print(header)
     print("-" * len(header))
-    unsafe = 0
-    for row in rows:
+    unsafe = low = count = 0
+    for row in iter_pose_checks(cell, options):  # printed as checked: nothing kept
+        count += 1
         rep = row.report
-        if not rep.valid:
-            unsafe += 1
+        unsafe += not rep.valid
+        low += rep.valid and not rep.margin_ok
         pair = rep.collisions[0] if rep.collisions else (
             rep.margin_violations[0][0] if rep.margin_violations else rep.closest_pair)
         margin = "ok" if rep.margin_ok else "LOW"
@@ -83,8 +83,7 @@ def cmd_check(args: argparse.Namespace) -> int:
         if len(rep.collisions) > 1:
             print(f"{'':<10} also colliding: "
                   + ", ".join(_fmt_pair(p) for p in rep.collisions[1:]))
-    low = sum(1 for r in rows if r.report.valid and not r.report.margin_ok)
-    print(f"{len(rows) - unsafe}/{len(rows)} states valid, {low} below margin")
+    print(f"{count - unsafe}/{count} states valid, {low} below margin")
     unreachable = _check_routes(cell)
     if unsafe or unreachable or (low and args.strict):
         return EXIT_UNSAFE

@@ -41,8 +41,9 @@ class PairMargins:
         """Distance [m] of every pair of names (the smallest over their shapes), in the
         order the pairs first come, from coal's ``distanceResults``."""
         best: dict[Pair, float] = {}
+        every = [r.min_distance for r in results]  # one pass over coal's list: cheapest
         for k, name in zip(self.pairs, self.names, strict=True):
-            d = float(results[k].min_distance)
+            d = float(every[k])
             if d < best.get(name, float("inf")):
                 best[name] = d
         return list(best.items())

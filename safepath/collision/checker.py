@@ -372,8 +372,9 @@ class CollisionChecker:
 
     def collisions(self, q: np.ndarray) -> list[Pair]:
         """Every colliding pair at ``q`` (limits ignored)."""
-        pin.computeCollisions(self.robot.model, self._data, self.geometry_model, self._gdata,
-                              q, False)
+        if not pin.computeCollisions(self.robot.model, self._data, self.geometry_model,
+                                     self._gdata, q, False):
+            return []  # no pair collides: no result to read back
         hits = [self._pair_names[k] for k, res in enumerate(self._gdata.collisionResults)
                 if res.isCollision()]
         return list(dict.fromkeys(hits))  # a link may have several shapes
@@ -396,25 +397,21 @@ class CollisionChecker:
 
     def clearance(self, q: np.ndarray) -> tuple[float, Pair | None]:
         """Smallest robot-environment distance at ``q`` [m], and its pair."""
-        best, pair = float("inf"), None
-        for p, d in self.distances(q):
-            if d < best:
-                best, pair = d, p
-        return best, pair
+        pair, best = min(self.distances(q), key=lambda item: item[1], default=(None, np.inf))
+        return float(best), pair
 
-    def check(self, q: Any) -> StateReport:
-        """Full report for one joint vector (see :class:`StateReport`).
+    def check(self, q: Any, *, free: bool | None = None) -> StateReport:
+        """Full report for one joint vector (see :class:`StateReport`); ``free``: what
+        :meth:`proven_free` said of ``q`` (asked here when None).
 
         Raises:
             PoseError: ``q`` has the wrong length or a non-finite value.
         """
         q = self.robot.as_joint_vector(q, check_limits=False)
         violation = self.robot.limit_violation(q)
-        if not self._layer_built:
-            self._bind_layer()
         # A state the sphere layer proves free has no colliding pair (its shapes enclose
         # the robot's and the pairs' margins): coal is asked for distances only.
-        free = self._classify is not None and self._classify(q, self._F, self._I) == FREE
+        free = bool(self.proven_free(q[None])[0]) if free is None else free
         collisions = () if free else tuple(self.collisions(q))
         closest = pin.computeDistances(self.robot.model, self._data, self.geometry_model,
                                        self._dist_gdata, q)
@@ -423,6 +420,14 @@ class CollisionChecker:
         return StateReport(q=q, within_limits=violation is None, limit_violation=violation,
                            collisions=collisions, clearance=clearance, closest_pair=pair,
                            margin_violations=short)
+
+    def proven_free(self, Q: np.ndarray) -> np.ndarray:  # noqa: N803
+        """Whether the sphere layer proves each row of ``Q`` free (all False without one)."""
+        if not self._layer_built:
+            self._bind_layer()
+        if self._layer is None:
+            return np.zeros(len(Q), dtype=bool)
+        return self._layer.classify_many(Q) == FREE
 
     # -- segments --------------------------------------------------------------------------
     def segment_states(self, q0: np.ndarray, q1: np.ndarray) -> int:

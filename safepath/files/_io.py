@@ -37,6 +37,7 @@ except ImportError:  # pragma: no cover - PyYAML built without libyaml
     from yaml import SafeLoader as _SafeBase  # type: ignore[assignment]
 
 __all__ = ["MAX_FILE_BYTES", "check_readable", "read_bytes", "read_text", "read_yaml",
+           "parse_yaml",
            "atomic_write", "atomic_write_text", "keep_backup", "check_replaceable",
            "open_no_follow", "leftover_temporaries", "get_key", "as_float", "as_vector",
            "as_str", "brief", "check_names", "check_keys"]
@@ -184,7 +185,15 @@ def read_yaml(path: str | Path, *, error: type[InputError] = ConfigError) -> Any
             :data:`MAX_FILE_BYTES`, not valid YAML, or repeats a key.
     """
     path = Path(path)
-    text = read_text(path, error=error)
+    return parse_yaml(read_text(path, error=error), path, error=error)
+
+
+def parse_yaml(text: str, path: Path, *, error: type[InputError] = ConfigError) -> Any:
+    """The YAML of ``text`` read from ``path``, as :func:`read_yaml` reads a file.
+
+    Raises:
+        InputError: Not valid YAML, or a key given twice in one mapping.
+    """
     try:
         return yaml.load(text, Loader=_StrictLoader)  # noqa: S506 - a SafeLoader subclass
     except _DuplicateKey as exc:

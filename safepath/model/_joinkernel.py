@@ -3,7 +3,9 @@
 The kernel of :func:`safepath.model.execution.interval_ratios` (see there for what is bounded
 and how): the same sums as the numpy version it replaced, one interval and joint at a
 time, without the temporary arrays. Compiled ahead of time (:mod:`safepath._aot`), else
-by numba on first use; numba is imported then, not when this module is imported.
+by numba on first use. Also the compiled knot lookup, :func:`piece_of`, which the timing's
+kernels inline too. Imported lazily (it imports numba where no build of the kernels is
+current).
 """
 
 from __future__ import annotations
@@ -15,10 +17,28 @@ from typing import Any
 
 import numpy as np
 
-__all__ = ["compiled_kernels", "peaks", "sample"]
+from .._aot import njit
+
+__all__ = ["compiled_kernels", "peaks", "piece_of", "sample"]
 
 _lock = threading.Lock()
 _compiled: dict[str, Callable[..., Any]] = {}
+
+
+@njit(cache=True, nogil=True, _nrt=False, inline="always")
+def piece_of(breaks, x):
+    """The piece of increasing ``breaks`` (at least two) that holds ``x``, by bisection:
+    the last ``lo < breaks.size - 1`` with ``breaks[lo] <= x``, 0 before the first break
+    (the end pieces extend); :func:`safepath.model._knots.interval_index` for one value,
+    compiled."""
+    lo, hi = 0, breaks.size - 1
+    while hi - lo > 1:
+        mid = (lo + hi) // 2
+        if breaks[mid] <= x:
+            lo = mid
+        else:
+            hi = mid
+    return lo
 
 
 def _peaks(t: np.ndarray, q: np.ndarray, qd: np.ndarray, qdd: np.ndarray, rate: float,
@@ -100,13 +120,7 @@ def _sample(t: np.ndarray, q: np.ndarray, qd: np.ndarray, qdd: np.ndarray,
             for d in range(dof):
                 p_out[i, d], v_out[i, d], a_out[i, d] = q[e, d], qd[e, d], qdd[e, d]
             continue
-        lo, hi = 0, n - 1  # t[lo] <= x < t[hi]
-        while hi - lo > 1:
-            mid = (lo + hi) // 2
-            if t[mid] <= x:
-                lo = mid
-            else:
-                hi = mid
+        lo = piece_of(t, x)  # t[lo] <= x < t[lo + 1]
         h, s = t[lo + 1] - t[lo], x - t[lo]
         for d in range(dof):
             v0, acc0 = qd[lo, d], qdd[lo, d]

@@ -37,6 +37,9 @@ from .._aot import njit
 BLOCK = 4
 _OFF = 1 << 20
 
+#: The kernels' steps: inlined into the kernel that calls them (the same operations).
+_inlined = njit(cache=True, nogil=True, inline="always")
+
 
 @njit(cache=True, nogil=True)
 def bucket(E, h):  # noqa: N803
@@ -46,6 +49,18 @@ def bucket(E, h):  # noqa: N803
         (sorted elements, cell spheres (nc, 4), cell starts (nc + 1), block spheres
         (nb, 4), block starts into cells (nb + 1)).
     """
+    keys = _cell_keys(E, h)
+    order = np.argsort(keys)
+    S = E[order]
+    cstart, bstart, nc, nb = _runs(keys[order])
+    cells = _cell_spheres(S, cstart, nc)
+    blocks = _block_spheres(cells, bstart, nb)
+    return S, cells, cstart[:nc + 1].copy(), blocks, bstart[:nb + 1].copy()
+
+
+@_inlined
+def _cell_keys(E, h):  # noqa: N803
+    """Each element's key: its block's key times 64 plus its cell's place in the block."""
     n = E.shape[0]
     keys = np.empty(n, dtype=np.int64)
     for i in range(n):
@@ -54,10 +69,15 @@ def bucket(E, h):  # noqa: N803
         iz = int(math.floor(E[i, 2] / h)) + _OFF
         bkey = ((ix // BLOCK) * (1 << 20) + (iy // BLOCK)) * (1 << 20) + (iz // BLOCK)
         keys[i] = bkey * 64 + ((ix % BLOCK) * 16 + (iy % BLOCK) * 4 + iz % BLOCK)
-    order = np.argsort(keys)
-    S = E[order]
-    ks = keys[order]
-    # Cells: runs of equal keys; blocks: runs of equal key // 64.
+    return keys
+
+
+@_inlined
+def _runs(ks):
+    """Cells as runs of equal sorted keys ``ks``, blocks as runs of equal ``key // 64``:
+    (cell starts, block starts into cells, cell count, block count); each start array
+    ends with the total at index count."""
+    n = ks.size
     cstart = np.empty(n + 1, dtype=np.int64)
     bstart = np.empty(n + 1, dtype=np.int64)
     nc = 0
@@ -71,6 +91,12 @@ def bucket(E, h):  # noqa: N803
             nc += 1
     cstart[nc] = n
     bstart[nb] = nc
+    return cstart, bstart, nc, nb
+
+
+@_inlined
+def _cell_spheres(S, cstart, nc):  # noqa: N803
+    """A sphere (nc, 4) about each cell's elements: centred on the box of their centres."""
     cells = np.empty((nc, 4))
     for c in range(nc):
         a, b = cstart[c], cstart[c + 1]
@@ -80,15 +106,16 @@ def bucket(E, h):  # noqa: N803
             for d in range(3):
                 lo[d] = min(lo[d], S[i, d])
                 hi[d] = max(hi[d], S[i, d])
-        r = 0.0
         for d in range(3):
             cells[c, d] = 0.5 * (lo[d] + hi[d])
-        for i in range(a, b):
-            dx = S[i, 0] - cells[c, 0]
-            dy = S[i, 1] - cells[c, 1]
-            dz = S[i, 2] - cells[c, 2]
-            r = max(r, math.sqrt(dx * dx + dy * dy + dz * dz) + S[i, 3])
-        cells[c, 3] = r * (1.0 + 1e-12) + 1e-12
+        cells[c, 3] = _radius_about(S, a, b, cells, c)
+    return cells
+
+
+@_inlined
+def _block_spheres(cells, bstart, nb):
+    """A sphere (nb, 4) about each block's cell spheres: centred on the box that holds
+    them."""
     blocks = np.empty((nb, 4))
     for k in range(nb):
         a, b = bstart[k], bstart[k + 1]
@@ -98,16 +125,23 @@ def bucket(E, h):  # noqa: N803
             for d in range(3):
                 lo[d] = min(lo[d], cells[c, d] - cells[c, 3])
                 hi[d] = max(hi[d], cells[c, d] + cells[c, 3])
-        r = 0.0
         for d in range(3):
             blocks[k, d] = 0.5 * (lo[d] + hi[d])
-        for c in range(a, b):
-            dx = cells[c, 0] - blocks[k, 0]
-            dy = cells[c, 1] - blocks[k, 1]
-            dz = cells[c, 2] - blocks[k, 2]
-            r = max(r, math.sqrt(dx * dx + dy * dy + dz * dz) + cells[c, 3])
-        blocks[k, 3] = r * (1.0 + 1e-12) + 1e-12
-    return S, cells, cstart[:nc + 1].copy(), blocks, bstart[:nb + 1].copy()
+        blocks[k, 3] = _radius_about(cells, a, b, blocks, k)
+    return blocks
+
+
+@_inlined
+def _radius_about(P, a, b, X, k):  # noqa: N803
+    """Radius [m] of the sphere centred at ``X[k, :3]`` that holds the spheres ``P[a:b]``,
+    padded by a relative and an absolute 1e-12 against rounding."""
+    r = 0.0
+    for i in range(a, b):
+        dx = P[i, 0] - X[k, 0]
+        dy = P[i, 1] - X[k, 1]
+        dz = P[i, 2] - X[k, 2]
+        r = max(r, math.sqrt(dx * dx + dy * dy + dz * dz) + P[i, 3])
+    return r * (1.0 + 1e-12) + 1e-12
 
 
 @njit(cache=True, nogil=True, inline="always")
@@ -157,44 +191,56 @@ def prefix_separation(C, R, body_start, Bd, s0, s1, S, cells, cstart, blocks, bs
     """
     best = cap
     who = -1
-    nbodies = body_start.size - 1
     for s in range(s0, s1):
-        # Seed: the most promising pair.
-        g_min = best
-        m_min = -1
-        c_min = -1
-        for m in range(nbodies):
-            bx, by, bz, br = Bd[s, m, 0], Bd[s, m, 1], Bd[s, m, 2], Bd[s, m, 3]
-            if br < 0.0:
-                continue
-            for k in range(blocks.shape[0]):
-                if _gap(bx, by, bz, br, blocks, k) >= g_min:
-                    continue
-                for c in range(bstart[k], bstart[k + 1]):
-                    g = _gap(bx, by, bz, br, cells, c)
-                    if g < g_min:
-                        g_min = g
-                        m_min = m
-                        c_min = c
-        if m_min < 0:  # nothing can beat the minimum at this state
-            out[s - s0] = best
-            arg[s - s0] = who
-            continue
-        best, who = _refine(C, R, s, body_start[m_min], body_start[m_min + 1], S, cells,
-                            cstart, c_min, best, who)
-        for m in range(nbodies):
-            bx, by, bz, br = Bd[s, m, 0], Bd[s, m, 1], Bd[s, m, 2], Bd[s, m, 3]
-            if br < 0.0:
-                continue
-            for k in range(blocks.shape[0]):
-                if _gap(bx, by, bz, br, blocks, k) >= best:
-                    continue
-                for c in range(bstart[k], bstart[k + 1]):
-                    if _gap(bx, by, bz, br, cells, c) < best:
-                        best, who = _refine(C, R, s, body_start[m], body_start[m + 1], S,
-                                            cells, cstart, c, best, who)
+        m_min, c_min = _closest_pair(Bd, s, body_start.size - 1, cells, blocks, bstart, best)
+        if m_min >= 0:  # else nothing can beat the minimum at this state
+            best, who = _refine(C, R, s, body_start[m_min], body_start[m_min + 1], S,
+                                cells, cstart, c_min, best, who)
+            best, who = _refine_state(C, R, body_start, Bd, s, S, cells, cstart, blocks,
+                                      bstart, best, who)
         out[s - s0] = best
         arg[s - s0] = who
+
+
+@_inlined
+def _closest_pair(Bd, s, nbodies, cells, blocks, bstart, bound):  # noqa: N803
+    """The (body, cell) of state ``s`` (bodies ``0..nbodies-1``) whose bounding spheres'
+    lower bound is smallest and below ``bound``; (-1, -1) if none is."""
+    g_min = bound
+    m_min = -1
+    c_min = -1
+    for m in range(nbodies):
+        bx, by, bz, br = Bd[s, m, 0], Bd[s, m, 1], Bd[s, m, 2], Bd[s, m, 3]
+        if br < 0.0:
+            continue
+        for k in range(blocks.shape[0]):
+            if _gap(bx, by, bz, br, blocks, k) >= g_min:
+                continue
+            for c in range(bstart[k], bstart[k + 1]):
+                g = _gap(bx, by, bz, br, cells, c)
+                if g < g_min:
+                    g_min = g
+                    m_min = m
+                    c_min = c
+    return m_min, c_min
+
+
+@_inlined
+def _refine_state(C, R, body_start, Bd, s, S, cells, cstart, blocks, bstart, best, who):  # noqa: N803
+    """The ordered pass at state ``s``: every (body, cell) pair whose bounding spheres
+    could beat ``best`` is refined; returns the new (best, who)."""
+    for m in range(body_start.size - 1):
+        bx, by, bz, br = Bd[s, m, 0], Bd[s, m, 1], Bd[s, m, 2], Bd[s, m, 3]
+        if br < 0.0:
+            continue
+        for k in range(blocks.shape[0]):
+            if _gap(bx, by, bz, br, blocks, k) >= best:
+                continue
+            for c in range(bstart[k], bstart[k + 1]):
+                if _gap(bx, by, bz, br, cells, c) < best:
+                    best, who = _refine(C, R, s, body_start[m], body_start[m + 1], S,
+                                        cells, cstart, c, best, who)
+    return best, who
 
 
 @njit(cache=True, nogil=True)

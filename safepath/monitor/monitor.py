@@ -54,6 +54,21 @@ DecisionKind = Literal["continue", "slow", "stop", "resume", "replan"]
 
 
 @dataclass(frozen=True)
+class _GoalStart:
+    """Where a goal sent at a decision takes effect (computed once per decision).
+
+    Attributes:
+        time: When it starts [s] (:meth:`Monitor._switch_time`).
+        tau: The path parameter there [s].
+        r: The path speed there, in [0, 1].
+    """
+
+    time: float
+    tau: float
+    r: float
+
+
+@dataclass(frozen=True)
 class ReplanRequest:
     """What a re-plan needs: where the robot rests and what blocks it.
 
@@ -375,12 +390,12 @@ class Monitor:
             counts = replace(counts, robot=self._self_filtered)
         parked = self._parked_mask(E)
         switch = self._switch_time(now + o.command_latency)
-        tau_l, r_l = self.state_at(switch)
+        goal = _GoalStart(switch, *self.state_at(switch))
         # A new profile starts from the raw profile half a width later (see
         # MonitoredPath.march); that is what the assessment marches from.
         current = self._timing_at(switch)
         raw = current.raw_state(switch + self._path.width / 2) \
-            if current is not None else (tau_l, r_l)
+            if current is not None else (goal.tau, goal.r)
         a = self._assess(E, parked, age, tau_c, raw)
         base = dict(separation_now=a.separation_now, separation_path=a.separation_path,
                     protective_distance=a.protective_distance,
@@ -390,8 +405,8 @@ class Monitor:
             self._blocked_since = None  # only an obstacle's stop counts toward a re-plan
             why = ("kill switch (latched until reset)" if self._latched
                    else "sensor silence: " + ", ".join(silent))
-            return self._stop(now, tau_l, r_l, why, base)
-        return self._choose(now, a, tau_l, r_l, base, E)
+            return self._stop(now, goal, why, base)
+        return self._choose(now, a, goal, base, E)
 
     def _without_robot(self, E: np.ndarray, captured: float, tau_c: float  # noqa: N803
                        ) -> np.ndarray:
@@ -410,8 +425,8 @@ class Monitor:
         self._self_filtered = int(on_robot.sum())
         return np.ascontiguousarray(E[~on_robot])
 
-    def _choose(self, now: float, a: Assessment, tau_l: float, r_l: float,
-                base: dict[str, Any], E: np.ndarray) -> Decision:  # noqa: N803
+    def _choose(self, now: float, a: Assessment, goal: _GoalStart, base: dict[str, Any],
+                E: np.ndarray) -> Decision:  # noqa: N803
         o = self.options
         if a.scale <= 0.0:
             why = (f"no speed scale >= {o.min_scale:g} keeps the protective distance; "
@@ -421,13 +436,13 @@ class Monitor:
                 why, self._parked_note = f"{why}; {self._parked_note}", ""
             if self._blocked_since is None:
                 self._blocked_since = now
-            decision = self._stop(now, tau_l, r_l, why, base)
+            decision = self._stop(now, goal, why, base)
             self._record_rest(a, E)
-            if self._replan_sent and self._replan_failed is not None and r_l == 0.0:
-                return self._retry(decision, now, tau_l)
+            if self._replan_sent and self._replan_failed is not None and goal.r == 0.0:
+                return self._retry(decision, now, goal.tau)
             if (self._blocked_since is not None and not self._replan_sent
-                    and now - self._blocked_since >= o.replan_after and r_l == 0.0):
-                return self._ask(decision, now, tau_l)
+                    and now - self._blocked_since >= o.replan_after and goal.r == 0.0):
+                return self._ask(decision, now, goal.tau)
             return decision
         self._blocked_since = None
         self._replan_sent, self._replan_failed = False, None  # clear: a new block re-plans
@@ -435,7 +450,7 @@ class Monitor:
         self._parked_note = ""
         if a.scale < self._scale:
             self._clear_since = None
-            return self._emit(now, tau_l, r_l, a.scale, "slow",
+            return self._emit(now, goal, a.scale, "slow",
                               f"full speed would not keep the protective distance; "
                               f"scale {a.scale:.2f}", base)
         if a.scale > self._scale:
@@ -443,7 +458,7 @@ class Monitor:
                 self._clear_since = now
             if now - self._clear_since >= o.hold_time:
                 self._clear_since = None
-                return self._emit(now, tau_l, r_l, a.scale, "resume",
+                return self._emit(now, goal, a.scale, "resume",
                                   f"clear for {o.hold_time:.2f} s; scale {a.scale:.2f}", base)
         else:
             self._clear_since = None
@@ -472,10 +487,10 @@ class Monitor:
         k = int(np.searchsorted(t_abs, time - 1e-9, side="left"))
         return time if k >= t_abs.size else float(t_abs[k])
 
-    def _emit(self, now: float, tau_l: float, r_l: float, scale: float, kind: DecisionKind,
+    def _emit(self, now: float, goal: _GoalStart, scale: float, kind: DecisionKind,
               reason: str, base: dict[str, Any]) -> Decision:
         assert self._path is not None and self.controller is not None
-        start = self._switch_time(now + self.options.command_latency)
+        start, tau_l, r_l = goal.time, goal.tau, goal.r
         before = self._timing_at(start)
         if before is not None and \
                 before.raw_state(start + self._path.width / 2)[0] >= self._path.end - 1e-9:
@@ -545,12 +560,12 @@ class Monitor:
         return Decision(now, kind, reason, scale, replacement=traj, replacement_start=start,
                         switch=switch, **base)
 
-    def _stop(self, now: float, tau_l: float, r_l: float, reason: str,
-              base: dict[str, Any]) -> Decision:
+    def _stop(self, now: float, goal: _GoalStart, reason: str, base: dict[str, Any]
+              ) -> Decision:
         self._clear_since = None
         if self._scale == 0.0:
             return Decision(now, "stop", reason, 0.0, **base)
-        return self._emit(now, tau_l, r_l, 0.0, "stop", reason, base)
+        return self._emit(now, goal, 0.0, "stop", reason, base)
 
     def _retry(self, decision: Decision, now: float, tau: float) -> Decision:
         """Still blocked after a failed re-plan: ask again once the body's box has moved

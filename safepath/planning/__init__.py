@@ -1,5 +1,6 @@
 """Planning: routes of taught poses to verified, timed trajectories."""
 
+from .batch import PlanCellsTask
 from .cartesian import cartesian_line
 from .motion import plan
 from .options import PLANNERS, PlannerOptions, PlanOptions
@@ -9,6 +10,7 @@ from .world import WorldState, initial_world
 
 __all__ = [
     "PLANNERS",
+    "PlanCellsTask",
     "PlanOptions",
     "PlannerOptions",
     "WorldState",

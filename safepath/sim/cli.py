@@ -20,15 +20,17 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--duration", type=float, default=300.0,
                    help="simulated time [s] (quality-check cell, obstacles)")
     p.add_argument("--seed", type=int, default=0, help="seed of the (first) run")
-    p.add_argument("--runs", type=int, default=1, help="runs per architecture (seeds from "
-                                                       "--seed), on a process pool")
+    p.add_argument("--runs", type=int, default=1,
+                   help="runs per architecture (seeds from --seed); more than one runs as a "
+                        "resumable sweep on a process pool into --out (default "
+                        "out/sweeps/<cell>-seed<first>-runs<N>)")
     p.add_argument("--workers", type=int, default=None, help="processes (default: CPUs)")
     p.add_argument("--arrival", type=float, default=10.0,
                    help="mean time between vials put on the belt [s]")
     p.add_argument("--bag", default=None,
                    help="write a ROS 2 bag (MCAP) of the (first architecture's) safepath "
                         "run to this folder; with --runs N, one bag per run: "
-                        "BAG/seed_<seed>")
+                        "BAG/seed_<seed> (the runs then print the table, not as a sweep)")
     p.add_argument("--belt-runs", action="store_true",
                    help="quality-check cell: also run safepath with the belt running while "
                         "the robot works (ControllerOptions(belt_runs_while_working=True))")
@@ -38,12 +40,13 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help="pouring cell: a final mass within target +- tolerance counts as "
                         "within tolerance [g] (default 3.5)")
     p.add_argument("--out", default=None,
-                   help="run the seeds as a sweep into this folder: results.jsonl (each run "
-                        "as it finishes; started again, only the missing seeds run), "
+                   help="the sweep's folder (default with --runs N > 1: "
+                        "out/sweeps/<cell>-seed<first>-runs<N>): results.jsonl (each run as "
+                        "it finishes; started again, only the missing seeds run), "
                         "report.html, report.json (docs/sweeps.md)")
     p.add_argument("--cluster", default=None,
                    help="run the sweep's seeds on Ray: 'auto' (the cluster of this machine, "
-                        "else a local Ray runtime) or ray://HOST:PORT; needs --out and "
+                        "else a local Ray runtime) or ray://HOST:PORT; needs "
                         "pip install 'safepath[cluster]'")
     p.add_argument("--obstacles", action="store_true",
                    help="run the monitor node's core with a moving body crossing the cell, "
@@ -83,7 +86,9 @@ def cmd_sim(args: argparse.Namespace) -> int:
 
 
 def _check_args(args: argparse.Namespace, cell: Any) -> bool:
-    """Whether the command is a sweep (``--out`` or ``--cluster``).
+    """Whether the command is a sweep: ``--out``, ``--cluster``, or ``--runs`` > 1 without
+    ``--bag`` (bags need each run's recording, which a sweep does not keep) or
+    ``--obstacles``.
 
     Raises:
         InputError: An existing ``--bag``, ``--runs`` < 1, an option of another twin, or
@@ -96,7 +101,8 @@ def _check_args(args: argparse.Namespace, cell: Any) -> bool:
     if args.runs < 1:
         raise InputError(f"expected >= 1, got {args.runs}", key="--runs")
     _check_pour_only(args, cell)
-    sweep = bool(args.out or args.cluster)
+    many = args.runs > 1 and not args.bag and not args.obstacles
+    sweep = bool(args.out or args.cluster or many)
     if sweep and (args.bag or args.obstacles):
         flag = "--bag" if args.bag else "--obstacles"
         raise InputError(f"{flag} is not part of a sweep (--out, --cluster): run it without",

@@ -38,6 +38,7 @@ from typing import TYPE_CHECKING, Any, Literal
 import numpy as np
 
 from ..errors import InputError
+from .monitor_loop import check_run, configured_core
 from .obstacles import MovingBody, ObstacleRun, ObstacleTwin, SensorRig
 
 if TYPE_CHECKING:
@@ -454,19 +455,11 @@ def run_live_safety(cell: str, seed: int, *, duration: float = DURATION,
         InputError: A bad seed or duration.
     """
     from ..monitor import MonitorOptions
-    from ..monitor.node import MonitorNodeCore, NodeParameters
 
-    if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or seed < 0:
-        raise InputError(f"expected an integer >= 0, got {seed!r}", key="seed")
-    if not (isinstance(duration, (int, float)) and math.isfinite(duration)
-            and duration > 2.0):
-        raise InputError(f"expected a finite number > 2 [s], got {duration!r}",
-                         key="duration")
+    check_run(seed, duration, shortest=2.0)
     rig = rig or SensorRig()
     options = MonitorOptions(sensors=rig.sensors())
-    core = MonitorNodeCore(NodeParameters(scene=str(cell), route=LIVE_SAFETY_ROUTE,
-                                          options=options))
-    core.configure()
+    core = configured_core(cell, LIVE_SAFETY_ROUTE, options)
     draw = LiveSafetyDraw.draw(int(seed), core, duration=float(duration))
     loop = LiveSafetyTwin(core, body=draw.body, rig=rig, seed=int(seed),
                           silences=draw.silences,

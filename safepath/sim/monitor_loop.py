@@ -24,18 +24,22 @@ the pose its route plans it at drops (or misses) the object.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from ..errors import InputError
 from .arm import CANCELED, ArmResult
 from .twin import GripperResult, RobotTwin, TwinOptions
 
 if TYPE_CHECKING:
+    from ..monitor import MonitorOptions
     from ..monitor.node import Gripper, MonitorNodeCore
 
-__all__ = ["MonitorTwin", "IssuedCommand", "ArmGoal", "GripperAction", "CommandedPeak"]
+__all__ = ["MonitorTwin", "IssuedCommand", "ArmGoal", "GripperAction", "CommandedPeak",
+           "check_run", "configured_core"]
 
 #: Where a gripper action must happen when the robot's controller has no goal tolerance:
 #: within this of its planned pose, per joint [rad].
@@ -310,3 +314,28 @@ class MonitorTwin:
     def times(self) -> np.ndarray:
         """Their times [s]."""
         return np.asarray(self.twin.recording.time)
+
+
+def check_run(seed: int, duration: float, *, shortest: float) -> None:
+    """Refuse a run's seed unless an integer >= 0, its duration [s] unless finite and
+    above ``shortest`` [s].
+
+    Raises:
+        InputError: Naming ``seed`` or ``duration``.
+    """
+    if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or seed < 0:
+        raise InputError(f"expected an integer >= 0, got {seed!r}", key="seed")
+    if not (isinstance(duration, (int, float)) and math.isfinite(duration)
+            and duration > shortest):
+        raise InputError(f"expected a finite number > {shortest:g} [s], got {duration!r}",
+                         key="duration")
+
+
+def configured_core(cell: str, route: str, options: MonitorOptions) -> MonitorNodeCore:
+    """A node core on route ``route`` of the scene folder ``cell``, its monitor with
+    ``options``, configured (its motions planned)."""
+    from ..monitor.node import MonitorNodeCore, NodeParameters
+
+    core = MonitorNodeCore(NodeParameters(scene=str(cell), route=route, options=options))
+    core.configure()
+    return core

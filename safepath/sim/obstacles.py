@@ -39,7 +39,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from ..errors import InputError
-from .monitor_loop import CommandedPeak, MonitorTwin
+from .monitor_loop import CommandedPeak, MonitorTwin, check_run, configured_core
 
 if TYPE_CHECKING:
     import argparse
@@ -552,18 +552,11 @@ def run_obstacles(cell: str, seed: int, *, route: str = "phase1", duration: floa
         InputError: A bad seed, duration or kill lead.
     """
     from ..monitor import MonitorOptions
-    from ..monitor.node import MonitorNodeCore, NodeParameters
 
-    if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or seed < 0:
-        raise InputError(f"expected an integer >= 0, got {seed!r}", key="seed")
-    if not (isinstance(duration, (int, float)) and math.isfinite(duration) and duration > 0):
-        raise InputError(f"expected a finite number > 0 [s], got {duration!r}",
-                         key="duration")
+    check_run(seed, duration, shortest=0.0)
     rig = rig or SensorRig()
     body = body or MovingBody.crossing(np.random.default_rng([int(seed), 5]))
-    core = MonitorNodeCore(NodeParameters(scene=str(cell), route=route,
-                                          options=MonitorOptions(sensors=rig.sensors())))
-    core.configure()
+    core = configured_core(cell, route, MonitorOptions(sensors=rig.sensors()))
     loop = ObstacleTwin(core, body=body, rig=rig, seed=int(seed))
     t0 = time.perf_counter()
     loop.run(duration, kill_at=kill_at, kill_before_end_of=kill_before_end_of,

@@ -2,7 +2,10 @@
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
+from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 import pytest
@@ -10,6 +13,9 @@ import pytest
 from safepath import Cell, PlanOptions, Trajectory, load_routes, plan_cell
 from safepath.monitor import Monitor, MonitorOptions
 from safepath.ros import split_at_gripper_events
+
+if TYPE_CHECKING:
+    from safepath.monitor.node import MonitorNodeCore
 
 #: A camera looking at the cell from the +x side, 1.2 m out [m].
 CAMERA = np.eye(4)
@@ -33,6 +39,27 @@ def phase1(cell: Cell) -> Phase1:
     motions = [m for m in split_at_gripper_events(traj) if isinstance(m, Trajectory)]
     assert len(motions) == 2
     return Phase1(traj, ((motions[0], "vial"), (motions[1], None)))
+
+
+#: Makes a configured node core: from the given parameters, else on the bundled cell's
+#: phase 1 with the default monitor options.
+NodeCoreFactory = Callable[..., "MonitorNodeCore"]
+
+
+@pytest.fixture
+def node_core(cell_dir: Path) -> NodeCoreFactory:
+    """A factory of configured node cores (their motions planned): ``node_core()`` on the
+    bundled cell's phase 1 with the default options, ``node_core(params)`` from
+    ``NodeParameters``."""
+    from safepath.monitor.node import MonitorNodeCore, NodeParameters
+
+    def make(params: NodeParameters | None = None) -> MonitorNodeCore:
+        core = MonitorNodeCore(params or NodeParameters(
+            scene=str(cell_dir), route="phase1", options=MonitorOptions()))
+        core.configure()
+        return core
+
+    return make
 
 
 def make_monitor(cell: Cell, **changes: object) -> Monitor:

@@ -13,18 +13,16 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from safepath.monitor import MonitorOptions
 from safepath.monitor.node import (
     Command,
     Gripper,
     MonitorNodeCore,
-    NodeParameters,
     Publish,
     Replan,
     SendGoal,
 )
 
-from .conftest import BoxOnRoute
+from .conftest import BoxOnRoute, NodeCoreFactory
 
 TICK = 0.02
 
@@ -33,11 +31,9 @@ def _goals(commands: list[Command]) -> list[SendGoal | Gripper]:
     return [c for c in commands if isinstance(c, (SendGoal, Gripper))]
 
 
-def _started(cell_dir: Path) -> tuple[MonitorNodeCore, SendGoal]:
+def _started(node_core: NodeCoreFactory) -> tuple[MonitorNodeCore, SendGoal]:
     """A core on phase 1 whose first motion was sent at t = 0.5 s."""
-    core = MonitorNodeCore(NodeParameters(scene=str(cell_dir), route="phase1",
-                                          options=MonitorOptions()))
-    core.configure()
+    core = node_core()
     close = core.activate(0.0)
     assert isinstance(close[0], Gripper) and close[0].event.action == "close"
     first = core.on_gripper_done(0.5)
@@ -53,10 +49,10 @@ def _tick_until(core: MonitorNodeCore, t: float, until: float) -> tuple[float, l
     return t, out
 
 
-def test_a_kill_sends_its_stop_and_holds_every_other_goal(cell_dir: Path,
+def test_a_kill_sends_its_stop_and_holds_every_other_goal(node_core: NodeCoreFactory,
                                                           monkeypatch: pytest.MonkeyPatch
                                                           ) -> None:
-    core, first = _started(cell_dir)
+    core, first = _started(node_core)
     assert first.start == 0.5  # the monitor follows the motion from then
     t, _ = _tick_until(core, 0.5, 2.0)
     kill = core.kill(t)
@@ -87,10 +83,8 @@ def test_a_kill_sends_its_stop_and_holds_every_other_goal(cell_dir: Path,
     assert core.refused[-1].why == "kill switch latched"
 
 
-def test_a_kill_holds_the_next_motion_until_reset(cell_dir: Path) -> None:
-    core = MonitorNodeCore(NodeParameters(scene=str(cell_dir), route="phase1",
-                                          options=MonitorOptions()))
-    core.configure()
+def test_a_kill_holds_the_next_motion_until_reset(node_core: NodeCoreFactory) -> None:
+    core = node_core()
     core.activate(0.0)  # the gripper closes
     assert _goals(core.kill(0.2)) == []  # no motion yet: nothing to stop
     assert _goals(core.on_gripper_done(0.5)) == []
@@ -107,8 +101,8 @@ def test_a_kill_holds_the_next_motion_until_reset(cell_dir: Path) -> None:
     assert _goals(core.on_tick(t + 2 * TICK)) == []  # once
 
 
-def test_a_kill_at_a_motions_end_holds_the_gripper(cell_dir: Path) -> None:
-    core, first = _started(cell_dir)
+def test_a_kill_at_a_motions_end_holds_the_gripper(node_core: NodeCoreFactory) -> None:
+    core, first = _started(node_core)
     end = 0.5 + first.trajectory.duration
     t, _ = _tick_until(core, 0.5, end - 0.1)
     # 5 ms before the end the motion comes to rest at its end within the command
@@ -132,10 +126,10 @@ def test_a_kill_at_a_motions_end_holds_the_gripper(cell_dir: Path) -> None:
     np.testing.assert_array_equal(sent[0].q, first.trajectory.q[-1])
 
 
-def test_a_stop_at_rest_mid_path_does_not_move_the_route_on(cell_dir: Path,
+def test_a_stop_at_rest_mid_path_does_not_move_the_route_on(node_core: NodeCoreFactory,
                                                             monkeypatch: pytest.MonkeyPatch
                                                             ) -> None:
-    core, first = _started(cell_dir)
+    core, first = _started(node_core)
     t, _ = _tick_until(core, 0.5, 2.0)
     kill = core.kill(t)
     stop = kill[0].decision  # type: ignore[union-attr]
@@ -163,8 +157,8 @@ def test_a_stop_at_rest_mid_path_does_not_move_the_route_on(cell_dir: Path,
     assert core.refused[-1].command.reason == "resume"  # type: ignore[union-attr]
 
 
-def test_an_inactive_node_sends_its_stop_and_holds_the_rest(cell_dir: Path) -> None:
-    core, _ = _started(cell_dir)
+def test_an_inactive_node_sends_its_stop_and_holds_the_rest(node_core: NodeCoreFactory) -> None:
+    core, _ = _started(node_core)
     t, _ = _tick_until(core, 0.5, 2.0)
     stop = core.deactivate(t)  # mid-path: a stop goes out though the node is inactive
     assert core.state == "inactive"

@@ -33,7 +33,7 @@ from safepath.monitor.simulation import MovingSphere, simulate
 from safepath.ros.bag import read_bag
 from safepath.ros.messages import deserialize, serialize, typestore
 
-from .conftest import CAMERA, BoxOnRoute, Phase1, make_monitor
+from .conftest import CAMERA, BoxOnRoute, NodeCoreFactory, Phase1, make_monitor
 
 ROOT = Path(__file__).resolve().parents[2]
 EXAMPLES = ROOT / "examples" / "ros2"
@@ -166,7 +166,7 @@ def test_example_parameters_validate_and_errors_name_the_key(tmp_path: Path) -> 
         load_node_parameters(bad)
 
 
-def test_node_core_lifecycle(cell_dir: Path) -> None:
+def test_node_core_lifecycle(cell_dir: Path, node_core: NodeCoreFactory) -> None:
     params = parameters_from_mapping({"scene": str(cell_dir), "route": "phase1",
                                       "scan_frame": "laser", "scan_xyz": [0.9, 0.6, 0.25],
                                       "stale_after": 0.15})
@@ -187,8 +187,7 @@ def test_node_core_lifecycle(cell_dir: Path) -> None:
     assert held[0].decision.kind == "stop" and "waits at its start" in held[0].decision.reason
     scan = scan_message(Scan(10.45, "laser", np.full(360, np.inf), -np.pi, np.pi / 180,
                              0.05, 8))
-    core = MonitorNodeCore(params)
-    core.configure()
+    core = node_core(params)
     core.activate(10.0)
     core.on_scan(_round_trip(scan, "sensor_msgs/msg/LaserScan"), 10.46)
     move = core.on_gripper_done(10.5)

@@ -8,29 +8,12 @@ from __future__ import annotations
 import numpy as np
 import pytest
 from quintic_join import quintic_peaks, quintic_state
+from random_decisions import decisions, goal_points
 
 from safepath import Cell
 from safepath.model.execution import ControllerModel
-from safepath.monitor import Scan
-from safepath.ros import joint_trajectory
 
 from .conftest import Phase1, make_monitor
-
-
-def _scan(stamp: float, near: float | None) -> Scan:
-    ranges = np.full(360, np.inf)
-    if near is not None:
-        ranges[170:190] = near
-    return Scan(stamp, "cam", ranges, -np.pi, 2 * np.pi / 360, 0.05, 8.0)
-
-
-def _points(traj, robot) -> tuple[np.ndarray, ...]:  # noqa: ANN001
-    """A goal's points as the message carries them (times rounded to ns)."""
-    msg = joint_trajectory(traj, controller=robot.controller, backend="rosbags")
-    t = np.array([p.time_from_start.sec + p.time_from_start.nanosec * 1e-9 for p in msg.points])
-    P, V, A = (np.array([list(getattr(p, f)) for p in msg.points])  # noqa: N806
-               for f in ("positions", "velocities", "accelerations"))
-    return t, P, V, A
 
 
 def test_the_monitor_follows_the_goal_it_sent_without_lag(cell: Cell, phase1: Phase1) -> None:
@@ -54,19 +37,11 @@ def test_every_switch_continues_the_running_motion_within_the_limits(
         traj, held = phase1.motions[run % 2]
         monitor = make_monitor(cell, hold_time=0.1)
         monitor.follow(traj, start=0.0, held=held)
-        running = (0.0, *_points(traj, robot))  # (stamp, t, P, V, A) of the goal in force
+        # (stamp, t, P, V, A) of the goal in force
+        running = (0.0, *goal_points(traj, robot.controller))
         kill_at = rng.uniform(0.0, traj.duration) if run % 3 == 0 else None
-        near_from = rng.uniform(0.0, traj.duration)
-        near_to = near_from + rng.uniform(0.05, 1.0)
-        distance = rng.uniform(0.3, 1.2)
-        t = 0.0
-        while t < traj.duration + 1.0:
-            t += 1 / 30 + rng.uniform(-0.005, 0.005)
-            if kill_at is not None and kill_at <= t:
-                decision, kill_at = monitor.kill(t), None
-            else:
-                decision = monitor.observe(
-                    _scan(t, distance if near_from <= t <= near_to else None), t)
+        for t, decision in decisions(monitor, traj.duration, rng, kill_at=kill_at,
+                                     jitter=0.005):
             assert "deferred" not in decision.reason
             assert "beyond the limits" not in decision.reason, decision.reason
             rep = decision.replacement
@@ -80,7 +55,7 @@ def test_every_switch_continues_the_running_motion_within_the_limits(
             # the knot period apart, or a little more where the timing stretched them).
             spacing = float(np.max(np.diff(running[1]), initial=0.004))
             assert start <= t + monitor.options.command_latency + spacing + 1e-9
-            t_new, P, V, A = _points(rep, robot)  # noqa: N806
+            t_new, P, V, A = goal_points(rep, robot.controller)  # noqa: N806
             stamp, *old = running
             p, v, a = quintic_state(old[0] + stamp, *old[1:], at=start)
             assert t_new[0] == 0.0

@@ -32,8 +32,27 @@ def test_the_command_writes_the_sweep_and_a_second_start_runs_nothing(
     assert "ran 0 of 2 seeds" in capsys.readouterr().out
 
 
-@pytest.mark.parametrize(("extra", "key"), [(["--cluster", "auto"], "--cluster"),
-                                            (["--out", "OUT", "--bag", "BAG"], "--bag"),
+def test_runs_without_out_sweep_into_the_default_folder_and_resume_there(
+        cell_dir: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch,
+        capsys: pytest.CaptureFixture[str]) -> None:
+    """``--runs N`` alone is a sweep: its folder named on the first line, the twin's table
+    among the printed lines, and the same command run again computes nothing."""
+    monkeypatch.chdir(tmp_path)
+    argv = ["sim", str(cell_dir), "--runs", "2", "--seed", "5", "--duration", "12",
+            "--arrival", "2", "--workers", "1"]
+    assert main(argv) == 0
+    text = capsys.readouterr().out
+    out = Path("out") / "sweeps" / f"{cell_dir.name}-seed5-runs2"
+    assert text.splitlines()[0].startswith(f"sweep of 2 seed(s) (5..6) into {out}")
+    assert "[safepath]" in text and "vials per minute" in text and "[sequential]" in text
+    assert "ran 2 of 2 seeds on this process" in text
+    assert {p.name for p in out.iterdir()} >= {"results.jsonl", "report.html", "report.json"}
+    assert json.loads((out / "report.json").read_text())["seeds"]["count"] == 2
+    assert main(argv) == 0
+    assert "ran 0 of 2 seeds" in capsys.readouterr().out
+
+
+@pytest.mark.parametrize(("extra", "key"), [(["--out", "OUT", "--bag", "BAG"], "--bag"),
                                             (["--out", "OUT", "--cluster", "x"], "--cluster")])
 def test_bad_sweep_options_are_one_line_and_exit_2(cell_dir: Path, tmp_path: Path,
                                                    capsys: pytest.CaptureFixture[str],

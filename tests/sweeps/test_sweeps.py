@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import json
 import os
+import signal
 from pathlib import Path
 from typing import Any
 
@@ -26,6 +27,19 @@ def _lines(folder: Path) -> list[dict[str, Any]]:
 def _by_seed(folder: Path) -> dict[int, Any]:
     """Each seed's result as the file holds it (the computation time apart)."""
     return {line["seed"]: line["result"] for line in _lines(folder)[1:]}
+
+
+def _differences(*runs: dict[int, Any]) -> str:
+    """Which seed and key differ between runs (the assertion's message)."""
+    out = []
+    for seed in sorted(runs[0]):
+        for part in ("figures", "checks"):
+            values = [r.get(seed, {}).get(part, {}) for r in runs]
+            for key in sorted(set().union(*values)):
+                seen = [v.get(key) for v in values]
+                if any(s != seen[0] for s in seen):
+                    out.append(f"seed {seed} {part}.{key}: {seen}")
+    return "\n".join(out) or "no figure or check differs"
 
 
 def _figures(report: dict[str, Any]) -> dict[str, Any]:
@@ -96,8 +110,10 @@ def test_this_process_a_local_pool_and_ray_give_the_same_results(task: Any, tmp_
     assert not ray.is_initialized()  # the runtime the sweep started is shut down
     assert here.backend == "this process" and "pool of 2" in pool.backend
     assert on_ray.backend.startswith("Ray at auto")
-    assert _by_seed(tmp_path / "here") == _by_seed(tmp_path / "pool") \
-        == _by_seed(tmp_path / "ray")
+    here_lines, pool_lines, ray_lines = (_by_seed(tmp_path / name)
+                                         for name in ("here", "pool", "ray"))
+    assert here_lines == pool_lines == ray_lines, _differences(here_lines, pool_lines,
+                                                               ray_lines)
     assert _figures(here.report) == _figures(pool.report) == _figures(on_ray.report)
     # The results are the runs' own: the arm moved (a clearance was measured) in some seed.
     assert any(d["count"] for d in here.report["distributions"]
@@ -109,7 +125,7 @@ class _DiesAtSeed2:
 
     def __call__(self, seed: int) -> TaskResult:
         if seed == 2:
-            os._exit(3)
+            os.kill(os.getpid(), signal.SIGKILL)  # as the out-of-memory killer would
         return TaskResult(figures={"seed": float(seed)})
 
     def identity(self) -> dict[str, Any]:

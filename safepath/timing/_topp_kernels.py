@@ -1,0 +1,267 @@
+"""The numba kernels of TOPP-RA (:mod:`safepath.timing._topp`): the backward and forward
+passes, the spline slopes' tridiagonal solve and the smoothed knots.
+
+Compiled ahead of time (:mod:`safepath._aot`), else by numba when this module is first
+imported; :func:`safepath.timing._topp.compiled_kernels` imports it on the first timing,
+so that importing :mod:`safepath.timing` imports no numba. The backward pass's steps are
+helpers inlined into it (``inline="always"``): the same operations, bit for bit.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from .._aot import njit
+from ..model._joinkernel import piece_of
+
+__all__ = ["backward", "forward", "knots", "tridiagonal"]
+
+_inlined = njit(cache=True, nogil=True, inline="always")
+
+
+@njit(cache=True, nogil=True)
+def backward(delta, xmax, a, b, c, lo, hi):
+    """Controllable sets ``[lo_i, hi_i]``; returns -1, or the first stage found empty.
+
+    Each row ``|a u + b x| <= c`` is an upper and a lower bound on ``u``; so is the next
+    set, ``lo_{i+1} <= x + 2 delta u <= hi_{i+1}``. Every pair of an upper and a lower bound
+    gives ``e x <= f``. For two rows (``a, c >= 0`` once a row's sign is flipped so that
+    ``a >= 0``) the pair taken either way gives ``|e| x <= f`` and ``-|e| x <= f`` with
+    ``f >= 0``: only the upper bound on ``x`` counts. Bounds are kept as fractions and
+    compared cross-multiplied; one division per stage. ``xmax`` is the velocity bound on
+    ``x``, already capped (:data:`safepath.timing._topp.X_CAP`).
+    """
+    n = xmax.size
+    an = np.empty(a.shape[1])
+    bn = np.empty(a.shape[1])
+    lo[n - 1] = 0.0
+    hi[n - 1] = 0.0
+    for i in range(n - 2, -1, -1):
+        if not (xmax[i] >= 0.0) or not _rows_with_a_up(a, b, c, i, an, bn):  # also NaN
+            return i
+        k_lo = lo[i + 1]
+        k_hi = hi[i + 1]
+        x_lo, x_hi = _stage_set(2.0 * delta[i], xmax[i], an, bn, c, i, k_lo, k_hi)
+        if k_hi < k_lo or not (x_hi >= 0.0):
+            return i
+        x_hi = _rounded_point(x_lo, x_hi)
+        if x_hi < x_lo:
+            return i
+        lo[i] = x_lo
+        hi[i] = x_hi
+    if lo[0] > 1e-12:  # the start at rest is not controllable
+        return 0
+    return -1
+
+
+@_inlined
+def _rows_with_a_up(a, b, c, i, an, bn):
+    """Stage ``i``'s rows with their sign flipped so that ``a >= 0`` into ``an``, ``bn``;
+    False when a row's ``c`` is negative (or NaN): no ``u`` meets it."""
+    for p in range(a.shape[1]):
+        if a[i, p] >= 0.0:
+            an[p] = a[i, p]
+            bn[p] = b[i, p]
+        else:
+            an[p] = -a[i, p]
+            bn[p] = -b[i, p]
+        if not (c[i, p] >= 0.0):
+            return False
+    return True
+
+
+@_inlined
+def _stage_set(d2, x_cap, an, bn, c, i, k_lo, k_hi):
+    """Bounds ``(x_lo, x_hi)`` of the controllable set of stage ``i`` (``d2`` twice its
+    interval, ``x_cap`` its velocity bound, ``[k_lo, k_hi]`` the next stage's set): every
+    pair of rows, and every row with the next set."""
+    f_hi = x_cap  # x <= f_hi / e_hi
+    e_hi = 1.0
+    x_lo = 0.0
+    for p in range(an.size):
+        f_hi, e_hi = _row_pairs(an, bn, c, i, p, f_hi, e_hi)
+        f_hi, e_hi, x_lo = _row_with_next(d2, an[p], bn[p], c[i, p], k_lo, k_hi, f_hi, e_hi,
+                                          x_lo)
+    return x_lo, f_hi / e_hi
+
+
+@_inlined
+def _row_pairs(an, bn, c, i, p, f_hi, e_hi):
+    """The tightest upper bound ``f_hi / e_hi`` on ``x`` after pairing row ``p`` with each
+    later row."""
+    ap = an[p]
+    bp = bn[p]
+    cp = c[i, p]
+    for q in range(p + 1, an.size):
+        e = abs(an[q] * bp - ap * bn[q])
+        f = ap * c[i, q] + an[q] * cp
+        if e > 0.0 and f * e_hi < f_hi * e:
+            f_hi = f
+            e_hi = e
+    return f_hi, e_hi
+
+
+@_inlined
+def _row_with_next(d2, ap, bp, cp, k_lo, k_hi, f_hi, e_hi, x_lo):
+    """Row ``(ap, bp, cp)`` with the next set ``[k_lo, k_hi]``: ``e > 0`` bounds ``x``
+    above (through ``k_lo``), ``e < 0`` above (through ``k_hi``) and below (through
+    ``k_lo``); returns the bounds ``(f_hi, e_hi, x_lo)`` tightened."""
+    e = d2 * bp - ap
+    if e > 0.0:
+        f = d2 * cp - ap * k_lo
+        if f * e_hi < f_hi * e:
+            f_hi = f
+            e_hi = e
+    elif e < 0.0:
+        f = d2 * cp + ap * k_hi
+        if f * e_hi < -f_hi * e:
+            f_hi = f
+            e_hi = -e
+        x_lo = max(x_lo, (d2 * cp - ap * k_lo) / e)
+    return f_hi, e_hi, x_lo
+
+
+@_inlined
+def _rounded_point(x_lo, x_hi):
+    """``x_hi``, or ``x_lo`` when the set is one point that rounding left inverted
+    (``x_hi`` below ``x_lo`` by at most 1e-12 relative)."""
+    if x_hi < x_lo and x_hi >= x_lo - 1e-12 * max(1.0, x_lo):
+        return x_lo
+    return x_hi
+
+
+@njit(cache=True, nogil=True)
+def forward(delta, xmax, a, b, c, lo, hi, x):
+    """Greedy forward pass: the largest controllable ``x_{i+1}`` from ``x_i``."""
+    n = xmax.size
+    m = a.shape[1]
+    x[0] = 0.0
+    for i in range(n - 1):
+        xi = x[i]
+        d2 = 2.0 * delta[i]
+        u = (hi[i + 1] - xi) / d2
+        for p in range(m):
+            ap = abs(a[i, p])
+            if ap > 0.0:
+                bp = b[i, p] if a[i, p] > 0.0 else -b[i, p]
+                u = min(u, (c[i, p] - bp * xi) / ap)
+        nxt = xi + d2 * u
+        x[i + 1] = min(max(nxt, lo[i + 1]), hi[i + 1])
+    x[n - 1] = 0.0
+
+
+@njit(cache=True, nogil=True)
+def knots(t, tp, grid, sd, u, S1, S2, tau_a, tau_b, breaks, coef, path_s, path_sd,  # noqa: N803
+          path_sdd, q, qd, qdd):
+    """The smoothed motion at the increasing times ``t`` [s]: the profile (times ``tp``,
+    ``grid``, speeds ``sd``, accelerations ``u``, integrals ``S1``, ``S2``) averaged over
+    ``tau_a`` then ``tau_b`` (:mod:`safepath.timing._smooth`), the path parameter, its
+    speed and acceleration written to ``path_s``, ``path_sd``, ``path_sdd``, and the
+    positions, velocities and accelerations along the spline (``breaks``; coefficients
+    (pieces, 4, dof) of ``y + m x + c2 x^2 + c3 x^3``) to ``q``, ``qd``, ``qdd``: one pass
+    for :func:`safepath.timing._smooth.evaluate` and the spline's jet at once."""
+    n = t.size
+    dof = q.shape[1]
+    intervals = u.size
+    length = grid[intervals]
+    t_end = tp[intervals]
+    end = t_end + tau_a + tau_b
+    # The average is a second difference of the second integral: at t, t - tau_a,
+    # t - tau_b and t - tau_a - tau_b, with these signs; each shift walks the profile's
+    # intervals forward (the times increase).
+    shift = np.array([0.0, tau_a, tau_b, tau_a + tau_b])
+    sign = np.array([1.0, -1.0, -1.0, 1.0])
+    at = np.zeros(4, dtype=np.int64)
+    acc = np.zeros(3)
+    for i in range(n):
+        ti = t[i]
+        acc[:] = 0.0
+        for r in range(4):
+            tau = ti - shift[r]
+            if tau <= 0.0:
+                continue
+            if tau >= t_end:  # at rest at the end of the path
+                d = tau - t_end
+                acc[0] += sign[r] * (S2[intervals] + S1[intervals] * d + length * d * d / 2.0)
+                acc[1] += sign[r] * (S1[intervals] + length * d)
+                acc[2] += sign[r] * length
+                continue
+            k = at[r]
+            while k + 1 < intervals and tp[k + 1] <= tau:
+                k += 1
+            at[r] = k
+            d = tau - tp[k]
+            d2 = d * d
+            d3 = d2 * d
+            sk, vk, uk, s1 = grid[k], sd[k], u[k], S1[k]
+            acc[0] += sign[r] * (S2[k] + s1 * d + sk * d2 / 2.0 + vk * d3 / 6.0
+                                 + uk * d3 * d / 24.0)
+            acc[1] += sign[r] * (s1 + sk * d + vk * d2 / 2.0 + uk * d3 / 6.0)
+            acc[2] += sign[r] * (sk + vk * d + uk * d2 / 2.0)
+        w = tau_a * tau_b
+        s = min(max(acc[0] / w, 0.0), length)
+        v = max(acc[1] / w, 0.0)
+        a = acc[2] / w
+        if ti >= end:
+            s, v, a = length, 0.0, 0.0
+        if ti <= 0.0:
+            s, v, a = 0.0, 0.0, 0.0
+        path_s[i] = s
+        path_sd[i] = v
+        path_sdd[i] = a
+        # The spline piece of s (bisection; the ends' pieces extend).
+        lo = piece_of(breaks, s)
+        x = s - breaks[lo]
+        for j in range(dof):
+            y, m, c2, c3 = coef[lo, 0, j], coef[lo, 1, j], coef[lo, 2, j], coef[lo, 3, j]
+            q[i, j] = y + x * (m + x * (c2 + x * c3))
+            d1 = m + x * (2.0 * c2 + 3.0 * x * c3)
+            d2 = 2.0 * c2 + 6.0 * x * c3
+            qd[i, j] = d1 * v
+            qdd[i, j] = d2 * v * v + d1 * a
+
+
+@njit(cache=True, nogil=True)
+def tridiagonal(dl, d, du, b):
+    """Solve the tridiagonal system (sub-diagonal ``dl``, diagonal ``d``, super-diagonal
+    ``du``, n >= 3) for the right-hand sides ``b`` (n, k) in place, as LAPACK's ``dgtsv``
+    does it (Gaussian elimination with partial pivoting), operation for operation: the
+    spline slopes' solve (:func:`safepath.timing._spline.solve_tridiagonal`). All four
+    arrays are overwritten; ``b`` holds the solution.
+
+    Returns:
+        0, or 1 + the row of a zero pivot (a singular system; ``b`` is then garbage).
+    """
+    n, k = d.size, b.shape[1]
+    for i in range(n - 1):
+        if abs(d[i]) >= abs(dl[i]):
+            if d[i] == 0.0:
+                return i + 1
+            fact = dl[i] / d[i]
+            d[i + 1] = d[i + 1] - fact * du[i]
+            for c in range(k):
+                b[i + 1, c] = b[i + 1, c] - fact * b[i, c]
+            if i < n - 2:
+                dl[i] = 0.0
+        else:  # interchange rows i and i + 1
+            fact = d[i] / dl[i]
+            d[i] = dl[i]
+            temp = d[i + 1]
+            d[i + 1] = du[i] - fact * temp
+            if i < n - 2:
+                dl[i] = du[i + 1]
+                du[i + 1] = -fact * dl[i]
+            du[i] = temp
+            for c in range(k):
+                row = b[i, c]
+                b[i, c] = b[i + 1, c]
+                b[i + 1, c] = row - fact * b[i + 1, c]
+    if d[n - 1] == 0.0:
+        return n
+    for c in range(k):
+        b[n - 1, c] = b[n - 1, c] / d[n - 1]
+        b[n - 2, c] = (b[n - 2, c] - du[n - 2] * b[n - 1, c]) / d[n - 2]
+    for i in range(n - 3, -1, -1):
+        for c in range(k):
+            b[i, c] = (b[i, c] - du[i] * b[i + 1, c] - dl[i] * b[i + 2, c]) / d[i]
+    return 0
