@@ -302,7 +302,10 @@ def test_ready_waits_for_the_warm_spare(slow: RuntimePlanner) -> None:
     future = slow.plan_cell(seed=23)
     wait_for(lambda: slow.stats().busy == 1, "the worker to take the request")
     assert future.cancel()
-    wait_for(lambda: slow.stats().pids == spares, "the spare to take over", 5.0)
+    # The spare's own pid in the slot proves it took over (no new worker loaded); how
+    # soon is benchmarks/runtime_recovery.py's figure, not a wall-time bound here (a
+    # 5 s bound failed once in a full suite on 2 busy cores).
+    wait_for(lambda: slow.stats().pids == spares, "the spare to take over")
     # The new spare loads behind it (a few seconds): ready() waits for it again.
     slow.ready().result(timeout=LONG)
     after = slow.stats()
