@@ -140,11 +140,7 @@ def load_robot(name_or_path: str | Path, *, acceleration_limits: Sequence[float]
     _override(robot, velocity_limits=velocity_limits, acceleration_limits=acceleration_limits,
               tcp_frame=tcp_frame, tool=tool)
     if jerk_limits is not None:
-        jerk = np.asarray(jerk_limits, dtype=float)
-        if jerk.shape != (robot.dof,) or not np.all(np.isfinite(jerk)) or np.any(jerk <= 0):
-            raise ConfigError(f"need {robot.dof} finite positive values, got "
-                              f"{np.asarray(jerk_limits).tolist()}", key="jerk_limits")
-        robot.jerk_limits = jerk
+        robot.jerk_limits = jerk_limits  # checked by the robot (ConfigError naming the key)
     robot.reference = str(Path(text).resolve()) if Path(text).exists() else text
     return robot
 

@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import threading
 from collections.abc import Sequence
+from dataclasses import replace
 from pathlib import Path
 from typing import Any, Literal
 
@@ -201,9 +202,8 @@ class Robot:
 
     @velocity_limits.setter
     def velocity_limits(self, value: Sequence[float] | np.ndarray) -> None:
-        m = self._motion
-        self._motion = MotionLimits(_limit_vector(value, self.dof, "velocity_limits"),
-                                    m.acceleration, m.jerk)
+        self._motion = replace(self._motion,
+                               velocity=_limit_vector(value, self.dof, "velocity_limits"))
 
     @property
     def acceleration_limits(self) -> np.ndarray:
@@ -212,9 +212,8 @@ class Robot:
 
     @acceleration_limits.setter
     def acceleration_limits(self, value: Sequence[float] | np.ndarray) -> None:
-        m = self._motion
-        self._motion = MotionLimits(m.velocity, _limit_vector(value, self.dof,
-                                                              "acceleration_limits"), m.jerk)
+        self._motion = replace(self._motion, acceleration=_limit_vector(
+            value, self.dof, "acceleration_limits"))
 
     @property
     def jerk_limits(self) -> np.ndarray:
@@ -223,9 +222,8 @@ class Robot:
 
     @jerk_limits.setter
     def jerk_limits(self, value: Sequence[float] | np.ndarray) -> None:
-        m = self._motion
-        self._motion = MotionLimits(m.velocity, m.acceleration,
-                                    _limit_vector(value, self.dof, "jerk_limits"))
+        self._motion = replace(self._motion,
+                               jerk=_limit_vector(value, self.dof, "jerk_limits"))
 
     @property
     def continuous(self) -> tuple[bool, ...]:

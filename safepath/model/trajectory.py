@@ -202,10 +202,10 @@ class Trajectory:
     # -- export ----------------------------------------------------------------------------
     def to_dict(self) -> dict[str, Any]:
         """Lossless JSON-compatible form (floats at full precision)."""
-        return {**self.to_dict_head(),
+        return {**self._head(),
                 **{name: getattr(self, name).tolist() for name in _ARRAYS}}
 
-    def to_dict_head(self) -> dict[str, Any]:
+    def _head(self) -> dict[str, Any]:
         """:meth:`to_dict` without the knot arrays (``t``, ``q``, ``qd``, ``qdd``,
         ``step_index``), which follow it in that order."""
         return {
@@ -223,7 +223,7 @@ class Trajectory:
         """JSON text (the form of :meth:`to_dict`); written atomically to ``path`` when
         given. The knot arrays are written by orjson (shortest round-trip text of every
         float, as Python's ``repr``, ~15x faster); the rest by :mod:`json`."""
-        form = self.to_dict_head()
+        form = self._head()
         head = json.dumps(form, indent=None, separators=(",", ":"))
         arrays = "".join(f',"{name}":{_json_array(getattr(self, name))}' for name in _ARRAYS)
         text = head[:-1] + arrays + "}"
