@@ -40,8 +40,11 @@ class PairMargins:
     def distances(self, results: Any) -> list[tuple[Pair, float]]:
         """Distance [m] of every pair of names (the smallest over their shapes), in the
         order the pairs first come, from coal's ``distanceResults``."""
+        return self.named([r.min_distance for r in results])  # one pass: cheapest
+
+    def named(self, every: Sequence[float]) -> list[tuple[Pair, float]]:
+        """:meth:`distances` from each pair's distance [m] (by index in coal's list)."""
         best: dict[Pair, float] = {}
-        every = [r.min_distance for r in results]  # one pass over coal's list: cheapest
         for k, name in zip(self.pairs, self.names, strict=True):
             d = float(every[k])
             if d < best.get(name, float("inf")):
@@ -53,14 +56,28 @@ class PairMargins:
         """Clearance [m], closest pair and margin shortfalls (pair, distance, margin;
         smallest distance first) from coal's ``distanceResults`` and the index of the
         closest pair that ``computeDistances`` returned."""
-        name = self._name_of.get(closest)
-        if name is None:  # no distance pair
+        if closest not in self._name_of:  # no distance pair
             return float("inf"), None, ()
         clearance = float(results[closest].min_distance)
         if clearance >= self.largest:  # farther from everything than any margin
-            return clearance, name, ()
+            return clearance, self._name_of[closest], ()
+        return self._near(self.distances(results))
+
+    def report_values(self, every: Sequence[float], closest: int
+                      ) -> tuple[float, Pair | None, tuple[tuple[Pair, float, float], ...]]:
+        """:meth:`report` from each pair's distance [m] (by index in coal's list)."""
+        if closest not in self._name_of:
+            return float("inf"), None, ()
+        clearance = float(every[closest])
+        if clearance >= self.largest:
+            return clearance, self._name_of[closest], ()
+        return self._near(self.named(every))
+
+    def _near(self, named: list[tuple[Pair, float]]
+              ) -> tuple[float, Pair | None, tuple[tuple[Pair, float, float], ...]]:
+        """Clearance, closest pair and shortfalls of a state nearer than some margin."""
         clearance, pair, short = float("inf"), None, []
-        for p, d in self.distances(results):
+        for p, d in named:
             if d < clearance:
                 clearance, pair = d, p
             if d < self.margin_of[p]:

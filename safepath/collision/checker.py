@@ -27,14 +27,15 @@ import numpy as np
 import pinocchio as pin
 
 from ..errors import ConfigError, InputError
-from ..model.robot import Robot, is_prismatic
+from ..model.robot import Robot
 from ..model.scene import AllowedContact, Scene, SceneObject
 from ._margins import PairMargins
+from ._nearest import NearestPairs, bounds_kernel, distance_data
 from ._pack import LayerSource
 from ._pairs import allowed_depths, allowed_rows, candidate_pairs
 from .layer import COLLIDES, FREE, OUTSIDE, UNSURE, SphereLayer
 from .options import CheckOptions
-from .prepare import reach_into, robot_part
+from .prepare import displacement_weights, robot_part
 from .reports import Pair, SegmentReport, StateReport
 
 __all__ = ["CollisionChecker"]
@@ -89,7 +90,8 @@ class CollisionChecker:
         made anew. Answers as ``clone(allowed=...)`` does (tested): a planner needs one
         per step's allowed contacts in each world state."""
         new = copy.copy(self)
-        for name in ("_gdata", "_broad", "_dist_gdata", "_F", "_I", "_pair_names"):
+        for name in ("_gdata", "_broad", "_dist_gdata", "_F", "_I", "_pair_names",
+                     "_distance_pairs", "_nearest"):
             new.__dict__.pop(name, None)  # coal's side and the layer: this checker's own
         new.allowed = tuple(allowed)
         new._gmodel = self._gmodel.copy()
@@ -253,12 +255,7 @@ class CollisionChecker:
     @functools.cached_property
     def _dist_gdata(self) -> pin.GeometryData:
         """coal's data with only the distance pairs active."""
-        gdata = pin.GeometryData(self.geometry_model)
-        active = np.zeros(len(self._pairs), dtype=bool)
-        active[self._dist_pairs] = True
-        for k, on in enumerate(active.tolist()):
-            gdata.activeCollisionPairs[k] = on
-        return gdata
+        return distance_data(self.geometry_model, self._dist_pairs)
 
     def _batch_pool(self) -> Any:
         """The broad phase for batches of states (one C++ call), with the same pairs and
@@ -296,23 +293,11 @@ class CollisionChecker:
         return self._weights.copy()
 
     def _displacement_weights(self) -> np.ndarray:
-        model, gmodel = self.robot.model, self._gmodel
-        nj = model.njoints
-        # Reach of each joint's own geometry about its origin: the robot's, made once per
-        # robot, then the rest (the held object; the environment is on no joint).
-        reach = reach_into(self._own_reach.copy(), [
+        """Per joint, the reach of everything downstream (:func:`displacement_weights`)."""
+        gmodel = self._gmodel
+        return displacement_weights(self.robot.model, self._own_reach, [
             gmodel.geometryObjects[i]
             for i in range(self.robot.collision_model.ngeoms, gmodel.ngeoms)])
-        # Propagate from the leaves: reach(i) >= |origin of child| + reach(child).
-        for j in range(nj - 1, 0, -1):
-            parent = model.parents[j]
-            if parent > 0:
-                offset = float(np.linalg.norm(model.jointPlacements[j].translation))
-                reach[parent] = max(reach[parent], offset + reach[j])
-        w = np.zeros(model.nv)
-        for j in range(1, nj):
-            w[model.joints[j].idx_v] = 1.0 if is_prismatic(model, j) else reach[j]
-        return w
 
     # -- the fast layer ----------------------------------------------------------------------
     @property
@@ -397,6 +382,8 @@ class CollisionChecker:
 
     def clearance(self, q: np.ndarray) -> tuple[float, Pair | None]:
         """Smallest robot-environment distance at ``q`` [m], and its pair."""
+        if self._nearest is not None:  # coal measures the pairs that may be nearest
+            return self._nearest.clearance(q)
         pair, best = min(self.distances(q), key=lambda item: item[1], default=(None, np.inf))
         return float(best), pair
 
@@ -412,14 +399,26 @@ class CollisionChecker:
         # A state the sphere layer proves free has no colliding pair (its shapes enclose
         # the robot's and the pairs' margins): coal is asked for distances only.
         free = bool(self.proven_free(q[None])[0]) if free is None else free
-        collisions = () if free else tuple(self.collisions(q))
-        closest = pin.computeDistances(self.robot.model, self._data, self.geometry_model,
-                                       self._dist_gdata, q)
-        clearance, pair, short = self._distance_pairs.report(
-            self._dist_gdata.distanceResults, closest)
+        if self._nearest is not None:  # coal measures the pairs the layer cannot rule out
+            collisions, clearance, pair, short = self._nearest.report(q, free)
+        else:
+            collisions = () if free else tuple(self.collisions(q))
+            closest = pin.computeDistances(self.robot.model, self._data, self.geometry_model,
+                                           self._dist_gdata, q)
+            clearance, pair, short = self._distance_pairs.report(
+                self._dist_gdata.distanceResults, closest)
         return StateReport(q=q, within_limits=violation is None, limit_violation=violation,
                            collisions=collisions, clearance=clearance, closest_pair=pair,
                            margin_violations=short)
+
+    @functools.cached_property
+    def _nearest(self) -> NearestPairs | None:
+        """coal's figures from the pairs the sphere layer cannot rule out (None: no layer)."""
+        if self.layer is None:
+            return None
+        return NearestPairs(self.robot.model, self.geometry_model, self._gdata,
+                            self._distance_pairs, self._pair_names,
+                            bounds_kernel(self.layer, self._security, self._distance_pairs))
 
     def proven_free(self, Q: np.ndarray) -> np.ndarray:  # noqa: N803
         """Whether the sphere layer proves each row of ``Q`` free (all False without one)."""

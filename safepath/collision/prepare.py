@@ -13,11 +13,11 @@ from typing import Any
 import numpy as np
 
 from ..files.derived import DerivedKind
-from ..model.robot import Robot
+from ..model.robot import Robot, is_prismatic
 from ._pack import _robot_part
 from .options import LayerOptions
 
-__all__ = ["robot_part", "prepare_checkers", "reach_into"]
+__all__ = ["robot_part", "prepare_checkers", "reach_into", "displacement_weights"]
 
 #: The link of each geometry, and per joint how far its own geometry reaches [m].
 _LINKS_AND_REACH: DerivedKind[tuple[tuple[str, ...], np.ndarray]] = DerivedKind(
@@ -82,3 +82,22 @@ def _bounding_radius(geometry: Any) -> float:
     aabb = geometry.aabb_local
     corner = np.maximum(np.abs(aabb.min_), np.abs(aabb.max_))
     return float(np.linalg.norm(corner))
+
+
+def displacement_weights(model: Any, own_reach: np.ndarray, extra: list[Any]) -> np.ndarray:
+    """Per joint, the largest distance [m] of any downstream point from the joint (1 for
+    a prismatic joint): the reach of each joint's own geometry about its origin
+    (``own_reach``: the robot's, from :func:`robot_part`; then ``extra``, the geometry
+    objects added to the robot's, e.g. a held object), propagated from the leaves."""
+    nj = model.njoints
+    reach = reach_into(own_reach.copy(), extra)
+    # Propagate from the leaves: reach(i) >= |origin of child| + reach(child).
+    for j in range(nj - 1, 0, -1):
+        parent = model.parents[j]
+        if parent > 0:
+            offset = float(np.linalg.norm(model.jointPlacements[j].translation))
+            reach[parent] = max(reach[parent], offset + reach[j])
+    w = np.zeros(model.nv)
+    for j in range(1, nj):
+        w[model.joints[j].idx_v] = 1.0 if is_prismatic(model, j) else reach[j]
+    return w

@@ -1,0 +1,176 @@
+"""A state's clearance and colliding pairs from coal, measuring only the pairs that matter.
+
+coal's all-pairs calls measure every pair of a state; most are far from anything. With
+the sphere layer's certified lower bound on each pair's distance
+(:func:`safepath.collision._bounds.pair_bounds`), a state's figures need coal only for:
+
+* clearance: branch and bound, nearest bound first: a pair whose bound exceeds the
+  smallest distance coal has measured so far cannot be the nearest (nor tie with it);
+* margin shortfalls: the pairs whose bound is below their margin;
+* collisions: the pairs the layer cannot prove apart (bound ``-inf``).
+
+The other pairs are given a stand-in distance (:data:`FAR`) larger than any real one,
+so the figures read from the measured ones (:class:`._margins.PairMargins`) are exactly
+coal's all-pairs figures, ties broken alike (tested against the all-pairs call).
+"""
+
+from __future__ import annotations
+
+import warnings
+from collections.abc import Callable
+from typing import Any
+
+import numpy as np
+import pinocchio as pin
+
+from ._margins import PairMargins
+from .layer import SphereLayer
+from .reports import Pair
+
+__all__ = ["FAR", "NearestPairs", "bounds_kernel", "distance_data", "history_free"]
+
+#: The stand-in distance of a pair coal did not measure [m]: beyond any real one.
+FAR = 1e300
+#: What a layer bound is lowered by before it rules a pair out [m]: coal's distances
+#: are exact to far less (its GJK tolerance is 1e-6 m on the cells' scale).
+SLACK = 1e-5
+
+
+def history_free(gdata: pin.GeometryData) -> pin.GeometryData:
+    """``gdata`` with each pair's distance a function of the state alone: coal starts
+    GJK from its own default guess, not from the pair's previous answer (pinocchio's
+    default: the same state then measures up to ~0.3 µm apart after other states)."""
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", DeprecationWarning)  # coal's old name of the switch
+        for request in gdata.distanceRequests:
+            request.enable_cached_gjk_guess = False
+    return gdata
+
+
+def distance_data(geometry: pin.GeometryModel, pairs: list[int]) -> pin.GeometryData:
+    """coal's data of ``geometry`` with only the distance ``pairs`` active (indices in
+    its pair list), history-free (:func:`history_free`): the all-pairs measure."""
+    gdata = pin.GeometryData(geometry)
+    active = np.zeros(len(geometry.collisionPairs), dtype=bool)
+    active[pairs] = True
+    for k, on in enumerate(active.tolist()):
+        gdata.activeCollisionPairs[k] = on
+    return history_free(gdata)
+
+
+def bounds_kernel(layer: SphereLayer, security: np.ndarray, margins: PairMargins
+                  ) -> Callable[[np.ndarray, np.ndarray], None]:
+    """The layer's bounds kernel (:func:`._bounds.pair_bounds`) for a checker whose pairs
+    have coal's ``security`` margins [m] and distance pairs ``margins``: called with the
+    states and the array to fill. Each bound is refined up to what proves its pair apart
+    and, for a distance pair, beyond its margin (and :data:`SLACK`)."""
+    from ._bounds import pair_bounds
+
+    floor = np.maximum(np.asarray(security, dtype=float), 0.0) + layer.options.free_eps
+    dist = np.zeros(len(floor), dtype=bool)
+    dist[margins.pairs] = True
+    for k, name in zip(margins.pairs, margins.names, strict=True):
+        floor[k] = max(floor[k], margins.margin_of[name] + SLACK)
+    F, I_ = layer.F, layer.I  # noqa: N806
+
+    def kernel(Q: np.ndarray, out: np.ndarray) -> None:  # noqa: N803
+        pair_bounds(Q, F, I_, floor, dist, out)
+
+    return kernel
+
+
+class NearestPairs:
+    """A checker's exact figures from the pairs its sphere layer cannot rule out.
+
+    Args:
+        model: The robot's kinematic model.
+        geometry: coal's geometry model with every pair of the checker.
+        gdata: coal's data of every pair (the checker's: its collision requests).
+        margins: The checker's distance pairs and their margins.
+        names: The names of every pair (by index).
+        kernel: The layer's bounds (:func:`bounds_kernel`).
+    """
+
+    def __init__(self, model: pin.Model, geometry: pin.GeometryModel, gdata: pin.GeometryData,
+                 margins: PairMargins, names: list[Pair], kernel: Any) -> None:
+        self._model, self._data = model, model.createData()
+        self._geometry, self._gdata = geometry, history_free(gdata)
+        self._margins = margins
+        self._names = names
+        self._kernel = kernel
+        self._dist = np.asarray(margins.pairs, dtype=np.int64)
+        #: Per distance pair, the margin of its names [m] (below it: always measured).
+        self._margin = np.array([margins.margin_of[n] for n in margins.names], dtype=float)
+
+    def bounds(self, Q: np.ndarray) -> np.ndarray:  # noqa: N803
+        """The layer's lower bound on every pair's distance at each row of ``Q`` (states x
+        pairs [m]; ``-inf``: none)."""
+        out = np.empty((len(Q), len(self._names)))
+        self._kernel(np.ascontiguousarray(Q, dtype=float), out)
+        return out
+
+    def _place(self, q: np.ndarray) -> None:
+        pin.updateGeometryPlacements(self._model, self._data, self._geometry, self._gdata, q)
+
+    def collisions(self, q: np.ndarray, bound: np.ndarray, *, placed: bool = False
+                   ) -> list[Pair]:
+        """Every colliding pair at ``q`` (limits ignored), in pair order, as coal's
+        all-pairs call finds them: coal checks the pairs the layer's ``bound`` (this
+        state's row of :meth:`bounds`) cannot prove apart."""
+        if not placed:
+            self._place(q)
+        hits = [self._names[k] for k in np.flatnonzero(bound == -np.inf).tolist()
+                if pin.computeCollision(self._geometry, self._gdata, k)]
+        return list(dict.fromkeys(hits))
+
+    def distances(self, q: np.ndarray, bound: np.ndarray, *, margins: bool
+                  ) -> tuple[list[float], int]:
+        """coal's distance [m] of each pair that may be nearest at ``q`` (with
+        ``margins``: or short of its margin), :data:`FAR` for the others (by pair
+        index), and the index of the nearest pair (the first of equals; -1: no
+        distance pair)."""
+        self._place(q)
+        every = [FAR] * len(self._names)
+        if not len(self._dist):
+            return every, -1
+        lower = bound[self._dist] - SLACK
+        best, first = np.inf, -1
+        if margins:
+            for j in np.flatnonzero(lower < self._margin).tolist():
+                best, first = self._measure(j, every, best, first)
+        for j in np.argsort(lower, kind="stable").tolist():
+            if lower[j] > best:
+                break
+            if every[self._dist[j]] == FAR:
+                best, first = self._measure(j, every, best, first)
+        return every, first
+
+    def _measure(self, j: int, every: list[float], best: float, first: int
+                 ) -> tuple[float, int]:
+        """Measure distance pair ``j`` into ``every``; the nearest (distance, pair index)
+        so far, the lower index first among equals."""
+        k = int(self._dist[j])
+        d = float(pin.computeDistance(self._geometry, self._gdata, k).min_distance)
+        every[k] = d
+        if d < best or (d == best and k < first):
+            return d, k
+        return best, first
+
+    def report(self, q: np.ndarray, free: bool
+               ) -> tuple[tuple[Pair, ...], float, Pair | None,
+                          tuple[tuple[Pair, float, float], ...]]:
+        """Colliding pairs (none when ``free``: the layer proved the state free),
+        clearance [m], closest pair and margin shortfalls at ``q``, as the all-pairs
+        calls give them."""
+        bound = self.bounds(q[None])[0]
+        every, first = self.distances(q, bound, margins=True)
+        collisions = () if free else tuple(self.collisions(q, bound, placed=True))
+        return (collisions, *self._margins.report_values(every, first))
+
+    def clearance(self, q: np.ndarray) -> tuple[float, Pair | None]:
+        """Smallest robot-environment distance at ``q`` [m], and its pair (as
+        :meth:`PairMargins.distances` over every pair gives it)."""
+        every, _ = self.distances(q, self.bounds(q[None])[0], margins=False)
+        pair, best = min(self._margins.named(every), key=lambda item: item[1],
+                         default=(None, np.inf))
+        return float(best), pair
