@@ -18,6 +18,7 @@ Importing this package imports neither numba nor a kernel: the kernels load on f
 
 from __future__ import annotations
 
+from ._coal_first import settle as _settle
 from .allowed_pairs import compute_allowed_pairs, wire_allowed_pairs, write_allowed_pairs
 from .checker import CollisionChecker
 from .layer import COLLIDES, FREE, OUTSIDE, UNSURE, SphereLayer
@@ -43,3 +44,5 @@ __all__ = [
     "wire_allowed_pairs",
     "write_allowed_pairs",
 ]
+
+_settle()  # coal's first query, the same in every process (see ._coal_first)
