@@ -98,6 +98,7 @@ def test_table_signatures_are_the_ones_numba_infers() -> None:
 def recorded() -> dict[str, list[tuple[Any, ...]]]:
     """Arguments of real kernel calls: the bundled cell and the Panda cell planned (the
     first KEEP calls of every kernel, copied before the call: kernels write into some)."""
+    from safepath.collision import _bounds
     from safepath.collision import _kernels as _fastkernels
     from safepath.kinematics import _ik_kernel
     from safepath.model import _joinkernel
@@ -116,7 +117,7 @@ def recorded() -> dict[str, list[tuple[Any, ...]]]:
         return call
 
     patched: list[tuple[Any, str, Any]] = []
-    for module in (_fastkernels, _verify_kernel, _ik_kernel, _monitor_kernels):
+    for module in (_fastkernels, _bounds, _verify_kernel, _ik_kernel, _monitor_kernels):
         for (mod, function), name in by_function.items():
             if mod == module.__name__:
                 patched.append((module, function, getattr(module, function)))
@@ -154,9 +155,12 @@ def _helpers(cell: safepath.Cell) -> None:
     robot = cell.robot
     rng = np.random.default_rng(7)
     Q = rng.uniform(robot.lower, robot.upper, (200, robot.dof))
-    layer = cell.checker(held=False).layer
+    checker = cell.checker(held=False)
+    layer = checker.layer
     assert layer is not None
     _fastkernels.classify_many(Q, layer.F, layer.I, np.empty(len(Q), dtype=np.int64))
+    for q in Q[:20]:
+        checker.check(q)  # the sphere layer's pair bounds
     chain = line_chain(robot)
     args = (chain.joint_f, chain.joint_i, chain.frame_f)
     for q in Q[:20]:

@@ -52,6 +52,8 @@ _FAST = "safepath.collision._kernels"
 #: The sphere layer's helper kernels and the constants they compile in (its buffers' layout).
 _FAST_PARTS = ("safepath.collision._placement", "safepath.collision._pair_tests",
                "safepath.collision._gjk", "safepath.collision._layout")
+#: The sphere layer's per-pair distance bounds (the checker's clearance and report).
+_BOUNDS = "safepath.collision._bounds"
 _VERIFY = "safepath.verify._kernel"
 _VERIFY_DISTANCE = "safepath.verify._distance"
 #: The records the release check's walk reads (no kernel: its source shapes the build).
@@ -77,6 +79,7 @@ ENTRIES: dict[str, Entry] = {
                                    (F2, I1, I1, I1, F1, I1, I1, I1, INT), "UniTuple(i8, 5)"),
     "fast_certify_segment": Entry(_FAST, "certify_segment", (F1, F1, F1, I1, BOOL, BOOL, I1),
                                   "UniTuple(i8, 5)"),
+    "fast_pair_bounds": Entry(_BOUNDS, "pair_bounds", (F2, F1, I1, F1, B1, F2), "void"),
     # The release check's bounds (safepath.verify._bounds).
     "verify_certify": Entry(
         _VERIFY, "certify",
@@ -134,8 +137,8 @@ ENTRIES: dict[str, Entry] = {
 #: while all of them are unchanged. Every kernel compiled through :func:`safepath._aot.njit`
 #: lives in one of them (tests/test_aot.py checks it); the cup's (a simulated scale, not
 #: on a planning path) uses numba directly.
-MODULES: tuple[str, ...] = (_FAST, *_FAST_PARTS, *_FK, _VERIFY, _VERIFY_DISTANCE,
+MODULES: tuple[str, ...] = (_FAST, *_FAST_PARTS, _BOUNDS, *_FK, _VERIFY, _VERIFY_DISTANCE,
                             _VERIFY_RECORDS, _IK, _TOPP, _JOIN, _MONITOR)
 #: Those a plan calls (all but the monitor's).
-PLANNING_MODULES: tuple[str, ...] = (_FAST, *_FAST_PARTS, *_FK, _VERIFY, _VERIFY_DISTANCE,
-                                     _VERIFY_RECORDS, _IK, _TOPP, _JOIN)
+PLANNING_MODULES: tuple[str, ...] = (_FAST, *_FAST_PARTS, _BOUNDS, *_FK, _VERIFY,
+                                     _VERIFY_DISTANCE, _VERIFY_RECORDS, _IK, _TOPP, _JOIN)

@@ -1,16 +1,15 @@
-"""A state's clearance, closest pair and margin shortfalls from coal's distances, reading
-only what the answer needs.
+"""A state's clearance, closest pair and margin shortfalls from its pairs' distances.
 
-coal computes the distance of every robot-environment pair in one call, which also names
-the closest pair; reading each pair's result back into Python costs more than computing
-it. So one result is read when the state is farther from everything than the largest
-margin (no pair can fall short of its margin), and every result only near contact.
+The distances come per pair of coal's list (:mod:`safepath.collision._nearest` measures
+those that matter); the names of a pair are a robot link (or the held object) and a
+scene object, whose distance is the smallest over their shapes' pairs. The closest pair
+alone answers a state farther from everything than the largest margin (no pair can fall
+short of its margin); every pair of names is read only near contact.
 """
 
 from __future__ import annotations
 
 from collections.abc import Sequence
-from typing import Any
 
 from .reports import Pair
 
@@ -37,13 +36,9 @@ class PairMargins:
         self.largest = max(self.margin_of.values(), default=0.0)
         self._name_of = dict(zip(self.pairs, self.names, strict=True))
 
-    def distances(self, results: Any) -> list[tuple[Pair, float]]:
-        """Distance [m] of every pair of names (the smallest over their shapes), in the
-        order the pairs first come, from coal's ``distanceResults``."""
-        return self.named([r.min_distance for r in results])  # one pass: cheapest
-
     def named(self, every: Sequence[float]) -> list[tuple[Pair, float]]:
-        """:meth:`distances` from each pair's distance [m] (by index in coal's list)."""
+        """Distance [m] of every pair of names (the smallest over their shapes), in the
+        order the pairs first come, from each pair's distance (by index in coal's list)."""
         best: dict[Pair, float] = {}
         for k, name in zip(self.pairs, self.names, strict=True):
             d = float(every[k])
@@ -51,21 +46,11 @@ class PairMargins:
                 best[name] = d
         return list(best.items())
 
-    def report(self, results: Any, closest: int
+    def report(self, every: Sequence[float], closest: int
                ) -> tuple[float, Pair | None, tuple[tuple[Pair, float, float], ...]]:
         """Clearance [m], closest pair and margin shortfalls (pair, distance, margin;
-        smallest distance first) from coal's ``distanceResults`` and the index of the
-        closest pair that ``computeDistances`` returned."""
-        if closest not in self._name_of:  # no distance pair
-            return float("inf"), None, ()
-        clearance = float(results[closest].min_distance)
-        if clearance >= self.largest:  # farther from everything than any margin
-            return clearance, self._name_of[closest], ()
-        return self._near(self.distances(results))
-
-    def report_values(self, every: Sequence[float], closest: int
-                      ) -> tuple[float, Pair | None, tuple[tuple[Pair, float, float], ...]]:
-        """:meth:`report` from each pair's distance [m] (by index in coal's list)."""
+        smallest distance first) from each pair's distance [m] (by index in coal's list)
+        and the index of the closest pair (the first of equals)."""
         if closest not in self._name_of:
             return float("inf"), None, ()
         clearance = float(every[closest])

@@ -16,10 +16,10 @@ coal's all-pairs figures, ties broken alike (tested against the all-pairs call).
 
 from __future__ import annotations
 
-import warnings
 from collections.abc import Callable
 from typing import Any
 
+import coal
 import numpy as np
 import pinocchio as pin
 
@@ -27,7 +27,7 @@ from ._margins import PairMargins
 from .layer import SphereLayer
 from .reports import Pair
 
-__all__ = ["FAR", "NearestPairs", "bounds_kernel", "distance_data", "history_free"]
+__all__ = ["FAR", "NearestPairs", "bounds_kernel"]
 
 #: The stand-in distance of a pair coal did not measure [m]: beyond any real one.
 FAR = 1e300
@@ -36,36 +36,17 @@ FAR = 1e300
 SLACK = 1e-5
 
 
-def history_free(gdata: pin.GeometryData) -> pin.GeometryData:
-    """``gdata`` with each pair's distance a function of the state alone: coal starts
-    GJK from its own default guess, not from the pair's previous answer (pinocchio's
-    default: the same state then measures up to ~0.3 µm apart after other states)."""
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore", DeprecationWarning)  # coal's old name of the switch
-        for request in gdata.distanceRequests:
-            request.enable_cached_gjk_guess = False
-    return gdata
-
-
-def distance_data(geometry: pin.GeometryModel, pairs: list[int]) -> pin.GeometryData:
-    """coal's data of ``geometry`` with only the distance ``pairs`` active (indices in
-    its pair list), history-free (:func:`history_free`): the all-pairs measure."""
-    gdata = pin.GeometryData(geometry)
-    active = np.zeros(len(geometry.collisionPairs), dtype=bool)
-    active[pairs] = True
-    for k, on in enumerate(active.tolist()):
-        gdata.activeCollisionPairs[k] = on
-    return history_free(gdata)
-
-
-def bounds_kernel(layer: SphereLayer, security: np.ndarray, margins: PairMargins
+def bounds_kernel(layer: SphereLayer | None, security: np.ndarray, margins: PairMargins
                   ) -> Callable[[np.ndarray, np.ndarray], None]:
     """The layer's bounds kernel (:func:`._bounds.pair_bounds`) for a checker whose pairs
     have coal's ``security`` margins [m] and distance pairs ``margins``: called with the
     states and the array to fill. Each bound is refined up to what proves its pair apart
-    and, for a distance pair, beyond its margin (and :data:`SLACK`)."""
-    from ._bounds import pair_bounds
+    and, for a distance pair, beyond its margin (and :data:`SLACK`). Without a layer,
+    every bound is ``-inf``: coal measures every pair."""
+    from . import _bounds
 
+    if layer is None:
+        return lambda Q, out: out.fill(-np.inf)
     floor = np.maximum(np.asarray(security, dtype=float), 0.0) + layer.options.free_eps
     dist = np.zeros(len(floor), dtype=bool)
     dist[margins.pairs] = True
@@ -74,7 +55,7 @@ def bounds_kernel(layer: SphereLayer, security: np.ndarray, margins: PairMargins
     F, I_ = layer.F, layer.I  # noqa: N806
 
     def kernel(Q: np.ndarray, out: np.ndarray) -> None:  # noqa: N803
-        pair_bounds(Q, F, I_, floor, dist, out)
+        _bounds.pair_bounds(Q, F, I_, floor, dist, out)
 
     return kernel
 
@@ -94,10 +75,13 @@ class NearestPairs:
     def __init__(self, model: pin.Model, geometry: pin.GeometryModel, gdata: pin.GeometryData,
                  margins: PairMargins, names: list[Pair], kernel: Any) -> None:
         self._model, self._data = model, model.createData()
-        self._geometry, self._gdata = geometry, history_free(gdata)
+        self._geometry, self._gdata = geometry, gdata
         self._margins = margins
         self._names = names
         self._kernel = kernel
+        self._shapes = [g.geometry for g in geometry.geometryObjects]
+        self._ends = [(p.first, p.second) for p in geometry.collisionPairs]
+        self._request = coal.DistanceRequest()
         self._dist = np.asarray(margins.pairs, dtype=np.int64)
         #: Per distance pair, the margin of its names [m] (below it: always measured).
         self._margin = np.array([margins.margin_of[n] for n in margins.names], dtype=float)
@@ -150,11 +134,20 @@ class NearestPairs:
         """Measure distance pair ``j`` into ``every``; the nearest (distance, pair index)
         so far, the lower index first among equals."""
         k = int(self._dist[j])
-        d = float(pin.computeDistance(self._geometry, self._gdata, k).min_distance)
-        every[k] = d
+        every[k] = d = self._distance(k)
         if d < best or (d == best and k < first):
             return d, k
         return best, first
+
+    def _distance(self, k: int) -> float:
+        """coal's distance [m] of pair ``k`` as placed, from a fresh solver: pinocchio's
+        per-pair solvers keep state between calls (a penetration depth measured again
+        after other states differs in its last bits), this is the state's alone."""
+        a, b = self._ends[k]
+        oMg = self._gdata.oMg  # noqa: N806
+        return float(coal.distance(self._shapes[a], coal.Transform3s(oMg[a]), self._shapes[b],
+                                   coal.Transform3s(oMg[b]), self._request,
+                                   coal.DistanceResult()))
 
     def report(self, q: np.ndarray, free: bool
                ) -> tuple[tuple[Pair, ...], float, Pair | None,
@@ -165,7 +158,12 @@ class NearestPairs:
         bound = self.bounds(q[None])[0]
         every, first = self.distances(q, bound, margins=True)
         collisions = () if free else tuple(self.collisions(q, bound, placed=True))
-        return (collisions, *self._margins.report_values(every, first))
+        return (collisions, *self._margins.report(every, first))
+
+    def every_distance(self, q: np.ndarray) -> list[tuple[Pair, float]]:
+        """Distance [m] of every pair of names at ``q`` (see :meth:`PairMargins.named`)."""
+        every, _ = self.distances(q, np.full(len(self._names), -np.inf), margins=False)
+        return self._margins.named(every)
 
     def clearance(self, q: np.ndarray) -> tuple[float, Pair | None]:
         """Smallest robot-environment distance at ``q`` [m], and its pair (as

@@ -30,7 +30,7 @@ from ..errors import ConfigError, InputError
 from ..model.robot import Robot
 from ..model.scene import AllowedContact, Scene, SceneObject
 from ._margins import PairMargins
-from ._nearest import NearestPairs, bounds_kernel, distance_data
+from ._nearest import NearestPairs, bounds_kernel
 from ._pack import LayerSource
 from ._pairs import allowed_depths, allowed_rows, candidate_pairs
 from .layer import COLLIDES, FREE, OUTSIDE, UNSURE, SphereLayer
@@ -90,7 +90,7 @@ class CollisionChecker:
         made anew. Answers as ``clone(allowed=...)`` does (tested): a planner needs one
         per step's allowed contacts in each world state."""
         new = copy.copy(self)
-        for name in ("_gdata", "_broad", "_dist_gdata", "_F", "_I", "_pair_names",
+        for name in ("_gdata", "_broad", "_F", "_I", "_pair_names",
                      "_distance_pairs", "_nearest"):
             new.__dict__.pop(name, None)  # coal's side and the layer: this checker's own
         new.allowed = tuple(allowed)
@@ -252,11 +252,6 @@ class CollisionChecker:
         return pin.BroadPhaseManager_DynamicAABBTreeCollisionManager(
             self.robot.model, self.geometry_model, self._gdata)
 
-    @functools.cached_property
-    def _dist_gdata(self) -> pin.GeometryData:
-        """coal's data with only the distance pairs active."""
-        return distance_data(self.geometry_model, self._dist_pairs)
-
     def _batch_pool(self) -> Any:
         """The broad phase for batches of states (one C++ call), with the same pairs and
         per-pair margins."""
@@ -367,9 +362,7 @@ class CollisionChecker:
     def distances(self, q: np.ndarray) -> list[tuple[Pair, float]]:
         """Distance [m] of every robot-environment pair of names at ``q`` (the smallest
         over the shapes of a link; allowed contacts excluded)."""
-        pin.computeDistances(self.robot.model, self._data, self.geometry_model,
-                             self._dist_gdata, q)
-        return self._distance_pairs.distances(self._dist_gdata.distanceResults)
+        return self._nearest.every_distance(q)
 
     def margins(self) -> dict[Pair, float]:
         """The margin [m] each robot-environment pair of names keeps (allowed contacts
@@ -382,10 +375,7 @@ class CollisionChecker:
 
     def clearance(self, q: np.ndarray) -> tuple[float, Pair | None]:
         """Smallest robot-environment distance at ``q`` [m], and its pair."""
-        if self._nearest is not None:  # coal measures the pairs that may be nearest
-            return self._nearest.clearance(q)
-        pair, best = min(self.distances(q), key=lambda item: item[1], default=(None, np.inf))
-        return float(best), pair
+        return self._nearest.clearance(q)  # coal measures the pairs that may be nearest
 
     def check(self, q: Any, *, free: bool | None = None) -> StateReport:
         """Full report for one joint vector (see :class:`StateReport`); ``free``: what
@@ -399,23 +389,16 @@ class CollisionChecker:
         # A state the sphere layer proves free has no colliding pair (its shapes enclose
         # the robot's and the pairs' margins): coal is asked for distances only.
         free = bool(self.proven_free(q[None])[0]) if free is None else free
-        if self._nearest is not None:  # coal measures the pairs the layer cannot rule out
-            collisions, clearance, pair, short = self._nearest.report(q, free)
-        else:
-            collisions = () if free else tuple(self.collisions(q))
-            closest = pin.computeDistances(self.robot.model, self._data, self.geometry_model,
-                                           self._dist_gdata, q)
-            clearance, pair, short = self._distance_pairs.report(
-                self._dist_gdata.distanceResults, closest)
+        # coal measures the pairs the layer cannot rule out.
+        collisions, clearance, pair, short = self._nearest.report(q, free)
         return StateReport(q=q, within_limits=violation is None, limit_violation=violation,
                            collisions=collisions, clearance=clearance, closest_pair=pair,
                            margin_violations=short)
 
     @functools.cached_property
-    def _nearest(self) -> NearestPairs | None:
-        """coal's figures from the pairs the sphere layer cannot rule out (None: no layer)."""
-        if self.layer is None:
-            return None
+    def _nearest(self) -> NearestPairs:
+        """coal's figures from the pairs the sphere layer cannot rule out (every pair
+        without a layer)."""
         return NearestPairs(self.robot.model, self.geometry_model, self._gdata,
                             self._distance_pairs, self._pair_names,
                             bounds_kernel(self.layer, self._security, self._distance_pairs))
