@@ -11,6 +11,8 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 
+import numpy as np
+
 from .reports import Pair
 
 __all__ = ["PairMargins"]
@@ -35,16 +37,21 @@ class PairMargins:
             self.margin_of[name] = max(self.margin_of.get(name, 0.0), float(margins[k]))
         self.largest = max(self.margin_of.values(), default=0.0)
         self._name_of = dict(zip(self.pairs, self.names, strict=True))
+        # The pairs grouped by names, the names in the order their pairs first come.
+        self._order = list(self.margin_of)
+        group = [self._order.index(name) for name in self.names]
+        by_name = sorted(range(len(self.pairs)), key=group.__getitem__)  # stable
+        self._rows = np.asarray(self.pairs, dtype=np.int64)[by_name]
+        self._starts = np.flatnonzero(np.diff(np.array(group)[by_name], prepend=-1))
 
     def named(self, every: Sequence[float]) -> list[tuple[Pair, float]]:
         """Distance [m] of every pair of names (the smallest over their shapes), in the
         order the pairs first come, from each pair's distance (by index in coal's list)."""
-        best: dict[Pair, float] = {}
-        for k, name in zip(self.pairs, self.names, strict=True):
-            d = float(every[k])
-            if d < best.get(name, float("inf")):
-                best[name] = d
-        return list(best.items())
+        if not self.pairs:
+            return []
+        smallest = np.minimum.reduceat(np.asarray(every, dtype=float)[self._rows],
+                                       self._starts)
+        return list(zip(self._order, smallest.tolist(), strict=True))
 
     def report(self, every: Sequence[float], closest: int
                ) -> tuple[float, Pair | None, tuple[tuple[Pair, float, float], ...]]:
