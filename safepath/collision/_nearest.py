@@ -11,7 +11,9 @@ the sphere layer's certified lower bound on each pair's distance
 
 The other pairs are given a stand-in distance (:data:`FAR`) larger than any real one,
 so the figures read from the measured ones (:class:`._margins.PairMargins`) are exactly
-coal's all-pairs figures, ties broken alike (tested against the all-pairs call).
+the all-pairs figures, ties broken alike (the first pair of equals; tested against a
+checker without a layer, which measures every pair). Each pair is measured by a fresh
+coal solver: a state's figures do not depend on the states measured before it.
 """
 
 from __future__ import annotations
@@ -31,8 +33,8 @@ __all__ = ["FAR", "NearestPairs", "bounds_kernel"]
 
 #: The stand-in distance of a pair coal did not measure [m]: beyond any real one.
 FAR = 1e300
-#: What a layer bound is lowered by before it rules a pair out [m]: coal's distances
-#: are exact to far less (its GJK tolerance is 1e-6 m on the cells' scale).
+#: What a layer bound is lowered by before it rules a pair out [m]: the bound holds for the
+#: true distance, coal's figure may lie below it by up to its GJK tolerance (1e-6).
 SLACK = 1e-5
 
 
