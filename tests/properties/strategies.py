@@ -8,12 +8,29 @@ deadline (a slow machine slows a test down; it never fails it).
 from __future__ import annotations
 
 from collections.abc import Sequence
+from functools import cache
+from pathlib import Path
 
 import numpy as np
 from hypothesis import settings
 from hypothesis import strategies as st
 
-from safepath import Robot
+from safepath import Cell, Robot, load_cell
+
+REPO_ROOT = Path(__file__).resolve().parents[2]
+#: Each bundled robot in a cell of its own.
+CELLS = {
+    "ned3pro": REPO_ROOT / "scenes" / "quality_check_cell",
+    "gen3_lite": REPO_ROOT / "scenes" / "pouring_cell",
+    "panda": REPO_ROOT / "examples" / "cells" / "panda_cell",
+    "ur5": REPO_ROOT / "examples" / "cells" / "ur5_cell",
+}
+
+
+@cache
+def bundled_cell(robot: str) -> Cell:
+    """The cell of a bundled robot (a key of :data:`CELLS`), loaded once."""
+    return load_cell(CELLS[robot])
 
 
 def bounded(max_examples: int) -> settings:

@@ -13,33 +13,19 @@ from __future__ import annotations
 
 import dataclasses
 from functools import cache
-from pathlib import Path
 
 import numpy as np
 import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
-from safepath import Cell, CheckOptions, CollisionChecker, load_cell
+from safepath import Cell, CheckOptions, CollisionChecker
 from safepath.collision import _nearest
 
-from .strategies import bounded, in_limits, near
+from .strategies import CELLS, bounded, bundled_cell, in_limits, near
 
-REPO_ROOT = Path(__file__).resolve().parents[2]
-#: Each bundled robot in a cell of its own.
-CELLS = {
-    "ned3pro": REPO_ROOT / "scenes" / "quality_check_cell",
-    "gen3_lite": REPO_ROOT / "scenes" / "pouring_cell",
-    "panda": REPO_ROOT / "examples" / "cells" / "panda_cell",
-    "ur5": REPO_ROOT / "examples" / "cells" / "ur5_cell",
-}
 #: States checked around each drawn one, and their spread per joint [rad].
 NEIGHBOURS, NEIGHBOURHOOD = 15, 0.03
-
-
-@cache
-def _cell(robot: str) -> Cell:
-    return load_cell(CELLS[robot])
 
 
 def _contact_poses(cell: Cell) -> list[str | None]:
@@ -52,7 +38,7 @@ def _contact_poses(cell: Cell) -> list[str | None]:
 def _checkers(robot: str, held: bool, at: str | None, margin: bool
               ) -> tuple[CollisionChecker, CollisionChecker]:
     """The cell's checker with its sphere layer, and the same checker on coal alone."""
-    cell = _cell(robot)
+    cell = bundled_cell(robot)
     fast = cell.checker(held=held, at=at, options=CheckOptions(enforce_margin=margin))
     exact = cell.checker(held=held, at=at,
                          options=dataclasses.replace(fast.options, fast=False))
@@ -81,7 +67,7 @@ def _around(cell: Cell, q: np.ndarray, seed: int) -> np.ndarray:
 
 @pytest.mark.parametrize("robot", list(CELLS))
 def test_branch_and_bound_figures_are_the_all_pairs_figures(robot: str) -> None:
-    cell = _cell(robot)
+    cell = bundled_cell(robot)
     held = st.booleans() if cell.scene.grasp is not None else st.just(False)
     states = st.one_of(in_limits(cell.robot),
                        near(cell.robot, list(cell.poses.values()), 0.15))
@@ -106,7 +92,7 @@ def test_an_inflated_bound_is_caught(monkeypatch: pytest.MonkeyPatch) -> None:
     def inflated(self: _nearest.NearestPairs, Q: np.ndarray) -> np.ndarray:  # noqa: N803
         return real(self, Q) + 0.005
 
-    cell = _cell("ned3pro")
+    cell = bundled_cell("ned3pro")
     fast, exact = (cell.checker(held=False), cell.checker(options=CheckOptions(fast=False)))
     rng = np.random.default_rng(3)
     Q = np.vstack([_around(cell, p, int(rng.integers(1 << 30)))  # noqa: N806

@@ -12,39 +12,24 @@ from __future__ import annotations
 
 import dataclasses
 from functools import cache
-from pathlib import Path
 
 import numpy as np
 import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
-from safepath import Cell, CheckOptions, CollisionChecker, load_cell
+from safepath import Cell, CheckOptions, CollisionChecker
 from safepath.collision import COLLIDES, FREE
 
-from .strategies import bounded, in_limits, near
-
-REPO_ROOT = Path(__file__).resolve().parents[2]
-#: Each bundled robot in a cell of its own.
-CELLS = {
-    "ned3pro": REPO_ROOT / "scenes" / "quality_check_cell",
-    "gen3_lite": REPO_ROOT / "scenes" / "pouring_cell",
-    "panda": REPO_ROOT / "examples" / "cells" / "panda_cell",
-    "ur5": REPO_ROOT / "examples" / "cells" / "ur5_cell",
-}
-
-
-@cache
-def _cell(robot: str) -> Cell:
-    return load_cell(CELLS[robot])
+from .strategies import CELLS, bounded, bundled_cell, in_limits, near
 
 
 @cache
 def _checkers(robot: str, held: bool, margin: bool
               ) -> tuple[CollisionChecker, CollisionChecker]:
     """The cell's checker with its sphere layer, and the same checker on coal alone."""
-    fast = _cell(robot).checker(held=held, options=CheckOptions(enforce_margin=margin))
-    exact = _cell(robot).checker(held=held, options=dataclasses.replace(fast.options,
+    fast = bundled_cell(robot).checker(held=held, options=CheckOptions(enforce_margin=margin))
+    exact = bundled_cell(robot).checker(held=held, options=dataclasses.replace(fast.options,
                                                                         fast=False))
     return fast, exact
 
@@ -59,7 +44,7 @@ def _states(cell: Cell) -> st.SearchStrategy[np.ndarray]:
 
 @pytest.mark.parametrize("robot", list(CELLS))
 def test_the_sphere_layer_answers_as_coal(robot: str) -> None:
-    cell = _cell(robot)
+    cell = bundled_cell(robot)
     held = st.booleans() if cell.scene.grasp is not None else st.just(False)
 
     @bounded(300)
