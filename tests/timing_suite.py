@@ -25,7 +25,7 @@ import numpy as np
 from safepath.description.robot_folder import load_robot
 from safepath.model.execution import interval_ratios
 from safepath.model.robot import Robot
-from safepath.sweeps import TaskResult
+from safepath.sweeps import ReplayBySeed, TaskResult
 from safepath.timing import TimedPiece, TimingOptions, spline_path, time_path
 
 ROBOTS_DIR = Path(__file__).resolve().parents[1] / "robots"
@@ -123,7 +123,7 @@ def path_rng(seed: int, name: str) -> np.random.Generator:
 
 
 @dataclass(frozen=True)
-class TimingSuiteTask:
+class TimingSuiteTask(ReplayBySeed):
     """The suite as a sweep task (:mod:`safepath.sweeps`): for each seed, one random
     via-point path per robot, timed and checked as executed.
 
@@ -164,6 +164,3 @@ class TimingSuiteTask:
                     f"{name}.duration": f"motion time [s] ({name})"}
         return out
 
-    def replay(self, seed: int) -> str:
-        """The command that runs ``seed`` alone."""
-        return self.replay_command.format(seed=seed)

@@ -24,15 +24,19 @@ __all__ = ["MotionLimits"]
 _FIELDS = ("velocity", "acceleration", "jerk")
 
 
-def _vector(values: Any, key: str, path: str | Path | None) -> np.ndarray:
+def limit_vector(values: Any, key: str, path: str | Path | None = None, *,
+                 dof: int | None = None) -> np.ndarray:
+    """``values`` as read-only, finite, positive limits, one per joint (``dof`` of them
+    when given), or a ConfigError naming ``key`` (and ``path``)."""
+    want = "finite positive values, one per joint" if dof is None \
+        else f"{dof} finite positive values"
     try:
         arr = np.array(values, dtype=float)
     except (TypeError, ValueError):
-        raise ConfigError(f"expected a list of numbers, got {values!r}", path=path,
-                          key=key) from None
-    if arr.ndim != 1 or arr.size == 0 or not np.all(np.isfinite(arr)) or np.any(arr <= 0):
-        raise ConfigError(f"expected finite positive values, one per joint, got "
-                          f"{arr.tolist()}", path=path, key=key)
+        raise ConfigError(f"need {want}, got {values!r}", path=path, key=key) from None
+    if arr.ndim != 1 or arr.size == 0 or (dof is not None and arr.size != dof) \
+            or not np.all(np.isfinite(arr)) or np.any(arr <= 0):
+        raise ConfigError(f"need {want}, got {arr.tolist()}", path=path, key=key)
     arr.setflags(write=False)
     return arr
 
@@ -57,7 +61,7 @@ class MotionLimits:
 
     def __post_init__(self) -> None:
         for name in _FIELDS:
-            object.__setattr__(self, name, _vector(getattr(self, name), name, None))
+            object.__setattr__(self, name, limit_vector(getattr(self, name), name))
         if not self.velocity.size == self.acceleration.size == self.jerk.size:
             raise ConfigError(f"expected as many values in each, got {self.velocity.size}, "
                               f"{self.acceleration.size} and {self.jerk.size}", key="jerk")
@@ -101,7 +105,7 @@ class MotionLimits:
             raise ConfigError(f"expected the keys {list(_FIELDS)}, got "
                               f"{sorted(data) if isinstance(data, Mapping) else data!r}",
                               path=path, key=key)
-        arrays = [_vector(data[n], f"{key}.{n}", path) for n in _FIELDS]
+        arrays = [limit_vector(data[n], f"{key}.{n}", path) for n in _FIELDS]
         try:
             return cls(*arrays)
         except ConfigError as exc:

@@ -20,7 +20,7 @@ from ..files._io import brief
 from ..files.derived import Derived, DerivedValues
 from ._locked import LockedJoint
 from .controller_spec import ControllerSpec
-from .limits import MotionLimits
+from .limits import MotionLimits, limit_vector
 from .tool import ToolSpec, check_tool
 
 __all__ = ["Robot", "ToolSpec", "adjacent_link_pairs", "frame_id", "joint_motion",
@@ -31,20 +31,6 @@ __all__ = ["Robot", "ToolSpec", "adjacent_link_pairs", "frame_id", "joint_motion
 #: 20 Hz acceleration bandwidth, well inside what servo and stepper drives follow (see
 #: ``robots/ned3pro/README.md``).
 JERK_RAMP_TIME = 0.05
-
-
-def _limit_vector(values: Sequence[float] | np.ndarray, dof: int, key: str,
-                  path: Path | None = None) -> np.ndarray:
-    """``values`` as ``dof`` finite positive limits, or a ConfigError naming ``key``."""
-    try:
-        arr = np.array(values, dtype=float)
-    except (TypeError, ValueError):
-        raise ConfigError(f"need {dof} finite positive values, got {values!r}", path=path,
-                          key=key) from None
-    if arr.shape != (dof,) or not np.all(np.isfinite(arr)) or np.any(arr <= 0):
-        raise ConfigError(f"need {dof} finite positive values, got {arr.tolist()}",
-                          path=path, key=key)
-    return arr
 
 
 def derived_jerk_limits(acceleration_limits: Sequence[float] | np.ndarray) -> np.ndarray:
@@ -137,12 +123,12 @@ class Robot:
         if model.nq != model.nv or model.nq != len(self.joint_names):
             raise ConfigError("only arms of revolute/prismatic 1-DoF joints are supported",
                               path=source, key="urdf")
-        vel = _limit_vector(velocity_limits, self.dof, "velocity_limits", source)
-        acc = _limit_vector(acceleration_limits, self.dof, "acceleration_limits", source)
+        vel = limit_vector(velocity_limits, "velocity_limits", source, dof=self.dof)
+        acc = limit_vector(acceleration_limits, "acceleration_limits", source, dof=self.dof)
         # Jerk limits [rad/s^3]: the robot folder's ``jerk_limits`` (vendor numbers where
         # published), else :func:`derived_jerk_limits` of the acceleration limits.
         jerk = (derived_jerk_limits(acc) if jerk_limits is None
-                else _limit_vector(jerk_limits, self.dof, "jerk_limits", source))
+                else limit_vector(jerk_limits, "jerk_limits", source, dof=self.dof))
         self._motion = MotionLimits(vel, acc, jerk)
         if not model.existFrame(tcp_frame):
             raise FrameNotFound(tcp_frame, [f.name for f in model.frames], path=source,
@@ -203,7 +189,7 @@ class Robot:
     @velocity_limits.setter
     def velocity_limits(self, value: Sequence[float] | np.ndarray) -> None:
         self._motion = replace(self._motion,
-                               velocity=_limit_vector(value, self.dof, "velocity_limits"))
+                               velocity=limit_vector(value, "velocity_limits", dof=self.dof))
 
     @property
     def acceleration_limits(self) -> np.ndarray:
@@ -212,8 +198,8 @@ class Robot:
 
     @acceleration_limits.setter
     def acceleration_limits(self, value: Sequence[float] | np.ndarray) -> None:
-        self._motion = replace(self._motion, acceleration=_limit_vector(
-            value, self.dof, "acceleration_limits"))
+        self._motion = replace(self._motion, acceleration=limit_vector(
+            value, "acceleration_limits", dof=self.dof))
 
     @property
     def jerk_limits(self) -> np.ndarray:
@@ -223,7 +209,7 @@ class Robot:
     @jerk_limits.setter
     def jerk_limits(self, value: Sequence[float] | np.ndarray) -> None:
         self._motion = replace(self._motion,
-                               jerk=_limit_vector(value, self.dof, "jerk_limits"))
+                               jerk=limit_vector(value, "jerk_limits", dof=self.dof))
 
     @property
     def continuous(self) -> tuple[bool, ...]:

@@ -23,7 +23,7 @@ import json
 from dataclasses import dataclass
 from typing import Any
 
-from ..sweeps import TaskResult
+from ..sweeps import ReplayBySeed, TaskResult
 from .pouring import PouringParams, run_pouring
 from .quality_check import QualityCheckParams, run_quality_check
 
@@ -41,7 +41,7 @@ def _kept(run: Any) -> bool:
 
 
 @dataclass(frozen=True)
-class PouringTask:
+class PouringTask(ReplayBySeed):
     """One pour per seed.
 
     Attributes:
@@ -89,13 +89,10 @@ class PouringTask:
             "clearance": "executed clearance [mm]",
             "duration": "simulated time [s]"}
 
-    def replay(self, seed: int) -> str:
-        """The command that runs ``seed`` alone."""
-        return self.replay_command.format(seed=seed)
 
 
 @dataclass(frozen=True)
-class QualityCheckTask:
+class QualityCheckTask(ReplayBySeed):
     """The quality-check twin's variants (architecture, belt) for each seed.
 
     Attributes:
@@ -147,13 +144,10 @@ class QualityCheckTask:
                     f"{key}.robot_idle": f"robot idle [%] ({key})"}
         return out
 
-    def replay(self, seed: int) -> str:
-        """The command that runs ``seed`` alone."""
-        return self.replay_command.format(seed=seed)
 
 
 @dataclass(frozen=True)
-class LiveSafetyTask:
+class LiveSafetyTask(ReplayBySeed):
     """One run of the live-safety suite per seed (the body, silences and kill it draws).
 
     Attributes:
@@ -208,6 +202,3 @@ class LiveSafetyTask:
             "commanded_jerk": "commanded jerk / limit, largest",
             "replan_requests": "re-plan requests per run"}
 
-    def replay(self, seed: int) -> str:
-        """The command that runs ``seed`` alone."""
-        return self.replay_command.format(seed=seed)

@@ -16,7 +16,7 @@ from __future__ import annotations
 
 from .runner import RESULTS, SweepOptions, SweepOutcome, run_sweep
 from .stats import wilson_interval
-from .task import SweepTask, TaskResult
+from .task import ReplayBySeed, SweepTask, TaskResult
 
-__all__ = ["RESULTS", "SweepOptions", "SweepOutcome", "SweepTask", "TaskResult",
+__all__ = ["RESULTS", "ReplayBySeed", "SweepOptions", "SweepOutcome", "SweepTask", "TaskResult",
            "run_sweep", "wilson_interval"]

@@ -97,6 +97,17 @@ class SweepTask(Protocol):
         ...
 
 
+class ReplayBySeed:
+    """What a task whose ``replay_command`` holds ``{seed}`` needs for :meth:`replay`
+    (a base of frozen dataclasses that declare ``replay_command: str`` themselves)."""
+
+    replay_command: str
+
+    def replay(self, seed: int) -> str:
+        """The command that runs ``seed`` alone."""
+        return self.replay_command.format(seed=seed)
+
+
 def execute(task: SweepTask, seed: int) -> Finished:
     """Run one seed where it was sent: its result as JSON data and its computation time.
 
