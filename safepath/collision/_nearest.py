@@ -124,7 +124,13 @@ class NearestPairs:
         if margins:
             for j in np.flatnonzero(lower < self._margin).tolist():
                 best, first = self._measure(j, every, best, first)
-        for j in np.argsort(lower, kind="stable").tolist():
+        # The nearest bound first; only the pairs whose bound is within its distance are
+        # sorted (most states leave none).
+        nearest = int(np.argmin(lower))
+        if every[self._dist[nearest]] == FAR:
+            best, first = self._measure(nearest, every, best, first)
+        rest = np.flatnonzero(lower <= best)
+        for j in rest[np.argsort(lower[rest], kind="stable")].tolist():
             if lower[j] > best:
                 break
             if every[self._dist[j]] == FAR:
