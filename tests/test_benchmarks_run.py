@@ -25,6 +25,7 @@ CASES = [
     ("timing_quality.py", ["--paths", "1", "--runs", "1", "--robots", "ned3pro"],
      "median straight move / S-curve"),
     ("timing_suite.py", ["--paths", "2", "--robots", "ned3pro"], "overruns in all: 0"),
+    ("timing_profile.py", ["--paths", "2", "--robots", "ned3pro"], "TOPP-RA solve"),
     ("view_startup.py", ["--runs", "1"], ""),
     ("cold_start.py", ["--runs", "1", "--warmup", "0"], "first / second plan_cell"),
     ("monitor.py", ["--decisions", "20", "--speeds", "1.6"], "decision latency"),
