@@ -34,8 +34,13 @@ __all__ = ["FAR", "NearestPairs", "bounds_kernel"]
 #: The stand-in distance of a pair coal did not measure [m]: beyond any real one.
 FAR = 1e300
 #: What a layer bound is lowered by before it rules a pair out [m]: the bound holds for the
-#: true distance, coal's figure may lie below it by up to its GJK tolerance (1e-6).
+#: true distance, coal's figure may lie on either side of it by its GJK tolerance.
 SLACK = 1e-5
+#: coal's GJK tolerance for the distances measured (relative). Its default (1e-6) stops
+#: early on curved shapes: a cylinder-box distance of 13.003666 mm (the pouring twin's
+#: executed clearance) came out 13.003678 mm, 12 um too far, and 3,000 random primitive
+#: pairs up to 1.3 um too far; with 1e-9, within 1.4 nm of a 1e-13 solve, 7 % slower.
+GJK_TOLERANCE = 1e-9
 
 
 def bounds_kernel(layer: SphereLayer | None, security: np.ndarray, margins: PairMargins
@@ -84,6 +89,7 @@ class NearestPairs:
         self._shapes = [g.geometry for g in geometry.geometryObjects]
         self._ends = [(p.first, p.second) for p in geometry.collisionPairs]
         self._request = coal.DistanceRequest()
+        self._request.gjk_tolerance = GJK_TOLERANCE
         self._dist = np.asarray(margins.pairs, dtype=np.int64)
         #: Per distance pair, the margin of its names [m] (below it: always measured).
         self._margin = np.array([margins.margin_of[n] for n in margins.names], dtype=float)
