@@ -15,15 +15,10 @@ from __future__ import annotations
 
 __all__ = ["settle"]
 
-_SETTLED = False
-
 
 def settle() -> None:
-    """Make coal's first query of this process (see the module doc); later calls do
-    nothing."""
-    global _SETTLED
-    if _SETTLED:
-        return
+    """Make coal's first query of this process (see the module doc): called once, by
+    the import of :mod:`safepath.collision`."""
     import coal
     import numpy as np
 
@@ -31,4 +26,3 @@ def settle() -> None:
     apart.setTranslation(np.array([0.5, 0.0, 0.0]))
     coal.distance(coal.Box(0.1, 0.1, 0.1), coal.Transform3s(), coal.Box(0.1, 0.1, 0.1), apart,
                   coal.DistanceRequest(), coal.DistanceResult())
-    _SETTLED = True

@@ -39,7 +39,8 @@ class PairMargins:
         self._name_of = dict(zip(self.pairs, self.names, strict=True))
         # The pairs grouped by names, the names in the order their pairs first come.
         self._order = list(self.margin_of)
-        group = [self._order.index(name) for name in self.names]
+        index = {name: i for i, name in enumerate(self._order)}
+        group = [index[name] for name in self.names]
         by_name = sorted(range(len(self.pairs)), key=group.__getitem__)  # stable
         self._rows = np.asarray(self.pairs, dtype=np.int64)[by_name]
         self._starts = np.flatnonzero(np.diff(np.array(group)[by_name], prepend=-1))

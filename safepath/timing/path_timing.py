@@ -212,7 +212,6 @@ def _gap_kept(P: np.ndarray, S: np.ndarray, s_way: np.ndarray,  # noqa: N803
               cut: Sequence[tuple[int, float]]) -> np.ndarray:
     """Which interpolation points the ``"gap"`` blends keep: those farther than the radius
     from each cut corner. A corner where the path turns back exactly the way it came
-    (its gap's two sides coincide: the spline's parameter could not increase across it)
     (its gap's two sides coincide, to :data:`_TURN_BACK` of the way between them, and the
     spline's chord-length parameter could not increase across it) is not cut: the path
     passes through it, at rest (its direction reverses there)."""
