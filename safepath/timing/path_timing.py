@@ -39,7 +39,7 @@ from ..model._knots import interval_index
 from ..model.execution import interval_ratios
 from ..model.robot import Robot
 from . import _scurve, _smooth, _topp
-from ._blend import blended_points, resampled
+from ._blend import blended_points, corner_pieces, resampled
 from ._path_limits import PathLimits, PathSpline, jet, path_limits
 from ._spline import CubicPath
 
@@ -190,6 +190,10 @@ def spline_path(waypoints: Sequence[np.ndarray], spacing: float, *,
     """
     W = np.asarray(waypoints, dtype=float)
     cut = [(c, r) for c, r in corners if 0 < c < len(W) - 1 and r > 0]
+    exact = corner_pieces(W, cut) if cut and blend == "g2" else None
+    if exact is not None:
+        breaks, coefficients, s_way = exact
+        return CubicPath.from_pieces(breaks, coefficients), s_way, breaks
     if cut and blend == "g2":
         P, S, s_way = blended_points(W, cut, spacing)
         return CubicPath(S, P), s_way, S
