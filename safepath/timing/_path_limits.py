@@ -20,14 +20,18 @@ from ..model._knots import interval_index
 from ..model.robot import Robot
 from . import _topp
 
-__all__ = ["AHEAD_MARGIN", "TCP_STEP", "PathSpline", "PathLimits", "Points",
-           "ahead_of_steps", "gridpoints", "jet", "path_limits", "row_max", "sliding_min"]
+__all__ = ["AHEAD_MARGIN", "STRAIGHT_STEPS", "TCP_STEP", "PathSpline", "PathLimits", "Points",
+           "ahead_of_steps", "gridpoints", "jet", "path_limits", "row_max", "sliding_min",
+           "straight_pieces"]
 
 #: Spacing of the points where the TCP's speed per path speed is computed [rad].
 TCP_STEP = 0.015
 #: Margin of the reach of :func:`ahead_of_steps` over half the averages' width at the
 #: speed bound.
 AHEAD_MARGIN = 1.2
+#: How many times coarser TOPP-RA's grid is on a straight piece of the path
+#: (:func:`gridpoints`).
+STRAIGHT_STEPS = 8
 #: Share of each joint's jerk limit left to the path's third derivative
 #: (``|q'''(s)| sdot^3``); the rest is for the changes of the path acceleration.
 JERK_SPEED_SHARE = 0.5
@@ -131,7 +135,7 @@ def path_limits(robot: Robot, path: PathSpline, s_way: np.ndarray, scales: Seque
             carry no speed or acceleration of a faster segment into a slower one. The
             limits the knots are checked against (``*_seg``) stay the segments' own.
     """
-    grid = gridpoints(path.x, s_way, grid_step)
+    grid = gridpoints(path.x, s_way, grid_step, straight_pieces(path))
     seg_scales = np.asarray(scales, dtype=float) * speed_scale
     last = len(seg_scales) - 1
     seg_of_grid = interval_index(s_way, grid, last + 1)
@@ -191,6 +195,15 @@ class _Bounds:
         return np.minimum(xmax, tcp)
 
 
+def straight_pieces(path: PathSpline) -> np.ndarray | None:
+    """Which pieces of the path are straight (no second or third derivative), where the
+    path offers its pieces' coefficients (:class:`~safepath.timing.CubicPath`)."""
+    coef = getattr(path, "coefficients", None)
+    if coef is None:
+        return None
+    return np.all(coef[:, 2:, :] == 0.0, axis=(1, 2))
+
+
 def _jerk_xmax(robot: Robot, d3: np.ndarray, scale: np.ndarray) -> np.ndarray:
     """Bound on ``x`` that keeps the path's third-derivative term of every joint's jerk,
     ``|q'''_j(s)| sdot^3``, within :data:`JERK_SPEED_SHARE` of its limit, where the
@@ -213,18 +226,25 @@ def _tcp_rate(robot: Robot, path: PathSpline, s_way: np.ndarray, grid: np.ndarra
     return np.interp(grid, samples, np.linalg.norm(np.gradient(p, samples, axis=0), axis=1))
 
 
-def gridpoints(breaks: np.ndarray, s_way: np.ndarray, step: float) -> np.ndarray:
+def gridpoints(breaks: np.ndarray, s_way: np.ndarray, step: float,
+               straight: np.ndarray | None = None) -> np.ndarray:
     """TOPP-RA's gridpoints [rad] (path parameter): each spline piece (between
     ``breaks``) cut evenly into pieces of at most ``step`` [rad] (at least 19 in all),
-    and the segment boundaries ``s_way``.
+    and the segment boundaries ``s_way``; a straight piece (``straight``, per piece)
+    into pieces of at most :data:`STRAIGHT_STEPS` times that.
 
     On a spline piece the path's curvature is linear in ``s``; across a spline knot it
-    bends, which is where the limits would otherwise be exceeded between gridpoints.
+    bends, which is where the limits would otherwise be exceeded between gridpoints. On a
+    straight piece the path's tangent is constant and it has no curvature: the limits
+    hold between gridpoints where they hold at them (the path acceleration is constant
+    between gridpoints and the squared speed linear), and a finer grid only places
+    TOPP-RA's switches between full acceleration and the speed limit more exactly.
     """
     length = float(breaks[-1])
     step = min(step, length / 19)
     pieces = np.diff(breaks)
-    counts = np.maximum(1, np.ceil(pieces / step - 1e-9).astype(int))
+    steps = step if straight is None else np.where(straight, STRAIGHT_STEPS * step, step)
+    counts = np.maximum(1, np.ceil(pieces / steps - 1e-9).astype(int))
     piece = np.repeat(np.arange(pieces.size), counts)
     j = np.arange(piece.size) - np.repeat(np.cumsum(counts) - counts, counts)
     grid = np.append(breaks[piece] + pieces[piece] * (j / counts[piece]), length)

@@ -314,8 +314,9 @@ def time_path(robot: Robot, path: PathSpline, s_way: np.ndarray, *, scales: Sequ
         runs += 1
         run = _time_once(path, limits, f_acc, f_x, options, tau_a, where)
         tau_a = run.smoothed.tau_a if run.smoothed is not None else None
-        if best is None or run.stretched < best.stretched:
-            best = run
+        if best is not None and run.stretched >= best.stretched:
+            break  # tightening did not pay: more of it will not either
+        best = run
         if run.stretch <= 1.0 + RETIME_ABOVE or attempt + 1 == options.retries:
             break
         log.debug("timing attempt %d needs a time stretch of %.6f; tightening locally",

@@ -122,3 +122,21 @@ def test_blends_are_exact_with_the_smallest_rate_of_curvature(seed: int) -> None
     for nu in (0, 1, 2):
         np.testing.assert_allclose(path(inner - 1e-12, nu), path(inner, nu), atol=1e-9)  # type: ignore[operator]
     np.testing.assert_allclose(path(s_way[-1]), waypoints[-1], atol=1e-12)  # type: ignore[operator]
+
+
+def test_topp_ra_grid_is_coarser_only_on_straight_pieces() -> None:
+    """TOPP-RA's gridpoints lie ``grid_step`` apart on the blends and up to
+    ``STRAIGHT_STEPS`` times that on the straight pieces (where the limits hold between
+    gridpoints wherever they hold at them)."""
+    from safepath.timing._path_limits import STRAIGHT_STEPS, gridpoints, straight_pieces
+
+    waypoints = [np.zeros(3), np.array([2.0, 0.0, 0.0]), np.array([2.0, 2.0, 1.0])]
+    path, s_way, _ = spline_path(waypoints, 0.06, corners=[(1, 0.3)], blend="g2")
+    straight = straight_pieces(path)
+    assert straight is not None and straight.tolist() == [True, False, False, True]
+    grid = gridpoints(path.x, s_way, 0.005, straight)
+    gaps = np.diff(grid)
+    piece = np.searchsorted(path.x, grid[:-1], side="right") - 1
+    assert gaps[~straight[piece]].max() <= 0.005 + 1e-12
+    assert 0.005 < gaps[straight[piece]].min()
+    assert gaps[straight[piece]].max() <= STRAIGHT_STEPS * 0.005 + 1e-12
