@@ -116,7 +116,8 @@ class PathLimits:
 
 def path_limits(robot: Robot, path: PathSpline, s_way: np.ndarray, scales: Sequence[float],
                 tcp_speeds: Sequence[float | None], *, speed_scale: float, grid_step: float,
-                jerk_scale: float = 1.0, ahead: float = 0.0) -> PathLimits:
+                jerk_scale: float = 1.0, ahead: float = 0.0, scales_ahead: bool = True
+                ) -> PathLimits:
     """TOPP-RA's grid along ``path`` and the limits there.
 
     Args:
@@ -134,6 +135,11 @@ def path_limits(robot: Robot, path: PathSpline, s_way: np.ndarray, scales: Seque
             covers in half that time (:func:`ahead_of_steps`), so that the averages
             carry no speed or acceleration of a faster segment into a slower one. The
             limits the knots are checked against (``*_seg``) stay the segments' own.
+        scales_ahead: Whether the speed scales hold ahead too, or only the TCP speed
+            limits (the joint limits are checked on the knots' executed motion, where a
+            scale carried into a slower segment costs a time stretch; nothing else checks
+            the TCP's speed that way before release but :func:`~safepath.timing.time_path`'s
+            release, where a stretch costs the whole piece).
     """
     grid = gridpoints(path.x, s_way, grid_step, straight_pieces(path))
     seg_scales = np.asarray(scales, dtype=float) * speed_scale
@@ -147,8 +153,11 @@ def path_limits(robot: Robot, path: PathSpline, s_way: np.ndarray, scales: Seque
     v_grid = np.minimum(v_seg[seg_of_grid], v_seg[seg_before])
     _, dq, ddq = jet(path, grid)
     bound = _Bounds(robot, path, s_way, grid, dq, jerk_scale, np.isfinite(v_seg).any())
-    if ahead > 0.0 and (np.ptp(seg_scales) > 0.0 or np.unique(v_seg).size > 1):
-        scale_grid, v_grid = ahead_of_steps(grid, bound, ahead, scale_grid, v_grid)
+    if ahead > 0.0 and ((scales_ahead and np.ptp(seg_scales) > 0.0)
+                        or np.unique(v_seg).size > 1):
+        near_scale, v_grid = ahead_of_steps(grid, bound, ahead, scale_grid, v_grid)
+        if scales_ahead:
+            scale_grid = near_scale
     at_grid = Points(dq, ddq, scale_grid[:, None] * robot.acceleration_limits,
                      bound(scale_grid, v_grid))
     return PathLimits(grid, at_grid, s_way, seg_scales[:, None] * robot.velocity_limits,
