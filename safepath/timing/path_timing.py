@@ -430,20 +430,7 @@ def _jerk_window(profile: _topp.Profile, path: PathSpline, limits: PathLimits,
     acc = (ps * u[:, None] + pss * (sd ** 2)[:, None]) / limits.jmax_seg[seg]
     # At rest (zero acceleration) before and after: the first and last changes count.
     f = np.vstack([np.zeros((1, acc.shape[1])), acc, np.zeros((1, acc.shape[1]))])
-    hi = max(1, int(np.ceil(2.0 * float(np.abs(f).max()) / dt)))
-
-    def fits(m: int) -> bool:
-        return float(np.abs(f[m:] - f[:-m]).max()) <= m * dt if m < f.shape[0] else True
-
-    lo = 1
-    if not fits(hi):
-        hi = f.shape[0]
-    while lo < hi:  # the smallest shift that fits (bisection)
-        mid = (lo + hi) // 2
-        if fits(mid):
-            hi = mid
-        else:
-            lo = mid + 1
+    lo = _topp.compiled_kernels()["jerk_shift"](np.ascontiguousarray(f), float(dt))
     return max(lo * dt * options.jerk_window, options.knot_period)
 
 
