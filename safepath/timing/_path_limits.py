@@ -34,11 +34,7 @@ AHEAD_MARGIN = 1.2
 STRAIGHT_STEPS = 8
 #: Share of each joint's jerk limit left to the path's third derivative
 #: (``|q'''(s)| sdot^3``); the rest is for the changes of the path acceleration.
-#: Where the bound holds the path speed down, the path acceleration changes little;
-#: what the two terms together exceed is re-timed or stretched as any excess. On the
-#: exact corner blends 0.8 timed nearest the jerk-free optimum of 0.35-0.9 on the Ned3
-#: Pro and the UR5 (the other robots alike).
-JERK_SPEED_SHARE = 0.8
+JERK_SPEED_SHARE = 0.5
 
 
 class PathSpline(Protocol):
