@@ -315,11 +315,11 @@ class Robot:
         ``qd_path`` (n, dof): the norm of its linear velocity in the world frame."""
         model, data, fid = self.model, self._data(), self.tcp_frame_id
         world = pin.ReferenceFrame.LOCAL_WORLD_ALIGNED
-        out = np.empty(len(q_path))
+        out = np.empty((len(q_path), 3))
         for k, (q, qd) in enumerate(zip(q_path, qd_path, strict=True)):
             pin.forwardKinematics(model, data, q, qd)
-            out[k] = np.linalg.norm(pin.getFrameVelocity(model, data, fid, world).linear)
-        return out
+            out[k] = pin.getFrameVelocity(model, data, fid, world).linear
+        return np.sqrt(np.einsum("ij,ij->i", out, out))
 
     def _data(self) -> pin.Data:
         """This thread's pinocchio data of the model."""

@@ -88,6 +88,8 @@ class PathLimits:
         vmax_seg: Velocity limits of each segment (segments, dof) [rad/s].
         amax_seg: Acceleration limits of each segment (segments, dof) [rad/s^2].
         jmax_seg: Jerk limits of each segment (segments, dof) [rad/s^3].
+        tcp_rate: The TCP's speed per path speed ``|dp/ds|`` at the gridpoints [m/rad]
+            (an estimate, :func:`_tcp_rate`), where a segment limits the TCP's speed.
     """
 
     grid: np.ndarray
@@ -96,6 +98,7 @@ class PathLimits:
     vmax_seg: np.ndarray
     amax_seg: np.ndarray
     jmax_seg: np.ndarray
+    tcp_rate: np.ndarray | None = None
 
     @cached_property
     def _unit_rows(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -162,7 +165,7 @@ def path_limits(robot: Robot, path: PathSpline, s_way: np.ndarray, scales: Seque
                      bound(scale_grid, v_grid))
     return PathLimits(grid, at_grid, s_way, seg_scales[:, None] * robot.velocity_limits,
                       seg_scales[:, None] * robot.acceleration_limits,
-                      (seg_scales * jerk_scale)[:, None] * robot.jerk_limits)
+                      (seg_scales * jerk_scale)[:, None] * robot.jerk_limits, bound.rate)
 
 
 class _Bounds:
@@ -188,7 +191,7 @@ class _Bounds:
         # q''' of the pieces on both sides of each gridpoint.
         self._d3 = np.maximum(np.abs(path(grid, 3)),
                               np.abs(path(np.maximum(grid - eps, 0.0), 3)))
-        self._rate = _tcp_rate(robot, path, s_way, grid) if tcp else None
+        self.rate = _tcp_rate(robot, path, s_way, grid) if tcp else None
 
     def __call__(self, scale: np.ndarray, v_tcp: np.ndarray) -> np.ndarray:
         """The bound [1/s^2] under the speed ``scale`` and TCP speed limits ``v_tcp``
@@ -196,11 +199,11 @@ class _Bounds:
         third-derivative term of the jerk, the TCP's speed."""
         xmax = np.minimum(_speed_bound(self._robot, self._dq, scale) ** 2,
                           _jerk_xmax(self._robot, self._d3, scale * self._jerk_scale))
-        if self._rate is None:
+        if self.rate is None:
             return xmax
         with np.errstate(divide="ignore"):
-            tcp = np.where(np.isfinite(v_tcp) & (self._rate >= 1e-9),
-                           (v_tcp / np.maximum(self._rate, 1e-9)) ** 2, np.inf)
+            tcp = np.where(np.isfinite(v_tcp) & (self.rate >= 1e-9),
+                           (v_tcp / np.maximum(self.rate, 1e-9)) ** 2, np.inf)
         return np.minimum(xmax, tcp)
 
 
