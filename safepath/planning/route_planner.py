@@ -26,6 +26,7 @@ from ..errors import ConfigError, IKError, PlanningError, SafepathError, TimingE
 from ..model.trajectory import Trajectory
 from ..timing import TimedPiece
 from ..verify import check_verifiable
+from . import _repeats
 from ._chunks import Segment, TimedPieces, assemble, time_chunk, time_segments
 from ._pour_chunk import PourChunk, plan_pour_chunk
 from .cartesian import cartesian_line
@@ -252,13 +253,19 @@ def _line_path(cell: Cell, checker: CollisionChecker, q: np.ndarray, goal: np.nd
                options: PlanOptions, label: str) -> list[np.ndarray]:
     """The straight TCP line from ``q`` to ``goal``, checked; IKError where it collides."""
     robot = cell.robot
-    waypoints = cartesian_line(robot, q, goal, options=options.line, step_name=label)
-    report = checker.check_path(waypoints)
-    if not report.valid:
-        raise IKError(_line_failure(checker, report), step=label,
-                      fraction=report.fraction or 0.0,
-                      position=robot.tcp_position(report.q) if report.q is not None else None)
-    return waypoints
+
+    def checked() -> list[np.ndarray]:
+        waypoints = cartesian_line(robot, q, goal, options=options.line, step_name=label)
+        report = checker.check_path(waypoints)
+        if not report.valid:
+            raise IKError(_line_failure(checker, report), step=label,
+                          fraction=report.fraction or 0.0,
+                          position=robot.tcp_position(report.q) if report.q is not None
+                          else None)
+        return waypoints
+
+    # The same line in the same world is the same checked line (_repeats).
+    return _repeats.checked_line(checker, q, goal, options.line, checked)
 
 
 def _line_failure(checker: CollisionChecker, report: SegmentReport) -> str:
@@ -372,7 +379,8 @@ def _resolve(cell: Cell, step: Step, q: np.ndarray, label: str, options: PlanOpt
         T = cell.robot.frame_pose(q_init)
         T.translation = T.translation + np.asarray(target.offset)
     try:
-        return solve_ik(cell.robot, T, q_init, options=options.line, step=label), None
+        return _repeats.ik_goal(cell.robot, T.homogeneous, q_init, options.line, lambda: solve_ik(
+            cell.robot, T, q_init, options=options.line, step=label)), None
     except IKError as exc:
         if step.kind != "line":
             raise

@@ -1,0 +1,120 @@
+"""What a plan computes again, bit for bit, when the same cell is planned again.
+
+A cell's node or quality-check cycle plans the same routes from the same poses in the
+same world cycle after cycle: the same IK goals, the same straight TCP lines checked by
+the same checker, the same blended splines checked at the same samples. Each of these is
+a pure function of its inputs, so it is kept here, per process, by the exact bits of
+those inputs (the robot and checker by identity: they are built once per cell and never
+change), and a second ask gets the first's answer (the same bits: plans stay
+deterministic). Only successes are kept: a failure is computed again and raises with the
+asker's own step name. The timed pieces and the independent release check are not kept:
+every trajectory that leaves the library is re-checked (:mod:`safepath.verify`).
+
+:func:`counts` says how many asks were answered from here (``hits``) and how many
+computed (``misses``), so that a benchmark reports the first plan's cost apart.
+"""
+
+from __future__ import annotations
+
+import threading
+import weakref
+from collections import OrderedDict
+from collections.abc import Callable, Hashable
+from typing import TypeVar
+
+import numpy as np
+
+from ..collision import CollisionChecker
+from ..kinematics.ik import LineOptions
+from ..model.robot import Robot
+
+__all__ = ["ik_goal", "checked_line", "spline_free", "counts", "clear"]
+
+T = TypeVar("T")
+
+#: Answers kept per robot or checker (the oldest dropped first): a cell's routes need a few
+#: dozen; the bound keeps a long-running node that plans ever new goals from growing.
+KEEP = 512
+
+_LOCK = threading.Lock()
+_KEPT: weakref.WeakKeyDictionary[object, OrderedDict[Hashable, object]] = \
+    weakref.WeakKeyDictionary()
+_COUNTS = {"hits": 0, "misses": 0}
+
+
+def _kept(owner: object, key: Hashable, compute: Callable[[], T]) -> T:
+    """The answer kept for ``key`` under ``owner``, else ``compute()``'s (then kept)."""
+    with _LOCK:
+        table = _KEPT.get(owner)
+        if table is not None and key in table:
+            table.move_to_end(key)
+            _COUNTS["hits"] += 1
+            return table[key]  # type: ignore[return-value]
+    value = compute()  # outside the lock: a failure raises and keeps nothing
+    with _LOCK:
+        table = _KEPT.setdefault(owner, OrderedDict())
+        table[key] = value
+        while len(table) > KEEP:
+            table.popitem(last=False)
+        _COUNTS["misses"] += 1
+    return value
+
+
+def _bits(*arrays: np.ndarray) -> tuple[bytes, ...]:
+    """The exact bits (float64, with the shape) of each array, as a key."""
+    out: list[bytes] = []
+    for a in arrays:
+        b = np.ascontiguousarray(a, dtype=float)
+        out += [str(b.shape).encode(), b.tobytes()]
+    return tuple(out)
+
+
+def ik_goal(robot: Robot, T_world_tcp: np.ndarray, q_init: np.ndarray, options: LineOptions,
+            solve: Callable[[], np.ndarray]) -> np.ndarray:
+    """The IK solution ``solve()`` finds for the TCP pose ``T_world_tcp`` (4x4) from
+    ``q_init`` [rad] under ``options``: kept per robot (a copy is returned)."""
+    key = ("ik", *_bits(T_world_tcp, q_init), options)
+    return _kept(robot, key, lambda: np.array(solve(), dtype=float)).copy()
+
+
+def checked_line(checker: CollisionChecker, q: np.ndarray, goal: np.ndarray,
+                 options: LineOptions, compute: Callable[[], list[np.ndarray]]
+                 ) -> list[np.ndarray]:
+    """The waypoints ``compute()`` gives (the straight TCP line from ``q`` to ``goal``
+    [rad] under ``options``, found free by ``checker``): kept per checker (copies are
+    returned)."""
+    key = ("line", *_bits(q, goal), options)
+    kept = _kept(checker, key, lambda: np.array(compute(), dtype=float))
+    return list(kept.copy())
+
+
+def spline_free(checker: CollisionChecker, samples: np.ndarray,
+                check: Callable[[], bool]) -> bool:
+    """Whether ``checker`` finds the polyline through ``samples`` [rad] free: ``check()``,
+    kept per checker when it is (a blocked one is checked again on the next ask)."""
+    key = ("spline", *_bits(samples))
+    try:
+        return _kept(checker, key, lambda: True if check() else _raise_blocked())
+    except _Blocked:
+        return False
+
+
+class _Blocked(Exception):
+    """A check that found its path blocked (not kept)."""
+
+
+def _raise_blocked() -> bool:
+    raise _Blocked
+
+
+def counts() -> dict[str, int]:
+    """How many asks were answered from what was kept (``hits``) and how many were
+    computed (``misses``), in this process (a copy)."""
+    with _LOCK:
+        return dict(_COUNTS)
+
+
+def clear() -> None:
+    """Forget every kept answer (a benchmark's cold start); the counts stay."""
+    with _LOCK:
+        _KEPT.clear()
