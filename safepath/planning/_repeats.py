@@ -28,7 +28,7 @@ from ..collision import CollisionChecker
 from ..kinematics.ik import LineOptions
 from ..model.robot import Robot
 
-__all__ = ["ik_goal", "checked_line", "spline_free", "counts", "clear"]
+__all__ = ["ik_goal", "checked_line", "joint_path", "spline_free", "counts", "clear"]
 
 T = TypeVar("T")
 
@@ -84,6 +84,17 @@ def checked_line(checker: CollisionChecker, q: np.ndarray, goal: np.ndarray,
     [rad] under ``options``, found free by ``checker``): kept per checker (copies are
     returned)."""
     key = ("line", *_bits(q, goal), options)
+    kept = _kept(checker, key, lambda: np.array(compute(), dtype=float))
+    return list(kept.copy())
+
+
+def joint_path(checker: CollisionChecker, q: np.ndarray, goal: np.ndarray,
+               options: Hashable, compute: Callable[[], list[np.ndarray]]
+               ) -> list[np.ndarray]:
+    """The joint path ``compute()`` gives from ``q`` to ``goal`` [rad] in ``checker``'s
+    world under the planner ``options`` (seeded: the same path every time): kept per
+    checker (copies are returned)."""
+    key = ("move", *_bits(q, goal), options)
     kept = _kept(checker, key, lambda: np.array(compute(), dtype=float))
     return list(kept.copy())
 

@@ -13,7 +13,7 @@ from __future__ import annotations
 
 import logging
 import time
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass, replace
 from pathlib import Path
 
@@ -32,7 +32,7 @@ from ._pour_chunk import PourChunk, plan_pour_chunk
 from .cartesian import cartesian_line
 from .constraints import check_tilt, tilt_bound
 from .landing import check_landing
-from .options import PlanOptions
+from .options import PlannerOptions, PlanOptions
 from .sampling import plan_joint_path
 from .world import CheckerCache, WorldState, initial_world
 
@@ -237,8 +237,9 @@ def _plan_paths(cell: Cell, route: Route, world: WorldState, options: PlanOption
         else:
             allowed = ()
             seeded = replace(options.planner, seed=options.planner.seed + i)
-            waypoints = plan_joint_path(cache.checker(world, allowed), q, goal,
-                                        options=seeded, step=labels[i], times=times)
+            checker = cache.checker(world, allowed)
+            waypoints = _repeats.joint_path(checker, q, goal, seeded, _move(
+                checker, q, goal, seeded, labels[i], times))
         current.append(Segment(i, step, waypoints, allowed))
         q, pose_name = goal, goal_name
         if step.stop:
@@ -247,6 +248,13 @@ def _plan_paths(cell: Cell, route: Route, world: WorldState, options: PlanOption
     if current:
         chunks.append((current, world.copy()))
     return _Paths(chunks, actions, world, times.get("shortcut", 0.0))
+
+
+def _move(checker: CollisionChecker, q: np.ndarray, goal: np.ndarray,
+          options: PlannerOptions, label: str, times: dict[str, float]
+          ) -> Callable[[], list[np.ndarray]]:
+    """The joint move from ``q`` to ``goal``, planned when called."""
+    return lambda: plan_joint_path(checker, q, goal, options=options, step=label, times=times)
 
 
 def _line_path(cell: Cell, checker: CollisionChecker, q: np.ndarray, goal: np.ndarray,
