@@ -72,8 +72,10 @@ def _bits(*arrays: np.ndarray) -> tuple[bytes, ...]:
 def ik_goal(robot: Robot, T_world_tcp: np.ndarray, q_init: np.ndarray, options: LineOptions,
             solve: Callable[[], np.ndarray]) -> np.ndarray:
     """The IK solution ``solve()`` finds for the TCP pose ``T_world_tcp`` (4x4) from
-    ``q_init`` [rad] under ``options``: kept per robot (a copy is returned)."""
-    key = ("ik", *_bits(T_world_tcp, q_init), options)
+    ``q_init`` [rad] under ``options``: kept per robot, its kinematic model and joint
+    limits (a robot whose limits change in place asks again; a copy is returned)."""
+    key = ("ik", id(robot.model), *_bits(T_world_tcp, q_init, robot.lower, robot.upper),
+           options)
     return _kept(robot, key, lambda: np.array(solve(), dtype=float)).copy()
 
 
