@@ -184,8 +184,10 @@ def time_segments(cell: Cell, segments: list[Segment], world: WorldState,
     checked = check and len(waypoints) > 2
     if piece is not None and not checked:
         return piece, seg_steps
-    path, s_way, _ = spline_path(waypoints, options.timing.spacing, corners=corners,
-                                 blend=options.timing.corner_blend)
+    spacing, blend_kind = options.timing.spacing, options.timing.corner_blend
+    path, s_way, _ = _repeats.spline(
+        cell.robot, waypoints, (spacing, tuple(corners), blend_kind),
+        lambda: spline_path(waypoints, spacing, corners=corners, blend=blend_kind))
     if checked:
         _check_spline(cell, path, s_way, seg_of_poly, segments, world, options, cache)
     if piece is None:

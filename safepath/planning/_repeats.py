@@ -19,7 +19,7 @@ from __future__ import annotations
 import threading
 import weakref
 from collections import OrderedDict
-from collections.abc import Callable, Hashable
+from collections.abc import Callable, Hashable, Sequence
 from typing import TypeVar
 
 import numpy as np
@@ -28,9 +28,10 @@ from ..collision import CollisionChecker
 from ..kinematics.ik import LineOptions
 from ..model.robot import Robot
 
-__all__ = ["ik_goal", "checked_line", "joint_path", "spline_free", "counts", "clear"]
+__all__ = ["ik_goal", "checked_line", "joint_path", "spline", "spline_free", "counts", "clear"]
 
 T = TypeVar("T")
+S = TypeVar("S")
 
 #: Answers kept per robot or checker (the oldest dropped first): a cell's routes need a few
 #: dozen; the bound keeps a long-running node that plans ever new goals from growing.
@@ -101,11 +102,30 @@ def joint_path(checker: CollisionChecker, q: np.ndarray, goal: np.ndarray,
     return list(kept.copy())
 
 
+def spline(robot: Robot, waypoints: Sequence[np.ndarray], settings: Hashable,
+           compute: Callable[[], S]) -> S:
+    """The blended spline ``compute()`` makes through ``waypoints`` [rad] (with the
+    corners and spline settings ``settings``): kept per robot whose paths it joins (the
+    path object is shared: a path is read, never changed; its arrays are copies)."""
+    key = ("spline", *_bits(np.asarray(waypoints, dtype=float)), settings)
+    return _arrays_copied(_kept(robot, key, compute))
+
+
+def _arrays_copied(value: S) -> S:
+    """``value`` with its arrays (the items of a tuple) copied: a plan may write into
+    what it is given, never into what later plans get (the kernels take writable
+    arrays only, so kept ones cannot be made read-only)."""
+    if not isinstance(value, tuple):
+        return value
+    return type(value)(v.copy() if isinstance(v, np.ndarray) else v  # type: ignore[return-value]
+                       for v in value)
+
+
 def spline_free(checker: CollisionChecker, samples: np.ndarray,
                 check: Callable[[], bool]) -> bool:
     """Whether ``checker`` finds the polyline through ``samples`` [rad] free: ``check()``,
     kept per checker when it is (a blocked one is checked again on the next ask)."""
-    key = ("spline", *_bits(samples))
+    key = ("spline free", *_bits(samples))
     try:
         return _kept(checker, key, lambda: True if check() else _raise_blocked())
     except _Blocked:
