@@ -12,8 +12,8 @@ measures, after one warm-up run, ``--runs`` times:
   its stop-and-go baseline (every motion step rest to rest along the same path, same
   limits), per route and for the whole cycle;
 * the same with what the planner keeps between plans (:mod:`safepath.planning._repeats`:
-  IK goals, checked lines and splines) forgotten before each run: the cost of a first
-  plan of these inputs, reported apart;
+  IK goals, checked lines, joint moves, splines and their checks) forgotten before each
+  run: the cost of a first plan of these inputs, reported apart;
 * ``--runs`` more times, instrumented (not part of the timed runs): how the wall time
   splits between the planner's stages, TOPPRA timing and FCL verification (the release
   check's share of the planning time is the sum of its time over the sum of the wall
@@ -201,8 +201,8 @@ def wall_table(cell: Cell, routes: Mapping[str, Route], options: PlanOptions, ru
     now = _repeats.counts()
     print("(paths, time+verify: medians of the planner's own info['planning_time'] and "
           "info['total_time'] - info['planning_time'], summed over the two routes; CPU: "
-          "this process's CPU time per run; kept answers (IK goals, checked lines, checked "
-          f"splines): {now['hits'] - counted['hits']} reused, "
+          "this process's CPU time per run; kept answers (IK goals, checked lines, joint "
+          f"moves, splines and their checks): {now['hits'] - counted['hits']} reused, "
           f"{now['misses'] - counted['misses']} computed)")
     return medians, p95s, first
 
