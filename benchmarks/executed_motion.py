@@ -56,6 +56,8 @@ from safepath.planning import _chunks
 from safepath.planning import pour as _pour
 from safepath.timing import TimingOptions, _path_limits, _topp, spline_path, time_path
 
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))  # the references
+
 ROOT = Path(__file__).resolve().parents[1]
 ROBOTS = ("ned3pro", "gen3_lite", "panda", "ur5")
 RESULTS = ROOT / "benchmarks" / "results" / "executed_motion.json"
@@ -131,15 +133,15 @@ def _toppra(call: dict[str, Any]) -> dict[str, Any] | None:
     try:
         import logging
 
-        import toppra as ta
         import toppra.algorithm as algo
         import toppra.constraint as constraint
+        from toppra_path import ToppraPath
     except ImportError:
         return None
     logging.getLogger("toppra").setLevel(logging.WARNING)
     robot, path = call["robot"], call["path"]
     breaks = path.x
-    ta_path = ta.SplineInterpolator(breaks, path(breaks))
+    ta_path = ToppraPath(path, robot.dof)
     vlim = np.vstack([-robot.velocity_limits, robot.velocity_limits]).T
     alim = np.vstack([-robot.acceleration_limits, robot.acceleration_limits]).T
     cons = [constraint.JointVelocityConstraint(vlim),

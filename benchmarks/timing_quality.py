@@ -46,6 +46,7 @@ from safepath.timing.path_timing import CORNER_BLENDS, CornerBlend
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))  # the references
 from s_curve import s_curve_time  # noqa: E402
 from timing_suite import sampling_box  # noqa: E402
+from toppra_path import ToppraPath  # noqa: E402
 
 ROBOTS = Path(__file__).resolve().parents[1] / "robots"
 #: Grid step of the jerk-free reference [rad].
@@ -71,7 +72,6 @@ def via_path(robot: Robot, rng: np.random.Generator, blend: CornerBlend
 
 def jerk_free_duration(robot: Robot, path: PathSpline) -> float:
     """The jerk-free time-optimal duration of ``path`` by the ``toppra`` library [s]."""
-    import toppra as ta
     import toppra.algorithm as algo
     import toppra.constraint as constraint
 
@@ -83,7 +83,7 @@ def jerk_free_duration(robot: Robot, path: PathSpline) -> float:
          constraint.JointAccelerationConstraint(
              robot.acceleration_limits,
              discretization_scheme=constraint.DiscretizationType.Interpolation)],
-        ta.SplineInterpolator(breaks, path(breaks)), gridpoints=grid,
+        ToppraPath(path, robot.dof), gridpoints=grid,
         parametrizer="ParametrizeConstAccel")
     return float(instance.compute_trajectory(0.0, 0.0).duration)
 

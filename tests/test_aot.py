@@ -128,6 +128,7 @@ def recorded() -> dict[str, list[tuple[Any, ...]]]:
     kernels["forward"] = recorder("topp_forward", saved["forward"])
     kernels["tridiagonal"] = recorder("topp_tridiagonal", saved["tridiagonal"])
     kernels["knots"] = recorder("topp_knots", saved["knots"])
+    kernels["jerk_shift"] = recorder("topp_jerk_shift", saved["jerk_shift"])
     join = _joinkernel.compiled_kernels()
     saved_join = dict(join)
     join["peaks"] = recorder("join_peaks", saved_join["peaks"])

@@ -122,12 +122,14 @@ ENTRIES: dict[str, Entry] = {
                                     (F2, I1, F3, F2, F1, FLOAT, F1), "void"),
     "monitor_march": Entry(_MONITOR, "march", (F1, F2, F2, F1, FLOAT, FLOAT, FLOAT, F1, F1, F1),
                            "Tuple((i8, i8, b1))"),
-    # TOPP-RA's two passes, the spline solve, the smoothed knots (safepath.timing._topp_kernels).
+    # TOPP-RA's two passes, the spline solve, the smoothed knots, the jerk window
+    # (safepath.timing._topp_kernels).
     "topp_backward": Entry(_TOPP, "backward", (F1, F1, F2, F2, F2, F1, F1), INT),
     "topp_forward": Entry(_TOPP, "forward", (F1, F1, F2, F2, F2, F1, F1, F1), "void"),
     "topp_tridiagonal": Entry(_TOPP, "tridiagonal", (F1, F1, F1, F2), INT),
     "topp_knots": Entry(_TOPP, "knots", (F1, F1, F1, F1, F1, F1, F1, FLOAT, FLOAT, F1, F3, F1,
                                           F1, F1, F2, F2, F2), "void"),
+    "topp_jerk_shift": Entry(_TOPP, "jerk_shift", (F2, FLOAT), INT),
     # The peaks of a controller's quintic join (safepath.model._joinkernel).
     "join_peaks": Entry(_JOIN, "_peaks", (F1, F2, F2, F2, FLOAT, F2, F2, F2), "void"),
     "join_sample": Entry(_JOIN, "_sample", (F1, F2, F2, F2, F1, F2, F2, F2), "void"),

@@ -310,6 +310,17 @@ class Robot:
             out[k] = pin.updateFramePlacement(model, data, fid).translation
         return out
 
+    def tcp_speeds(self, q_path: np.ndarray, qd_path: np.ndarray) -> np.ndarray:
+        """Speeds of the TCP [m/s] (n,) at the joint positions ``q_path`` and velocities
+        ``qd_path`` (n, dof): the norm of its linear velocity in the world frame."""
+        model, data, fid = self.model, self._data(), self.tcp_frame_id
+        world = pin.ReferenceFrame.LOCAL_WORLD_ALIGNED
+        out = np.empty(len(q_path))
+        for k, (q, qd) in enumerate(zip(q_path, qd_path, strict=True)):
+            pin.forwardKinematics(model, data, q, qd)
+            out[k] = np.linalg.norm(pin.getFrameVelocity(model, data, fid, world).linear)
+        return out
+
     def _data(self) -> pin.Data:
         """This thread's pinocchio data of the model."""
         data = getattr(self._local, "data", None)

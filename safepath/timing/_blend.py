@@ -21,10 +21,20 @@ from collections.abc import Sequence
 
 import numpy as np
 
-__all__ = ["blended_points", "resampled"]
+__all__ = ["RISE", "blended_points", "corner_pieces", "resampled"]
 
 #: Samples of a blend curve per output point, to find its arc length.
 _FINE = 16
+#: How the exact blends' curvature (:func:`corner_pieces`) rises: over this fraction of
+#: the radius, linearly, then it holds and falls back as fast. 1 (a triangle) gives the
+#: smallest peak rate of curvature (the speed the jerk limits allow through a blend goes
+#: with its cube root), at a peak curvature 4/3 of the quintic blend's (the acceleration
+#: limits' speed goes with its square root); on ``benchmarks/timing_quality.py``'s paths
+#: it timed nearest the jerk-free optimum on every robot (2/3 and 1/2 were tried).
+RISE = 1.0
+#: Turn at a corner (``|d_a + d_b|``, unit directions) below which the exact blend's
+#: tangent would come too near zero: such a path keeps the quintic blend.
+_SHARPEST = 0.1
 
 
 def _blend(a: np.ndarray, d_a: np.ndarray, b: np.ndarray, d_b: np.ndarray,
@@ -142,3 +152,76 @@ def _on_polyline(W: np.ndarray, s_way: np.ndarray, s: float  # noqa: N803
     leg = W[k + 1] - W[k]
     length = float(s_way[k + 1] - s_way[k])
     return W[k] + (s - s_way[k]) / length * leg, leg / length
+
+
+def corner_pieces(waypoints: np.ndarray, corners: Sequence[tuple[int, float]],
+                  rise: float = RISE) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
+    """A polyline with every via point blended, as exact cubic pieces.
+
+    The path parameter is the arc length ``s`` along the polyline. Each blend is the
+    polyline around its corner averaged by a symmetric kernel ``K`` of support
+    ``[-r, r]`` (``q(s) = int p(s - t) K(t) dt``): it leaves the polyline ``r`` before the
+    corner and rejoins it ``r`` after, exactly, and its second derivative is
+    ``(d_b - d_a) K(s - s_c)``. ``K`` is a trapezoid (it rises linearly over ``rise r``,
+    holds, and falls as fast), so the blend is three cubic pieces whose curvature is
+    continuous and whose third derivative is piecewise constant, as small as the
+    trapezoid allows: a spline through points sampled along a curve has a third
+    derivative far larger than the curve's, and the jerk limits cap the speed by it.
+
+    Args:
+        waypoints: The polyline (n, dof), no point repeating the one before it.
+        corners: The blended via points (index, radius [rad]); radii as in
+            :func:`blended_points`.
+        rise: The kernel's rise, as a fraction of the radius, in (0, 1].
+
+    Returns:
+        The breakpoints (pieces + 1,), each piece's ``y, m, c2, c3`` (pieces, 4, dof) for
+        :meth:`~safepath.timing._spline.CubicPath.from_pieces`, and the path parameter of
+        each waypoint; None unless every via point is blended and none turns (almost)
+        back, or if a leg has no length.
+    """
+    W = np.asarray(waypoints, dtype=float)  # noqa: N806
+    legs = np.linalg.norm(np.diff(W, axis=0), axis=1)
+    if not np.all(legs > 1e-12):
+        return None
+    s_way = np.concatenate([[0.0], np.cumsum(legs)])
+    d = np.diff(W, axis=0) / legs[:, None]
+    radius = dict(_radii(s_way, corners))
+    inner = range(1, len(W) - 1)
+    if sorted(radius) != list(inner) or any(
+            np.linalg.norm(d[c - 1] + d[c]) < _SHARPEST for c in inner):
+        return None
+    r = np.array([0.0, *(radius[c] for c in inner), 0.0])
+    pieces: list[tuple[float, float, np.ndarray]] = []  # start, end, coefficients
+    for k in range(len(W) - 1):
+        if k > 0:
+            pieces.extend(_blend_pieces(W[k], d[k - 1], d[k], s_way[k], r[k], rise))
+        a, b = s_way[k] + r[k], s_way[k + 1] - r[k + 1]
+        zero = np.zeros_like(d[k])
+        pieces.append((a, b, np.stack([W[k] + r[k] * d[k], d[k], zero, zero])))
+    tiny = 1e-12 * max(1.0, float(s_way[-1]))
+    kept = [(a, c) for a, b, c in pieces if b - a > tiny]
+    breaks = np.array([a for a, _ in kept] + [float(s_way[-1])])
+    breaks[0] = 0.0
+    return breaks, np.stack([c for _, c in kept]), s_way
+
+
+def _blend_pieces(corner: np.ndarray, d_a: np.ndarray, d_b: np.ndarray, s_c: float,
+                  r: float, rise: float) -> list[tuple[float, float, np.ndarray]]:
+    """The three cubic pieces of the blend at ``corner`` (path parameter ``s_c``, radius
+    ``r``) from direction ``d_a`` to ``d_b``: (start, end, ``y, m, c2, c3``) each."""
+    w2 = rise * r  # the kernel rises over w2, holds over w1 - w2, falls over w2
+    w1 = 2.0 * r - w2
+    height = 1.0 / w1  # its integral is 1
+    turn = d_b - d_a
+    y, m, k = corner - r * d_a, d_a.copy(), 0.0
+    start = s_c - r
+    out = []
+    for length, slope in ((w2, height / w2), (w1 - w2, 0.0), (w2, -height / w2)):
+        out.append((start, start + length,
+                    np.stack([y, m, turn * (k / 2.0), turn * (slope / 6.0)])))
+        y = y + m * length + turn * (k * length ** 2 / 2.0 + slope * length ** 3 / 6.0)
+        m = m + turn * (k * length + slope * length ** 2 / 2.0)
+        k = k + slope * length
+        start += length
+    return out

@@ -20,14 +20,18 @@ from ..model._knots import interval_index
 from ..model.robot import Robot
 from . import _topp
 
-__all__ = ["AHEAD_MARGIN", "TCP_STEP", "PathSpline", "PathLimits", "Points",
-           "ahead_of_steps", "gridpoints", "jet", "path_limits", "row_max", "sliding_min"]
+__all__ = ["AHEAD_MARGIN", "STRAIGHT_STEPS", "TCP_STEP", "PathSpline", "PathLimits", "Points",
+           "ahead_of_steps", "gridpoints", "jet", "path_limits", "row_max", "sliding_min",
+           "straight_pieces"]
 
 #: Spacing of the points where the TCP's speed per path speed is computed [rad].
 TCP_STEP = 0.015
 #: Margin of the reach of :func:`ahead_of_steps` over half the averages' width at the
 #: speed bound.
 AHEAD_MARGIN = 1.2
+#: How many times coarser TOPP-RA's grid is on a straight piece of the path
+#: (:func:`gridpoints`).
+STRAIGHT_STEPS = 8
 #: Share of each joint's jerk limit left to the path's third derivative
 #: (``|q'''(s)| sdot^3``); the rest is for the changes of the path acceleration.
 JERK_SPEED_SHARE = 0.5
@@ -112,7 +116,8 @@ class PathLimits:
 
 def path_limits(robot: Robot, path: PathSpline, s_way: np.ndarray, scales: Sequence[float],
                 tcp_speeds: Sequence[float | None], *, speed_scale: float, grid_step: float,
-                jerk_scale: float = 1.0, ahead: float = 0.0) -> PathLimits:
+                jerk_scale: float = 1.0, ahead: float = 0.0, scales_ahead: bool = True
+                ) -> PathLimits:
     """TOPP-RA's grid along ``path`` and the limits there.
 
     Args:
@@ -130,8 +135,13 @@ def path_limits(robot: Robot, path: PathSpline, s_way: np.ndarray, scales: Seque
             covers in half that time (:func:`ahead_of_steps`), so that the averages
             carry no speed or acceleration of a faster segment into a slower one. The
             limits the knots are checked against (``*_seg``) stay the segments' own.
+        scales_ahead: Whether the speed scales hold ahead too, or only the TCP speed
+            limits (the joint limits are checked on the knots' executed motion, where a
+            scale carried into a slower segment costs a time stretch; nothing else checks
+            the TCP's speed that way before release but :func:`~safepath.timing.time_path`'s
+            release, where a stretch costs the whole piece).
     """
-    grid = gridpoints(path.x, s_way, grid_step)
+    grid = gridpoints(path.x, s_way, grid_step, straight_pieces(path))
     seg_scales = np.asarray(scales, dtype=float) * speed_scale
     last = len(seg_scales) - 1
     seg_of_grid = interval_index(s_way, grid, last + 1)
@@ -143,8 +153,11 @@ def path_limits(robot: Robot, path: PathSpline, s_way: np.ndarray, scales: Seque
     v_grid = np.minimum(v_seg[seg_of_grid], v_seg[seg_before])
     _, dq, ddq = jet(path, grid)
     bound = _Bounds(robot, path, s_way, grid, dq, jerk_scale, np.isfinite(v_seg).any())
-    if ahead > 0.0 and (np.ptp(seg_scales) > 0.0 or np.unique(v_seg).size > 1):
-        scale_grid, v_grid = ahead_of_steps(grid, bound, ahead, scale_grid, v_grid)
+    if ahead > 0.0 and ((scales_ahead and np.ptp(seg_scales) > 0.0)
+                        or np.unique(v_seg).size > 1):
+        near_scale, v_grid = ahead_of_steps(grid, bound, ahead, scale_grid, v_grid)
+        if scales_ahead:
+            scale_grid = near_scale
     at_grid = Points(dq, ddq, scale_grid[:, None] * robot.acceleration_limits,
                      bound(scale_grid, v_grid))
     return PathLimits(grid, at_grid, s_way, seg_scales[:, None] * robot.velocity_limits,
@@ -191,6 +204,15 @@ class _Bounds:
         return np.minimum(xmax, tcp)
 
 
+def straight_pieces(path: PathSpline) -> np.ndarray | None:
+    """Which pieces of the path are straight (no second or third derivative), where the
+    path offers its pieces' coefficients (:class:`~safepath.timing.CubicPath`)."""
+    coef = getattr(path, "coefficients", None)
+    if coef is None:
+        return None
+    return np.all(coef[:, 2:, :] == 0.0, axis=(1, 2))
+
+
 def _jerk_xmax(robot: Robot, d3: np.ndarray, scale: np.ndarray) -> np.ndarray:
     """Bound on ``x`` that keeps the path's third-derivative term of every joint's jerk,
     ``|q'''_j(s)| sdot^3``, within :data:`JERK_SPEED_SHARE` of its limit, where the
@@ -213,18 +235,25 @@ def _tcp_rate(robot: Robot, path: PathSpline, s_way: np.ndarray, grid: np.ndarra
     return np.interp(grid, samples, np.linalg.norm(np.gradient(p, samples, axis=0), axis=1))
 
 
-def gridpoints(breaks: np.ndarray, s_way: np.ndarray, step: float) -> np.ndarray:
+def gridpoints(breaks: np.ndarray, s_way: np.ndarray, step: float,
+               straight: np.ndarray | None = None) -> np.ndarray:
     """TOPP-RA's gridpoints [rad] (path parameter): each spline piece (between
     ``breaks``) cut evenly into pieces of at most ``step`` [rad] (at least 19 in all),
-    and the segment boundaries ``s_way``.
+    and the segment boundaries ``s_way``; a straight piece (``straight``, per piece)
+    into pieces of at most :data:`STRAIGHT_STEPS` times that.
 
     On a spline piece the path's curvature is linear in ``s``; across a spline knot it
-    bends, which is where the limits would otherwise be exceeded between gridpoints.
+    bends, which is where the limits would otherwise be exceeded between gridpoints. On a
+    straight piece the path's tangent is constant and it has no curvature: the limits
+    hold between gridpoints where they hold at them (the path acceleration is constant
+    between gridpoints and the squared speed linear), and a finer grid only places
+    TOPP-RA's switches between full acceleration and the speed limit more exactly.
     """
     length = float(breaks[-1])
     step = min(step, length / 19)
     pieces = np.diff(breaks)
-    counts = np.maximum(1, np.ceil(pieces / step - 1e-9).astype(int))
+    steps = step if straight is None else np.where(straight, STRAIGHT_STEPS * step, step)
+    counts = np.maximum(1, np.ceil(pieces / steps - 1e-9).astype(int))
     piece = np.repeat(np.arange(pieces.size), counts)
     j = np.arange(piece.size) - np.repeat(np.cumsum(counts) - counts, counts)
     grid = np.append(breaks[piece] + pieces[piece] * (j / counts[piece]), length)

@@ -42,6 +42,27 @@ class CubicPath:
         c3 = (m[:-1] + m[1:] - 2.0 * delta) / (h * h)[:, None]
         self._coef = np.stack([y[:-1], m[:-1], c2, c3], axis=1)
 
+    @classmethod
+    def from_pieces(cls, x: np.ndarray, coefficients: np.ndarray) -> CubicPath:
+        """A piecewise cubic given piece by piece (no interpolation): piece ``i`` is
+        ``y + m t + c2 t^2 + c3 t^3`` for ``t = s - x[i]``.
+
+        Args:
+            x: Breakpoints, strictly increasing: (pieces + 1,).
+            coefficients: Each piece's ``y, m, c2, c3`` (pieces, 4, d).
+        """
+        x = np.asarray(x, dtype=float)
+        coef = np.ascontiguousarray(coefficients, dtype=float)
+        if x.ndim != 1 or coef.ndim != 3 or coef.shape[:2] != (x.size - 1, 4) or x.size < 2:
+            raise ValueError(f"need n >= 2 breakpoints and (n - 1, 4, d) coefficients, "
+                             f"got x {x.shape} and coefficients {coef.shape}")
+        if not np.all(np.diff(x) > 0):
+            raise ValueError("the breakpoints must increase strictly")
+        path = cls.__new__(cls)
+        path.x = x
+        path._coef = coef
+        return path
+
     @staticmethod
     def _slopes(x: np.ndarray, h: np.ndarray, y: np.ndarray, delta: np.ndarray
                 ) -> np.ndarray:

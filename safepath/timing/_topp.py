@@ -159,5 +159,6 @@ def compiled_kernels() -> dict[str, Callable[..., Any]]:
             from . import _topp_kernels as kernels
 
             _compiled.update(backward=kernels.backward, forward=kernels.forward,
-                             tridiagonal=kernels.tridiagonal, knots=kernels.knots)
+                             tridiagonal=kernels.tridiagonal, knots=kernels.knots,
+                             jerk_shift=kernels.jerk_shift)
         return _compiled

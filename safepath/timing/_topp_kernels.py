@@ -1,5 +1,6 @@
 """The numba kernels of TOPP-RA (:mod:`safepath.timing._topp`): the backward and forward
-passes, the spline slopes' tridiagonal solve and the smoothed knots.
+passes, the spline slopes' tridiagonal solve, the smoothed knots and the jerk
+smoothing's window.
 
 Compiled ahead of time (:mod:`safepath._aot`), else by numba when this module is first
 imported; :func:`safepath.timing._topp.compiled_kernels` imports it on the first timing,
@@ -14,7 +15,7 @@ import numpy as np
 from .._aot import njit
 from ..model._joinkernel import piece_of
 
-__all__ = ["backward", "forward", "knots", "tridiagonal"]
+__all__ = ["backward", "forward", "jerk_shift", "knots", "tridiagonal"]
 
 _inlined = njit(cache=True, nogil=True, inline="always")
 
@@ -265,3 +266,40 @@ def tridiagonal(dl, d, du, b):
         for c in range(k):
             b[i, c] = (b[i, c] - du[i] * b[i + 1, c] - dl[i] * b[i + 2, c]) / d[i]
     return 0
+
+
+@_inlined
+def _shift_fits(f, m, dt):
+    """Whether no column of ``f`` changes by more than ``m dt`` over ``m`` rows."""
+    n, dof = f.shape
+    if m >= n:
+        return True
+    bound = m * dt
+    for i in range(n - m):
+        for j in range(dof):
+            if abs(f[i + m, j] - f[i, j]) > bound:
+                return False
+    return True
+
+
+@njit(cache=True, nogil=True)
+def jerk_shift(f, dt):
+    """The fewest rows ``m >= 1`` over which no column of ``f`` (n, dof) changes by more
+    than ``m dt``, by bisection from ``ceil(2 max|f| / dt)`` (or ``n``, the whole: it then
+    fits by definition); :func:`safepath.timing.path_timing._jerk_window`'s search."""
+    n = f.shape[0]
+    peak = 0.0
+    for i in range(n):
+        for j in range(f.shape[1]):
+            peak = max(peak, abs(f[i, j]))
+    hi = max(1, int(np.ceil(2.0 * peak / dt)))
+    lo = 1
+    if not _shift_fits(f, hi, dt):
+        hi = n
+    while lo < hi:
+        mid = (lo + hi) // 2
+        if _shift_fits(f, mid, dt):
+            hi = mid
+        else:
+            lo = mid + 1
+    return lo

@@ -88,3 +88,55 @@ def test_the_planner_blends_as_its_options_say(bundled_cell) -> None:  # noqa: A
                        velocity_limits=robot.velocity_limits,
                        acceleration_limits=robot.acceleration_limits,
                        jerk_limits=robot.jerk_limits)
+
+
+@pytest.mark.parametrize("seed", range(10))
+def test_blends_are_exact_with_the_smallest_rate_of_curvature(seed: int) -> None:
+    """Every via point blended: the path is the polyline averaged around each corner by
+    a triangle of width ``2 r`` (curvature continuous, its rate ``|d_b - d_a| / r^2``
+    and no more): a spline through points sampled along a curve would have a third
+    derivative many times the curve's, and the jerk limits cap the speed by it."""
+    rng = np.random.default_rng(100 + seed)
+    dof = int(rng.integers(2, 8))
+    waypoints = [rng.normal(size=dof) * 1.5 for _ in range(int(rng.integers(3, 6)))]
+    legs = [float(np.linalg.norm(b - a)) for a, b in zip(waypoints[:-1], waypoints[1:],
+                                                         strict=True)]
+    corners = [(k, min(float(rng.uniform(0.05, 0.6)), 0.4 * legs[k - 1], 0.4 * legs[k]))
+               for k in range(1, len(waypoints) - 1)]
+    path, s_way, _ = spline_path(waypoints, 0.06, corners=corners, blend="g2")
+    d = [(b - a) / np.linalg.norm(b - a) for a, b in zip(waypoints[:-1], waypoints[1:],
+                                                         strict=True)]
+    s = np.linspace(0.0, float(path.x[-1]), 40001)
+    rate = np.abs(path(s, 3))  # type: ignore[operator]
+    for k, r in corners:
+        near = np.abs(s - s_way[k]) < r
+        bound = np.abs(d[k] - d[k - 1]) / r ** 2
+        assert np.all(rate[near] <= bound * (1 + 1e-9) + 1e-9)
+        # The blend's middle: the polyline's corner moved by (d_b - d_a) r / 6.
+        np.testing.assert_allclose(path(s_way[k]), waypoints[k] + (d[k] - d[k - 1]) * r / 6,
+                                   atol=1e-12)
+    straight = np.all([np.abs(s - s_way[k]) > r for k, r in corners], axis=0)
+    assert rate[straight].max() < 1e-9
+    # Continuous up to the second derivative across every breakpoint.
+    inner = path.x[1:-1]
+    for nu in (0, 1, 2):
+        np.testing.assert_allclose(path(inner - 1e-12, nu), path(inner, nu), atol=1e-9)  # type: ignore[operator]
+    np.testing.assert_allclose(path(s_way[-1]), waypoints[-1], atol=1e-12)  # type: ignore[operator]
+
+
+def test_topp_ra_grid_is_coarser_only_on_straight_pieces() -> None:
+    """TOPP-RA's gridpoints lie ``grid_step`` apart on the blends and up to
+    ``STRAIGHT_STEPS`` times that on the straight pieces (where the limits hold between
+    gridpoints wherever they hold at them)."""
+    from safepath.timing._path_limits import STRAIGHT_STEPS, gridpoints, straight_pieces
+
+    waypoints = [np.zeros(3), np.array([2.0, 0.0, 0.0]), np.array([2.0, 2.0, 1.0])]
+    path, s_way, _ = spline_path(waypoints, 0.06, corners=[(1, 0.3)], blend="g2")
+    straight = straight_pieces(path)
+    assert straight is not None and straight.tolist() == [True, False, False, True]
+    grid = gridpoints(path.x, s_way, 0.005, straight)
+    gaps = np.diff(grid)
+    piece = np.searchsorted(path.x, grid[:-1], side="right") - 1
+    assert gaps[~straight[piece]].max() <= 0.005 + 1e-12
+    assert 0.005 < gaps[straight[piece]].min()
+    assert gaps[straight[piece]].max() <= STRAIGHT_STEPS * 0.005 + 1e-12

@@ -424,3 +424,28 @@ def test_a_segment_takes_the_quick_way_only_when_no_point_repeats_the_one_before
     assert not apart(None, [a, c])  # c repeats a
     assert not apart(c, [a, b])  # a repeats the last kept point
     assert not apart(None, [a, b, b.copy()])
+
+
+def _shift_reference(f: np.ndarray, dt: float) -> int:
+    """The fewest rows ``m >= 1`` over which no column of ``f`` changes by more than
+    ``m dt`` (a plain search over every ``m``)."""
+    for m in range(1, f.shape[0]):
+        if float(np.abs(f[m:] - f[:-m]).max()) <= m * dt:
+            return m
+    return f.shape[0]
+
+
+@pytest.mark.parametrize("seed", range(12))
+def test_the_jerk_window_kernel_finds_the_fewest_rows(seed: int) -> None:
+    """The compiled search for the jerk smoothing's window equals a plain search over
+    every width, on random accelerations (steps, ramps and noise)."""
+    from safepath.timing._topp import compiled_kernels
+
+    rng = np.random.default_rng(seed)
+    n, dof = int(rng.integers(3, 300)), int(rng.integers(1, 8))
+    f = np.cumsum(rng.normal(0.0, 0.02, (n, dof)), axis=0)
+    f[rng.integers(0, n):] += rng.normal(0.0, 1.0, dof)  # a switch
+    f = np.vstack([np.zeros((1, dof)), f, np.zeros((1, dof))])
+    dt = float(rng.uniform(0.001, 0.05))
+    assert compiled_kernels()["jerk_shift"](np.ascontiguousarray(f), dt) == \
+        _shift_reference(f, dt)

@@ -76,3 +76,43 @@ def test_a_step_limit_holds_ahead_only_as_far_as_the_averages_reach() -> None:
                                   own.at_grid.alim[-1, 0])
     # The limits the knots are checked against are the steps' own.
     np.testing.assert_array_equal(ahead.amax_seg, own.amax_seg)
+
+
+def _tcp_speed_ratio(robot, piece, tcp: tuple[float, float]) -> float:  # noqa: ANN001
+    """The TCP's largest speed over its step's limit in the knots' quintic join, sampled
+    every 0.25 ms (speeds from positions 10 us apart: independent of the timing's own
+    check, which uses velocities)."""
+    from safepath.model.execution import join
+
+    times = np.arange(0.0, float(piece.t[-1]), 2.5e-4)
+    h = 1e-5
+    p = [join(piece.t, piece.q, piece.qd, piece.qdd, times + d)[0] for d in (-h, h)]
+    speed = np.linalg.norm(robot.tcp_positions(p[1]) - robot.tcp_positions(p[0]),
+                           axis=1) / (2 * h)
+    k = np.clip(np.searchsorted(piece.t, times, side="right") - 1, 0, piece.t.size - 2)
+    limit = np.asarray(tcp)[np.minimum(piece.segment[k], piece.segment[k + 1])]
+    # The interval's smaller limit: both steps' limits where it straddles the boundary.
+    limit = np.minimum(limit, np.asarray(tcp)[np.maximum(piece.segment[k],
+                                                         piece.segment[k + 1])])
+    inside = (times > h) & (times < piece.t[-1] - h)
+    return float(np.max(speed[inside] / limit[inside]))
+
+
+@pytest.mark.parametrize("name", ("panda", "ur5", "gen3_lite"))
+@pytest.mark.parametrize("tcp_ahead", (True, False))
+@pytest.mark.parametrize("tcp", ((0.4, 0.12), (0.12, 0.4)))
+def test_the_tcp_speed_holds_as_executed_across_steps(name: str, tcp_ahead: bool,
+                                                      tcp: tuple[float, float]) -> None:
+    """Two steps with different TCP speed limits, blended at the via point between them:
+    the TCP's speed in the motion the controller executes stays within each step's limit
+    (the smaller of both across their boundary), with or without the limits held ahead;
+    it comes near the limit (not slowed far below it)."""
+    robot = load_robot(name)
+    rng = np.random.default_rng(11)
+    lo, hi = robot.lower * 0.5, robot.upper * 0.5
+    a, via, b = (lo + rng.random(robot.dof) * (hi - lo) for _ in range(3))
+    path, s_way, _ = spline_path([a, via, b], 0.06, corners=[(1, 0.3)], blend="g2")
+    piece = time_path(robot, path, s_way, scales=[1.0, 1.0], tcp_speeds=list(tcp),
+                      options=TimingOptions(tcp_ahead=tcp_ahead))
+    ratio = _tcp_speed_ratio(robot, piece, tcp)
+    assert 0.95 < ratio <= 1.0 + 1e-6
