@@ -2,11 +2,12 @@
 
 A cell's node or quality-check cycle plans the same routes from the same poses in the
 same world cycle after cycle: the same IK goals, the same straight TCP lines checked by
-the same checker, the same blended splines checked at the same samples. Each of these is
-a pure function of its inputs, so it is kept here, per process, by the exact bits of
-those inputs (the robot and checker by identity: they are built once per cell and never
-change), and a second ask gets the first's answer (the same bits: plans stay
-deterministic). Only successes are kept: a failure is computed again and raises with the
+the same checker, the same seeded joint moves, the same blended splines through the same
+points, checked at the same samples. Each of these is a pure function of its inputs, so
+it is kept here, per process, by the exact bits of those inputs (the robot and checker
+by identity: they are built once per cell; an IK goal also by the robot's kinematic
+model and joint limits), and a second ask gets the first's answer (the same bits: plans
+stay deterministic). Only successes are kept: a failure is computed again and raises with the
 asker's own step name. The timed pieces and the independent release check are not kept:
 every trajectory that leaves the library is re-checked (:mod:`safepath.verify`).
 
