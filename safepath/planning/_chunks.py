@@ -9,9 +9,9 @@ step boundaries, then by stops at every corner of the checked path.
 from __future__ import annotations
 
 import logging
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, cast
 
 import numpy as np
 
@@ -22,9 +22,11 @@ from ..model.scene import AllowedContact
 from ..model.trajectory import GripperEvent, Trajectory
 from ..timing import TimedPiece, TimingOptions, spline_path, time_path
 from ..verify import VerifyResult
+from . import _repeats
 
 if TYPE_CHECKING:
     from ..cell import Cell
+    from ..collision import CollisionChecker
     from .options import PlanOptions
     from .world import CheckerCache, WorldState
 
@@ -182,8 +184,10 @@ def time_segments(cell: Cell, segments: list[Segment], world: WorldState,
     checked = check and len(waypoints) > 2
     if piece is not None and not checked:
         return piece, seg_steps
-    path, s_way, _ = spline_path(waypoints, options.timing.spacing, corners=corners,
-                                 blend=options.timing.corner_blend)
+    spacing, blend_kind = options.timing.spacing, options.timing.corner_blend
+    path, s_way, _ = _repeats.spline(
+        cell.robot, waypoints, (spacing, tuple(corners), blend_kind),
+        lambda: spline_path(waypoints, spacing, corners=corners, blend=blend_kind))
     if checked:
         _check_spline(cell, path, s_way, seg_of_poly, segments, world, options, cache)
     if piece is None:
@@ -245,12 +249,19 @@ def _check_spline(cell: Cell, path: object, s_way: np.ndarray, seg_of_poly: Sequ
     for k in range(1, n + 1):
         if k == n or step_of[k] != step_of[start]:
             checker = cache.checker(world, segments[step_of[start]].allowed)
-            if not checker.check_path(Q[start:min(k + 1, n)], details=False).valid:
+            chords = Q[start:min(k + 1, n)]
+            if not _repeats.spline_free(checker, chords, _path_check(checker, chords)):
                 raise _NotFree()
             start = k
     # The chords between samples are checked; the spline between two samples deviates
     # from its chord by far less than the verifier's resolution, which re-checks the
     # timed result anyway.
+
+
+def _path_check(checker: CollisionChecker, chords: np.ndarray) -> Callable[[], bool]:
+    """Whether ``checker`` finds the polyline ``chords`` free, when called."""
+    rows = cast("Sequence[np.ndarray]", chords)  # check_path takes the array as it is
+    return lambda: checker.check_path(rows, details=False).valid
 
 
 def assemble(cell: Cell, route: Route, labels: list[str],

@@ -13,7 +13,7 @@ from __future__ import annotations
 
 import logging
 import time
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass, replace
 from pathlib import Path
 
@@ -26,12 +26,13 @@ from ..errors import ConfigError, IKError, PlanningError, SafepathError, TimingE
 from ..model.trajectory import Trajectory
 from ..timing import TimedPiece
 from ..verify import check_verifiable
+from . import _repeats
 from ._chunks import Segment, TimedPieces, assemble, time_chunk, time_segments
 from ._pour_chunk import PourChunk, plan_pour_chunk
 from .cartesian import cartesian_line
 from .constraints import check_tilt, tilt_bound
 from .landing import check_landing
-from .options import PlanOptions
+from .options import PlannerOptions, PlanOptions
 from .sampling import plan_joint_path
 from .world import CheckerCache, WorldState, initial_world
 
@@ -236,8 +237,9 @@ def _plan_paths(cell: Cell, route: Route, world: WorldState, options: PlanOption
         else:
             allowed = ()
             seeded = replace(options.planner, seed=options.planner.seed + i)
-            waypoints = plan_joint_path(cache.checker(world, allowed), q, goal,
-                                        options=seeded, step=labels[i], times=times)
+            checker = cache.checker(world, allowed)
+            waypoints = _repeats.joint_path(checker, q, goal, seeded, _move(
+                checker, q, goal, seeded, labels[i], times))
         current.append(Segment(i, step, waypoints, allowed))
         q, pose_name = goal, goal_name
         if step.stop:
@@ -248,17 +250,30 @@ def _plan_paths(cell: Cell, route: Route, world: WorldState, options: PlanOption
     return _Paths(chunks, actions, world, times.get("shortcut", 0.0))
 
 
+def _move(checker: CollisionChecker, q: np.ndarray, goal: np.ndarray,
+          options: PlannerOptions, label: str, times: dict[str, float]
+          ) -> Callable[[], list[np.ndarray]]:
+    """The joint move from ``q`` to ``goal``, planned when called."""
+    return lambda: plan_joint_path(checker, q, goal, options=options, step=label, times=times)
+
+
 def _line_path(cell: Cell, checker: CollisionChecker, q: np.ndarray, goal: np.ndarray,
                options: PlanOptions, label: str) -> list[np.ndarray]:
     """The straight TCP line from ``q`` to ``goal``, checked; IKError where it collides."""
     robot = cell.robot
-    waypoints = cartesian_line(robot, q, goal, options=options.line, step_name=label)
-    report = checker.check_path(waypoints)
-    if not report.valid:
-        raise IKError(_line_failure(checker, report), step=label,
-                      fraction=report.fraction or 0.0,
-                      position=robot.tcp_position(report.q) if report.q is not None else None)
-    return waypoints
+
+    def checked() -> list[np.ndarray]:
+        waypoints = cartesian_line(robot, q, goal, options=options.line, step_name=label)
+        report = checker.check_path(waypoints)
+        if not report.valid:
+            raise IKError(_line_failure(checker, report), step=label,
+                          fraction=report.fraction or 0.0,
+                          position=robot.tcp_position(report.q) if report.q is not None
+                          else None)
+        return waypoints
+
+    # The same line in the same world is the same checked line (_repeats).
+    return _repeats.checked_line(checker, q, goal, options.line, checked)
 
 
 def _line_failure(checker: CollisionChecker, report: SegmentReport) -> str:
@@ -372,7 +387,8 @@ def _resolve(cell: Cell, step: Step, q: np.ndarray, label: str, options: PlanOpt
         T = cell.robot.frame_pose(q_init)
         T.translation = T.translation + np.asarray(target.offset)
     try:
-        return solve_ik(cell.robot, T, q_init, options=options.line, step=label), None
+        return _repeats.ik_goal(cell.robot, T.homogeneous, q_init, options.line, lambda: solve_ik(
+            cell.robot, T, q_init, options=options.line, step=label)), None
     except IKError as exc:
         if step.kind != "line":
             raise

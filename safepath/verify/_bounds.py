@@ -19,7 +19,7 @@ from __future__ import annotations
 import copy
 import functools
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -602,9 +602,16 @@ class Layer:
         T_joint_geom = self._homogeneous[m]
         if joint == 0:
             return T_joint_geom[:3]
-        data = self._model.createData()
+        data = self._fk_data
         pin.forwardKinematics(self._model, data, np.asarray(q, dtype=float))
         return np.asarray(data.oMi[joint].homogeneous[:3] @ T_joint_geom)
+
+    @functools.cached_property
+    def _fk_data(self) -> Any:
+        """Pinocchio's workspace for :meth:`pose_at`, made once per layer (one thread
+        walks a layer at a time, as for :attr:`_scratch`; forward kinematics overwrites
+        every joint placement it reads)."""
+        return self._model.createData()
 
     @functools.cached_property
     def _homogeneous(self) -> np.ndarray:

@@ -10,8 +10,10 @@ Two modes, chosen by the job's ``mode``:
 * ``panda``: the Panda problems written as a scene folder (one ``move`` route per
   problem) and planned with :func:`safepath.plan_route`, the same pipeline.
 
-Defaults everywhere (``PlanOptions()``: RRTConnect, 2 s budget, margin enforced at the
-scene's margin, resolution 2 mm), except the seed.
+Every timed plan is a first plan: what the planner keeps between plans
+(:mod:`safepath.planning._repeats`) is forgotten before it. Defaults everywhere
+(``PlanOptions()``: RRTConnect, 2 s budget, margin enforced at the scene's margin,
+resolution 2 mm), except the seed.
 """
 
 from __future__ import annotations
@@ -23,7 +25,7 @@ import time
 from _common import Timer, load_job, run_problems, time_checks, write_result
 
 import safepath
-from safepath.planning import PlannerOptions
+from safepath.planning import PlannerOptions, _repeats
 
 
 def _traj_result(traj: safepath.Trajectory) -> dict:
@@ -46,8 +48,10 @@ def _cell(job: dict) -> list[dict]:
         options = safepath.PlanOptions(planner=PlannerOptions(seed=seed))
         entry = {"id": problem["id"], "seed": seed, "route_names": list(routes)}
         try:
+            _repeats.clear()  # a first plan: nothing kept from the warm-up or other seeds
             with Timer() as t_all:
                 trajs = safepath.plan_cell(cell, options, routes=equal)
+            _repeats.clear()
             with Timer() as t_authored:
                 authored = safepath.plan_cell(cell, options, routes=routes)
         except safepath.SafepathError as exc:
@@ -76,6 +80,7 @@ def _panda(job: dict) -> list[dict]:
 
     def solve(problem: dict) -> dict:
         options = safepath.PlanOptions(planner=PlannerOptions(seed=int(problem["seed"])))
+        _repeats.clear()  # a first plan (the first problem is also the warm-up)
         try:
             traj = safepath.plan_route(cell, routes[problem["id"]], options)
         except safepath.SafepathError as exc:
