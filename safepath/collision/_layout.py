@@ -9,11 +9,14 @@ rows of the movers (GW, GIW wide) and of the environment objects, and the shape 
 A kernel call's scratch (``wf``, ``wi``) is laid out here too (W_*, WI_*).
 
 Only constants: importing this module compiles nothing (the packer reads it).
+The shape kinds' codes are the shape table's (its source keys the builds too).
 The kernels read these as compile-time constants; :mod:`safepath._aot` keys its
 builds on this file's source too.
 """
 
 from __future__ import annotations
+
+from ..model.shapes import BOX, CAPSULE, CYLINDER, SPHERE
 
 FREE, COLLIDES, UNSURE = 0, 1, 2
 
@@ -43,10 +46,14 @@ C_REFINE, C_FREE_EPS, C_PROOF_EPS, C_RES = 0, 1, 2, 3
 #: Status of a segment whose start (index 0) or end (index 1) is outside the limits.
 OUTSIDE = 3
 
-ENV_BOX, ENV_CYLINDER, ENV_SPHERE, ENV_CAPSULE, ENV_BOX_ONLY_OUTER = 0, 1, 2, 3, 4
-#: Shape kinds of movers (same codes; HULL: a convex hull, measured by GJK on its
-#: vertices; SPHERES_ONLY: no primitive, spheres decide).
+#: Shape kinds (the shape table's codes, :mod:`safepath.model.shapes`), and the kernels' own:
+#: an environment object measured by the box around it (a lower bound), and a mover with no
+#: primitive (its spheres decide).
+ENV_BOX, ENV_CYLINDER, ENV_SPHERE, ENV_CAPSULE = BOX, CYLINDER, SPHERE, CAPSULE
+ENV_BOX_ONLY_OUTER = -2
 SPHERES_ONLY = -1
+#: A mover's convex hull, measured by GJK on its vertices (H_V).
+HULL = -3
 
 # The rows of the tables in the buffers: where each column starts, and the row's width.
 #: A mover's floats (H_G): its bounding sphere's centre (3) and radius [m], its
