@@ -16,11 +16,7 @@ import pytest
 
 from safepath import load_robot
 from safepath.collision._gjk import (
-    BOX,
-    CAPSULE,
-    CYLINDER,
     HULL,
-    SPHERE,
     TOL,
     distance_lower_bound,
     distance_upper_bound,
@@ -46,6 +42,7 @@ from safepath.collision._layout import (
     WS_HULL_END,
     WS_KIND,
 )
+from safepath.model.shapes import SHAPES, from_code
 
 
 def _random_rotation(rng: np.random.Generator) -> np.ndarray:
@@ -68,15 +65,12 @@ def hulls() -> list[coal.ConvexBase]:
     return shapes
 
 
-def _primitive(kind: int, rng: np.random.Generator) -> tuple[object, np.ndarray]:
-    a, b, c = rng.uniform(0.02, 0.2, 3)
-    if kind == BOX:
-        return coal.Box(2 * a, 2 * b, 2 * c), np.array([a, b, c])
-    if kind == CYLINDER:
-        return coal.Cylinder(a, 2 * b), np.array([a, b, 0.0])
-    if kind == CAPSULE:
-        return coal.Capsule(a, 2 * b), np.array([a, b, 0.0])
-    return coal.Sphere(a), np.array([a, 0.0, 0.0])
+def _primitive(code: int, rng: np.random.Generator) -> tuple[object, np.ndarray]:
+    """A random primitive of the shape table's kind ``code``: coal's, and its kernel
+    parameters [m]."""
+    kind = from_code(code)
+    size = kind.size(kind.half(tuple(rng.uniform(0.04, 0.4, len(kind.size_names)))))
+    return kind.to_coal(size), kind.half(size)
 
 
 def _tables(*shapes: object) -> tuple[np.ndarray, np.ndarray, list[tuple[int, int]]]:
@@ -160,7 +154,7 @@ def _signed_distance(a: object, Ta: coal.Transform3s, b: object, Tb: coal.Transf
     return float(coal.distance(a, Ta, b, Tb, req, res))
 
 
-@pytest.mark.parametrize("other", [BOX, CYLINDER, SPHERE, CAPSULE, HULL])
+@pytest.mark.parametrize("other", [*(kind.code for kind in SHAPES.values()), HULL])
 def test_upper_bound_is_above_coal_and_proves_overlaps(hulls: list, other: int) -> None:
     rng = np.random.default_rng(23 + other)
     overlaps = proven = near = 0
@@ -184,7 +178,7 @@ def test_upper_bound_is_above_coal_and_proves_overlaps(hulls: list, other: int) 
     assert proven >= 0.95 * overlaps, f"{overlaps - proven} of {overlaps} not proven"
 
 
-@pytest.mark.parametrize("other", [BOX, CYLINDER, SPHERE, CAPSULE, HULL])
+@pytest.mark.parametrize("other", [*(kind.code for kind in SHAPES.values()), HULL])
 def test_bound_is_below_coal_and_tight_when_apart(hulls: list, other: int) -> None:
     rng = np.random.default_rng(11 + other)
     apart = tight = 0
@@ -208,7 +202,7 @@ def test_search_stops_at_the_callers_thresholds(hulls: list) -> None:
     R = np.eye(3)
     pa, pb = np.zeros(3), np.array([0.6, 0.0, 0.0])
     true = _coal_distance(hulls[2], coal.Transform3s(R, pa), box, coal.Transform3s(R, pb))
-    args = (HULL, R, pa, np.zeros(3), BOX, R, pb, db, [hulls[2]])
+    args = (HULL, R, pa, np.zeros(3), SHAPES["box"].code, R, pb, db, [hulls[2]])
     full = _bound(*args)
     assert true - TOL <= full <= true + 1e-9
     enough = _bound(*args, high=0.05)
