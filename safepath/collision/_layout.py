@@ -67,6 +67,9 @@ GI_JOINT, GI_OUTER, GI_OUTER_END, GI_INNER, GI_INNER_END = 0, 1, 2, 3, 4
 GI_KIND, GI_HULL, GI_HULL_END, GIW = 5, 6, 7, 8
 #: A sphere (H_S): its centre (3) in its mover's joint frame, its radius [m].
 S_RADIUS, SW = 3, 4
+#: A placed sphere (rows of the WI_BUFA, WI_BUFB blocks of ``wf``): its world centre (3),
+#: its radius [m], and a lower bound on its distance to the other body's bounding sphere [m].
+PS_RADIUS, PS_BOUND, PSW = 3, 4, 5
 #: An environment object's floats (H_E): its world rotation (9, row-major), position (3)
 #: and dimensions (3) [m].
 E_ROT, E_POS, E_DIMS, EW = 0, 9, 12, 15
@@ -94,7 +97,7 @@ W_R, W_P, W_D = 0, 9, 12
 #: an environment object's kind and 0, 0).
 WS_KIND, WS_HULL, WS_HULL_END = 0, 1, 2
 #: Blocks of ``wf``: world bounding-sphere centres of the movers (ng, 3); two placed sphere
-#: sets (ns, 5) each; per pair, the last direction GJK found (3: the next state's first
+#: sets (ns, PSW) each; per pair, the last direction GJK found (3: the next state's first
 #: guess); |u| (dof); per mover and joint, its distance to the joint's axis (DL) and how
 #: fast that can grow (CC) (ng, dof); per pair, the polyline walk's ledger: the most
 #: clearance budget [m] an evaluated state leaves at the end of the segment being walked
