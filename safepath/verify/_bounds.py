@@ -26,7 +26,6 @@ import numpy as np
 from ..errors import ConfigError
 from ..model.robot import joint_motion
 from ..model.shapes import from_coal
-from ._distance import HULL
 
 if TYPE_CHECKING:
     import pinocchio as pin
@@ -95,6 +94,8 @@ def shape_spec(geometry: object, name: str = "") -> ShapeSpec:
     if isinstance(geometry, (coal.ConvexBase, coal.BVHModelBase)):
         from scipy.spatial import ConvexHull
 
+        from ._distance import HULL  # the kernel module, imported by the first hull
+
         pts = np.asarray(geometry.points() if isinstance(geometry, coal.ConvexBase)
                          else geometry.vertices(), dtype=float)
         hull = ConvexHull(pts)
@@ -160,6 +161,8 @@ def shape_table(specs: list[ShapeSpec]) -> tuple[np.ndarray, tuple[np.ndarray, .
     its first row in the vertex table and its count) and the hull tables (vertices,
     per vertex row where its neighbours start, the neighbours' rows: all rows of the
     vertex table)."""
+    from ._distance import HULL  # the kernel module, imported when a check is built
+
     rows, verts, count = [], [], 0
     starts: list[np.ndarray] = []
     adjacent: list[np.ndarray] = []
