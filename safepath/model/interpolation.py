@@ -106,6 +106,21 @@ class Interpolation:
             ck = self.coefficients(t, q, qd, qdd)[0][k]
         return [polynomial(ck, tau, nu) for nu in range(4)]
 
+    def states(self, t: np.ndarray, q: np.ndarray, qd: np.ndarray, qdd: np.ndarray,
+               times: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Position, velocity and acceleration of the join of points ``(t, q, qd, qdd)``
+        (at least two) at ``times`` [s], clamped to the ends; each (len(times), dof).
+        Compiled for quintics (equal to :func:`safepath.model.execution.join` to rounding)."""
+        if self.order == 5:
+            from ._joinkernel import sample
+
+            return sample(t, q, qd, qdd, times)
+        t = np.asarray(t, dtype=float)
+        times = np.clip(np.atleast_1d(np.asarray(times, dtype=float)), t[0], t[-1])
+        k = np.clip(np.searchsorted(t, times, side="right") - 1, 0, t.size - 2)
+        p, v, a, _ = self.evaluate(t, q, qd, qdd, k, (times - t[k])[:, None])
+        return p, v, a
+
     def peaks(self, t: np.ndarray, q: np.ndarray, qd: np.ndarray, qdd: np.ndarray,
               rate: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Per interval and joint: bound of ``|v|`` [rad/s], exact max ``|a|`` [rad/s^2] and

@@ -179,7 +179,8 @@ class MonitoredPath:
     """A verified trajectory's motion as a path to re-time.
 
     The path parameter is the trajectory's own time; its positions, velocities and
-    accelerations at a path parameter are the trajectory's (its knots' quintic join).
+    accelerations at a path parameter are the trajectory's (its knots joined by
+    :attr:`~safepath.model.trajectory.Trajectory.interpolation`).
 
     Args:
         traj: The verified trajectory (one motion: no gripper event inside it).
@@ -209,12 +210,11 @@ class MonitoredPath:
 
     def states(self, tau: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Positions, velocities and accelerations of the verified trajectory at path
-        parameters ``tau`` (clamped to its ends): its knots' quintic join, compiled (a
-        replacement samples it at every knot, for every candidate profile)."""
-        from ..model._joinkernel import sample
-
+        parameters ``tau`` (clamped to its ends): its knots joined by the trajectory's
+        interpolation (compiled for quintics: a replacement samples it at every knot, for
+        every candidate profile)."""
         tr = self.traj
-        return sample(tr.t, tr.q, tr.qd, tr.qdd, np.asarray(tau, dtype=float))
+        return tr.interpolation.states(tr.t, tr.q, tr.qd, tr.qdd, np.asarray(tau, dtype=float))
 
     def sample(self, tau: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Position, velocity and acceleration of the verified trajectory at ``tau``."""
