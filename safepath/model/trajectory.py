@@ -196,7 +196,7 @@ class Trajectory:
     def resample(self, period: float) -> Trajectory:
         """The same trajectory sampled every ``period`` [s] (and at the final knot).
 
-        The samples lie on this trajectory's motion, but their own quintic join is not
+        The samples lie on this trajectory's motion, but their own join is not
         that motion (the knots are not kept): use it to export or plot, not to send.
 
         Raises:

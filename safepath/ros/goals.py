@@ -162,8 +162,8 @@ def _points(traj: Trajectory, period: float | None, robot_joint_names: Sequence[
             controller: ControllerSpec | None,
             limits: MotionLimits | None = None) -> _Points:
     """The goal's points: every knot of ``traj`` (times from its start), and where two
-    knots are more than ``period`` [s] apart, points of the quintic between them (which
-    joins them into the same quintic), in the controller's joint order; then the motion
+    knots are more than ``period`` [s] apart, points of their join between them (which
+    joins them into the same polynomial), in the controller's joint order; then the motion
     the controller executes from them is checked against the joint limits."""
     spec = controller_of(traj, controller)
     period = spec.period if period is None else period
@@ -176,7 +176,7 @@ def _points(traj: Trajectory, period: float | None, robot_joint_names: Sequence[
     gaps = np.diff(knot_ns)
     extra = np.maximum(-(-gaps // period_ns) - 1, 0)
     if traj.t.size > 1 and extra.any():
-        # Inserted points on whole nanoseconds too, sampled from the knots' own quintic
+        # Inserted points on whole nanoseconds too, sampled from the knots' own join
         # at exactly those times (which keeps the join what it was).
         inserted = np.concatenate([knot_ns[k] + (np.arange(1, e + 1) * gaps[k]) // (e + 1)
                                    for k, e in enumerate(extra)])
