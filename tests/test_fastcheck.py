@@ -280,19 +280,15 @@ def test_pair_weights_are_the_mask_sums_of_the_bodies_weights(cell: Cell,
     """The packed per-pair weights (what a joint step can close each pair by) are body a's
     weights where the pair's mask has bit 1 plus body b's where it has bit 2, for robot
     pairs, environment pairs and the held object's pairs."""
-    from safepath.collision import _layout as K  # noqa: N812
+    from safepath.collision._probe import pair_tables
 
     checkers = [cell.checker(), cell.checker(held=True),
                 CollisionChecker(panda_cell.robot, panda_cell.scene)]
     for checker in checkers:
         layer = checker.layer
         assert layer is not None
-        F, I_ = layer.F, layer.I  # noqa: N806
-        n, dof = int(I_[K.H_NP]), int(I_[K.H_DOF])
-        W = F[I_[K.H_W]:I_[K.H_W] + int(I_[K.H_NG]) * dof].reshape(-1, dof)  # noqa: N806
-        pairs = I_[I_[K.H_PI]:I_[K.H_PI] + 4 * n].reshape(n, 4)
-        masks = I_[I_[K.H_PM]:I_[K.H_PM] + n * dof].reshape(n, dof)
-        got = F[I_[K.H_PW]:I_[K.H_PW] + n * dof].reshape(n, dof)
+        W, pairs, masks, got = pair_tables(layer.F, layer.I)  # noqa: N806
+        dof = W.shape[1]
         kinds = set()
         for k, (a, b, env, _) in enumerate(pairs):
             kinds.add(bool(env))

@@ -16,36 +16,13 @@ import pytest
 
 from safepath import load_robot
 from safepath.collision._gjk import (
-    BOX,
-    CAPSULE,
-    CYLINDER,
     HULL,
-    SPHERE,
     TOL,
     distance_lower_bound,
     distance_upper_bound,
-    hull_tables,
 )
-from safepath.collision._layout import (
-    H_AI,
-    H_AP,
-    H_V,
-    HEADER,
-    W_A,
-    W_B,
-    W_D,
-    W_FIXED,
-    W_P,
-    W_R,
-    WI_A,
-    WI_B,
-    WI_HEADER,
-    WI_HINT,
-    WI_WARM,
-    WS_HULL,
-    WS_HULL_END,
-    WS_KIND,
-)
+from safepath.collision._probe import Placed, hull_block, pair_buffers
+from safepath.model.shapes import SHAPES, from_code
 
 
 def _random_rotation(rng: np.random.Generator) -> np.ndarray:
@@ -68,59 +45,23 @@ def hulls() -> list[coal.ConvexBase]:
     return shapes
 
 
-def _primitive(kind: int, rng: np.random.Generator) -> tuple[object, np.ndarray]:
-    a, b, c = rng.uniform(0.02, 0.2, 3)
-    if kind == BOX:
-        return coal.Box(2 * a, 2 * b, 2 * c), np.array([a, b, c])
-    if kind == CYLINDER:
-        return coal.Cylinder(a, 2 * b), np.array([a, b, 0.0])
-    if kind == CAPSULE:
-        return coal.Capsule(a, 2 * b), np.array([a, b, 0.0])
-    return coal.Sphere(a), np.array([a, 0.0, 0.0])
-
-
-def _tables(*shapes: object) -> tuple[np.ndarray, np.ndarray, list[tuple[int, int]]]:
-    """The given hulls as the sphere layer's buffers hold them: the vertex block (flat) in
-    ``fb``, the edge pointers and neighbours in ``ib`` after its header (which says where
-    the three blocks start), and each hull's vertex rows."""
-    verts, ptrs, idxs, rows = [], [np.zeros(1, dtype=np.int64)], [], []
-    nv = ne = 0
-    for shape in shapes:
-        v, ptr, idx = hull_tables(np.asarray(shape.points()))  # type: ignore[attr-defined]
-        verts.append(v)
-        ptrs.append(ptr[1:] + ne)
-        idxs.append(idx + nv)
-        rows.append((nv, nv + len(v)))
-        nv, ne = nv + len(v), ne + len(idx)
-    header = np.zeros(HEADER, dtype=np.int64)
-    header[H_V], header[H_AP], header[H_AI] = 0, HEADER, HEADER + nv + 1
-    ib = np.concatenate([header, *ptrs, *idxs])
-    return np.concatenate([v.ravel() for v in verts]), ib, rows
-
-
-def _scratch(shapes: list[tuple[int, np.ndarray, np.ndarray, np.ndarray, tuple[int, int]]]
-             ) -> tuple[np.ndarray, np.ndarray]:
-    """A kernel call's scratch (``wf``, ``wi``) for one pair with shapes A and B (kind,
-    world rotation, position, dimensions, hull vertex rows) placed in it, no direction
-    from an earlier search and no support hints."""
-    wf = np.zeros(W_FIXED + 3)  # the fixed slots, then the pair's last direction
-    wi = np.zeros(WI_HEADER + 2, dtype=np.int64)  # the header, then the pair's hints
-    for (kind, R, p, d, (v0, v1)), s, si in zip(shapes, (W_A, W_B), (WI_A, WI_B), strict=True):
-        wf[s + W_R:s + W_R + 9], wf[s + W_P:s + W_P + 3], wf[s + W_D:s + W_D + 3] = R.ravel(), p, d
-        wi[si + WS_KIND], wi[si + WS_HULL], wi[si + WS_HULL_END] = kind, v0, v1
-    wi[WI_WARM], wi[WI_HINT], wi[WI_HEADER:] = W_FIXED, WI_HEADER, -1
-    return wf, wi
+def _primitive(code: int, rng: np.random.Generator) -> tuple[object, np.ndarray]:
+    """A random primitive of the shape table's kind ``code``: coal's, and its kernel
+    parameters [m]."""
+    kind = from_code(code)
+    size = kind.size(kind.half(tuple(rng.uniform(0.04, 0.4, len(kind.size_names)))))
+    return kind.to_coal(size), kind.half(size)
 
 
 def _search(bound: object, ka: int, Ra: np.ndarray, pa: np.ndarray, da: np.ndarray,
             kb: int, Rb: np.ndarray, pb: np.ndarray, db: np.ndarray, hulls: list,
             *limits: float) -> float:
     """``bound`` (a GJK search of ``safepath.collision._gjk``) on shapes A and B, the hulls among
-    them in ``hulls``, with fresh hints and scratch, searched to ``limits``."""
-    fb, ib, rows = _tables(*hulls)
-    (va0, va1), (vb0, vb1) = (rows + [(0, 0), (0, 0)])[:2]
-    wf, wi = _scratch([(ka, Ra, pa, da, (va0, va1)), (kb, Rb, pb, db, (vb0, vb1))])
-    return bound(fb, ib, wf, wi, 0, *limits)  # type: ignore[operator, no-any-return]
+    them in ``hulls`` (in order), with fresh hints and scratch, searched to ``limits``."""
+    found = iter(hulls)
+    a, b = (Placed(k, R, p, d, np.asarray(next(found).points()) if k == HULL else None)
+            for k, R, p, d in ((ka, Ra, pa, da), (kb, Rb, pb, db)))
+    return bound(*pair_buffers(a, b), 0, *limits)  # type: ignore[operator, no-any-return]
 
 
 def _bound(ka: int, Ra: np.ndarray, pa: np.ndarray, da: np.ndarray, kb: int,
@@ -160,7 +101,7 @@ def _signed_distance(a: object, Ta: coal.Transform3s, b: object, Tb: coal.Transf
     return float(coal.distance(a, Ta, b, Tb, req, res))
 
 
-@pytest.mark.parametrize("other", [BOX, CYLINDER, SPHERE, CAPSULE, HULL])
+@pytest.mark.parametrize("other", [*(kind.code for kind in SHAPES.values()), HULL])
 def test_upper_bound_is_above_coal_and_proves_overlaps(hulls: list, other: int) -> None:
     rng = np.random.default_rng(23 + other)
     overlaps = proven = near = 0
@@ -184,7 +125,7 @@ def test_upper_bound_is_above_coal_and_proves_overlaps(hulls: list, other: int) 
     assert proven >= 0.95 * overlaps, f"{overlaps - proven} of {overlaps} not proven"
 
 
-@pytest.mark.parametrize("other", [BOX, CYLINDER, SPHERE, CAPSULE, HULL])
+@pytest.mark.parametrize("other", [*(kind.code for kind in SHAPES.values()), HULL])
 def test_bound_is_below_coal_and_tight_when_apart(hulls: list, other: int) -> None:
     rng = np.random.default_rng(11 + other)
     apart = tight = 0
@@ -208,7 +149,7 @@ def test_search_stops_at_the_callers_thresholds(hulls: list) -> None:
     R = np.eye(3)
     pa, pb = np.zeros(3), np.array([0.6, 0.0, 0.0])
     true = _coal_distance(hulls[2], coal.Transform3s(R, pa), box, coal.Transform3s(R, pb))
-    args = (HULL, R, pa, np.zeros(3), BOX, R, pb, db, [hulls[2]])
+    args = (HULL, R, pa, np.zeros(3), SHAPES["box"].code, R, pb, db, [hulls[2]])
     full = _bound(*args)
     assert true - TOL <= full <= true + 1e-9
     enough = _bound(*args, high=0.05)
@@ -224,7 +165,7 @@ def test_edge_climbing_finds_the_farthest_vertex(hulls: list) -> None:
 
     rng = np.random.default_rng(3)
     for shape in hulls:
-        fb, ib, rows = _tables(shape)
+        fb, ib, _ = hull_block([np.asarray(shape.points())])
         v = fb.reshape(-1, 3)
         for _ in range(200):
             n = rng.normal(size=3)

@@ -72,3 +72,36 @@ def test_no_test_reads_a_private_attribute() -> None:
                 refused.append(f"{rel}:{line}: {expression}")
     assert not refused, ("private reads in the tests (give the library a public accessor, "
                          "or test a smaller public unit):\n" + "\n".join(refused))
+
+
+#: The sphere layer's buffer layout (offset constants): tests read its buffers through
+#: named views (``safepath.collision._probe``), never by offset.
+LAYOUT = "safepath.collision._layout"
+
+
+def _layout_imports(source: str) -> list[int]:
+    """Lines of ``source`` that import the sphere layer's buffer layout."""
+    lines = []
+    for node in ast.walk(ast.parse(source)):
+        if isinstance(node, ast.ImportFrom) and node.module is not None:
+            names = {f"{node.module}.{a.name}" for a in node.names}
+            if node.module == LAYOUT or LAYOUT in names:
+                lines.append(node.lineno)
+        elif isinstance(node, ast.Import) and any(a.name == LAYOUT for a in node.names):
+            lines.append(node.lineno)
+    return lines
+
+
+def test_layout_imports_are_found() -> None:
+    assert _layout_imports("from safepath.collision._layout import H_V\n"
+                           "from safepath.collision import _layout as K\n"
+                           "import safepath.collision._layout\n"
+                           "from safepath.collision._probe import pair_buffers\n") == [1, 2, 3]
+
+
+def test_no_test_imports_buffer_offsets() -> None:
+    found = [f"{path.relative_to(ROOT).as_posix()}:{line}"
+             for path in sorted(TESTS.rglob("*.py")) if path.name != Path(__file__).name
+             for line in _layout_imports(path.read_text())]
+    assert not found, ("tests import the sphere layer's buffer offsets (read the buffers "
+                       "through safepath.collision._probe):\n" + "\n".join(found))

@@ -20,6 +20,7 @@ from ..files._io import (
     read_mapping,
 )
 from ..model.scene import SIZE_KEYS, AllowedContact, Grasp, Scene, SceneObject, Shape, placement
+from ..model.shapes import SHAPES
 from ..model.tool import read_tool
 
 __all__ = ["load_scene"]
@@ -75,13 +76,15 @@ def _parse_object(name: str, raw: Any, path: Path) -> SceneObject:
     check_keys(raw, _OBJECT_KEYS, path=path, prefix=key)
     kind = as_str(get_key(raw, "shape", path=path, prefix=key), path=path, key=f"{key}.shape")
     check_names([kind], SIZE_KEYS, path=path, key=f"{key}.shape", what="shape")
-    if kind == "box":
-        size = as_vector(get_key(raw, "size", path=path, prefix=key), 3, path=path,
-                         key=f"{key}.size")
+    spec = SHAPES[kind]
+    if len(spec.keys) < len(spec.size_names):  # one key, a vector (a box's size)
+        k = spec.keys[0]
+        size = as_vector(get_key(raw, k, path=path, prefix=key), len(spec.size_names),
+                         path=path, key=f"{key}.{k}")
         for i, v in enumerate(size):
             if v <= 0:
-                raise ConfigError(f"size must be > 0, got {v:g}", path=path,
-                                  key=f"{key}.size[{i}]")
+                raise ConfigError(f"{k} must be > 0, got {v:g}", path=path,
+                                  key=f"{key}.{k}[{i}]")
     else:
         size = [as_float(get_key(raw, k, path=path, prefix=key), path=path, key=f"{key}.{k}",
                          positive=True) for k in SIZE_KEYS[kind]]

@@ -40,9 +40,15 @@ import numpy as np
 
 from .._aot import njit
 from ._layout import (
+    ENV_BOX,
+    ENV_BOX_ONLY_OUTER,
+    ENV_CAPSULE,
+    ENV_CYLINDER,
+    ENV_SPHERE,
     H_AI,
     H_AP,
     H_V,
+    HULL,
     W_A,
     W_B,
     W_D,
@@ -66,8 +72,9 @@ from ._layout import (
 _helper = njit(cache=True, nogil=True, _nrt=False)
 _inlined = njit(cache=True, nogil=True, _nrt=False, inline="always")
 
-# The shape kinds: safepath.collision._layout's ENV_* codes, and the hull.
-BOX, CYLINDER, SPHERE, CAPSULE, BOX_ONLY_OUTER, HULL = 0, 1, 2, 3, 4, 5
+# The shape kinds: safepath.collision._layout's codes (the shape table's, and the hull).
+BOX, CYLINDER, SPHERE, CAPSULE, BOX_ONLY_OUTER = (ENV_BOX, ENV_CYLINDER, ENV_SPHERE,
+                                                  ENV_CAPSULE, ENV_BOX_ONLY_OUTER)
 
 #: Absolute tolerance [m]: the search stops once the bound is this close to the distance
 #: of the current simplex (an upper bound).

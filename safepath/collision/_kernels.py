@@ -72,6 +72,7 @@ from ._layout import (
     PI_B,
     PI_ENV,
     PIW,
+    PSW,
     UNSURE,
     W_FIXED,
     WI_ABSU,
@@ -98,7 +99,7 @@ def _workspace(ib):
     """Fresh scratch (Rw, pw, wf, wi) for the checker packed in ``ib``."""
     nj, ng, ns, npairs, dof = ib[H_NJ], ib[H_NG], ib[H_NS], ib[H_NP], ib[H_DOF]
     wi = np.empty(WI_HEADER + 2 * npairs, dtype=np.int64)
-    sizes = (3 * ng, 5 * ns, 5 * ns, 3 * npairs, dof, ng * dof, ng * dof, npairs,
+    sizes = (3 * ng, PSW * ns, PSW * ns, 3 * npairs, dof, ng * dof, ng * dof, npairs,
              2 * npairs, ng)
     o = W_FIXED
     for i in range(10):

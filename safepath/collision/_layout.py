@@ -9,11 +9,14 @@ rows of the movers (GW, GIW wide) and of the environment objects, and the shape 
 A kernel call's scratch (``wf``, ``wi``) is laid out here too (W_*, WI_*).
 
 Only constants: importing this module compiles nothing (the packer reads it).
+The shape kinds' codes are the shape table's (its source keys the builds too).
 The kernels read these as compile-time constants; :mod:`safepath._aot` keys its
 builds on this file's source too.
 """
 
 from __future__ import annotations
+
+from ..model.shapes import BOX, CAPSULE, CYLINDER, SPHERE
 
 FREE, COLLIDES, UNSURE = 0, 1, 2
 
@@ -43,10 +46,14 @@ C_REFINE, C_FREE_EPS, C_PROOF_EPS, C_RES = 0, 1, 2, 3
 #: Status of a segment whose start (index 0) or end (index 1) is outside the limits.
 OUTSIDE = 3
 
-ENV_BOX, ENV_CYLINDER, ENV_SPHERE, ENV_CAPSULE, ENV_BOX_ONLY_OUTER = 0, 1, 2, 3, 4
-#: Shape kinds of movers (same codes; HULL: a convex hull, measured by GJK on its
-#: vertices; SPHERES_ONLY: no primitive, spheres decide).
+#: Shape kinds (the shape table's codes, :mod:`safepath.model.shapes`), and the kernels' own:
+#: an environment object measured by the box around it (a lower bound), and a mover with no
+#: primitive (its spheres decide).
+ENV_BOX, ENV_CYLINDER, ENV_SPHERE, ENV_CAPSULE = BOX, CYLINDER, SPHERE, CAPSULE
+ENV_BOX_ONLY_OUTER = -2
 SPHERES_ONLY = -1
+#: A mover's convex hull, measured by GJK on its vertices (H_V).
+HULL = -3
 
 # The rows of the tables in the buffers: where each column starts, and the row's width.
 #: A mover's floats (H_G): its bounding sphere's centre (3) and radius [m], its
@@ -60,6 +67,9 @@ GI_JOINT, GI_OUTER, GI_OUTER_END, GI_INNER, GI_INNER_END = 0, 1, 2, 3, 4
 GI_KIND, GI_HULL, GI_HULL_END, GIW = 5, 6, 7, 8
 #: A sphere (H_S): its centre (3) in its mover's joint frame, its radius [m].
 S_RADIUS, SW = 3, 4
+#: A placed sphere (rows of the WI_BUFA, WI_BUFB blocks of ``wf``): its world centre (3),
+#: its radius [m], and a lower bound on its distance to the other body's bounding sphere [m].
+PS_RADIUS, PS_BOUND, PSW = 3, 4, 5
 #: An environment object's floats (H_E): its world rotation (9, row-major), position (3)
 #: and dimensions (3) [m].
 E_ROT, E_POS, E_DIMS, EW = 0, 9, 12, 15
@@ -87,7 +97,7 @@ W_R, W_P, W_D = 0, 9, 12
 #: an environment object's kind and 0, 0).
 WS_KIND, WS_HULL, WS_HULL_END = 0, 1, 2
 #: Blocks of ``wf``: world bounding-sphere centres of the movers (ng, 3); two placed sphere
-#: sets (ns, 5) each; per pair, the last direction GJK found (3: the next state's first
+#: sets (ns, PSW) each; per pair, the last direction GJK found (3: the next state's first
 #: guess); |u| (dof); per mover and joint, its distance to the joint's axis (DL) and how
 #: fast that can grow (CC) (ng, dof); per pair, the polyline walk's ledger: the most
 #: clearance budget [m] an evaluated state leaves at the end of the segment being walked

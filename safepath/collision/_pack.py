@@ -23,6 +23,7 @@ import pinocchio as pin
 from ..files.derived import StoredKind
 from ..model._joint_table import HELICAL, JI_KIND, WORLD, joint_table
 from ..model.robot import Robot, is_prismatic
+from ..model.shapes import from_coal, from_code
 from . import _layout as K  # noqa: N812  (constants only: imports no kernel)
 from .options import LayerOptions
 from .spheres import SphereFit, fit_spheres
@@ -140,8 +141,9 @@ def _unflat(a: Mapping[str, np.ndarray]) -> _RobotPart:
 #: tables, reach per joint and chain), kept per robot and layer options, and on disk.
 ROBOT_PART: StoredKind[_RobotPart] = StoredKind(
     "sphere layer robot part",
-    makers=tuple(Path(__file__).with_name(name)
-                 for name in ("_pack.py", "_layout.py", "spheres.py", "_gjk.py")),
+    makers=(*(Path(__file__).with_name(name)
+              for name in ("_pack.py", "_layout.py", "spheres.py", "_gjk.py")),
+            Path(__file__).parent.parent / "model" / "shapes.py"),
     to_arrays=lambda part: _flat(part.J, part.Ji, part.movers),
     from_arrays=_unflat)
 
@@ -310,28 +312,15 @@ def _pairs(source: LayerSource, movers_idx: list[int]) -> tuple[np.ndarray, np.n
 
 def _holding_radius(kind: int, dims: np.ndarray) -> float:
     """Radius [m] of a sphere about a primitive's centre that holds it."""
-    if kind in (K.ENV_BOX, K.ENV_BOX_ONLY_OUTER):
-        return float(np.linalg.norm(dims))
-    if kind == K.ENV_CYLINDER:
-        return float(np.hypot(dims[0], dims[1]))
-    if kind == K.ENV_CAPSULE:
-        return float(dims[0] + dims[1])
-    return float(dims[0])  # sphere
+    return from_code(K.ENV_BOX if kind == K.ENV_BOX_ONLY_OUTER else kind).holding_radius(dims)
 
 
 def _primitive(shape: Any) -> tuple[int, np.ndarray]:
     """Kind code and dimensions [m] of a primitive the kernels measure exactly."""
-    import coal
-
-    if isinstance(shape, coal.Box):
-        return K.ENV_BOX, np.asarray(shape.halfSide, dtype=float)
-    if isinstance(shape, coal.Cylinder):
-        return K.ENV_CYLINDER, np.array([shape.radius, shape.halfLength, 0.0])
-    if isinstance(shape, coal.Sphere):
-        return K.ENV_SPHERE, np.array([shape.radius, 0.0, 0.0])
-    if isinstance(shape, coal.Capsule):
-        return K.ENV_CAPSULE, np.array([shape.radius, shape.halfLength, 0.0])
-    return K.SPHERES_ONLY, np.zeros(3)
+    found = from_coal(shape)
+    if found is None:
+        return K.SPHERES_ONLY, np.zeros(3)
+    return found[0].code, found[1]
 
 
 def _pair_masks(chains: np.ndarray, Pi: np.ndarray) -> np.ndarray:  # noqa: N803

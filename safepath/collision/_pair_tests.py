@@ -54,6 +54,9 @@ from ._layout import (
     PI_ENV,
     PI_PROOF,
     PIW,
+    PS_BOUND,
+    PS_RADIUS,
+    PSW,
     S_RADIUS,
     SPHERES_ONLY,
     SW,
@@ -295,20 +298,21 @@ def _spheres_to_object(fb, ib, a, e, sm, Rw, pw, wf):  # noqa: N803
 
 @_inlined
 def _nearest(wf, rows, n):
-    """The sphere of the ``n`` placed at wf[rows] (rows of 5) whose distance bound to the
+    """The sphere of the ``n`` placed at wf[rows] (rows of PSW) whose distance bound to the
     other body is the smallest (the first such)."""
     best = 0
     for i in range(1, n):
-        if wf[rows + 5 * i + 4] < wf[rows + 5 * best + 4]:
+        if wf[rows + PSW * i + PS_BOUND] < wf[rows + PSW * best + PS_BOUND]:
             best = i
     return best
 
 
 @_inlined
 def _sphere_gap(wf, i0, j0):
-    """Distance [m] between the placed spheres at wf[i0] and wf[j0] (rows of 5)."""
+    """Distance [m] between the placed spheres at wf[i0] and wf[j0] (rows of PSW)."""
     return (math.sqrt((wf[i0] - wf[j0]) ** 2 + (wf[i0 + 1] - wf[j0 + 1]) ** 2
-                      + (wf[i0 + 2] - wf[j0 + 2]) ** 2) - wf[i0 + 3] - wf[j0 + 3])
+                      + (wf[i0 + 2] - wf[j0 + 2]) ** 2) - wf[i0 + PS_RADIUS]
+            - wf[j0 + PS_RADIUS])
 
 
 @_inlined
@@ -324,17 +328,17 @@ def _sphere_sets(fb, ib, a, b, sm, Rw, pw, wf, wi):  # noqa: N803
     # Two sphere sets: place each once, bound each sphere against the other body's
     # bounding sphere, take one real pair distance as an upper bound, and compare only
     # the spheres whose bound beats it.
-    A, B = wi[WI_BUFA], wi[WI_BUFB]  # rows of 5 in wf
+    A, B = wi[WI_BUFA], wi[WI_BUFB]  # rows of PSW in wf
     na = _place_spheres(fb, ib, a, Rw, pw, cbx, cby, cbz, rb, wf, A)
     nb = _place_spheres(fb, ib, b, Rw, pw, ca0, ca1, ca2, ra, wf, B)
-    best = _sphere_gap(wf, A + 5 * _nearest(wf, A, na), B + 5 * _nearest(wf, B, nb))
+    best = _sphere_gap(wf, A + PSW * _nearest(wf, A, na), B + PSW * _nearest(wf, B, nb))
     for i in range(na):
-        i0 = A + 5 * i
-        if wf[i0 + 4] >= best:
+        i0 = A + PSW * i
+        if wf[i0 + PS_BOUND] >= best:
             continue
         for j in range(nb):
-            j0 = B + 5 * j
-            if wf[j0 + 4] >= best:
+            j0 = B + PSW * j
+            if wf[j0 + PS_BOUND] >= best:
                 continue
             d = _sphere_gap(wf, i0, j0)
             if d < best:

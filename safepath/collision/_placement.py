@@ -38,6 +38,9 @@ from ._layout import (
     H_L,
     H_NJ,
     H_S,
+    PS_BOUND,
+    PS_RADIUS,
+    PSW,
     S_RADIUS,
     SW,
 )
@@ -80,7 +83,7 @@ def _mover_frame(fb, ib, m, Rw, pw, wf, oR, op):  # noqa: N803
 
 @_helper
 def _place_spheres(fb, ib, m, Rw, pw, ox, oy, oz, orad, wf, out):  # noqa: N803
-    """World centres and radii of mover ``m``'s outer spheres into rows of 5 of ``wf`` from
+    """World centres and radii of mover ``m``'s outer spheres into rows of PSW of ``wf`` from
     ``out`` (x, y, z, r, lower bound of the distance to the sphere (ox, oy, oz, orad));
     returns the count."""
     oS, ogi = ib[H_S], ib[H_GI]
@@ -92,9 +95,9 @@ def _place_spheres(fb, ib, m, Rw, pw, ox, oy, oz, orad, wf, out):  # noqa: N803
         wy = Rw[j, 1, 0] * x + Rw[j, 1, 1] * y + Rw[j, 1, 2] * z + pw[j, 1]
         wz = Rw[j, 2, 0] * x + Rw[j, 2, 1] * y + Rw[j, 2, 2] * z + pw[j, 2]
         r = fb[oS + SW * s + S_RADIUS]
-        o = out + 5 * n
-        wf[o], wf[o + 1], wf[o + 2], wf[o + 3] = wx, wy, wz, r
-        wf[o + 4] = math.sqrt((wx - ox) ** 2 + (wy - oy) ** 2 + (wz - oz) ** 2) - r - orad
+        o = out + PSW * n
+        wf[o], wf[o + 1], wf[o + 2], wf[o + PS_RADIUS] = wx, wy, wz, r
+        wf[o + PS_BOUND] = math.sqrt((wx - ox) ** 2 + (wy - oy) ** 2 + (wz - oz) ** 2) - r - orad
         n += 1
     return n
 

@@ -14,6 +14,7 @@ import numpy as np
 
 from ..files.derived import DerivedKind
 from ..model.robot import Robot, is_prismatic
+from ..model.shapes import from_coal
 from ._pack import _robot_part
 from .options import LayerOptions
 
@@ -67,14 +68,9 @@ def reach_into(reach: np.ndarray, geoms: Any) -> np.ndarray:
 def _bounding_radius(geometry: Any) -> float:
     import coal
 
-    if isinstance(geometry, coal.Box):
-        return float(np.linalg.norm(geometry.halfSide))
-    if isinstance(geometry, coal.Sphere):
-        return float(geometry.radius)
-    if isinstance(geometry, coal.Cylinder):
-        return float(np.hypot(geometry.radius, geometry.halfLength))
-    if isinstance(geometry, coal.Capsule):
-        return float(geometry.radius + geometry.halfLength)
+    primitive = from_coal(geometry)
+    if primitive is not None:
+        return primitive[0].holding_radius(primitive[1])
     if isinstance(geometry, coal.ConvexBase):
         pts = np.asarray(geometry.points())
         return float(np.max(np.linalg.norm(pts, axis=1)))

@@ -21,6 +21,7 @@ import pinocchio as pin
 
 from ..errors import ConfigError
 from ..files._io import as_float, check_names
+from .shapes import SHAPES
 from .tool import ToolSpec
 
 __all__ = ["Shape", "SceneObject", "AllowedContact", "Grasp", "Scene", "placement", "SIZE_KEYS",
@@ -28,12 +29,7 @@ __all__ = ["Shape", "SceneObject", "AllowedContact", "Grasp", "Scene", "placemen
 
 ShapeKind = Literal["box", "cylinder", "sphere", "capsule"]
 #: The size keys of each shape kind, in the order of :attr:`Shape.size`.
-SIZE_KEYS: dict[str, tuple[str, ...]] = {
-    "box": ("size",),
-    "cylinder": ("radius", "length"),
-    "capsule": ("radius", "length"),
-    "sphere": ("radius",),
-}
+SIZE_KEYS: dict[str, tuple[str, ...]] = {name: kind.keys for name, kind in SHAPES.items()}
 
 #: Wall thickness of a receptacle whose scene gives none [m]: a thick-walled bowl's rim, so
 #: that a pour is never judged against an opening wider than the real one by more.
@@ -88,7 +84,7 @@ class Shape:
     def __post_init__(self) -> None:
         if self.kind not in SIZE_KEYS:
             check_names([self.kind], SIZE_KEYS, path=None, key="kind", what="shape")
-        names = ("x", "y", "z") if self.kind == "box" else SIZE_KEYS[self.kind]
+        names = SHAPES[self.kind].size_names
         try:
             size = tuple(self.size)
         except TypeError:
@@ -102,25 +98,11 @@ class Shape:
 
     def bounding_radius(self) -> float:
         """Radius of a sphere about the shape's origin that holds it [m]."""
-        if self.kind == "box":
-            return float(np.linalg.norm(self.size) / 2)
-        if self.kind == "cylinder":
-            return float(np.hypot(self.size[0], self.size[1] / 2))
-        if self.kind == "capsule":
-            return float(self.size[0] + self.size[1] / 2)
-        return float(self.size[0])
+        return SHAPES[self.kind].bounding_radius(self.size)
 
     def to_coal(self) -> Any:
         """The coal collision geometry of this shape."""
-        import coal
-
-        if self.kind == "box":
-            return coal.Box(*self.size)
-        if self.kind == "cylinder":
-            return coal.Cylinder(self.size[0], self.size[1])
-        if self.kind == "capsule":
-            return coal.Capsule(self.size[0], self.size[1])
-        return coal.Sphere(self.size[0])
+        return SHAPES[self.kind].to_coal(self.size)
 
 
 @dataclass(frozen=True)

@@ -32,6 +32,7 @@ import math
 import numpy as np
 
 from .._aot import njit
+from ..model.shapes import BOX, CYLINDER, SPHERE
 
 #: Cells per block edge.
 BLOCK = 4
@@ -274,7 +275,7 @@ def near_robot(C, R, body_start, Bd, s0, s1, E, within, out):  # noqa: N803
 @njit(cache=True, nogil=True)
 def scene_distance(P, kind, T, dims, reach, within, out):  # noqa: N803
     """Smallest signed distance [m] from each point of ``P`` (n, 3) to the scene's
-    primitives (kind 0 box, 1 cylinder, 2 sphere, 3 capsule; ``T`` (k, 4, 4) their
+    primitives (kinds: the shape table's codes; ``T`` (k, 4, 4) their
     placements, ``dims`` (k, 3) half sizes / radius, half length, ``reach`` (k,) the
     radius of a sphere about each that holds it) into ``out``; objects farther than
     ``within`` are not measured exactly (their bounding-sphere distance is used)."""
@@ -293,18 +294,18 @@ def scene_distance(P, kind, T, dims, reach, within, out):  # noqa: N803
             z = T[o, 0, 2] * dx + T[o, 1, 2] * dy + T[o, 2, 2] * dz
             a, b, c = dims[o, 0], dims[o, 1], dims[o, 2]
             k = kind[o]
-            if k == 0:
+            if k == BOX:
                 qx, qy, qz = abs(x) - a, abs(y) - b, abs(z) - c
                 ox, oy, oz = max(qx, 0.0), max(qy, 0.0), max(qz, 0.0)
                 d = math.sqrt(ox * ox + oy * oy + oz * oz) + min(max(qx, max(qy, qz)), 0.0)
-            elif k == 1:
+            elif k == CYLINDER:
                 dr = math.sqrt(x * x + y * y) - a
                 dzz = abs(z) - b
                 o1, o2 = max(dr, 0.0), max(dzz, 0.0)
                 d = math.sqrt(o1 * o1 + o2 * o2) + min(max(dr, dzz), 0.0)
-            elif k == 2:
+            elif k == SPHERE:
                 d = math.sqrt(x * x + y * y + z * z) - a
-            else:
+            else:  # CAPSULE
                 zz = min(max(z, -b), b)
                 d = math.sqrt(x * x + y * y + (z - zz) * (z - zz)) - a
             best = min(best, d)

@@ -8,6 +8,7 @@ from typing import Any
 import numpy as np
 
 from ..cell import Cell
+from ..model.shapes import SHAPES
 from .observations import Cloud, Counts, ObservationError, Obstacles, Scan
 from .options import MonitorOptions
 
@@ -84,18 +85,12 @@ def _filter(E: np.ndarray, counts: Counts, o: MonitorOptions, scene: SceneArrays
 def scene_arrays(cell: Cell) -> SceneArrays:
     """Static scene primitives for the scene filter: kinds, placements, dimensions."""
     kinds, Ts, dims = [], [], []
-    code = {"box": 0, "cylinder": 1, "sphere": 2, "capsule": 3}
     for obj in cell.scene.objects.values():
         if obj.movable:
             continue
-        s = obj.shape.size
-        kinds.append(code[obj.shape.kind])
+        kind = SHAPES[obj.shape.kind]
+        kinds.append(kind.code)
         Ts.append(obj.T_world_object)
-        if obj.shape.kind == "box":
-            dims.append([s[0] / 2, s[1] / 2, s[2] / 2])
-        elif obj.shape.kind in ("cylinder", "capsule"):
-            dims.append([s[0], s[1] / 2, 0.0])
-        else:
-            dims.append([s[0], 0.0, 0.0])
+        dims.append(kind.half(obj.shape.size))
     return (np.array(kinds, dtype=np.int64), np.array(Ts, dtype=float).reshape(-1, 4, 4),
             np.array(dims, dtype=float).reshape(-1, 3))

@@ -39,6 +39,7 @@ from xml.sax.saxutils import quoteattr
 import numpy as np
 
 from ..errors import ConfigError, InputError
+from ..model.shapes import SHAPES, from_coal
 
 if TYPE_CHECKING:
     from ..model.robot import Robot
@@ -140,16 +141,10 @@ def _geom_xml(name: str, geometry: Any, M: Any, *, robot: bool,  # noqa: N803
     pos, quat = _f(M.translation), _f(_quat_wxyz(M.rotation))
     flags = 'contype="1" conaffinity="0"' if robot else 'contype="0" conaffinity="1"'
     common = f'name={quoteattr(name)} pos="{pos}" quat="{quat}" {flags} rgba="{rgba}"'
-    if isinstance(geometry, coal.Box):
-        return f'<geom type="box" size="{_f(geometry.halfSide)}" {common}/>'
-    if isinstance(geometry, coal.Sphere):
-        return f'<geom type="sphere" size="{geometry.radius:.10g}" {common}/>'
-    if isinstance(geometry, coal.Cylinder):
-        return (f'<geom type="cylinder" size="{geometry.radius:.10g} '
-                f'{geometry.halfLength:.10g}" {common}/>')
-    if isinstance(geometry, coal.Capsule):
-        return (f'<geom type="capsule" size="{geometry.radius:.10g} '
-                f'{geometry.halfLength:.10g}" {common}/>')
+    primitive = from_coal(geometry)
+    if primitive is not None:
+        kind, half = primitive
+        return f'<geom type="{kind.mujoco}" size="{_f(half[:kind.mujoco_params])}" {common}/>'
     if isinstance(geometry, coal.ConvexBase):
         points = np.asarray(geometry.points(), dtype=float)
         mesh = f"mesh_{len(assets)}"
@@ -169,14 +164,9 @@ def _scene_xml(scene: Scene) -> list[str]:
         rgba = _f((*obj.color, 1.0))
         common = (f'name={quoteattr("cell/" + obj.name)} pos="{pos}" quat="{quat}" '
                   f'contype="0" conaffinity="1" rgba="{rgba}"')
-        kind, size = obj.shape.kind, obj.shape.size
-        if kind == "box":
-            out.append(f'<geom type="box" size="{_f(np.asarray(size) / 2)}" {common}/>')
-        elif kind in ("cylinder", "capsule"):
-            out.append(f'<geom type="{kind}" size="{size[0]:.10g} {size[1] / 2:.10g}" '
-                       f'{common}/>')
-        elif kind == "sphere":
-            out.append(f'<geom type="sphere" size="{size[0]:.10g}" {common}/>')
+        kind = SHAPES[obj.shape.kind]
+        out.append(f'<geom type="{kind.mujoco}" size="{_f(kind.mujoco_size(obj.shape.size))}" '
+                   f'{common}/>')
     return out
 
 

@@ -12,6 +12,7 @@ from ..errors import ConfigError
 from ..files.derived import DerivedKind
 from ..model.robot import Robot, is_prismatic
 from ..model.scene import Scene, Shape
+from ..model.shapes import from_coal
 from ._bounds import (
     ShapeSpec,
     joint_kind,
@@ -89,14 +90,10 @@ def fcl_shape(geometry: object, name: str = "") -> object:
     import coal
     import fcl
 
-    if isinstance(geometry, coal.Box):
-        return fcl.Box(*(2 * np.asarray(geometry.halfSide)))
-    if isinstance(geometry, coal.Sphere):
-        return fcl.Sphere(float(geometry.radius))
-    if isinstance(geometry, coal.Cylinder):
-        return fcl.Cylinder(float(geometry.radius), 2 * float(geometry.halfLength))
-    if isinstance(geometry, coal.Capsule):
-        return fcl.Capsule(float(geometry.radius), 2 * float(geometry.halfLength))
+    primitive = from_coal(geometry)
+    if primitive is not None:
+        kind, half = primitive
+        return kind.to_fcl(kind.size(half))
     if isinstance(geometry, coal.ConvexBase):
         pts = np.asarray(geometry.points(), dtype=float)
         from scipy.spatial import ConvexHull

@@ -25,6 +25,8 @@ import numpy as np
 
 from ..errors import ConfigError
 from ..model.robot import joint_motion
+from ..model.shapes import from_coal
+from ._distance import HULL
 
 if TYPE_CHECKING:
     import pinocchio as pin
@@ -33,7 +35,6 @@ __all__ = ["Grid", "Layer", "PoseCache", "ShapeSpec", "WalkMemory", "bound_betwe
            "climbing", "joint_kind", "joint_tables", "motion_weights", "pair_weights",
            "shape_spec", "shape_table", "unsupported_geometry", "SUPPORTED"]
 
-_BOX, _SPHERE, _CYLINDER, _CAPSULE, _HULL = 0, 1, 2, 3, 4
 _REVOLUTE, _PRISMATIC = 1, 2
 #: Above this excess over its threshold [m], a pair's bounding-sphere bound is used
 #: alone: the step it allows is long enough that the finer bounds would not pay.
@@ -52,8 +53,8 @@ class ShapeSpec:
     """A convex shape as the conservative layer sees it.
 
     Attributes:
-        kind: 0 box, 1 sphere, 2 cylinder, 3 capsule (cylinders and capsules along z),
-            4 convex hull.
+        kind: The shape table's code of a primitive (:mod:`safepath.model.shapes`;
+            cylinders and capsules along z), or ``HULL`` (a convex hull).
         par: Box half extents; (radius,) for spheres; (radius, half length) for
             cylinders and capsules [m]; unused for hulls.
         centre: Its centre in the geometry frame [m] (a hull's: its bounding box's).
@@ -86,17 +87,11 @@ def shape_spec(geometry: object, name: str = "") -> ShapeSpec:
     import coal
 
     origin = (0.0, 0.0, 0.0)
-    if isinstance(geometry, coal.Box):
-        hx, hy, hz = (float(x) for x in geometry.halfSide)
-        return ShapeSpec(_BOX, (hx, hy, hz), origin, float(np.linalg.norm([hx, hy, hz])))
-    if isinstance(geometry, coal.Sphere):
-        radius = float(geometry.radius)
-        return ShapeSpec(_SPHERE, (radius, 0.0, 0.0), origin, radius)
-    if isinstance(geometry, (coal.Capsule, coal.Cylinder)):
-        radius, half = float(geometry.radius), float(geometry.halfLength)
-        if isinstance(geometry, coal.Capsule):
-            return ShapeSpec(_CAPSULE, (radius, half, 0.0), origin, radius + half)
-        return ShapeSpec(_CYLINDER, (radius, half, 0.0), origin, float(np.hypot(radius, half)))
+    primitive = from_coal(geometry)
+    if primitive is not None:
+        kind, half = primitive
+        return ShapeSpec(kind.code, (float(half[0]), float(half[1]), float(half[2])), origin,
+                         kind.holding_radius(half))
     if isinstance(geometry, (coal.ConvexBase, coal.BVHModelBase)):
         from scipy.spatial import ConvexHull
 
@@ -106,7 +101,7 @@ def shape_spec(geometry: object, name: str = "") -> ShapeSpec:
         pts = pts[hull.vertices]
         c = (pts.min(axis=0) + pts.max(axis=0)) / 2
         rel = np.ascontiguousarray(pts - c)
-        return ShapeSpec(_HULL, (0.0, 0.0, 0.0), (float(c[0]), float(c[1]), float(c[2])),
+        return ShapeSpec(HULL, (0.0, 0.0, 0.0), (float(c[0]), float(c[1]), float(c[2])),
                          float(np.linalg.norm(rel, axis=1).max()), rel,
                          *_edges(hull.vertices, hull.simplices))
     raise unsupported_geometry(geometry, name)
@@ -170,7 +165,7 @@ def shape_table(specs: list[ShapeSpec]) -> tuple[np.ndarray, tuple[np.ndarray, .
     adjacent: list[np.ndarray] = []
     for spec in specs:
         par = spec.par
-        if spec.kind == _HULL:
+        if spec.kind == HULL:
             if len(spec.neighbours) != len(spec.vertices) + 1:
                 raise ValueError("a hull's shape spec needs its edges (shape_spec makes them)")
             par = (float(count), float(len(spec.vertices)), 0.0)

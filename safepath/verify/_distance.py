@@ -25,14 +25,14 @@ minus the penetration depth. Either way a gap is below the signed distance, what
 state of GJK: its directions are only candidates, the gaps use the exact widths
 (:func:`support`), never GJK's points.
 
-The shape table has one row per shape (the bodies', then the environment objects'):
-kind (0 box, 1 sphere, 2 cylinder, 3 capsule, 4 hull), three parameters (box half
-extents; radius; radius and half length; a hull's first row in the vertex table and its
-count), the centre in the geometry frame, and the radius of a sphere about the centre
-that holds the shape. The vertex table holds the hulls' vertices about their centres,
-in their geometry frames; with it go, per vertex row, the rows of its neighbours along
-the hull's edges (where they start in the neighbour table, and that table): a hull's
-support climbs them instead of scanning every vertex.
+The shape table has one row per shape (the bodies', then the environment objects'): kind
+(BOX, SPHERE, CYLINDER, CAPSULE: :mod:`safepath.model.shapes` codes; HULL), three
+parameters (box half extents; radius; radius and half length; a hull's first row in the
+vertex table and its count), the centre in the geometry frame, and the radius of a
+sphere about the centre that holds the shape. The vertex table holds the hulls' vertices
+about their centres, in their geometry frames; with it go, per vertex row, the rows of
+its neighbours along the hull's edges (where they start in the neighbour table, and that
+table): a hull's support climbs them instead of scanning every vertex.
 
 numba's disk cache tracks only the file of the function it compiles: the walk of
 :mod:`safepath.verify._kernel` that calls (and inlines) these keeps its cached code when
@@ -49,6 +49,7 @@ from typing import NamedTuple
 import numpy as np
 
 from .._aot import njit
+from ..model.shapes import BOX, CAPSULE, CYLINDER, SPHERE
 
 #: How every function here is compiled: without numba's reference counting (see
 #: :mod:`safepath.verify._kernel`).
@@ -57,7 +58,8 @@ _kernel = njit(cache=True, _nrt=False)
 #: called (see the module doc).
 _inline = njit(cache=True, _nrt=False, inline="always")
 
-BOX, SPHERE, CYLINDER, CAPSULE, HULL = 0, 1, 2, 3, 4
+#: Shape kinds: the shape table's codes (:mod:`safepath.model.shapes`), and a convex hull.
+HULL = -1
 #: Columns of the shape table.
 KIND, PAR, CENTRE, RADIUS = 0, 1, 4, 7
 

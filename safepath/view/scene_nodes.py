@@ -19,6 +19,7 @@ import viser
 
 from ..model.robot import Robot
 from ..model.scene import Scene
+from ..model.shapes import from_coal
 from .analysis import GREEN, RED, YELLOW
 
 __all__ = ["Rgb", "Scope", "RobotStyle", "HIGHLIGHT", "LEVEL_COLORS", "ShapeNode",
@@ -186,17 +187,11 @@ def _hull_mesh(points: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 
 def coal_shape(geometry: Any) -> tuple[str, tuple[float, ...]] | None:
     """``(kind, size)`` of a coal primitive (see :class:`~safepath.model.scene.Shape`)."""
-    import coal
-
-    if isinstance(geometry, coal.Box):
-        return "box", tuple(float(2 * v) for v in geometry.halfSide)
-    if isinstance(geometry, coal.Cylinder):
-        return "cylinder", (float(geometry.radius), float(2 * geometry.halfLength))
-    if isinstance(geometry, coal.Capsule):
-        return "capsule", (float(geometry.radius), float(2 * geometry.halfLength))
-    if isinstance(geometry, coal.Sphere):
-        return "sphere", (float(geometry.radius),)
-    return None
+    primitive = from_coal(geometry)
+    if primitive is None:
+        return None
+    kind, half = primitive
+    return kind.name, kind.size(half)
 
 
 class RobotNodes:
@@ -394,7 +389,7 @@ def cell_framing(cell: Any) -> tuple[tuple[float, float, float], tuple[float, fl
     reach = float(np.linalg.norm(points - base, axis=1).max()) + 0.1
     lo, hi = points.min(axis=0), points.max(axis=0)
     for obj in cell.scene.objects.values():
-        c, r = obj.T_world_object[:3, 3], _bounding_radius(obj.shape)
+        c, r = obj.T_world_object[:3, 3], obj.shape.bounding_radius()
         o_lo, o_hi = np.maximum(c - r, base - reach), np.minimum(c + r, base + reach)
         if np.all(o_lo <= o_hi):
             lo, hi = np.minimum(lo, o_lo), np.maximum(hi, o_hi)
@@ -403,14 +398,3 @@ def cell_framing(cell: Any) -> tuple[tuple[float, float, float], tuple[float, fl
     eye = center + VIEW_DIRECTION * 1.5 * radius
     return (tuple(float(v) for v in eye),  # type: ignore[return-value]
             tuple(float(v) for v in center))
-
-
-def _bounding_radius(shape: Any) -> float:
-    """Radius of a sphere about the shape's centre that holds it [m]."""
-    size = np.asarray(shape.size, dtype=float)
-    if shape.kind == "box":
-        return float(np.linalg.norm(size) / 2)
-    if shape.kind == "sphere":
-        return float(size[0])
-    radius, length = size[0], size[1]
-    return float(np.hypot(radius, length / 2) + (radius if shape.kind == "capsule" else 0.0))

@@ -606,7 +606,8 @@ def test_a_hulls_support_climbs_to_the_largest_vertex_from_any_start() -> None:
     rng = np.random.default_rng(11)
     for k, spec in enumerate(specs):
         first, count = int(table[k, 1]), int(table[k, 2])
-        S = kernel.Placed(kind=4.0, par0=float(first), par1=float(count), par2=0.0,
+        S = kernel.Placed(kind=float(kernel.HULL), par0=float(first),
+                          par1=float(count), par2=0.0,
                           radius=spec.radius, cx=0.0, cy=0.0, cz=0.0, r00=1.0, r01=0.0,
                           r02=0.0, r10=0.0, r11=1.0, r12=0.0, r20=0.0, r21=0.0, r22=1.0)
         for _ in range(300):
