@@ -42,7 +42,7 @@ from typing import Any, Literal
 from ..errors import ConfigError, InputError
 from ..files._io import as_float, as_str, as_vector, check_keys, get_key, read_mapping
 from ..files._paths import ROBOTS_DIR
-from .execution import INTERPOLATIONS
+from .interpolation import QUINTIC, Interpolation, interpolation_named
 
 __all__ = ["GripperSpec", "ControllerSpec", "controller_for", "read_controller"]
 
@@ -166,7 +166,7 @@ class ControllerSpec:
     goal_time_tolerance: float = 1.0
     period: float = 0.01
     joint_state_rate: float = 50.0
-    interpolation: str = "quintic"
+    interpolation: Interpolation = QUINTIC
     cycle: float = 0.001
     gripper: GripperSpec | None = None
     source: Path | None = field(default=None, compare=False)
@@ -190,9 +190,9 @@ class ControllerSpec:
                 raise ConfigError(f"expected {len(names)} finite tolerances >= 0 [rad], got "
                                   f"{list(self.goal_tolerance)}", key="goal_tolerance", **where)
             object.__setattr__(self, "goal_tolerance", tol)
-        if self.interpolation not in INTERPOLATIONS:
-            raise ConfigError(f"expected one of {list(INTERPOLATIONS)}, got "
-                              f"{self.interpolation!r}", key="interpolation", **where)
+        if not isinstance(self.interpolation, Interpolation):  # a name, as the file has it
+            object.__setattr__(self, "interpolation",
+                               interpolation_named(self.interpolation, path=self.source))
         for key, low in (("goal_time_tolerance", 0.0), ("period", None),
                          ("joint_state_rate", None), ("cycle", None)):
             value = getattr(self, key)
@@ -256,8 +256,8 @@ def read_controller(path: str | Path, joint_names: Sequence[str] | None = None
         for key in ("goal_time_tolerance", "period", "joint_state_rate", "cycle")
         if key in data}
     if "interpolation" in data:
-        numbers["interpolation"] = as_str(data["interpolation"], path=path,
-                                          key="interpolation")
+        numbers["interpolation"] = interpolation_named(
+            as_str(data["interpolation"], path=path, key="interpolation"), path=path)
     gripper = _read_gripper(data["gripper"], path) if data.get("gripper") is not None else None
     spec = ControllerSpec(joint_names=tuple(raw_names),
                                 follow_joint_trajectory_action=action, goal_tolerance=tol,

@@ -35,78 +35,22 @@ controller's point spacing without leaving the verified motion.
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Literal
 
 import numpy as np
 
 from ..errors import ExecutedLimitError
+from .interpolation import QUINTIC, Interpolation, as_interpolation
 
-__all__ = ["Interpolation", "INTERPOLATIONS", "ExecutedPeaks", "join", "executed_peaks",
+__all__ = ["ExecutedPeaks", "join", "executed_peaks",
            "interval_ratios", "check_executed", "CHECK_RATE", "ControllerModel", "Switch",
            "SWITCH_TOLERANCE"]
 
-Interpolation = Literal["quintic", "cubic", "linear"]
-#: The ways a controller joins points, as ``controller.yaml`` names them.
-INTERPOLATIONS: tuple[str, ...] = ("quintic", "cubic", "linear")
 #: Samples per second at which the speed is evaluated between points (at least).
 CHECK_RATE = 1000.0
 
 
-def _coefficients(t: np.ndarray, q: np.ndarray, qd: np.ndarray, qdd: np.ndarray,
-                  interpolation: Interpolation, k: np.ndarray | None = None
-                  ) -> tuple[np.ndarray, np.ndarray]:
-    """Per interval and joint, the polynomial's coefficients ``c0..c5`` (N-1, dof, 6) in the
-    time from the interval's start, and the intervals' lengths (N-1,) [s].
-
-    With ``k`` (interval indices, (M,)), those of the intervals ``k`` only (M, dof, 6) and
-    (M,): the same numbers as rows ``k`` of the whole (every operation is element-wise),
-    without computing every interval when a few are sampled.
-    """
-    if k is None:
-        T = np.diff(t)[:, None]  # noqa: N806
-        p0, p1 = q[:-1], q[1:]
-    else:
-        T = (t[k + 1] - t[k])[:, None]  # noqa: N806
-        p0, p1 = q[k], q[k + 1]
-    c = np.zeros((T.shape[0], q.shape[1], 6))
-    c[..., 0] = p0
-    if interpolation == "linear":
-        c[..., 1] = (p1 - p0) / T
-        return c, T[:, 0]
-    v0, v1 = (qd[:-1], qd[1:]) if k is None else (qd[k], qd[k + 1])
-    c[..., 1] = v0
-    if interpolation == "cubic":
-        h = p1 - p0
-        c[..., 2] = (3 * h - (2 * v0 + v1) * T) / T ** 2
-        c[..., 3] = (-2 * h + (v0 + v1) * T) / T ** 3
-        return c, T[:, 0]
-    a0, a1 = (qdd[:-1], qdd[1:]) if k is None else (qdd[k], qdd[k + 1])
-    c[..., 2] = a0 / 2
-    h = p1 - p0 - v0 * T - a0 * T * T / 2
-    dv = v1 - v0 - a0 * T
-    da = a1 - a0
-    c[..., 3] = (10 * h - 4 * dv * T + da * T * T / 2) / T ** 3
-    c[..., 4] = (-15 * h + 7 * dv * T - da * T * T) / T ** 4
-    c[..., 5] = (6 * h - 3 * dv * T + da * T * T / 2) / T ** 5
-    return c, T[:, 0]
-
-
-#: ``_FACTORS[nu][k]``: the factor of ``c_k`` in the ``nu``-th derivative, k! / (k - nu)!.
-_FACTORS = tuple(tuple(float(np.prod(np.arange(k - nu + 1, k + 1))) if nu else 1.0
-                       for k in range(6)) for nu in range(6))
-
-
-def _eval(c: np.ndarray, tau: np.ndarray, nu: int) -> np.ndarray:
-    """The ``nu``-th derivative of the polynomials ``c`` (..., 6) at ``tau`` (broadcast)."""
-    out = np.zeros(np.broadcast_shapes(c.shape[:-1], tau.shape))
-    factors = _FACTORS[nu]
-    for k in range(5, nu - 1, -1):
-        out = out * tau + factors[k] * c[..., k]
-    return out
-
-
 def join(t: np.ndarray, q: np.ndarray, qd: np.ndarray, qdd: np.ndarray, times: np.ndarray,
-         *, interpolation: Interpolation = "quintic"
+         *, interpolation: Interpolation | str = QUINTIC
          ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """The motion a controller executes from points ``(t, q, qd, qdd)``, at ``times`` [s].
 
@@ -130,11 +74,7 @@ def join(t: np.ndarray, q: np.ndarray, qd: np.ndarray, qdd: np.ndarray, times: n
     k = np.clip(np.searchsorted(t, times, side="right") - 1, 0, t.size - 2)
     tau = (times - t[k])[:, None]
     qd, qdd = np.atleast_2d(qd), np.atleast_2d(qdd)
-    if k.size < t.size - 1:  # fewer samples than intervals (a controller's step, say)
-        ck = _coefficients(t, q, qd, qdd, interpolation, k)[0]
-    else:
-        ck = _coefficients(t, q, qd, qdd, interpolation)[0][k]
-    out = [_eval(ck, tau, nu) for nu in range(4)]
+    out = as_interpolation(interpolation).evaluate(t, q, qd, qdd, k, tau)
     # At (and past) the ends: the end points themselves, not their polynomial's rounding.
     for end, row in ((times <= t[0], 0), (times >= t[-1], -1)):
         if end.any():
@@ -169,62 +109,15 @@ class ExecutedPeaks:
                 float(np.max(self.jerk / jmax)))
 
 
-def _interval_peaks(c: np.ndarray, T: np.ndarray, rate: float  # noqa: N803
-                    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Per interval and joint: bound of |v|, exact max |a| and |j| (N-1, dof) each."""
-    Tc = T[:, None]  # noqa: N806
-    # Jerk: a quadratic; its extremes at the ends and at its vertex.
-    j0 = 6.0 * c[..., 3]
-    j1 = j0 + Tc * (24.0 * c[..., 4] + 60.0 * c[..., 5] * Tc)
-    with np.errstate(divide="ignore", invalid="ignore"):
-        vertex = -c[..., 4] * 24.0 / (120.0 * c[..., 5])
-    inside = np.isfinite(vertex) & (vertex > 0) & (vertex < Tc)
-    jv = np.where(inside, _eval(c, np.where(inside, vertex, 0.0), 3), 0.0)
-    j_peak = np.maximum(np.maximum(np.abs(j0), np.abs(j1)), np.abs(jv))
-    # Acceleration: a cubic; its extremes at the ends and where the jerk vanishes.
-    a_cands = [2.0 * c[..., 2], _eval(c, Tc, 2)]
-    qa, qb, qc = 60.0 * c[..., 5], 24.0 * c[..., 4], 6.0 * c[..., 3]
-    disc = qb * qb - 4.0 * qa * qc
-    with np.errstate(divide="ignore", invalid="ignore"):
-        sq = np.sqrt(np.maximum(disc, 0.0))
-        roots = [(-qb + sq) / (2.0 * qa), (-qb - sq) / (2.0 * qa),
-                 np.where(qb != 0.0, -qc / qb, np.nan)]
-    for r, valid in zip(roots, (disc >= 0, disc >= 0, qa == 0), strict=True):
-        ok = valid & np.isfinite(r) & (r > 0) & (r < Tc)
-        if ok.any():
-            a_cands.append(np.where(ok, _eval(c, np.where(ok, r, 0.0), 2), a_cands[0]))
-    a_all = np.stack(a_cands)
-    a_peak = np.abs(a_all).max(axis=0)
-    # Speed: where the acceleration keeps its sign the speed is monotone and peaks at an
-    # end; elsewhere it is sampled at >= rate per second (at least 4 samples), and a peak
-    # between samples dt apart adds at most |jerk| dt^2 / 8 (the acceleration vanishes).
-    v_peak = np.maximum(np.abs(c[..., 1]), np.abs(_eval(c, Tc, 1)))
-    turns = (a_all.min(axis=0) < 0.0) & (a_all.max(axis=0) > 0.0)
-    if turns.any():
-        k, joint = np.nonzero(turns)
-        ck, Tk = c[k, joint], T[k]  # noqa: N806
-        m = max(4, int(np.ceil(float(Tk.max()) * rate)) + 1)
-        tau = Tk[:, None] * np.linspace(0.0, 1.0, m)[None, :]
-        sampled = np.abs(_eval(ck[:, None, :], tau, 1)).max(axis=1)
-        v_peak[k, joint] = np.maximum(v_peak[k, joint],
-                                      sampled + j_peak[k, joint] * (Tk / (m - 1)) ** 2 / 8.0)
-    return v_peak, a_peak, j_peak
-
-
 def _peaks_of(t: np.ndarray, q: np.ndarray, qd: np.ndarray, qdd: np.ndarray,
-              interpolation: Interpolation, rate: float
+              interpolation: Interpolation | str, rate: float
               ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Per interval and joint: bound of |v|, max |a| and |j| (compiled for quintics)."""
-    if interpolation == "quintic":
-        from ._joinkernel import peaks
-
-        return peaks(t, q, qd, qdd, rate)
-    c, T = _coefficients(np.asarray(t, dtype=float), q, qd, qdd, interpolation)  # noqa: N806
-    return _interval_peaks(c, T, rate)
+    return as_interpolation(interpolation).peaks(t, q, qd, qdd, rate)
 
 
 def executed_peaks(t: np.ndarray, q: np.ndarray, qd: np.ndarray, qdd: np.ndarray, *,
-                   interpolation: Interpolation = "quintic", rate: float = CHECK_RATE
+                   interpolation: Interpolation | str = QUINTIC, rate: float = CHECK_RATE
                    ) -> ExecutedPeaks:
     """The peaks of the motion a controller executes from points ``(t, q, qd, qdd)``.
 
@@ -238,14 +131,15 @@ def executed_peaks(t: np.ndarray, q: np.ndarray, qd: np.ndarray, qdd: np.ndarray
     q, qd, qdd = (np.atleast_2d(np.asarray(x, dtype=float)) for x in (q, qd, qdd))
     if t.size < 2:
         return ExecutedPeaks(np.abs(qd[0]), np.abs(qdd[0]), np.zeros(q.shape[1]), rate,
-                             interpolation)
+                             str(interpolation))
     v, a, j = _peaks_of(t, q, qd, qdd, interpolation, rate)
-    return ExecutedPeaks(v.max(axis=0), a.max(axis=0), j.max(axis=0), rate, interpolation)
+    return ExecutedPeaks(v.max(axis=0), a.max(axis=0), j.max(axis=0), rate,
+                         str(interpolation))
 
 
 def interval_ratios(t: np.ndarray, q: np.ndarray, qd: np.ndarray, qdd: np.ndarray, *,
                     vmax: np.ndarray, amax: np.ndarray, jmax: np.ndarray,
-                    interpolation: Interpolation = "quintic", rate: float = CHECK_RATE
+                    interpolation: Interpolation | str = QUINTIC, rate: float = CHECK_RATE
                     ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Per interval between points, the largest speed, acceleration and jerk ratio to the
     limits (each (N-1,)); limits may be per interval (N-1, dof) or per joint (dof,)."""
@@ -257,7 +151,7 @@ def interval_ratios(t: np.ndarray, q: np.ndarray, qd: np.ndarray, qdd: np.ndarra
 
 def check_executed(t: np.ndarray, q: np.ndarray, qd: np.ndarray, qdd: np.ndarray, *,
                    velocity_limits: np.ndarray, acceleration_limits: np.ndarray,
-                   jerk_limits: np.ndarray, interpolation: Interpolation = "quintic",
+                   jerk_limits: np.ndarray, interpolation: Interpolation | str = QUINTIC,
                    rate: float = CHECK_RATE, what: str = "goal") -> tuple[float, float, float]:
     """Check that the motion a controller executes from the points stays within the limits.
 
@@ -366,11 +260,11 @@ class ControllerModel:
             answered from the oldest kept).
     """
 
-    def __init__(self, q_rest: np.ndarray, *, interpolation: Interpolation = "quintic",
+    def __init__(self, q_rest: np.ndarray, *, interpolation: Interpolation | str = QUINTIC,
                  history: int = 64) -> None:
         q0 = np.asarray(q_rest, dtype=float).reshape(1, -1)
         zero = np.zeros_like(q0)
-        self.interpolation: Interpolation = interpolation
+        self.interpolation: Interpolation = as_interpolation(interpolation)
         self.history = max(1, int(history))
         self._runs: list[_Running] = [_Running(-np.inf, np.zeros(1), q0, zero, zero)]
 

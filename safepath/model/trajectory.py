@@ -1,9 +1,10 @@
 """Timed joint trajectories: the library's output.
 
 A :class:`Trajectory` holds dense knots (time, position, velocity, acceleration), the
-route step every knot belongs to, and the gripper events. Between knots it is joined
-as a trajectory controller joins a goal's points: a quintic polynomial per joint matching
-position, velocity and acceleration at both knots (:mod:`safepath.model.execution`), so that
+route step every knot belongs to, the gripper events, and the interpolation of the
+controller it is for. Between knots it is joined as that controller joins a goal's points
+(:attr:`Trajectory.interpolation`, :mod:`safepath.model.interpolation`; quintic unless the
+robot's ``controller.yaml`` says otherwise), so that
 what :meth:`Trajectory.sample` gives at any instant is what the robot executes when the
 knots are sent as a goal's points. It exports to JSON (lossless) and
 CSV, and reports its duration per step.
@@ -25,6 +26,7 @@ import orjson
 from ..errors import ConfigError, TrajectoryError
 from ..files._io import atomic_write_text, read_text
 from ._knots import interval_index
+from .interpolation import QUINTIC, Interpolation, interpolation_named
 from .limits import MotionLimits
 
 __all__ = ["GripperEvent", "Trajectory", "load_trajectory"]
@@ -72,6 +74,9 @@ class Trajectory:
         limits: The joint speed limits it was timed under, which its goals' executed
             motion is checked against (None: a trajectory built without them; a goal
             of it then needs ``limits=``).
+        interpolation: How the controller it is for joins its knots (its robot's
+            ``controller.yaml``; quintic by default and for files written without it):
+            what :meth:`sample`, its goals and their checks join knots with.
     """
 
     joint_names: tuple[str, ...]
@@ -86,6 +91,7 @@ class Trajectory:
     route: str = ""
     info: dict[str, Any] = field(default_factory=dict, compare=False)
     limits: MotionLimits | None = None
+    interpolation: Interpolation = QUINTIC
 
     def __post_init__(self) -> None:
         n = len(self.joint_names)
@@ -115,6 +121,13 @@ class Trajectory:
             raise TrajectoryError("step index out of range", key="step_index")
         object.__setattr__(self, "step_index", idx)
         object.__setattr__(self, "joint_names", tuple(self.joint_names))
+        self._check_controller(n)
+
+    def _check_controller(self, n: int) -> None:
+        """Refuse limits of another number of joints than ``n``, or no Interpolation."""
+        if not isinstance(self.interpolation, Interpolation):
+            raise TrajectoryError(f"expected an Interpolation, got {self.interpolation!r}",
+                                  key="interpolation")
         if self.limits is not None:
             if not isinstance(self.limits, MotionLimits):
                 raise TrajectoryError(f"expected MotionLimits, got "
@@ -130,9 +143,9 @@ class Trajectory:
         arrays = ("t", "q", "qd", "qdd", "step_index")
         return (all(np.array_equal(getattr(self, a), getattr(other, a)) for a in arrays)
                 and (self.joint_names, self.steps, self.events, self.robot, self.route,
-                     self.limits)
+                     self.limits, self.interpolation)
                 == (other.joint_names, other.steps, other.events, other.robot, other.route,
-                    other.limits))
+                    other.limits, other.interpolation))
 
     __hash__ = None  # type: ignore[assignment]  # mutable arrays inside
 
@@ -168,20 +181,22 @@ class Trajectory:
     def sample(self, times: Sequence[float] | np.ndarray
                ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Positions, velocities and accelerations at ``times`` [s] (clamped to the ends),
-        on the quintic join of the knots (what a controller executes from them)."""
+        on the join of the knots by :attr:`interpolation` (what the controller executes
+        from them)."""
         from .execution import join
 
         ts = np.clip(np.asarray(times, dtype=float), self.t[0], self.t[-1])
         if self.t.size == 1:
             n = ts.size
             return (np.repeat(self.q, n, 0), np.repeat(self.qd, n, 0), np.repeat(self.qdd, n, 0))
-        q, qd, qdd, _ = join(self.t, self.q, self.qd, self.qdd, ts)
+        q, qd, qdd, _ = join(self.t, self.q, self.qd, self.qdd, ts,
+                             interpolation=self.interpolation)
         return q, qd, qdd
 
     def resample(self, period: float) -> Trajectory:
         """The same trajectory sampled every ``period`` [s] (and at the final knot).
 
-        The samples lie on this trajectory's motion, but their own quintic join is not
+        The samples lie on this trajectory's motion, but their own join is not
         that motion (the knots are not kept): use it to export or plot, not to send.
 
         Raises:
@@ -197,7 +212,8 @@ class Trajectory:
         q[-1], qd[-1], qdd[-1] = self.q[-1], self.qd[-1], self.qdd[-1]
         k = interval_index(self.t, times, self.t.size)
         return Trajectory(self.joint_names, times, q, qd, qdd, self.step_index[k], self.steps,
-                          self.events, self.robot, self.route, dict(self.info), self.limits)
+                          self.events, self.robot, self.route, dict(self.info), self.limits,
+                          self.interpolation)
 
     # -- export ----------------------------------------------------------------------------
     def to_dict(self) -> dict[str, Any]:
@@ -217,6 +233,7 @@ class Trajectory:
             "events": [e.__dict__ for e in self.events],
             "info": self.info,
             **({} if self.limits is None else {"limits": self.limits.to_dict()}),
+            "interpolation": self.interpolation.name,
         }
 
     def to_json(self, path: str | Path | None = None) -> str:
@@ -270,12 +287,15 @@ class Trajectory:
         try:
             limits = None if raw is None else MotionLimits.from_dict(raw, path=path)
             events = tuple(GripperEvent(**e) for e in data.get("events", []))
+            # Files written before the interpolation was recorded were quintic.
+            interpolation = interpolation_named(data.get("interpolation", QUINTIC.name),
+                                                path=path)
             return cls(tuple(data["joint_names"]), np.array(data["t"], dtype=float),
                        np.array(data["q"], dtype=float), np.array(data["qd"], dtype=float),
                        np.array(data["qdd"], dtype=float),
                        np.array(data["step_index"], dtype=int), tuple(data.get("steps", [])),
                        events, str(data.get("robot", "")), str(data.get("route", "")),
-                       info, limits)
+                       info, limits, interpolation)
         except ConfigError as exc:
             raise TrajectoryError(exc.reason, path=path, key=exc.key) from None
         except KeyError as exc:

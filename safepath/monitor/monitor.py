@@ -36,7 +36,8 @@ import numpy as np
 
 from ..cell import Cell
 from ..errors import InputError, TimingError
-from ..model.execution import ControllerModel, Interpolation, Switch
+from ..model.execution import ControllerModel, Switch
+from ..model.interpolation import Interpolation
 from ..model.trajectory import Trajectory
 from .elements import OBSTACLES, scene_arrays, to_elements
 from .observations import Counts, ObservationError
@@ -187,7 +188,7 @@ class Monitor:
         #: :meth:`follow`): the verified motion from its start, then every replacement
         #: from its ``replacement_start``. Replacements begin at its state then.
         self.controller: ControllerModel | None = None
-        self._interpolation: Interpolation = cell.robot.controller.interpolation  # type: ignore[assignment]
+        self._interpolation: Interpolation = cell.robot.controller.interpolation
         self._any_instant = True  # the running goal is on the path at every instant
         self.stats = {"out_of_order": 0, "stale": 0, "malformed": 0}
         self._self_filtered = 0

@@ -179,7 +179,8 @@ class MonitoredPath:
     """A verified trajectory's motion as a path to re-time.
 
     The path parameter is the trajectory's own time; its positions, velocities and
-    accelerations at a path parameter are the trajectory's (its knots' quintic join).
+    accelerations at a path parameter are the trajectory's (its knots joined by
+    :attr:`~safepath.model.trajectory.Trajectory.interpolation`).
 
     Args:
         traj: The verified trajectory (one motion: no gripper event inside it).
@@ -209,12 +210,11 @@ class MonitoredPath:
 
     def states(self, tau: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Positions, velocities and accelerations of the verified trajectory at path
-        parameters ``tau`` (clamped to its ends): its knots' quintic join, compiled (a
-        replacement samples it at every knot, for every candidate profile)."""
-        from ..model._joinkernel import sample
-
+        parameters ``tau`` (clamped to its ends): its knots joined by the trajectory's
+        interpolation (compiled for quintics: a replacement samples it at every knot, for
+        every candidate profile)."""
         tr = self.traj
-        return sample(tr.t, tr.q, tr.qd, tr.qdd, np.asarray(tau, dtype=float))
+        return tr.interpolation.states(tr.t, tr.q, tr.qd, tr.qdd, np.asarray(tau, dtype=float))
 
     def sample(self, tau: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Position, velocity and acceleration of the verified trajectory at ``tau``."""
@@ -375,7 +375,7 @@ class MonitoredPath:
                 chained after a hold starts later than the replacement).
 
         Raises:
-            TimingError: The knots' quintic join (as the controller executes them) would
+            TimingError: The join of the knots (as the controller executes them) would
                 exceed a speed, acceleration or jerk limit.
         """
         first = timing.start if t0 is None else t0  # the first knot's monitor time
@@ -395,7 +395,7 @@ class MonitoredPath:
             rv, ra, rj = interval_ratios(t, q, v, a, vmax=self.robot.velocity_limits,
                                          amax=self.robot.acceleration_limits,
                                          jmax=self.robot.jerk_limits,
-                                         interpolation=self.robot.controller.interpolation)  # type: ignore[arg-type]
+                                         interpolation=self.traj.interpolation)
             peaks = (float(rv.max()), float(ra.max()), float(rj.max()))
             if check and not max(peaks) <= 1.0:
                 k = int(np.argmax(np.maximum(np.maximum(rv, ra), rj)))
@@ -409,4 +409,5 @@ class MonitoredPath:
                 "path_tau": tau.tolist(), "source_route": tr.route,
                 "executed_ratios": list(peaks)}
         return Trajectory(tr.joint_names, t, q, v, a, tr.step_index[knot],
-                          tr.steps, (), tr.robot, tr.route, info, self.robot.motion_limits)
+                          tr.steps, (), tr.robot, tr.route, info, self.robot.motion_limits,
+                          tr.interpolation)

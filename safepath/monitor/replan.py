@@ -536,7 +536,7 @@ def _joined(head: Trajectory, tail: Trajectory, label: str) -> Trajectory:
                       (label, *tail.steps),
                       tuple(replace(e, time=e.time + t0 - float(tail.t[0]))
                             for e in tail.events),
-                      tail.robot, tail.route, info, tail.limits)
+                      tail.robot, tail.route, info, tail.limits, tail.interpolation)
 
 
 def _named(traj: Trajectory, labels: Sequence[str]) -> Trajectory:

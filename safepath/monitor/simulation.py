@@ -13,12 +13,12 @@ from __future__ import annotations
 
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
-from typing import Any, cast
+from typing import Any
 
 import numpy as np
 
 from ..cell import Cell
-from ..model.execution import ControllerModel, Interpolation
+from ..model.execution import ControllerModel
 from ..model.trajectory import Trajectory
 from .monitor import Decision, Monitor
 from .observations import Cloud, Scan
@@ -219,8 +219,7 @@ def simulate(monitor: Monitor, motions: Sequence[tuple[Trajectory, str | None]],
     rng = np.random.default_rng(seed)
     queue = list(motions)
     traj, held = queue.pop(0)
-    arm = ControllerModel(traj.q[0], interpolation=cast(
-        Interpolation, monitor.cell.robot.controller.interpolation))
+    arm = ControllerModel(traj.q[0], interpolation=monitor.cell.robot.controller.interpolation)
 
     def send(goal: Trajectory, start: float) -> None:
         """The arm's controller takes a goal stamped ``start`` (at that instant)."""

@@ -288,4 +288,5 @@ def assemble(cell: Cell, route: Route, labels: list[str],
         events.append(GripperEvent(when, step.kind, labels[i], obj))  # type: ignore[arg-type]
     return Trajectory(cell.robot.joint_names, t, np.vstack(q_all), np.vstack(qd_all),
                       np.vstack(qdd_all), np.concatenate(idx_all), tuple(labels), tuple(events),
-                      cell.robot.name, route.name, limits=cell.robot.motion_limits)
+                      cell.robot.name, route.name, limits=cell.robot.motion_limits,
+                      interpolation=cell.robot.controller.interpolation)

@@ -327,7 +327,7 @@ def _plan(cell: Cell, q_start: np.ndarray, parts: list[tuple[PoseCurve, int, flo
     traj = Trajectory(robot.joint_names, t, q, qd, qdd, step_index, tuple(names),
                       robot=robot.name, route="+".join(names),
                       info={"min_clearance": result.min_clearance, "time_stretch": stretch},
-                      limits=robot.motion_limits)
+                      limits=robot.motion_limits, interpolation=robot.controller.interpolation)
     tilt = np.array([tilt_of(T[:3, :3], axis) for T in T_knots])
     return PourMotion(traj, path, s, tilt, pos_err, ang_err, v_tcp, w_cup, result)
 

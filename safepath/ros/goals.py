@@ -41,6 +41,7 @@ from ..files._io import check_names
 from ..model._knots import interval_index
 from ..model.controller_spec import ControllerSpec, controller_for
 from ..model.execution import check_executed
+from ..model.interpolation import Interpolation
 from ..model.limits import MotionLimits
 from ..model.robot import Robot
 from ..model.trajectory import GripperEvent, Trajectory
@@ -84,13 +85,15 @@ _JT_TYPES = ("trajectory_msgs/msg/JointTrajectory", "trajectory_msgs/msg/JointTr
 
 @dataclasses.dataclass(frozen=True)
 class _Points:
-    """Trajectory samples in the robot's joint order, times in integer [ns]."""
+    """Trajectory samples in the robot's joint order, times in integer [ns], and how the
+    controller they are for joins them (which fields its points carry)."""
 
     names: tuple[str, ...]
     time_ns: np.ndarray
     q: np.ndarray
     qd: np.ndarray
     qdd: np.ndarray
+    interpolation: Interpolation
 
 
 def _validated(traj: Trajectory) -> Trajectory:
@@ -159,8 +162,8 @@ def _points(traj: Trajectory, period: float | None, robot_joint_names: Sequence[
             controller: ControllerSpec | None,
             limits: MotionLimits | None = None) -> _Points:
     """The goal's points: every knot of ``traj`` (times from its start), and where two
-    knots are more than ``period`` [s] apart, points of the quintic between them (which
-    joins them into the same quintic), in the controller's joint order; then the motion
+    knots are more than ``period`` [s] apart, points of their join between them (which
+    joins them into the same polynomial), in the controller's joint order; then the motion
     the controller executes from them is checked against the joint limits."""
     spec = controller_of(traj, controller)
     period = spec.period if period is None else period
@@ -173,7 +176,7 @@ def _points(traj: Trajectory, period: float | None, robot_joint_names: Sequence[
     gaps = np.diff(knot_ns)
     extra = np.maximum(-(-gaps // period_ns) - 1, 0)
     if traj.t.size > 1 and extra.any():
-        # Inserted points on whole nanoseconds too, sampled from the knots' own quintic
+        # Inserted points on whole nanoseconds too, sampled from the knots' own join
         # at exactly those times (which keeps the join what it was).
         inserted = np.concatenate([knot_ns[k] + (np.arange(1, e + 1) * gaps[k]) // (e + 1)
                                    for k, e in enumerate(extra)])
@@ -185,7 +188,7 @@ def _points(traj: Trajectory, period: float | None, robot_joint_names: Sequence[
         time_ns, q, qd, qdd = knot_ns, traj.q, traj.qd, traj.qdd
     if time_ns.size > 1 and np.any(np.diff(time_ns) <= 0):
         raise TrajectoryError("two points less than 1 ns apart", key="t")
-    pts = _Points(names, time_ns, q[:, cols], qd[:, cols], qdd[:, cols])
+    pts = _Points(names, time_ns, q[:, cols], qd[:, cols], qdd[:, cols], spec.interpolation)
     _check_executed(traj, pts, spec, limits, cols)
     return pts
 
@@ -205,7 +208,7 @@ def _check_executed(traj: Trajectory, pts: _Points, spec: ControllerSpec,
     vmax, amax, jmax = (x[cols] for x in limits.arrays())
     check_executed(pts.time_ns / _NS, pts.q, pts.qd, pts.qdd, velocity_limits=vmax,
                    acceleration_limits=amax, jerk_limits=jmax,
-                   interpolation=spec.interpolation,  # type: ignore[arg-type]
+                   interpolation=pts.interpolation,
                    what=f"goal of '{traj.route or traj.robot or 'trajectory'}'")
 
 
@@ -229,9 +232,13 @@ def _build_joint_trajectory(f: MessageFactory, pts: _Points, stamp_ns: int) -> A
     sec, nanosec = divmod(int(stamp_ns), _NS)
     header = f.new("std_msgs/msg/Header", frame_id="",
                    stamp=f.new("builtin_interfaces/msg/Time", sec=sec, nanosec=nanosec))
+    # The fields the controller's interpolation reads, no others: a controller joins
+    # points carrying accelerations as quintics, whatever it was configured for.
+    qd = pts.qd if pts.interpolation.uses_velocities else pts.qd[:, :0]
+    qdd = pts.qdd if pts.interpolation.uses_accelerations else pts.qdd[:, :0]
     points = [
         f.new("trajectory_msgs/msg/JointTrajectoryPoint", positions=f.floats(pts.q[k]),
-              velocities=f.floats(pts.qd[k]), accelerations=f.floats(pts.qdd[k]),
+              velocities=f.floats(qd[k]), accelerations=f.floats(qdd[k]),
               effort=f.floats([]), time_from_start=_duration(f, pts.time_ns[k]))
         for k in range(pts.time_ns.size)
     ]
@@ -471,7 +478,8 @@ def trajectory_between(traj: Trajectory, t_from: float, t_to: float,
     knot = interval_index(traj.t, times, traj.t.size)
     info = {**traj.info, "segment": index, "time_offset": t_from}
     return Trajectory(traj.joint_names, times - t_from, q, qd, qdd, traj.step_index[knot],
-                      traj.steps, (), traj.robot, traj.route, info, traj.limits)
+                      traj.steps, (), traj.robot, traj.route, info, traj.limits,
+                      traj.interpolation)
 
 
 def split_at_gripper_events(traj: Trajectory) -> list[Trajectory | GripperEvent]:

@@ -139,7 +139,7 @@ class ArmServer:
         self._hold_q = np.asarray(q_initial, dtype=float).copy()
         #: What the controller commands, goal after goal.
         self.commanded = ControllerModel(self._hold_q,
-                                         interpolation=controller.interpolation)  # type: ignore[arg-type]
+                                         interpolation=controller.interpolation)
         #: Each switch to a goal that arrived while another ran: (goal id, Switch).
         self.switches: list[tuple[int, Any]] = []
         self._hold_ctrl = model.control(self._hold_q, np.zeros(dof), np.zeros(dof))

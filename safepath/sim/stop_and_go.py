@@ -84,4 +84,4 @@ def stop_and_go(cell: Cell, traj: Trajectory) -> Trajectory:
     info = {**traj.info, "stop_and_go": True}
     return Trajectory(traj.joint_names, np.concatenate(ts), np.vstack(qs), np.vstack(qds),
                       np.vstack(qdds), np.concatenate(idx), traj.steps, events, traj.robot,
-                      traj.route, info, traj.limits)
+                      traj.route, info, traj.limits, traj.interpolation)

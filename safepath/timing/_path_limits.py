@@ -17,6 +17,7 @@ from typing import Protocol
 import numpy as np
 
 from ..model._knots import interval_index
+from ..model.interpolation import Interpolation
 from ..model.robot import Robot
 from . import _topp
 
@@ -88,6 +89,7 @@ class PathLimits:
         vmax_seg: Velocity limits of each segment (segments, dof) [rad/s].
         amax_seg: Acceleration limits of each segment (segments, dof) [rad/s^2].
         jmax_seg: Jerk limits of each segment (segments, dof) [rad/s^3].
+        interpolation: How the robot's controller joins the knots (they are checked so).
         tcp_rate: The TCP's speed per path speed ``|dp/ds|`` at the gridpoints [m/rad]
             (an estimate, :func:`_tcp_rate`), where a segment limits the TCP's speed.
     """
@@ -98,6 +100,7 @@ class PathLimits:
     vmax_seg: np.ndarray
     amax_seg: np.ndarray
     jmax_seg: np.ndarray
+    interpolation: Interpolation
     tcp_rate: np.ndarray | None = None
 
     @cached_property
@@ -165,7 +168,8 @@ def path_limits(robot: Robot, path: PathSpline, s_way: np.ndarray, scales: Seque
                      bound(scale_grid, v_grid))
     return PathLimits(grid, at_grid, s_way, seg_scales[:, None] * robot.velocity_limits,
                       seg_scales[:, None] * robot.acceleration_limits,
-                      (seg_scales * jerk_scale)[:, None] * robot.jerk_limits, bound.rate)
+                      (seg_scales * jerk_scale)[:, None] * robot.jerk_limits,
+                      robot.controller.interpolation, bound.rate)
 
 
 class _Bounds:

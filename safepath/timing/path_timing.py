@@ -445,7 +445,8 @@ def _interval_ratios(t: np.ndarray, q: np.ndarray, qd: np.ndarray, qdd: np.ndarr
     seg = np.where(limits.vmax_seg[segment[:-1], 0] <= limits.vmax_seg[segment[1:], 0],
                    segment[:-1], segment[1:])
     return interval_ratios(t, q, qd, qdd, vmax=limits.vmax_seg[seg],
-                           amax=limits.amax_seg[seg], jmax=limits.jmax_seg[seg])
+                           amax=limits.amax_seg[seg], jmax=limits.jmax_seg[seg],
+                           interpolation=limits.interpolation)
 
 
 def _tighten(f_acc: np.ndarray, f_x: np.ndarray, grid: np.ndarray, run: _Run) -> None:
@@ -604,7 +605,7 @@ class _TcpLimits:
             return worst
         frac = np.linspace(0.0, 1.0, self.samples + 1)[1:-1]
         times = (t[at, None] + (t[at + 1] - t[at])[:, None] * frac).ravel()
-        p, v, _, _ = join(t, q, qd, qdd, times)
+        p, v, _, _ = join(t, q, qd, qdd, times, interpolation=self.robot.controller.interpolation)
         speed = self.robot.tcp_speeds(p, v)
         return max(worst, float(np.max(speed / np.repeat(limit[at], frac.size))))
 

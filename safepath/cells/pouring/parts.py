@@ -257,7 +257,8 @@ class PourStopper:
                           ("stop",), (), traj.robot, f"{traj.route}:stop",
                           {"time_offset": float(traj.t[k0]), "brake_at": float(traj.t[kb]),
                            "path_tau": np.asarray(self._path_tau).tolist(),
-                           "s_rest": float(s[-1])}, self.robot.motion_limits)
+                           "s_rest": float(s[-1])}, self.robot.motion_limits,
+                          traj.interpolation)
 
     def until(self, stop: Trajectory) -> Trajectory:
         """The part of the tilt that ran before ``stop`` (one of :meth:`stop`'s) took over,
@@ -291,7 +292,7 @@ class PourStopper:
         return Trajectory(traj.joint_names, piece.t, piece.q, piece.qd, piece.qdd,
                           np.zeros(piece.t.size, dtype=int), ("return",), (), traj.robot,
                           f"{traj.route}:return",
-                          {"s_from": s_rest}, self.robot.motion_limits)
+                          {"s_from": s_rest}, self.robot.motion_limits, traj.interpolation)
 
     def _back_piece(self, s_rest: float) -> tuple[TimedPiece, float]:
         from ...timing import time_path

@@ -1,0 +1,120 @@
+"""The controller's interpolation: chosen by ``controller.yaml``, recorded on the
+trajectory, and what the goals carry and are checked with."""
+
+from __future__ import annotations
+
+import dataclasses
+import shutil
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import safepath
+from safepath.errors import ConfigError, ExecutedLimitError, TrajectoryError
+from safepath.model.controller_spec import ControllerSpec
+from safepath.model.execution import check_executed, executed_peaks, join
+from safepath.model.interpolation import CUBIC, LINEAR, QUINTIC, interpolation_named
+from safepath.model.limits import MotionLimits
+from safepath.model.scene import Scene
+from safepath.model.trajectory import Trajectory, load_trajectory
+from safepath.ros.goals import joint_trajectory
+
+ROBOTS = Path(__file__).resolve().parents[2] / "robots"
+
+
+def _robot_saying(tmp_path: Path, interpolation: str) -> Path:
+    """A copy of the Ned3 Pro's folder whose controller.yaml names ``interpolation``."""
+    folder = tmp_path / "ned3pro"
+    shutil.copytree(ROBOTS / "ned3pro", folder)
+    yaml = folder / "controller.yaml"
+    text = yaml.read_text()
+    assert "interpolation: quintic" in text
+    yaml.write_text(text.replace("interpolation: quintic", f"interpolation: {interpolation}"))
+    return folder
+
+
+def test_a_cubic_controller_gets_cubic_goals_checked_as_cubic_joins(tmp_path: Path) -> None:
+    """A robot whose controller.yaml says cubic: its trajectories record cubic, their
+    samples lie on the cubic join, goal points carry no accelerations (a controller
+    joins points that carry them as quintics), and the cubic join of the released points
+    stays within every limit."""
+    robot = safepath.load_robot(_robot_saying(tmp_path, "cubic"))
+    assert robot.controller.interpolation is CUBIC
+    q0 = np.zeros(robot.dof)
+    q1 = np.array([0.5, 0.3, -0.4, 0.5, -0.5, 0.5])
+    traj = safepath.plan(robot, Scene("empty", robot.name, ()), q0, q1)
+    assert traj.interpolation is CUBIC
+    mid = (traj.t[:-1] + traj.t[1:]) / 2
+    cubic = join(traj.t, traj.q, traj.qd, traj.qdd, mid, interpolation=CUBIC)[0]
+    quintic = join(traj.t, traj.q, traj.qd, traj.qdd, mid, interpolation=QUINTIC)[0]
+    assert not np.array_equal(cubic, quintic)
+    assert np.array_equal(traj.sample(mid)[0], cubic)
+    msg = joint_trajectory(traj, controller=robot.controller, backend="rosbags")
+    assert all(len(p.accelerations) == 0 and len(p.velocities) == robot.dof
+               for p in msg.points)
+    t = np.array([p.time_from_start.sec + p.time_from_start.nanosec * 1e-9
+                  for p in msg.points])
+    q = np.array([list(p.positions) for p in msg.points])
+    qd = np.array([list(p.velocities) for p in msg.points])
+    peaks = executed_peaks(t, q, qd, np.zeros_like(q), interpolation=CUBIC)
+    assert peaks.interpolation == "cubic"
+    assert max(peaks.ratios(*robot.motion_limits.arrays())) <= 1.0
+
+
+def _rest_to_rest(amax: float) -> Trajectory:
+    """One joint from 0 to 1 rad in 1 s, at rest at both ends: its quintic join peaks at
+    10 / sqrt(3) = 5.77 rad/s^2, its cubic join at 6 rad/s^2 (at the ends)."""
+    limits = MotionLimits(np.array([10.0]), np.array([amax]), np.array([100.0]))
+    zero = np.zeros((2, 1))
+    return Trajectory(("j",), np.array([0.0, 1.0]), np.array([[0.0], [1.0]]), zero, zero,
+                      np.zeros(2, dtype=int), limits=limits)
+
+
+def test_the_release_check_joins_points_as_the_controller_does() -> None:
+    """Points whose quintic join stays within the acceleration limit but whose cubic
+    join does not: released to a quintic controller, refused (typed) for a cubic one."""
+    traj = _rest_to_rest(5.9)
+    quintic = ControllerSpec(joint_names=("j",), period=2.0,
+                             follow_joint_trajectory_action="/c/follow_joint_trajectory")
+    cubic = dataclasses.replace(quintic, interpolation=CUBIC)
+    assert len(joint_trajectory(traj, controller=quintic, backend="rosbags").points) == 2
+    with pytest.raises(ExecutedLimitError, match="cubic join .* acceleration limit"):
+        joint_trajectory(traj, controller=cubic, backend="rosbags")
+    t, q, z = traj.t, traj.q, traj.qd
+    assert check_executed(t, q, z, z, velocity_limits=np.array([10.0]),
+                          acceleration_limits=np.array([6.0]), jerk_limits=np.array([100.0]),
+                          interpolation=CUBIC)[1] == pytest.approx(1.0)
+
+
+@pytest.mark.parametrize("interpolation", [QUINTIC, CUBIC, LINEAR])
+def test_the_interpolation_round_trips_through_the_file(tmp_path: Path,
+                                                       interpolation: object) -> None:
+    traj = Trajectory(("j",), np.array([0.0, 1.0]), np.array([[0.0], [1.0]]),
+                      np.zeros((2, 1)), np.zeros((2, 1)), np.zeros(2, dtype=int),
+                      interpolation=interpolation)  # type: ignore[arg-type]
+    path = tmp_path / "t.json"
+    traj.to_json(path)
+    back = load_trajectory(path)
+    assert back.interpolation is interpolation and back == traj
+
+
+def test_a_file_without_an_interpolation_loads_as_quintic_and_a_bad_one_is_refused(
+        tmp_path: Path) -> None:
+    data = _rest_to_rest(6.0).to_dict()
+    assert data.pop("interpolation") == "quintic"
+    assert Trajectory.from_dict(data).interpolation is QUINTIC
+    data["interpolation"] = "spline"
+    with pytest.raises(TrajectoryError, match="spline") as info:
+        Trajectory.from_dict(data, path=tmp_path / "t.json")
+    assert info.value.key == "interpolation" and info.value.path == tmp_path / "t.json"
+
+
+def test_an_unknown_interpolation_in_controller_yaml_names_file_and_key(
+        tmp_path: Path) -> None:
+    folder = _robot_saying(tmp_path, "spline")
+    with pytest.raises(ConfigError, match="expected one of") as info:
+        safepath.load_robot(folder)
+    assert info.value.key == "interpolation"
+    assert info.value.path == folder / "controller.yaml"
+    assert interpolation_named("linear") is LINEAR
