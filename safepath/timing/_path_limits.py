@@ -23,7 +23,7 @@ from . import _topp
 
 __all__ = ["AHEAD_MARGIN", "STRAIGHT_STEPS", "TCP_STEP", "PathSpline", "PathLimits", "Points",
            "ahead_of_steps", "gridpoints", "jet", "path_limits", "row_max", "sliding_min",
-           "straight_pieces"]
+           "straight_pieces", "tcp_limits"]
 
 #: Spacing of the points where the TCP's speed per path speed is computed [rad].
 TCP_STEP = 0.015
@@ -155,7 +155,7 @@ def path_limits(robot: Robot, path: PathSpline, s_way: np.ndarray, scales: Seque
     # smaller limits of the two hold there.
     seg_before = np.clip(np.searchsorted(s_way, grid, side="left") - 1, 0, last)
     scale_grid = np.minimum(seg_scales[seg_of_grid], seg_scales[seg_before])
-    v_seg = np.array([np.inf if v is None else v for v in tcp_speeds])
+    v_seg = tcp_limits(tcp_speeds)
     v_grid = np.minimum(v_seg[seg_of_grid], v_seg[seg_before])
     _, dq, ddq = jet(path, grid)
     bound = _Bounds(robot, path, s_way, grid, dq, jerk_scale, np.isfinite(v_seg).any())
@@ -209,6 +209,11 @@ class _Bounds:
             tcp = np.where(np.isfinite(v_tcp) & (self.rate >= 1e-9),
                            (v_tcp / np.maximum(self.rate, 1e-9)) ** 2, np.inf)
         return np.minimum(xmax, tcp)
+
+
+def tcp_limits(tcp_speeds: Sequence[float | None]) -> np.ndarray:
+    """Each segment's TCP speed limit [m/s] as an array, inf where it has none."""
+    return np.array([np.inf if v is None else v for v in tcp_speeds], dtype=float)
 
 
 def straight_pieces(path: PathSpline) -> np.ndarray | None:

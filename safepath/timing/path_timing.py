@@ -42,7 +42,7 @@ from ..model.execution import CHECK_RATE, interval_ratios, join
 from ..model.robot import Robot
 from . import _scurve, _smooth, _topp
 from ._blend import blended_points, corner_pieces, resampled
-from ._path_limits import PathLimits, PathSpline, jet, path_limits
+from ._path_limits import PathLimits, PathSpline, jet, path_limits, tcp_limits
 from ._spline import CubicPath
 
 __all__ = ["TimingOptions", "TimedPiece", "PathSpline", "spline_path", "time_path",
@@ -334,10 +334,10 @@ def time_path(robot: Robot, path: PathSpline, s_way: np.ndarray, *, scales: Sequ
                   attempt, run.stretch)
         _tighten(f_acc, f_x, limits.grid, run)
     assert best is not None  # options.retries >= 1
-    v_tcp = np.array([np.inf if v is None else v for v in tcp_speeds], dtype=float)
-    tcp = _TcpLimits(robot, v_tcp, max(1, int(np.ceil(options.knot_period * CHECK_RATE))),
-                     limits.grid, limits.tcp_rate) \
-        if np.isfinite(v_tcp).any() and limits.tcp_rate is not None else None
+    # The path's TCP rate is estimated only where a segment limits the TCP's speed.
+    tcp = None if limits.tcp_rate is None else _TcpLimits(
+        robot, tcp_limits(tcp_speeds), max(1, int(np.ceil(options.knot_period * CHECK_RATE))),
+        limits.grid, limits.tcp_rate)
     return dataclasses.replace(_release(best, limits, options, where, tcp), runs=runs)
 
 
