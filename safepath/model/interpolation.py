@@ -139,15 +139,23 @@ class Interpolation:
         """Per interval, the largest speed, acceleration and jerk ratio over the joints of
         the joined motion (:meth:`peaks`) to the limits in row ``row[k]`` (N-1,) of
         ``vmax`` [rad/s], ``amax`` [rad/s^2], ``jmax`` [rad/s^3] (rows, dof); each (N-1,),
-        NaN where a peak is. Compiled for quintics, in one pass."""
+        NaN on every interval next to a point that is not finite (whatever the
+        interpolation's sums make of it). Compiled for quintics, in one pass."""
         if self.order == 5:
             from ._joinkernel import ratios
 
-            return ratios(t, q, qd, qdd, rate, row, vmax, amax, jmax)
-        v, a, j = self.peaks(t, q, qd, qdd, rate)
-        # numpy reduces a short last axis slowly; across the long one it is ~10x faster.
-        return tuple(np.max(np.ascontiguousarray((x / lim[row]).T), axis=0)  # type: ignore[return-value]
-                     for x, lim in ((v, vmax), (a, amax), (j, jmax)))
+            out = ratios(t, q, qd, qdd, rate, row, vmax, amax, jmax)
+        else:
+            peaks = self.peaks(t, q, qd, qdd, rate)
+            # numpy reduces a short last axis slowly; across the long one it is ~10x faster.
+            out = tuple(np.max(np.ascontiguousarray((x / lim[row]).T), axis=0)
+                        for x, lim in zip(peaks, (vmax, amax, jmax), strict=True))
+        finite = np.isfinite(t) & np.isfinite(q).all(axis=1) & np.isfinite(qd).all(axis=1) \
+            & np.isfinite(qdd).all(axis=1)
+        if not finite.all():
+            for x in out:
+                x[~(finite[:-1] & finite[1:])] = np.nan
+        return out  # type: ignore[return-value]
 
 
 #: Position, velocity and acceleration matched at both points.

@@ -510,6 +510,11 @@ def _stretch(v_peak: float, a_peak: float, j_peak: float = 0.0) -> float:
                float(np.cbrt(j_peak / (1.0 - _SLACK))))
 
 
+def _worst(ratios: Sequence[np.ndarray], v_tcp: float) -> float:
+    """The largest of the interval ratios and the TCP's ratio; NaN if any is NaN."""
+    return float(np.max([v_tcp, *(float(np.max(r)) for r in ratios if r.size)]))
+
+
 def _release(run: _Run, limits: PathLimits, options: TimingOptions, where: str,
              tcp: _TcpLimits | None = None) -> TimedPiece:
     """The run stretched in time just enough that its knots' quintic join is within every
@@ -532,7 +537,7 @@ def _release(run: _Run, limits: PathLimits, options: TimingOptions, where: str,
         t, qd, qdd, k = stretch_knots(t, qd, qdd, k)
         ratios = _interval_ratios(t, run.q, qd, qdd, run.segment, limits)
         v_tcp = tcp_ratio()
-    worst = max([float(r.max()) for r in ratios if r.size] + [v_tcp])
+    worst = _worst(ratios, v_tcp)
     for _ in range(3):
         # The speed bound samples each interval at >= 1 kHz: a stretched interval may get
         # one more sample, which moves the bound by ~1e-7; stretch that much more.
@@ -542,7 +547,7 @@ def _release(run: _Run, limits: PathLimits, options: TimingOptions, where: str,
         t, qd, qdd, _ = stretch_knots(t, qd, qdd, _stretch(max(v, v_tcp), a, j))
         ratios = _interval_ratios(t, run.q, qd, qdd, run.segment, limits)
         v_tcp = tcp_ratio()
-        worst = max([float(r.max()) for r in ratios if r.size] + [v_tcp])
+        worst = _worst(ratios, v_tcp)
     if not worst <= 1.0:  # also NaN
         raise TimingError(f"the quintic join of the timed knots is at {worst!r} of a limit"
                           + where)
