@@ -123,17 +123,22 @@ def _ratios(t: np.ndarray, q: np.ndarray, qd: np.ndarray, qdd: np.ndarray, rate:
             v_out: np.ndarray, a_out: np.ndarray, j_out: np.ndarray) -> None:
     """Per interval, the largest ratio over the joints of the quintic join's speed bound,
     peak |a| and peak |j| (:func:`_peaks`) to the limits of row ``row[k]`` of ``vmax``,
-    ``amax``, ``jmax`` (rows, dof), into the outputs (intervals,)."""
+    ``amax``, ``jmax`` (rows, dof), into the outputs (intervals,); NaN where an input of
+    the interval is not finite."""
     n, dof = t.size - 1, q.shape[1]
     for k in range(n):
         m = max(4, int(math.ceil((t[k + 1] - t[k]) * rate)) + 1)
         r = row[k]
         rv = ra = rj = -np.inf
+        inputs = t[k + 1] - t[k]  # finite iff every input of the interval is
         for d in range(dof):
+            inputs += q[k, d] + q[k + 1, d] + qd[k, d] + qd[k + 1, d] + qdd[k, d] + qdd[k + 1, d]
             vp, ap, jp = _interval_peaks(t, q, qd, qdd, k, d, m)
             rv = _larger(rv, vp / vmax[r, d])
             ra = _larger(ra, ap / amax[r, d])
             rj = _larger(rj, jp / jmax[r, d])
+        if inputs - inputs != 0.0:  # a NaN or an infinity among them
+            rv = ra = rj = np.nan
         v_out[k], a_out[k], j_out[k] = rv, ra, rj
 
 

@@ -144,12 +144,11 @@ class Interpolation:
         if self.order == 5:
             from ._joinkernel import ratios
 
-            out = ratios(t, q, qd, qdd, rate, row, vmax, amax, jmax)
-        else:
-            peaks = self.peaks(t, q, qd, qdd, rate)
-            # numpy reduces a short last axis slowly; across the long one it is ~10x faster.
-            out = tuple(np.max(np.ascontiguousarray((x / lim[row]).T), axis=0)
-                        for x, lim in zip(peaks, (vmax, amax, jmax), strict=True))
+            return ratios(t, q, qd, qdd, rate, row, vmax, amax, jmax)
+        peaks = self.peaks(t, q, qd, qdd, rate)
+        # numpy reduces a short last axis slowly; across the long one it is ~10x faster.
+        out = tuple(np.max(np.ascontiguousarray((x / lim[row]).T), axis=0)
+                    for x, lim in zip(peaks, (vmax, amax, jmax), strict=True))
         finite = np.isfinite(t) & np.isfinite(q).all(axis=1) & np.isfinite(qd).all(axis=1) \
             & np.isfinite(qdd).all(axis=1)
         if not finite.all():
