@@ -11,11 +11,11 @@ queries with spheres instead of exact shapes. Its answers stay exact because
 
 Everything else ("not sure") goes to the exact coal check. Shapes are covered by a grid
 of cells: each cell that meets the shape becomes the sphere circumscribing the cell,
-so the excess over the shape's surface is at most about 0.37 of the cell edge; thin
-cylinders and capsules are covered by spheres along their axis instead. Works for the
-shapes a URDF or a scene gives: boxes, spheres, cylinders, capsules, convex hulls
-(example-robot-data meshes are replaced by their hulls) and, through their vertices'
-hull, meshes.
+so the excess over the shape's surface is at most about 0.37 of the cell edge. Works for
+the shapes a URDF or a scene gives: every kind of the shape table
+(:mod:`safepath.model.shapes`; each row fits its own kind, thin cylinders and capsules by
+spheres along their axis), convex hulls (example-robot-data meshes are replaced by their
+hulls) and, through their vertices' hull, meshes.
 """
 
 from __future__ import annotations
