@@ -63,13 +63,6 @@ RETIME_ABOVE = 1e-2
 #: Margin the final stretch leaves below every limit (relative), so that the released
 #: ratios stay <= 1.0 however they are rounded.
 _SLACK = 1e-6
-#: How far past an interval over a limit its tightening reaches, in the averages' width
-#: (:func:`_tighten`). The interval itself averaged the profile before it; half a width
-#: after it too keeps the next run from carrying the unchanged profile's accelerations
-#: back into the slowed stretch: measured on seeded via paths, the UR5's motion time over
-#: the jerk-free optimum went from 1.031 to 1.022 (median), the Ned3 Pro's from 1.047 to
-#: 1.046, and the quality-check cell's seven paths from 22.98 to 22.70 s, at as many runs.
-TIGHTEN_AFTER = 0.5
 _NS = 1_000_000_000
 #: Chord across a ``"gap"`` blend, relative to the way along the polyline it replaces,
 #: below which the corner counts as a turn-back and is passed through, not cut.
@@ -453,9 +446,8 @@ def _interval_ratios(t: np.ndarray, q: np.ndarray, qd: np.ndarray, qdd: np.ndarr
 
 def _tighten(f_acc: np.ndarray, f_x: np.ndarray, grid: np.ndarray, run: _Run) -> None:
     """Tighten the limits (in place) along the part of the path each interval over a limit
-    averaged: its window of the profile, ``tau_a + tau_b`` before it to its end, and
-    :data:`TIGHTEN_AFTER` of that width after it. Each gridpoint takes the largest excess
-    of the windows over it, once."""
+    averaged: its window of the profile, ``tau_a + tau_b`` before it to its end. Each
+    gridpoint takes the largest excess of the windows over it, once."""
     v, a, j = run.ratios
     sm = run.smoothed
     assert sm is not None  # only TOPP-RA's runs are tightened
@@ -465,8 +457,7 @@ def _tighten(f_acc: np.ndarray, f_x: np.ndarray, grid: np.ndarray, run: _Run) ->
     width = sm.tau_a + sm.tau_b
     end = sm.profile.duration
     s_lo = _topp.evaluate(sm.profile, np.clip(run.t[over] - width, 0.0, end))[0]
-    s_hi = _topp.evaluate(sm.profile, np.clip(run.t[over + 1] + TIGHTEN_AFTER * width, 0.0,
-                                              end))[0]
+    s_hi = _topp.evaluate(sm.profile, np.clip(run.t[over + 1], 0.0, end))[0]
     g_lo = np.clip(np.searchsorted(grid, s_lo, side="right") - 1, 0, grid.size - 1)
     g_hi = np.clip(np.searchsorted(grid, s_hi, side="left") + 1, 1, grid.size)
     pad = 1.0 + RETIME_ABOVE
