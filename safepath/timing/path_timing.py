@@ -22,8 +22,9 @@ is left is removed by stretching time uniformly, which divides velocities by ``k
 accelerations by ``k^2``. No released knot exceeds a limit: the ratios of the released
 knots are checked, and a :class:`~safepath.errors.TimingError` is raised rather than
 release one over 1.0. The same holds for the TCP's speed where a step limits it: the
-knots' quintic join is sampled at >= 1 kHz (forward kinematics with velocities) and
-stretched in time until every sample is within its step's limit.
+knots' join (as the robot's controller joins them: ``controller.yaml``'s interpolation,
+a quintic for points with accelerations) is sampled at >= 1 kHz (forward kinematics with
+velocities) and stretched in time until every sample is within its step's limit.
 """
 
 from __future__ import annotations
@@ -286,12 +287,12 @@ def time_path(robot: Robot, path: PathSpline, s_way: np.ndarray, *, scales: Sequ
     """Time a spline path rest to rest, jerk-limited, within the limits as executed.
 
     TOPP-RA's profile is smoothed by two moving averages (:mod:`._smooth`), sampled every
-    ``options.knot_period``, and the quintic join of the knots (how a trajectory
-    controller executes them, :mod:`safepath.model.execution`) is checked against the joint
+    ``options.knot_period``, and the join of the knots (as the robot's trajectory
+    controller executes them, ``PathLimits.interpolation``) is checked against the joint
     speed, acceleration and jerk limits on every interval. Where it exceeds one, the
     limits along the part of the path that interval averaged are tightened and the path
     is timed again (``options.retries`` runs in all); what is left is removed by
-    stretching time uniformly, which scales the quintic join exactly (speeds by ``1/k``,
+    stretching time uniformly, which scales the join exactly (speeds by ``1/k``,
     accelerations by ``1/k^2``, jerks by ``1/k^3``).
 
     Args:
@@ -304,8 +305,8 @@ def time_path(robot: Robot, path: PathSpline, s_way: np.ndarray, *, scales: Sequ
         step: Step name for errors.
 
     Raises:
-        TimingError: TOPP-RA found no feasible timing, or the released knots' quintic join
-            would break a limit.
+        TimingError: TOPP-RA found no feasible timing, or the released knots' join would
+            break a limit.
     """
     where = f" (step '{step}')" if step else ""
     limits = path_limits(robot, path, s_way, scales, tcp_speeds,
@@ -436,7 +437,7 @@ def _jerk_window(profile: _topp.Profile, limits: PathLimits, options: TimingOpti
 def _interval_ratios(t: np.ndarray, q: np.ndarray, qd: np.ndarray, qdd: np.ndarray,
                      segment: np.ndarray, limits: PathLimits
                      ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Per knot interval, the quintic join's largest speed, acceleration and jerk ratio
+    """Per knot interval, the knots' join's largest speed, acceleration and jerk ratio
     (limits of the smaller-scaled of its two knots' segments)."""
     seg = np.where(limits.vmax_seg[segment[:-1], 0] <= limits.vmax_seg[segment[1:], 0],
                    segment[:-1], segment[1:])
@@ -508,7 +509,7 @@ def _worst(ratios: Sequence[np.ndarray], v_tcp: float) -> float:
 
 def _release(run: _Run, limits: PathLimits, options: TimingOptions, where: str,
              tcp: _TcpLimits | None = None) -> TimedPiece:
-    """The run stretched in time just enough that its knots' quintic join is within every
+    """The run stretched in time just enough that its knots' join is within every
     limit (the TCP's speed limits too, ``tcp``), checked."""
     t, qd, qdd = run.t, run.qd, run.qdd
 
@@ -540,8 +541,8 @@ def _release(run: _Run, limits: PathLimits, options: TimingOptions, where: str,
         v_tcp = tcp_ratio()
         worst = _worst(ratios, v_tcp)
     if not worst <= 1.0:  # also NaN
-        raise TimingError(f"the quintic join of the timed knots is at {worst!r} of a limit"
-                          + where)
+        raise TimingError(f"the {limits.interpolation} join of the timed knots is at "
+                          f"{worst!r} of a limit" + where)
     return TimedPiece(t, run.q, qd, qdd, run.s, run.segment)
 
 
@@ -577,7 +578,7 @@ class _TcpLimits:
 
     def ratio(self, t: np.ndarray, q: np.ndarray, qd: np.ndarray, qdd: np.ndarray,
               segment: np.ndarray, s: np.ndarray, sd: np.ndarray) -> float:
-        """The largest TCP speed of the knots' quintic join over its limit (the smaller
+        """The largest TCP speed of the knots' join over its limit (the smaller
         of its two knots' segments' limits on each interval); 0 where none limits it.
 
         The knots lie on the path (``qd = q'(s) sdot``): their TCP speed is the path's
