@@ -596,7 +596,9 @@ class _TcpLimits:
         # limit, the speed could only reach the limit if it bent away from the line
         # between them by that share of it (its second derivative, times the interval
         # squared over 8: kilometres per second cubed for a few milliseconds).
-        knots = np.unique(np.concatenate([at, at + 1]))
+        ends = np.zeros(t.size, dtype=bool)
+        ends[at] = ends[at + 1] = True
+        knots = np.flatnonzero(ends)
         at_knot = np.zeros(t.size)
         at_knot[knots] = self.robot.tcp_speeds(q[knots], qd[knots])
         ends = np.maximum(at_knot[at], at_knot[at + 1]) / limit[at]
