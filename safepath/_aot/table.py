@@ -63,6 +63,8 @@ _TOPP = "safepath.timing._topp_kernels"
 _MONITOR = "safepath.monitor._kernels"
 #: The shape table, whose kind codes the sphere layer's and the monitor's kernels compile in.
 _SHAPES = "safepath.model.shapes"
+#: Each kind's geometry, inlined into the sphere layer's and the monitor's kernels.
+_PRIMITIVES = "safepath.model._primitives"
 _JOIN = "safepath.model._joinkernel"
 #: The planner's one forward kinematics (the sphere layer's and the lines' IK's) and the
 #: joint table's columns it compiles in.
@@ -146,8 +148,9 @@ ENTRIES: dict[str, Entry] = {
 #: lives in one of them (tests/test_aot.py checks it); the cup's (a simulated scale, not
 #: on a planning path) uses numba directly.
 MODULES: tuple[str, ...] = (_FAST, *_FAST_PARTS, _BOUNDS, *_FK, _VERIFY, _VERIFY_DISTANCE,
-                            _VERIFY_RECORDS, _IK, _TOPP, _JOIN, _MONITOR, _SHAPES)
+                            _VERIFY_RECORDS, _IK, _TOPP, _JOIN, _MONITOR, _SHAPES,
+                            _PRIMITIVES)
 #: Those a plan calls (all but the monitor's).
 PLANNING_MODULES: tuple[str, ...] = (_FAST, *_FAST_PARTS, _BOUNDS, *_FK, _VERIFY,
                                      _VERIFY_DISTANCE, _VERIFY_RECORDS, _IK, _TOPP, _JOIN,
-                                     _SHAPES)
+                                     _SHAPES, _PRIMITIVES)

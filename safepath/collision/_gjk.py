@@ -39,12 +39,10 @@ import math
 import numpy as np
 
 from .._aot import njit
+from ..model._primitives import support_point
 from ._layout import (
     ENV_BOX,
     ENV_BOX_ONLY_OUTER,
-    ENV_CAPSULE,
-    ENV_CYLINDER,
-    ENV_SPHERE,
     H_AI,
     H_AP,
     H_V,
@@ -72,9 +70,10 @@ from ._layout import (
 _helper = njit(cache=True, nogil=True, _nrt=False)
 _inlined = njit(cache=True, nogil=True, _nrt=False, inline="always")
 
-# The shape kinds: safepath.collision._layout's codes (the shape table's, and the hull).
-BOX, CYLINDER, SPHERE, CAPSULE, BOX_ONLY_OUTER = (ENV_BOX, ENV_CYLINDER, ENV_SPHERE,
-                                                  ENV_CAPSULE, ENV_BOX_ONLY_OUTER)
+# The box kinds: safepath.collision._layout's codes (the shape table's, and the kernels'
+# box about an object); every other kind but the hull is measured by
+# safepath.model._primitives.
+BOX, BOX_ONLY_OUTER = ENV_BOX, ENV_BOX_ONLY_OUTER
 
 #: Absolute tolerance [m]: the search stops once the bound is this close to the distance
 #: of the current simplex (an upper bound).
@@ -124,24 +123,8 @@ def support(fb, ib, wf, wi, s, si, start, nx, ny, nz, out):
         found = climb(fb, ib, wi[si + WS_HULL], wi[si + WS_HULL_END], start, lx, ly, lz)
         v = ib[H_V] + 3 * found
         x, y, z = fb[v], fb[v + 1], fb[v + 2]
-    elif kind == BOX or kind == BOX_ONLY_OUTER:
-        x = a if lx >= 0.0 else -a
-        y = b if ly >= 0.0 else -b
-        z = c if lz >= 0.0 else -c
     else:
-        norm = math.sqrt(lx * lx + ly * ly + lz * lz)
-        if kind == SPHERE:
-            if norm > 0.0:
-                x, y, z = a * lx / norm, a * ly / norm, a * lz / norm
-        elif kind == CAPSULE:
-            z = b if lz >= 0.0 else -b
-            if norm > 0.0:
-                x, y, z = a * lx / norm, a * ly / norm, z + a * lz / norm
-        else:  # cylinder along z: radius a, half length b
-            z = b if lz >= 0.0 else -b
-            rho = math.sqrt(lx * lx + ly * ly)
-            if rho > 0.0:
-                x, y = a * lx / rho, a * ly / rho
+        x, y, z = support_point(BOX if kind == BOX_ONLY_OUTER else kind, a, b, c, lx, ly, lz)
     for r in range(3):
         wf[out + r] = (wf[rot + 3 * r] * x + wf[rot + 3 * r + 1] * y + wf[rot + 3 * r + 2] * z
                        + wf[s + W_P + r])

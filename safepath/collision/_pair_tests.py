@@ -19,6 +19,7 @@ from __future__ import annotations
 import math
 
 from .._aot import njit
+from ..model._primitives import extent, own_axes, round_about_z, signed_distance
 from ._gjk import HULL, distance_lower_bound, distance_upper_bound
 from ._layout import (
     E_DIMS,
@@ -26,9 +27,6 @@ from ._layout import (
     E_ROT,
     ENV_BOX,
     ENV_BOX_ONLY_OUTER,
-    ENV_CAPSULE,
-    ENV_CYLINDER,
-    ENV_SPHERE,
     EW,
     G_DIMS,
     G_RADIUS,
@@ -97,37 +95,17 @@ def _env_sdist3(fb, ib, e, px, py, pz):  # noqa: N803
     x = fb[o + 0] * dx + fb[o + 3] * dy + fb[o + 6] * dz
     y = fb[o + 1] * dx + fb[o + 4] * dy + fb[o + 7] * dz
     z = fb[o + 2] * dx + fb[o + 5] * dy + fb[o + 8] * dz
-    a, b, c = fb[d], fb[d + 1], fb[d + 2]
     kind = ib[ib[H_EI] + e]
-    if kind == ENV_BOX or kind == ENV_BOX_ONLY_OUTER:
-        qx, qy, qz = abs(x) - a, abs(y) - b, abs(z) - c
-        ox, oy, oz = max(qx, 0.0), max(qy, 0.0), max(qz, 0.0)
-        return math.sqrt(ox * ox + oy * oy + oz * oz) + min(max(qx, max(qy, qz)), 0.0)
-    if kind == ENV_CYLINDER:
-        dr = math.sqrt(x * x + y * y) - a
-        dzz = abs(z) - b
-        o1, o2 = max(dr, 0.0), max(dzz, 0.0)
-        return math.sqrt(o1 * o1 + o2 * o2) + min(max(dr, dzz), 0.0)
-    if kind == ENV_SPHERE:
-        return math.sqrt(x * x + y * y + z * z) - a
-    zc = min(max(z, -b), b)
-    return math.sqrt(x * x + y * y + (z - zc) * (z - zc)) - a
+    return signed_distance(ENV_BOX if kind == ENV_BOX_ONLY_OUTER else kind, fb[d],
+                           fb[d + 1], fb[d + 2], x, y, z)
 
 
 @_inlined
 def _support(kind, wf, o, d, nx, ny, nz):  # noqa: N803
     """Half extent [m] along unit n of a primitive placed in ``wf`` (rotation rows at
     wf[o:o+9], dimensions at wf[d:d+3])."""
-    if kind == ENV_BOX or kind == ENV_BOX_ONLY_OUTER:
-        return (wf[d] * abs(wf[o] * nx + wf[o + 3] * ny + wf[o + 6] * nz)
-                + wf[d + 1] * abs(wf[o + 1] * nx + wf[o + 4] * ny + wf[o + 7] * nz)
-                + wf[d + 2] * abs(wf[o + 2] * nx + wf[o + 5] * ny + wf[o + 8] * nz))
-    if kind == ENV_SPHERE:
-        return wf[d]
-    c = wf[o + 2] * nx + wf[o + 5] * ny + wf[o + 8] * nz
-    if kind == ENV_CAPSULE:
-        return wf[d + 1] * abs(c) + wf[d]
-    return wf[d + 1] * abs(c) + wf[d] * math.sqrt(max(0.0, 1.0 - c * c))
+    return extent(ENV_BOX if kind == ENV_BOX_ONLY_OUTER else kind, wf[d], wf[d + 1],
+                  wf[d + 2], wf, o, nx, ny, nz)
 
 
 @_inlined
@@ -135,14 +113,16 @@ def _primitive_axes(kind, wf, o, n):  # noqa: N803
     """Append the own axes of the primitive whose rotation is at wf[o:o+9] (box: its three
     face normals; cylinder, capsule: its z axis) to the candidate axes from row ``n``;
     returns the new row count."""
-    if kind == ENV_BOX or kind == ENV_BOX_ONLY_OUTER:
+    first, count = own_axes(ENV_BOX if kind == ENV_BOX_ONLY_OUTER else kind)
+    if count == 3:  # columns first .. first + 2, unrolled
         for c in range(3):
             x = W_AXES + 3 * n
-            wf[x], wf[x + 1], wf[x + 2] = wf[o + c], wf[o + 3 + c], wf[o + 6 + c]
+            col = first + c
+            wf[x], wf[x + 1], wf[x + 2] = wf[o + col], wf[o + 3 + col], wf[o + 6 + col]
             n += 1
-    elif kind == ENV_CYLINDER or kind == ENV_CAPSULE:
+    elif count == 1:
         x = W_AXES + 3 * n
-        wf[x], wf[x + 1], wf[x + 2] = wf[o + 2], wf[o + 5], wf[o + 8]
+        wf[x], wf[x + 1], wf[x + 2] = wf[o + first], wf[o + 3 + first], wf[o + 6 + first]
         n += 1
     return n
 
@@ -181,7 +161,7 @@ def _sat_gap(ka, kb, wf):  # noqa: N803
     # Round shapes: the centre line's part across each axis.
     for which in range(2):
         kind = ka if which == 0 else kb
-        if kind == ENV_CYLINDER or kind == ENV_CAPSULE:
+        if round_about_z(kind):
             o = (W_A if which == 0 else W_B) + W_R
             ax, ay, az = wf[o + 2], wf[o + 5], wf[o + 8]
             t = dx * ax + dy * ay + dz * az

@@ -7,9 +7,11 @@ bounding radius, how it becomes a coal, python-fcl or MuJoCo object, and its geo
 numpy: the spheres that fit it (the sphere layer's), points whose hull encloses it (a
 locked joint's travel shape) and a triangle mesh of its surface (the page's drawing). The
 layers read this table instead of dispatching on the kind themselves; what is left to each
-kind is its distance code (:mod:`safepath.collision._pair_tests`).
+kind is its distance code: the planner's kernels' in :mod:`safepath.model._primitives`,
+the release check's own in :mod:`safepath.verify._distance`.
 
-Adding a kind: a row here, and its distance code there (see ``docs/architecture.md``).
+Adding a kind: a row here, and its distance code in those two (see
+``docs/architecture.md``).
 """
 
 from __future__ import annotations
