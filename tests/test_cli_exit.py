@@ -42,3 +42,18 @@ def test_a_failing_command_line_run_freezes_too(tmp_path: Path) -> None:
     status, frozen = _status_and_frozen(["safepath", "check", str(tmp_path / "none")], "")
     assert status == 2  # bad input
     assert frozen > 0
+
+
+def test_a_run_that_loaded_ompl_exits_without_nanobind_leak_reports() -> None:
+    """OMPL's nanobind bindings report the instances alive at the interpreter's end as
+    leaks: a command line that planned with OMPL is left to the collector, and its
+    process prints nothing but its own output."""
+    run = _RUN.format(argv=["safepath", "check", str(CELL)], args="")
+    script = run.replace("from safepath.cli import main",
+                         "import ompl.base\nkeep = ompl.base.RealVectorStateSpace(2)\n"
+                         "from safepath.cli import main")
+    done = subprocess.run([sys.executable, "-c", script], cwd=ROOT, capture_output=True,
+                          text=True, check=True, timeout=300)
+    status, frozen = done.stdout.split()[-2:]
+    assert (int(status), int(frozen)) == (0, 0)
+    assert "leaked" not in done.stderr, done.stderr[:300]

@@ -215,9 +215,14 @@ def _leave_to_the_os() -> None:
     first. Exit handlers, stream flushes, and the finalizers of objects freed by reference
     counting still run; objects kept only by reference cycles are left to the operating
     system (the commands close their files and pools themselves).
+
+    Not after OMPL has been loaded: its nanobind bindings count the instances still alive
+    when the interpreter ends and print every one as a leak (hundreds of lines on stderr).
     """
     import gc
 
+    if "ompl" in sys.modules:
+        return
     gc.freeze()
 
 

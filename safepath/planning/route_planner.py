@@ -184,8 +184,8 @@ def _plan(cell: Cell, route: Route, world: WorldState, options: PlanOptions,
         log.info("re-planning %s %.1f mm clear of every object: %s",
                  route.name or "the route", 1e3 * REPLAN_CLEARANCE, exc)
         try:
-            traj, end = _plan(kept, route, start, options, CheckerCache(kept, options),
-                              TimedPieces())
+            traj, end = _plan(kept, route, start, options,
+                              CheckerCache(kept, options, verified_in=cell), TimedPieces())
         except SafepathError:
             raise exc from None
         traj.info["replanned_clear"] = {"clearance": REPLAN_CLEARANCE, "after": str(exc)}
@@ -222,11 +222,12 @@ def _plan(cell: Cell, route: Route, world: WorldState, options: PlanOptions,
     return traj, paths.world
 
 
-#: The clearance [m] a route keeps from every object (where its margin is smaller) when
-#: planned again because the release check could not prove the first plan's clearance
-#: between its samples: with a margin of 0, a path can graze an obstacle (a shortcut
-#: pulled tight around it) closer than the check can certify, and the same seed would
-#: find it again. 1 mm is far above the check's finest step (0.01 mm of motion).
+#: The clearance [m] a route's paths, blends and their checks keep from every object
+#: (where its margin is smaller) when it is planned again because the release check could
+#: not prove the first plan's clearance between its samples: with a margin of 0, a path
+#: can graze an obstacle (a shortcut pulled tight around it) closer than the check can
+#: certify, and the same seed would find it again. The release check still checks the
+#: scene's own margins. 1 mm is far above the check's finest step (0.01 mm of motion).
 REPLAN_CLEARANCE = 1e-3
 
 
