@@ -8,7 +8,6 @@ command line can print it as one line.
 
 from __future__ import annotations
 
-import difflib
 from collections.abc import Iterable, Sequence
 from pathlib import Path
 from typing import Any
@@ -51,6 +50,8 @@ def unknown_name(what: str, name: str, known: Iterable[str]) -> str:
         name: The name that was given.
         known: The names that would have worked.
     """
+    import difflib  # only when a name is wrong: not on every import of safepath
+
     names = [str(k) for k in known]
     # Compared case-blind ('UR5' finds 'ur5'), the known spelling given back.
     lowered: dict[str, str] = {}

@@ -129,10 +129,12 @@ def recorded() -> dict[str, list[tuple[Any, ...]]]:
     kernels["tridiagonal"] = recorder("topp_tridiagonal", saved["tridiagonal"])
     kernels["knots"] = recorder("topp_knots", saved["knots"])
     kernels["jerk_shift"] = recorder("topp_jerk_shift", saved["jerk_shift"])
+    kernels["jerk_rows"] = recorder("topp_jerk_rows", saved["jerk_rows"])
     join = _joinkernel.compiled_kernels()
     saved_join = dict(join)
     join["peaks"] = recorder("join_peaks", saved_join["peaks"])
     join["sample"] = recorder("join_sample", saved_join["sample"])
+    join["ratios"] = recorder("join_ratios", saved_join["ratios"])
     try:
         for folder in (CELL, PANDA):
             cell = safepath.load_cell(folder)

@@ -91,3 +91,20 @@ def test_a_sweep_on_this_machine_loads_no_ray() -> None:
         "make_backend(workers=2).close()\n"
         "mark()\n")
     assert "safepath" in after and "ray" not in after
+
+
+def test_a_plan_loads_no_sweep_runner_and_no_name_suggestions() -> None:
+    """``import safepath`` and a cell's plan load neither the sweep runner (with its process
+    pools: multiprocessing, concurrent.futures) nor what only a wrong name or a temporary
+    file's name needs (difflib, secrets), nor numpy's masked arrays (which ``np.unique``
+    imports): each cost a plan process milliseconds."""
+    unneeded = {"multiprocessing", "concurrent", "difflib", "secrets"}
+    packages, sweeps = _loaded_after(
+        "import safepath\n"
+        f"safepath.plan_cell(safepath.load_cell({str(CELL)!r}))\n"
+        "mark()\n"
+        "print(' '.join(m for m in sys.modules "
+        "if m.startswith('safepath.sweeps') or m == 'numpy.ma'))\n")
+    assert "safepath" in packages and "pinocchio" in packages
+    assert packages.isdisjoint(unneeded), sorted(packages & unneeded)
+    assert not sweeps, sweeps  # nor numpy.ma (np.unique imports it: ~8 ms)

@@ -65,6 +65,8 @@ _TOPP = "safepath.timing._topp_kernels"
 _MONITOR = "safepath.monitor._kernels"
 #: The shape table, whose kind codes the sphere layer's and the monitor's kernels compile in.
 _SHAPES = "safepath.model.shapes"
+#: Each kind's geometry, inlined into the sphere layer's and the monitor's kernels.
+_PRIMITIVES = "safepath.model._primitives"
 _JOIN = "safepath.model._joinkernel"
 #: The planner's one forward kinematics (the sphere layer's and the lines' IK's) and the
 #: joint table's columns it compiles in.
@@ -133,10 +135,14 @@ ENTRIES: dict[str, Entry] = {
     "topp_tridiagonal": Entry(_TOPP, "tridiagonal", (F1, F1, F1, F2), INT),
     "topp_knots": Entry(_TOPP, "knots", (F1, F1, F1, F1, F1, F1, F1, FLOAT, FLOAT, F1, F3, F1,
                                           F1, F1, F2, F2, F2), "void"),
+    "topp_jerk_rows": Entry(_TOPP, "jerk_rows", (F1, F1, F1, F1, F1, F1, F2, F1, F2, F2, F2),
+                            "void"),
     "topp_jerk_shift": Entry(_TOPP, "jerk_shift", (F2, FLOAT), INT),
     # The peaks of a controller's quintic join (safepath.model._joinkernel).
     "join_peaks": Entry(_JOIN, "_peaks", (F1, F2, F2, F2, FLOAT, F2, F2, F2), "void"),
     "join_sample": Entry(_JOIN, "_sample", (F1, F2, F2, F2, F1, F2, F2, F2), "void"),
+    "join_ratios": Entry(_JOIN, "_ratios", (F1, F2, F2, F2, FLOAT, I1, F2, F2, F2, F1, F1, F1),
+                         "void"),
 }
 
 #: The modules whose source the ahead-of-time module is compiled from: it is used only
@@ -144,8 +150,9 @@ ENTRIES: dict[str, Entry] = {
 #: lives in one of them (tests/test_aot.py checks it); the cup's (a simulated scale, not
 #: on a planning path) uses numba directly.
 MODULES: tuple[str, ...] = (_FAST, *_FAST_PARTS, _BOUNDS, *_FK, _VERIFY, _VERIFY_DISTANCE,
-                            _VERIFY_RECORDS, _IK, _TOPP, _JOIN, _MONITOR, _SHAPES)
+                            _VERIFY_RECORDS, _IK, _TOPP, _JOIN, _MONITOR, _SHAPES,
+                            _PRIMITIVES)
 #: Those a plan calls (all but the monitor's).
 PLANNING_MODULES: tuple[str, ...] = (_FAST, *_FAST_PARTS, _BOUNDS, *_FK, _VERIFY,
                                      _VERIFY_DISTANCE, _VERIFY_RECORDS, _IK, _TOPP, _JOIN,
-                                     _SHAPES)
+                                     _SHAPES, _PRIMITIVES)

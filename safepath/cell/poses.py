@@ -22,7 +22,6 @@ at full double precision), atomically, keeping its mode and the previous file as
 
 from __future__ import annotations
 
-import difflib
 import io
 import logging
 import re
@@ -100,13 +99,19 @@ def _entries(data: dict, path: Path) -> dict[str, tuple[str, object]]:
         elif key == "poses" and value is None:
             continue
         else:
-            if isinstance(value, dict) and not is_cartesian(value) \
-                    and difflib.get_close_matches(str(key), ["poses"]):
+            if isinstance(value, dict) and not is_cartesian(value) and _like_poses(key):
                 # A misspelt `poses:` (its mapping is no pose): name the key, not its content.
                 check_names([key], ["poses"], path=path, key=str(key), what="top-level key",
                             error=PoseError)
             _add(raw, str(key), str(key), value, path)
     return raw
+
+
+def _like_poses(key: object) -> bool:
+    """Whether ``key`` is spelt close to ``poses`` (difflib loads only for such a key)."""
+    import difflib
+
+    return bool(difflib.get_close_matches(str(key), ["poses"]))
 
 
 def _tcp_pose(name: str, key: str, spec: object, robot: Robot, path: Path,

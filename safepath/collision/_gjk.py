@@ -37,12 +37,10 @@ import math
 import numpy as np
 
 from .._aot import njit
+from ..model._primitives import support_point
 from ._layout import (
     ENV_BOX,
     ENV_BOX_ONLY_OUTER,
-    ENV_CAPSULE,
-    ENV_CYLINDER,
-    ENV_SPHERE,
     HULL,
 )
 from ._records import (
@@ -65,9 +63,10 @@ from ._records import (
 _helper = njit(cache=True, nogil=True, _nrt=False)
 _inlined = njit(cache=True, nogil=True, _nrt=False, inline="always")
 
-# The shape kinds: safepath.collision._layout's codes (the shape table's, and the hull).
-BOX, CYLINDER, SPHERE, CAPSULE, BOX_ONLY_OUTER = (ENV_BOX, ENV_CYLINDER, ENV_SPHERE,
-                                                  ENV_CAPSULE, ENV_BOX_ONLY_OUTER)
+# The box kinds: safepath.collision._layout's codes (the shape table's, and the kernels'
+# box about an object); every other kind but the hull is measured by
+# safepath.model._primitives.
+BOX, BOX_ONLY_OUTER = ENV_BOX, ENV_BOX_ONLY_OUTER
 
 #: Absolute tolerance [m]: the search stops once the bound is this close to the distance
 #: of the current simplex (an upper bound).
@@ -116,24 +115,8 @@ def support(fb, ib, wf, wi, s, start, nx, ny, nz):
         v0, v1 = placed_hull(wi, s)
         found = climb(fb, ib, v0, v1, start, lx, ly, lz)
         x, y, z = hull_vertex(fb, ib, found)
-    elif kind == BOX or kind == BOX_ONLY_OUTER:
-        x = a if lx >= 0.0 else -a
-        y = b if ly >= 0.0 else -b
-        z = c if lz >= 0.0 else -c
     else:
-        norm = math.sqrt(lx * lx + ly * ly + lz * lz)
-        if kind == SPHERE:
-            if norm > 0.0:
-                x, y, z = a * lx / norm, a * ly / norm, a * lz / norm
-        elif kind == CAPSULE:
-            z = b if lz >= 0.0 else -b
-            if norm > 0.0:
-                x, y, z = a * lx / norm, a * ly / norm, z + a * lz / norm
-        else:  # cylinder along z: radius a, half length b
-            z = b if lz >= 0.0 else -b
-            rho = math.sqrt(lx * lx + ly * ly)
-            if rho > 0.0:
-                x, y = a * lx / rho, a * ly / rho
+        x, y, z = support_point(BOX if kind == BOX_ONLY_OUTER else kind, a, b, c, lx, ly, lz)
     px, py, pz = placed_position(wf, s)
     return (R.r00 * x + R.r01 * y + R.r02 * z + px, R.r10 * x + R.r11 * y + R.r12 * z + py,
             R.r20 * x + R.r21 * y + R.r22 * z + pz, found)

@@ -19,13 +19,11 @@ from __future__ import annotations
 import math
 
 from .._aot import njit
+from ..model._primitives import extent, own_axes, round_about_z, signed_distance
 from ._gjk import HULL, distance_lower_bound, distance_upper_bound
 from ._layout import (
     ENV_BOX,
     ENV_BOX_ONLY_OUTER,
-    ENV_CAPSULE,
-    ENV_CYLINDER,
-    ENV_SPHERE,
     SPHERES_ONLY,
 )
 from ._placement import _mover_frame, _place_spheres, _sphere_world
@@ -48,9 +46,10 @@ from ._records import (
     pair,
     pair_margin,
     place,
+    placed_axis,
     placed_dims,
     placed_position,
-    placed_rotation,
+    placed_rotation_start,
     placed_sphere,
     placed_sphere_bound,
     set_axis,
@@ -77,49 +76,26 @@ def _env_sdist3(fb, ib, e, px, py, pz):  # noqa: N803
     z = R.r02 * dx + R.r12 * dy + R.r22 * dz
     a, b, c = env_dims(fb, ib, e)
     kind = env_kind(ib, e)
-    if kind == ENV_BOX or kind == ENV_BOX_ONLY_OUTER:
-        qx, qy, qz = abs(x) - a, abs(y) - b, abs(z) - c
-        ox, oy, oz = max(qx, 0.0), max(qy, 0.0), max(qz, 0.0)
-        return math.sqrt(ox * ox + oy * oy + oz * oz) + min(max(qx, max(qy, qz)), 0.0)
-    if kind == ENV_CYLINDER:
-        dr = math.sqrt(x * x + y * y) - a
-        dzz = abs(z) - b
-        o1, o2 = max(dr, 0.0), max(dzz, 0.0)
-        return math.sqrt(o1 * o1 + o2 * o2) + min(max(dr, dzz), 0.0)
-    if kind == ENV_SPHERE:
-        return math.sqrt(x * x + y * y + z * z) - a
-    zc = min(max(z, -b), b)
-    return math.sqrt(x * x + y * y + (z - zc) * (z - zc)) - a
+    return signed_distance(ENV_BOX if kind == ENV_BOX_ONLY_OUTER else kind, a, b, c, x, y, z)
 
 
 @_inlined
-def _support(kind, R, d0, d1, d2, nx, ny, nz):  # noqa: N803
-    """Half extent [m] along unit n of a primitive of rotation ``R`` and dimensions
-    (d0, d1, d2)."""
-    if kind == ENV_BOX or kind == ENV_BOX_ONLY_OUTER:
-        return (d0 * abs(R.r00 * nx + R.r10 * ny + R.r20 * nz)
-                + d1 * abs(R.r01 * nx + R.r11 * ny + R.r21 * nz)
-                + d2 * abs(R.r02 * nx + R.r12 * ny + R.r22 * nz))
-    if kind == ENV_SPHERE:
-        return d0
-    c = R.r02 * nx + R.r12 * ny + R.r22 * nz
-    if kind == ENV_CAPSULE:
-        return d1 * abs(c) + d0
-    return d1 * abs(c) + d0 * math.sqrt(max(0.0, 1.0 - c * c))
+def _support(kind, s, d0, d1, d2, wf, nx, ny, nz):  # noqa: N803
+    """Half extent [m] along unit n of the primitive placed as shape ``s`` (A or B), of
+    dimensions (d0, d1, d2)."""
+    return extent(ENV_BOX if kind == ENV_BOX_ONLY_OUTER else kind, d0, d1, d2, wf,
+                  placed_rotation_start(s), nx, ny, nz)
 
 
 @_inlined
-def _primitive_axes(kind, R, wf, n):  # noqa: N803
-    """Append the own axes of a primitive of rotation ``R`` (box: its three face normals;
-    cylinder, capsule: its z axis) to the candidate axes from row ``n``; returns the new
-    row count."""
-    if kind == ENV_BOX or kind == ENV_BOX_ONLY_OUTER:
-        set_axis(wf, n, R.r00, R.r10, R.r20)
-        set_axis(wf, n + 1, R.r01, R.r11, R.r21)
-        set_axis(wf, n + 2, R.r02, R.r12, R.r22)
-        n += 3
-    elif kind == ENV_CYLINDER or kind == ENV_CAPSULE:
-        set_axis(wf, n, R.r02, R.r12, R.r22)
+def _primitive_axes(kind, s, wf, n):  # noqa: N803
+    """Append the own axes of the primitive placed as shape ``s`` (box: its three face
+    normals; cylinder, capsule: its z axis) to the candidate axes from row ``n``; returns
+    the new row count."""
+    first, count = own_axes(ENV_BOX if kind == ENV_BOX_ONLY_OUTER else kind)
+    for c in range(first, first + count):
+        x, y, z = placed_axis(wf, s, c)
+        set_axis(wf, n, x, y, z)
         n += 1
     return n
 
@@ -140,9 +116,8 @@ def _sat_gap(ka, kb, wf):  # noqa: N803
     and B): the largest gap between their projections over a set of separating-axis
     candidates (face normals, primitive axes, their cross products, the centre line).
     For two boxes the 15 axes are complete: a bound < 0 then means they intersect."""
-    Ra, Rb = placed_rotation(wf, A), placed_rotation(wf, B)  # noqa: N806
-    na = _primitive_axes(ka, Ra, wf, 0)
-    nb = _primitive_axes(kb, Rb, wf, na)
+    na = _primitive_axes(ka, A, wf, 0)
+    nb = _primitive_axes(kb, B, wf, na)
     n = nb
     for i in range(na):
         ix, iy, iz = axis(wf, i)
@@ -156,9 +131,8 @@ def _sat_gap(ka, kb, wf):  # noqa: N803
     # Round shapes: the centre line's part across each axis.
     for which in range(2):
         kind = ka if which == 0 else kb
-        if kind == ENV_CYLINDER or kind == ENV_CAPSULE:
-            R = Ra if which == 0 else Rb  # noqa: N806
-            ax, ay, az = R.r02, R.r12, R.r22
+        if round_about_z(kind):
+            ax, ay, az = placed_axis(wf, which, 2)
             t = dx * ax + dy * ay + dz * az
             n = _push_axis(wf, n, dx - t * ax, dy - t * ay, dz - t * az)
     a0, a1, a2 = placed_dims(wf, A)
@@ -167,8 +141,8 @@ def _sat_gap(ka, kb, wf):  # noqa: N803
     for i in range(n):
         x, y, z = axis(wf, i)
         gap = (abs(dx * x + dy * y + dz * z)
-               - _support(ka, Ra, a0, a1, a2, x, y, z)
-               - _support(kb, Rb, b0, b1, b2, x, y, z))
+               - _support(ka, A, a0, a1, a2, wf, x, y, z)
+               - _support(kb, B, b0, b1, b2, wf, x, y, z))
         if gap > best:
             best = gap
     return best

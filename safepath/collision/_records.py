@@ -469,6 +469,21 @@ def placed_rotation(wf, s):
 
 
 @_read
+def placed_rotation_start(s):
+    """Where placed shape ``s``'s world rotation (row-major) starts in ``wf``: for the
+    shape table's geometry (:mod:`safepath.model._primitives`), which reads a rotation
+    from an array."""
+    return _slot(s) + W_R
+
+
+@_read
+def placed_axis(wf, s, c):
+    """Placed shape ``s``'s axis ``c`` in the world (its rotation's column ``c``)."""
+    o = _slot(s) + W_R + c
+    return wf[o], wf[o + 3], wf[o + 6]
+
+
+@_read
 def placed_position(wf, s):
     """Placed shape ``s``'s world position [m]."""
     return _vector(wf, _slot(s) + W_P)

@@ -11,11 +11,11 @@ queries with spheres instead of exact shapes. Its answers stay exact because
 
 Everything else ("not sure") goes to the exact coal check. Shapes are covered by a grid
 of cells: each cell that meets the shape becomes the sphere circumscribing the cell,
-so the excess over the shape's surface is at most about 0.37 of the cell edge; thin
-cylinders and capsules are covered by spheres along their axis instead. Works for the
-shapes a URDF or a scene gives: boxes, spheres, cylinders, capsules, convex hulls
-(example-robot-data meshes are replaced by their hulls) and, through their vertices'
-hull, meshes.
+so the excess over the shape's surface is at most about 0.37 of the cell edge. Works for
+the shapes a URDF or a scene gives: every kind of the shape table
+(:mod:`safepath.model.shapes`; each row fits its own kind, thin cylinders and capsules by
+spheres along their axis), convex hulls (example-robot-data meshes are replaced by their
+hulls) and, through their vertices' hull, meshes.
 """
 
 from __future__ import annotations
@@ -26,11 +26,11 @@ from typing import Any
 import numpy as np
 
 from ..files._digest import blake2b
+from ..model._solids import SLACK, cell_grid
+from ..model.shapes import from_coal
 
 __all__ = ["SphereFit", "fit_spheres", "surface_points"]
 
-#: Radii are grown (outer) or shrunk (inner) by this much [m]: floating-point slack.
-SLACK = 1e-6
 #: Inner spheres kept for a convex hull (the deepest ones).
 MAX_INNER = 8
 
@@ -106,41 +106,35 @@ def _fit_key(geometry: Any, cell: float) -> tuple[Any, ...]:
     mesh's points), and the cell."""
     import coal
 
-    if isinstance(geometry, coal.Sphere):
-        dims: tuple[Any, ...] = (float(geometry.radius),)
-    elif isinstance(geometry, coal.Box):
-        dims = tuple(float(x) for x in geometry.halfSide)
-    elif isinstance(geometry, (coal.Cylinder, coal.Capsule)):
-        dims = (float(geometry.radius), float(geometry.halfLength))
+    primitive = from_coal(geometry)
+    if primitive is not None:
+        dims: tuple[Any, ...] = tuple(float(x) for x in primitive[1])
     elif isinstance(geometry, (coal.ConvexBase, coal.BVHModelBase)):
-        points = np.ascontiguousarray(geometry.points() if isinstance(geometry, coal.ConvexBase)
-                                      else geometry.vertices(), dtype=float)
+        points = _points(geometry)
         dims = (points.shape, blake2b(points.tobytes()))
     else:
         dims = (id(geometry),)  # refused by _fit_shape
     return (type(geometry).__name__, *dims, float(cell))
 
 
-def _fit_shape(geometry: Any, cell: float) -> SphereFit:
-    """The fit of :func:`fit_spheres`, made."""
+def _points(geometry: Any) -> np.ndarray:
+    """A coal convex hull's points or a mesh's vertices [m] (n, 3)."""
     import coal
 
-    if isinstance(geometry, coal.Sphere):
-        r = float(geometry.radius)
-        c = np.zeros((1, 3))
-        return _fit(c, np.array([r + SLACK]), c, np.array([max(r - SLACK, 0.0)]))
-    if isinstance(geometry, coal.Box):
-        return _fit_box(np.asarray(geometry.halfSide, dtype=float), cell)
-    if isinstance(geometry, coal.Cylinder):
-        return _fit_cylinder(float(geometry.radius), float(geometry.halfLength), cell,
-                             capsule=False)
-    if isinstance(geometry, coal.Capsule):
-        return _fit_cylinder(float(geometry.radius), float(geometry.halfLength), cell,
-                             capsule=True)
-    if isinstance(geometry, coal.ConvexBase):
-        return _fit_points(np.asarray(geometry.points(), dtype=float), cell)
-    if isinstance(geometry, coal.BVHModelBase):
-        return _fit_points(np.asarray(geometry.vertices(), dtype=float), cell)
+    return np.ascontiguousarray(geometry.points() if isinstance(geometry, coal.ConvexBase)
+                                else geometry.vertices(), dtype=float)
+
+
+def _fit_shape(geometry: Any, cell: float) -> SphereFit:
+    """The fit of :func:`fit_spheres`, made: a kind of the shape table fits itself."""
+    import coal
+
+    primitive = from_coal(geometry)
+    if primitive is not None:
+        kind, half = primitive
+        return _fit(*kind.sphere_fit(half, cell))
+    if isinstance(geometry, (coal.ConvexBase, coal.BVHModelBase)):
+        return _fit_points(_points(geometry), cell)
     raise ValueError(f"no sphere fit for {type(geometry).__name__}")
 
 
@@ -151,68 +145,6 @@ def _fit(oc: np.ndarray, orad: np.ndarray, ic: np.ndarray, irad: np.ndarray) -> 
                      np.asarray(irad[keep], dtype=float))
 
 
-def _grid(lo: np.ndarray, hi: np.ndarray, cell: float) -> tuple[np.ndarray, np.ndarray]:
-    """Centres of the cells of a grid over the box [lo, hi], and each cell's half edges."""
-    size = hi - lo
-    counts = np.maximum(1, np.ceil(size / cell - 1e-9)).astype(int)
-    step = size / counts
-    axes = [lo[i] + step[i] * (np.arange(counts[i]) + 0.5) for i in range(3)]
-    centers = np.stack(np.meshgrid(*axes, indexing="ij"), axis=-1).reshape(-1, 3)
-    return centers, step / 2
-
-
-def _fit_box(h: np.ndarray, cell: float) -> SphereFit:
-    centers, half = _grid(-h, h, cell)
-    radius = float(np.linalg.norm(half)) + SLACK
-    # Inner: balls of the smallest half edge, spread along the box.
-    r_in = float(h.min())
-    span = h - r_in
-    counts = np.maximum(1, np.ceil(2 * span / max(r_in, 1e-9)).astype(int) + 1)
-    axes = [np.linspace(-span[i], span[i], counts[i]) if span[i] > 0 else np.zeros(1)
-            for i in range(3)]
-    inner = np.stack(np.meshgrid(*axes, indexing="ij"), axis=-1).reshape(-1, 3)
-    return _fit(centers, np.full(len(centers), radius), inner,
-                np.full(len(inner), r_in - SLACK))
-
-
-def _fit_cylinder(R: float, hl: float, cell: float, *, capsule: bool) -> SphereFit:
-    """Cylinder or capsule along z (radius ``R``, half length ``hl`` [m])."""
-    reach = hl + (R if capsule else 0.0)
-    if R <= cell:
-        # Spheres on the axis: a slice of height t is held by sqrt(R^2 + (t/2)^2); a
-        # capsule's caps are held by its end balls, which those spheres contain.
-        n = max(1, int(np.ceil(2 * hl / cell - 1e-9)))
-        t = 2 * hl / n
-        z = -hl + t * (np.arange(n) + 0.5)
-        centers = np.column_stack([np.zeros(n), np.zeros(n), z])
-        radii = np.full(n, np.hypot(R, t / 2) + SLACK)
-        if capsule:
-            ends = np.array([[0.0, 0.0, -hl], [0.0, 0.0, hl]])
-            centers = np.vstack([centers, ends])
-            radii = np.concatenate([radii, [R + SLACK, R + SLACK]])
-    else:
-        lo, hi = np.array([-R, -R, -reach]), np.array([R, R, reach])
-        centers, half = _grid(lo, hi, cell)
-        # Keep the cells that meet the shape: nearest point of the cell to the axis
-        # segment within R.
-        near_xy = np.maximum(np.abs(centers[:, :2]) - half[:2], 0.0)
-        rho = np.linalg.norm(near_xy, axis=1)
-        if capsule:
-            dz = np.maximum(np.abs(centers[:, 2]) - half[2] - hl, 0.0)
-            keep = np.hypot(rho, dz) <= R
-        else:
-            keep = rho <= R
-        centers = centers[keep]
-        radii = np.full(len(centers), float(np.linalg.norm(half)) + SLACK)
-    # Inner: balls of radius R (or the half length) on the axis.
-    r_in = R if capsule else min(R, hl)
-    span = reach - r_in if capsule else hl - r_in
-    m = max(1, int(np.ceil(2 * span / max(r_in, 1e-9))) + 1) if span > 0 else 1
-    z_in = np.linspace(-span, span, m) if span > 0 else np.zeros(1)
-    inner = np.column_stack([np.zeros(m), np.zeros(m), z_in])
-    return _fit(centers, radii, inner, np.full(m, r_in - SLACK))
-
-
 def _fit_points(points: np.ndarray, cell: float) -> SphereFit:
     """The convex hull of ``points`` (a convex shape, or a mesh's vertices)."""
     from scipy.spatial import ConvexHull
@@ -220,7 +152,7 @@ def _fit_points(points: np.ndarray, cell: float) -> SphereFit:
     hull = ConvexHull(points)
     normals, offsets = hull.equations[:, :3], hull.equations[:, 3]  # n.x + d <= 0 inside
     lo, hi = points.min(axis=0), points.max(axis=0)
-    centers, half = _grid(lo, hi, cell)
+    centers, half = cell_grid(lo, hi, cell)
     rho = float(np.linalg.norm(half))
     signed = centers @ normals.T + offsets  # per facet, > 0 outside
     # A cell that holds a hull point x has n.c + d <= n.x + d + |c - x| <= rho for every
@@ -237,38 +169,30 @@ def _fit_points(points: np.ndarray, cell: float) -> SphereFit:
 
 def surface_points(geometry: Any, n: int, rng: np.random.Generator) -> np.ndarray:
     """``n`` points on the surface of a coal geometry, in its frame [m] (for tests of
-    enclosure: every one must lie inside the outer spheres)."""
+    enclosure: every one must lie inside the outer spheres).
+
+    A kind of the shape table: the points of its surface nearest to probes drawn in a box
+    a quarter larger than the one around it, as coal measures them (its distance is signed:
+    a probe inside has its nearest surface point too), so the sample knows nothing of the
+    table's geometry; a hull or mesh: points on its hull's triangles.
+    """
     import coal
 
-    if isinstance(geometry, coal.Sphere):
-        v = rng.normal(size=(n, 3))
-        return float(geometry.radius) * v / np.linalg.norm(v, axis=1, keepdims=True)
-    if isinstance(geometry, coal.Box):
-        h = np.asarray(geometry.halfSide, dtype=float)
-        p = rng.uniform(-h, h, size=(n, 3))
-        axis = rng.integers(3, size=n)
-        p[np.arange(n), axis] = h[axis] * rng.choice([-1.0, 1.0], size=n)
-        return p
-    if isinstance(geometry, (coal.Cylinder, coal.Capsule)):
-        R, hl = float(geometry.radius), float(geometry.halfLength)
-        phi = rng.uniform(0, 2 * np.pi, size=n)
-        side = np.column_stack([R * np.cos(phi), R * np.sin(phi), rng.uniform(-hl, hl, n)])
-        cap = rng.random(n) < 0.3
-        if isinstance(geometry, coal.Cylinder):
-            rr = R * np.sqrt(rng.random(n))
-            side[cap] = np.column_stack([rr * np.cos(phi), rr * np.sin(phi),
-                                         hl * rng.choice([-1.0, 1.0], size=n)])[cap]
-        else:
-            v = rng.normal(size=(n, 3))
-            v = R * v / np.linalg.norm(v, axis=1, keepdims=True)
-            v[:, 2] += np.sign(v[:, 2]) * hl
-            side[cap] = v[cap]
-        return side
+    if from_coal(geometry) is not None:
+        geometry.computeLocalAABB()
+        lo, hi = np.asarray(geometry.aabb_local.min_), np.asarray(geometry.aabb_local.max_)
+        middle, half = (lo + hi) / 2, 1.25 * (hi - lo) / 2
+        dot, at, out = coal.Sphere(0.0), coal.Transform3s(), np.empty((n, 3))
+        for i, probe in enumerate(rng.uniform(middle - half, middle + half, size=(n, 3))):
+            result = coal.DistanceResult()
+            coal.distance(geometry, at, dot, coal.Transform3s(np.eye(3), probe),
+                          coal.DistanceRequest(), result)
+            out[i] = result.getNearestPoint1()
+        return out
     if isinstance(geometry, (coal.ConvexBase, coal.BVHModelBase)):
-        pts = np.asarray(geometry.points() if isinstance(geometry, coal.ConvexBase)
-                         else geometry.vertices(), dtype=float)
         from scipy.spatial import ConvexHull
 
+        pts = _points(geometry)
         hull = ConvexHull(pts)
         tri = hull.simplices[rng.integers(len(hull.simplices), size=n)]
         w = rng.dirichlet(np.ones(3), size=n)

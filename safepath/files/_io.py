@@ -20,7 +20,6 @@ import glob
 import math
 import os
 import reprlib
-import secrets
 import stat
 from collections.abc import Callable, Iterable, Iterator, Mapping
 from contextlib import contextmanager
@@ -433,7 +432,7 @@ def _create_temporary(path: Path) -> tuple[int, Path]:
     link included, is never opened), with the umask's mode (mkstemp's 0600 would be kept
     by the rename)."""
     for _ in range(100):
-        tmp = path.with_name(f".{path.name}.{secrets.token_hex(4)}.tmp")
+        tmp = path.with_name(f".{path.name}.{os.urandom(4).hex()}.tmp")
         try:
             return os.open(tmp, os.O_WRONLY | os.O_CREAT | os.O_EXCL | os.O_NOFOLLOW
                            | os.O_CLOEXEC, 0o666), tmp

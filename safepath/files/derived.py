@@ -35,7 +35,6 @@ import json
 import logging
 import math
 import os
-import secrets
 from collections.abc import Callable, Hashable, Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -284,7 +283,7 @@ def _load_or_make(kind: StoredKind[T], make: Callable[[], T], options: Hashable,
     arrays = kind.to_arrays(make())
     try:
         where.mkdir(parents=True, exist_ok=True)
-        part = path.with_name(f"{path.name}.{os.getpid()}.{secrets.token_hex(4)}.tmp")
+        part = path.with_name(f"{path.name}.{os.getpid()}.{os.urandom(4).hex()}.tmp")
         # Created exclusively, never through a link; the rename replaces a link at
         # ``path`` itself, not what it points to.
         fd = os.open(part, os.O_WRONLY | os.O_CREAT | os.O_EXCL | os.O_NOFOLLOW

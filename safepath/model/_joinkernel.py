@@ -19,7 +19,7 @@ import numpy as np
 
 from .._aot import njit
 
-__all__ = ["compiled_kernels", "peaks", "piece_of", "sample"]
+__all__ = ["compiled_kernels", "peaks", "piece_of", "ratios", "sample"]
 
 _lock = threading.Lock()
 _compiled: dict[str, Callable[..., Any]] = {}
@@ -41,6 +41,70 @@ def piece_of(breaks, x):
     return lo
 
 
+@njit(cache=True, nogil=True, _nrt=False, inline="always")
+def _interval_peaks(t, q, qd, qdd, k, d, m):
+    """The quintic join's speed bound, peak |a| and peak |j| on interval ``k`` of joint
+    ``d`` (see :func:`_peaks`), its speed sampled at ``m`` points where it may peak
+    inside."""
+    h = t[k + 1] - t[k]
+    # The quintic matching position, velocity and acceleration at both ends.
+    v0, acc0 = qd[k, d], qdd[k, d]
+    dp = q[k + 1, d] - q[k, d] - v0 * h - acc0 * h * h / 2.0
+    dv = qd[k + 1, d] - v0 - acc0 * h
+    da = qdd[k + 1, d] - acc0
+    c1, c2 = v0, acc0 / 2.0
+    c3 = (10.0 * dp - 4.0 * dv * h + da * h * h / 2.0) / h ** 3
+    c4 = (-15.0 * dp + 7.0 * dv * h - da * h * h) / h ** 4
+    c5 = (6.0 * dp - 3.0 * dv * h + da * h * h / 2.0) / h ** 5
+    # Jerk 6 c3 + 24 c4 t + 60 c5 t^2: the ends and the vertex.
+    j0 = 6.0 * c3
+    j1 = 6.0 * c3 + h * (24.0 * c4 + 60.0 * c5 * h)
+    jp = max(abs(j0), abs(j1))
+    if c5 != 0.0:
+        tv = -24.0 * c4 / (120.0 * c5)
+        if 0.0 < tv < h:
+            jp = max(jp, abs(6.0 * c3 + tv * (24.0 * c4 + 60.0 * c5 * tv)))
+    # Acceleration 2 c2 + 6 c3 t + 12 c4 t^2 + 20 c5 t^3: the ends and where the
+    # jerk vanishes.
+    a0 = 2.0 * c2
+    a1 = 2.0 * c2 + h * (6.0 * c3 + h * (12.0 * c4 + 20.0 * c5 * h))
+    a_lo = min(a0, a1)
+    a_hi = max(a0, a1)
+    qa, qb, qc = 60.0 * c5, 24.0 * c4, 6.0 * c3
+    for r_i in range(2):
+        r = -1.0
+        if qa != 0.0:
+            disc = qb * qb - 4.0 * qa * qc
+            if disc >= 0.0:
+                sq = math.sqrt(disc)
+                r = (-qb + sq) / (2.0 * qa) if r_i == 0 else (-qb - sq) / (2.0 * qa)
+        elif r_i == 0 and qb != 0.0:
+            r = -qc / qb
+        if 0.0 < r < h:
+            a = 2.0 * c2 + r * (6.0 * c3 + r * (12.0 * c4 + 20.0 * c5 * r))
+            a_lo = min(a_lo, a)
+            a_hi = max(a_hi, a)
+    ap = max(abs(a_lo), abs(a_hi))
+    # Speed c1 + 2 c2 t + 3 c3 t^2 + 4 c4 t^3 + 5 c5 t^4.
+    v1 = c1 + h * (2.0 * c2 + h * (3.0 * c3 + h * (4.0 * c4 + 5.0 * c5 * h)))
+    vp = max(abs(c1), abs(v1))
+    if a_lo < 0.0 < a_hi:  # the speed may peak inside
+        dt = h / (m - 1)
+        sampled = vp
+        for i in range(1, m - 1):
+            x = i * dt
+            v = c1 + x * (2.0 * c2 + x * (3.0 * c3 + x * (4.0 * c4 + 5.0 * c5 * x)))
+            sampled = max(sampled, abs(v))
+        vp = max(vp, sampled + jp * dt * dt / 8.0)
+    return vp, ap, jp
+
+
+@njit(cache=True, nogil=True, _nrt=False, inline="always")
+def _larger(best, x):
+    """The larger of ``best`` and ``x``, NaN once either is NaN (as numpy's max)."""
+    return x if (x > best or x != x) else best
+
+
 def _peaks(t: np.ndarray, q: np.ndarray, qd: np.ndarray, qdd: np.ndarray, rate: float,
            v_out: np.ndarray, a_out: np.ndarray, j_out: np.ndarray) -> None:
     """For the quintic join of points ``(t, q, qd, qdd)``, per interval and joint: a bound
@@ -49,61 +113,33 @@ def _peaks(t: np.ndarray, q: np.ndarray, qd: np.ndarray, qdd: np.ndarray, rate: 
     outputs (intervals, dof)."""
     n, dof = t.size - 1, q.shape[1]
     for k in range(n):
-        h = t[k + 1] - t[k]
-        m = max(4, int(math.ceil(h * rate)) + 1)
+        m = max(4, int(math.ceil((t[k + 1] - t[k]) * rate)) + 1)
         for d in range(dof):
-            # The quintic matching position, velocity and acceleration at both ends.
-            v0, acc0 = qd[k, d], qdd[k, d]
-            dp = q[k + 1, d] - q[k, d] - v0 * h - acc0 * h * h / 2.0
-            dv = qd[k + 1, d] - v0 - acc0 * h
-            da = qdd[k + 1, d] - acc0
-            c1, c2 = v0, acc0 / 2.0
-            c3 = (10.0 * dp - 4.0 * dv * h + da * h * h / 2.0) / h ** 3
-            c4 = (-15.0 * dp + 7.0 * dv * h - da * h * h) / h ** 4
-            c5 = (6.0 * dp - 3.0 * dv * h + da * h * h / 2.0) / h ** 5
-            # Jerk 6 c3 + 24 c4 t + 60 c5 t^2: the ends and the vertex.
-            j0 = 6.0 * c3
-            j1 = 6.0 * c3 + h * (24.0 * c4 + 60.0 * c5 * h)
-            jp = max(abs(j0), abs(j1))
-            if c5 != 0.0:
-                tv = -24.0 * c4 / (120.0 * c5)
-                if 0.0 < tv < h:
-                    jp = max(jp, abs(6.0 * c3 + tv * (24.0 * c4 + 60.0 * c5 * tv)))
-            # Acceleration 2 c2 + 6 c3 t + 12 c4 t^2 + 20 c5 t^3: the ends and where the
-            # jerk vanishes.
-            a0 = 2.0 * c2
-            a1 = 2.0 * c2 + h * (6.0 * c3 + h * (12.0 * c4 + 20.0 * c5 * h))
-            a_lo = min(a0, a1)
-            a_hi = max(a0, a1)
-            qa, qb, qc = 60.0 * c5, 24.0 * c4, 6.0 * c3
-            for r_i in range(2):
-                r = -1.0
-                if qa != 0.0:
-                    disc = qb * qb - 4.0 * qa * qc
-                    if disc >= 0.0:
-                        sq = math.sqrt(disc)
-                        r = (-qb + sq) / (2.0 * qa) if r_i == 0 else (-qb - sq) / (2.0 * qa)
-                elif r_i == 0 and qb != 0.0:
-                    r = -qc / qb
-                if 0.0 < r < h:
-                    a = 2.0 * c2 + r * (6.0 * c3 + r * (12.0 * c4 + 20.0 * c5 * r))
-                    a_lo = min(a_lo, a)
-                    a_hi = max(a_hi, a)
-            ap = max(abs(a_lo), abs(a_hi))
-            # Speed c1 + 2 c2 t + 3 c3 t^2 + 4 c4 t^3 + 5 c5 t^4.
-            v1 = c1 + h * (2.0 * c2 + h * (3.0 * c3 + h * (4.0 * c4 + 5.0 * c5 * h)))
-            vp = max(abs(c1), abs(v1))
-            if a_lo < 0.0 < a_hi:  # the speed may peak inside
-                dt = h / (m - 1)
-                sampled = vp
-                for i in range(1, m - 1):
-                    x = i * dt
-                    v = c1 + x * (2.0 * c2 + x * (3.0 * c3 + x * (4.0 * c4 + 5.0 * c5 * x)))
-                    sampled = max(sampled, abs(v))
-                vp = max(vp, sampled + jp * dt * dt / 8.0)
-            v_out[k, d] = vp
-            a_out[k, d] = ap
-            j_out[k, d] = jp
+            v_out[k, d], a_out[k, d], j_out[k, d] = _interval_peaks(t, q, qd, qdd, k, d, m)
+
+
+def _ratios(t: np.ndarray, q: np.ndarray, qd: np.ndarray, qdd: np.ndarray, rate: float,
+            row: np.ndarray, vmax: np.ndarray, amax: np.ndarray, jmax: np.ndarray,
+            v_out: np.ndarray, a_out: np.ndarray, j_out: np.ndarray) -> None:
+    """Per interval, the largest ratio over the joints of the quintic join's speed bound,
+    peak |a| and peak |j| (:func:`_peaks`) to the limits of row ``row[k]`` of ``vmax``,
+    ``amax``, ``jmax`` (rows, dof), into the outputs (intervals,); NaN where an input of
+    the interval is not finite."""
+    n, dof = t.size - 1, q.shape[1]
+    for k in range(n):
+        m = max(4, int(math.ceil((t[k + 1] - t[k]) * rate)) + 1)
+        r = row[k]
+        rv = ra = rj = -np.inf
+        inputs = t[k + 1] - t[k]  # finite iff every input of the interval is
+        for d in range(dof):
+            inputs += q[k, d] + q[k + 1, d] + qd[k, d] + qd[k + 1, d] + qdd[k, d] + qdd[k + 1, d]
+            vp, ap, jp = _interval_peaks(t, q, qd, qdd, k, d, m)
+            rv = _larger(rv, vp / vmax[r, d])
+            ra = _larger(ra, ap / amax[r, d])
+            rj = _larger(rj, jp / jmax[r, d])
+        if inputs - inputs != 0.0:  # a NaN or an infinity among them
+            rv = ra = rj = np.nan
+        v_out[k], a_out[k], j_out[k] = rv, ra, rj
 
 
 def _sample(t: np.ndarray, q: np.ndarray, qd: np.ndarray, qdd: np.ndarray,
@@ -163,6 +199,22 @@ def peaks(t: np.ndarray, q: np.ndarray, qd: np.ndarray, qdd: np.ndarray, rate: f
     return v, a, j
 
 
+def ratios(t: np.ndarray, q: np.ndarray, qd: np.ndarray, qdd: np.ndarray, rate: float,
+           row: np.ndarray, vmax: np.ndarray, amax: np.ndarray, jmax: np.ndarray
+           ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Per interval, the largest speed, acceleration and jerk ratio of the quintic join of
+    the points to the limits of row ``row[k]`` of ``vmax``, ``amax``, ``jmax`` (see
+    :func:`_ratios`)."""
+    kernel = compiled_kernels()["ratios"]
+    t, q, qd, qdd, vmax, amax, jmax = (np.ascontiguousarray(x, dtype=np.float64)
+                                       for x in (t, q, qd, qdd, vmax, amax, jmax))
+    n = t.size - 1
+    v, a, j = np.empty(n), np.empty(n), np.empty(n)
+    kernel(t, q, qd, qdd, float(rate), np.ascontiguousarray(row, dtype=np.int64), vmax, amax,
+           jmax, v, a, j)
+    return v, a, j
+
+
 def compiled_kernels() -> dict[str, Callable[..., Any]]:
     """The compiled kernel: ahead of time, else numba's (compiled, or loaded from numba's
     cache, once); see :mod:`safepath._aot`."""
@@ -172,4 +224,5 @@ def compiled_kernels() -> dict[str, Callable[..., Any]]:
 
             _compiled["peaks"] = njit(cache=True, nogil=True)(_peaks)
             _compiled["sample"] = njit(cache=True, nogil=True)(_sample)
+            _compiled["ratios"] = njit(cache=True, nogil=True)(_ratios)
         return _compiled

@@ -31,6 +31,7 @@ import numpy as np
 import pinocchio as pin
 
 from ..errors import ConfigError
+from .shapes import from_coal
 
 __all__ = ["TRAVEL", "LockedJoint", "lock_joints", "read_mimics"]
 
@@ -225,23 +226,14 @@ def _is_ancestor(model: pin.Model, a: int, j: int) -> bool:
 
 
 def _enclosing_points(shape: Any) -> np.ndarray:
-    """Points whose hull encloses ``shape`` (in the shape's frame)."""
+    """Points whose hull encloses ``shape`` (in the shape's frame): a kind of the shape
+    table says which; a hull's or mesh's own points."""
     import coal
 
-    if isinstance(shape, coal.Box):
-        h = np.asarray(shape.halfSide, dtype=float)
-        return np.array([[x, y, z] for x in (-1, 1) for y in (-1, 1) for z in (-1, 1)]) * h
-    if isinstance(shape, coal.Sphere):
-        r = float(shape.radius)
-        return np.array([[x, y, z] for x in (-r, r) for y in (-r, r) for z in (-r, r)])
-    if isinstance(shape, (coal.Cylinder, coal.Capsule)):
-        n = 24
-        r = float(shape.radius) / math.cos(math.pi / n)  # circumscribed polygon
-        hl = float(shape.halfLength) + (float(shape.radius) if isinstance(shape, coal.Capsule)
-                                        else 0.0)
-        a = np.linspace(0.0, 2 * math.pi, n, endpoint=False)
-        ring = np.stack([r * np.cos(a), r * np.sin(a)], axis=1)
-        return np.vstack([np.column_stack([ring, np.full(n, z)]) for z in (-hl, hl)])
+    primitive = from_coal(shape)
+    if primitive is not None:
+        kind, half = primitive
+        return kind.enclosing_points(half)
     if isinstance(shape, coal.ConvexBase):
         return np.asarray(shape.points(), dtype=float)
     if isinstance(shape, coal.BVHModelBase):

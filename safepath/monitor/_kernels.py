@@ -32,7 +32,7 @@ import math
 import numpy as np
 
 from .._aot import njit
-from ..model.shapes import BOX, CYLINDER, SPHERE
+from ..model._primitives import signed_distance
 
 #: Cells per block edge.
 BLOCK = 4
@@ -292,22 +292,7 @@ def scene_distance(P, kind, T, dims, reach, within, out):  # noqa: N803
             x = T[o, 0, 0] * dx + T[o, 1, 0] * dy + T[o, 2, 0] * dz
             y = T[o, 0, 1] * dx + T[o, 1, 1] * dy + T[o, 2, 1] * dz
             z = T[o, 0, 2] * dx + T[o, 1, 2] * dy + T[o, 2, 2] * dz
-            a, b, c = dims[o, 0], dims[o, 1], dims[o, 2]
-            k = kind[o]
-            if k == BOX:
-                qx, qy, qz = abs(x) - a, abs(y) - b, abs(z) - c
-                ox, oy, oz = max(qx, 0.0), max(qy, 0.0), max(qz, 0.0)
-                d = math.sqrt(ox * ox + oy * oy + oz * oz) + min(max(qx, max(qy, qz)), 0.0)
-            elif k == CYLINDER:
-                dr = math.sqrt(x * x + y * y) - a
-                dzz = abs(z) - b
-                o1, o2 = max(dr, 0.0), max(dzz, 0.0)
-                d = math.sqrt(o1 * o1 + o2 * o2) + min(max(dr, dzz), 0.0)
-            elif k == SPHERE:
-                d = math.sqrt(x * x + y * y + z * z) - a
-            else:  # CAPSULE
-                zz = min(max(z, -b), b)
-                d = math.sqrt(x * x + y * y + (z - zz) * (z - zz)) - a
+            d = signed_distance(kind[o], dims[o, 0], dims[o, 1], dims[o, 2], x, y, z)
             best = min(best, d)
         out[i] = best
 

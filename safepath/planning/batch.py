@@ -12,11 +12,13 @@ names), with the command that plans that folder alone.
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from ..errors import InputError, SafepathError
-from ..sweeps import TaskResult
 from .options import PlanOptions
+
+if TYPE_CHECKING:  # the sweep runner loads only for a sweep, not with safepath.planning
+    from ..sweeps import TaskResult
 
 __all__ = ["PlanCellsTask"]
 
@@ -42,6 +44,7 @@ class PlanCellsTask:
             InputError: A seed that indexes no folder.
         """
         from ..cell import load_cell
+        from ..sweeps import TaskResult
         from .route_planner import plan_cell
 
         folder = self._folder(seed)

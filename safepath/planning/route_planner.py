@@ -22,7 +22,14 @@ import numpy as np
 from ..cell import Cell
 from ..cell.routes import Route, Step, after_chain
 from ..collision import CollisionChecker, Pair, SegmentReport
-from ..errors import ConfigError, IKError, PlanningError, SafepathError, TimingError
+from ..errors import (
+    ConfigError,
+    IKError,
+    PlanningError,
+    SafepathError,
+    TimingError,
+    UnprovenClearance,
+)
 from ..model.trajectory import Trajectory
 from ..timing import TimedPiece
 from ..verify import check_verifiable
@@ -159,13 +166,30 @@ class _Paths:
 
 def _plan(cell: Cell, route: Route, world: WorldState, options: PlanOptions,
           cache: CheckerCache, timed: TimedPieces) -> tuple[Trajectory, WorldState]:
-    """Paths, then timing and verification, then the trajectory and its figures."""
+    """Paths, then timing and verification, then the trajectory and its figures; once
+    more keeping :data:`REPLAN_CLEARANCE` from every object where the release check
+    could not prove the first plan's clearance."""
     t_start = time.perf_counter()
     labels = route.labels()
+    start = world.copy()
     paths = _plan_paths(cell, route, world, options, cache, labels)
     plan_time = time.perf_counter() - t_start
-    pieces, chunk_ends, (min_clear, bound), closest, deviation = _time_and_verify(
-        cell, paths.chunks, options, cache, labels, timed)
+    try:
+        pieces, chunk_ends, (min_clear, bound), closest, deviation = _time_and_verify(
+            cell, paths.chunks, options, cache, labels, timed)
+    except UnprovenClearance as exc:
+        kept = _keeping_clearance(cell, REPLAN_CLEARANCE)
+        if kept is None:
+            raise
+        log.info("re-planning %s %.1f mm clear of every object: %s",
+                 route.name or "the route", 1e3 * REPLAN_CLEARANCE, exc)
+        try:
+            traj, end = _plan(kept, route, start, options,
+                              CheckerCache(kept, options, verified_in=cell), TimedPieces())
+        except SafepathError:
+            raise exc from None
+        traj.info["replanned_clear"] = {"clearance": REPLAN_CLEARANCE, "after": str(exc)}
+        return traj, end
     traj = assemble(cell, route, labels, pieces, chunk_ends, paths.actions)
     _check_position_limits(cell, traj)
     carried = check_tilt(cell, route, traj)  # orientation path constraints (max_tilt)
@@ -196,6 +220,29 @@ def _plan(cell: Cell, route: Route, world: WorldState, options: PlanOptions,
         traj.info["baseline_duration"] = _baseline(cell, route, paths.chunks, options, cache,
                                                    timed)
     return traj, paths.world
+
+
+#: The clearance [m] a route's paths, blends and their checks keep from every object
+#: (where its margin is smaller) when it is planned again because the release check could
+#: not prove the first plan's clearance between its samples: with a margin of 0, a path
+#: can graze an obstacle (a shortcut pulled tight around it) closer than the check can
+#: certify, and the same seed would find it again. The release check still checks the
+#: scene's own margins. 1 mm is far above the check's finest step (0.01 mm of motion).
+REPLAN_CLEARANCE = 1e-3
+
+
+def _keeping_clearance(cell: Cell, clearance: float) -> Cell | None:
+    """The cell with every object's margin at least ``clearance`` [m], or None if every
+    margin is that large already."""
+    scene = cell.scene
+    smaller = {name: obj for name, obj in scene.objects.items()
+               if obj.margin is not None and obj.margin < clearance}
+    if scene.margin >= clearance and not smaller:
+        return None
+    objects = {**scene.objects, **{name: replace(obj, margin=clearance)
+                                   for name, obj in smaller.items()}}
+    return replace(cell, scene=replace(scene, margin=max(scene.margin, clearance),
+                                       objects=objects))
 
 
 def _plan_paths(cell: Cell, route: Route, world: WorldState, options: PlanOptions,

@@ -80,9 +80,13 @@ class CheckerCache:
     anew (``dataclasses.replace``, unpickled in a worker) starts with none.
     """
 
-    def __init__(self, cell: Cell, options: PlanOptions) -> None:
+    def __init__(self, cell: Cell, options: PlanOptions, *,
+                 verified_in: Cell | None = None) -> None:
         self.cell = cell
         self.options = options
+        #: The cell whose scene the verifiers check against (default: ``cell``): a plan
+        #: may keep more clearance than the release check requires.
+        self.verified_in = cell if verified_in is None else verified_in
         with _MADE_LOCK:
             per_thread = _MADE.get(cell)
             if per_thread is None:
@@ -118,7 +122,7 @@ class CheckerCache:
             opts = self.options.check
             base = _of_state(self._verifiers, state)
             self._verifiers[key] = base.with_allowed(allowed) if base is not None else \
-                FclVerifier(self.cell.robot, self.cell.scene, held=world.held,
+                FclVerifier(self.verified_in.robot, self.verified_in.scene, held=world.held,
                             resting=dict(world.resting), allowed=allowed,
                             resolution=opts.resolution, margin=opts.margin,
                             enforce_margin=opts.enforce_margin)

@@ -236,11 +236,16 @@ def _build_joint_trajectory(f: MessageFactory, pts: _Points, stamp_ns: int) -> A
     # points carrying accelerations as quintics, whatever it was configured for.
     qd = pts.qd if pts.interpolation.uses_velocities else pts.qd[:, :0]
     qdd = pts.qdd if pts.interpolation.uses_accelerations else pts.qdd[:, :0]
+    # Thousands of points per goal: the classes are looked up once, the arrays cut into
+    # rows once.
+    point, duration = (f.cls(name) for name in ("trajectory_msgs/msg/JointTrajectoryPoint",
+                                                "builtin_interfaces/msg/Duration"))
     points = [
-        f.new("trajectory_msgs/msg/JointTrajectoryPoint", positions=f.floats(pts.q[k]),
-              velocities=f.floats(qd[k]), accelerations=f.floats(qdd[k]),
-              effort=f.floats([]), time_from_start=_duration(f, pts.time_ns[k]))
-        for k in range(pts.time_ns.size)
+        point(positions=q, velocities=v, accelerations=a, effort=f.floats([]),
+              time_from_start=duration(sec=sec, nanosec=nanosec))
+        for q, v, a, (sec, nanosec) in zip(
+            f.float_rows(pts.q), f.float_rows(qd), f.float_rows(qdd),
+            (divmod(int(t), _NS) for t in pts.time_ns), strict=True)
     ]
     return f.new("trajectory_msgs/msg/JointTrajectory", header=header,
                  joint_names=list(pts.names), points=points)

@@ -312,6 +312,13 @@ class MessageFactory:
             return np.array(values, dtype=np.float64).reshape(-1)
         return array.array("d", (float(v) for v in np.asarray(values, dtype=float).reshape(-1)))
 
+    def float_rows(self, values: np.ndarray) -> list[Any]:
+        """``float64[]`` field values, one per row of the 2-D ``values`` (each as
+        :meth:`floats` gives it; for rosbags, the rows of one new array)."""
+        if self.backend == "rosbags":
+            return list(np.array(values, dtype=np.float64, order="C", ndmin=2))
+        return [self.floats(row) for row in values]
+
 
 def _rclpy_class(typename: str) -> Any:
     """Import the native class of ``typename`` from a sourced ROS 2 workspace."""

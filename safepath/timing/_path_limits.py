@@ -160,7 +160,7 @@ def path_limits(robot: Robot, path: PathSpline, s_way: np.ndarray, scales: Seque
     _, dq, ddq = jet(path, grid)
     bound = _Bounds(robot, path, s_way, grid, dq, jerk_scale, np.isfinite(v_seg).any())
     if ahead > 0.0 and ((scales_ahead and np.ptp(seg_scales) > 0.0)
-                        or np.unique(v_seg).size > 1):
+                        or bool(np.any(v_seg != v_seg[0]))):
         near_scale, v_grid = ahead_of_steps(grid, bound, ahead, scale_grid, v_grid)
         if scales_ahead:
             scale_grid = near_scale
@@ -322,7 +322,7 @@ def sliding_min(values: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> np.ndarra
         span *= 2
     level = np.floor(np.log2(np.maximum(hi - lo, 1))).astype(np.int64)
     out = np.empty(n)
-    for k in np.unique(level):
+    for k in np.flatnonzero(np.bincount(level)):  # the levels present, ascending
         at = np.flatnonzero(level == k)
         out[at] = np.minimum(table[k][lo[at]], table[k][hi[at] - (1 << k)])
     return out

@@ -83,7 +83,8 @@ def s_curve(length: float, v: float, a: float, j: float, knot_period: float) -> 
     numbers of one knot period of at most ``knot_period`` [s]."""
     tj, ta, tv = _phases(length, v, a, j)
     top = int(round(knot_period * _NS))
-    steps = np.unique(np.linspace(top // 2, top, _CANDIDATES).astype(np.int64))
+    steps = np.linspace(top // 2, top, _CANDIDATES).astype(np.int64)
+    steps = steps[np.concatenate([[True], np.diff(steps) != 0])]  # ascending, once each
     dt = steps / _NS
     nj = np.maximum(1, np.ceil(tj / dt - 1e-9)).astype(np.int64)
     na = np.maximum(0, np.ceil(ta / dt - 1e-9)).astype(np.int64)

@@ -160,5 +160,5 @@ def compiled_kernels() -> dict[str, Callable[..., Any]]:
 
             _compiled.update(backward=kernels.backward, forward=kernels.forward,
                              tridiagonal=kernels.tridiagonal, knots=kernels.knots,
-                             jerk_shift=kernels.jerk_shift)
+                             jerk_rows=kernels.jerk_rows, jerk_shift=kernels.jerk_shift)
         return _compiled

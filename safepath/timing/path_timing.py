@@ -22,8 +22,9 @@ is left is removed by stretching time uniformly, which divides velocities by ``k
 accelerations by ``k^2``. No released knot exceeds a limit: the ratios of the released
 knots are checked, and a :class:`~safepath.errors.TimingError` is raised rather than
 release one over 1.0. The same holds for the TCP's speed where a step limits it: the
-knots' quintic join is sampled at >= 1 kHz (forward kinematics with velocities) and
-stretched in time until every sample is within its step's limit.
+knots' join (as the robot's controller joins them: ``controller.yaml``'s interpolation,
+a quintic for points with accelerations) is sampled at >= 1 kHz (forward kinematics with
+velocities) and stretched in time until every sample is within its step's limit.
 """
 
 from __future__ import annotations
@@ -38,7 +39,7 @@ import numpy as np
 
 from ..errors import TimingError
 from ..model._knots import interval_index
-from ..model.execution import CHECK_RATE, interval_ratios, join
+from ..model.execution import CHECK_RATE, join
 from ..model.robot import Robot
 from . import _scurve, _smooth, _topp
 from ._blend import blended_points, corner_pieces, resampled
@@ -286,12 +287,12 @@ def time_path(robot: Robot, path: PathSpline, s_way: np.ndarray, *, scales: Sequ
     """Time a spline path rest to rest, jerk-limited, within the limits as executed.
 
     TOPP-RA's profile is smoothed by two moving averages (:mod:`._smooth`), sampled every
-    ``options.knot_period``, and the quintic join of the knots (how a trajectory
-    controller executes them, :mod:`safepath.model.execution`) is checked against the joint
+    ``options.knot_period``, and the join of the knots (as the robot's trajectory
+    controller executes them, ``PathLimits.interpolation``) is checked against the joint
     speed, acceleration and jerk limits on every interval. Where it exceeds one, the
     limits along the part of the path that interval averaged are tightened and the path
     is timed again (``options.retries`` runs in all); what is left is removed by
-    stretching time uniformly, which scales the quintic join exactly (speeds by ``1/k``,
+    stretching time uniformly, which scales the join exactly (speeds by ``1/k``,
     accelerations by ``1/k^2``, jerks by ``1/k^3``).
 
     Args:
@@ -304,8 +305,8 @@ def time_path(robot: Robot, path: PathSpline, s_way: np.ndarray, *, scales: Sequ
         step: Step name for errors.
 
     Raises:
-        TimingError: TOPP-RA found no feasible timing, or the released knots' quintic join
-            would break a limit.
+        TimingError: TOPP-RA found no feasible timing, or the released knots' join would
+            break a limit.
     """
     where = f" (step '{step}')" if step else ""
     limits = path_limits(robot, path, s_way, scales, tcp_speeds,
@@ -381,7 +382,7 @@ def _time_once(path: PathSpline, limits: PathLimits, f_acc: np.ndarray, f_x: np.
     if not (np.isfinite(profile.duration) and profile.duration > 0):
         raise TimingError(f"TOPP-RA gave a duration of {profile.duration} s" + where)
     if tau_a is None:
-        tau_a = _jerk_window(profile, path, limits, options)
+        tau_a = _jerk_window(profile, limits, options)
     tau_b = _second_window(tau_a, options)
     sm = _smooth.smooth(profile, tau_a, tau_b)
     duration = sm.duration
@@ -413,40 +414,35 @@ def _second_window(tau_a: float, options: TimingOptions) -> float:
     return max(options.jerk_smoothing * options.knot_period, 0.15 * tau_a)
 
 
-def _jerk_window(profile: _topp.Profile, path: PathSpline, limits: PathLimits,
-                 options: TimingOptions) -> float:
+def _jerk_window(profile: _topp.Profile, limits: PathLimits, options: TimingOptions) -> float:
     """Width of the first moving average [s]: the shortest over which no joint's
     acceleration along TOPP-RA's profile changes by more than its jerk limit times the
     width (the average spreads every change over the width), times
     ``options.jerk_window``."""
     dt = options.knot_period / 2
     t = np.arange(0.0, profile.duration, dt)
-    s, sd, u = _topp.evaluate(profile, t)
-    seg = interval_index(limits.s_way, s, limits.jmax_seg.shape[0])
-    # The path's tangent and curvature between gridpoints, linear in s (a cubic's are
-    # quadratic and linear; gridpoints lie <= grid_step apart): no spline evaluation.
-    grid, at = limits.grid, limits.at_grid
-    k = interval_index(grid, s, grid.size - 1)
-    w = ((s - grid[k]) / (grid[k + 1] - grid[k]))[:, None]
-    ps = at.dq[k] + w * (at.dq[k + 1] - at.dq[k])
-    pss = at.ddq[k] + w * (at.ddq[k + 1] - at.ddq[k])
-    acc = (ps * u[:, None] + pss * (sd ** 2)[:, None]) / limits.jmax_seg[seg]
-    # At rest (zero acceleration) before and after: the first and last changes count.
-    f = np.vstack([np.zeros((1, acc.shape[1])), acc, np.zeros((1, acc.shape[1]))])
-    lo = _topp.compiled_kernels()["jerk_shift"](np.ascontiguousarray(f), float(dt))
+    # Along the profile; the path's tangent and curvature between gridpoints linear in s
+    # (a cubic's are quadratic and linear; gridpoints lie <= grid_step apart). At rest
+    # (zero acceleration) before and after: the first and last changes count.
+    at = limits.at_grid
+    f = np.empty((t.size + 2, at.dq.shape[1]))
+    kernels = _topp.compiled_kernels()
+    kernels["jerk_rows"](t, profile.t, profile.grid, profile.sd, profile.u,
+                         *(np.ascontiguousarray(x, dtype=np.float64) for x in (
+                             limits.s_way, limits.jmax_seg, limits.grid, at.dq, at.ddq)), f)
+    lo = kernels["jerk_shift"](f, float(dt))
     return max(lo * dt * options.jerk_window, options.knot_period)
 
 
 def _interval_ratios(t: np.ndarray, q: np.ndarray, qd: np.ndarray, qdd: np.ndarray,
                      segment: np.ndarray, limits: PathLimits
                      ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Per knot interval, the quintic join's largest speed, acceleration and jerk ratio
+    """Per knot interval, the knots' join's largest speed, acceleration and jerk ratio
     (limits of the smaller-scaled of its two knots' segments)."""
     seg = np.where(limits.vmax_seg[segment[:-1], 0] <= limits.vmax_seg[segment[1:], 0],
                    segment[:-1], segment[1:])
-    return interval_ratios(t, q, qd, qdd, vmax=limits.vmax_seg[seg],
-                           amax=limits.amax_seg[seg], jmax=limits.jmax_seg[seg],
-                           interpolation=limits.interpolation)
+    return limits.interpolation.ratios(t, q, qd, qdd, CHECK_RATE, seg, limits.vmax_seg,
+                                       limits.amax_seg, limits.jmax_seg)
 
 
 def _tighten(f_acc: np.ndarray, f_x: np.ndarray, grid: np.ndarray, run: _Run) -> None:
@@ -506,9 +502,14 @@ def _stretch(v_peak: float, a_peak: float, j_peak: float = 0.0) -> float:
                float(np.cbrt(j_peak / (1.0 - _SLACK))))
 
 
+def _worst(ratios: Sequence[np.ndarray], v_tcp: float) -> float:
+    """The largest of the interval ratios and the TCP's ratio; NaN if any is NaN."""
+    return float(np.max([v_tcp, *(float(np.max(r)) for r in ratios if r.size)]))
+
+
 def _release(run: _Run, limits: PathLimits, options: TimingOptions, where: str,
              tcp: _TcpLimits | None = None) -> TimedPiece:
-    """The run stretched in time just enough that its knots' quintic join is within every
+    """The run stretched in time just enough that its knots' join is within every
     limit (the TCP's speed limits too, ``tcp``), checked."""
     t, qd, qdd = run.t, run.qd, run.qdd
 
@@ -528,7 +529,7 @@ def _release(run: _Run, limits: PathLimits, options: TimingOptions, where: str,
         t, qd, qdd, k = stretch_knots(t, qd, qdd, k)
         ratios = _interval_ratios(t, run.q, qd, qdd, run.segment, limits)
         v_tcp = tcp_ratio()
-    worst = max([float(r.max()) for r in ratios if r.size] + [v_tcp])
+    worst = _worst(ratios, v_tcp)
     for _ in range(3):
         # The speed bound samples each interval at >= 1 kHz: a stretched interval may get
         # one more sample, which moves the bound by ~1e-7; stretch that much more.
@@ -538,10 +539,10 @@ def _release(run: _Run, limits: PathLimits, options: TimingOptions, where: str,
         t, qd, qdd, _ = stretch_knots(t, qd, qdd, _stretch(max(v, v_tcp), a, j))
         ratios = _interval_ratios(t, run.q, qd, qdd, run.segment, limits)
         v_tcp = tcp_ratio()
-        worst = max([float(r.max()) for r in ratios if r.size] + [v_tcp])
+        worst = _worst(ratios, v_tcp)
     if not worst <= 1.0:  # also NaN
-        raise TimingError(f"the quintic join of the timed knots is at {worst!r} of a limit"
-                          + where)
+        raise TimingError(f"the {limits.interpolation} join of the timed knots is at "
+                          f"{worst!r} of a limit" + where)
     return TimedPiece(t, run.q, qd, qdd, run.s, run.segment)
 
 
@@ -577,7 +578,7 @@ class _TcpLimits:
 
     def ratio(self, t: np.ndarray, q: np.ndarray, qd: np.ndarray, qdd: np.ndarray,
               segment: np.ndarray, s: np.ndarray, sd: np.ndarray) -> float:
-        """The largest TCP speed of the knots' quintic join over its limit (the smaller
+        """The largest TCP speed of the knots' join over its limit (the smaller
         of its two knots' segments' limits on each interval); 0 where none limits it.
 
         The knots lie on the path (``qd = q'(s) sdot``): their TCP speed is the path's
@@ -595,7 +596,9 @@ class _TcpLimits:
         # limit, the speed could only reach the limit if it bent away from the line
         # between them by that share of it (its second derivative, times the interval
         # squared over 8: kilometres per second cubed for a few milliseconds).
-        knots = np.unique(np.concatenate([at, at + 1]))
+        ends = np.zeros(t.size, dtype=bool)
+        ends[at] = ends[at + 1] = True
+        knots = np.flatnonzero(ends)
         at_knot = np.zeros(t.size)
         at_knot[knots] = self.robot.tcp_speeds(q[knots], qd[knots])
         ends = np.maximum(at_knot[at], at_knot[at + 1]) / limit[at]

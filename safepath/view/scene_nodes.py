@@ -19,7 +19,7 @@ import viser
 
 from ..model.robot import Robot
 from ..model.scene import Scene
-from ..model.shapes import from_coal
+from ..model.shapes import SHAPES, from_coal
 from .analysis import GREEN, RED, YELLOW
 
 __all__ = ["Rgb", "Scope", "RobotStyle", "HIGHLIGHT", "LEVEL_COLORS", "ShapeNode",
@@ -76,18 +76,16 @@ def _to_rgb(color: Iterable[float]) -> Rgb:
 
 @dataclass
 class ShapeNode:
-    """One drawn shape: the node that is placed, and the nodes that are coloured.
+    """One drawn shape: the node that is placed and coloured.
 
     Attributes:
         name: The thing it draws (link or object name).
-        root: Node whose pose is set.
-        parts: Nodes whose colour is set (the root itself, or a capsule's pieces).
+        root: Its scene node (a triangle mesh).
         color: Normal colour.
     """
 
     name: str
     root: Any
-    parts: list[Any]
     color: Rgb
     _shown: Rgb | None = None
 
@@ -105,40 +103,24 @@ class ShapeNode:
     def paint(self, color: Rgb) -> None:
         """Colour the shape (no message when unchanged)."""
         if color != self._shown:
-            for part in self.parts:
-                part.color = color
+            self.root.color = color
             self._shown = color
 
 
 def add_shape(server: Scope, path: str, name: str, kind: str,
               size: tuple[float, ...], color: Rgb, *, opacity: float | None = None
               ) -> ShapeNode | None:
-    """Add a primitive centred on its frame (cylinders and capsules along local z).
+    """Add a shape of the shape table (``kind``, ``size`` [m] as in
+    :class:`~safepath.model.scene.Shape`), centred on its frame, as the triangle mesh of
+    its table row.
 
-    Returns None for a kind it cannot draw.
+    Returns None for a kind the table does not have.
     """
-    scene = server.scene
-    node: Any
-    if kind == "box":
-        node = scene.add_box(path, color=color, dimensions=np.asarray(size[:3], dtype=float),
-                             opacity=opacity)
-        return ShapeNode(name, node, [node], color, color)
-    if kind == "cylinder":
-        node = scene.add_cylinder(path, radius=size[0], height=size[1], color=color,
-                                  opacity=opacity)
-        return ShapeNode(name, node, [node], color, color)
-    if kind == "sphere":
-        node = scene.add_icosphere(path, radius=size[0], color=color, opacity=opacity)
-        return ShapeNode(name, node, [node], color, color)
-    if kind == "capsule":
-        group = scene.add_frame(path, show_axes=False)
-        parts: list[Any] = [scene.add_cylinder(f"{path}/body", radius=size[0], height=size[1],
-                                    color=color, opacity=opacity)]
-        for end, z in (("top", size[1] / 2), ("bottom", -size[1] / 2)):
-            parts.append(scene.add_icosphere(f"{path}/{end}", radius=size[0], color=color,
-                                             opacity=opacity, position=(0.0, 0.0, z)))
-        return ShapeNode(name, group, parts, color, color)
-    return None
+    row = SHAPES.get(kind)
+    if row is None:
+        return None
+    vertices, faces = row.mesh(row.half(size))
+    return add_mesh(server, path, name, vertices, faces, color, opacity=opacity)
 
 
 #: Meshes with more triangles than this are not drawn (a visual model's meshes can have
@@ -147,10 +129,12 @@ MAX_MESH_TRIANGLES = 50_000
 
 
 def add_mesh(server: Scope, path: str, name: str, vertices: np.ndarray, faces: np.ndarray,
-             color: Rgb) -> ShapeNode:
+             color: Rgb, *, opacity: float | None = None) -> ShapeNode:
     """Add a triangle mesh (vertices [m] in its frame, faces as vertex indices)."""
-    node = server.scene.add_mesh_simple(path, vertices=vertices, faces=faces, color=color)
-    return ShapeNode(name, node, [node], color, color)
+    node = server.scene.add_mesh_simple(path, vertices=np.asarray(vertices, dtype=np.float32),
+                                        faces=np.asarray(faces, dtype=np.int32), color=color,
+                                        opacity=opacity)
+    return ShapeNode(name, node, color, color)
 
 
 def coal_mesh(geometry: Any) -> tuple[np.ndarray, np.ndarray] | None:

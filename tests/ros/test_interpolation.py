@@ -118,3 +118,27 @@ def test_an_unknown_interpolation_in_controller_yaml_names_file_and_key(
     assert info.value.key == "interpolation"
     assert info.value.path == folder / "controller.yaml"
     assert interpolation_named("linear") is LINEAR
+
+
+@pytest.mark.parametrize("interpolation", [QUINTIC, CUBIC, LINEAR])
+def test_per_interval_ratios_are_the_peaks_over_each_intervals_limits(interpolation) -> None:
+    """Timing's check (``Interpolation.ratios``: compiled in one pass for a quintic) gives,
+    per interval, the peaks of :meth:`~Interpolation.peaks` over the limits of the row it
+    names, bit for bit, and a NaN point stays NaN (never dropped as a small ratio)."""
+    rng = np.random.default_rng(3)
+    n, dof = 40, 4
+    t = np.cumsum(rng.uniform(0.002, 0.006, n))
+    q, qd, qdd = (rng.normal(0.0, s, (n, dof)) for s in (0.1, 1.0, 20.0))
+    vmax, amax, jmax = (rng.uniform(0.5, 2.0, (3, dof)) * s for s in (1.0, 10.0, 1e3))
+    row = rng.integers(0, 3, n - 1)
+    got = interpolation.ratios(t, q, qd, qdd, 1000.0, row, vmax, amax, jmax)
+    peaks = interpolation.peaks(t, q, qd, qdd, 1000.0)
+    for x, p, lim in zip(got, peaks, (vmax, amax, jmax), strict=True):
+        assert np.array_equal(x, np.max(p / lim[row], axis=1))
+    assert np.min(got[0]) > 0.0
+    for field in (q, qd, qdd):
+        field[7, 2] = np.nan
+        bad = interpolation.ratios(t, q, qd, qdd, 1000.0, row, vmax, amax, jmax)
+        for x in bad:
+            assert np.isnan(x[6]) and np.isnan(x[7]) and not np.isnan(x[[5, 8]]).any()
+        field[7, 2] = 0.0

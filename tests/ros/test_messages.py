@@ -567,3 +567,22 @@ def test_ned_controller_comes_from_its_robot_folder() -> None:
         "/niryo_robot_follow_joint_trajectory_controller/follow_joint_trajectory")
     assert ned.period == 0.04 and ned.goal_tolerance == GOAL_TOLERANCE
     assert goals.controller_of(phase1()) == ned
+
+
+def test_float_rows_are_the_rows_as_floats_gives_them_in_any_memory_order() -> None:
+    f = message_factory("rosbags", ["trajectory_msgs/msg/JointTrajectoryPoint"])
+    values = np.asfortranarray(np.arange(12.0).reshape(4, 3))
+    rows = f.float_rows(values)
+    assert len(rows) == 4
+    for row, expected in zip(rows, values, strict=True):
+        assert row.dtype == np.float64 and row.flags.c_contiguous
+        assert np.array_equal(row, f.floats(expected))
+    values[0, 0] = 99.0  # the rows are copies: the message does not follow its source
+    assert rows[0][0] == 0.0
+    point = f.cls("trajectory_msgs/msg/JointTrajectoryPoint")
+    zero = f.cls("builtin_interfaces/msg/Duration")(sec=0, nanosec=0)
+    assert serialize(point(positions=rows[1], velocities=f.float_rows(values[:, :0])[1],
+                           accelerations=rows[2], effort=f.floats([]), time_from_start=zero)) \
+        == serialize(point(positions=f.floats(values[1]), velocities=f.floats([]),
+                           accelerations=f.floats(values[2]), effort=f.floats([]),
+                           time_from_start=zero))
