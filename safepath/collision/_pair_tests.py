@@ -93,8 +93,13 @@ def _primitive_axes(kind, s, wf, n):  # noqa: N803
     normals; cylinder, capsule: its z axis) to the candidate axes from row ``n``; returns
     the new row count."""
     first, count = own_axes(ENV_BOX if kind == ENV_BOX_ONLY_OUTER else kind)
-    for c in range(first, first + count):
-        x, y, z = placed_axis(wf, s, c)
+    if count == 3:  # columns first .. first + 2, unrolled
+        for c in range(3):
+            x, y, z = placed_axis(wf, s, first + c)
+            set_axis(wf, n, x, y, z)
+            n += 1
+    elif count == 1:
+        x, y, z = placed_axis(wf, s, first)
         set_axis(wf, n, x, y, z)
         n += 1
     return n
