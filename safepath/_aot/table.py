@@ -49,9 +49,11 @@ class Entry(NamedTuple):
 
 
 _FAST = "safepath.collision._kernels"
-#: The sphere layer's helper kernels and the constants they compile in (its buffers' layout).
+#: The sphere layer's helper kernels, the accessors they read their buffers through, and
+#: the constants those compile in (the buffers' layout).
 _FAST_PARTS = ("safepath.collision._placement", "safepath.collision._pair_tests",
-               "safepath.collision._gjk", "safepath.collision._layout")
+               "safepath.collision._gjk", "safepath.collision._records",
+               "safepath.collision._layout")
 #: The sphere layer's per-pair distance bounds (the checker's clearance and report).
 _BOUNDS = "safepath.collision._bounds"
 _VERIFY = "safepath.verify._kernel"

@@ -21,24 +21,18 @@ from __future__ import annotations
 import math
 
 from .._aot import njit
-from ._kernels import _place_bounds, _workspace
-from ._layout import (
-    C_FREE_EPS,
-    G_RADIUS,
-    GW,
-    H_C,
-    H_G,
-    H_NP,
-    H_P,
-    H_PI,
-    PI_A,
-    PI_B,
-    PI_ENV,
-    PIW,
-    WI_CW,
-)
+from ._kernels import _place_bounds
 from ._pair_tests import _env_sdist3, _pair_bound
 from ._placement import _fk
+from ._records import (
+    bound_centre,
+    free_eps,
+    mover_radius,
+    n_pairs,
+    pair,
+    pair_margin,
+    workspace,
+)
 
 __all__ = ["pair_bounds"]
 
@@ -51,7 +45,7 @@ def pair_bounds(Q, fb, ib, floor, dist, out):  # noqa: N803
     limits) into the rows of ``out`` (states x pairs): ``-inf`` where the layer proves
     nothing. ``floor`` (per pair [m]): refine a bound at least up to this; ``dist`` (per
     pair): a distance pair (refined up to the state's clearance bound too)."""
-    Rw, pw, wf, wi = _workspace(ib)
+    Rw, pw, wf, wi = workspace(ib)
     for i in range(Q.shape[0]):
         _fk(Q[i], fb, ib, Rw, pw)
         _place_bounds(fb, ib, Rw, pw, wf, wi)
@@ -63,21 +57,19 @@ def pair_bounds(Q, fb, ib, floor, dist, out):  # noqa: N803
 def _coarse_bounds(fb, ib, wf, wi, dist, row):
     """Each pair's bounding-sphere bound into ``row``; returns an upper bound [m] on the
     smallest distance of the distance pairs (1e300: none)."""
-    og, op_, ocw = ib[H_G], ib[H_PI], wi[WI_CW]
     upper = 1e300
-    for k in range(ib[H_NP]):
-        pair = op_ + PIW * k
-        a, b = ib[pair + PI_A], ib[pair + PI_B]
-        ax, ay, az = wf[ocw + 3 * a], wf[ocw + 3 * a + 1], wf[ocw + 3 * a + 2]
-        ra = fb[og + GW * a + G_RADIUS]
-        if ib[pair + PI_ENV] == 1:
+    for k in range(n_pairs(ib)):
+        a, b, is_env, _ = pair(ib, k)
+        ax, ay, az = bound_centre(wf, wi, a)
+        ra = mover_radius(fb, ib, a)
+        if is_env == 1:
             d = _env_sdist3(fb, ib, b, ax, ay, az) - ra
             if dist[k] and d + 2.0 * ra < upper:
                 upper = d + 2.0 * ra
         else:
-            dd = ((ax - wf[ocw + 3 * b]) ** 2 + (ay - wf[ocw + 3 * b + 1]) ** 2
-                  + (az - wf[ocw + 3 * b + 2]) ** 2)
-            d = math.sqrt(dd) - ra - fb[og + GW * b + G_RADIUS]
+            bx, by, bz = bound_centre(wf, wi, b)
+            dd = (ax - bx) ** 2 + (ay - by) ** 2 + (az - bz) ** 2
+            d = math.sqrt(dd) - ra - mover_radius(fb, ib, b)
         row[k] = d
     return upper
 
@@ -87,14 +79,13 @@ def _refine(fb, ib, Rw, pw, wf, wi, floor, dist, upper, row):  # noqa: N803
     """Refine the bounds in ``row`` below what the caller can use (see
     :func:`pair_bounds`); a bound not beyond its pair's margin and ``free_eps`` (the
     finer tests stop early there: not a bound) becomes ``-inf``."""
-    free_eps = fb[ib[H_C] + C_FREE_EPS]
-    of_ = ib[H_P]
-    for k in range(ib[H_NP]):
-        sm = max(fb[of_ + k], 0.0)
+    eps = free_eps(fb, ib)
+    for k in range(n_pairs(ib)):
+        sm = max(pair_margin(fb, ib, k), 0.0)
         want = floor[k]
         if dist[k] and upper > want:
             want = upper
         d = row[k]
         if d < want:
             d = max(d, _pair_bound(k, fb, ib, Rw, pw, wf, wi, want - sm))
-        row[k] = d if d > sm + free_eps else -math.inf
+        row[k] = d if d > sm + eps else -math.inf

@@ -19,17 +19,15 @@ when only this file changes. After editing it in a source checkout, delete
 helpers there, these are compiled without numba's reference counting (see
 :mod:`safepath.collision._kernels`): no allocation, no array returned.
 
-The two shapes are read as the rest of the layer reads its data
-(:mod:`safepath.collision._layout`): placed in the call's scratch, shape A at slots W_A of
-``wf`` and WI_A of ``wi``, shape B at W_B and WI_B, each a record of its world rotation,
-position and dimensions (W_R, W_P, W_D) and its kind and hull vertex rows (WS_KIND,
-WS_HULL, WS_HULL_END: rows of the H_V block of ``fb``, in the shape's own frame, with
-their edges in ``ib``'s H_AP, H_AI blocks). Shape kinds are those of
-:mod:`safepath.collision._layout` (box, cylinder, sphere, capsule) and the hull. A search
-takes the checker's buffers, the scratch and the pair (whose last direction and support
-hints it starts from): a handful of arguments, as every array passed costs a numba call
-~10 ns in reference counts and descriptors, and the searches run millions of times a
-second.
+The two shapes are read as the rest of the layer reads its data, through the accessors
+of :mod:`safepath.collision._records`: placed in the call's scratch as shapes A and B,
+each a record of its world rotation, position and dimensions and its kind and hull
+vertex rows (vertices in the shape's own frame, with their edges, in the checker's
+buffers). Shape kinds are those of :mod:`safepath.collision._layout` (box, cylinder,
+sphere, capsule) and the hull. A search takes the checker's buffers, the scratch and
+the pair (whose last direction and support hints it starts from): a handful of
+arguments, as every array passed costs a numba call ~10 ns in reference counts and
+descriptors, and the searches run millions of times a second.
 """
 
 from __future__ import annotations
@@ -43,27 +41,22 @@ from ..model._primitives import support_point
 from ._layout import (
     ENV_BOX,
     ENV_BOX_ONLY_OUTER,
-    H_AI,
-    H_AP,
-    H_V,
     HULL,
-    W_A,
-    W_B,
-    W_D,
-    W_GV,
-    W_P,
-    W_R,
-    W_S,
-    W_SA,
-    W_SB,
-    W_TMP,
-    WI_A,
-    WI_B,
-    WI_HINT,
-    WI_WARM,
-    WS_HULL,
-    WS_HULL_END,
-    WS_KIND,
+)
+from ._records import (
+    A,
+    B,
+    hull_edges,
+    hull_neighbour,
+    hull_vertex,
+    pair_hints,
+    pair_warm,
+    placed_dims,
+    placed_hull,
+    placed_kind,
+    placed_position,
+    placed_rotation,
+    simplex,
 )
 
 #: How these are compiled (see the module doc).
@@ -83,21 +76,20 @@ MAX_ITER = 32
 
 @_inlined
 def climb(fb, ib, v0, v1, start, lx, ly, lz):
-    """The vertex (row) of the hull at rows ``v0:v1`` of the H_V block farthest along (lx,
-    ly, lz): steepest ascent over the hull's edges from ``start``. Exact on a convex
+    """The vertex (row) of the hull at vertex rows ``v0:v1`` farthest along (lx, ly,
+    lz): steepest ascent over the hull's edges from ``start``. Exact on a convex
     polytope: a vertex that is not farthest has an edge along which the direction
-    strictly increases. Row g's neighbours: ``ib[oai + ib[oap + g] : oai + ib[oap + g +
-    1]]`` (``oap``, ``oai``: the H_AP, H_AI blocks)."""
-    ov, oap, oai = ib[H_V], ib[H_AP], ib[H_AI]
+    strictly increases."""
     g = start if v0 <= start < v1 else v0
-    b = ov + 3 * g
-    best = fb[b] * lx + fb[b + 1] * ly + fb[b + 2] * lz
+    x, y, z = hull_vertex(fb, ib, g)
+    best = x * lx + y * ly + z * lz
     while True:
         nxt = g
-        for e in range(ib[oap + g], ib[oap + g + 1]):
-            h = ib[oai + e]
-            b = ov + 3 * h
-            s = fb[b] * lx + fb[b + 1] * ly + fb[b + 2] * lz
+        first, end = hull_edges(ib, g)
+        for e in range(first, end):
+            h = hull_neighbour(ib, e)
+            x, y, z = hull_vertex(fb, ib, h)
+            s = x * lx + y * ly + z * lz
             if s > best:
                 best, nxt = s, h
         if nxt == g:
@@ -106,29 +98,28 @@ def climb(fb, ib, v0, v1, start, lx, ly, lz):
 
 
 @_inlined
-def support(fb, ib, wf, wi, s, si, start, nx, ny, nz, out):
-    """World point farthest along (nx, ny, nz) (not necessarily unit) of the shape placed
-    at slot ``s`` of ``wf`` and ``si`` of ``wi`` (see the module doc) into wf[out:out+3];
-    for a hull, returns the vertex row (the next search's ``start``), else -1."""
-    rot, dims = s + W_R, s + W_D
+def support(fb, ib, wf, wi, s, start, nx, ny, nz):
+    """World point (x, y, z) farthest along (nx, ny, nz) (not necessarily unit) of
+    placed shape ``s`` (A or B, see the module doc), and for a hull the vertex row (the
+    next search's ``start``), else -1."""
+    R = placed_rotation(wf, s)  # noqa: N806
     # Direction in the shape's frame: R^T n.
-    lx = wf[rot] * nx + wf[rot + 3] * ny + wf[rot + 6] * nz
-    ly = wf[rot + 1] * nx + wf[rot + 4] * ny + wf[rot + 7] * nz
-    lz = wf[rot + 2] * nx + wf[rot + 5] * ny + wf[rot + 8] * nz
-    kind = wi[si + WS_KIND]
-    a, b, c = wf[dims], wf[dims + 1], wf[dims + 2]
+    lx = R.r00 * nx + R.r10 * ny + R.r20 * nz
+    ly = R.r01 * nx + R.r11 * ny + R.r21 * nz
+    lz = R.r02 * nx + R.r12 * ny + R.r22 * nz
+    kind = placed_kind(wi, s)
+    a, b, c = placed_dims(wf, s)
     x = y = z = 0.0
     found = -1
     if kind == HULL:
-        found = climb(fb, ib, wi[si + WS_HULL], wi[si + WS_HULL_END], start, lx, ly, lz)
-        v = ib[H_V] + 3 * found
-        x, y, z = fb[v], fb[v + 1], fb[v + 2]
+        v0, v1 = placed_hull(wi, s)
+        found = climb(fb, ib, v0, v1, start, lx, ly, lz)
+        x, y, z = hull_vertex(fb, ib, found)
     else:
         x, y, z = support_point(BOX if kind == BOX_ONLY_OUTER else kind, a, b, c, lx, ly, lz)
-    for r in range(3):
-        wf[out + r] = (wf[rot + 3 * r] * x + wf[rot + 3 * r + 1] * y + wf[rot + 3 * r + 2] * z
-                       + wf[s + W_P + r])
-    return found
+    px, py, pz = placed_position(wf, s)
+    return (R.r00 * x + R.r01 * y + R.r02 * z + px, R.r10 * x + R.r11 * y + R.r12 * z + py,
+            R.r20 * x + R.r21 * y + R.r22 * z + pz, found)
 
 
 @_inlined
@@ -267,21 +258,22 @@ def _closest(S, n, v, tmp):  # noqa: N803
 def _first_direction(wf, v, warm):
     """GJK's first search direction ``v``: ``warm`` (the pair's last one), else the line
     between the placed shapes' centres, else x."""
-    pa, pb = W_A + W_P, W_B + W_P
     v[0], v[1], v[2] = warm[0], warm[1], warm[2]
     if _dot(v, v) < 1e-18:
-        v[0], v[1], v[2] = wf[pa] - wf[pb], wf[pa + 1] - wf[pb + 1], wf[pa + 2] - wf[pb + 2]
+        ax, ay, az = placed_position(wf, A)
+        bx, by, bz = placed_position(wf, B)
+        v[0], v[1], v[2] = ax - bx, ay - by, az - bz
         if _dot(v, v) < 1e-18:
             v[0] = 1.0
 
 
 @_inlined
 def _difference_support(fb, ib, wf, wi, hint, v):
-    """The support point of A - B towards -v (A's towards -v at W_SA, B's towards v at
-    W_SB; ``hint`` updated), as (x, y, z): both searches' step."""
-    hint[0] = support(fb, ib, wf, wi, W_A, WI_A, hint[0], -v[0], -v[1], -v[2], W_SA)
-    hint[1] = support(fb, ib, wf, wi, W_B, WI_B, hint[1], v[0], v[1], v[2], W_SB)
-    return wf[W_SA] - wf[W_SB], wf[W_SA + 1] - wf[W_SB + 1], wf[W_SA + 2] - wf[W_SB + 2]
+    """The support point of A - B towards -v (A's towards -v, B's towards v; ``hint``
+    updated), as (x, y, z): both searches' step."""
+    ax, ay, az, hint[0] = support(fb, ib, wf, wi, A, hint[0], -v[0], -v[1], -v[2])
+    bx, by, bz, hint[1] = support(fb, ib, wf, wi, B, hint[1], v[0], v[1], v[2])
+    return ax - bx, ay - by, az - bz
 
 
 @_helper
@@ -293,16 +285,13 @@ def distance_lower_bound(fb, ib, wf, wi, k, low, high):
     The search also stops once the bound reaches ``high`` (enough for the caller) or the
     distance is known to be at most ``low`` (no bound above ``low`` exists).
 
-    Pair ``k``'s row of wf's WI_WARM block is the first search direction (its last one;
-    all zero: the centre line), overwritten with the direction that gave the bound; its
-    row of wi's WI_HINT block, the hull vertices where the support searches of A and B
-    start (updated). wf's W_S (the simplex, 4 rows of 3), W_SA, W_SB, W_GV, W_TMP are
-    scratch.
+    Pair ``k``'s last direction (``_records.pair_warm``) is the first search direction
+    (all zero: the centre line), overwritten with the direction that gave the bound; its
+    hints (``_records.pair_hints``), the hull vertices where the support searches of A
+    and B start (updated). GJK's simplex (``_records.simplex``) is scratch.
     """
-    S = wf[W_S:W_S + 12].reshape((4, 3))  # noqa: N806
-    v, tmp = wf[W_GV:W_GV + 3], wf[W_TMP:W_TMP + 3]
-    ow, oh = wi[WI_WARM] + 3 * k, wi[WI_HINT] + 2 * k
-    warm, hint = wf[ow:ow + 3], wi[oh:oh + 2]
+    S, v, tmp = simplex(wf)  # noqa: N806
+    warm, hint = pair_warm(wf, wi, k), pair_hints(wi, k)
     _first_direction(wf, v, warm)
     lb = -1e300
     ub = 1e300
@@ -365,10 +354,8 @@ def distance_upper_bound(fb, ib, wf, wi, k, goal):
     lies inside A - B, and the origin's depth in it bounds the overlap from below.
     Arguments and scratch as :func:`distance_lower_bound`.
     """
-    S = wf[W_S:W_S + 12].reshape((4, 3))  # noqa: N806
-    v, tmp = wf[W_GV:W_GV + 3], wf[W_TMP:W_TMP + 3]
-    ow, oh = wi[WI_WARM] + 3 * k, wi[WI_HINT] + 2 * k
-    warm, hint = wf[ow:ow + 3], wi[oh:oh + 2]
+    S, v, tmp = simplex(wf)  # noqa: N806
+    warm, hint = pair_warm(wf, wi, k), pair_hints(wi, k)
     _first_direction(wf, v, warm)
     ub = 1e300
     n = 0
