@@ -135,8 +135,7 @@ ENTRIES: dict[str, Entry] = {
     "topp_tridiagonal": Entry(_TOPP, "tridiagonal", (F1, F1, F1, F2), INT),
     "topp_knots": Entry(_TOPP, "knots", (F1, F1, F1, F1, F1, F1, F1, FLOAT, FLOAT, F1, F3, F1,
                                           F1, F1, F2, F2, F2), "void"),
-    "topp_jerk_rows": Entry(_TOPP, "jerk_rows", (F1, F1, F1, F1, F1, F1, F2, F1, F2, F2, F2),
-                            "void"),
+    "topp_jerk_rows": Entry(_TOPP, "jerk_rows", (F1, F1, F1, F1, F2, F1, F2, F2, F2), "void"),
     "topp_jerk_shift": Entry(_TOPP, "jerk_shift", (F2, FLOAT), INT),
     # The peaks of a controller's quintic join (safepath.model._joinkernel).
     "join_peaks": Entry(_JOIN, "_peaks", (F1, F2, F2, F2, FLOAT, F2, F2, F2), "void"),

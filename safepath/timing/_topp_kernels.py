@@ -283,37 +283,26 @@ def _shift_fits(f, m, dt):
 
 
 @njit(cache=True, nogil=True)
-def jerk_rows(times, pt, pgrid, psd, pu, s_way, jmax_seg, grid, dq, ddq, f):
-    """Each joint's acceleration along TOPP-RA's profile (its times ``pt``, gridpoints
-    ``pgrid``, speeds ``psd`` and path accelerations ``pu``) at ``times``, over the jerk
-    limit of the segment (bounded by ``s_way``) it is in, into rows 1.. of ``f`` (rows 0
-    and ``times.size + 1``: at rest, 0); the path's tangent ``dq`` and curvature ``ddq``
-    linear between the gridpoints ``grid``. :func:`safepath.timing._topp.evaluate` and
-    :func:`safepath.timing.path_timing._jerk_window`'s sums, one time at a time."""
+def jerk_rows(s, sd, u, s_way, jmax_seg, grid, dq, ddq, f):
+    """Each joint's acceleration along TOPP-RA's profile, at its path parameters ``s``,
+    speeds ``sd`` and path accelerations ``u`` (:func:`safepath.timing._topp.evaluate`),
+    over the jerk limit of the segment (bounded by ``s_way``) it is in, into rows 1.. of
+    ``f`` (rows 0 and ``s.size + 1``: at rest, 0); the path's tangent ``dq`` and
+    curvature ``ddq`` linear between the gridpoints ``grid``.
+    :func:`safepath.timing.path_timing._jerk_window`'s sums, one sample at a time."""
     dof = dq.shape[1]
-    nt = pt.size
     for j in range(dof):
         f[0, j] = 0.0
-        f[times.size + 1, j] = 0.0
-    for i in range(times.size):
-        x = times[i]
-        k = piece_of(pt, x)
-        h = x - pt[k]
-        u = pu[k]
-        sd0 = psd[k]
-        s = pgrid[k] + h * sd0 + 0.5 * h * h * u
-        sd = sd0 + h * u
-        s = min(max(s, pgrid[0]), pgrid[pgrid.size - 1])
-        sd = max(sd, 0.0)
-        if i == times.size - 1 and x >= pt[nt - 1]:
-            s, sd = pgrid[pgrid.size - 1], 0.0
-        seg = piece_of(s_way, s)
-        g = piece_of(grid, s)
-        w = (s - grid[g]) / (grid[g + 1] - grid[g])
+        f[s.size + 1, j] = 0.0
+    for i in range(s.size):
+        seg = piece_of(s_way, s[i])
+        g = piece_of(grid, s[i])
+        w = (s[i] - grid[g]) / (grid[g + 1] - grid[g])
+        x = sd[i] * sd[i]
         for j in range(dof):
             ps = dq[g, j] + w * (dq[g + 1, j] - dq[g, j])
             pss = ddq[g, j] + w * (ddq[g + 1, j] - ddq[g, j])
-            f[i + 1, j] = (ps * u + pss * (sd * sd)) / jmax_seg[seg, j]
+            f[i + 1, j] = (ps * u[i] + pss * x) / jmax_seg[seg, j]
 
 
 @njit(cache=True, nogil=True)

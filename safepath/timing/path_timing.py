@@ -424,12 +424,12 @@ def _jerk_window(profile: _topp.Profile, limits: PathLimits, options: TimingOpti
     # Along the profile; the path's tangent and curvature between gridpoints linear in s
     # (a cubic's are quadratic and linear; gridpoints lie <= grid_step apart). At rest
     # (zero acceleration) before and after: the first and last changes count.
+    s, sd, u = _topp.evaluate(profile, t)
     at = limits.at_grid
     f = np.empty((t.size + 2, at.dq.shape[1]))
     kernels = _topp.compiled_kernels()
-    kernels["jerk_rows"](t, profile.t, profile.grid, profile.sd, profile.u,
-                         *(np.ascontiguousarray(x, dtype=np.float64) for x in (
-                             limits.s_way, limits.jmax_seg, limits.grid, at.dq, at.ddq)), f)
+    kernels["jerk_rows"](*(np.ascontiguousarray(x, dtype=np.float64) for x in (
+        s, sd, u, limits.s_way, limits.jmax_seg, limits.grid, at.dq, at.ddq)), f)
     lo = kernels["jerk_shift"](f, float(dt))
     return max(lo * dt * options.jerk_window, options.knot_period)
 
