@@ -68,6 +68,13 @@ _inlined = njit(cache=True, nogil=True, _nrt=False, inline="always")
 # safepath.model._primitives.
 BOX, BOX_ONLY_OUTER = ENV_BOX, ENV_BOX_ONLY_OUTER
 
+
+@_inlined
+def table_kind(kind):
+    """The shape table's kind a kernel kind is measured as by
+    :mod:`safepath.model._primitives`: the box about an object is a box."""
+    return BOX if kind == BOX_ONLY_OUTER else kind
+
 #: Absolute tolerance [m]: the search stops once the bound is this close to the distance
 #: of the current simplex (an upper bound).
 TOL = 2e-4
@@ -116,7 +123,7 @@ def support(fb, ib, wf, wi, s, start, nx, ny, nz):
         found = climb(fb, ib, v0, v1, start, lx, ly, lz)
         x, y, z = hull_vertex(fb, ib, found)
     else:
-        x, y, z = support_point(BOX if kind == BOX_ONLY_OUTER else kind, a, b, c, lx, ly, lz)
+        x, y, z = support_point(table_kind(kind), a, b, c, lx, ly, lz)
     px, py, pz = placed_position(wf, s)
     return (R.r00 * x + R.r01 * y + R.r02 * z + px, R.r10 * x + R.r11 * y + R.r12 * z + py,
             R.r20 * x + R.r21 * y + R.r22 * z + pz, found)

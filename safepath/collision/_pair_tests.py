@@ -20,7 +20,7 @@ import math
 
 from .._aot import njit
 from ..model._primitives import extent, own_axes, round_about_z, signed_distance
-from ._gjk import HULL, distance_lower_bound, distance_upper_bound
+from ._gjk import HULL, distance_lower_bound, distance_upper_bound, table_kind
 from ._layout import (
     ENV_BOX,
     ENV_BOX_ONLY_OUTER,
@@ -76,14 +76,14 @@ def _env_sdist3(fb, ib, e, px, py, pz):  # noqa: N803
     z = R.r02 * dx + R.r12 * dy + R.r22 * dz
     a, b, c = env_dims(fb, ib, e)
     kind = env_kind(ib, e)
-    return signed_distance(ENV_BOX if kind == ENV_BOX_ONLY_OUTER else kind, a, b, c, x, y, z)
+    return signed_distance(table_kind(kind), a, b, c, x, y, z)
 
 
 @_inlined
 def _support(kind, s, d0, d1, d2, wf, nx, ny, nz):  # noqa: N803
     """Half extent [m] along unit n of the primitive placed as shape ``s`` (A or B), of
     dimensions (d0, d1, d2)."""
-    return extent(ENV_BOX if kind == ENV_BOX_ONLY_OUTER else kind, d0, d1, d2, wf,
+    return extent(table_kind(kind), d0, d1, d2, wf,
                   placed_rotation_start(s), nx, ny, nz)
 
 
@@ -92,7 +92,7 @@ def _primitive_axes(kind, s, wf, n):  # noqa: N803
     """Append the own axes of the primitive placed as shape ``s`` (box: its three face
     normals; cylinder, capsule: its z axis) to the candidate axes from row ``n``; returns
     the new row count."""
-    first, count = own_axes(ENV_BOX if kind == ENV_BOX_ONLY_OUTER else kind)
+    first, count = own_axes(table_kind(kind))
     if count == 3:  # columns first .. first + 2, unrolled
         for c in range(3):
             x, y, z = placed_axis(wf, s, first + c)
