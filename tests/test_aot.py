@@ -101,7 +101,7 @@ def recorded() -> dict[str, list[tuple[Any, ...]]]:
     from safepath.collision import _bounds
     from safepath.collision import _kernels as _fastkernels
     from safepath.kinematics import _ik_kernel
-    from safepath.model import _joinkernel
+    from safepath.model import _fk_kernel, _joinkernel
     from safepath.monitor import _kernels as _monitor_kernels
     from safepath.timing import _topp
     from safepath.verify import _kernel as _verify_kernel
@@ -117,7 +117,8 @@ def recorded() -> dict[str, list[tuple[Any, ...]]]:
         return call
 
     patched: list[tuple[Any, str, Any]] = []
-    for module in (_fastkernels, _bounds, _verify_kernel, _ik_kernel, _monitor_kernels):
+    for module in (_fastkernels, _bounds, _verify_kernel, _ik_kernel, _monitor_kernels,
+                   _fk_kernel):
         for (mod, function), name in by_function.items():
             if mod == module.__name__:
                 patched.append((module, function, getattr(module, function)))

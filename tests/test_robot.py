@@ -110,12 +110,36 @@ def test_frame_pose_matches_finite_differences_of_joint_1(robot: Robot) -> None:
     np.testing.assert_allclose(p1, rot @ p0, atol=1e-12)
 
 
-def test_tcp_positions_are_tcp_position_of_each_row(robot: Robot) -> None:
+@pytest.mark.parametrize("name", ["ned3pro", "gen3_lite", "panda", "kinova"])
+def test_tcp_positions_and_speeds_are_pinocchios(name: str, monkeypatch) -> None:
+    """The compiled pass over the chain to the TCP gives Pinocchio's TCP positions and
+    linear speeds (world frame) of each row, to rounding; so does the fallback for a chain
+    the kernel cannot follow (here: made to have none)."""
+    robot = safepath.load_robot(name)
     rng = np.random.default_rng(3)
-    q_path = rng.uniform(robot.lower, robot.upper, (25, robot.dof))
-    got = robot.tcp_positions(q_path)
-    assert got.shape == (25, 3)
-    assert got.tobytes() == np.array([robot.tcp_position(q) for q in q_path]).tobytes()
+    q_path = rng.uniform(np.maximum(robot.lower, -4.0), np.minimum(robot.upper, 4.0),
+                         (25, robot.dof))
+    qd_path = rng.normal(0.0, 1.0, (25, robot.dof))
+    model, data, fid = robot.model, robot.model.createData(), robot.tcp_frame_id
+    world = pin.ReferenceFrame.LOCAL_WORLD_ALIGNED
+    want_p, want_v = [], []
+    for q, qd in zip(q_path, qd_path, strict=True):
+        pin.forwardKinematics(model, data, q, qd)
+        want_p.append(pin.updateFramePlacement(model, data, fid).translation.copy())
+        want_v.append(np.linalg.norm(pin.getFrameVelocity(model, data, fid, world).linear))
+    assert robot.tcp_chain() is not None
+    for kernel in (True, False):
+        if not kernel:
+            monkeypatch.setattr(robot, "tcp_chain", lambda: None)
+        got_p, got_v = robot.tcp_positions(q_path), robot.tcp_speeds(q_path, qd_path)
+        assert got_p.shape == (25, 3) and got_v.shape == (25,)
+        np.testing.assert_allclose(got_p, want_p, rtol=0.0, atol=1e-12)
+        np.testing.assert_allclose(got_v, want_v, rtol=1e-12, atol=1e-12)
+    # And the speed is the positions' rate along a joint motion (finite differences).
+    h = 1e-6
+    rates = (robot.tcp_positions(q_path + h * qd_path)
+             - robot.tcp_positions(q_path - h * qd_path)) / (2 * h)
+    np.testing.assert_allclose(np.linalg.norm(rates, axis=1), want_v, rtol=1e-6, atol=1e-8)
 
 
 def test_unknown_frame_lists_frames(robot: Robot) -> None:

@@ -116,6 +116,9 @@ ENTRIES: dict[str, Entry] = {
     "ik_tcp_jacobian": Entry(_IK, "tcp_jacobian", (F2, I2, F1, F1, F2), "void"),
     "ik_log6": Entry(_IK, "log6", (F2, F1, F1), "void"),
     "ik_jlog6": Entry(_IK, "jlog6", (F2, F1, F2), "void"),
+    # The TCP's positions and speeds (safepath.Robot.tcp_positions, tcp_speeds).
+    "model_tcp_motion": Entry(_FK[0], "tcp_motion",
+                              (F2, I2, F1, F2, F2, BOOL, F3, F2, F1, F2, F1), "void"),
     # The monitor (safepath.monitor: separation bounds, speed profiles).
     "monitor_bucket": Entry(_MONITOR, "bucket", (F2, FLOAT),
                             f"Tuple(({F2}, {F2}, {I1}, {F2}, {I1}))"),

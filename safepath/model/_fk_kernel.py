@@ -2,8 +2,10 @@
 joint table (:mod:`safepath.model._joint_table`) at a configuration.
 
 One code path for the sphere layer (:mod:`safepath.collision._placement`, the whole
-tree) and the inverse kinematics of Cartesian lines (:mod:`safepath.kinematics._ik_kernel`,
-the chain to the TCP). The release check keeps its own kinematics
+tree), the inverse kinematics of Cartesian lines (:mod:`safepath.kinematics._ik_kernel`,
+the chain to the TCP) and the TCP's positions and speeds along a path
+(:func:`tcp_motion`, behind :meth:`safepath.Robot.tcp_speeds`: timing's TCP speed
+limits). The release check keeps its own kinematics
 (:mod:`safepath.verify._kernel`) on purpose: it must not share a fault with the planner
 it checks.
 
@@ -28,7 +30,7 @@ import math
 from .._aot import njit
 from ._joint_table import FIXED, JF_R, JF_T, JF_V, JF_W, JI_KIND, JI_PARENT, JI_Q
 
-__all__ = ["exp3", "joint_frames"]
+__all__ = ["exp3", "joint_frames", "tcp_motion"]
 
 # Below this angle [rad] exp3's closed form loses precision and a Taylor series is used
 # (Pinocchio's threshold: eps ** (1/4)).
@@ -90,3 +92,48 @@ def joint_frames(q, jf, ji, Rw, pw):  # noqa: N803
         for r in range(3):
             pw[j, r] = (pw[parent, r] + Rw[parent, r, 0] * l0 + Rw[parent, r, 1] * l1
                         + Rw[parent, r, 2] * l2)
+
+
+@njit(cache=True, nogil=True)
+def tcp_motion(jf, ji, frame_f, q_path, qd_path, speed, Rw, pw, q, p_out, v_out):  # noqa: N803
+    """The TCP's world position (p_out (n, 3) [m]) at each row of ``q_path`` (n, nq) and,
+    if ``speed``, the norm of its linear velocity at the velocities ``qd_path`` (v_out
+    (n,) [m/s]), over a chain table (``jf``, ``ji``: the joints from the root to the TCP's
+    parent joint, each the parent of the next) and the TCP's placement in its last joint
+    (``frame_f``: rotation 0-8 row-major, translation 9-11). ``Rw`` (k, 3, 3), ``pw``
+    (k, 3) and ``q`` (nq,) are scratch."""
+    k = jf.shape[0]
+    for i in range(q_path.shape[0]):
+        for c in range(q.size):
+            q[c] = q_path[i, c]
+        joint_frames(q, jf, ji, Rw, pw)
+        if k == 0:
+            px, py, pz = frame_f[9], frame_f[10], frame_f[11]
+        else:
+            e = k - 1
+            px = (pw[e, 0] + Rw[e, 0, 0] * frame_f[9] + Rw[e, 0, 1] * frame_f[10]
+                  + Rw[e, 0, 2] * frame_f[11])
+            py = (pw[e, 1] + Rw[e, 1, 0] * frame_f[9] + Rw[e, 1, 1] * frame_f[10]
+                  + Rw[e, 1, 2] * frame_f[11])
+            pz = (pw[e, 2] + Rw[e, 2, 0] * frame_f[9] + Rw[e, 2, 1] * frame_f[10]
+                  + Rw[e, 2, 2] * frame_f[11])
+        p_out[i, 0], p_out[i, 1], p_out[i, 2] = px, py, pz
+        if not speed:
+            continue
+        vx = vy = vz = 0.0
+        for j in range(k):
+            x = qd_path[i, ji[j, JI_Q]]
+            # The joint's angular (w) and linear (v) motion per unit speed, world axes.
+            ax, ay, az = jf[j, JF_W], jf[j, JF_W + 1], jf[j, JF_W + 2]
+            lx, ly, lz = jf[j, JF_V], jf[j, JF_V + 1], jf[j, JF_V + 2]
+            wx = Rw[j, 0, 0] * ax + Rw[j, 0, 1] * ay + Rw[j, 0, 2] * az
+            wy = Rw[j, 1, 0] * ax + Rw[j, 1, 1] * ay + Rw[j, 1, 2] * az
+            wz = Rw[j, 2, 0] * ax + Rw[j, 2, 1] * ay + Rw[j, 2, 2] * az
+            dx, dy, dz = px - pw[j, 0], py - pw[j, 1], pz - pw[j, 2]
+            vx += x * (Rw[j, 0, 0] * lx + Rw[j, 0, 1] * ly + Rw[j, 0, 2] * lz
+                       + wy * dz - wz * dy)
+            vy += x * (Rw[j, 1, 0] * lx + Rw[j, 1, 1] * ly + Rw[j, 1, 2] * lz
+                       + wz * dx - wx * dz)
+            vz += x * (Rw[j, 2, 0] * lx + Rw[j, 2, 1] * ly + Rw[j, 2, 2] * lz
+                       + wx * dy - wy * dx)
+        v_out[i] = math.sqrt(vx * vx + vy * vy + vz * vz)

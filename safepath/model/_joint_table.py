@@ -17,12 +17,14 @@ this file's source).
 from __future__ import annotations
 
 from collections.abc import Sequence
+from dataclasses import dataclass
 
 import numpy as np
 import pinocchio as pin
 
 __all__ = ["JF_R", "JF_T", "JF_V", "JF_W", "JF_WIDTH", "JI_PARENT", "JI_KIND", "JI_Q",
-           "JI_WIDTH", "FIXED", "REVOLUTE", "PRISMATIC", "HELICAL", "WORLD", "joint_table"]
+           "JI_WIDTH", "FIXED", "REVOLUTE", "PRISMATIC", "HELICAL", "WORLD", "Chain",
+           "chain_joints", "frame_chain", "joint_table", "not_a_screw"]
 
 # Float columns.
 #: The placement's rotation in the parent joint's frame, row-major (9 columns).
@@ -78,3 +80,55 @@ def joint_table(model: pin.Model, joints: Sequence[int], parents: Sequence[int]
                             else PRISMATIC)
         ji[row, JI_Q] = model.joints[j].idx_q
     return jf, ji
+
+
+@dataclass(frozen=True)
+class Chain:
+    """The kinematic chain from the root to a frame, as the kernels read it.
+
+    Attributes:
+        joint_f: The float table of the joints from the root to the frame's parent joint,
+            in order, each the parent of the next (n, JF_WIDTH).
+        joint_i: Their int table (n, JI_WIDTH).
+        frame_f: The frame's placement in the last joint: rotation (0-8, row-major),
+            translation (9-11) [m].
+    """
+
+    joint_f: np.ndarray
+    joint_i: np.ndarray
+    frame_f: np.ndarray
+
+
+def chain_joints(model: pin.Model, frame_id: int) -> list[int]:
+    """The joints (pinocchio indices) from the root to frame ``frame_id``'s parent joint."""
+    return [j for j in model.supports[model.frames[frame_id].parentJoint] if j != 0]
+
+
+def not_a_screw(model: pin.Model, joints: Sequence[int], q_test: np.ndarray) -> int | None:
+    """The first of ``joints`` that does not move as a screw of constant axis (revolute,
+    prismatic or helical: the joint table's kinds), judged at the configuration
+    ``q_test`` (inside the limits, finite, away from 0); None when all do."""
+    data = model.createData()
+    pin.forwardKinematics(model, data, q_test)
+    for j in joints:
+        S = np.asarray(data.joints[j].S, dtype=float).reshape(6)
+        x = float(q_test[model.idx_qs[j]])
+        moved = pin.exp6(pin.Motion(S * x))
+        angular = float(np.linalg.norm(S[3:]))
+        if (not (abs(angular - 1.0) < 1e-12 or angular == 0.0)
+                or np.linalg.norm(np.cross(S[:3], S[3:])) > 1e-12
+                or not data.joints[j].M.isApprox(moved, 1e-12)):
+            return j
+    return None
+
+
+def frame_chain(model: pin.Model, frame_id: int, q_test: np.ndarray) -> Chain | None:
+    """The chain from the root to frame ``frame_id``; None when one of its joints is not a
+    screw (:func:`not_a_screw`, judged at ``q_test``)."""
+    joints = chain_joints(model, frame_id)
+    if not_a_screw(model, joints, q_test) is not None:
+        return None
+    joint_f, joint_i = joint_table(model, joints, [WORLD, *range(len(joints) - 1)])
+    frame = model.frames[frame_id]
+    return Chain(joint_f, joint_i,
+                 np.concatenate([frame.placement.rotation.reshape(9), frame.placement.translation]))

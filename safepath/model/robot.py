@@ -18,6 +18,7 @@ import pinocchio as pin
 from ..errors import ConfigError, FrameNotFound, PoseError
 from ..files._io import brief
 from ..files.derived import Derived, DerivedValues
+from ._joint_table import Chain, frame_chain
 from ._locked import LockedJoint
 from .controller_spec import ControllerSpec
 from .limits import MotionLimits, limit_vector
@@ -154,6 +155,7 @@ class Robot:
         self.locked_joints: tuple[LockedJoint, ...] = tuple(locked_joints)
         self._local = threading.local()  # one pinocchio Data per thread
         self._derived = DerivedValues()  # shared by its copies with another tool
+        self._chain: tuple[tuple[Any, ...], Chain | None] | None = None  # tcp_chain's
 
     # -- basic facts -------------------------------------------------------------------
     @property
@@ -302,24 +304,61 @@ class Robot:
 
     def tcp_positions(self, q_path: np.ndarray) -> np.ndarray:
         """TCP positions in the world frame [m] (n, 3) at the joint positions ``q_path``
-        (n, dof): :meth:`tcp_position` of each row, without a pose object per row."""
-        model, data, fid = self.model, self._data(), self.tcp_frame_id
-        out = np.empty((len(q_path), 3))
-        for k, q in enumerate(q_path):
-            pin.forwardKinematics(model, data, q)
-            out[k] = pin.updateFramePlacement(model, data, fid).translation
-        return out
+        (n, dof): :meth:`tcp_position` of each row, in one compiled pass over the chain
+        to the TCP (:meth:`tcp_chain`; Pinocchio row by row where it has none)."""
+        return self._tcp_motion(q_path, None)[0]
 
     def tcp_speeds(self, q_path: np.ndarray, qd_path: np.ndarray) -> np.ndarray:
         """Speeds of the TCP [m/s] (n,) at the joint positions ``q_path`` and velocities
         ``qd_path`` (n, dof): the norm of its linear velocity in the world frame."""
+        return self._tcp_motion(q_path, qd_path)[1]
+
+    def tcp_chain(self) -> Chain | None:
+        """The chain from the root to the TCP as the planner's kernels read it (a joint
+        table, :mod:`safepath.model._joint_table`), kept per TCP frame; None when a joint on
+        it is not a revolute, prismatic or helical joint."""
+        # Kept by identity of the model (not in :attr:`derived`, whose currency check
+        # reads every collision geometry's placement: 30 us, more than the TCP's speeds
+        # along a path take).
+        key = (self.model, int(self.tcp_frame_id), self.lower.tobytes(), self.upper.tobytes())
+        kept = self._chain
+        if kept is None or kept[0][0] is not key[0] or kept[0][1:] != key[1:]:
+            kept = self._chain = (key, frame_chain(self.model, key[1], self.chain_test_q()))
+        return kept[1]
+
+    def chain_test_q(self) -> np.ndarray:
+        """A configuration inside the limits, finite and away from 0, at which the chain's
+        joints are told apart (:func:`~safepath.model._joint_table.not_a_screw`)."""
+        return np.clip(np.full(self.model.nq, 0.7), self.lower, self.upper)
+
+    def _tcp_motion(self, q_path: np.ndarray, qd_path: np.ndarray | None
+                    ) -> tuple[np.ndarray, np.ndarray]:
+        """TCP positions (n, 3) [m] and, with ``qd_path``, speeds (n,) [m/s]."""
+        q_path = np.ascontiguousarray(q_path, dtype=np.float64).reshape(-1, self.model.nq)
+        n = q_path.shape[0]
+        speed = qd_path is not None
+        qd = (np.ascontiguousarray(qd_path, dtype=np.float64).reshape(n, self.model.nv)
+              if speed else q_path[:0])
+        chain = self.tcp_chain()
+        p_out, v_out = np.empty((n, 3)), np.empty(n if speed else 0)
+        if chain is not None:
+            from . import _fk_kernel
+
+            k = chain.joint_f.shape[0]
+            _fk_kernel.tcp_motion(chain.joint_f, chain.joint_i, chain.frame_f, q_path, qd,
+                                  speed, np.empty((k, 3, 3)), np.empty((k, 3)),
+                                  np.empty(self.model.nq), p_out, v_out)
+            return p_out, v_out
         model, data, fid = self.model, self._data(), self.tcp_frame_id
         world = pin.ReferenceFrame.LOCAL_WORLD_ALIGNED
-        out = np.empty((len(q_path), 3))
-        for k, (q, qd) in enumerate(zip(q_path, qd_path, strict=True)):
-            pin.forwardKinematics(model, data, q, qd)
-            out[k] = pin.getFrameVelocity(model, data, fid, world).linear
-        return np.sqrt(np.einsum("ij,ij->i", out, out))
+        for k, q in enumerate(q_path):
+            if speed:
+                pin.forwardKinematics(model, data, q, qd[k])
+                v_out[k] = np.linalg.norm(pin.getFrameVelocity(model, data, fid, world).linear)
+            else:
+                pin.forwardKinematics(model, data, q)
+            p_out[k] = pin.updateFramePlacement(model, data, fid).translation
+        return p_out, v_out
 
     def _data(self) -> pin.Data:
         """This thread's pinocchio data of the model."""

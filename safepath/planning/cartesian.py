@@ -19,15 +19,13 @@ bundled cell's lines).
 from __future__ import annotations
 
 import logging
-from dataclasses import dataclass
 
 import numpy as np
 import pinocchio as pin
 
 from ..errors import ConfigError, IKError
-from ..files.derived import DerivedKind
 from ..kinematics.ik import DAMPING, LineOptions
-from ..model._joint_table import WORLD, joint_table
+from ..model._joint_table import Chain, chain_joints, not_a_screw
 from ..model.robot import Robot
 
 __all__ = ["cartesian_line"]
@@ -87,51 +85,20 @@ def cartesian_line(robot: Robot, q_start: np.ndarray, q_goal: np.ndarray, *,
     return list(path)
 
 
-@dataclass(frozen=True)
-class _Chain:
-    """The kinematic chain from the root to the TCP for the kernel: a joint table
-    (:mod:`safepath.model._joint_table`) and the TCP's placement in its last joint (layout in
-    :mod:`safepath.kinematics._ik_kernel`)."""
-
-    joint_f: np.ndarray
-    joint_i: np.ndarray
-    frame_f: np.ndarray
-
-
-#: The chain to the TCP, kept by the robot per TCP frame (:mod:`safepath.files.derived`).
-LINE_CHAIN: DerivedKind[_Chain] = DerivedKind("Cartesian lines' joint chain to the TCP")
-
-
-def line_chain(robot: Robot) -> _Chain:
-    """The robot's chain to its TCP, made once per robot and TCP frame (kept by the
-    robot: :mod:`safepath.files.derived`).
+def line_chain(robot: Robot) -> Chain:
+    """The robot's chain to its TCP (a joint table, :mod:`safepath.model._joint_table`, and
+    the TCP's placement in its last joint), kept by the robot (:meth:`Robot.tcp_chain`).
 
     Raises:
         ConfigError: A joint on the chain does not move as a screw of constant axis
             (revolute, prismatic or helical), which the kernel assumes.
     """
-    return robot.derived.get(LINE_CHAIN, lambda: _make_chain(robot),
-                             options=int(robot.tcp_frame_id))
-
-
-def _make_chain(robot: Robot) -> _Chain:
-    model = robot.model
-    data = model.createData()
-    frame = model.frames[robot.tcp_frame_id]
-    joints = [j for j in model.supports[frame.parentJoint] if j != 0]
-    q_test = np.clip(np.full(model.nq, 0.7), robot.lower, robot.upper)  # inside, finite
-    pin.forwardKinematics(model, data, q_test)
-    for j in joints:
-        S = np.asarray(data.joints[j].S, dtype=float).reshape(6)
-        x = float(q_test[model.idx_qs[j]])
-        moved = pin.exp6(pin.Motion(S * x))
-        angular = float(np.linalg.norm(S[3:]))
-        if (not (abs(angular - 1.0) < 1e-12 or angular == 0.0)
-                or np.linalg.norm(np.cross(S[:3], S[3:])) > 1e-12
-                or not data.joints[j].M.isApprox(moved, 1e-12)):
-            raise ConfigError(f"joint '{model.names[j]}' ({model.joints[j].shortname()}) is "
-                              "not a revolute, prismatic or helical joint; Cartesian lines "
-                              "cannot follow it", path=robot.source, key="urdf")
-    joint_f, joint_i = joint_table(model, joints, [WORLD, *range(len(joints) - 1)])
-    frame_f = np.concatenate([frame.placement.rotation.reshape(9), frame.placement.translation])
-    return _Chain(joint_f, joint_i, frame_f)
+    chain = robot.tcp_chain()
+    if chain is None:
+        model = robot.model
+        j = not_a_screw(model, chain_joints(model, robot.tcp_frame_id), robot.chain_test_q())
+        assert j is not None  # the one that made the chain None
+        raise ConfigError(f"joint '{model.names[j]}' ({model.joints[j].shortname()}) is not a "
+                          "revolute, prismatic or helical joint; Cartesian lines cannot "
+                          "follow it", path=robot.source, key="urdf")
+    return chain
