@@ -153,7 +153,7 @@ def path_limits(robot: Robot, path: PathSpline, s_way: np.ndarray, scales: Seque
     seg_of_grid = interval_index(s_way, grid, last + 1)
     # A gridpoint on a segment boundary ends one segment and starts the next: the
     # smaller limits of the two hold there.
-    seg_before = np.clip(np.searchsorted(s_way, grid, side="left") - 1, 0, last)
+    seg_before = np.minimum(np.maximum(np.searchsorted(s_way, grid, side="left") - 1, 0), last)
     scale_grid = np.minimum(seg_scales[seg_of_grid], seg_scales[seg_before])
     v_seg = tcp_limits(tcp_speeds)
     v_grid = np.minimum(v_seg[seg_of_grid], v_seg[seg_before])
@@ -188,21 +188,39 @@ class _Bounds:
 
     def __init__(self, robot: Robot, path: PathSpline, s_way: np.ndarray, grid: np.ndarray,
                  dq: np.ndarray, jerk_scale: float, tcp: bool) -> None:
-        self._robot = robot
-        self._dq = dq
-        self._jerk_scale = jerk_scale
         eps = 1e-9 * max(1.0, float(grid[-1]))
         # q''' of the pieces on both sides of each gridpoint.
-        self._d3 = np.maximum(np.abs(path(grid, 3)),
-                              np.abs(path(np.maximum(grid - eps, 0.0), 3)))
+        d3 = np.maximum(np.abs(path(grid, 3)), np.abs(path(np.maximum(grid - eps, 0.0), 3)))
+        # Per gridpoint, the largest joint speed per path speed over its limit, and the
+        # largest q''' over its share of the jerk limit: the bounds scale them (computed
+        # once, whatever the scales).
+        self._v_peak = row_max(np.abs(dq) / robot.velocity_limits)
+        self._j_peak = row_max(d3 / (JERK_SPEED_SHARE * jerk_scale * robot.jerk_limits))
+        self._joint: tuple[np.ndarray, np.ndarray] | None = None  # (scale, its bound)
         self.rate = _tcp_rate(robot, path, s_way, grid) if tcp else None
+
+    def joint(self, scale: np.ndarray) -> np.ndarray:
+        """The bound [1/s^2] that the joint velocity limits and the path's
+        third-derivative term of the jerk (``|q'''_j(s)| sdot^3`` within
+        :data:`JERK_SPEED_SHARE` of each joint's jerk limit) give under the speed
+        ``scale`` at each gridpoint (the last scale's bound is kept)."""
+        kept = self._joint
+        if kept is not None and np.array_equal(kept[0], scale):
+            return kept[1]
+        cap = np.sqrt(_topp.X_CAP)
+        with np.errstate(divide="ignore"):
+            sd_v = np.where(self._v_peak > 1e-12, scale / np.maximum(self._v_peak, 1e-300), cap)
+            sd_j = np.where(self._j_peak > 1e-12,
+                            np.cbrt(scale / np.maximum(self._j_peak, 1e-300)), cap)
+        bound = np.minimum(np.minimum(sd_v, sd_j), cap) ** 2
+        self._joint = (scale.copy(), bound)
+        return bound
 
     def __call__(self, scale: np.ndarray, v_tcp: np.ndarray) -> np.ndarray:
         """The bound [1/s^2] under the speed ``scale`` and TCP speed limits ``v_tcp``
         [m/s] (inf: none) at each gridpoint: joint velocities, the path's
-        third-derivative term of the jerk, the TCP's speed."""
-        xmax = np.minimum(_speed_bound(self._robot, self._dq, scale) ** 2,
-                          _jerk_xmax(self._robot, self._d3, scale * self._jerk_scale))
+        third-derivative term of the jerk (:meth:`joint`), the TCP's speed."""
+        xmax = self.joint(scale)
         if self.rate is None:
             return xmax
         with np.errstate(divide="ignore"):
@@ -223,17 +241,6 @@ def straight_pieces(path: PathSpline) -> np.ndarray | None:
     if coef is None:
         return None
     return np.all(coef[:, 2:, :] == 0.0, axis=(1, 2))
-
-
-def _jerk_xmax(robot: Robot, d3: np.ndarray, scale: np.ndarray) -> np.ndarray:
-    """Bound on ``x`` that keeps the path's third-derivative term of every joint's jerk,
-    ``|q'''_j(s)| sdot^3``, within :data:`JERK_SPEED_SHARE` of its limit, where the
-    path's third derivative is ``d3`` (points, dof)."""
-    jmax = JERK_SPEED_SHARE * scale[:, None] * robot.jerk_limits
-    with np.errstate(divide="ignore", over="ignore"):
-        sd = np.min(np.where(d3 > 1e-12, (jmax / np.maximum(d3, 1e-300)) ** (1.0 / 3.0),
-                             np.inf), axis=1)
-    return np.minimum(sd, np.sqrt(_topp.X_CAP)) ** 2
 
 
 def _tcp_rate(robot: Robot, path: PathSpline, s_way: np.ndarray, grid: np.ndarray
@@ -271,7 +278,7 @@ def gridpoints(breaks: np.ndarray, s_way: np.ndarray, step: float,
     grid = np.append(breaks[piece] + pieces[piece] * (j / counts[piece]), length)
     # A segment boundary replaces a gridpoint it (almost) falls on, or is added.
     near = 1e-9 * max(1.0, length)
-    after = np.clip(np.searchsorted(grid, s_way), 1, grid.size - 1)
+    after = np.minimum(np.maximum(np.searchsorted(grid, s_way), 1), grid.size - 1)
     nearest = np.where(grid[after] - s_way < s_way - grid[after - 1], after, after - 1)
     on = np.abs(grid[nearest] - s_way) <= near
     grid[nearest[on]] = s_way[on]
@@ -326,14 +333,6 @@ def sliding_min(values: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> np.ndarra
         at = np.flatnonzero(level == k)
         out[at] = np.minimum(table[k][lo[at]], table[k][hi[at] - (1 << k)])
     return out
-
-
-def _speed_bound(robot: Robot, dq: np.ndarray, scale: np.ndarray) -> np.ndarray:
-    """The largest path speed the joint velocity limits allow at each point [1/s]."""
-    peak = row_max(np.abs(dq) / robot.velocity_limits)
-    with np.errstate(divide="ignore"):
-        sd_max = np.where(peak > 1e-12, scale / np.maximum(peak, 1e-300), np.inf)
-    return np.minimum(sd_max, np.sqrt(_topp.X_CAP))
 
 
 def row_max(values: np.ndarray) -> np.ndarray:

@@ -110,7 +110,7 @@ def evaluate(sm: Smoothed, t: np.ndarray) -> tuple[np.ndarray, ...]:
     s, sd, sdd, sddd = acc[0], acc[1], acc[2], acc[3]
     end = sm.duration
     L = sm.profile.grid[-1]  # noqa: N806
-    s = np.clip(s, 0.0, L)
+    s = np.minimum(np.maximum(s, 0.0), L)
     sd = np.maximum(sd, 0.0)
     done = t >= end
     s[done], sd[done], sdd[done], sddd[done] = L, 0.0, 0.0, 0.0

@@ -144,7 +144,7 @@ def evaluate(profile: Profile, t: np.ndarray) -> tuple[np.ndarray, np.ndarray, n
     sd0 = profile.sd[k]
     s = profile.grid[k] + dt * sd0 + 0.5 * dt * dt * u
     sd = sd0 + dt * u
-    s = np.clip(s, profile.grid[0], profile.grid[-1])
+    s = np.minimum(np.maximum(s, profile.grid[0]), profile.grid[-1])
     sd = np.maximum(sd, 0.0)
     if t.size and t[-1] >= profile.t[-1]:
         s[-1], sd[-1] = profile.grid[-1], 0.0
