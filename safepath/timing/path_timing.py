@@ -555,6 +555,10 @@ _TCP_NEAR = 0.95
 #: finite differences on a 15 mrad grid, linear in between) was at most 8.6 % off the
 #: forward kinematics at the knots over half their limit in the bundled cells' plans.
 _TCP_SCREEN = 0.7
+#: How far below the largest sampled TCP speed ratio a sample's interval is sampled again,
+#: :data:`_TCP_FINER` times as densely (:meth:`_TcpLimits.ratio`).
+_TCP_REFINE = 1e-3
+_TCP_FINER = 8
 
 
 @dataclass(frozen=True)
@@ -607,11 +611,28 @@ class _TcpLimits:
         at = at[ends >= _TCP_NEAR]
         if at.size == 0:
             return worst
-        frac = np.linspace(0.0, 1.0, self.samples + 1)[1:-1]
+        parts = max(2, self.samples)
+        sampled = self._sampled(t, q, qd, qdd, at, limit[at], parts)
+        worst = max(worst, float(sampled.max()))
+        # The largest speed lies between samples: where a sample comes within
+        # _TCP_REFINE of the worst, the interval is sampled _TCP_FINER times as densely
+        # (a smooth peak's sampling error shrinks with the square of the spacing).
+        top = np.flatnonzero(sampled >= worst - _TCP_REFINE) // (parts - 1)  # sorted
+        if top.size == 0:  # the worst is at a knot
+            return worst
+        top = top[np.concatenate([[True], top[1:] != top[:-1]])]
+        finer = self._sampled(t, q, qd, qdd, at[top], limit[at][top], _TCP_FINER * parts)
+        return max(worst, float(finer.max()))
+
+    def _sampled(self, t: np.ndarray, q: np.ndarray, qd: np.ndarray, qdd: np.ndarray,
+                 at: np.ndarray, limit: np.ndarray, parts: int) -> np.ndarray:
+        """The TCP's speed over its limit inside knot intervals ``at`` (their limits
+        ``limit``), each cut into ``parts`` (the cuts sampled): (len(at) * (parts - 1),),
+        interval by interval."""
+        frac = np.linspace(0.0, 1.0, parts + 1)[1:-1]
         times = (t[at, None] + (t[at + 1] - t[at])[:, None] * frac).ravel()
         p, v, _, _ = join(t, q, qd, qdd, times, interpolation=self.robot.controller.interpolation)
-        speed = self.robot.tcp_speeds(p, v)
-        return max(worst, float(np.max(speed / np.repeat(limit[at], frac.size))))
+        return self.robot.tcp_speeds(p, v) / np.repeat(limit, frac.size)
 
 
 def rest_to_rest_time(delta: np.ndarray, vmax: np.ndarray, amax: np.ndarray) -> float:
