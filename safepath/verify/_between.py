@@ -31,9 +31,8 @@ the check's budget of FCL distances spent) makes the trajectory unprovable.
 
 from __future__ import annotations
 
-from collections import defaultdict
 from dataclasses import dataclass
-from typing import Protocol
+from typing import Any, Protocol
 
 import numpy as np
 
@@ -61,12 +60,13 @@ class Probe(Protocol):
         couples (pairs, samples, bounds) it does not certify."""
         ...
 
-    def distance(self, p: int, s: int) -> float:
-        """FCL's distance of pair ``p`` at grid sample ``s`` [m]."""
+    def distances(self, p: int, samples: np.ndarray) -> np.ndarray:
+        """FCL's distances of pair ``p`` at the grid samples ``samples`` [m]."""
         ...
 
-    def distance_at(self, p: int, q: np.ndarray) -> float:
-        """FCL's distance of pair ``p`` at the joint positions ``q`` [m]."""
+    def distances_at(self, p: int, states: np.ndarray) -> np.ndarray:
+        """FCL's distances of pair ``p`` at the joint positions ``states`` [m] (states x
+        dof [rad])."""
         ...
 
 
@@ -94,12 +94,12 @@ class Between:
         return self.bound >= 0.0
 
 
-def interval_bound(d_a: float, d_b: float, motion: float) -> float:
+def interval_bound(d_a: Any, d_b: Any, motion: Any) -> Any:
     """A lower bound on a pair's distance at every state of a straight joint segment [m],
     from its distances at the ends ``d_a``, ``d_b`` [m] and a bound ``motion`` [m] on how
     far the body's points move along it (each state is ``x motion`` from one end and
-    ``(1 - x) motion`` from the other)."""
-    return max((d_a + d_b - motion) / 2.0, max(d_a, d_b) - motion)
+    ``(1 - x) motion`` from the other); floats, or arrays of as many segments."""
+    return np.maximum((d_a + d_b - motion) / 2.0, np.maximum(d_a, d_b) - motion)
 
 
 def stray_of(t: np.ndarray, rate: np.ndarray) -> np.ndarray:
@@ -181,8 +181,9 @@ def bound_between(probe: Probe, grid: Grid, q: np.ndarray, entries: tuple[np.nda
         resolution: The grid's resolution [m].
 
     Returns:
-        The smallest bound; the first interval (in time) that could not be made
-        non-negative, if any.
+        The smallest bound and its interval; or, if an interval could not be made
+        non-negative, the first such interval (in time) found at the halving where one
+        was found, with its smallest part's bound.
     """
     todo, first, stop = (np.asarray(a, dtype=np.int64) for a in entries)
     if not todo.size:
@@ -191,63 +192,113 @@ def bound_between(probe: Probe, grid: Grid, q: np.ndarray, entries: tuple[np.nda
     theta = np.full(len(move), np.inf)
     theta[todo] = resolution + most[todo] + _SLACK
     pairs, samples, _ = probe.walk(todo, theta, (first, stop))
+    pair, start = _intervals(pairs, samples, (todo, first, stop), len(move))
+    (d_a, d_b), measured = _end_distances(probe, pair, start)
+    parts = _Parts(np.arange(pair.size), pair, grid.states(q, start),
+                   grid.states(q, start + 1), d_a, d_b, stray[pair, grid.knot_of[start + 1]])
+    found, failed, checks = _refine(probe, parts, move)
+    checks += measured
+    if failed >= 0:
+        return Between(float(found[failed]), int(pair[failed]), int(start[failed]), checks)
     # Every interval between two certified samples keeps at least half the resolution.
-    best = Between(resolution / 2.0)
-    checks, measured = 0, dict[tuple[int, int], float]()
-
-    def distance(p: int, s: int) -> float:
-        if (p, s) not in measured:
-            measured[p, s] = probe.distance(p, s)
-        return measured[p, s]
-
-    for p, a in _intervals(pairs, samples, todo, first, stop):
-        k = int(grid.knot_of[a + 1])
-        found, used = _refine(probe, p, (grid.state(q, a), grid.state(q, a + 1)),
-                              (distance(p, a), distance(p, a + 1)), move[p],
-                              float(stray[p, k]), BUDGET - checks)
-        checks += used
-        if found < best.bound:
-            best = Between(found, p, a, checks)
-        if found < 0.0:
-            break
-    return Between(best.bound, best.pair, best.sample, checks + len(measured))
+    k = int(np.argmin(found)) if found.size else -1
+    if k < 0 or found[k] >= resolution / 2.0:
+        return Between(resolution / 2.0, checks=checks)
+    return Between(float(found[k]), int(pair[k]), int(start[k]), checks)
 
 
-def _intervals(pairs: np.ndarray, samples: np.ndarray, todo: np.ndarray, first: np.ndarray,
-               stop: np.ndarray) -> list[tuple[int, int]]:
-    """The intervals (pair, first sample) next to an uncertified couple, inside the
-    stretch it was walked on, in time order."""
-    stretches = defaultdict(list)
-    for p, f, e in zip(todo.tolist(), first.tolist(), stop.tolist(), strict=True):
-        stretches[p].append((f, e))
-    out: set[tuple[int, int]] = set()
-    for p, s in zip(pairs.tolist(), samples.tolist(), strict=True):
-        for f, e in stretches[p]:
-            if f <= s < e:
-                out.update((p, a) for a in (s - 1, s) if f <= a and a + 1 < e)
-    return sorted(out, key=lambda c: (c[1], c[0]))
+def _intervals(pairs: np.ndarray, samples: np.ndarray, entries: tuple[np.ndarray, ...],
+               count: int) -> tuple[np.ndarray, np.ndarray]:
+    """The intervals (pairs, first samples) next to the uncertified couples (``pairs``,
+    ``samples``), inside the stretch each was walked on (``entries``: pairs, first
+    sample, the one after the last), in time order (then by pair, of ``count``)."""
+    todo, first, stop = entries
+    keys = [np.empty(0, dtype=np.int64)]
+    for p in np.unique(pairs).tolist():
+        s = samples[pairs == p]
+        for f, e in zip(first[todo == p].tolist(), stop[todo == p].tolist(), strict=True):
+            inside = s[(f <= s) & (s < e)]
+            a = np.concatenate([inside - 1, inside])
+            keys.append(a[(f <= a) & (a + 1 < e)] * count + p)
+    key = np.unique(np.concatenate(keys))
+    return key % count, key // count
 
 
-def _refine(probe: Probe, p: int, ends: tuple[np.ndarray, np.ndarray],
-            distances: tuple[float, float], weights: np.ndarray, stray: float,
-            budget: int) -> tuple[float, int]:
-    """Pair ``p``'s bound on the straight joint segment between the states ``ends``
-    (their FCL distances ``distances``) [m], halving it until every part's is not
-    negative; and the FCL distances measured. A negative bound: a part that cannot be
-    made non-negative (the first found)."""
-    stack = [(*ends, *distances)]
-    worst, checks = float("inf"), 0
-    while stack:
-        q_a, q_b, d_a, d_b = stack.pop()
-        motion = float(weights @ np.abs(q_b - q_a))
-        bound = interval_bound(d_a, d_b, motion) - stray
-        if bound >= 0.0:
-            worst = min(worst, bound)
-            continue
-        if min(d_a, d_b) <= stray or motion <= FINEST or checks >= budget:
-            return bound, checks
-        q_m = 0.5 * (q_a + q_b)
-        d_m = probe.distance_at(p, q_m)
-        checks += 1
-        stack += [(q_m, q_b, d_m, d_b), (q_a, q_m, d_a, d_m)]
-    return worst, checks
+def _end_distances(probe: Probe, pair: np.ndarray, start: np.ndarray
+                   ) -> tuple[tuple[np.ndarray, np.ndarray], int]:
+    """FCL's distances of each interval's pair at its two ends [m] (each sample of a
+    pair measured once), and how many were measured."""
+    d_a, d_b = np.empty(pair.size), np.empty(pair.size)
+    measured = 0
+    for p in np.unique(pair).tolist():
+        at = np.flatnonzero(pair == p)
+        ends = np.union1d(start[at], start[at] + 1)
+        d = probe.distances(p, ends)
+        i = np.searchsorted(ends, start[at])  # and the sample after is the next end
+        d_a[at], d_b[at] = d[i], d[i + 1]
+        measured += ends.size
+    return (d_a, d_b), measured
+
+
+@dataclass(frozen=True)
+class _Parts:
+    """Straight joint segments of the intervals, each with its pair's FCL distances at
+    its ends.
+
+    Attributes:
+        interval: The interval each is part of.
+        pair: Its pair.
+        q_a, q_b: Its ends [rad] (parts x dof).
+        d_a, d_b: The pair's FCL distances there [m].
+        stray: How far its pair's body may stray from it [m].
+    """
+
+    interval: np.ndarray
+    pair: np.ndarray
+    q_a: np.ndarray
+    q_b: np.ndarray
+    d_a: np.ndarray
+    d_b: np.ndarray
+    stray: np.ndarray
+
+    def halves(self, rows: np.ndarray, d_m: np.ndarray) -> _Parts:
+        """Parts ``rows`` halved, FCL's distances at their middles being ``d_m``."""
+        q_m = self.middles(rows)
+        return _Parts(*(np.concatenate([a[rows], a[rows]]) for a in (
+            self.interval, self.pair)), np.concatenate([self.q_a[rows], q_m]),
+            np.concatenate([q_m, self.q_b[rows]]), np.concatenate([self.d_a[rows], d_m]),
+            np.concatenate([d_m, self.d_b[rows]]), np.concatenate([self.stray[rows]] * 2))
+
+    def middles(self, rows: np.ndarray) -> np.ndarray:
+        """The middles of parts ``rows`` [rad]."""
+        return 0.5 * (self.q_a[rows] + self.q_b[rows])  # type: ignore[no-any-return]
+
+
+def _refine(probe: Probe, parts: _Parts, move: np.ndarray) -> tuple[np.ndarray, int, int]:
+    """The intervals' bounds [m], halving every part whose bound is negative (FCL
+    measures its middle) until each part's is not, all intervals together, one halving
+    after the other; the first interval (in time) found that cannot be made
+    non-negative (a part closer than its stray at an end, or of no more than
+    :data:`FINEST` motion, or the budget spent; -1: none, its bound is its smallest
+    part's); and the FCL distances measured."""
+    found = np.full(int(parts.interval.max(initial=-1)) + 1, np.inf)
+    checks = 0
+    while parts.pair.size:
+        motion = np.einsum("ij,ij->i", move[parts.pair], np.abs(parts.q_b - parts.q_a))
+        bound = interval_bound(parts.d_a, parts.d_b, motion) - parts.stray
+        done = bound >= 0.0
+        np.minimum.at(found, parts.interval[done], bound[done])
+        split = np.flatnonzero(~done)
+        stuck = split[(np.minimum(parts.d_a[split], parts.d_b[split]) <= parts.stray[split])
+                      | (motion[split] <= FINEST)]
+        if stuck.size or checks + split.size > BUDGET:
+            first = int(parts.interval[stuck if stuck.size else split].min())
+            found[first] = bound[split][parts.interval[split] == first].min()
+            return found, first, checks
+        d_m = np.empty(split.size)
+        for p in np.unique(parts.pair[split]).tolist():
+            rows = np.flatnonzero(parts.pair[split] == p)
+            d_m[rows] = probe.distances_at(p, parts.middles(split[rows]))
+        checks += split.size
+        parts = parts.halves(split, d_m)
+    return found, -1, checks

@@ -554,6 +554,10 @@ class _Run:
         self.memory.ceiling[0] = known
         self._placed = [-1] * len(verifier._movers)
         self._dist_req = fcl.DistanceRequest()
+        # A result that python-fcl never writes to (it keeps the smaller distance, and
+        # this one is -inf): what is only needed is the distance it returns, and filling
+        # a result (nearest points, geometries) costs a third of a call.
+        self._unread = fcl.DistanceResult(-np.inf)
 
     def walk(self, todo: np.ndarray, theta: np.ndarray,
              stretches: tuple[np.ndarray, np.ndarray], drop: float = -1.0
@@ -591,23 +595,37 @@ class _Run:
             self.min_clear, self.closest = d, p
         return d
 
-    def distance(self, p: int, s: int) -> float:
-        """FCL distance of pair p at sample s [m] (not kept as a clearance)."""
-        import fcl
+    def distances(self, p: int, samples: np.ndarray) -> np.ndarray:
+        """FCL distances of environment pair p at the grid samples ``samples`` [m] (not
+        kept as a clearance)."""
+        self.checked.update(samples.tolist())
+        mover = self.v._pairs[p][0]
+        return self._distances(p, self.v._layer.poses(self.q, self.grid, self.cache,
+                                                      samples, mover))
 
-        return float(fcl.distance(*self._objects(p, s), self._dist_req, fcl.DistanceResult()))
+    def distances_at(self, p: int, states: np.ndarray) -> np.ndarray:
+        """FCL distances of environment pair p at the joint positions ``states`` [m]
+        (states x dof [rad]; off the grid: its body placed with pinocchio's
+        kinematics)."""
+        mover = self.v._pairs[p][0]
+        return self._distances(p, np.array([self.v._layer.pose_at(q, mover)
+                                            for q in states]).reshape(-1, 3, 4))
 
-    def distance_at(self, p: int, q: np.ndarray) -> float:
-        """FCL distance of environment pair p at the joint positions ``q`` [m] (off the
-        grid: its body placed with pinocchio's kinematics)."""
+    def _distances(self, p: int, poses: np.ndarray) -> np.ndarray:
+        """FCL distances of environment pair p with its moving body at the world poses
+        ``poses`` (n x 3 x 4) [m]."""
         import fcl
 
         i, j, _, _ = self.v._pairs[p]
-        T, self._placed[i] = self.v._layer.pose_at(q, i), -1
-        self.v._movers[i].fcl.setTransform(fcl.Transform(T[:, :3], T[:, 3]))  # type: ignore[attr-defined]
-        self.pair_checks += 1
-        return float(fcl.distance(self.v._movers[i].fcl, self.v._env[j].fcl, self._dist_req,
-                                  fcl.DistanceResult()))
+        body, other = self.v._movers[i].fcl, self.v._env[j].fcl
+        request, unread = self._dist_req, self._unread
+        out = np.empty(len(poses))
+        for k, T in enumerate(poses):
+            body.setTransform(fcl.Transform(T[:, :3], T[:, 3]))
+            out[k] = fcl.distance(body, other, request, unread)
+        self._placed[i] = -1
+        self.pair_checks += len(poses)
+        return out
 
     def _fails(self, p: int, s: int) -> bool:
         """FCL's judgement of pair p at sample s: in collision, inside its margin, or
