@@ -39,8 +39,8 @@ import numpy as np
 from ..errors import UnprovenClearance
 from ._bounds import Grid
 
-__all__ = ["FINEST", "BUDGET", "Between", "Probe", "bound_between", "clearance_bound",
-           "interval_bound", "stray_of", "unproven"]
+__all__ = ["FINEST", "BUDGET", "Between", "Probe", "Strays", "bound_between",
+           "clearance_bound", "interval_bound", "unproven"]
 
 #: An interval is halved no finer than this much motion of the body's points [m].
 FINEST = 1e-5
@@ -52,13 +52,6 @@ _SLACK = 1e-5
 
 class Probe(Protocol):
     """What the finer check reads from one verification (the verifier's run)."""
-
-    def walk(self, todo: np.ndarray, theta: np.ndarray,
-             stretches: tuple[np.ndarray, np.ndarray]
-             ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """The conservative layer's walk of pairs ``todo`` against ``theta`` [m]: the
-        couples (pairs, samples, bounds) it does not certify."""
-        ...
 
     def distances(self, p: int, samples: np.ndarray) -> np.ndarray:
         """FCL's distances of pair ``p`` at the grid samples ``samples`` [m]."""
@@ -102,23 +95,45 @@ def interval_bound(d_a: Any, d_b: Any, motion: Any) -> Any:
     return np.maximum((d_a + d_b - motion) / 2.0, np.maximum(d_a, d_b) - motion)
 
 
-def stray_of(t: np.ndarray, rate: np.ndarray) -> np.ndarray:
-    """How far [m] each pair's moving body may stray, on each knot interval, from the
-    straight joint segment between the knots: (pairs, knots); column ``k`` is the
-    interval ending at knot ``k`` (column 0: the first knot, nothing).
+@dataclass(frozen=True)
+class Strays:
+    """How far each pair's moving body may stray from the straight joint segments between
+    the knots (``amax_j h^2 / 8`` in joint ``j`` for knots ``h`` apart, weighted), and what
+    the walk must prove of a clearance pair's samples for the finer check.
 
-    Args:
-        t: Knot times [s].
-        rate: Per pair, its body's motion weights times the joints' acceleration limits,
-            over 8 [m/s^2].
+    Attributes:
+        move: Per pair, its moving body's motion weights (pairs x dof) [m/rad].
+        rate: Per pair, those times the joints' acceleration limits, over 8 [m/s^2].
+        squares: Per knot, the square of the interval ending at it (0 at the first)
+            [s^2].
+        above: Per pair, the resolution plus its largest stray (plus slack) [m]: every
+            interval between two samples whose distances exceed it keeps half the
+            resolution.
     """
-    h = np.diff(np.asarray(t, dtype=float), prepend=float(t[0]))
-    return np.outer(rate, h * h)
+
+    move: np.ndarray
+    rate: np.ndarray
+    squares: np.ndarray
+    above: np.ndarray
+
+    @staticmethod
+    def of(t: np.ndarray, move: np.ndarray, amax: np.ndarray, resolution: float) -> Strays:
+        """The strays of knots at times ``t`` [s], for pairs whose bodies' motion weights
+        are ``move`` [m/rad], with acceleration limits ``amax`` [rad/s^2], on a grid of
+        ``resolution`` [m]."""
+        rate = move @ np.asarray(amax, dtype=float) / 8.0
+        h = np.diff(np.asarray(t, dtype=float), prepend=float(t[0]))
+        squares = h * h
+        return Strays(move, rate, squares, resolution + rate * squares.max() + _SLACK)
+
+    def at(self, pairs: np.ndarray, knots: np.ndarray) -> np.ndarray:
+        """The strays of pairs ``pairs`` on the intervals ending at knots ``knots`` [m]."""
+        return self.rate[pairs] * self.squares[knots]  # type: ignore[no-any-return]
 
 
 def clearance_bound(probe: Probe, grid: Grid, knots: tuple[np.ndarray, np.ndarray],
-                    entries: tuple[np.ndarray, ...], move: np.ndarray, amax: np.ndarray,
-                    smallest: float, resolution: float) -> Between:
+                    entries: tuple[np.ndarray, ...], left: tuple[np.ndarray, ...],
+                    strays: Strays, smallest: float, resolution: float) -> Between:
     """The certified clearance bound of a verification: the grid's figure if it is not
     negative, else the finer check's (:func:`bound_between`).
 
@@ -129,24 +144,23 @@ def clearance_bound(probe: Probe, grid: Grid, knots: tuple[np.ndarray, np.ndarra
     limits, largest knot interval).
 
     Args:
-        probe: The verification's walk and FCL distances.
+        probe: The verification's FCL distances.
         grid: Its grid.
         knots: Its knot times [s] and positions [rad].
         entries: The clearance pairs and their stretches (see :func:`bound_between`).
-        move: Per pair, its moving body's motion weights (pairs x dof) [m/rad].
-        amax: The joints' acceleration limits [rad/s^2].
+        left: The couples its walk left (see :func:`bound_between`).
+        strays: Its :class:`Strays`.
         smallest: The smallest clearance the verification found (or was given) [m].
         resolution: The grid's resolution [m].
     """
     t, q = knots
     if not len(entries[0]):
         return Between(float("inf"))
-    rate = move @ np.asarray(amax, dtype=float) / 8.0
     h = float(np.max(np.diff(t))) if t.size > 1 else 0.0
-    figure = smallest - resolution - float(rate[entries[0]].max()) * h * h
+    figure = smallest - resolution - float(strays.rate[entries[0]].max()) * h * h
     if figure >= 0.0:
         return Between(figure)
-    return bound_between(probe, grid, q, entries, move, stray_of(t, rate), resolution)
+    return bound_between(probe, grid, q, entries, left, strays, resolution)
 
 
 def unproven(between: Between, names: tuple[str, str], grid: Grid,
@@ -167,17 +181,20 @@ def unproven(between: Between, names: tuple[str, str], grid: Grid,
 
 
 def bound_between(probe: Probe, grid: Grid, q: np.ndarray, entries: tuple[np.ndarray, ...],
-                  move: np.ndarray, stray: np.ndarray, resolution: float) -> Between:
+                  left: tuple[np.ndarray, ...], strays: Strays, resolution: float) -> Between:
     """The finer check: a lower bound on the clearance pairs' distances at every instant.
 
     Args:
-        probe: The verification's walk and FCL distances.
+        probe: The verification's FCL distances.
         grid: Its grid.
         q: Its knots [rad] (knots x dof).
         entries: The clearance pairs to check and their stretches of samples: (pairs,
             first sample, the one after the last).
-        move: Per pair, its moving body's motion weights (pairs x dof) [m/rad].
-        stray: :func:`stray_of` the knots, per pair (pairs x knots) [m].
+        left: The couples (pairs, samples, bounds [m]) the verification's walk did not
+            certify; it held each clearance pair to at least ``strays.above``: every
+            other sample's distance exceeds that, and so does that of a couple whose
+            bound (the walk's lower bound at its sample) does.
+        strays: The verification's :class:`Strays`.
         resolution: The grid's resolution [m].
 
     Returns:
@@ -188,15 +205,17 @@ def bound_between(probe: Probe, grid: Grid, q: np.ndarray, entries: tuple[np.nda
     todo, first, stop = (np.asarray(a, dtype=np.int64) for a in entries)
     if not todo.size:
         return Between(float("inf"))
-    most = stray.max(axis=1)
-    theta = np.full(len(move), np.inf)
-    theta[todo] = resolution + most[todo] + _SLACK
-    pairs, samples, _ = probe.walk(todo, theta, (first, stop))
-    pair, start = _intervals(pairs, samples, (todo, first, stop), len(move))
+    pairs, samples, bounds = left
+    checked = np.zeros(len(strays.move), dtype=bool)
+    checked[todo] = True
+    keep = checked[pairs] & (bounds <= strays.above[pairs])
+    pairs, samples = pairs[keep], samples[keep]
+    pair, start = _intervals(pairs, samples, (todo, first, stop), len(strays.move))
     (d_a, d_b), measured = _end_distances(probe, pair, start)
     parts = _Parts(np.arange(pair.size), pair, grid.states(q, start),
-                   grid.states(q, start + 1), d_a, d_b, stray[pair, grid.knot_of[start + 1]])
-    found, failed, checks = _refine(probe, parts, move)
+                   grid.states(q, start + 1), d_a, d_b,
+                   strays.at(pair, grid.knot_of[start + 1]))
+    found, failed, checks = _refine(probe, parts, strays.move)
     checks += measured
     if failed >= 0:
         return Between(float(found[failed]), int(pair[failed]), int(start[failed]), checks)

@@ -34,7 +34,7 @@ import numpy as np
 from ..errors import VerificationError
 from ..model.robot import Robot
 from ..model.scene import GRIPPER, AllowedContact, Scene
-from ._between import Between, clearance_bound, unproven
+from ._between import Between, Strays, clearance_bound, unproven
 from ._bodies import (
     Body,
     check_verifiable,
@@ -415,7 +415,12 @@ class FclVerifier:
         """:meth:`verify` on ``grid``, each pair of ``todo`` on its stretch of samples
         (first, after the last); a pair may come more than once."""
         run = _Run(self, q, grid, self._layer.cache(grid.samples), known, (todo, stretches))
-        left = run.walk(todo, self._bound_theta, stretches, drop=self.resolution / 2 - _SLACK)
+        strays = Strays.of(t, self._weights[self._table[:, 0].astype(np.int64)],
+                           self.robot.acceleration_limits, self.resolution)
+        # The clearance pairs are held to what the finer check between samples needs too.
+        theta = np.where(self._tracked, np.maximum(self._bound_theta, strays.above),
+                         self._bound_theta)
+        left = run.walk(todo, theta, stretches, drop=self.resolution / 2 - _SLACK)
         fail_at, bad = run.safety(*left)
         if bad:
             k = int(grid.knot_of[fail_at])
@@ -426,7 +431,7 @@ class FclVerifier:
                 time=float(t[k]), q=grid.state(q, fail_at), pairs=names,
                 step=steps[k] if steps is not None else None)
         run.clearance(*left)
-        between = self._between(run, t, q, grid)
+        between = self._between(run, (t, q), grid, left, strays)
         if not between.proven:
             k = int(grid.knot_of[between.sample + 1])
             raise unproven(between, self._names(between.pair), grid, (t, q),
@@ -438,14 +443,15 @@ class FclVerifier:
                             self._names(run.closest), run.pair_checks,
                             int(run.memory.stats[0]), between.bound)
 
-    def _between(self, run: _Run, t: np.ndarray, q: np.ndarray, grid: Grid) -> Between:
-        """The certified clearance bound of the run's clearance pairs at every instant."""
+    def _between(self, run: _Run, knots: tuple[np.ndarray, np.ndarray], grid: Grid,
+                 left: tuple[np.ndarray, ...], strays: Strays) -> Between:
+        """The certified clearance bound of the run's clearance pairs at every instant
+        (``left``: the couples its walk did not certify)."""
         todo, (first, stop) = run.entries
         keep = self._tracked[todo]
-        return clearance_bound(run, grid, (np.asarray(t, dtype=float), q),
-                               (todo[keep], first[keep], stop[keep]),
-                               self._weights[self._table[:, 0].astype(np.int64)],
-                               self.robot.acceleration_limits, run.min_clear, self.resolution)
+        return clearance_bound(run, grid, (np.asarray(knots[0], dtype=float), knots[1]),
+                               (todo[keep], first[keep], stop[keep]), left, strays,
+                               run.min_clear, self.resolution)
 
 
 class StagedVerifier:
