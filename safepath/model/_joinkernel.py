@@ -42,20 +42,20 @@ def piece_of(breaks, x):
 
 
 @njit(cache=True, nogil=True, _nrt=False, inline="always")
-def _interval_peaks(t, q, qd, qdd, k, d, m):
+def _interval_peaks(t, q, qd, qdd, k, d, m, h, i3, i4, i5):
     """The quintic join's speed bound, peak |a| and peak |j| on interval ``k`` of joint
     ``d`` (see :func:`_peaks`), its speed sampled at ``m`` points where it may peak
-    inside."""
-    h = t[k + 1] - t[k]
+    inside; ``h`` is the interval's length, ``i3``, ``i4``, ``i5`` its inverse third,
+    fourth and fifth powers (the same for every joint: :func:`_inverse_powers`)."""
     # The quintic matching position, velocity and acceleration at both ends.
     v0, acc0 = qd[k, d], qdd[k, d]
     dp = q[k + 1, d] - q[k, d] - v0 * h - acc0 * h * h / 2.0
     dv = qd[k + 1, d] - v0 - acc0 * h
     da = qdd[k + 1, d] - acc0
     c1, c2 = v0, acc0 / 2.0
-    c3 = (10.0 * dp - 4.0 * dv * h + da * h * h / 2.0) / h ** 3
-    c4 = (-15.0 * dp + 7.0 * dv * h - da * h * h) / h ** 4
-    c5 = (6.0 * dp - 3.0 * dv * h + da * h * h / 2.0) / h ** 5
+    c3 = (10.0 * dp - 4.0 * dv * h + da * h * h / 2.0) * i3
+    c4 = (-15.0 * dp + 7.0 * dv * h - da * h * h) * i4
+    c5 = (6.0 * dp - 3.0 * dv * h + da * h * h / 2.0) * i5
     # Jerk 6 c3 + 24 c4 t + 60 c5 t^2: the ends and the vertex.
     j0 = 6.0 * c3
     j1 = 6.0 * c3 + h * (24.0 * c4 + 60.0 * c5 * h)
@@ -100,6 +100,15 @@ def _interval_peaks(t, q, qd, qdd, k, d, m):
 
 
 @njit(cache=True, nogil=True, _nrt=False, inline="always")
+def _inverse_powers(h):
+    """``1 / h^3``, ``1 / h^4``, ``1 / h^5``: one division per interval, not three per
+    joint."""
+    i1 = 1.0 / h
+    i3 = i1 * i1 * i1
+    return i3, i3 * i1, i3 * i1 * i1
+
+
+@njit(cache=True, nogil=True, _nrt=False, inline="always")
 def _larger(best, x):
     """The larger of ``best`` and ``x``, NaN once either is NaN (as numpy's max)."""
     return x if (x > best or x != x) else best
@@ -113,9 +122,12 @@ def _peaks(t: np.ndarray, q: np.ndarray, qd: np.ndarray, qdd: np.ndarray, rate: 
     outputs (intervals, dof)."""
     n, dof = t.size - 1, q.shape[1]
     for k in range(n):
-        m = max(4, int(math.ceil((t[k + 1] - t[k]) * rate)) + 1)
+        h = t[k + 1] - t[k]
+        m = max(4, int(math.ceil(h * rate)) + 1)
+        i3, i4, i5 = _inverse_powers(h)
         for d in range(dof):
-            v_out[k, d], a_out[k, d], j_out[k, d] = _interval_peaks(t, q, qd, qdd, k, d, m)
+            v_out[k, d], a_out[k, d], j_out[k, d] = _interval_peaks(t, q, qd, qdd, k, d, m,
+                                                                    h, i3, i4, i5)
 
 
 def _ratios(t: np.ndarray, q: np.ndarray, qd: np.ndarray, qdd: np.ndarray, rate: float,
@@ -127,13 +139,15 @@ def _ratios(t: np.ndarray, q: np.ndarray, qd: np.ndarray, qdd: np.ndarray, rate:
     the interval is not finite."""
     n, dof = t.size - 1, q.shape[1]
     for k in range(n):
-        m = max(4, int(math.ceil((t[k + 1] - t[k]) * rate)) + 1)
+        h = t[k + 1] - t[k]
+        m = max(4, int(math.ceil(h * rate)) + 1)
+        i3, i4, i5 = _inverse_powers(h)
         r = row[k]
         rv = ra = rj = -np.inf
-        inputs = t[k + 1] - t[k]  # finite iff every input of the interval is
+        inputs = h  # finite iff every input of the interval is
         for d in range(dof):
             inputs += q[k, d] + q[k + 1, d] + qd[k, d] + qd[k + 1, d] + qdd[k, d] + qdd[k + 1, d]
-            vp, ap, jp = _interval_peaks(t, q, qd, qdd, k, d, m)
+            vp, ap, jp = _interval_peaks(t, q, qd, qdd, k, d, m, h, i3, i4, i5)
             rv = _larger(rv, vp / vmax[r, d])
             ra = _larger(ra, ap / amax[r, d])
             rj = _larger(rj, jp / jmax[r, d])

@@ -30,6 +30,7 @@ velocities) and stretched in time until every sample is within its step's limit.
 from __future__ import annotations
 
 import dataclasses
+import functools
 import logging
 from collections.abc import Sequence
 from dataclasses import dataclass
@@ -269,7 +270,7 @@ class _Run:
     ratios: np.ndarray
     smoothed: _smooth.Smoothed | None
 
-    @property
+    @functools.cached_property
     def stretch(self) -> float:
         """The time stretch that brings every ratio to just below 1 (at least 1)."""
         v, a, j = (float(r.max()) if r.size else 0.0 for r in self.ratios)
