@@ -15,14 +15,16 @@ half the resolution and that stray. A pair kept a margin of 10 mm passes that wi
 to spare; a pair whose object has no margin may come within a resolution of it at a
 sample, and then the figure is negative: contact between the samples is not ruled out.
 
-The finer check, where that figure is negative: the walk certifies every sample of every
-clearance pair whose distance exceeds the resolution plus the stray (so that every
-interval between two certified samples keeps half the resolution); for the samples it
-leaves, FCL measures both ends of every interval they bound, and an interval whose bound
-is still negative is halved (FCL measures the middle) until each part's bound is not
-negative. An interval of states ``a`` to ``b`` whose distances FCL measured as ``d_a``,
-``d_b``, over which the body's points move at most ``m`` (the verifier's motion weights
-times the joints' motion), keeps at least
+The finer check, where that figure is negative: the verifier's walk holds every clearance
+pair to at least the resolution plus the stray (:attr:`Strays.above`), so that it
+certifies every sample whose distance exceeds that (and so does its own bound at a
+sample it leaves, where that is higher), and every interval between two such samples
+keeps half the resolution; for the samples left, FCL measures both ends of every
+interval they bound, and an interval whose bound is still negative is halved (FCL
+measures the middle) until each part's bound is not negative: all the intervals at
+once, one halving after the other. An interval of states ``a`` to ``b`` whose distances
+FCL measured as ``d_a``, ``d_b``, over which the body's points move at most ``m`` (the
+verifier's motion weights times the joints' motion), keeps at least
 ``max((d_a + d_b - m) / 2, max(d_a, d_b) - m)`` minus the stray: every state of it is
 within ``x m`` of ``a`` and ``(1 - x) m`` of ``b``. An interval that cannot be made
 non-negative (an end closer than the stray, or halved down to :data:`FINEST` of motion, or
@@ -208,7 +210,7 @@ def bound_between(probe: Probe, grid: Grid, q: np.ndarray, entries: tuple[np.nda
     pairs, samples, bounds = left
     checked = np.zeros(len(strays.move), dtype=bool)
     checked[todo] = True
-    keep = checked[pairs] & (bounds <= strays.above[pairs])
+    keep = checked[pairs] & ~(bounds > strays.above[pairs])  # (a NaN bound is kept)
     pairs, samples = pairs[keep], samples[keep]
     pair, start = _intervals(pairs, samples, (todo, first, stop), len(strays.move))
     (d_a, d_b), measured = _end_distances(probe, pair, start)
@@ -283,10 +285,11 @@ class _Parts:
     def halves(self, rows: np.ndarray, d_m: np.ndarray) -> _Parts:
         """Parts ``rows`` halved, FCL's distances at their middles being ``d_m``."""
         q_m = self.middles(rows)
-        return _Parts(*(np.concatenate([a[rows], a[rows]]) for a in (
-            self.interval, self.pair)), np.concatenate([self.q_a[rows], q_m]),
-            np.concatenate([q_m, self.q_b[rows]]), np.concatenate([self.d_a[rows], d_m]),
-            np.concatenate([d_m, self.d_b[rows]]), np.concatenate([self.stray[rows]] * 2))
+        return _Parts(np.tile(self.interval[rows], 2), np.tile(self.pair[rows], 2),
+                      np.concatenate([self.q_a[rows], q_m]),
+                      np.concatenate([q_m, self.q_b[rows]]),
+                      np.concatenate([self.d_a[rows], d_m]),
+                      np.concatenate([d_m, self.d_b[rows]]), np.tile(self.stray[rows], 2))
 
     def middles(self, rows: np.ndarray) -> np.ndarray:
         """The middles of parts ``rows`` [rad]."""

@@ -34,7 +34,7 @@ import numpy as np
 from ..errors import VerificationError
 from ..model.robot import Robot
 from ..model.scene import GRIPPER, AllowedContact, Scene
-from ._between import Between, Strays, clearance_bound, unproven
+from ._between import Strays, clearance_bound, unproven
 from ._bodies import (
     Body,
     check_verifiable,
@@ -375,8 +375,9 @@ class FclVerifier:
         the grid with its lower bound on the distance, certifying the samples until
         the pair's bodies can have moved that bound down to what the pair must keep;
         FCL judges the pair at every sample left, in time order. The clearance pairs
-        are walked against the smallest clearance found so far instead (if higher than
-        their margin), so that it comes out to within half the resolution.
+        are walked against the smallest clearance found so far instead, so that it comes
+        out to within half the resolution, or against their margin or what the check
+        between samples needs, whichever is highest.
 
         Args:
             t: Knot times [s].
@@ -431,7 +432,10 @@ class FclVerifier:
                 time=float(t[k]), q=grid.state(q, fail_at), pairs=names,
                 step=steps[k] if steps is not None else None)
         run.clearance(*left)
-        between = self._between(run, (t, q), grid, left, strays)
+        keep = self._tracked[todo]  # the clearance pairs
+        between = clearance_bound(run, grid, (np.asarray(t, dtype=float), q),
+                                  (todo[keep], stretches[0][keep], stretches[1][keep]),
+                                  left, strays, run.min_clear, self.resolution)
         if not between.proven:
             k = int(grid.knot_of[between.sample + 1])
             raise unproven(between, self._names(between.pair), grid, (t, q),
@@ -442,16 +446,6 @@ class FclVerifier:
         return VerifyResult(grid.samples, len(run.checked), run.min_clear,
                             self._names(run.closest), run.pair_checks,
                             int(run.memory.stats[0]), between.bound)
-
-    def _between(self, run: _Run, knots: tuple[np.ndarray, np.ndarray], grid: Grid,
-                 left: tuple[np.ndarray, ...], strays: Strays) -> Between:
-        """The certified clearance bound of the run's clearance pairs at every instant
-        (``left``: the couples its walk did not certify)."""
-        todo, (first, stop) = run.entries
-        keep = self._tracked[todo]
-        return clearance_bound(run, grid, (np.asarray(knots[0], dtype=float), knots[1]),
-                               (todo[keep], first[keep], stop[keep]), left, strays,
-                               run.min_clear, self.resolution)
 
 
 class StagedVerifier:
@@ -560,10 +554,6 @@ class _Run:
         self.memory.ceiling[0] = known
         self._placed = [-1] * len(verifier._movers)
         self._dist_req = fcl.DistanceRequest()
-        # A result that python-fcl never writes to (it keeps the smaller distance, and
-        # this one is -inf): what is only needed is the distance it returns, and filling
-        # a result (nearest points, geometries) costs a third of a call.
-        self._unread = fcl.DistanceResult(-np.inf)
 
     def walk(self, todo: np.ndarray, theta: np.ndarray,
              stretches: tuple[np.ndarray, np.ndarray], drop: float = -1.0
@@ -604,34 +594,20 @@ class _Run:
     def distances(self, p: int, samples: np.ndarray) -> np.ndarray:
         """FCL distances of environment pair p at the grid samples ``samples`` [m] (not
         kept as a clearance)."""
+        i, j, _, _ = self.v._pairs[p]
         self.checked.update(samples.tolist())
-        mover = self.v._pairs[p][0]
-        return self._distances(p, self.v._layer.poses(self.q, self.grid, self.cache,
-                                                      samples, mover))
+        self._placed[i], self.pair_checks = -1, self.pair_checks + len(samples)
+        poses = self.v._layer.poses(self.q, self.grid, self.cache, samples, i)
+        return self.v._movers[i].distances(self.v._env[j], poses)
 
     def distances_at(self, p: int, states: np.ndarray) -> np.ndarray:
         """FCL distances of environment pair p at the joint positions ``states`` [m]
         (states x dof [rad]; off the grid: its body placed with pinocchio's
         kinematics)."""
-        mover = self.v._pairs[p][0]
-        return self._distances(p, np.array([self.v._layer.pose_at(q, mover)
-                                            for q in states]).reshape(-1, 3, 4))
-
-    def _distances(self, p: int, poses: np.ndarray) -> np.ndarray:
-        """FCL distances of environment pair p with its moving body at the world poses
-        ``poses`` (n x 3 x 4) [m]."""
-        import fcl
-
         i, j, _, _ = self.v._pairs[p]
-        body, other = self.v._movers[i].fcl, self.v._env[j].fcl
-        request, unread = self._dist_req, self._unread
-        out = np.empty(len(poses))
-        for k, T in enumerate(poses):
-            body.setTransform(fcl.Transform(T[:, :3], T[:, 3]))
-            out[k] = fcl.distance(body, other, request, unread)
-        self._placed[i] = -1
-        self.pair_checks += len(poses)
-        return out
+        self._placed[i], self.pair_checks = -1, self.pair_checks + len(states)
+        poses = (self.v._layer.pose_at(q, i) for q in states)
+        return self.v._movers[i].distances(self.v._env[j], poses)
 
     def _fails(self, p: int, s: int) -> bool:
         """FCL's judgement of pair p at sample s: in collision, inside its margin, or
