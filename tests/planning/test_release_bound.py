@@ -164,6 +164,34 @@ def test_of_several_passes_between_samples_the_one_not_proven_apart_is_named(
     assert 0.0 <= result.clearance_bound <= min(closest.values())
 
 
+def test_the_finer_checks_bound_is_its_formula_on_the_intervals_around_the_pass(
+        sweep: tuple[Robot, TimedPiece, float, float]) -> None:
+    """A pass 1.2 mm from the ball, while the arm speeds up: closer than the grid's figure
+    proves, far enough for every interval's bound from its two ends to be positive. The
+    bound is the least, over the grid's intervals, of ``max((d_a + d_b - m) / 2,
+    max(d_a, d_b) - m)`` minus the stray, with the distances in closed form, the ball's
+    arc ``m`` between the samples and the stray of the knot interval each lies on (or
+    half the resolution, if smaller)."""
+    robot, piece, _, _ = sweep
+    grid = FclVerifier(robot, _cell_ball(0.01, 0.0), margin=0.0).grid(piece.q)
+    theta = np.array([grid.state(piece.q, s)[0] for s in range(grid.samples)])
+    # Passed while the arm speeds up: the arcs between samples differ, so each interval
+    # must be bounded with its own ends' distances.
+    s = int(np.argmax(np.diff(theta) * REACH > 1e-3))
+    angle = float(theta[s] + theta[s + 1]) / 2
+    verifier = FclVerifier(robot, _cell_ball(1.2e-3, angle), margin=0.0)
+    result = verifier.verify(piece.t, piece.q, piece.qd)
+    d = _distance(1.2e-3, angle, theta)
+    arc = (REACH + BALL) * np.abs(np.diff(theta))
+    knot = grid.knot_of[1:]
+    h = piece.t[knot] - piece.t[np.maximum(knot - 1, 0)]
+    bounds = (np.maximum((d[:-1] + d[1:] - arc) / 2, np.maximum(d[:-1], d[1:]) - arc)
+              - (REACH + BALL) * 1.0 * h * h / 8)
+    assert result.min_clearance - verifier.resolution < 0.0  # the figure proves nothing
+    assert 0.0 < bounds.min() < verifier.resolution / 2
+    assert result.clearance_bound == pytest.approx(bounds.min(), abs=1e-9)
+
+
 def test_the_bound_is_the_grid_figure_where_that_proves_it(
         sweep: tuple[Robot, TimedPiece, float, float]) -> None:
     """Far from the ball, the bound is the smallest clearance minus the resolution and
