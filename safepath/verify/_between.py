@@ -34,7 +34,7 @@ the check's budget of FCL distances spent) makes the trajectory unprovable.
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Any, Protocol
+from typing import Protocol
 
 import numpy as np
 
@@ -89,11 +89,11 @@ class Between:
         return self.bound >= 0.0
 
 
-def interval_bound(d_a: Any, d_b: Any, motion: Any) -> Any:
-    """A lower bound on a pair's distance at every state of a straight joint segment [m],
-    from its distances at the ends ``d_a``, ``d_b`` [m] and a bound ``motion`` [m] on how
-    far the body's points move along it (each state is ``x motion`` from one end and
-    ``(1 - x) motion`` from the other); floats, or arrays of as many segments."""
+def interval_bound(d_a: np.ndarray, d_b: np.ndarray, motion: np.ndarray) -> np.ndarray:
+    """Lower bounds on pairs' distances at every state of straight joint segments [m],
+    from their distances at the ends ``d_a``, ``d_b`` [m] and bounds ``motion`` [m] on
+    how far the bodies' points move along them (each state is ``x motion`` from one end
+    and ``(1 - x) motion`` from the other); one per segment."""
     return np.maximum((d_a + d_b - motion) / 2.0, np.maximum(d_a, d_b) - motion)
 
 
