@@ -547,6 +547,21 @@ class Layer:
         return self._certify(todo, theta, q, grid, cache, memory,
                              (_COARSE, _FINE, _KEEP, float(drop)), stretches)
 
+    def pilot(self, entries: tuple[np.ndarray, ...], theta: np.ndarray, q: np.ndarray,
+              grid: Grid, cache: PoseCache, memory: WalkMemory, drop: float,
+              count: int = 4) -> None:
+        """Bound the clearance pairs of ``entries`` (pairs, first sample, the one after
+        the last) at ``count`` samples spread over each stretch, as :meth:`walk` would
+        (``theta``, ``drop``), before their walk: GJK's upper bounds there (distances
+        between two points of the shapes, at samples of the grid) lower the memory's
+        ceiling, so that the walk holds the pairs to a lower threshold from its start
+        and certifies with longer steps. What is left here is the walk's to find."""
+        todo, first, stop = (a[entries[2] > entries[1]] for a in entries)
+        k = 2 * np.arange(count) + 1
+        at = (first[:, None] + (stop - first - 1)[:, None] * k // (2 * count)).ravel()
+        self._certify(np.repeat(todo, count), theta, q, grid, cache, memory,
+                      (_COARSE, _FINE, _KEEP, float(drop)), (at, at + 1))
+
     def _certify(self, todo: np.ndarray, theta: np.ndarray, q: np.ndarray, grid: Grid,
                  cache: PoseCache, memory: WalkMemory, params: tuple[float, ...],
                  stretches: tuple[np.ndarray, np.ndarray] | None = None

@@ -418,10 +418,13 @@ class FclVerifier:
         run = _Run(self, q, grid, self._layer.cache(grid.samples), known, (todo, stretches))
         strays = Strays.of(t, self._weights[self._table[:, 0].astype(np.int64)],
                            self.robot.acceleration_limits, self.resolution)
-        # The clearance pairs are held to what the finer check between samples needs too.
+        # Clearance pairs: held to what the finer check needs too, bounded at a few samples first.
         theta = np.where(self._tracked, np.maximum(self._bound_theta, strays.above),
                          self._bound_theta)
-        left = run.walk(todo, theta, stretches, drop=self.resolution / 2 - _SLACK)
+        keep = self._tracked[todo]
+        clearance = (todo[keep], stretches[0][keep], stretches[1][keep])
+        self._layer.pilot(clearance, theta, q, grid, run.cache, run.memory, run.drop)
+        left = run.walk(todo, theta, stretches, drop=run.drop)
         fail_at, bad = run.safety(*left)
         if bad:
             k = int(grid.knot_of[fail_at])
@@ -432,9 +435,7 @@ class FclVerifier:
                 time=float(t[k]), q=grid.state(q, fail_at), pairs=names,
                 step=steps[k] if steps is not None else None)
         run.clearance(*left)
-        keep = self._tracked[todo]  # the clearance pairs
-        between = clearance_bound(run, grid, (np.asarray(t, dtype=float), q),
-                                  (todo[keep], stretches[0][keep], stretches[1][keep]),
+        between = clearance_bound(run, grid, (np.asarray(t, dtype=float), q), clearance,
                                   left, strays, run.min_clear, self.resolution)
         if not between.proven:
             k = int(grid.knot_of[between.sample + 1])
@@ -552,6 +553,7 @@ class _Run:
         # distance below it is kept.
         self.min_clear, self.closest = known, -1
         self.memory.ceiling[0] = known
+        self.drop = verifier.resolution / 2 - _SLACK  # the walk's, below the ceiling [m]
         self._placed = [-1] * len(verifier._movers)
         self._dist_req = fcl.DistanceRequest()
 
@@ -602,8 +604,7 @@ class _Run:
 
     def distances_at(self, p: int, states: np.ndarray) -> np.ndarray:
         """FCL distances of environment pair p at the joint positions ``states`` [m]
-        (states x dof [rad]; off the grid: its body placed with pinocchio's
-        kinematics)."""
+        (states x dof [rad]; off the grid: pinocchio's kinematics place its body)."""
         i, j, _, _ = self.v._pairs[p]
         self._placed[i], self.pair_checks = -1, self.pair_checks + len(states)
         poses = (self.v._layer.pose_at(q, i) for q in states)
