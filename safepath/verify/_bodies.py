@@ -4,6 +4,7 @@ cannot handle before anything is planned."""
 
 from __future__ import annotations
 
+from collections.abc import Iterable
 from dataclasses import dataclass
 
 import numpy as np
@@ -122,6 +123,21 @@ class Body:
     T: np.ndarray  # in its joint frame (movers) or in the world (environment), 4 x 4
     fcl: object
     spec: ShapeSpec
+
+    def distances(self, other: Body, poses: Iterable[np.ndarray]) -> np.ndarray:
+        """FCL's distances [m] between this body, placed at each world pose of
+        ``poses`` (3 x 4; it is left at the last), and ``other`` where it is."""
+        import fcl
+
+        body, request = self.fcl, fcl.DistanceRequest()
+        # A result python-fcl never fills (it keeps the smaller distance, and this one's
+        # is -inf): filling one (nearest points, geometries) costs a third of a call.
+        unread = fcl.DistanceResult(-np.inf)
+        out = []
+        for T in poses:
+            body.setTransform(fcl.Transform(T[:, :3], T[:, 3]))  # type: ignore[attr-defined]
+            out.append(fcl.distance(body, other.fcl, request, unread))
+        return np.array(out, dtype=float)
 
 
 def _body(name: str, joint: int, T: np.ndarray, geometry: object, label: str = "",

@@ -377,6 +377,15 @@ class Grid:
         k = int(self.knot_of[s])
         return q[0].copy() if k == 0 else q[k - 1] + self.frac[s] * (q[k] - q[k - 1])
 
+    def states(self, q: np.ndarray, samples: np.ndarray) -> np.ndarray:
+        """Joint positions of the samples ``samples`` [rad] (samples x dof): each as
+        :meth:`state` computes it, with the same operations."""
+        k = self.knot_of[samples]
+        before = np.maximum(k - 1, 0)
+        out = q[before] + self.frac[samples][:, None] * (q[k] - q[before])
+        out[k == 0] = q[0]
+        return out
+
 
 @dataclass
 class PoseCache:
@@ -538,6 +547,21 @@ class Layer:
         return self._certify(todo, theta, q, grid, cache, memory,
                              (_COARSE, _FINE, _KEEP, float(drop)), stretches)
 
+    def pilot(self, entries: tuple[np.ndarray, ...], theta: np.ndarray, q: np.ndarray,
+              grid: Grid, cache: PoseCache, memory: WalkMemory, drop: float,
+              count: int = 4) -> None:
+        """Bound the clearance pairs of ``entries`` (pairs, first sample, the one after
+        the last) at ``count`` samples spread over each stretch, as :meth:`walk` would
+        (``theta``, ``drop``), before their walk: GJK's upper bounds there (distances
+        between two points of the shapes, at samples of the grid) lower the memory's
+        ceiling, so that the walk holds the pairs to a lower threshold from its start
+        and certifies with longer steps. What is left here is the walk's to find."""
+        todo, first, stop = (a[entries[2] > entries[1]] for a in entries)
+        k = 2 * np.arange(count) + 1
+        at = (first[:, None] + (stop - first - 1)[:, None] * k // (2 * count)).ravel()
+        self._certify(np.repeat(todo, count), theta, q, grid, cache, memory,
+                      (_COARSE, _FINE, _KEEP, float(drop)), (at, at + 1))
+
     def _certify(self, todo: np.ndarray, theta: np.ndarray, q: np.ndarray, grid: Grid,
                  cache: PoseCache, memory: WalkMemory, params: tuple[float, ...],
                  stretches: tuple[np.ndarray, np.ndarray] | None = None
@@ -590,6 +614,22 @@ class Layer:
         if cache.jdone[s, joint]:
             return np.asarray(cache.jpose[s, joint] @ T_joint_geom)
         return self.pose_at(grid.state(q, s), m)
+
+    def poses(self, q: np.ndarray, grid: Grid, cache: PoseCache, samples: np.ndarray,
+              m: int) -> np.ndarray:
+        """:meth:`pose` of moving body ``m`` at each of the samples ``samples``
+        (samples x 3 x 4), with the same operations."""
+        joint = int(self._kin[5][m])
+        T_joint_geom = self._homogeneous[m]
+        out = np.empty((len(samples), 3, 4))
+        if joint == 0:
+            out[:] = T_joint_geom[:3]
+            return out
+        done = cache.jdone[samples, joint]
+        out[done] = cache.jpose[samples[done], joint] @ T_joint_geom
+        for k in np.flatnonzero(~done):
+            out[k] = self.pose_at(grid.state(q, int(samples[k])), m)
+        return out
 
     def pose_at(self, q: np.ndarray, m: int) -> np.ndarray:
         """World pose (3 x 4) of moving body ``m``'s geometry frame at the joint positions

@@ -34,7 +34,7 @@ import numpy as np
 from ..errors import VerificationError
 from ..model.robot import Robot
 from ..model.scene import GRIPPER, AllowedContact, Scene
-from ._between import Between, clearance_bound, unproven
+from ._between import Strays, clearance_bound, unproven
 from ._bodies import (
     Body,
     check_verifiable,
@@ -375,8 +375,9 @@ class FclVerifier:
         the grid with its lower bound on the distance, certifying the samples until
         the pair's bodies can have moved that bound down to what the pair must keep;
         FCL judges the pair at every sample left, in time order. The clearance pairs
-        are walked against the smallest clearance found so far instead (if higher than
-        their margin), so that it comes out to within half the resolution.
+        are walked against the smallest clearance found so far instead, so that it comes
+        out to within half the resolution, or against their margin or what the check
+        between samples needs, whichever is highest.
 
         Args:
             t: Knot times [s].
@@ -415,7 +416,15 @@ class FclVerifier:
         """:meth:`verify` on ``grid``, each pair of ``todo`` on its stretch of samples
         (first, after the last); a pair may come more than once."""
         run = _Run(self, q, grid, self._layer.cache(grid.samples), known, (todo, stretches))
-        left = run.walk(todo, self._bound_theta, stretches, drop=self.resolution / 2 - _SLACK)
+        strays = Strays.of(t, self._weights[self._table[:, 0].astype(np.int64)],
+                           self.robot.acceleration_limits, self.resolution)
+        # Clearance pairs: held to what the finer check needs too, bounded at a few samples first.
+        theta = np.where(self._tracked, np.maximum(self._bound_theta, strays.above),
+                         self._bound_theta)
+        keep = self._tracked[todo]
+        clearance = (todo[keep], stretches[0][keep], stretches[1][keep])
+        self._layer.pilot(clearance, theta, q, grid, run.cache, run.memory, run.drop)
+        left = run.walk(todo, theta, stretches, drop=run.drop)
         fail_at, bad = run.safety(*left)
         if bad:
             k = int(grid.knot_of[fail_at])
@@ -426,7 +435,8 @@ class FclVerifier:
                 time=float(t[k]), q=grid.state(q, fail_at), pairs=names,
                 step=steps[k] if steps is not None else None)
         run.clearance(*left)
-        between = self._between(run, t, q, grid)
+        between = clearance_bound(run, grid, (np.asarray(t, dtype=float), q), clearance,
+                                  left, strays, run.min_clear, self.resolution)
         if not between.proven:
             k = int(grid.knot_of[between.sample + 1])
             raise unproven(between, self._names(between.pair), grid, (t, q),
@@ -437,15 +447,6 @@ class FclVerifier:
         return VerifyResult(grid.samples, len(run.checked), run.min_clear,
                             self._names(run.closest), run.pair_checks,
                             int(run.memory.stats[0]), between.bound)
-
-    def _between(self, run: _Run, t: np.ndarray, q: np.ndarray, grid: Grid) -> Between:
-        """The certified clearance bound of the run's clearance pairs at every instant."""
-        todo, (first, stop) = run.entries
-        keep = self._tracked[todo]
-        return clearance_bound(run, grid, (np.asarray(t, dtype=float), q),
-                               (todo[keep], first[keep], stop[keep]),
-                               self._weights[self._table[:, 0].astype(np.int64)],
-                               self.robot.acceleration_limits, run.min_clear, self.resolution)
 
 
 class StagedVerifier:
@@ -552,6 +553,7 @@ class _Run:
         # distance below it is kept.
         self.min_clear, self.closest = known, -1
         self.memory.ceiling[0] = known
+        self.drop = verifier.resolution / 2 - _SLACK  # the walk's, below the ceiling [m]
         self._placed = [-1] * len(verifier._movers)
         self._dist_req = fcl.DistanceRequest()
 
@@ -591,23 +593,22 @@ class _Run:
             self.min_clear, self.closest = d, p
         return d
 
-    def distance(self, p: int, s: int) -> float:
-        """FCL distance of pair p at sample s [m] (not kept as a clearance)."""
-        import fcl
-
-        return float(fcl.distance(*self._objects(p, s), self._dist_req, fcl.DistanceResult()))
-
-    def distance_at(self, p: int, q: np.ndarray) -> float:
-        """FCL distance of environment pair p at the joint positions ``q`` [m] (off the
-        grid: its body placed with pinocchio's kinematics)."""
-        import fcl
-
+    def distances(self, p: int, samples: np.ndarray) -> np.ndarray:
+        """FCL distances of environment pair p at the grid samples ``samples`` [m] (not
+        kept as a clearance)."""
         i, j, _, _ = self.v._pairs[p]
-        T, self._placed[i] = self.v._layer.pose_at(q, i), -1
-        self.v._movers[i].fcl.setTransform(fcl.Transform(T[:, :3], T[:, 3]))  # type: ignore[attr-defined]
-        self.pair_checks += 1
-        return float(fcl.distance(self.v._movers[i].fcl, self.v._env[j].fcl, self._dist_req,
-                                  fcl.DistanceResult()))
+        self.checked.update(samples.tolist())
+        self._placed[i], self.pair_checks = -1, self.pair_checks + len(samples)
+        poses = self.v._layer.poses(self.q, self.grid, self.cache, samples, i)
+        return self.v._movers[i].distances(self.v._env[j], poses)
+
+    def distances_at(self, p: int, states: np.ndarray) -> np.ndarray:
+        """FCL distances of environment pair p at the joint positions ``states`` [m]
+        (states x dof [rad]; off the grid: pinocchio's kinematics place its body)."""
+        i, j, _, _ = self.v._pairs[p]
+        self._placed[i], self.pair_checks = -1, self.pair_checks + len(states)
+        poses = (self.v._layer.pose_at(q, i) for q in states)
+        return self.v._movers[i].distances(self.v._env[j], poses)
 
     def _fails(self, p: int, s: int) -> bool:
         """FCL's judgement of pair p at sample s: in collision, inside its margin, or

@@ -122,6 +122,76 @@ def test_a_pass_between_two_samples_is_released_only_if_proven_apart(
         assert result.min_clearance > executed  # the samples alone saw more
 
 
+def _cell_balls(placed: dict[str, tuple[float, float]]) -> Scene:
+    """A scene of balls (radius BALL, margin 0), each ``name: (gap [m], angle [rad])``
+    beyond the arm's ball as :func:`_cell_ball` places one."""
+    objects = {}
+    for name, (gap, angle) in placed.items():
+        T = np.eye(4)
+        T[:3, 3] = (REACH + 2 * BALL + gap) * np.array([np.cos(angle), np.sin(angle), 0.0])
+        objects[name] = SceneObject(name, Shape("sphere", (BALL,)), T)
+    return Scene("balls", "turn", objects, margin=0.0)
+
+
+@pytest.mark.parametrize("late_gap_mm", [-0.05, 0.05])
+def test_of_several_passes_between_samples_the_one_not_proven_apart_is_named(
+        sweep: tuple[Robot, TimedPiece, float, float], late_gap_mm: float) -> None:
+    """Three balls, each passed halfway between two samples: two early ones 0.05 and
+    0.1 mm apart, and a later one that the motion touches or passes 0.05 mm apart. The
+    finer check bounds every interval next to every ball at once: the touch is refused,
+    naming that ball and where it is passed (the closest approaches before it proven
+    apart); without it, the motion is released with a bound no higher than its closest
+    pass."""
+    robot, piece, late, _ = sweep
+    grid = FclVerifier(robot, _cell_ball(0.01, late), margin=0.0).grid(piece.q)
+    angles = [float(np.mean([grid.state(piece.q, s)[0] for s in (k, k + 1)]))
+              for k in (grid.samples // 5, grid.samples // 3)]
+    placed = {"early": (0.05e-3, angles[0]), "middle": (0.1e-3, angles[1]),
+              "late": (late_gap_mm / 1000, late)}
+    verifier = FclVerifier(robot, _cell_balls(placed), margin=0.0)
+    executed = _executed(piece)
+    closest = {name: _distance(gap, angle, executed).min()
+               for name, (gap, angle) in placed.items()}
+    assert closest["early"] > 0.0 and closest["middle"] > 0.0
+    if late_gap_mm < 0:
+        with pytest.raises(UnprovenClearance) as info:
+            verifier.verify(piece.t, piece.q, piece.qd)
+        assert info.value.pair == ("hand", "late") and info.value.bound < 0.0
+        k = int(np.searchsorted(piece.t, info.value.time))
+        assert abs(float(piece.q[min(k, len(piece.t) - 1), 0]) - late) < 0.01
+        return
+    result = verifier.verify(piece.t, piece.q, piece.qd)
+    assert 0.0 <= result.clearance_bound <= min(closest.values())
+
+
+def test_the_finer_checks_bound_is_its_formula_on_the_intervals_around_the_pass(
+        sweep: tuple[Robot, TimedPiece, float, float]) -> None:
+    """A pass 1.2 mm from the ball, while the arm speeds up: closer than the grid's figure
+    proves, far enough for every interval's bound from its two ends to be positive. The
+    bound is the least, over the grid's intervals, of ``max((d_a + d_b - m) / 2,
+    max(d_a, d_b) - m)`` minus the stray, with the distances in closed form, the ball's
+    arc ``m`` between the samples and the stray of the knot interval each lies on (or
+    half the resolution, if smaller)."""
+    robot, piece, _, _ = sweep
+    grid = FclVerifier(robot, _cell_ball(0.01, 0.0), margin=0.0).grid(piece.q)
+    theta = np.array([grid.state(piece.q, s)[0] for s in range(grid.samples)])
+    # Passed while the arm speeds up: the arcs between samples differ, so each interval
+    # must be bounded with its own ends' distances.
+    s = int(np.argmax(np.diff(theta) * REACH > 1e-3))
+    angle = float(theta[s] + theta[s + 1]) / 2
+    verifier = FclVerifier(robot, _cell_ball(1.2e-3, angle), margin=0.0)
+    result = verifier.verify(piece.t, piece.q, piece.qd)
+    d = _distance(1.2e-3, angle, theta)
+    arc = (REACH + BALL) * np.abs(np.diff(theta))
+    knot = grid.knot_of[1:]
+    h = piece.t[knot] - piece.t[np.maximum(knot - 1, 0)]
+    bounds = (np.maximum((d[:-1] + d[1:] - arc) / 2, np.maximum(d[:-1], d[1:]) - arc)
+              - (REACH + BALL) * 1.0 * h * h / 8)
+    assert result.min_clearance - verifier.resolution < 0.0  # the figure proves nothing
+    assert 0.0 < bounds.min() < verifier.resolution / 2
+    assert result.clearance_bound == pytest.approx(bounds.min(), abs=1e-9)
+
+
 def test_the_bound_is_the_grid_figure_where_that_proves_it(
         sweep: tuple[Robot, TimedPiece, float, float]) -> None:
     """Far from the ball, the bound is the smallest clearance minus the resolution and
