@@ -26,7 +26,7 @@ import numpy as np
 from safepath import Trajectory
 from safepath.errors import TimingError
 from safepath.model.robot import Robot
-from safepath.monitor.profile import MonitoredPath, Timing
+from safepath.monitor.profile import KNOT_NS, MonitoredPath, Timing
 from safepath.timing import TimingOptions, spline_path, time_path
 
 __all__ = ["Follower", "Stop", "cell_motions", "chain_rng", "path_rng", "random_chain",
@@ -47,6 +47,8 @@ class Stop:
         ratios: Its speed, acceleration and jerk ratios to the limits as executed.
         forced: Whether the search fell back on :meth:`MonitoredPath.forced_stop`.
         duration: Its time to rest [s].
+        hold: How long it follows the running profile before it brakes [s] (``inf``: it
+            follows it to where it rests; 0: it brakes at once).
     """
 
     start: float
@@ -54,6 +56,7 @@ class Stop:
     ratios: tuple[float, float, float]
     forced: bool
     duration: float
+    hold: float
 
     @property
     def worst(self) -> float:
@@ -70,6 +73,11 @@ class Follower:
         t0 = float(traj.t[0])
         self.timings = [self.path.march(0.0, t0, 1.0, 1.0, np.inf, lead=0.0)]
         self.goal = (0.0, np.asarray(traj.t, dtype=float) - t0)  # (stamp, point times)
+        #: Every goal sent: (stamp [s], trajectory), the verified motion first.
+        self.goals: list[tuple[float, Trajectory]] = [(0.0, traj)]
+        # The verified motion, on a path whose knots are not evenly spaced, is switched
+        # from at any instant (Monitor._switch_time); every other goal on its points.
+        self.any_instant = self.path.knot == KNOT_NS / 1e9
 
     def timing_at(self, time: float) -> Timing:
         """The profile followed at ``time`` [s]."""
@@ -78,6 +86,8 @@ class Follower:
     def switch_time(self, time: float) -> float | None:
         """The running goal's first point at or after ``time`` (None: it has ended)."""
         stamp, points = self.goal
+        if self.any_instant:
+            return time if time <= stamp + points[-1] else None
         k = int(np.searchsorted(points + stamp, time - 1e-9, side="left"))
         return None if k >= points.size else float(points[k] + stamp)
 
@@ -107,15 +117,20 @@ class Follower:
                 forced = True
         self.timings = [t for t in self.timings if t.start < start][-1:] + [timing]
         self.goal = (start, np.asarray(traj.t, dtype=float))
+        self.goals.append((start, traj))
+        self.any_instant = False
         return traj, forced
 
 
-def random_chain(traj: Trajectory, robot: Robot, rng: np.random.Generator) -> list[Stop]:
-    """One chain on ``traj``: from a random instant of it, up to :data:`CHAIN` random
-    speed scales (0.1-1 in steps of 0.05, or a stop) 0.02-0.3 s apart, then a stop (if
-    not stopping already); the stops sent."""
+def random_chain(traj: Trajectory, robot: Robot, rng: np.random.Generator, *,
+                 late: float | None = None) -> tuple[list[Stop], Follower]:
+    """One chain on ``traj``: from a random instant of it (of its last ``late`` seconds
+    if given), up to :data:`CHAIN` random speed scales (0.1-1 in steps of 0.05, or a
+    stop) 0.02-0.3 s apart, then a stop (if not stopping already); the stops sent, and
+    the follower (its goals)."""
     follower = Follower(traj, robot)
-    time = float(rng.uniform(0.0, traj.duration))
+    time = float(rng.uniform(0.0, traj.duration)) if late is None else \
+        traj.duration - float(rng.uniform(0.0, min(late, traj.duration)))
     events: list[tuple[float, float]] = []
     stops = []
     scale = 1.0
@@ -130,13 +145,14 @@ def random_chain(traj: Trajectory, robot: Robot, rng: np.random.Generator) -> li
             rep, forced = sent
             if new == 0.0:
                 stops.append(Stop(follower.goal[0], tuple(events),
-                                  tuple(rep.info["executed_ratios"]), forced, rep.duration))
+                                  tuple(rep.info["executed_ratios"]), forced, rep.duration,
+                                  float(rep.info["stop"]["hold"])))
             events.append((follower.goal[0], new))
             scale = new
         if last:
             break
         time += float(rng.uniform(0.02, 0.3))
-    return stops
+    return stops, follower
 
 
 def chain_rng(seed: int, source: str, motion: int, chain: int) -> np.random.Generator:
