@@ -13,7 +13,7 @@ replay (``--only SOURCE:MOTION:CHAIN``); the machine's load. With ``--bags DIR``
 chain whose stop fell back on ``forced_stop`` is written as a bag of its goals (stamped
 1 s after the bag's start), for an independent check of its switches.
 
-    .venv/bin/python benchmarks/stop_search.py [--seed 0] [--chains 200] [--paths 40]
+    .venv/bin/python benchmarks/stop_search.py [--seed 0] [--chains 100] [--paths 20]
         [--sources quality_check_cell,pouring_cell,ned3pro,...] [--late S] [--bags DIR]
         [--save]
 """
@@ -58,8 +58,8 @@ def motions(source: str, seed: int, paths: int):  # noqa: ANN201
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     parser.add_argument("--seed", type=int, default=0)
-    parser.add_argument("--chains", type=int, default=200, help="chains per motion")
-    parser.add_argument("--paths", type=int, default=40, help="random paths per robot")
+    parser.add_argument("--chains", type=int, default=100, help="chains per motion")
+    parser.add_argument("--paths", type=int, default=20, help="random paths per robot")
     parser.add_argument("--sources", default=",".join(CELLS + ROBOTS))
     parser.add_argument("--only", default=None, help="SOURCE:MOTION:CHAIN, one chain")
     parser.add_argument("--bags", default=None, help="write forced stops' chains here")
@@ -83,8 +83,7 @@ def main() -> None:
           f"random paths per robot; load {load_before:.2f} on {os.cpu_count()} cores")
     header = (f"{'source':<20} {'motions':>7} {'stops':>6} {'forced':>6} {'held':>5} "
               f"{'over':>5} {'worst':>9} {'s':>6}")
-    print(header)
-    print("-" * len(header))
+    print(f"{header}\n{'-' * len(header)}")
     figures = {}
     for source in args.sources.split(","):
         figures[source] = _run(source, args)

@@ -27,7 +27,6 @@ from safepath import Trajectory
 from safepath.errors import TimingError
 from safepath.model.robot import Robot
 from safepath.monitor.profile import KNOT_NS, MonitoredPath, Timing
-from safepath.timing import TimingOptions, spline_path, time_path
 
 __all__ = ["Follower", "Stop", "cell_motions", "chain_rng", "path_rng", "random_chain",
            "via_point_motion"]
@@ -167,22 +166,12 @@ def path_rng(seed: int, robot: str, path: int) -> np.random.Generator:
 
 
 def via_point_motion(robot: Robot, rng: np.random.Generator) -> Trajectory:
-    """A random path through 1-3 via points inside 80 % of the joint ranges, blended as
-    the planner first blends them, each segment at its own speed scale, timed by
-    :func:`~safepath.timing.time_path` (as ``tests/timing_suite.py`` makes them)."""
-    from timing_suite import sampling_box
+    """A random via-point path of the timing suite (``tests/timing_suite.py``: 2-4 route
+    steps with their own speed scales and TCP speed limits, blended at the via points),
+    timed by :func:`~safepath.timing.time_path`, as one motion."""
+    from timing_suite import timed_problem
 
-    segments = int(rng.integers(2, 5))
-    lo, hi = sampling_box(robot)
-    points = [lo + rng.random(robot.dof) * (hi - lo) for _ in range(segments + 1)]
-    lengths = [float(np.linalg.norm(b - a)) for a, b in zip(points[:-1], points[1:],
-                                                           strict=True)]
-    corners = [(k, min(0.6, 0.4 * lengths[k - 1], 0.4 * lengths[k]))
-               for k in range(1, segments)]
-    scales = np.where(rng.random(segments) < 0.5, rng.uniform(0.2, 1.0, segments), 1.0)
-    path, s_way, _ = spline_path(points, 0.06, corners=corners)
-    piece = time_path(robot, path, s_way, scales=scales.tolist(), tcp_speeds=[None] * segments,
-                      options=TimingOptions())
+    piece, _ = timed_problem(robot, rng)
     return Trajectory(robot.joint_names, piece.t, piece.q, piece.qd, piece.qdd,
                       np.zeros(piece.t.size, dtype=int), ("move",), robot=robot.name,
                       limits=robot.motion_limits, interpolation=robot.controller.interpolation)

@@ -66,6 +66,14 @@ def test_a_brake_out_follows_the_running_goal_point_by_point(cell: Cell, phase1:
             assert np.allclose(mine[:knots + 1], its[:knots + 1], rtol=0, atol=1e-12)
         assert not np.allclose(out.qd[knots + 5], goal.qd[knots + 5], rtol=0, atol=1e-4)
         assert out.duration < goal.duration
+    # The search finds the earliest such stop within the limits: here after one knot,
+    # long before the running goal (the slowing, to the motion's end) would rest.
+    found = path.brake_out(start, running)
+    assert found is not None
+    _, out, how = found
+    assert max(out.info["executed_ratios"]) <= 1.0
+    assert how == {"accel_scale": 0.6, "hold": path.knot}
+    assert out.duration < goal.duration / 2
 
 
 def test_random_stops_on_the_cells_motions_are_within_the_limits(cell: Cell, phase1: Phase1
@@ -89,3 +97,16 @@ def test_random_stops_on_random_paths_are_within_the_limits(name: str) -> None:
                   for s in random_chain(traj, robot, chain_rng(0, name, p, c))[0]]
     assert max(s.worst for s in stops) <= 1.0, max(stops, key=lambda s: s.worst)
     assert len(stops) > 50
+
+
+@pytest.mark.parametrize(("name", "path", "chain"), [("ned3pro", 35, 26), ("gen3", 19, 21)])
+def test_stops_found_beyond_a_limit_near_a_random_paths_end_are_within_them(
+        name: str, path: int, chain: int) -> None:
+    """Found by ``benchmarks/stop_search.py --late 1`` (seed 0): a stop while speeding up
+    back to full speed in a random path's last second, where every braking tried before
+    exceeded the acceleration limit (1.083, 1.011)."""
+    robot = load_robot(name)
+    traj = via_point_motion(robot, path_rng(0, name, path))
+    stops, _ = random_chain(traj, robot, chain_rng(0, name, path, chain), late=1.0)
+    assert stops[-1].events[-1][1] == 1.0 and stops[-1].forced
+    assert stops[-1].worst <= 1.0, stops[-1].ratios
