@@ -82,7 +82,7 @@ def main() -> None:
           f"{'' if args.late is None else f' in its last {args.late:g} s'}, {args.paths} "
           f"random paths per robot; load {load_before:.2f} on {os.cpu_count()} cores")
     header = (f"{'source':<20} {'motions':>7} {'stops':>6} {'forced':>6} {'held':>5} "
-              f"{'over':>5} {'worst':>9} {'s':>6}")
+              f"{'over':>5} {'worst':>10} {'s':>6}")
     print(f"{header}\n{'-' * len(header)}")
     figures = {}
     for source in args.sources.split(","):
@@ -90,7 +90,7 @@ def main() -> None:
     total = sum(f["over"] for f in figures.values())
     tried = sum(f["stops"] for f in figures.values())
     worst = max(f["worst"] for f in figures.values())
-    print(f"beyond a limit: {total} of {tried} stops, worst ratio {worst:.6f}; "
+    print(f"beyond a limit: {total} of {tried} stops, worst ratio {worst:.7f}; "
           f"load {os.getloadavg()[0]:.2f}")
     if args.save:
         from _results import save
@@ -119,7 +119,7 @@ def _run(source: str, args: argparse.Namespace) -> dict[str, object]:
     held = sum(s.hold > 0 for s in forced)
     worst = max((s.worst for _, s in stops), default=0.0)
     print(f"{source:<20} {len(trajs):7d} {len(stops):6d} {len(forced):6d} {held:5d} "
-          f"{len(over):5d} {worst:9.6f} {time.perf_counter() - started:6.1f}")
+          f"{len(over):5d} {worst:10.7f} {time.perf_counter() - started:6.1f}")
     for replay, s in over:
         print(f"  over: --only {replay}  ratios {np.round(s.ratios, 4).tolist()} at "
               f"{s.start:.3f} s after {[(round(t, 3), round(k, 2)) for t, k in s.events]}")
