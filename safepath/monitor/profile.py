@@ -342,14 +342,7 @@ class MonitoredPath:
         limits as executed of the stop chosen, ``info["stop"]`` how it brakes
         (acceleration scale, hold [s]: how long it follows the running profile first).
         """
-        best: list[tuple[float, float, Timing, Trajectory]] = []  # (excess, rest, ...)
-
-        def consider(timing: Timing, traj: Trajectory, how: dict[str, float]) -> None:
-            traj.info["stop"] = how
-            key = (max(max(traj.info["executed_ratios"]), 1.0), traj.duration)
-            if not best or key < best[0][:2]:
-                best[:] = [(*key, timing, traj)]
-
+        best = _Earliest()
         # Near the end of a motion that decelerates at its limits, braking along the path
         # adds to that deceleration: the motion's own timing to its end may be within
         # the limits and at rest no later than braking would be.
@@ -357,28 +350,28 @@ class MonitoredPath:
         timing = self.march(start, tau0, r0, current, np.inf, before=before)
         traj = self.trajectory(timing, kind="stop", scale=current, check=False)
         if traj.t.size > 1 and traj.info["path_tau"][-1] >= self.end - 1e-9:
-            consider(timing, traj, {"accel_scale": 1.0, "hold": float("inf")})
+            best.consider(timing, traj, {"accel_scale": 1.0, "hold": float("inf")})
         groups = ([(a, h) for a in BRAKE_SCALES for h in GENTLE_HOLDS],
                   [(a, h) for a in GENTLE_SCALES for h in (0.0, *GENTLE_HOLDS)])
         for k, group in enumerate(groups):
-            if k and best[0][0] <= 1.0:
-                return best[0][2], best[0][3]
+            if k and best.within:  # gentler braking only when none before is within
+                return best.chosen()
             for accel_scale, hold in group:
                 timing = self.stop_timing(start, accel_scale, hold, before=before,
                                           tau0=tau0, r0=r0)
-                consider(timing, self.trajectory(timing, kind="stop", scale=0.0, check=False,
-                                                 t0=start),
-                         {"accel_scale": accel_scale, "hold": hold})
-        if best[0][0] > 1.0:
+                best.consider(timing, self.trajectory(timing, kind="stop", scale=0.0,
+                                                      check=False, t0=start),
+                              {"accel_scale": accel_scale, "hold": hold})
+        if not best.within:
             running = before if before is not None else \
                 self.march(start, tau0, r0, r0, np.inf)  # a steady speed, kept
-            consider(running, self.trajectory(running, kind="stop", scale=0.0, check=False,
-                                              t0=start),
-                     {"accel_scale": 0.0, "hold": float("inf")})
+            best.consider(running, self.trajectory(running, kind="stop", scale=0.0,
+                                                   check=False, t0=start),
+                          {"accel_scale": 0.0, "hold": float("inf")})
             found = self.brake_out(start, running)
             if found is not None:
-                consider(*found)
-        return best[0][2], best[0][3]
+                best.consider(*found)
+        return best.chosen()
 
     def brake_out(self, start: float, running: Timing
                   ) -> tuple[Timing, Trajectory, dict[str, float]] | None:
@@ -474,3 +467,30 @@ class MonitoredPath:
         return Trajectory(tr.joint_names, t, q, v, a, tr.step_index[knot],
                           tr.steps, (), tr.robot, tr.route, info, self.robot.motion_limits,
                           tr.interpolation)
+
+
+class _Earliest:
+    """The stop chosen so far among candidates: the least excess over the limits as
+    executed (none: within them), then the earliest at rest."""
+
+    def __init__(self) -> None:
+        self.key = (np.inf, np.inf)  # (largest ratio, at least 1; time to rest [s])
+        self.pick: tuple[Timing, Trajectory] | None = None
+
+    @property
+    def within(self) -> bool:
+        """Whether the stop chosen is within every limit as executed."""
+        return self.key[0] <= 1.0
+
+    def consider(self, timing: Timing, traj: Trajectory, how: dict[str, float]) -> None:
+        """Take this candidate if it comes before the one chosen (``how``: how it brakes,
+        recorded as ``info["stop"]``)."""
+        traj.info["stop"] = how
+        key = (max(max(traj.info["executed_ratios"]), 1.0), traj.duration)
+        if key < self.key:
+            self.key, self.pick = key, (timing, traj)
+
+    def chosen(self) -> tuple[Timing, Trajectory]:
+        """The stop chosen."""
+        assert self.pick is not None
+        return self.pick
