@@ -188,9 +188,7 @@ class _Bounds:
 
     def __init__(self, robot: Robot, path: PathSpline, s_way: np.ndarray, grid: np.ndarray,
                  dq: np.ndarray, jerk_scale: float, tcp: bool) -> None:
-        eps = 1e-9 * max(1.0, float(grid[-1]))
-        # q''' of the pieces on both sides of each gridpoint.
-        d3 = np.maximum(np.abs(path(grid, 3)), np.abs(path(np.maximum(grid - eps, 0.0), 3)))
+        d3 = _third_derivative(path, grid)
         # Per gridpoint, the largest joint speed per path speed over its limit, and the
         # largest q''' over its share of the jerk limit: the bounds scale them (computed
         # once, whatever the scales).
@@ -227,6 +225,21 @@ class _Bounds:
             tcp = np.where(np.isfinite(v_tcp) & (self.rate >= 1e-9),
                            (v_tcp / np.maximum(self.rate, 1e-9)) ** 2, np.inf)
         return np.minimum(xmax, tcp)
+
+
+def _third_derivative(path: PathSpline, grid: np.ndarray) -> np.ndarray:
+    """``|q'''|`` at the gridpoints, the larger of the pieces' on both sides of each
+    (points, dof): read off a :class:`~safepath.timing.CubicPath`'s coefficients (the
+    gridpoints include its breakpoints), else evaluated just before and at each."""
+    coef = getattr(path, "coefficients", None)
+    if coef is None:
+        eps = 1e-9 * max(1.0, float(grid[-1]))
+        return np.maximum(np.abs(path(grid, 3)), np.abs(path(np.maximum(grid - eps, 0.0), 3)))
+    last = coef.shape[0] - 1
+    after = np.minimum(np.maximum(np.searchsorted(path.x, grid, side="right") - 1, 0), last)
+    before = np.minimum(np.maximum(np.searchsorted(path.x, grid, side="left") - 1, 0), last)
+    c3 = np.abs(coef[:, 3, :])
+    return 6.0 * np.maximum(c3[after], c3[before])
 
 
 def tcp_limits(tcp_speeds: Sequence[float | None]) -> np.ndarray:
@@ -320,19 +333,19 @@ def ahead_of_steps(grid: np.ndarray, bound: Callable[[np.ndarray, np.ndarray], n
 
 def sliding_min(values: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
     """The smallest of ``values[lo[i]:hi[i]]`` for every ``i`` (each range non-empty),
-    from a table of the minima over power-of-two spans (no loop over ``i``)."""
+    from a table of the minima over power-of-two spans (no loop over ``i``): row ``k``
+    holds the minimum of the ``2^k`` values from each index (inf past the end)."""
     n = values.size
-    table = [np.asarray(values, dtype=float)]
+    levels = max(1, n.bit_length())
+    table = np.full((levels, n), np.inf)
+    table[0] = values
     span = 1
-    while 2 * span <= n:
-        table.append(np.minimum(table[-1][:-span], table[-1][span:]))
+    for k in range(1, levels):
+        m = n - 2 * span + 1  # the spans of 2^k that fit
+        np.minimum(table[k - 1, :m], table[k - 1, span:span + m], out=table[k, :m])
         span *= 2
     level = np.floor(np.log2(np.maximum(hi - lo, 1))).astype(np.int64)
-    out = np.empty(n)
-    for k in np.flatnonzero(np.bincount(level)):  # the levels present, ascending
-        at = np.flatnonzero(level == k)
-        out[at] = np.minimum(table[k][lo[at]], table[k][hi[at] - (1 << k)])
-    return out
+    return np.minimum(table[level, lo], table[level, hi - (1 << level)])
 
 
 def row_max(values: np.ndarray) -> np.ndarray:
