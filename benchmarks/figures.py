@@ -3,7 +3,7 @@
 Reads the JSON files the benchmarks write into ``benchmarks/results/``, each its latest
 saved run (``collision_checks.py``, ``plan_cycle.py``, ``timing_quality.py``,
 ``panda_set.py``, ``cold_start.py``, ``runtime_heartbeat.py``, ``monitor.py``,
-``switches.py``, ``live_safety.py`` and ``sweeps.py`` with
+``switches.py``, ``stop_search.py``, ``live_safety.py`` and ``sweeps.py`` with
 ``--save``; ``executed_motion.py``, ``replan.py``, ``twin.py`` and ``peers/run.py``
 always), and writes one row per headline figure, with the command that measures it and
 when, on what and at which load it was measured; then the peer comparison's table from
@@ -151,6 +151,16 @@ def _switches(d: dict[str, Any]) -> list[Row]:
             ("monitor decision that sends a goal, median / p99 (without a goal)",
              f"{g['median']:.2f} / {g['p99']:.2f} ms (aim {aim['median']:.0f} / "
              f"{aim['p99']:.0f} ms, {_met(ok)}; {o['median']:.2f} / {o['p99']:.2f} ms)")]
+
+
+def _stop_search(d: dict[str, Any]) -> list[Row]:
+    sources = d["sources"]
+    forced = sum(f["forced"] for f in sources.values())
+    return [(f"monitor stops from random instants, braking and speeding up ({d['stops']} "
+             f"stops on {len(sources)} cells and robots, seed {d['seed']})",
+             f"beyond a limit as executed {d['over_limit']} (aim 0, "
+             f"{_met(d['over_limit'] == 0)}); worst ratio {d['worst_ratio']:.7f}; "
+             f"{forced} needed the fall-back search")]
 
 
 def _runtime_heartbeat(d: dict[str, Any]) -> list[Row]:
@@ -323,6 +333,7 @@ SOURCES: list[tuple[str, str, Reader]] = [
     ("runtime_heartbeat.json", "benchmarks/runtime_heartbeat.py --save", _runtime_heartbeat),
     ("monitor.json", "benchmarks/monitor.py --save", _monitor),
     ("switches.json", "benchmarks/switches.py --runs 200 --save", _switches),
+    ("stop_search.json", "benchmarks/stop_search.py --save", _stop_search),
     ("live_safety.json", "benchmarks/live_safety.py --runs 200 --workers 2 --save",
      _live_safety),
     ("executed_motion.json", "benchmarks/executed_motion.py --random 40 --seed 23",

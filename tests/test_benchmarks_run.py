@@ -30,6 +30,8 @@ CASES = [
     ("cold_start.py", ["--runs", "1", "--warmup", "0"], "first / second plan_cell"),
     ("monitor.py", ["--decisions", "20", "--speeds", "1.6"], "decision latency"),
     ("switches.py", ["--runs", "2"], "largest step at a switch"),
+    ("stop_search.py", ["--chains", "3", "--paths", "1", "--sources", "ned3pro"],
+     "beyond a limit: 0 of"),
     ("live_safety.py", ["--runs", "1", "--seed", "24"], "contacts while the arm moves"),
     ("panda_set.py", ["--limit", "2"], "the same, CPU time"),
     ("pour.py", ["--runs", "2", "--events", "20"], "seed measured ~103 g"),

@@ -532,8 +532,8 @@ class Monitor:
                 return self._sent(now, start, timing, traj, "stop", 0.0,
                                   f"{reason}; braking gentler than assessed (at rest after "
                                   f"{traj.duration:.3f} s, assessed "
-                                  f"{base['stopping_time']:.3f} s): no braking as assessed "
-                                  f"is within the limits from this state", base)
+                                  f"{base['stopping_time']:.3f} s{_held(traj)}): no braking "
+                                  f"as assessed is within the limits from this state", base)
             log.warning("monitor: %s beyond the limits as executed (%s): %s", kind,
                         ", ".join(f"{x:.3f}" for x in ratios), exc)
             self.stats["stops_over_limit"] = self.stats.get("stops_over_limit", 0) + 1
@@ -682,3 +682,11 @@ class Monitor:
         return replace(tight, separation_now=min(others.separation_now,
                                                  still.separation_now),
                        separation_path=min(others.separation_path, still.separation_path))
+
+
+def _held(stop: Trajectory) -> str:
+    """How long a stop follows the running motion before it brakes, as words."""
+    hold = stop.info["stop"]["hold"]
+    if hold == float("inf"):
+        return "; it follows the running motion to its rest"
+    return f"; it follows the running motion {hold:.3f} s first" if hold > 0 else ""

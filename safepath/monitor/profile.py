@@ -162,6 +162,9 @@ GENTLE_HOLDS = (0.1, 0.2)
 #: of :data:`BRAKE_SCALES` (and their holds) is within the limits from the state it
 #: starts in: it comes to rest later than the assessment assumed, and says so.
 GENTLE_SCALES = (0.4, 0.25, 0.15, 0.1)
+#: Braking [fraction of the acceleration limits] :meth:`MonitoredPath.brake_out` tries
+#: after each hold along the running profile, hardest first.
+BRAKE_OUT_SCALES = (0.6, 0.25, 0.1)
 #: Fractions of the acceleration limits a speed-up may use, tried in turn: the first is
 #: the assessment's; a gentler speed-up is slower at every instant, so it stops sooner.
 SPEED_UP_SCALES = (0.6, 0.4, 0.25, 0.15, 0.1)
@@ -324,22 +327,22 @@ class MonitoredPath:
     def forced_stop(self, start: float, *, before: Timing | None, tau0: float, r0: float
                     ) -> tuple[Timing, Trajectory]:
         """The stop sent when no re-timing of :meth:`replacement` stays within every limit
-        as executed from this state: a stop is never postponed, so the motion's own
-        timing to its end or the assessed braking after a longer hold
-        (:data:`GENTLE_HOLDS`), else braking gentler than assessed (:data:`GENTLE_SCALES`),
-        whichever within the limits comes to rest first; if none is within them, of all
-        those the one whose largest ratio to a limit is least. ``info["executed_ratios"]``
-        holds its speed, acceleration and jerk ratios to the limits as executed, and
-        ``info["stop"]`` how it brakes (acceleration scale, hold [s])."""
-        best: tuple[float, float, Timing, Trajectory] | None = None  # (excess, rest, ...)
+        as executed from this state: a stop is never postponed (it is sent at once), and
+        the one within the limits that rests first wins.
 
-        def consider(timing: Timing, traj: Trajectory, how: dict[str, float]) -> None:
-            nonlocal best
-            traj.info["stop"] = how
-            key = (max(max(traj.info["executed_ratios"]), 1.0), traj.duration)
-            if best is None or key < best[:2]:
-                best = (*key, timing, traj)
-
+        The candidates, in groups (a group only when none before is within the limits):
+        the motion's own timing to its end and the assessed braking after a longer hold
+        (:data:`GENTLE_HOLDS`); braking gentler than assessed (:data:`GENTLE_SCALES`);
+        then the running profile itself, followed as it is to where it rests (the path's
+        end, or where a running stop rests), and the earliest brake-out from it
+        (:meth:`brake_out`). The running profile is the verified motion or a replacement
+        that was within every limit as executed when it was sent, so this last group
+        always holds a stop within the limits (see docs/monitor.md, "the stop rule").
+        ``info["executed_ratios"]`` holds the speed, acceleration and jerk ratios to the
+        limits as executed of the stop chosen, ``info["stop"]`` how it brakes
+        (acceleration scale, hold [s]: how long it follows the running profile first).
+        """
+        best = _Earliest()
         # Near the end of a motion that decelerates at its limits, braking along the path
         # adds to that deceleration: the motion's own timing to its end may be within
         # the limits and at rest no later than braking would be.
@@ -347,22 +350,75 @@ class MonitoredPath:
         timing = self.march(start, tau0, r0, current, np.inf, before=before)
         traj = self.trajectory(timing, kind="stop", scale=current, check=False)
         if traj.t.size > 1 and traj.info["path_tau"][-1] >= self.end - 1e-9:
-            consider(timing, traj, {"accel_scale": 1.0, "hold": float("inf")})
-        # With it, the assessed braking after longer holds; gentler braking only when
-        # none of those is within the limits. The stop within them that rests first wins.
+            best.consider(timing, traj, {"accel_scale": 1.0, "hold": float("inf")})
         groups = ([(a, h) for a in BRAKE_SCALES for h in GENTLE_HOLDS],
                   [(a, h) for a in GENTLE_SCALES for h in (0.0, *GENTLE_HOLDS)])
         for k, group in enumerate(groups):
-            if k and best is not None and best[0] <= 1.0:
-                break
+            if k and best.within:  # gentler braking only when none before is within
+                return best.chosen()
             for accel_scale, hold in group:
                 timing = self.stop_timing(start, accel_scale, hold, before=before,
                                           tau0=tau0, r0=r0)
-                consider(timing, self.trajectory(timing, kind="stop", scale=0.0, check=False,
-                                                 t0=start),
-                         {"accel_scale": accel_scale, "hold": hold})
-        assert best is not None
-        return best[2], best[3]
+                best.consider(timing, self.trajectory(timing, kind="stop", scale=0.0,
+                                                      check=False, t0=start),
+                              {"accel_scale": accel_scale, "hold": hold})
+        if not best.within:
+            running = before if before is not None else \
+                self.march(start, tau0, r0, r0, np.inf)  # a steady speed, kept
+            best.consider(running, self.trajectory(running, kind="stop", scale=0.0,
+                                                   check=False, t0=start),
+                          {"accel_scale": 0.0, "hold": float("inf")})
+            found = self.brake_out(start, running)
+            if found is not None:
+                best.consider(*found)
+        return best.chosen()
+
+    def brake_out(self, start: float, running: Timing
+                  ) -> tuple[Timing, Trajectory, dict[str, float]] | None:
+        """The earliest stop found that follows the running profile from monitor time
+        ``start`` for a hold, then brakes at one of :data:`BRAKE_OUT_SCALES` (hardest
+        first), within every limit as executed: holds of 1, 2, 4, ... knots until one is,
+        then bisected (in whole knots) down to a hold one knot after one that is not.
+
+        Until the hold ends the stop's knots are the running goal's, so what it adds to
+        the running motion is its braking alone; a hold that reaches the running
+        profile's end is the running profile itself (not searched: the caller has it).
+
+        Returns:
+            (timing, trajectory, how it brakes), or None (none found before the running
+            profile ends).
+        """
+        # The last hold whose braking starts (half a width on, in the raw profile)
+        # before the running raw profile ends.
+        raw_end = running.start + running.lead + float(running.t[-1])
+        last = int(np.floor((raw_end - self.width / 2 - start) / self.knot - 1e-9))
+        lo, hi, found = 0, 1, None  # holds in knots: lo not within the limits
+        while hi <= last and found is None:
+            found = self._brake_after(start, running, hi)
+            if found is None:
+                lo, hi = hi, 2 * hi
+        hi = min(hi, last + 1)  # last + 1: the running profile itself
+        while hi - lo > 1:
+            mid = (lo + hi) // 2
+            within = self._brake_after(start, running, mid)
+            if within is None:
+                lo = mid
+            else:
+                hi, found = mid, within
+        return found
+
+    def _brake_after(self, start: float, running: Timing, knots: int
+                     ) -> tuple[Timing, Trajectory, dict[str, float]] | None:
+        """Braking after following ``running`` for ``knots`` knots from ``start``, at the
+        hardest of :data:`BRAKE_OUT_SCALES` within every limit as executed (None: none)."""
+        hold = knots * self.knot
+        for accel_scale in BRAKE_OUT_SCALES:
+            timing = self.march(start + hold, 0.0, 0.0, 0.0, 0.0, before=running,
+                                accel_scale=accel_scale)
+            traj = self.trajectory(timing, kind="stop", scale=0.0, check=False, t0=start)
+            if max(traj.info["executed_ratios"]) <= 1.0:
+                return timing, traj, {"accel_scale": accel_scale, "hold": hold}
+        return None
 
     def trajectory(self, timing: Timing, *, kind: str, scale: float, check: bool = True,
                    t0: float | None = None) -> Trajectory:
@@ -411,3 +467,30 @@ class MonitoredPath:
         return Trajectory(tr.joint_names, t, q, v, a, tr.step_index[knot],
                           tr.steps, (), tr.robot, tr.route, info, self.robot.motion_limits,
                           tr.interpolation)
+
+
+class _Earliest:
+    """The stop chosen so far among candidates: the least excess over the limits as
+    executed (none: within them), then the earliest at rest."""
+
+    def __init__(self) -> None:
+        self.key = (np.inf, np.inf)  # (largest ratio, at least 1; time to rest [s])
+        self.pick: tuple[Timing, Trajectory] | None = None
+
+    @property
+    def within(self) -> bool:
+        """Whether the stop chosen is within every limit as executed."""
+        return self.key[0] <= 1.0
+
+    def consider(self, timing: Timing, traj: Trajectory, how: dict[str, float]) -> None:
+        """Take this candidate if it comes before the one chosen (``how``: how it brakes,
+        recorded as ``info["stop"]``)."""
+        traj.info["stop"] = how
+        key = (max(max(traj.info["executed_ratios"]), 1.0), traj.duration)
+        if key < self.key:
+            self.key, self.pick = key, (timing, traj)
+
+    def chosen(self) -> tuple[Timing, Trajectory]:
+        """The stop chosen."""
+        assert self.pick is not None
+        return self.pick
