@@ -670,9 +670,11 @@ def test_a_triangle_mesh_is_verified_like_the_shape_it_meshes(detour_cell: Cell)
 def test_unsupported_geometry_is_refused_before_planning_naming_it(
         detour_cell: Cell) -> None:
     odd = _with_geometry(detour_cell.robot, {"forearm_link_0": coal.Ellipsoid(0.05, 0.04, 0.1)})
-    with pytest.raises(ConfigError, match="forearm_link_0.*Ellipsoid") as info:
-        check_verifiable(odd, detour_cell.scene)
-    assert info.value.key == "forearm_link_0"
+    for _ in range(2):  # the second from what the robot keeps of the first
+        with pytest.raises(ConfigError, match="forearm_link_0.*Ellipsoid") as info:
+            check_verifiable(odd, detour_cell.scene)
+        assert info.value.key == "forearm_link_0"
+    check_verifiable(detour_cell.robot, detour_cell.scene)  # the robot it was made from
     with pytest.raises(ConfigError) as info:
         FclVerifier(odd, detour_cell.scene)
     assert info.value.key == "forearm_link_0"
