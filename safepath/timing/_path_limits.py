@@ -236,7 +236,8 @@ def _third_derivative(path: PathSpline, grid: np.ndarray) -> np.ndarray:
         eps = 1e-9 * max(1.0, float(grid[-1]))
         return np.maximum(np.abs(path(grid, 3)), np.abs(path(np.maximum(grid - eps, 0.0), 3)))
     last = coef.shape[0] - 1
-    after = np.minimum(np.maximum(np.searchsorted(path.x, grid, side="right") - 1, 0), last)
+    after = interval_index(path.x, grid, last + 1)
+    # A gridpoint on a breakpoint also ends the piece before it.
     before = np.minimum(np.maximum(np.searchsorted(path.x, grid, side="left") - 1, 0), last)
     c3 = np.abs(coef[:, 3, :])
     return 6.0 * np.maximum(c3[after], c3[before])

@@ -461,7 +461,7 @@ def _tighten(f_acc: np.ndarray, f_x: np.ndarray, grid: np.ndarray, run: _Run) ->
     # (np.minimum/np.maximum: np.clip checks its arguments' types on every call.)
     s_lo = _topp.evaluate(sm.profile, np.minimum(np.maximum(run.t[over] - width, 0.0), end))[0]
     s_hi = _topp.evaluate(sm.profile, np.minimum(np.maximum(run.t[over + 1], 0.0), end))[0]
-    g_lo = np.minimum(np.maximum(np.searchsorted(grid, s_lo, side="right") - 1, 0), grid.size - 1)
+    g_lo = interval_index(grid, s_lo, grid.size)
     g_hi = np.minimum(np.maximum(np.searchsorted(grid, s_hi, side="left") + 1, 1), grid.size)
     pad = 1.0 + RETIME_ABOVE
     # Acceleration and jerk scale with the path acceleration; speed with sqrt(x), the
