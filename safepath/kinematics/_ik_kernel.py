@@ -25,8 +25,8 @@ import math
 import numpy as np
 
 from .._aot import njit
-from ..model._fk_kernel import exp3, joint_frames
-from ..model._joint_table import JF_V, JF_W, JI_Q
+from ..model._fk_kernel import exp3, frame_origin, joint_frames, joint_motion
+from ..model._joint_table import JI_Q
 
 __all__ = ["OK", "NO_SOLUTION", "JUMP", "tcp_pose", "tcp_jacobian", "log6", "jlog6",
            "solve", "line_path"]
@@ -46,16 +46,11 @@ def _fk(joint_f, joint_i, frame_f, q, Rw, pw, R, p):  # noqa: N803
     k = joint_f.shape[0]
     joint_frames(q, joint_f, joint_i, Rw, pw)
     for r in range(3):
-        if k == 0:
-            for c in range(3):
-                R[r, c] = frame_f[3 * r + c]
-            p[r] = frame_f[9 + r]
-        else:
-            for c in range(3):
-                R[r, c] = (Rw[k - 1, r, 0] * frame_f[c] + Rw[k - 1, r, 1] * frame_f[3 + c]
-                           + Rw[k - 1, r, 2] * frame_f[6 + c])
-            p[r] = (pw[k - 1, r] + Rw[k - 1, r, 0] * frame_f[9] + Rw[k - 1, r, 1] * frame_f[10]
-                    + Rw[k - 1, r, 2] * frame_f[11])
+        for c in range(3):
+            R[r, c] = frame_f[3 * r + c] if k == 0 else (
+                Rw[k - 1, r, 0] * frame_f[c] + Rw[k - 1, r, 1] * frame_f[3 + c]
+                + Rw[k - 1, r, 2] * frame_f[6 + c])
+    p[0], p[1], p[2] = frame_origin(Rw, pw, k, frame_f)
 
 
 @njit(cache=True, nogil=True)
@@ -67,20 +62,8 @@ def _jacobian(joint_f, joint_i, Rw, pw, R, p, J):  # noqa: N803
             J[r, c] = 0.0
     for j in range(joint_f.shape[0]):
         col = joint_i[j, JI_Q]
-        # The joint's angular (w) and linear (v) motion in the world frame.
-        ax, ay, az = joint_f[j, JF_W], joint_f[j, JF_W + 1], joint_f[j, JF_W + 2]
-        wx = Rw[j, 0, 0] * ax + Rw[j, 0, 1] * ay + Rw[j, 0, 2] * az
-        wy = Rw[j, 1, 0] * ax + Rw[j, 1, 1] * ay + Rw[j, 1, 2] * az
-        wz = Rw[j, 2, 0] * ax + Rw[j, 2, 1] * ay + Rw[j, 2, 2] * az
-        lx, ly, lz = joint_f[j, JF_V], joint_f[j, JF_V + 1], joint_f[j, JF_V + 2]
-        vx = Rw[j, 0, 0] * lx + Rw[j, 0, 1] * ly + Rw[j, 0, 2] * lz
-        vy = Rw[j, 1, 0] * lx + Rw[j, 1, 1] * ly + Rw[j, 1, 2] * lz
-        vz = Rw[j, 2, 0] * lx + Rw[j, 2, 1] * ly + Rw[j, 2, 2] * lz
-        # Velocity of the TCP origin: v + w x (p_tcp - p_joint).
-        dx, dy, dz = p[0] - pw[j, 0], p[1] - pw[j, 1], p[2] - pw[j, 2]
-        vx += wy * dz - wz * dy
-        vy += wz * dx - wx * dz
-        vz += wx * dy - wy * dx
+        # The velocity of the TCP origin and the angular velocity, world axes.
+        vx, vy, vz, wx, wy, wz = joint_motion(joint_f, Rw, pw, j, p[0], p[1], p[2])
         for r in range(3):  # in TCP axes: R^T
             J[r, col] = R[0, r] * vx + R[1, r] * vy + R[2, r] * vz
             J[3 + r, col] = R[0, r] * wx + R[1, r] * wy + R[2, r] * wz

@@ -30,7 +30,7 @@ import math
 from .._aot import njit
 from ._joint_table import FIXED, JF_R, JF_T, JF_V, JF_W, JI_KIND, JI_PARENT, JI_Q
 
-__all__ = ["exp3", "joint_frames", "tcp_motion"]
+__all__ = ["exp3", "frame_origin", "joint_frames", "joint_motion", "tcp_motion"]
 
 # Below this angle [rad] exp3's closed form loses precision and a Taylor series is used
 # (Pinocchio's threshold: eps ** (1/4)).
@@ -94,6 +94,42 @@ def joint_frames(q, jf, ji, Rw, pw):  # noqa: N803
                         + Rw[parent, r, 2] * l2)
 
 
+@_inlined
+def frame_origin(Rw, pw, k, frame_f):  # noqa: N803
+    """World position [m] of a frame placed at ``frame_f`` (rotation 0-8 row-major,
+    translation 9-11) in the last of ``k`` joint frames (in the world when ``k`` is 0)."""
+    if k == 0:
+        return frame_f[9], frame_f[10], frame_f[11]
+    e = k - 1
+    return ((pw[e, 0] + Rw[e, 0, 0] * frame_f[9] + Rw[e, 0, 1] * frame_f[10]
+             + Rw[e, 0, 2] * frame_f[11]),
+            (pw[e, 1] + Rw[e, 1, 0] * frame_f[9] + Rw[e, 1, 1] * frame_f[10]
+             + Rw[e, 1, 2] * frame_f[11]),
+            (pw[e, 2] + Rw[e, 2, 0] * frame_f[9] + Rw[e, 2, 1] * frame_f[10]
+             + Rw[e, 2, 2] * frame_f[11]))
+
+
+@_inlined
+def joint_motion(jf, Rw, pw, j, px, py, pz):  # noqa: N803
+    """Per unit speed of the table's joint ``j`` (a screw, placed at ``Rw[j]``, ``pw[j]``):
+    the velocity of the point ``p`` and the angular velocity, in world axes
+    (``vx, vy, vz, wx, wy, wz``)."""
+    ax, ay, az = jf[j, JF_W], jf[j, JF_W + 1], jf[j, JF_W + 2]
+    wx = Rw[j, 0, 0] * ax + Rw[j, 0, 1] * ay + Rw[j, 0, 2] * az
+    wy = Rw[j, 1, 0] * ax + Rw[j, 1, 1] * ay + Rw[j, 1, 2] * az
+    wz = Rw[j, 2, 0] * ax + Rw[j, 2, 1] * ay + Rw[j, 2, 2] * az
+    lx, ly, lz = jf[j, JF_V], jf[j, JF_V + 1], jf[j, JF_V + 2]
+    vx = Rw[j, 0, 0] * lx + Rw[j, 0, 1] * ly + Rw[j, 0, 2] * lz
+    vy = Rw[j, 1, 0] * lx + Rw[j, 1, 1] * ly + Rw[j, 1, 2] * lz
+    vz = Rw[j, 2, 0] * lx + Rw[j, 2, 1] * ly + Rw[j, 2, 2] * lz
+    # The point's velocity: v + w x (p - p_joint).
+    dx, dy, dz = px - pw[j, 0], py - pw[j, 1], pz - pw[j, 2]
+    vx += wy * dz - wz * dy
+    vy += wz * dx - wx * dz
+    vz += wx * dy - wy * dx
+    return vx, vy, vz, wx, wy, wz
+
+
 @njit(cache=True, nogil=True)
 def tcp_motion(jf, ji, frame_f, q_path, qd_path, speed, Rw, pw, q, p_out, v_out):  # noqa: N803
     """The TCP's world position (p_out (n, 3) [m]) at each row of ``q_path`` (n, nq) and,
@@ -107,33 +143,15 @@ def tcp_motion(jf, ji, frame_f, q_path, qd_path, speed, Rw, pw, q, p_out, v_out)
         for c in range(q.size):
             q[c] = q_path[i, c]
         joint_frames(q, jf, ji, Rw, pw)
-        if k == 0:
-            px, py, pz = frame_f[9], frame_f[10], frame_f[11]
-        else:
-            e = k - 1
-            px = (pw[e, 0] + Rw[e, 0, 0] * frame_f[9] + Rw[e, 0, 1] * frame_f[10]
-                  + Rw[e, 0, 2] * frame_f[11])
-            py = (pw[e, 1] + Rw[e, 1, 0] * frame_f[9] + Rw[e, 1, 1] * frame_f[10]
-                  + Rw[e, 1, 2] * frame_f[11])
-            pz = (pw[e, 2] + Rw[e, 2, 0] * frame_f[9] + Rw[e, 2, 1] * frame_f[10]
-                  + Rw[e, 2, 2] * frame_f[11])
+        px, py, pz = frame_origin(Rw, pw, k, frame_f)
         p_out[i, 0], p_out[i, 1], p_out[i, 2] = px, py, pz
         if not speed:
             continue
         vx = vy = vz = 0.0
         for j in range(k):
             x = qd_path[i, ji[j, JI_Q]]
-            # The joint's angular (w) and linear (v) motion per unit speed, world axes.
-            ax, ay, az = jf[j, JF_W], jf[j, JF_W + 1], jf[j, JF_W + 2]
-            lx, ly, lz = jf[j, JF_V], jf[j, JF_V + 1], jf[j, JF_V + 2]
-            wx = Rw[j, 0, 0] * ax + Rw[j, 0, 1] * ay + Rw[j, 0, 2] * az
-            wy = Rw[j, 1, 0] * ax + Rw[j, 1, 1] * ay + Rw[j, 1, 2] * az
-            wz = Rw[j, 2, 0] * ax + Rw[j, 2, 1] * ay + Rw[j, 2, 2] * az
-            dx, dy, dz = px - pw[j, 0], py - pw[j, 1], pz - pw[j, 2]
-            vx += x * (Rw[j, 0, 0] * lx + Rw[j, 0, 1] * ly + Rw[j, 0, 2] * lz
-                       + wy * dz - wz * dy)
-            vy += x * (Rw[j, 1, 0] * lx + Rw[j, 1, 1] * ly + Rw[j, 1, 2] * lz
-                       + wz * dx - wx * dz)
-            vz += x * (Rw[j, 2, 0] * lx + Rw[j, 2, 1] * ly + Rw[j, 2, 2] * lz
-                       + wx * dy - wy * dx)
+            mx, my, mz, _, _, _ = joint_motion(jf, Rw, pw, j, px, py, pz)
+            vx += x * mx
+            vy += x * my
+            vz += x * mz
         v_out[i] = math.sqrt(vx * vx + vy * vy + vz * vz)
