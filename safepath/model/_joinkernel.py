@@ -42,21 +42,38 @@ def piece_of(breaks, x):
 
 
 @njit(cache=True, nogil=True, _nrt=False, inline="always")
-def _interval_peaks(t, q, qd, qdd, k, d, m, h, i3, i4, i5):
-    """The quintic join's speed bound, peak |a| and peak |j| on interval ``k`` of joint
-    ``d`` (see :func:`_peaks`), its speed sampled at ``m`` points where it may peak
-    inside; ``h`` is the interval's length, ``i3``, ``i4``, ``i5`` its inverse third,
-    fourth and fifth powers (the same for every joint: :func:`_inverse_powers`)."""
-    # The quintic matching position, velocity and acceleration at both ends.
+def _coefficients(q, qd, qdd, k, d, h, i3, i4, i5):
+    """``c1 .. c5`` of the quintic ``q[k] + c1 t + ... + c5 t^5`` matching position,
+    velocity and acceleration of points ``k`` and ``k + 1`` of joint ``d`` (``h`` the
+    interval's length, ``i3``, ``i4``, ``i5`` its inverse third, fourth and fifth
+    powers: :func:`_inverse_powers`)."""
     v0, acc0 = qd[k, d], qdd[k, d]
     dp = q[k + 1, d] - q[k, d] - v0 * h - acc0 * h * h / 2.0
     dv = qd[k + 1, d] - v0 - acc0 * h
     da = qdd[k + 1, d] - acc0
-    c1, c2 = v0, acc0 / 2.0
     c3 = (10.0 * dp - 4.0 * dv * h + da * h * h / 2.0) * i3
     c4 = (-15.0 * dp + 7.0 * dv * h - da * h * h) * i4
     c5 = (6.0 * dp - 3.0 * dv * h + da * h * h / 2.0) * i5
-    # Jerk 6 c3 + 24 c4 t + 60 c5 t^2: the ends and the vertex.
+    return v0, acc0 / 2.0, c3, c4, c5
+
+
+@njit(cache=True, nogil=True, _nrt=False, inline="always")
+def _interval_peaks(q, qd, qdd, k, d, m, h, i3, i4, i5):
+    """The quintic join's speed bound, peak |a| and peak |j| on interval ``k`` of joint
+    ``d`` (see :func:`_peaks`), its speed sampled at ``m`` points where it may peak
+    inside; ``h`` is the interval's length, ``i3``, ``i4``, ``i5`` its inverse third,
+    fourth and fifth powers (the same for every joint: :func:`_inverse_powers`)."""
+    c1, c2, c3, c4, c5 = _coefficients(q, qd, qdd, k, d, h, i3, i4, i5)
+    jp = _jerk_peak(c3, c4, c5, h)
+    a_lo, a_hi = _acceleration_range(c2, c3, c4, c5, h)
+    return _speed_bound(c1, c2, c3, c4, c5, h, m, a_lo, a_hi, jp), \
+        max(abs(a_lo), abs(a_hi)), jp
+
+
+@njit(cache=True, nogil=True, _nrt=False, inline="always")
+def _jerk_peak(c3, c4, c5, h):
+    """The quintic's peak |j| on ``[0, h]``: jerk ``6 c3 + 24 c4 t + 60 c5 t^2``, at the
+    ends and the vertex."""
     j0 = 6.0 * c3
     j1 = 6.0 * c3 + h * (24.0 * c4 + 60.0 * c5 * h)
     jp = max(abs(j0), abs(j1))
@@ -64,8 +81,13 @@ def _interval_peaks(t, q, qd, qdd, k, d, m, h, i3, i4, i5):
         tv = -24.0 * c4 / (120.0 * c5)
         if 0.0 < tv < h:
             jp = max(jp, abs(6.0 * c3 + tv * (24.0 * c4 + 60.0 * c5 * tv)))
-    # Acceleration 2 c2 + 6 c3 t + 12 c4 t^2 + 20 c5 t^3: the ends and where the
-    # jerk vanishes.
+    return jp
+
+
+@njit(cache=True, nogil=True, _nrt=False, inline="always")
+def _acceleration_range(c2, c3, c4, c5, h):
+    """The quintic's least and largest acceleration on ``[0, h]``:
+    ``2 c2 + 6 c3 t + 12 c4 t^2 + 20 c5 t^3`` at the ends and where the jerk vanishes."""
     a0 = 2.0 * c2
     a1 = 2.0 * c2 + h * (6.0 * c3 + h * (12.0 * c4 + 20.0 * c5 * h))
     a_lo = min(a0, a1)
@@ -84,8 +106,15 @@ def _interval_peaks(t, q, qd, qdd, k, d, m, h, i3, i4, i5):
             a = 2.0 * c2 + r * (6.0 * c3 + r * (12.0 * c4 + 20.0 * c5 * r))
             a_lo = min(a_lo, a)
             a_hi = max(a_hi, a)
-    ap = max(abs(a_lo), abs(a_hi))
-    # Speed c1 + 2 c2 t + 3 c3 t^2 + 4 c4 t^3 + 5 c5 t^4.
+    return a_lo, a_hi
+
+
+@njit(cache=True, nogil=True, _nrt=False, inline="always")
+def _speed_bound(c1, c2, c3, c4, c5, h, m, a_lo, a_hi, jp):
+    """A bound of the quintic's |v| on ``[0, h]`` (speed ``c1 + 2 c2 t + 3 c3 t^2 +
+    4 c4 t^3 + 5 c5 t^4``; its acceleration between ``a_lo`` and ``a_hi``, its peak |j|
+    ``jp``): the larger end where the acceleration keeps its sign, else ``m`` samples
+    plus ``jp dt^2 / 8``."""
     v1 = c1 + h * (2.0 * c2 + h * (3.0 * c3 + h * (4.0 * c4 + 5.0 * c5 * h)))
     vp = max(abs(c1), abs(v1))
     if a_lo < 0.0 < a_hi:  # the speed may peak inside
@@ -96,7 +125,7 @@ def _interval_peaks(t, q, qd, qdd, k, d, m, h, i3, i4, i5):
             v = c1 + x * (2.0 * c2 + x * (3.0 * c3 + x * (4.0 * c4 + 5.0 * c5 * x)))
             sampled = max(sampled, abs(v))
         vp = max(vp, sampled + jp * dt * dt / 8.0)
-    return vp, ap, jp
+    return vp
 
 
 @njit(cache=True, nogil=True, _nrt=False, inline="always")
@@ -126,17 +155,57 @@ def _peaks(t: np.ndarray, q: np.ndarray, qd: np.ndarray, qdd: np.ndarray, rate: 
         m = max(4, int(math.ceil(h * rate)) + 1)
         i3, i4, i5 = _inverse_powers(h)
         for d in range(dof):
-            v_out[k, d], a_out[k, d], j_out[k, d] = _interval_peaks(t, q, qd, qdd, k, d, m,
-                                                                    h, i3, i4, i5)
+            v_out[k, d], a_out[k, d], j_out[k, d] = _interval_peaks(q, qd, qdd, k, d, m, h,
+                                                                    i3, i4, i5)
+
+
+#: Relative margin by which a screening bound (:func:`_screened_peaks`) must fall below its
+#: threshold before it stands in for the peak (its rounding differs from the peak's).
+_SCREEN_MARGIN = 1.0 + 1e-9
+
+
+@njit(cache=True, nogil=True, _nrt=False, inline="always")
+def _screened_peaks(c1, c2, c3, c4, c5, h, m, v_below, a_below):
+    """The quintic's speed bound, peak |a| and peak |j| on ``[0, h]`` as
+    :func:`_interval_peaks` gives them, except that a speed or acceleration whose cheap
+    bound lies below ``v_below`` or ``a_below`` is that bound instead (it is at least the
+    true peak).
+
+    The cheap bounds are the largest Bernstein coefficients of the speed (a quartic) and
+    the acceleration (a cubic) on the interval: a polynomial on an interval lies within
+    its Bernstein coefficients. The speed's adds ``|j| dt^2 / 8``, so that it is at least
+    the sampled bound of :func:`_speed_bound` too."""
+    jp = _jerk_peak(c3, c4, c5, h)
+    j0 = 6.0 * c3
+    j1 = 6.0 * c3 + h * (24.0 * c4 + 60.0 * c5 * h)
+    a0 = 2.0 * c2
+    a1 = 2.0 * c2 + h * (6.0 * c3 + h * (12.0 * c4 + 20.0 * c5 * h))
+    v1 = c1 + h * (2.0 * c2 + h * (3.0 * c3 + h * (4.0 * c4 + 5.0 * c5 * h)))
+    ap = max(max(abs(a0), abs(a1)), max(abs(a0 + j0 * h / 3.0), abs(a1 - j1 * h / 3.0)))
+    dt = h / (m - 1)
+    vp = max(max(abs(c1), abs(v1)), max(abs(c1 + a0 * h / 4.0), abs(v1 - a1 * h / 4.0)),
+             abs(c1 + a0 * h / 2.0 + j0 * h * h / 12.0)) + jp * dt * dt / 8.0
+    a_exact = not ap * _SCREEN_MARGIN < a_below
+    v_exact = not vp * _SCREEN_MARGIN < v_below
+    if a_exact or v_exact:
+        a_lo, a_hi = _acceleration_range(c2, c3, c4, c5, h)
+        if a_exact:
+            ap = max(abs(a_lo), abs(a_hi))
+        if v_exact:
+            vp = _speed_bound(c1, c2, c3, c4, c5, h, m, a_lo, a_hi, jp)
+    return vp, ap, jp
 
 
 def _ratios(t: np.ndarray, q: np.ndarray, qd: np.ndarray, qdd: np.ndarray, rate: float,
             row: np.ndarray, vmax: np.ndarray, amax: np.ndarray, jmax: np.ndarray,
-            v_out: np.ndarray, a_out: np.ndarray, j_out: np.ndarray) -> None:
+            exact_from: float, v_out: np.ndarray, a_out: np.ndarray, j_out: np.ndarray
+            ) -> None:
     """Per interval, the largest ratio over the joints of the quintic join's speed bound,
     peak |a| and peak |j| (:func:`_peaks`) to the limits of row ``row[k]`` of ``vmax``,
     ``amax``, ``jmax`` (rows, dof), into the outputs (intervals,); NaN where an input of
-    the interval is not finite."""
+    the interval is not finite. A speed or acceleration ratio whose cheap bound lies
+    below ``exact_from`` is that bound (:func:`_screened_peaks`): every ratio of
+    ``exact_from`` or more is the peaks' own."""
     n, dof = t.size - 1, q.shape[1]
     for k in range(n):
         h = t[k + 1] - t[k]
@@ -147,7 +216,9 @@ def _ratios(t: np.ndarray, q: np.ndarray, qd: np.ndarray, qdd: np.ndarray, rate:
         inputs = h  # finite iff every input of the interval is
         for d in range(dof):
             inputs += q[k, d] + q[k + 1, d] + qd[k, d] + qd[k + 1, d] + qdd[k, d] + qdd[k + 1, d]
-            vp, ap, jp = _interval_peaks(t, q, qd, qdd, k, d, m, h, i3, i4, i5)
+            c1, c2, c3, c4, c5 = _coefficients(q, qd, qdd, k, d, h, i3, i4, i5)
+            vp, ap, jp = _screened_peaks(c1, c2, c3, c4, c5, h, m, exact_from * vmax[r, d],
+                                         exact_from * amax[r, d])
             rv = _larger(rv, vp / vmax[r, d])
             ra = _larger(ra, ap / amax[r, d])
             rj = _larger(rj, jp / jmax[r, d])
@@ -214,18 +285,18 @@ def peaks(t: np.ndarray, q: np.ndarray, qd: np.ndarray, qdd: np.ndarray, rate: f
 
 
 def ratios(t: np.ndarray, q: np.ndarray, qd: np.ndarray, qdd: np.ndarray, rate: float,
-           row: np.ndarray, vmax: np.ndarray, amax: np.ndarray, jmax: np.ndarray
-           ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+           row: np.ndarray, vmax: np.ndarray, amax: np.ndarray, jmax: np.ndarray,
+           exact_from: float = 0.0) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Per interval, the largest speed, acceleration and jerk ratio of the quintic join of
-    the points to the limits of row ``row[k]`` of ``vmax``, ``amax``, ``jmax`` (see
-    :func:`_ratios`)."""
+    the points to the limits of row ``row[k]`` of ``vmax``, ``amax``, ``jmax``; speed and
+    acceleration ratios below ``exact_from`` may be bounds of them (see :func:`_ratios`)."""
     kernel = compiled_kernels()["ratios"]
     t, q, qd, qdd, vmax, amax, jmax = (np.ascontiguousarray(x, dtype=np.float64)
                                        for x in (t, q, qd, qdd, vmax, amax, jmax))
     n = t.size - 1
     v, a, j = np.empty(n), np.empty(n), np.empty(n)
     kernel(t, q, qd, qdd, float(rate), np.ascontiguousarray(row, dtype=np.int64), vmax, amax,
-           jmax, v, a, j)
+           jmax, float(exact_from), v, a, j)
     return v, a, j
 
 

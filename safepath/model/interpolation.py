@@ -135,16 +135,22 @@ class Interpolation:
 
     def ratios(self, t: np.ndarray, q: np.ndarray, qd: np.ndarray, qdd: np.ndarray,
                rate: float, row: np.ndarray, vmax: np.ndarray, amax: np.ndarray,
-               jmax: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+               jmax: np.ndarray, *, exact_from: float = 0.0
+               ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Per interval, the largest speed, acceleration and jerk ratio over the joints of
         the joined motion (:meth:`peaks`) to the limits in row ``row[k]`` (N-1,) of
         ``vmax`` [rad/s], ``amax`` [rad/s^2], ``jmax`` [rad/s^3] (rows, dof); each (N-1,),
         NaN on every interval next to a point that is not finite (whatever the
-        interpolation's sums make of it). Compiled for quintics, in one pass."""
+        interpolation's sums make of it). Compiled for quintics, in one pass.
+
+        A caller that needs the ratios only where they reach ``exact_from`` lets the
+        quintic's pass skip the exact peaks below it: every ratio of ``exact_from`` or
+        more is exact; a smaller speed or acceleration ratio may instead be a bound of it
+        that is still below ``exact_from``."""
         if self.order == 5:
             from ._joinkernel import ratios
 
-            return ratios(t, q, qd, qdd, rate, row, vmax, amax, jmax)
+            return ratios(t, q, qd, qdd, rate, row, vmax, amax, jmax, exact_from)
         peaks = self.peaks(t, q, qd, qdd, rate)
         # numpy reduces a short last axis slowly; across the long one it is ~10x faster.
         out = tuple(np.max(np.ascontiguousarray((x / lim[row]).T), axis=0)

@@ -65,6 +65,10 @@ RETIME_ABOVE = 1e-2
 #: Margin the final stretch leaves below every limit (relative), so that the released
 #: ratios stay <= 1.0 however they are rounded.
 _SLACK = 1e-6
+#: The knots' ratios below this are only bounded (``Interpolation.ratios``' ``exact_from``):
+#: the timing reads them only where they are over ``1 - _SLACK`` (to stretch, to
+#: tighten, to release), so that it comes out the same as from the exact ones.
+_EXACT_FROM = 0.999
 _NS = 1_000_000_000
 #: Chord across a ``"gap"`` blend, relative to the way along the polyline it replaces,
 #: below which the corner counts as a turn-back and is passed through, not cut.
@@ -443,7 +447,8 @@ def _interval_ratios(t: np.ndarray, q: np.ndarray, qd: np.ndarray, qdd: np.ndarr
     seg = np.where(limits.vmax_seg[segment[:-1], 0] <= limits.vmax_seg[segment[1:], 0],
                    segment[:-1], segment[1:])
     return limits.interpolation.ratios(t, q, qd, qdd, CHECK_RATE, seg, limits.vmax_seg,
-                                       limits.amax_seg, limits.jmax_seg)
+                                       limits.amax_seg, limits.jmax_seg,
+                                       exact_from=_EXACT_FROM)
 
 
 def _tighten(f_acc: np.ndarray, f_x: np.ndarray, grid: np.ndarray, run: _Run) -> None:

@@ -287,6 +287,26 @@ def test_timing_is_deterministic(bundled_cell: Cell) -> None:
         assert getattr(runs[0], name).tobytes() == getattr(runs[1], name).tobytes(), name
 
 
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_bounded_ratios_time_as_the_exact_ones(bundled_cell: Cell, seed: int,
+                                               monkeypatch: pytest.MonkeyPatch) -> None:
+    """Timing reads the knots' ratios only where they reach ``_EXACT_FROM``, so bounds
+    below it change nothing: the same paths (blended, re-timed, stretched) come out bit
+    for bit as with every ratio exact."""
+    robot = bundled_cell.robot
+    rng = np.random.default_rng(500 + seed)
+    n = int(rng.integers(2, 5))
+    path, s_way, _ = spline_path(_random_polyline(robot, rng, n), 0.06,
+                                 corners=[(k, 0.3) for k in range(1, n)], blend="g2")
+    pieces = []
+    for exact_from in (timing._EXACT_FROM, 0.0):
+        monkeypatch.setattr(timing, "_EXACT_FROM", exact_from)
+        pieces.append(time_path(robot, path, s_way, scales=[1.0] * n, tcp_speeds=[None] * n))
+    assert pieces[0].runs > 1  # re-timed: tightened where the knots were over a limit
+    for name in ("t", "q", "qd", "qdd", "s", "segment"):
+        assert getattr(pieces[0], name).tobytes() == getattr(pieces[1], name).tobytes(), name
+
+
 def test_the_grid_follows_the_spline_pieces() -> None:
     """Gridpoints: strictly increasing, at most ``step`` apart, on every spline knot and
     exactly on every segment boundary (so each knot knows its segment's limits)."""

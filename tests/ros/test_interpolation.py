@@ -142,3 +142,32 @@ def test_per_interval_ratios_are_the_peaks_over_each_intervals_limits(interpolat
         for x in bad:
             assert np.isnan(x[6]) and np.isnan(x[7]) and not np.isnan(x[[5, 8]]).any()
         field[7, 2] = 0.0
+
+
+def test_ratios_below_the_exact_threshold_are_bounds_above_it_the_peaks() -> None:
+    """With ``exact_from``, the quintic's pass skips the exact peaks where a cheap bound
+    stays below the threshold: every ratio at or above it is still the peaks' own, bit for
+    bit, and every other one lies between the join's true peak (sampled at 200 kHz) and
+    the threshold; at least one is a bound (the screen ran)."""
+    rng = np.random.default_rng(11)
+    n, dof = 400, 5
+    t = np.cumsum(rng.uniform(0.002, 0.006, n))
+    q, qd, qdd = (rng.normal(0.0, s, (n, dof)) for s in (0.1, 1.0, 20.0))
+    vmax, amax, jmax = (rng.uniform(0.5, 2.0, (3, dof)) * s for s in (2.0, 30.0, 1e4))
+    row = rng.integers(0, 3, n - 1)
+    exact = QUINTIC.ratios(t, q, qd, qdd, 1000.0, row, vmax, amax, jmax)
+    below = tuple(float(np.median(x)) for x in exact)
+    dense = np.linspace(t[0], t[-1], int((t[-1] - t[0]) * 200_000))
+    k = np.clip(np.searchsorted(t, dense, side="right") - 1, 0, n - 2)
+    p, v, a, _ = QUINTIC.evaluate(t, q, qd, qdd, k, (dense - t[k])[:, None])
+    true_peak = [np.zeros(n - 1), np.zeros(n - 1)]
+    for field, peak, lim in ((v, true_peak[0], vmax), (a, true_peak[1], amax)):
+        np.maximum.at(peak, k, np.max(np.abs(field) / lim[row[k]], axis=1))
+    for which in range(2):  # speed, acceleration
+        got = QUINTIC.ratios(t, q, qd, qdd, 1000.0, row, vmax, amax, jmax,
+                             exact_from=below[which])[which]
+        at = exact[which] >= below[which]
+        assert np.array_equal(got[at], exact[which][at])
+        assert np.all(got[~at] < below[which])
+        assert np.all(got[~at] >= true_peak[which][~at] * (1 - 1e-9))
+        assert np.any(got[~at] != exact[which][~at])
