@@ -422,3 +422,25 @@ def _occupied_at(occupied, m, table, span, want):
         else:
             hi = mid
     return lo if lo < m and occupied[lo] == want else -1
+
+
+def warm() -> None:
+    """Call every kernel of the monitor once, on a tiny input with the argument types of
+    the monitor's own calls: a monitor built without a current build of the kernels
+    (numba compiles them, or loads them from its cache) pays for that when it is built,
+    not in its first decision, which may have to stop the robot."""
+    E = np.zeros((1, 4))  # noqa: N806
+    S, cells, cstart, blocks, bstart = bucket(E, 0.1)  # noqa: N806
+    C = np.zeros((1, 1, 3))  # noqa: N806
+    R = np.ones(1)  # noqa: N806
+    body_start = np.array([0, 1], dtype=np.int64)
+    Bd = np.ones((1, 1, 4))  # noqa: N806
+    prefix_separation(C, R, body_start, Bd, 0, 1, S, cells, cstart, blocks, bstart, 1.0,
+                      np.empty(1), np.empty(1, dtype=np.int64))
+    near_robot(C, R, body_start, Bd, 0, 1, E, 0.1, np.empty(1, dtype=np.bool_))
+    scene_distance(np.zeros((1, 3)), np.zeros(1, dtype=np.int64), np.eye(4)[None],
+                   np.ones((1, 3)), np.ones(1), 1.0, np.empty(1))
+    march(np.array([0.0, 1.0]), np.zeros((2, 1)), np.zeros((2, 1)), np.ones(1), 0.0, 1.0,
+          0.0, np.empty(2), np.empty(2), np.empty(2))
+    linked_cells(np.zeros(1, dtype=np.int64), np.zeros(1, dtype=np.int64), 0, 1,
+                 np.empty(1, dtype=np.bool_))

@@ -326,3 +326,46 @@ def test_a_first_stop_loads_no_module(cell: Cell) -> None:
     out = subprocess.run([sys.executable, "-c", _FIRST_STOP.format(scene=str(cell.folder))],
                          capture_output=True, text=True, timeout=300, check=True).stdout
     assert out.strip().splitlines()[-1] == "stop []", out
+
+
+def _kind(value: object) -> object:
+    """What numba compiles a kernel for, of one argument: an array's dtype, dimensions,
+    layout and writeability; a scalar's type."""
+    if isinstance(value, np.ndarray):
+        return (value.dtype.str, value.ndim, value.flags.c_contiguous, value.flags.writeable)
+    return type(value).__name__ if not isinstance(value, np.integer) else "int"
+
+
+def test_building_a_monitor_loads_every_kernel_for_the_calls_it_makes(
+        cell: Cell, phase1: Phase1, monkeypatch: pytest.MonkeyPatch) -> None:
+    """A monitor calls each of its kernels once when it is built, with the argument types
+    of its own calls (a first decision that compiles or loads a kernel, as one without a
+    current build would, could delay a stop); a first decision that stops calls none for
+    other types."""
+    from safepath._aot.table import ENTRIES
+    from safepath.monitor import _kernels
+
+    kernels = sorted(e.function for e in ENTRIES.values() if e.module == _kernels.__name__)
+    calls: dict[str, set[tuple[object, ...]]] = {name: set() for name in kernels}
+    count = dict.fromkeys(kernels, 0)
+    for name in kernels:
+        def record(*args: object, _name: str = name, _kernel: object = getattr(_kernels, name)
+                   ) -> object:
+            calls[_name].add(tuple(_kind(a) for a in args))
+            count[_name] += 1
+            return _kernel(*args)  # type: ignore[operator]
+        monkeypatch.setattr(_kernels, name, record)
+    m = make_monitor(cell, self_filter=0.02)  # the self filter: near_robot
+    warmed = {name: set(kinds) for name, kinds in calls.items()}
+    assert all(warmed.values()), warmed
+    built = dict(count)
+    traj, held = phase1.motions[0]
+    m.follow(traj, start=0.0, held=held)
+    table = np.array([[0.3, 0.2, 0.0], [3.0, 0.3, 0.4]])  # on the table, and far
+    assert m.observe(Cloud(0.0, "cam", _world_to_cam(table)), 0.0).kind == "continue"
+    tcp = cell.robot.tcp_position(traj.sample([0.55])[0][0])
+    near = Cloud(0.55, "cam", _world_to_cam(tcp[None, :] + [[0.12, 0.0, 0.0]]))
+    assert m.observe(near, 0.55).kind == "stop"
+    assert all(count[name] > built[name] for name in kernels), (count, built)
+    for name in kernels:
+        assert calls[name] <= warmed[name], (name, calls[name] - warmed[name])
