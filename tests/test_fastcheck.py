@@ -499,23 +499,24 @@ def test_the_pair_that_collided_last_changes_no_answer(panda_cell: Cell) -> None
     first at the next state it evaluates: a walk answers the same (status, grid index,
     states evaluated, the states left to coal) whichever pair is remembered, or none, and
     so does a single state."""
-    from safepath.collision import _layout
+    from safepath.collision._probe import last_collision, pair_tables
 
     layer = CollisionChecker(panda_cell.robot, panda_cell.scene).layer
     assert layer is not None
     segment, classify = layer.kernel("certify_segment"), layer.kernel("classify")
     poses = np.array(list(panda_cell.poses.values()))
     rng = np.random.default_rng(13)
-    pairs = rng.choice(int(layer.I[_layout.H_NP]), size=4, replace=False)
+    pairs = rng.choice(len(pair_tables(layer.F, layer.I).pairs), size=4, replace=False)
     remembered = set()
 
     def answers(q0: np.ndarray, q1: np.ndarray, last: int) -> tuple:
         table = layer.I.copy()
-        table[_layout.H_LAST] = last
+        slot = last_collision(table)
+        slot[0] = last
         found = np.empty(4, dtype=np.int64)
         walk = segment(q0, q1, layer.F, table, False, False, found)
-        remembered.add(int(table[_layout.H_LAST]))
-        table[_layout.H_LAST] = last
+        remembered.add(int(slot[0]))
+        slot[0] = last
         return (*walk, *found[:walk[3]], classify(0.5 * (q0 + q1), layer.F, table))
 
     collided = 0
