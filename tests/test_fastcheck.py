@@ -436,3 +436,96 @@ def test_a_helical_joint_leaves_the_checker_exact(helical: bool) -> None:
     checker = CollisionChecker(robot)
     assert (checker.layer is None) is helical
     assert checker.is_valid(np.array([0.5, 0.3]))
+
+
+def _edge_of_collision(exact: CollisionChecker, q0: np.ndarray, q1: np.ndarray,
+                       shift: np.ndarray, steps: int = 14
+                       ) -> tuple[tuple[np.ndarray, np.ndarray], tuple[np.ndarray, np.ndarray]]:
+    """The segment q0 -> q1 (invalid for coal) moved by s * shift (s = 1: valid), bisected
+    on s to the edge of its collision: (just valid, just invalid) segments."""
+    lo, hi = 1.0, 0.0  # valid at lo, invalid at hi
+    for _ in range(steps):
+        s = 0.5 * (lo + hi)
+        if exact.check_segment(q0 + s * shift, q1 + s * shift, details=False).valid:
+            lo = s
+        else:
+            hi = s
+    return (q0 + lo * shift, q1 + lo * shift), (q0 + hi * shift, q1 + hi * shift)
+
+
+def test_panda_segments_grazing_an_obstacle_are_refused(panda_cell: Cell) -> None:
+    """Segments moved to the edge of a collision (bisected with coal): the one just past
+    it collides at a few grid states between states the layer certifies with their radii,
+    and is refused (or left to coal), the one just short of it is never refused. Also
+    with a layer that refines no pair while walking (``refine=0``): every binding pair's
+    finer bound is then measured after the walk's first pass, near the obstacle too."""
+    from safepath.collision import SphereLayer
+    from safepath.collision.options import LayerOptions
+
+    robot = panda_cell.robot
+    fast = CollisionChecker(robot, panda_cell.scene)
+    exact = CollisionChecker(robot, panda_cell.scene, options=CheckOptions(fast=False))
+    coarse = SphereLayer(fast.layer_source(), LayerOptions(refine=0.0))
+    poses = np.array(list(panda_cell.poses.values()))
+    rng = np.random.default_rng(21)
+    grazed = 0
+    for _ in range(400):
+        q0, q1 = poses[rng.integers(len(poses), size=2)]
+        shift = rng.normal(0.0, 0.3, robot.dof)
+        ends = (q0, q1, q0 + shift, q1 + shift)
+        if (any(not exact.is_valid(q) for q in ends)
+                or exact.check_segment(q0, q1, details=False).valid
+                or not exact.check_segment(ends[2], ends[3], details=False).valid):
+            continue
+        valid, invalid = _edge_of_collision(exact, q0, q1, shift)
+        assert fast.check_segment(*valid, details=False).valid
+        assert fast.segment_is_valid(*valid)
+        assert not fast.check_segment(*invalid, details=False).valid
+        assert not fast.segment_is_valid(*invalid)
+        for layer in (fast.layer, coarse):
+            assert layer is not None
+            found = np.empty(8, dtype=np.int64)
+            status, _, _, unsure, _ = layer.certify_segment(*invalid, False, False, found)
+            assert status != FREE or unsure > 0  # refused, or left to coal
+            assert layer.certify_segment(*valid, False, False, found)[0] != COLLIDES
+        grazed += 1
+        if grazed == 8:
+            break
+    assert grazed == 8
+
+
+def test_the_pair_that_collided_last_changes_no_answer(panda_cell: Cell) -> None:
+    """The layer remembers the pair whose collision it proved last and tries that proof
+    first at the next state it evaluates: a walk answers the same (status, grid index,
+    states evaluated, the states left to coal) whichever pair is remembered, or none, and
+    so does a single state."""
+    from safepath.collision._probe import last_collision, pair_tables
+
+    layer = CollisionChecker(panda_cell.robot, panda_cell.scene).layer
+    assert layer is not None
+    segment, classify = layer.kernel("certify_segment"), layer.kernel("classify")
+    poses = np.array(list(panda_cell.poses.values()))
+    rng = np.random.default_rng(13)
+    pairs = rng.choice(len(pair_tables(layer.F, layer.I).pairs), size=4, replace=False)
+    remembered = set()
+
+    def answers(q0: np.ndarray, q1: np.ndarray, last: int) -> tuple:
+        table = layer.I.copy()
+        slot = last_collision(table)
+        slot[0] = last
+        found = np.empty(4, dtype=np.int64)
+        walk = segment(q0, q1, layer.F, table, False, False, found)
+        remembered.add(int(slot[0]))
+        slot[0] = last
+        return (*walk, *found[:walk[3]], classify(0.5 * (q0 + q1), layer.F, table))
+
+    collided = 0
+    for _ in range(40):
+        q0, q1 = poses[rng.integers(len(poses), size=2)]
+        q1 = np.clip(q0 + rng.uniform(0.2, 1.0) * (q1 - q0) + rng.normal(0.0, 0.1, len(q0)),
+                     panda_cell.robot.lower, panda_cell.robot.upper)
+        none = answers(q0, q1, -1)
+        collided += none[0] == COLLIDES
+        for last in [*pairs, *sorted(remembered - {-1})]:
+            assert answers(q0, q1, int(last)) == none
+    assert collided >= 5 and len(remembered - {-1}) >= 2

@@ -37,7 +37,7 @@ import numpy as np
 
 from .._aot import njit
 from ._layout import COLLIDES, FREE, OUTSIDE, UNSURE
-from ._pair_tests import _env_sdist3, _pair_bound, _pair_collides
+from ._pair_tests import _env_sdist3, _pair_bound, _pair_collides, _proof_without_gjk
 from ._placement import _fk, _to_world, _within_limits
 from ._records import (
     abs_u,
@@ -57,6 +57,7 @@ from ._records import (
     joint_coordinate,
     joint_is_prismatic,
     joint_parent,
+    last_collision,
     ledger,
     mover_centre,
     mover_joint,
@@ -77,6 +78,7 @@ from ._records import (
     set_axis_growth,
     set_bound_centre,
     set_certified,
+    set_last_collision,
     set_ledger,
     workspace,
 )
@@ -87,51 +89,145 @@ _inlined = njit(cache=True, nogil=True, _nrt=False, inline="always")
 
 
 @_helper
-def _evaluate(q, fb, ib, Rw, pw, wf, wi, rates, want_radius, need, t):  # noqa: N803
+def _evaluate(q, fb, ib, Rw, pw, wf, wi, rates, want_radius, need, t, first):  # noqa: N803
     """(status, radius) of one state inside the limits. With ``want_radius``, ``q`` is
-    the state at ``t`` of a segment walked along ``u`` and radius is the largest ``h``
-    such that every state ``q + t' u`` with ``|t'| < h`` is certainly valid,
-    ``rates[k]`` bounding how fast pair ``k`` can close per unit ``t`` (and the scratch's
-    |u| filled by ``_pair_rates``, CC by ``_axis_growth``), or some radius
-    of at least ``need`` when that is all the caller can use: pairs whose closing-rate
-    radius reaches ``need`` skip the finer local radius, and a pair is not evaluated at
-    all when the stretch an earlier state of the segment certified for it
-    (``_records.certified``, which this updates) covers ``need`` either side of ``t``."""
+    the state at ``t`` of a segment walked along ``u`` and radius is such that every
+    state ``q + t' u`` with ``|t'| < radius`` is certainly valid (see ``_state_radius``);
+    else the radius is 0. With ``first``, the pair whose collision was proved last is
+    tried first (``_last_collides``; not in a batch of states, whose later states would
+    see other GJK hints in the scratch)."""
     _fk(q, fb, ib, Rw, pw)
-    eps_free, eps_proof = free_eps(fb, ib), proof_eps(fb, ib)
-    refine = refine_below(fb, ib) if want_radius else 0.0
     _place_bounds(fb, ib, Rw, pw, wf, wi)
-    if want_radius:  # the axis distances (DL) are measured when a pair first needs them
-        forget_axes(ib, wf, wi)
+    if first and _last_collides(want_radius, need, t, fb, ib, Rw, pw, wf, wi):
+        return COLLIDES, 0.0
+    if not want_radius:
+        return _state_status(fb, ib, Rw, pw, wf, wi), 0.0
+    return _state_radius(fb, ib, Rw, pw, wf, wi, rates, need, t)
+
+
+@_inlined
+def _state_status(fb, ib, Rw, pw, wf, wi):  # noqa: N803
+    """FREE, COLLIDES or UNSURE of the state placed in Rw, pw and the bounding centres:
+    every pair's bound (bounding spheres first, finer only when they do not clear the
+    margin)."""
     unsure = False
-    radius = 1e300
     for k in range(n_pairs(ib)):
-        if want_radius and _covered(k, t, need, wf, wi):
-            # Free for every state within ``need`` of this one: its bound is no limit.
-            if need < radius:
-                radius = need
-            continue
-        sm = max(pair_margin(fb, ib, k), 0.0)
-        a, b, is_env, _ = pair(ib, k)
-        apart, coarse = _coarse_distance(a, b, is_env, sm, eps_free, not want_radius, fb, ib,
-                                         wf, wi)
-        if apart:
-            continue
-        budget = coarse - sm - eps_free
-        if budget <= refine:
-            budget = max(coarse, _pair_bound(k, fb, ib, Rw, pw, wf, wi,
-                                             refine + eps_free)) - sm - eps_free
+        budget, _ = _pair_budget(k, True, 0.0, 0.0, fb, ib, Rw, pw, wf, wi)
         if budget <= 0.0:
-            if _pair_collides(k, fb, ib, eps_proof, Rw, pw, wf, wi):
+            if _proven(k, fb, ib, Rw, pw, wf, wi):
+                return COLLIDES
+            unsure = True
+    return UNSURE if unsure else FREE
+
+
+@_helper
+def _state_radius(fb, ib, Rw, pw, wf, wi, rates, need, t):  # noqa: N803
+    """(status, radius) of the state at ``t`` of a segment walked along ``u`` (placed in
+    Rw, pw and the bounding centres): FREE with a radius such that every state within it
+    of ``t`` is certainly valid, ``rates[k]`` bounding how fast pair ``k`` can close per
+    unit ``t`` (and the scratch's |u| filled by ``_pair_rates``, CC by ``_axis_growth``),
+    or some radius of at least ``need`` when that is all the caller can use; COLLIDES or
+    UNSURE.
+
+    The radius is the least of the pairs' (``_certify_pair``, which updates the stretch
+    each is certified along, ``_records.certified``); a pair is not evaluated when the
+    stretch an earlier state of the segment certified for it reaches ``need`` either side
+    of ``t`` (its radius is ``need``). Pairs whose closing-rate radius reaches ``need``
+    skip the finer local radius. Last, when the pair that binds the radius had its budget
+    from its bounding spheres alone, its finer bound (``_pair_bound``) is measured and the
+    pair certified again: the radius can only grow, to the next pair's at most."""
+    forget_axes(ib, wf, wi)  # the axis distances (DL) are measured when first needed
+    refine = refine_below(fb, ib)
+    best = (1e300, 1e300, -1)  # the radius, the next pair's, the binding pair if coarse
+    unsure = False
+    for k in range(n_pairs(ib)):
+        if _held(k, t, wf, wi) > need:  # certified for every state the caller can use
+            best = _take(best, need, -1)
+            continue
+        budget, refined = _pair_budget(k, False, refine, refine, fb, ib, Rw, pw, wf, wi)
+        if budget <= 0.0:
+            if _proven(k, fb, ib, Rw, pw, wf, wi):
                 return COLLIDES, 0.0
             unsure = True
-        elif want_radius:
+        else:
             h = _certify_pair(k, budget, t, need, rates, fb, ib, Rw, pw, wf, wi)
-            if h < radius:
-                radius = h
+            best = _take(best, h, -1 if refined else k)
     if unsure:
         return UNSURE, 0.0
-    return FREE, radius
+    radius, second, k = best
+    if k < 0 or radius >= need:
+        return FREE, radius
+    # The binding pair, measured until its budget would certify all the caller can use.
+    budget, _ = _pair_budget(k, False, 1e300, need * rates[k], fb, ib, Rw, pw, wf, wi)
+    h = _certify_pair(k, budget, t, need, rates, fb, ib, Rw, pw, wf, wi)
+    return FREE, min(h, second)
+
+
+@_inlined
+def _pair_budget(k, broad, refine, enough, fb, ib, Rw, pw, wf, wi):  # noqa: N803
+    """(budget, refined): a lower bound [m] on how far pair ``k`` lies beyond its margin
+    and ``free_eps`` at the state placed (<= 0: not proven free), from its bounding
+    spheres (``_coarse_distance``; with ``broad``, 1e300 when they lie apart), or, when
+    that is at most ``refine``, from its finer bound too (``refined``; searched until it
+    shows ``enough`` [m] beyond the margin)."""
+    sm = max(pair_margin(fb, ib, k), 0.0)
+    eps = free_eps(fb, ib)
+    a, b, is_env, _ = pair(ib, k)
+    apart, coarse = _coarse_distance(a, b, is_env, sm, eps, broad, fb, ib, wf, wi)
+    if apart:
+        return 1e300, False
+    budget = coarse - sm - eps
+    if budget > refine:
+        return budget, False
+    return max(coarse, _pair_bound(k, fb, ib, Rw, pw, wf, wi, enough + eps)) - sm - eps, True
+
+
+@_inlined
+def _proven(k, fb, ib, Rw, pw, wf, wi):  # noqa: N803
+    """Whether pair ``k`` is proven closer than its margin at the state placed
+    (``_pair_collides``); such a pair is remembered (``_records.last_collision``)."""
+    if _pair_collides(k, fb, ib, proof_eps(fb, ib), Rw, pw, wf, wi):
+        set_last_collision(ib, k)
+        return True
+    return False
+
+
+@_inlined
+def _held(k, t, wf, wi):
+    """How far (in units of ``t``) the stretch pair ``k`` is certified along
+    (``_records.certified``) reaches either side of ``t``: every state closer than that
+    is free of pair ``k`` (<= 0: the stretch does not hold ``t``)."""
+    c, w = certified(wf, wi, k)
+    return min(t - (c - w), (c + w) - t)
+
+
+@_inlined
+def _take(best, h, k):
+    """``best`` (the radius, the next pair's radius, the binding pair when a finer bound
+    may raise its radius, else -1) with pair ``k``'s radius ``h`` taken in (``k``: -1
+    when no finer bound can raise it)."""
+    radius, second, kb = best
+    if h < radius:
+        return h, radius, k
+    if h < second:
+        return radius, h, kb
+    return best
+
+
+@_inlined
+def _last_collides(want_radius, need, t, fb, ib, Rw, pw, wf, wi):  # noqa: N803
+    """Whether the pair whose collision was proved last is proven to collide at the state
+    placed in Rw, pw (and the bounding centres) without GJK: a certain COLLIDES, which
+    the walk over every pair returns too (that pair's lower bounds cannot clear its
+    margin, and its proof does not depend on what the walk did before). A pair the
+    segment's walk has certified ``t`` in (``_held``) is not tried: it is free there."""
+    k = last_collision(ib)
+    if k < 0 or k >= n_pairs(ib) or (want_radius and _held(k, t, wf, wi) > 0.0):
+        return False
+    sm = max(pair_margin(fb, ib, k), 0.0)
+    a, b, is_env, _ = pair(ib, k)
+    apart, _ = _coarse_distance(a, b, is_env, sm, free_eps(fb, ib), True, fb, ib, wf, wi)
+    return not apart and _proof_without_gjk(k, fb, ib, proof_eps(fb, ib), Rw, pw, wf, wi)
 
 
 @_inlined
@@ -142,14 +238,6 @@ def _place_bounds(fb, ib, Rw, pw, wf, wi):  # noqa: N803
         x, y, z = mover_centre(fb, ib, m)
         wx, wy, wz = _to_world(Rw, pw, mover_joint(ib, m), x, y, z)
         set_bound_centre(wf, wi, m, wx, wy, wz)
-
-
-@_inlined
-def _covered(k, t, need, wf, wi):
-    """Whether the stretch pair ``k`` is certified along (``_records.certified``) covers
-    every state within ``need`` of ``t``."""
-    c, w = certified(wf, wi, k)
-    return t - need > c - w and t + need < c + w
 
 
 @_inlined
@@ -269,7 +357,7 @@ def classify(q, fb, ib):  # noqa: N803
     if not _within_limits(q, fb, ib):
         return COLLIDES
     Rw, pw, wf, wi = workspace(ib)
-    status, _ = _evaluate(q, fb, ib, Rw, pw, wf, wi, wf, False, 0.0, 0.0)
+    status, _ = _evaluate(q, fb, ib, Rw, pw, wf, wi, wf, False, 0.0, 0.0, True)
     return status
 
 
@@ -281,7 +369,7 @@ def classify_many(Q, fb, ib, out):  # noqa: N803
         if not _within_limits(Q[i], fb, ib):
             out[i] = COLLIDES
             continue
-        out[i], _ = _evaluate(Q[i], fb, ib, Rw, pw, wf, wi, wf, False, 0.0, 0.0)
+        out[i], _ = _evaluate(Q[i], fb, ib, Rw, pw, wf, wi, wf, False, 0.0, 0.0, False)
 
 
 @_helper
@@ -375,7 +463,7 @@ def certify_polyline(P, n, lo, hi, fb, ib, unsure_seg, unsure_idx, max_unsure): 
                 qs[j] = P[k, j] + t * u[j]
             # A radius covering the rest of [a, b] is all this walk can use.
             need = (max(mid - a, b - mid) + 0.5) / nk
-            status, radius = _evaluate(qs, fb, ib, Rw, pw, wf, wi, rates, True, need, t)
+            status, radius = _evaluate(qs, fb, ib, Rw, pw, wf, wi, rates, True, need, t, True)
             evaluated += 1
             if status == COLLIDES:
                 return COLLIDES, k, mid, evaluated, n_unsure

@@ -40,7 +40,12 @@ H_DW = 23
 #: unit of the joint]: body a's weight where H_PM has bit 1, plus body b's where it has
 #: bit 2 (added in that order, as the masks would), else 0.
 H_PW = 24
-HEADER = 25
+#: The pair whose collision a kernel proved last (-1: none yet): the one word of the
+#: tables the kernels write. A state's evaluation for a segment or a single state tries
+#: that pair's proof first (collisions in a planner's checks repeat: the same link and
+#: obstacle); what the evaluation returns does not depend on it.
+H_LAST = 25
+HEADER = 26
 # Constants (fb[ib[H_C] + k]); C_RES: the checker's resolution [m].
 C_REFINE, C_FREE_EPS, C_PROOF_EPS, C_RES = 0, 1, 2, 3
 #: Status of a segment whose start (index 0) or end (index 1) is outside the limits.

@@ -232,6 +232,7 @@ def pack(source: LayerSource, options: LayerOptions
     header[[K.H_J, K.H_G, K.H_S, K.H_E, K.H_P, K.H_W, K.H_L, K.H_C, K.H_V, K.H_ER,
             K.H_DW, K.H_PW]] = f_off[:12]
     header[[K.H_JI, K.H_GI, K.H_EI, K.H_PI, K.H_PM, K.H_AP, K.H_AI]] = i_off[:7]
+    header[K.H_LAST] = -1
     F = np.concatenate(blocks_f).astype(np.float64)
     I_ = np.concatenate([header, *blocks_i]).astype(np.int64)
     return F, I_, [m.fit for m in movers]

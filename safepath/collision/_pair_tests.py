@@ -293,6 +293,26 @@ def _pair_collides(k, fb, ib, eps, Rw, pw, wf, wi):  # noqa: N803
     that close, (two boxes, no margin) the complete separating-axis test fails, or (two
     exact shapes: primitives or convex hulls) GJK's upper bound on their signed distance
     is below it."""
+    if _proof_without_gjk(k, fb, ib, eps, Rw, pw, wf, wi):
+        return True
+    a, b, is_env, proof = pair(ib, k)
+    if proof == 0:
+        return False
+    sm = pair_margin(fb, ib, k)
+    ka = mover_kind(ib, a)
+    if is_env == 1:
+        # An object measured by the box around it (ENV_BOX_ONLY_OUTER) proves nothing.
+        return (ka != SPHERES_ONLY and env_kind(ib, b) != ENV_BOX_ONLY_OUTER
+                and _gjk_overlap(fb, ib, k, a, b, 1, Rw, pw, wf, wi, sm - eps) < sm - eps)
+    return (ka != SPHERES_ONLY and mover_kind(ib, b) != SPHERES_ONLY
+            and _gjk_overlap(fb, ib, k, a, b, 0, Rw, pw, wf, wi, sm - eps) < sm - eps)
+
+
+@_helper
+def _proof_without_gjk(k, fb, ib, eps, Rw, pw, wf, wi):  # noqa: N803
+    """The proofs of :func:`_pair_collides` that leave nothing behind in the scratch
+    (GJK's, which update the pair's search hints, excepted): an inner sphere within the
+    margin, or (two boxes, no margin) the complete separating-axis test failing."""
     a, b, is_env, proof = pair(ib, k)
     if proof == 0:
         return False
@@ -307,17 +327,12 @@ def _pair_collides(k, fb, ib, eps, Rw, pw, wf, wi):  # noqa: N803
             x, y, z = _sphere_world(fb, ib, s, Rw, pw, ja)
             if _env_sdist3(fb, ib, b, x, y, z) - sphere_radius(fb, ib, s) < sm - eps:
                 return True
-        # An object measured by the box around it (ENV_BOX_ONLY_OUTER) proves nothing.
-        return (ka != SPHERES_ONLY and env_kind(ib, b) != ENV_BOX_ONLY_OUTER
-                and _gjk_overlap(fb, ib, k, a, b, 1, Rw, pw, wf, wi, sm - eps) < sm - eps)
+        return False
     jb, kb = mover_joint(ib, b), mover_kind(ib, b)
     if (sm == 0.0 and ka == ENV_BOX and kb == ENV_BOX
             and _sat_pair(fb, ib, a, b, 0, Rw, pw, wf, wi) < -eps):
         return True
-    if _inner_spheres_meet(fb, ib, a, ja, b, jb, Rw, pw, sm - eps):
-        return True
-    return (ka != SPHERES_ONLY and kb != SPHERES_ONLY
-            and _gjk_overlap(fb, ib, k, a, b, 0, Rw, pw, wf, wi, sm - eps) < sm - eps)
+    return _inner_spheres_meet(fb, ib, a, ja, b, jb, Rw, pw, sm - eps)
 
 
 @_inlined

@@ -19,6 +19,7 @@ from ._layout import (
     H_AI,
     H_AP,
     H_DOF,
+    H_LAST,
     H_NG,
     H_NP,
     H_PI,
@@ -44,7 +45,8 @@ from ._layout import (
     WS_KIND,
 )
 
-__all__ = ["Placed", "PairTables", "hull_block", "pair_buffers", "pair_tables"]
+__all__ = ["Placed", "PairTables", "hull_block", "last_collision", "pair_buffers",
+           "pair_tables"]
 
 
 class Placed(NamedTuple):
@@ -128,3 +130,9 @@ def pair_tables(fb: np.ndarray, ib: np.ndarray) -> PairTables:
                       ib[ib[H_PI]:ib[H_PI] + PIW * n].reshape(n, PIW),
                       ib[ib[H_PM]:ib[H_PM] + n * dof].reshape(n, dof),
                       fb[ib[H_PW]:ib[H_PW] + n * dof].reshape(n, dof))
+
+
+def last_collision(ib: np.ndarray) -> np.ndarray:
+    """The slot of a checker's int buffer (its layer's ``I``) that holds the pair whose
+    collision the kernels proved last (-1: none), as a one-element view."""
+    return ib[H_LAST:H_LAST + 1]

@@ -69,6 +69,7 @@ from ._layout import (
     H_J,
     H_JI,
     H_L,
+    H_LAST,
     H_NG,
     H_NJ,
     H_NP,
@@ -374,6 +375,18 @@ def pair(ib, k):
     object, 1 if a collision can be proven)."""
     row = ib[H_PI] + PIW * k
     return ib[row + PI_A], ib[row + PI_B], ib[row + PI_ENV], ib[row + PI_PROOF]
+
+
+@_read
+def last_collision(ib):
+    """The pair whose collision a kernel proved last (-1: none yet)."""
+    return ib[H_LAST]
+
+
+@_read
+def set_last_collision(ib, k):
+    """Remember pair ``k`` as the one whose collision was proved last."""
+    ib[H_LAST] = k
 
 
 @_read

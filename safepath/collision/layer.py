@@ -22,6 +22,9 @@ lower bound exceeds the margin by ``d`` proves every state closer than
 ``d / (rate of approach)`` free, the rate being bounded per pair from the per-joint
 reach of each body (Σ_j w_j |Δq_j|, joints that carry both bodies of a pair left out),
 or from the bodies' distances to the joint axes at that state, whichever proves more.
+A pair's clearance is its bounding spheres' unless they come within ``refine`` of the
+margin; the pair that binds a state's radius is then measured by its finer bound (GJK on
+a hull, separating axes, fine spheres) and certified again, so the radius only grows.
 Segments are walked middle first, so open space costs a few evaluations and narrow
 places are cut down to the checker's grid (hpp-core's progressive / dichotomy continuous
 validation works this way); along a polyline, a certificate that reaches a segment's end
