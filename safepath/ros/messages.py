@@ -26,6 +26,7 @@ from ..errors import InputError, RosError
 from ..files._io import check_names
 from ._definitions import DEFINITIONS, ROS_DISTRO_STORE, WRITTEN_TYPES, standard_store
 from ._type_cache import use_written_classes
+from ._writing_store import WritingStore
 
 __all__ = [
     "Backend",
@@ -57,7 +58,7 @@ def written_typestore() -> Typestore:
     """
     from . import _written_types
 
-    return Typestore(_written_types)
+    return WritingStore(_written_types)
 
 
 @functools.lru_cache(maxsize=1)
