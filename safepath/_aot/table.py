@@ -131,6 +131,7 @@ ENTRIES: dict[str, Entry] = {
                                     (F2, I1, F3, F2, F1, FLOAT, F1), "void"),
     "monitor_march": Entry(_MONITOR, "march", (F1, F2, F2, F1, FLOAT, FLOAT, FLOAT, F1, F1, F1),
                            "Tuple((i8, i8, b1))"),
+    "monitor_linked_cells": Entry(_MONITOR, "linked_cells", (I1, I1, INT, INT, B1), "void"),
     # TOPP-RA's two passes, the spline solve, the smoothed knots, the jerk window
     # (safepath.timing._topp_kernels).
     "topp_backward": Entry(_TOPP, "backward", (F1, F1, F2, F2, F2, F1, F1), INT),

@@ -365,3 +365,60 @@ def march(tau, qd, qdd, amax, x0, x_target, t_stop, out_x, out_u, out_t):  # noq
         t += d2 / (math.sqrt(x) + math.sqrt(nxt))
         x = nxt
     return n, braking, True
+
+
+@njit(cache=True, nogil=True)
+def linked_cells(key, steps, seed, span, linked):
+    """Which elements lie in grid cells linked to element ``seed``'s by chains of
+    neighbouring cells: ``key`` (n,) is each element's cell key, ``steps`` the key
+    differences of a cell's neighbours (a neighbour's key is the cell's plus one of
+    them); ``linked`` (n,) is set. The occupied cells are the runs of the sorted keys;
+    the seed's cell grows through them by a depth-first search. A neighbour is looked up
+    in a table of every key when the keys lie in ``[0, span)`` (``span`` > 0), else by
+    bisection among the occupied keys."""
+    n = key.size
+    order = np.argsort(key)
+    occupied = np.empty(n, dtype=np.int64)
+    cell_of = np.empty(n, dtype=np.int64)
+    m = 0
+    for i in range(n):
+        k = key[order[i]]
+        if m == 0 or k != occupied[m - 1]:
+            occupied[m] = k
+            m += 1
+        cell_of[order[i]] = m - 1
+    table = np.full(max(span, 0), -1, dtype=np.int64)
+    for c in range(m if span > 0 else 0):
+        table[occupied[c]] = c
+    reached = np.zeros(m, dtype=np.bool_)
+    stack = np.empty(m, dtype=np.int64)
+    stack[0] = cell_of[seed]
+    reached[stack[0]] = True
+    top = 1
+    while top > 0:
+        top -= 1
+        c = stack[top]
+        for s in range(steps.size):
+            found = _occupied_at(occupied, m, table, span, occupied[c] + steps[s])
+            if found >= 0 and not reached[found]:
+                reached[found] = True
+                stack[top] = found
+                top += 1
+    for i in range(n):
+        linked[i] = reached[cell_of[i]]
+
+
+@_inlined
+def _occupied_at(occupied, m, table, span, want):
+    """The index of key ``want`` among the ``m`` sorted ``occupied`` keys, or -1: read
+    from ``table`` when ``span`` > 0, else by bisection."""
+    if span > 0:
+        return table[want] if 0 <= want < span else -1
+    lo, hi = 0, m
+    while lo < hi:  # the first occupied key >= want
+        mid = (lo + hi) // 2
+        if occupied[mid] < want:
+            lo = mid + 1
+        else:
+            hi = mid
+    return lo if lo < m and occupied[lo] == want else -1

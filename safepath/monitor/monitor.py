@@ -192,6 +192,9 @@ class Monitor:
         self._any_instant = True  # the running goal is on the path at every instant
         self.stats = {"out_of_order": 0, "stale": 0, "malformed": 0}
         self._self_filtered = 0
+        # A stop records the body that blocks the robot before the stop leaves: its
+        # search loaded (or compiled, without a current build of the kernels) now, not then.
+        blocking_body(np.zeros((1, 4)), np.zeros(3), self.options.replan_cluster)
 
     # -- motion ----------------------------------------------------------------------
     def follow(self, traj: Trajectory, *, start: float, held: str | None = None,

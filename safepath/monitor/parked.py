@@ -62,35 +62,53 @@ def blocking_body(elements: np.ndarray, closest: np.ndarray, link: float) -> np.
     points = elements[:, :3]
     seed = int(np.argmin(np.linalg.norm(points - np.asarray(closest)[:3], axis=1)))
     edge = link / 2 + float(elements[:, 3].max())
-    # Cluster the elements near the body found so far, grown until no element outside
-    # that neighbourhood can touch it (cells touch within 2 edges on every axis).
-    lo = hi = points[seed]
-    grow = 3 * edge
-    while True:
-        near_lo, near_hi = lo - grow, hi + grow
-        grow *= 2  # a large body is found in a few rounds
-        near = np.flatnonzero(np.all((points >= near_lo) & (points <= near_hi), axis=1))
-        member = near[_cells_linked(points[near], edge, int(np.searchsorted(near, seed)))]
-        lo, hi = points[member].min(axis=0), points[member].max(axis=0)
-        if np.all(lo - 2 * edge >= near_lo) and np.all(hi + 2 * edge <= near_hi):
-            return elements[member]
+    return elements[_cells_linked(points, edge, seed)]
+
+
+#: The offsets of a grid cell's 26 neighbours (face, edge and corner) and of itself.
+_NEIGHBOURS = np.stack(np.meshgrid(*([np.arange(-1, 2)] * 3), indexing="ij"),
+                       axis=-1).reshape(-1, 3)
+#: Largest cell key (:func:`_cells_linked`) computed directly from the cells' coordinates.
+_KEY_RANGE = 1 << 62
+#: The cells' neighbours are looked up in a table of every key of their box where it has
+#: at most this many keys per element (else by bisection among the occupied keys).
+_TABLE = 64
 
 
 def _cells_linked(points: np.ndarray, edge: float, seed: int) -> np.ndarray:
-    """Indices of ``points`` whose grid cells (edge [m]) are linked to the seed's by
-    chains of touching cells."""
-    from scipy.sparse import coo_matrix
-    from scipy.sparse.csgraph import connected_components
-    from scipy.spatial import cKDTree
+    """Indices of ``points`` (increasing) whose grid cells (edge [m]) are linked to the
+    seed's by chains of touching cells (face, edge or corner).
 
-    cells, cell_of = np.unique(np.floor(points / edge).astype(np.int64), axis=0,
-                               return_inverse=True)
-    cell_of = cell_of.reshape(-1)
-    pairs = cKDTree(cells).query_pairs(np.sqrt(3.0) + 1e-6, output_type="ndarray")
-    n = len(cells)
-    graph = coo_matrix((np.ones(len(pairs)), (pairs[:, 0], pairs[:, 1])), shape=(n, n))
-    _, label = connected_components(graph, directed=False)
-    return np.flatnonzero(label[cell_of] == label[cell_of[seed]])
+    A stop decision records the body that blocks the robot (:func:`blocking_body`)
+    before the stop leaves the monitor, so the search is compiled
+    (``_kernels.linked_cells``): every cell gets one integer key, in a box one cell wider
+    than the occupied one on every side, so that a neighbour's key is the cell's plus a
+    fixed step (looked up in a table of the box's keys where the box is small). Where
+    that box's keys would not fit an int64, each axis's coordinates are first packed (a
+    gap of more than one cell shrinks to one empty cell: which cells touch is
+    unchanged)."""
+    from ._kernels import linked_cells
+
+    cells = np.floor(points / edge).astype(np.int64)
+    size = cells.max(axis=0) - cells.min(axis=0) + 3
+    if float(np.prod(size.astype(float))) >= _KEY_RANGE:
+        cells = np.column_stack([_packed(cells[:, k]) for k in range(3)])
+        size = cells.max(axis=0) - cells.min(axis=0) + 3
+    stride = np.array([size[1] * size[2], size[2], 1], dtype=np.int64)
+    key = (cells - (cells.min(axis=0) - 1)) @ stride
+    span = int(np.prod(size))
+    linked = np.empty(len(points), dtype=bool)
+    linked_cells(key, _NEIGHBOURS @ stride, int(seed), span if span <= _TABLE * len(points)
+                 else 0, linked)
+    return np.flatnonzero(linked)
+
+
+def _packed(coordinate: np.ndarray) -> np.ndarray:
+    """Integer coordinates with every gap of more than one between neighbouring values
+    shrunk to two (the same values differ by at most one as before)."""
+    values, at = np.unique(coordinate, return_inverse=True)
+    packed = np.concatenate([[0], np.cumsum(np.minimum(np.diff(values), 2))])
+    return packed[at.reshape(-1)]
 
 
 @dataclass(frozen=True)

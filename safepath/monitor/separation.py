@@ -30,6 +30,7 @@ acting within ``T_cmd``), the robot then never comes closer than ``C`` to a pers
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
@@ -38,7 +39,7 @@ from .options import MonitorOptions
 from .profile import BRAKE_HOLDS, MonitoredPath
 from .sweep import PathSweep
 
-__all__ = ["Assessment", "assess"]
+__all__ = ["Assessment", "assess", "first_safe"]
 
 
 def _kernels():  # noqa: ANN202
@@ -102,6 +103,27 @@ class _Prefix:
         return None if a < 0 else self.S[a].copy()
 
 
+def first_safe(count: int, safe: Callable[[int], bool]) -> int:
+    """The first index in ``range(count)`` (speed scales, fastest first) that ``safe``
+    passes, found with few tests, or ``count`` when none is found: index 0 first (the
+    common answer), then bisection below it.
+
+    Only an index whose own test passed is returned, so where safety is not monotone in
+    the scale the answer can only be more cautious than the first safe one, never unsafe;
+    testing full speed first keeps such a case from slowing a motion whose full speed
+    keeps the protective distance."""
+    if count == 0 or safe(0):
+        return 0
+    lo, hi = 1, count  # unknown: [lo, hi); hi is safe (tested) or count
+    while lo < hi:
+        mid = (lo + hi) // 2
+        if safe(mid):
+            hi = mid
+        else:
+            lo = mid + 1
+    return lo
+
+
 def assess(path: MonitoredPath, sweep: PathSweep, elements: tuple[np.ndarray, ...],
            age: float, tau_c: float, tau_l: float, r_l: float,
            options: MonitorOptions, *, approach_speed: float | None = None) -> Assessment:
@@ -154,23 +176,19 @@ def assess(path: MonitoredPath, sweep: PathSweep, elements: tuple[np.ndarray, ..
         needed = v_h * (age + o.command_latency + t_rest) + o.constant_terms
         return prefix.until(where), min(needed, floor)
 
-    # Largest safe scale on the grid of multiples of scale_step (bisection; the chosen
-    # one is tested itself, so a non-monotone case can only make it more cautious).
+    # Largest safe scale on the grid of multiples of scale_step (:func:`first_safe`).
     steps = np.arange(np.floor(1.0 / o.scale_step + 1e-9), 0, -1) * o.scale_step
     scales = [float(min(s, 1.0)) for s in steps if s >= o.min_scale - 1e-12]
-    lo, hi = 0, len(scales)  # scales[lo:] unknown; answer: first safe index
-    while lo < hi:
-        mid = (lo + hi) // 2
-        kept, needed = margin(scales[mid], o.stale_after)
-        if kept >= needed:
-            hi = mid
-        else:
-            lo = mid + 1
+    tested: dict[int, tuple[float, float]] = {}
+
+    def safe(i: int) -> bool:
+        tested[i] = margin(scales[i], o.stale_after)
+        return tested[i][0] >= tested[i][1]
+
+    lo = first_safe(len(scales), safe)
     chosen = scales[lo] if lo < len(scales) else 0.0
     if chosen > 0:
-        kept, needed = margin(chosen, o.stale_after)
-        if kept < needed:
-            chosen = 0.0
+        kept, needed = tested[lo]
     where0, t_stop, _ = end_of(r_l, BRAKE_HOLDS[-1])
     if chosen == 0.0:
         kept, needed = prefix.until(where0), min(

@@ -291,3 +291,38 @@ def test_self_filter_ignores_the_arm_itself(cell: Cell, phase1: Phase1) -> None:
     beside = np.vstack([arm, tcp + 0.12 * outward])  # 12 cm out from the gripper
     d = m.observe(Cloud(t, "cam", _world_to_cam(beside)), t)
     assert d.counts.robot == len(arm) and d.kind == "stop"
+
+
+_FIRST_STOP = """
+import sys
+import numpy as np
+import safepath
+from safepath.monitor import Cloud, Monitor, MonitorOptions
+from safepath.ros import split_at_gripper_events
+cell = safepath.load_cell({scene!r})
+routes = safepath.load_routes(cell.folder / "routes.yaml", poses=list(cell.poses),
+                              objects=list(cell.scene.objects))
+traj = safepath.plan_cell(cell, safepath.PlanOptions(), routes={{"phase1": routes["phase1"]}})
+motion = [m for m in split_at_gripper_events(traj["phase1"])
+          if isinstance(m, safepath.Trajectory)][0]
+m = Monitor(cell, MonitorOptions(sensors={{"cam": np.eye(4)}}, stale_after=0.06))
+m.follow(motion, start=0.0, held="vial")
+assert m.observe(Cloud(0.0, "cam", np.array([[3.0, 0.3, 0.4]])), 0.0).kind == "continue"
+before = set(sys.modules)
+tcp = cell.robot.tcp_position(motion.sample([0.03])[0][0])
+d = m.observe(Cloud(0.03, "cam", tcp[None, :] + [[0.12, 0.0, 0.0]]), 0.03)
+print(d.kind, sorted(set(sys.modules) - before))
+"""
+
+
+def test_a_first_stop_loads_no_module(cell: Cell) -> None:
+    """The first stop of a process decides and hands out its stop without importing
+    anything: the body that blocks the robot, which a stop records before it leaves
+    (for the re-plan's rest rule), is found by a compiled search loaded with the monitor.
+    (It imported scipy's k-d tree and graph modules there, about 0.36 s.)"""
+    import subprocess
+    import sys
+
+    out = subprocess.run([sys.executable, "-c", _FIRST_STOP.format(scene=str(cell.folder))],
+                         capture_output=True, text=True, timeout=300, check=True).stdout
+    assert out.strip().splitlines()[-1] == "stop []", out

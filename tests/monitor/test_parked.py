@@ -19,6 +19,7 @@ from safepath import Cell, PlanOptions, SafepathError, Trajectory, plan_cell
 from safepath.collision import CheckOptions, CollisionChecker
 from safepath.model.scene import SceneObject, Shape
 from safepath.monitor import Cloud, Decision, Monitor, ReplanRequest
+from safepath.monitor import parked as parked_module
 from safepath.monitor.escape import START_SLACK, box_clearance, start_box
 from safepath.monitor.parked import (
     REPLAN_MOVED,
@@ -90,6 +91,45 @@ def test_the_blocking_body_is_the_linked_cluster_of_the_closest_element() -> Non
     body = blocking_body(E, np.array([0.3, 0.0, 0.15]), link=0.1)
     assert len(body) == len(near) + len(tall)
     assert body[:, 2].max() == pytest.approx(1.0) and body[:, 1].max() < 0.1
+
+
+def _linked_by_scipy(points: np.ndarray, edge: float, seed: int) -> np.ndarray:
+    """The reference: the points whose cells are in the seed's cell's connected component
+    of the graph of cells at most sqrt(3) apart (scipy's k-d tree and components)."""
+    from scipy.sparse import coo_matrix
+    from scipy.sparse.csgraph import connected_components
+    from scipy.spatial import cKDTree
+
+    cells, cell_of = np.unique(np.floor(points / edge).astype(np.int64), axis=0,
+                               return_inverse=True)
+    cell_of = cell_of.reshape(-1)
+    pairs = cKDTree(cells).query_pairs(np.sqrt(3.0) + 1e-6, output_type="ndarray")
+    graph = coo_matrix((np.ones(len(pairs)), (pairs[:, 0], pairs[:, 1])),
+                       shape=(len(cells), len(cells)))
+    _, label = connected_components(graph, directed=False)
+    return np.flatnonzero(label[cell_of] == label[cell_of[seed]])
+
+
+@pytest.mark.parametrize("table", [0, 64])
+def test_linked_cells_are_the_connected_component_of_the_seeds_cell(
+        table: int, monkeypatch: pytest.MonkeyPatch) -> None:
+    """The compiled search finds the same elements as a graph search over the cells
+    (scipy), whether neighbours are looked up by bisection (table 0), in a table of the
+    box's keys, or after packing coordinates whose keys would not fit an int64."""
+    monkeypatch.setattr(parked_module, "_TABLE", table)
+    rng = np.random.default_rng(7)
+    for trial in range(60):
+        n = int(rng.integers(1, 1500))
+        centers = rng.uniform(-1.0, 1.0, (int(rng.integers(1, 6)), 3))
+        points = centers[rng.integers(0, len(centers), n)] \
+            + rng.normal(0.0, rng.uniform(0.01, 0.3), (n, 3))
+        edge = float(rng.uniform(0.02, 0.2))
+        if trial % 10 == 0:  # cells too many for one int64 key: coordinates packed
+            points[0] += 1e6
+            edge = 1e-9
+        seed = int(rng.integers(0, n))
+        got = parked_module._cells_linked(points, edge, seed)
+        assert np.array_equal(got, _linked_by_scipy(points, edge, seed)), trial
 
 
 def test_shrink_box_never_meets_the_spheres_nor_cuts_the_body() -> None:

@@ -6,6 +6,7 @@ import numpy as np
 import pytest
 
 from safepath.monitor import _kernels
+from safepath.monitor.separation import first_safe
 
 
 def _robot(rng: np.random.Generator, states: int) -> tuple[np.ndarray, ...]:
@@ -75,3 +76,27 @@ def test_bucket_spheres_hold_their_contents() -> None:
         reach = np.linalg.norm(inside[:, :3] - blocks[k, :3], axis=1) + inside[:, 3]
         assert (reach <= blocks[k, 3]).all()
     assert cstart[-1] == len(E) and bstart[-1] == cells.shape[0]
+
+
+def test_the_scale_search_returns_only_tested_safe_scales_full_speed_first() -> None:
+    """The speed-scale search (fastest first) returns an index its own test passed, or
+    none; full speed when it is safe, however the slower scales test (safety need not be
+    monotone in the scale: a faster motion rests farther along a path whose clearance
+    varies); and the first safe index, in few tests, where safety is monotone."""
+    rng = np.random.default_rng(4)
+    for _ in range(2000):
+        count = int(rng.integers(0, 20))
+        verdicts = rng.random(count) < rng.random()
+        asked: list[int] = []
+
+        def safe(i: int, verdicts: np.ndarray = verdicts, asked: list[int] = asked) -> bool:
+            asked.append(i)
+            return bool(verdicts[i])
+
+        got = first_safe(count, safe)
+        assert got == count or (got in asked and verdicts[got])
+        if count and verdicts[0]:
+            assert got == 0 and asked == [0]
+        first = int(np.argmax(verdicts)) if verdicts.any() else count
+        if np.all(verdicts[first:]):  # unsafe faster than ``first``, safe from it on
+            assert got == first and len(asked) <= 2 + int(np.log2(max(count, 1)))
