@@ -17,12 +17,20 @@ from typing import Any
 import numpy as np
 import pytest
 from rosbags.interfaces import Nodetype
+from rosbags.rosbag2 import Reader
 from rosbags.typesys import Stores, get_types_from_msg, get_typestore
 from rosbags.typesys.store import Typestore
 
 from safepath.errors import RosError
+from safepath.model.trajectory import Trajectory
 from safepath.ros import _type_cache, _written_types
 from safepath.ros._writing_store import WritingStore
+from safepath.ros.bag import ARM_GOAL_TOPIC, TRAJECTORY_TOPIC, write_bag
+from safepath.ros.goals import (
+    follow_joint_trajectory_goal,
+    joint_trajectory,
+    split_at_gripper_events,
+)
 from safepath.ros.messages import DEFINITIONS, WRITTEN_TYPES, typestore, written_typestore
 
 from .test_messages import assert_same, phase1, phase2, populate
@@ -72,6 +80,32 @@ def test_written_types_are_defined_as_rosbags_defines_them() -> None:
         # One class per type, whichever store builds the message.
         assert typestore().types[name] is written.types[name]
         assert written.types[name].__module__ == "safepath.ros._written_types"
+
+
+def test_bag_holds_rosbags_own_bytes_of_the_goals(tmp_path: Path) -> None:
+    """Every trajectory and goal in a bag is, byte for byte, what rosbags' own store (not
+    the classes kept ahead of time) serialises of the message the goal builders give, and
+    every topic's definition is the one that store gives."""
+    start = 1_700_000_000 * 10**9
+    cycle = [phase1(), phase2("safe")]
+    path = write_bag(tmp_path / "cycle", cycle, start_time_ns=start, goals=True)
+    reference = rosbags_store()
+    with Reader(path) as reader:
+        for conn in reader.connections:
+            assert conn.msgdef.data == reference.generate_msgdef(conn.msgtype, ros_version=2)[0]
+            assert conn.digest == reference.hash_rihs01(conn.msgtype)
+        raw: dict[str, list[tuple[int, bytes]]] = {}
+        for conn, timestamp, data in reader.messages():
+            raw.setdefault(conn.topic, []).append((timestamp, bytes(data)))
+    motions = [p for traj in cycle for p in split_at_gripper_events(traj)
+               if isinstance(p, Trajectory)]
+    assert len(raw[TRAJECTORY_TOPIC]) == len(raw[ARM_GOAL_TOPIC]) == len(motions) == 5
+    for (stamp, data), (_, goal), motion in zip(raw[TRAJECTORY_TOPIC], raw[ARM_GOAL_TOPIC],
+                                               motions, strict=True):
+        built = joint_trajectory(motion, stamp_ns=stamp, backend="rosbags")
+        assert data == bytes(reference.serialize_cdr(built, built.__msgtype__))
+        built = follow_joint_trajectory_goal(motion, backend="rosbags")
+        assert goal == bytes(reference.serialize_cdr(built, built.__msgtype__))
 
 
 def test_writing_store_serialises_as_rosbags_then_does_everything_else() -> None:
