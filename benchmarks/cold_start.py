@@ -192,6 +192,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         ENV["SAFEPATH_CACHE"] = "0"
 
     command = plan_command()
+    load_before = os.getloadavg()[0] if hasattr(os, "getloadavg") else None
     print(f"cold_start: python {platform.python_version()} on {platform.machine()}, "
           f"{os.cpu_count()} cores, load average {load()} (before)")
     print(f"{args.runs} new processes per figure after {args.warmup} uncounted warm-up "
@@ -244,11 +245,12 @@ def main(argv: Sequence[str] | None = None) -> int:
                             "plan_bag_process": bags, "load_cell": loads,
                             "first_plan": first, "second_plan": second,
                             "forgotten_plan": forgotten, "ratio": ratios,
-                            "ratio_kept": ratios_kept})
+                            "ratio_kept": ratios_kept}, load_before)
     return 0
 
 
-def save_figures(args: argparse.Namespace, values: dict[str, list[float]]) -> None:
+def save_figures(args: argparse.Namespace, values: dict[str, list[float]],
+                 load_before: float | None = None) -> None:
     """Write the medians to ``benchmarks/results/cold_start.json`` (``_results.save``)."""
     from _results import save
 
@@ -259,7 +261,8 @@ def save_figures(args: argparse.Namespace, values: dict[str, list[float]]) -> No
     save("cold_start", {"runs": args.runs, "mode": mode,
                         "aims": {"import": AIM_IMPORT, "plan_process": AIM_PLAN,
                                  "plan_bag_process": AIM_PLAN, "ratio": AIM_RATIO},
-                        "median_s": {k: statistics.median(v) for k, v in values.items()}})
+                        "median_s": {k: statistics.median(v) for k, v in values.items()}},
+         load_before=load_before)
 
 
 if __name__ == "__main__":
