@@ -470,12 +470,14 @@ class MonitorNodeCore:
         return after[0].q[0].copy() if after else None
 
     def _commands(self, decision: Decision, now: float) -> list[Command]:
-        """The decision published, its replacement (through the gate) and its re-plan."""
-        out: list[Command] = [Publish(decision)]
+        """The decision's replacement (through the gate), the decision published, and its
+        re-plan: a stop's goal is the first command, before anything else is done."""
+        out: list[Command] = []
         if decision.replacement is not None:
             out += self._send(SendGoal(decision.replacement, decision.kind,
                                        start=decision.replacement_start), now,
                               "brake" if decision.scale == 0.0 else "replacement")
+        out.append(Publish(decision))
         if decision.replan is not None:
             out.append(Replan(decision.replan, self.parameters.route, self._held,
                               self.parameters.replan_margin))

@@ -13,6 +13,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from safepath.monitor import Decision
 from safepath.monitor.node import (
     Command,
     Gripper,
@@ -29,6 +30,12 @@ TICK = 0.02
 
 def _goals(commands: list[Command]) -> list[SendGoal | Gripper]:
     return [c for c in commands if isinstance(c, (SendGoal, Gripper))]
+
+
+def _published(commands: list[Command]) -> Decision:
+    """The one decision the commands publish."""
+    (decision,) = [c.decision for c in commands if isinstance(c, Publish)]
+    return decision
 
 
 def _started(node_core: NodeCoreFactory) -> tuple[MonitorNodeCore, SendGoal]:
@@ -57,9 +64,11 @@ def test_a_kill_sends_its_stop_and_holds_every_other_goal(node_core: NodeCoreFac
     t, _ = _tick_until(core, 0.5, 2.0)
     kill = core.kill(t)
     stop = _goals(kill)
-    # The kill's own stop goes out, stamped where the monitor timed it.
+    # The kill's own stop goes out first (before its decision is published), stamped
+    # where the monitor timed it.
     assert len(stop) == 1 and isinstance(stop[0], SendGoal) and stop[0].reason == "stop"
-    decision = kill[0].decision  # type: ignore[union-attr]
+    assert kill[0] is stop[0]
+    decision = _published(kill)
     assert decision.latched and stop[0].start == decision.replacement_start
     assert stop[0].trajectory is decision.replacement
     # Released and clear for the hold time: a real resume, sent with its start.
@@ -132,7 +141,7 @@ def test_a_stop_at_rest_mid_path_does_not_move_the_route_on(node_core: NodeCoreF
     core, first = _started(node_core)
     t, _ = _tick_until(core, 0.5, 2.0)
     kill = core.kill(t)
-    stop = kill[0].decision  # type: ignore[union-attr]
+    stop = _published(kill)
     assert stop.replacement is not None and stop.replacement_start is not None
     rest = stop.replacement_start + stop.replacement.duration
     core.reset()

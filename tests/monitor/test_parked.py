@@ -113,9 +113,9 @@ def _linked_by_scipy(points: np.ndarray, edge: float, seed: int) -> np.ndarray:
 @pytest.mark.parametrize("table", [0, 64])
 def test_linked_cells_are_the_connected_component_of_the_seeds_cell(
         table: int, monkeypatch: pytest.MonkeyPatch) -> None:
-    """The compiled search finds the same elements as a graph search over the cells
-    (scipy), whether neighbours are looked up by bisection (table 0), in a table of the
-    box's keys, or after packing coordinates whose keys would not fit an int64."""
+    """The blocking body's compiled search finds the same elements as a graph search over
+    the cells (scipy), whether neighbours are looked up by bisection (table 0), in a table
+    of the box's keys, or after packing coordinates whose keys would not fit an int64."""
     monkeypatch.setattr(parked_module, "_TABLE", table)
     rng = np.random.default_rng(7)
     for trial in range(60):
@@ -128,8 +128,10 @@ def test_linked_cells_are_the_connected_component_of_the_seeds_cell(
             points[0] += 1e6
             edge = 1e-9
         seed = int(rng.integers(0, n))
-        got = parked_module._cells_linked(points, edge, seed)
-        assert np.array_equal(got, _linked_by_scipy(points, edge, seed)), trial
+        # Elements without radius: the cells' edge is half the link.
+        body = blocking_body(np.column_stack([points, np.zeros(n)]), points[seed], 2 * edge)
+        seed = int(np.argmin(np.linalg.norm(points - points[seed], axis=1)))  # a repeat's first
+        assert np.array_equal(body[:, :3], points[_linked_by_scipy(points, edge, seed)]), trial
 
 
 def test_shrink_box_never_meets_the_spheres_nor_cuts_the_body() -> None:

@@ -197,10 +197,12 @@ def test_node_core_lifecycle(cell_dir: Path, node_core: NodeCoreFactory) -> None
     out = core.on_scan(_round_trip(scan, "sensor_msgs/msg/LaserScan"), 10.56)
     assert len(out) == 1 and isinstance(out[0], Publish) and out[0].decision.kind == "continue"
     silent = core.on_tick(10.8)  # no scan for 0.25 s > 0.15 s
-    assert silent[0].decision.kind == "stop" and isinstance(silent[1], SendGoal)  # type: ignore[union-attr]
+    # A stop's goal is the first command, then its decision.
+    assert isinstance(silent[0], SendGoal) and silent[0].reason == "stop"
+    assert isinstance(silent[1], Publish) and silent[1].decision.kind == "stop"
     stop = core.deactivate(10.81)
-    assert core.state == "inactive" and isinstance(stop[0], Publish)
-    assert stop[0].decision.latched
+    assert core.state == "inactive" and isinstance(stop[-1], Publish)
+    assert stop[-1].decision.latched
     assert core.on_tick(10.9) == [] and core.on_scan(scan, 10.9) == []
     assert core.activate(11.0) == []
     t = 11.0
