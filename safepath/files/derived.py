@@ -25,8 +25,9 @@ logged.
 
 Environment:
     SAFEPATH_CACHE: The cache folder (default ``$XDG_CACHE_HOME/safepath``, else
-        ``~/.cache/safepath``); entries go to its ``robot-parts`` folder. ``0`` or an
-        empty value: no disk cache.
+        ``~/.cache/safepath``); entries go to its ``robot-parts`` folder (and the classes
+        of the ROS 2 messages safepath writes to ``ros-types``, see
+        :mod:`safepath.ros._type_cache`). ``0`` or an empty value: no disk cache.
 """
 
 from __future__ import annotations
@@ -47,7 +48,8 @@ from ._digest import blake2b, sha256
 from ._io import read_bytes
 
 __all__ = ["DerivedKind", "StoredKind", "Derived", "DerivedValues", "CACHE_ENV",
-           "disk_folder", "read_entry"]
+           "cache_folder", "disk_folder", "read_cache_file", "read_entry",
+           "write_cache_file"]
 
 log = logging.getLogger(__name__)
 
@@ -174,13 +176,19 @@ class Derived:
 
 
 # -- on disk ----------------------------------------------------------------------------
-def disk_folder() -> Path | None:
-    """Where disk entries are kept (None: the disk cache is off, see the module doc)."""
+def cache_folder(name: str) -> Path | None:
+    """The folder ``name`` of safepath's cache (``robot-parts``, ``ros-types``); None:
+    the disk cache is off (see the module doc)."""
     env = os.environ.get(CACHE_ENV)
     if env is not None:
-        return Path(env) / "robot-parts" if env not in ("", "0") else None
+        return Path(env) / name if env not in ("", "0") else None
     base = os.environ.get("XDG_CACHE_HOME") or str(Path.home() / ".cache")
-    return Path(base) / "safepath" / "robot-parts"
+    return Path(base) / "safepath" / name
+
+
+def disk_folder() -> Path | None:
+    """Where disk entries are kept (None: the disk cache is off, see the module doc)."""
+    return cache_folder("robot-parts")
 
 
 _code_digests: dict[StoredKind[Any], bytes] = {}
@@ -269,12 +277,7 @@ def _load_or_make(kind: StoredKind[T], make: Callable[[], T], options: Hashable,
     if where is None:
         return kind.from_arrays(kind.to_arrays(make()))
     path = where / f"{_entry_name(kind, [kind.name, repr(options), *inputs()])}.part"
-    raw = None
-    if os.path.lexists(path):
-        try:  # a regular file only: a pipe or device planted there is never opened
-            raw = read_bytes(path, error=InputError, limit=_ENTRY_LIMIT)
-        except InputError as exc:
-            log.debug("robot-part cache %s not read: %s", path, exc)
+    raw = read_cache_file(path, _ENTRY_LIMIT)
     if raw is not None:
         try:
             return kind.from_arrays(read_entry(raw))
@@ -282,15 +285,38 @@ def _load_or_make(kind: StoredKind[T], make: Callable[[], T], options: Hashable,
             log.warning("robot-part cache entry %s ignored (%s): made again", path, exc)
     arrays = kind.to_arrays(make())
     try:
-        where.mkdir(parents=True, exist_ok=True)
-        part = path.with_name(f"{path.name}.{os.getpid()}.{os.urandom(4).hex()}.tmp")
-        # Created exclusively, never through a link; the rename replaces a link at
-        # ``path`` itself, not what it points to.
-        fd = os.open(part, os.O_WRONLY | os.O_CREAT | os.O_EXCL | os.O_NOFOLLOW
-                     | os.O_CLOEXEC, 0o600)
-        with os.fdopen(fd, "wb") as out:
-            out.write(_encode(arrays))
-        os.replace(part, path)
+        write_cache_file(path, _encode(arrays))
     except (OSError, TypeError) as exc:
         log.debug("robot-part cache %s not written: %s", path, exc)
     return kind.from_arrays(arrays)
+
+
+def read_cache_file(path: Path, limit: int) -> bytes | None:
+    """The bytes of the cache file ``path``; None when there is none, or it is not a
+    regular file of at most ``limit`` [bytes] (a pipe or device planted there is never
+    opened; logged)."""
+    if not os.path.lexists(path):
+        return None
+    try:
+        return read_bytes(path, error=InputError, limit=limit)
+    except InputError as exc:
+        log.debug("cache file %s not read: %s", path, exc)
+        return None
+
+
+def write_cache_file(path: Path, data: bytes) -> None:
+    """Write the cache file ``path`` whole or not at all: a temporary file beside it,
+    created exclusively and never through a link, renamed over it (which replaces a link
+    at ``path`` itself, not what it points to), so that concurrent processes never read
+    half of one.
+
+    Raises:
+        OSError: It cannot be written.
+    """
+    path.parent.mkdir(parents=True, exist_ok=True)
+    part = path.with_name(f"{path.name}.{os.getpid()}.{os.urandom(4).hex()}.tmp")
+    fd = os.open(part, os.O_WRONLY | os.O_CREAT | os.O_EXCL | os.O_NOFOLLOW | os.O_CLOEXEC,
+                 0o600)
+    with os.fdopen(fd, "wb") as out:
+        out.write(data)
+    os.replace(part, path)

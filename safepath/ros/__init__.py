@@ -17,7 +17,8 @@ return the native ``rclpy`` message classes instead (``backend="auto"``).
   the quality-check cell's (``QualityCheckController`` and its commands) in
   :mod:`safepath.cells.quality_check`, the pouring cell's (``PourController`` and its
   commands) in :mod:`safepath.cells.pouring`.
-* :mod:`safepath.ros.messages`: the type store and CDR (de)serialisation.
+* :mod:`safepath.ros.messages`: the type stores and CDR (de)serialisation; the classes of
+  the messages safepath writes are generated ahead of time and kept on disk.
 """
 
 from __future__ import annotations
@@ -38,7 +39,7 @@ from .goals import (
     trajectory_between,
 )
 from .gripper import gripper_command_goal, gripper_command_goals, gripper_of
-from .messages import deserialize, message_factory, serialize, typestore
+from .messages import deserialize, message_factory, serialize, typestore, written_typestore
 
 __all__ = [
     "BagContents",
@@ -65,4 +66,5 @@ __all__ = [
     "trajectory_between",
     "typestore",
     "write_bag",
+    "written_typestore",
 ]

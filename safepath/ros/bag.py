@@ -57,7 +57,7 @@ from .goals import (
     split_at_gripper_events,
 )
 from .gripper import gripper_command_goal
-from .messages import deserialize, serialize, typestore
+from .messages import MessageFactory, deserialize, serialize, written_typestore
 
 if TYPE_CHECKING:
     from ..model._locked import LockedJoint
@@ -122,7 +122,7 @@ class BagContents:
 
 
 def _string(data: dict[str, Any]) -> Any:
-    return typestore().types["std_msgs/msg/String"](data=json.dumps(data, sort_keys=True))
+    return written_typestore().types["std_msgs/msg/String"](data=json.dumps(data, sort_keys=True))
 
 
 def _gripper_positions(trajs: Sequence[Trajectory], starts_ns: Sequence[int],
@@ -177,7 +177,8 @@ def _joint_states(trajs: Sequence[Trajectory], starts_ns: Sequence[int], total_n
     """``/joint_states`` every 1/``rate`` over the whole cycle, from the true motion; with
     the gripper joint of ``spec``'s ``gripper`` section and the robot's ``locked`` joints
     (:func:`_locked_states`: RViz draws the fingers from them)."""
-    types = typestore().types
+    header_cls, time_cls, state_cls = (written_typestore().types[name] for name in (
+        "std_msgs/msg/Header", "builtin_interfaces/msg/Time", "sensor_msgs/msg/JointState"))
     step_ns = round(_NS / rate)
     times = np.arange(0, total_ns + step_ns, step_ns, dtype=np.int64)
     which = interval_index(np.asarray(starts_ns), times, len(trajs))
@@ -195,15 +196,14 @@ def _joint_states(trajs: Sequence[Trajectory], starts_ns: Sequence[int], total_n
         q, qd, _ = traj.sample(traj.t[0] + (mine - starts_ns[k]) / _NS)
         q = np.column_stack([q[:, cols], held_q[which == k]])
         qd = np.column_stack([qd[:, cols], np.zeros((mine.size, len(held)))])
-        for j, t_ns in enumerate(mine):
-            stamp_ns = start_time_ns + int(t_ns)
-            header = types["std_msgs/msg/Header"](
-                stamp=types["builtin_interfaces/msg/Time"](sec=stamp_ns // _NS,
-                                                           nanosec=stamp_ns % _NS),
-                frame_id="")
-            out.append((stamp_ns, types["sensor_msgs/msg/JointState"](
-                header=header, name=all_names, position=q[j].astype(np.float64),
-                velocity=qd[j].astype(np.float64), effort=np.zeros(0))))
+        rows = MessageFactory("rosbags").float_rows  # views of one array per field
+        for t_ns, position, velocity, effort in zip(mine.tolist(), rows(q), rows(qd),
+                                                    rows(q[:, :0]), strict=True):
+            stamp_ns = start_time_ns + t_ns
+            header = header_cls(stamp=time_cls(sec=stamp_ns // _NS, nanosec=stamp_ns % _NS),
+                                frame_id="")
+            out.append((stamp_ns, state_cls(header=header, name=all_names, position=position,
+                                            velocity=velocity, effort=effort)))
     return out
 
 
@@ -346,7 +346,8 @@ def write_bag(path: str | Path, trajectories: Iterable[Trajectory], *,
             types = {**_TOPICS, **(_GOAL_TOPICS if goals else {})}
             if spec.gripper is None:
                 types.pop(GRIPPER_GOAL_TOPIC, None)
-            conns = {topic: writer.add_connection(topic, msgtype, typestore=typestore())
+            conns = {topic: writer.add_connection(topic, msgtype,
+                                                  typestore=written_typestore())
                      for topic, msgtype in types.items()}
             for time_ns, _, topic, msg in records:
                 writer.write(conns[topic], time_ns, serialize(msg, types[topic]))

@@ -241,11 +241,12 @@ def _build_joint_trajectory(f: MessageFactory, pts: _Points, stamp_ns: int) -> A
     point, duration = (f.cls(name) for name in ("trajectory_msgs/msg/JointTrajectoryPoint",
                                                 "builtin_interfaces/msg/Duration"))
     points = [
-        point(positions=q, velocities=v, accelerations=a, effort=f.floats([]),
+        point(positions=q, velocities=v, accelerations=a, effort=e,
               time_from_start=duration(sec=sec, nanosec=nanosec))
-        for q, v, a, (sec, nanosec) in zip(
+        for q, v, a, e, (sec, nanosec) in zip(
             f.float_rows(pts.q), f.float_rows(qd), f.float_rows(qdd),
-            (divmod(int(t), _NS) for t in pts.time_ns), strict=True)
+            f.float_rows(pts.q[:, :0]), (divmod(int(t), _NS) for t in pts.time_ns),
+            strict=True)
     ]
     return f.new("trajectory_msgs/msg/JointTrajectory", header=header,
                  joint_names=list(pts.names), points=points)

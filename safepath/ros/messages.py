@@ -1,20 +1,11 @@
-"""ROS 2 message types without ROS 2: a rosbags type store and native-class lookup.
+"""ROS 2 message types without ROS 2: rosbags type stores and native-class lookup.
 
-The type store holds the ROS 2 Humble standard types that ship with rosbags, plus
-the definitions written below for the types rosbags lacks:
-
-* ``control_msgs``: FollowJointTrajectory and GripperCommand goal/result/feedback, the
-  tolerances and ``GripperCommand``, as in control_msgs 4.x (Humble).
-* ``niryo_ned_ros2_interfaces``: RobotMove and Tool actions, ArmMoveCommand, ToolCommand,
-  ShiftPose, RPY, RobotState, DigitalIO(State), ControlConveyor and SetConveyor services,
-  with the field lists of Niryo's Ned ROS 2 driver.
-* ``rpi_manager/srv/GetSafety``: the quality-check cell's verdict service (the package
-  name of Niryo's ROSCon 2025 workshop).
-
-Field names, types and order decide the CDR bytes, so they follow the upstream
-interfaces exactly; comments are ours. :func:`message_factory` hands out either these
-rosbags classes or, when a sourced ROS 2 workspace is importable, the native ``rclpy``
-classes of the same types.
+:func:`typestore` holds the ROS 2 Humble standard types that ship with rosbags plus
+:data:`DEFINITIONS`, the types rosbags lacks (control_msgs, Niryo's Ned ROS 2 driver, the
+quality-check cell's service: see :mod:`._definitions`); :func:`written_typestore` the
+messages safepath writes, with classes generated ahead of time, which both stores share.
+:func:`message_factory` hands out either these rosbags classes or, when a sourced ROS 2
+workspace is importable, the native ``rclpy`` classes of the same types.
 """
 
 from __future__ import annotations
@@ -28,221 +19,70 @@ from typing import Any, Literal
 
 import numpy as np
 from rosbags.serde import SerdeError
-from rosbags.typesys import Stores, TypesysError, get_types_from_msg, get_typestore
+from rosbags.typesys import TypesysError
 from rosbags.typesys.store import Typestore
 
 from ..errors import InputError, RosError
 from ..files._io import check_names
+from ._definitions import DEFINITIONS, ROS_DISTRO_STORE, WRITTEN_TYPES, standard_store
+from ._type_cache import use_written_classes
+from ._writing_store import WritingStore
 
 __all__ = [
     "Backend",
     "DEFINITIONS",
     "MessageFactory",
     "ROS_DISTRO_STORE",
+    "WRITTEN_TYPES",
     "deserialize",
     "message_factory",
     "serialize",
     "typestore",
+    "written_typestore",
 ]
 
 logger = logging.getLogger(__name__)
 
 Backend = Literal["auto", "rosbags", "rclpy"]
 
-#: The rosbags store the standard types come from (the Ned ROS 2 driver targets Humble).
-ROS_DISTRO_STORE = Stores.ROS2_HUMBLE
 
-_NIRYO = "niryo_ned_ros2_interfaces"
+@functools.lru_cache(maxsize=1)
+def written_typestore() -> Typestore:
+    """The rosbags type store of the messages safepath writes (:data:`WRITTEN_TYPES`: the
+    bags' topics, the arm's and gripper's goals) and every type they nest.
 
-#: Our definitions of the types that rosbags' standard store lacks: type name -> msg text.
-#: Nested types are always fully qualified, so that names resolve the same for msg,
-#: srv and action parts.
-DEFINITIONS: dict[str, str] = {
-    # -- control_msgs (Humble) -------------------------------------------------------------
-    "control_msgs/msg/JointTolerance": """
-string name
-float64 position      # [rad] or [m]; 0 = server default, -1 = no limit
-float64 velocity      # [rad/s] or [m/s]
-float64 acceleration  # [rad/s^2] or [m/s^2]
-""",
-    "control_msgs/msg/JointComponentTolerance": """
-uint16 X_AXIS=1
-uint16 Y_AXIS=2
-uint16 Z_AXIS=3
-uint16 TRANSLATION=4
-uint16 ROTATION=5
-string joint_name
-uint16 component
-float64 position
-float64 velocity
-float64 acceleration
-""",
-    "control_msgs/action/FollowJointTrajectory_Goal": """
-trajectory_msgs/JointTrajectory trajectory
-trajectory_msgs/MultiDOFJointTrajectory multi_dof_trajectory
-control_msgs/JointTolerance[] path_tolerance
-control_msgs/JointComponentTolerance[] component_path_tolerance
-control_msgs/JointTolerance[] goal_tolerance
-control_msgs/JointComponentTolerance[] component_goal_tolerance
-builtin_interfaces/Duration goal_time_tolerance
-""",
-    "control_msgs/action/FollowJointTrajectory_Result": """
-int32 SUCCESSFUL=0
-int32 INVALID_GOAL=-1
-int32 INVALID_JOINTS=-2
-int32 OLD_HEADER_TIMESTAMP=-3
-int32 PATH_TOLERANCE_VIOLATED=-4
-int32 GOAL_TOLERANCE_VIOLATED=-5
-int32 error_code
-string error_string
-""",
-    "control_msgs/action/FollowJointTrajectory_Feedback": """
-std_msgs/Header header
-string[] joint_names
-trajectory_msgs/JointTrajectoryPoint desired
-trajectory_msgs/JointTrajectoryPoint actual
-trajectory_msgs/JointTrajectoryPoint error
-string[] multi_dof_joint_names
-trajectory_msgs/MultiDOFJointTrajectoryPoint multi_dof_desired
-trajectory_msgs/MultiDOFJointTrajectoryPoint multi_dof_actual
-trajectory_msgs/MultiDOFJointTrajectoryPoint multi_dof_error
-""",
-    "control_msgs/msg/GripperCommand": """
-float64 position    # [m] or [rad], the gripper joint's unit
-float64 max_effort  # the controller's unit
-""",
-    "control_msgs/action/GripperCommand_Goal": "control_msgs/GripperCommand command\n",
-    "control_msgs/action/GripperCommand_Result": """
-float64 position    # where the gripper ended [m] or [rad]
-float64 effort
-bool stalled        # stopped before the goal (an object in the way)
-bool reached_goal
-""",
-    "control_msgs/action/GripperCommand_Feedback": """
-float64 position
-float64 effort
-bool stalled
-bool reached_goal
-""",
-    # -- Niryo Ned ROS 2 driver -----------------------------------------------------------
-    f"{_NIRYO}/msg/RPY": """
-float64 roll   # [rad]
-float64 pitch  # [rad]
-float64 yaw    # [rad]
-""",
-    f"{_NIRYO}/msg/ShiftPose": """
-int32 axis_number
-float64 value
-""",
-    f"{_NIRYO}/msg/ArmMoveCommand": f"""
-int32 JOINTS=0
-int32 POSE=1
-int32 POSITION=2
-int32 RPY=3
-int32 POSE_QUAT=4
-int32 LINEAR_POSE=5
-int32 SHIFT_POSE=6
-int32 SHIFT_LINEAR_POSE=7
-int32 EXECUTE_TRAJ=8
-int32 DRAW_SPIRAL=9
-int32 DRAW_CIRCLE=10
-int32 EXECUTE_FULL_TRAJ=11  # re-timed by the robot
-int32 EXECUTE_RAW_TRAJ=12   # fails on the robot with a JointTrajectory
-int32 cmd_type
-int32 LEGACY=1
-int32 DH_CONVENTION=2
-int32 tcp_version
-float64[] joints
-geometry_msgs/Point position
-{_NIRYO}/RPY rpy
-geometry_msgs/Quaternion orientation
-{_NIRYO}/ShiftPose shift
-geometry_msgs/Pose[] list_poses
-float32 dist_smoothing
-trajectory_msgs/JointTrajectory trajectory
-float64[] args
-""",
-    f"{_NIRYO}/msg/RobotState": f"""
-geometry_msgs/Point position
-{_NIRYO}/RPY rpy
-geometry_msgs/Quaternion orientation
-geometry_msgs/Twist twist
-float64 tcp_speed
-""",
-    f"{_NIRYO}/action/RobotMove_Goal": f"{_NIRYO}/ArmMoveCommand cmd\n",
-    f"{_NIRYO}/action/RobotMove_Result": "int32 status\nstring message\n",
-    f"{_NIRYO}/action/RobotMove_Feedback": f"{_NIRYO}/RobotState state\n",
-    f"{_NIRYO}/msg/ToolCommand": """
-int8 OPEN_GRIPPER=1
-int8 CLOSE_GRIPPER=2
-int8 PULL_AIR_VACUUM_PUMP=10
-int8 PUSH_AIR_VACUUM_PUMP=11
-int8 SETUP_DIGITAL_IO=20
-int8 ACTIVATE_DIGITAL_IO=21
-int8 DEACTIVATE_DIGITAL_IO=22
-uint8 cmd_type
-int8 tool_id                  # Gripper 1 = 11
-uint16 speed                  # Ned / One grippers only
-uint8 max_torque_percentage   # Ned 2 / Ned 3 grippers
-uint8 hold_torque_percentage
-bool activate                 # vacuum pump, electromagnet
-string gpio                   # tools driven by digital outputs
-""",
-    f"{_NIRYO}/action/Tool_Goal": f"{_NIRYO}/ToolCommand cmd\n",
-    f"{_NIRYO}/action/Tool_Result": "int32 status\nstring message\n",
-    f"{_NIRYO}/action/Tool_Feedback": "int32 progression\n",
-    f"{_NIRYO}/msg/DigitalIO": "string name\nbool value\n",
-    f"{_NIRYO}/msg/DigitalIOState": f"""
-{_NIRYO}/DigitalIO[] digital_inputs
-{_NIRYO}/DigitalIO[] digital_outputs
-""",
-    f"{_NIRYO}/srv/ControlConveyor_Request": """
-uint8 id
-bool control_on
-int16 speed      # [% of max speed]
-int8 direction   # 1 towards the robot, 0 stopped, -1 away
-""",
-    f"{_NIRYO}/srv/ControlConveyor_Response": "int16 status\nstring message\n",
-    f"{_NIRYO}/srv/SetConveyor_Request": """
-uint8 ADD=1
-uint8 REMOVE=2
-uint8 cmd
-uint8 id
-""",
-    f"{_NIRYO}/srv/SetConveyor_Response": """
-int16 id
-int16 status
-string message
-string hardware_id
-""",
-    # -- the quality-check cell -----------------------------------------------------------
-    # An empty request still holds one byte on the wire (rosidl adds this member).
-    "rpi_manager/srv/GetSafety_Request": "uint8 structure_needs_at_least_one_member\n",
-    "rpi_manager/srv/GetSafety_Response": 'string state  # "safe" or "unsafe"\n',
-}
+    Its classes are generated ahead of time and kept on disk (:mod:`._type_cache`), so
+    a process that writes a bag loads them in milliseconds instead of building the whole
+    store of :func:`typestore` (about 0.1 s); they are :func:`typestore`'s classes too.
+    Built once and shared.
+    """
+    from . import _written_types
 
-
-def _parse(typename: str, text: str) -> dict[str, Any]:
-    """Parse one msg text under its full name (srv parts included)."""
-    # rosbags' msg parser files anything that is not msg/action under 'msg'; parse
-    # service parts under a msg alias and put them back under their real name.
-    alias = typename.replace("/srv/", "/msg/")
-    parsed = get_types_from_msg(text, alias)
-    return {typename: parsed[alias]}
+    return WritingStore(_written_types)
 
 
 @functools.lru_cache(maxsize=1)
 def typestore() -> Typestore:
     """The rosbags type store: ROS 2 Humble standard types plus :data:`DEFINITIONS`.
 
-    Built once and shared; do not register conflicting types in it.
+    The types of :func:`written_typestore` have its classes, so a message built from
+    either store is the same class. Built once and shared; do not register conflicting
+    types in it.
+
+    Raises:
+        RosError: The written classes were generated from other definitions than this
+            store's (their cache entry is removed, so the next process makes it again).
     """
-    store = get_typestore(ROS_DISTRO_STORE)
-    types: dict[str, Any] = {}
-    for name, text in DEFINITIONS.items():
-        types.update(_parse(name, text))
-    store.register(types)
+    store = standard_store()
+    use_written_classes(store, written_typestore())
     return store
+
+
+def _store_of(typename: str) -> Typestore:
+    """The store to (de)serialise ``typename`` with: :func:`written_typestore` when it has
+    the type (the same bytes, without building the whole store), else :func:`typestore`."""
+    written = written_typestore()
+    return written if typename in written.fielddefs else typestore()
 
 
 def serialize(message: Any, typename: str | None = None) -> bytes:
@@ -259,7 +99,7 @@ def serialize(message: Any, typename: str | None = None) -> bytes:
     if not name:
         raise RosError(f"cannot serialize {type(message).__name__}: not a rosbags message")
     try:
-        return bytes(typestore().serialize_cdr(message, name))
+        return bytes(_store_of(name).serialize_cdr(message, name))
     except (KeyError, TypesysError) as exc:
         raise RosError(f"unknown message type '{name}' ({exc})") from None
     except (SerdeError, AttributeError, TypeError, ValueError, OverflowError) as exc:
@@ -273,7 +113,7 @@ def deserialize(data: bytes | memoryview, typename: str) -> Any:
         RosError: Unknown type or bytes that are not a CDR message of that type.
     """
     try:
-        return typestore().deserialize_cdr(data, typename)
+        return _store_of(typename).deserialize_cdr(data, typename)
     except (KeyError, TypesysError) as exc:
         raise RosError(f"unknown message type '{typename}' ({exc})") from None
     except (SerdeError, ValueError, IndexError) as exc:
@@ -297,7 +137,7 @@ class MessageFactory:
         """The message class of ``typename`` (``pkg/msg/Name``, ``pkg/srv/Name_Request``...)."""
         if self.backend == "rosbags":
             try:
-                return typestore().types[typename]
+                return _store_of(typename).types[typename]
             except KeyError:
                 raise RosError(f"unknown message type '{typename}'") from None
         return _rclpy_class(typename)
