@@ -16,7 +16,7 @@ from typing import TYPE_CHECKING, cast
 import numpy as np
 
 from ..cell.routes import Route, Step
-from ..errors import PlanningError, VerificationError
+from ..errors import PlanningError, TimingError, VerificationError
 from ..model._knots import interval_index
 from ..model.scene import AllowedContact
 from ..model.trajectory import GripperEvent, Trajectory
@@ -81,8 +81,8 @@ def time_chunk(cell: Cell, segments: list[Segment], world: WorldState, options: 
                 timed: TimedPieces | None = None
                 ) -> list[tuple[TimedPiece, list[int], VerifyResult]]:
     """Time and verify a chunk: blended through its via points (large blends first, then
-    smaller, then passing exactly); if no blend is collision-free or passes the
-    independent re-check, stop at the step boundaries, then at every corner. ``known``:
+    smaller, then passing exactly); if no blend is collision-free, can be timed and passes
+    the independent re-check, stop at the step boundaries, then at every corner. ``known``:
     the smallest clearance of the route so far [m] (see ``FclVerifier.verify``); a
     piece's result says inf unless it comes closer."""
     if len(segments) > 1 or len(segments[0].waypoints) > 2:
@@ -95,6 +95,8 @@ def time_chunk(cell: Cell, segments: list[Segment], world: WorldState, options: 
                 log.debug("blend %.3f rad not collision-free", blend)
             except VerificationError as exc:
                 log.debug("blend %.3f rad failed the re-check: %s", blend, exc)
+            except TimingError as exc:  # e.g. a blend cut down to millimetres: too tight
+                log.debug("blend %.3f rad could not be timed: %s", blend, exc)
     out = []
     for seg in segments:
         try:

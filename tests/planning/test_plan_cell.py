@@ -289,3 +289,30 @@ def test_routes_given_as_a_list_are_a_typed_error(bundled_cell: Cell) -> None:
     with pytest.raises(ConfigError, match="mapping of route names") as info:
         plan_cell(bundled_cell, routes=["phase1"])  # type: ignore[arg-type]
     assert info.value.key == "routes"
+
+
+def test_a_blend_that_cannot_be_timed_is_passed_through_exactly(
+        bundled_cell: Cell, monkeypatch: pytest.MonkeyPatch) -> None:
+    """A blend TOPP-RA cannot time (a radius cut down to millimetres by a short segment
+    was one, on a fresh Panda set) is given up like one that collides: the next, smaller
+    one is tried, then passing through exactly. It used to fail the whole plan."""
+    from safepath import PlanOptions, plan_cell
+    from safepath.errors import TimingError
+    from safepath.planning import _chunks
+
+    from .conftest import BUNDLED, route_routes
+
+    time_segments = _chunks.time_segments
+    blends: list[float] = []
+
+    def untimeable_blends(*args: object, blend: float = 0.0, **kwargs: object) -> object:
+        blends.append(blend)
+        if blend > 0.0:
+            raise TimingError("TOPP-RA found no feasible timing (test)")
+        return time_segments(*args, blend=blend, **kwargs)  # type: ignore[arg-type]
+
+    monkeypatch.setattr(_chunks, "time_segments", untimeable_blends)
+    routes = route_routes(BUNDLED, bundled_cell)
+    traj = plan_cell(bundled_cell, PlanOptions(), routes={"phase1": routes["phase1"]})["phase1"]
+    assert traj.duration > 0.0 and traj.info["min_clearance"] > 0.0  # released: re-checked
+    assert {0.6, 0.3, 0.1} <= set(blends) and 0.0 in blends
