@@ -114,6 +114,10 @@ class TimingOptions:
             executed motion is checked and stretched in time to within every step's
             limit either way; without it, a faster step's TCP speed carried into a slower
             one stretches the whole piece (3 % in the bundled pouring cell).
+        max_duration: Longest timing of one piece of path [s]: TOPP-RA's profile of a
+            path that it can only pass almost at rest somewhere (a blend too tight for its
+            grid) comes out finite but absurdly long; it is refused (``TimingError``, so a
+            planner tries a smaller blend) before its knots are made.
     """
 
     speed_scale: float = 1.0
@@ -128,6 +132,7 @@ class TimingOptions:
     corner_blend: CornerBlend = "g2"
     limits_ahead: bool = False
     tcp_ahead: bool = True
+    max_duration: float = 3600.0
 
     def __post_init__(self) -> None:
         from ..errors import ConfigError
@@ -149,6 +154,9 @@ class TimingOptions:
         if self.corner_blend not in CORNER_BLENDS:
             raise ConfigError(f"corner_blend must be one of {CORNER_BLENDS}, got "
                               f"{self.corner_blend!r}", key="corner_blend")
+        if not self.max_duration > 0:
+            raise ConfigError(f"max_duration must be > 0 [s], got {self.max_duration}",
+                              key="max_duration")
         if not self.jerk_smoothing >= 1:
             raise ConfigError(f"jerk_smoothing must be >= 1 [knot periods], got "
                               f"{self.jerk_smoothing}", key="jerk_smoothing")
@@ -386,6 +394,11 @@ def _time_once(path: PathSpline, limits: PathLimits, f_acc: np.ndarray, f_x: np.
     profile = _topp.parametrize(limits.grid, x)
     if not (np.isfinite(profile.duration) and profile.duration > 0):
         raise TimingError(f"TOPP-RA gave a duration of {profile.duration} s" + where)
+    if profile.duration > options.max_duration:
+        slowest = int(np.argmax(np.diff(profile.t)))
+        raise TimingError(f"TOPP-RA's timing takes {profile.duration:.4g} s, over "
+                          f"max_duration {options.max_duration:g} s: the path is passed "
+                          f"almost at rest at s = {limits.grid[slowest]:.4f} rad" + where)
     if tau_a is None:
         tau_a = _jerk_window(profile, limits, options)
     tau_b = _second_window(tau_a, options)

@@ -468,3 +468,46 @@ def test_the_jerk_window_kernel_finds_the_fewest_rows(seed: int) -> None:
     dt = float(rng.uniform(0.001, 0.05))
     assert compiled_kernels()["jerk_shift"](np.ascontiguousarray(f), dt) == \
         _shift_reference(f, dt)
+
+
+#: A path the Panda planner produced on a fresh problem set (benchmarks/peers, seed 96001,
+#: p19): five via points, the last leg 6 mrad long, so its blend is cut to 2.5 mrad.
+_NEARLY_AT_REST = np.array([
+    [2.551501, 0.357605, -2.742295, -2.69757,
+     2.247519, 3.367837, 1.709813],
+    [1.181827375878846, 0.26083754946817805, -1.4701365438864564, -2.748239305796226,
+     1.740653873043366, 3.4178140862072706, 0.7108158882478782],
+    [-0.2542669406923108, 0.10269100781843699, 0.1845382964802827, -2.7596697686992986,
+     1.3839061943360176, 3.341456507286333, -0.23389601297837206],
+    [-0.3063935058269199, 0.004742662702841016, 0.7664623213737446, -2.692260629530598,
+     1.6551253449937775, 3.12924263081167, -0.10108210587466204],
+    [-0.28669690387996766, -0.028240068244388218, 0.9041974927530745, -2.572861183220206,
+     1.408397342420852, 3.0172344178535475, -0.1673172294227387],
+    [1.9008889070839958, 0.6026199406469228, -1.4748226115172418, -1.5455439963245825,
+     -0.3872564301197149, 2.677239476897539, -1.5752784689835828],
+    [1.901688, 0.600838, -1.478253, -1.546525,
+     -0.382863, 2.676792, -1.576735]])
+
+
+def test_a_timing_that_would_take_forever_is_refused_not_made() -> None:
+    """TOPP-RA's grid cannot resolve a 2.5 mrad blend: its profile passes it almost at
+    rest and lasts 1.3e6 s; its knots (and the jerk window's samples, 4.7 GB) were
+    being made until the process was killed. Anything over ``max_duration`` is refused
+    with a TimingError first (the planner then tries a smaller blend)."""
+    from safepath.description.robot_folder import load_robot
+
+    robot = load_robot("panda")
+    corners = [(1, 0.1), (2, 0.1), (3, 0.1), (4, 0.1), (5, 0.002471201868041414)]
+    path, s_way, _ = spline_path(list(_NEARLY_AT_REST), 0.06, corners=corners, blend="g2")
+    with pytest.raises(TimingError, match="over max_duration 3600 s: the path is passed "
+                                          "almost at rest"):
+        time_path(robot, path, s_way, scales=[1.0] * 5, tcp_speeds=[None] * 5)
+    # Below the bound, the same check on an ordinary path.
+    path, s_way, _ = spline_path(list(_NEARLY_AT_REST[:3]), 0.06, corners=[(1, 0.3)])
+    piece = time_path(robot, path, s_way, scales=[1.0] * 2, tcp_speeds=[None] * 2)
+    with pytest.raises(TimingError, match="max_duration 0.5 s"):
+        time_path(robot, path, s_way, scales=[1.0] * 2, tcp_speeds=[None] * 2,
+                  options=TimingOptions(max_duration=0.5))
+    assert piece.t[-1] > 0.5
+    with pytest.raises(ConfigError, match="max_duration"):
+        TimingOptions(max_duration=0.0)
