@@ -28,7 +28,7 @@ from ..errors import (
     PlanningError,
     SafepathError,
     TimingError,
-    UnprovenClearance,
+    VerificationError,
 )
 from ..model.trajectory import Trajectory
 from ..timing import TimedPiece
@@ -168,7 +168,7 @@ def _plan(cell: Cell, route: Route, world: WorldState, options: PlanOptions,
           cache: CheckerCache, timed: TimedPieces) -> tuple[Trajectory, WorldState]:
     """Paths, then timing and verification, then the trajectory and its figures; once
     more keeping :data:`REPLAN_CLEARANCE` from every object where the release check
-    could not prove the first plan's clearance."""
+    refused the first plan."""
     t_start = time.perf_counter()
     labels = route.labels()
     start = world.copy()
@@ -177,7 +177,7 @@ def _plan(cell: Cell, route: Route, world: WorldState, options: PlanOptions,
     try:
         pieces, chunk_ends, (min_clear, bound), closest, deviation = _time_and_verify(
             cell, paths.chunks, options, cache, labels, timed)
-    except UnprovenClearance as exc:
+    except VerificationError as exc:  # a sample in contact, or its clearance unproven
         kept = _keeping_clearance(cell, REPLAN_CLEARANCE)
         if kept is None:
             raise
@@ -223,11 +223,13 @@ def _plan(cell: Cell, route: Route, world: WorldState, options: PlanOptions,
 
 
 #: The clearance [m] a route's paths, blends and their checks keep from every object
-#: (where its margin is smaller) when it is planned again because the release check could
-#: not prove the first plan's clearance between its samples: with a margin of 0, a path
-#: can graze an obstacle (a shortcut pulled tight around it) closer than the check can
-#: certify, and the same seed would find it again. The release check still checks the
-#: scene's own margins. 1 mm is far above the check's finest step (0.01 mm of motion).
+#: (where its margin is smaller) when it is planned again because the release check
+#: refused the first plan (its clearance between samples not proven, or a sample in
+#: contact): with a margin of 0, a path can graze an obstacle (a shortcut pulled tight
+#: around it) closer than the check can certify, or by micrometres between the states
+#: the planner checks at its resolution, and the same seed would find it again. The
+#: release check still checks the scene's own margins. 1 mm is far above the check's
+#: finest step (0.01 mm of motion).
 REPLAN_CLEARANCE = 1e-3
 
 
