@@ -120,17 +120,23 @@ def test_an_unknown_interpolation_in_controller_yaml_names_file_and_key(
     assert interpolation_named("linear") is LINEAR
 
 
+def _random_knots(seed: int, n: int, dof: int, limits: tuple[float, float, float]
+                  ) -> tuple[np.ndarray, ...]:
+    """``n`` random knots of ``dof`` joints 2-6 ms apart, a limits row per interval (of 3),
+    and the 3 rows of speed, acceleration and jerk limits (scaled by ``limits``)."""
+    rng = np.random.default_rng(seed)
+    t = np.cumsum(rng.uniform(0.002, 0.006, n))
+    q, qd, qdd = (rng.normal(0.0, s, (n, dof)) for s in (0.1, 1.0, 20.0))
+    rows = tuple(rng.uniform(0.5, 2.0, (3, dof)) * s for s in limits)
+    return t, q, qd, qdd, rng.integers(0, 3, n - 1), rows
+
+
 @pytest.mark.parametrize("interpolation", [QUINTIC, CUBIC, LINEAR])
 def test_per_interval_ratios_are_the_peaks_over_each_intervals_limits(interpolation) -> None:
     """Timing's check (``Interpolation.ratios``: compiled in one pass for a quintic) gives,
     per interval, the peaks of :meth:`~Interpolation.peaks` over the limits of the row it
     names, bit for bit, and a NaN point stays NaN (never dropped as a small ratio)."""
-    rng = np.random.default_rng(3)
-    n, dof = 40, 4
-    t = np.cumsum(rng.uniform(0.002, 0.006, n))
-    q, qd, qdd = (rng.normal(0.0, s, (n, dof)) for s in (0.1, 1.0, 20.0))
-    vmax, amax, jmax = (rng.uniform(0.5, 2.0, (3, dof)) * s for s in (1.0, 10.0, 1e3))
-    row = rng.integers(0, 3, n - 1)
+    t, q, qd, qdd, row, (vmax, amax, jmax) = _random_knots(3, 40, 4, (1.0, 10.0, 1e3))
     got = interpolation.ratios(t, q, qd, qdd, 1000.0, row, vmax, amax, jmax)
     peaks = interpolation.peaks(t, q, qd, qdd, 1000.0)
     for x, p, lim in zip(got, peaks, (vmax, amax, jmax), strict=True):
@@ -149,12 +155,8 @@ def test_ratios_below_the_exact_threshold_are_bounds_above_it_the_peaks() -> Non
     stays below the threshold: every ratio at or above it is still the peaks' own, bit for
     bit, and every other one lies between the join's true peak (sampled at 200 kHz) and
     the threshold; at least one is a bound (the screen ran)."""
-    rng = np.random.default_rng(11)
-    n, dof = 400, 5
-    t = np.cumsum(rng.uniform(0.002, 0.006, n))
-    q, qd, qdd = (rng.normal(0.0, s, (n, dof)) for s in (0.1, 1.0, 20.0))
-    vmax, amax, jmax = (rng.uniform(0.5, 2.0, (3, dof)) * s for s in (2.0, 30.0, 1e4))
-    row = rng.integers(0, 3, n - 1)
+    n = 400
+    t, q, qd, qdd, row, (vmax, amax, jmax) = _random_knots(11, n, 5, (2.0, 30.0, 1e4))
     exact = QUINTIC.ratios(t, q, qd, qdd, 1000.0, row, vmax, amax, jmax)
     below = tuple(float(np.median(x)) for x in exact)
     dense = np.linspace(t[0], t[-1], int((t[-1] - t[0]) * 200_000))
