@@ -61,6 +61,21 @@ def test_mixed_layout(tmp_path: Path, robot: Robot) -> None:
     np.testing.assert_array_equal(poses["high1"], HIGH1)
 
 
+def test_numbers_written_with_an_exponent_and_no_dot_are_numbers(tmp_path: Path,
+                                                                robot: Robot) -> None:
+    """Python writes 0.00008 as ``8e-05``: YAML 1.2 reads that as a number, PyYAML (YAML
+    1.1) as a string, and a pose a generator wrote with it was "not a number" (found on a
+    fresh Panda problem set). A quoted one stays a string, refused."""
+    q = [0.0, -8e-05, 0.0, 1e-3, 0.0, 0.0]
+    text = "poses:\n  grip: [" + ", ".join(repr(v) for v in q) + "]\n"
+    assert "-8e-05" in text
+    poses = load_poses(_write(tmp_path, text), robot)
+    np.testing.assert_array_equal(poses["grip"], q)
+    with pytest.raises(PoseError, match="value 1 is not a number"):
+        load_poses(_write(tmp_path, 'poses:\n  grip: [0.0, "8e-05", 0, 0, 0, 0]\n', "q.yaml"),
+                   robot)
+
+
 def test_empty_file_has_no_poses(tmp_path: Path, robot: Robot) -> None:
     assert load_poses(_write(tmp_path, "# nothing taught yet\n"), robot) == {}
     assert load_poses(_write(tmp_path, "poses:\n", "p2.yaml"), robot) == {}

@@ -19,6 +19,7 @@ import errno
 import glob
 import math
 import os
+import re
 import reprlib
 import stat
 from collections.abc import Callable, Iterable, Iterator, Mapping
@@ -76,6 +77,14 @@ class _StrictLoader(_SafeBase):
             except TypeError:
                 pass
         return super().construct_mapping(node, deep=deep)
+
+
+# YAML 1.2 reads ``1e-05`` as a float; PyYAML (YAML 1.1) wants a dot in the mantissa and
+# reads it as the string "1e-05" (which Python's repr writes, and a pose is then "not a
+# number"). Checked after PyYAML's own resolvers: an integer stays an integer.
+_StrictLoader.add_implicit_resolver(
+    "tag:yaml.org,2002:float", re.compile(r"^[-+]?[0-9][0-9_]*[eE][-+]?[0-9]+$"),
+    list("-+0123456789"))
 
 
 def _kind(mode: int) -> str:
