@@ -64,18 +64,26 @@ def _interval_peaks(q, qd, qdd, k, d, m, h, i3, i4, i5):
     inside; ``h`` is the interval's length, ``i3``, ``i4``, ``i5`` its inverse third,
     fourth and fifth powers (the same for every joint: :func:`_inverse_powers`)."""
     c1, c2, c3, c4, c5 = _coefficients(q, qd, qdd, k, d, h, i3, i4, i5)
-    jp = _jerk_peak(c3, c4, c5, h)
-    a_lo, a_hi = _acceleration_range(c2, c3, c4, c5, h)
-    return _speed_bound(c1, c2, c3, c4, c5, h, m, a_lo, a_hi, jp), \
+    v1, a0, a1, j0, j1 = _ends(c1, c2, c3, c4, c5, h)
+    jp = _jerk_peak(c3, c4, c5, h, j0, j1)
+    a_lo, a_hi = _acceleration_range(c2, c3, c4, c5, h, a0, a1)
+    return _speed_bound(c1, c2, c3, c4, c5, h, m, a_lo, a_hi, jp, v1), \
         max(abs(a_lo), abs(a_hi)), jp
 
 
 @njit(cache=True, nogil=True, _nrt=False, inline="always")
-def _jerk_peak(c3, c4, c5, h):
+def _ends(c1, c2, c3, c4, c5, h):
+    """The quintic's speed at ``h`` and its acceleration and jerk at 0 and ``h``:
+    ``v1, a0, a1, j0, j1`` (its speed at 0 is ``c1``)."""
+    return (c1 + h * (2.0 * c2 + h * (3.0 * c3 + h * (4.0 * c4 + 5.0 * c5 * h))),
+            2.0 * c2, 2.0 * c2 + h * (6.0 * c3 + h * (12.0 * c4 + 20.0 * c5 * h)),
+            6.0 * c3, 6.0 * c3 + h * (24.0 * c4 + 60.0 * c5 * h))
+
+
+@njit(cache=True, nogil=True, _nrt=False, inline="always")
+def _jerk_peak(c3, c4, c5, h, j0, j1):
     """The quintic's peak |j| on ``[0, h]``: jerk ``6 c3 + 24 c4 t + 60 c5 t^2``, at the
-    ends and the vertex."""
-    j0 = 6.0 * c3
-    j1 = 6.0 * c3 + h * (24.0 * c4 + 60.0 * c5 * h)
+    ends (``j0``, ``j1``: :func:`_ends`) and the vertex."""
     jp = max(abs(j0), abs(j1))
     if c5 != 0.0:
         tv = -24.0 * c4 / (120.0 * c5)
@@ -85,11 +93,10 @@ def _jerk_peak(c3, c4, c5, h):
 
 
 @njit(cache=True, nogil=True, _nrt=False, inline="always")
-def _acceleration_range(c2, c3, c4, c5, h):
+def _acceleration_range(c2, c3, c4, c5, h, a0, a1):
     """The quintic's least and largest acceleration on ``[0, h]``:
-    ``2 c2 + 6 c3 t + 12 c4 t^2 + 20 c5 t^3`` at the ends and where the jerk vanishes."""
-    a0 = 2.0 * c2
-    a1 = 2.0 * c2 + h * (6.0 * c3 + h * (12.0 * c4 + 20.0 * c5 * h))
+    ``2 c2 + 6 c3 t + 12 c4 t^2 + 20 c5 t^3`` at the ends (``a0``, ``a1``: :func:`_ends`)
+    and where the jerk vanishes."""
     a_lo = min(a0, a1)
     a_hi = max(a0, a1)
     qa, qb, qc = 60.0 * c5, 24.0 * c4, 6.0 * c3
@@ -110,12 +117,11 @@ def _acceleration_range(c2, c3, c4, c5, h):
 
 
 @njit(cache=True, nogil=True, _nrt=False, inline="always")
-def _speed_bound(c1, c2, c3, c4, c5, h, m, a_lo, a_hi, jp):
+def _speed_bound(c1, c2, c3, c4, c5, h, m, a_lo, a_hi, jp, v1):
     """A bound of the quintic's |v| on ``[0, h]`` (speed ``c1 + 2 c2 t + 3 c3 t^2 +
-    4 c4 t^3 + 5 c5 t^4``; its acceleration between ``a_lo`` and ``a_hi``, its peak |j|
-    ``jp``): the larger end where the acceleration keeps its sign, else ``m`` samples
-    plus ``jp dt^2 / 8``."""
-    v1 = c1 + h * (2.0 * c2 + h * (3.0 * c3 + h * (4.0 * c4 + 5.0 * c5 * h)))
+    4 c4 t^3 + 5 c5 t^4``, ``v1`` at ``h``; its acceleration between ``a_lo`` and
+    ``a_hi``, its peak |j| ``jp``): the larger end where the acceleration keeps its sign,
+    else ``m`` samples plus ``jp dt^2 / 8``."""
     vp = max(abs(c1), abs(v1))
     if a_lo < 0.0 < a_hi:  # the speed may peak inside
         dt = h / (m - 1)
@@ -175,12 +181,8 @@ def _screened_peaks(c1, c2, c3, c4, c5, h, m, v_below, a_below):
     the acceleration (a cubic) on the interval: a polynomial on an interval lies within
     its Bernstein coefficients. The speed's adds ``|j| dt^2 / 8``, so that it is at least
     the sampled bound of :func:`_speed_bound` too."""
-    jp = _jerk_peak(c3, c4, c5, h)
-    j0 = 6.0 * c3
-    j1 = 6.0 * c3 + h * (24.0 * c4 + 60.0 * c5 * h)
-    a0 = 2.0 * c2
-    a1 = 2.0 * c2 + h * (6.0 * c3 + h * (12.0 * c4 + 20.0 * c5 * h))
-    v1 = c1 + h * (2.0 * c2 + h * (3.0 * c3 + h * (4.0 * c4 + 5.0 * c5 * h)))
+    v1, a0, a1, j0, j1 = _ends(c1, c2, c3, c4, c5, h)
+    jp = _jerk_peak(c3, c4, c5, h, j0, j1)
     ap = max(max(abs(a0), abs(a1)), max(abs(a0 + j0 * h / 3.0), abs(a1 - j1 * h / 3.0)))
     dt = h / (m - 1)
     vp = max(max(abs(c1), abs(v1)), max(abs(c1 + a0 * h / 4.0), abs(v1 - a1 * h / 4.0)),
@@ -188,11 +190,11 @@ def _screened_peaks(c1, c2, c3, c4, c5, h, m, v_below, a_below):
     a_exact = not ap * _SCREEN_MARGIN < a_below
     v_exact = not vp * _SCREEN_MARGIN < v_below
     if a_exact or v_exact:
-        a_lo, a_hi = _acceleration_range(c2, c3, c4, c5, h)
+        a_lo, a_hi = _acceleration_range(c2, c3, c4, c5, h, a0, a1)
         if a_exact:
             ap = max(abs(a_lo), abs(a_hi))
         if v_exact:
-            vp = _speed_bound(c1, c2, c3, c4, c5, h, m, a_lo, a_hi, jp)
+            vp = _speed_bound(c1, c2, c3, c4, c5, h, m, a_lo, a_hi, jp, v1)
     return vp, ap, jp
 
 
