@@ -144,8 +144,8 @@ ENTRIES: dict[str, Entry] = {
     # The peaks of a controller's quintic join (safepath.model._joinkernel).
     "join_peaks": Entry(_JOIN, "_peaks", (F1, F2, F2, F2, FLOAT, F2, F2, F2), "void"),
     "join_sample": Entry(_JOIN, "_sample", (F1, F2, F2, F2, F1, F2, F2, F2), "void"),
-    "join_ratios": Entry(_JOIN, "_ratios", (F1, F2, F2, F2, FLOAT, I1, F2, F2, F2, FLOAT, F1, F1,
-                                             F1),
+    "join_ratios": Entry(_JOIN, "_ratios", (F1, F2, F2, F2, FLOAT, I1, I1, F2, F2, F2, FLOAT, F1,
+                                             F1, F1),
                          "void"),
 }
 

@@ -199,17 +199,18 @@ def _screened_peaks(c1, c2, c3, c4, c5, h, m, v_below, a_below):
 
 
 def _ratios(t: np.ndarray, q: np.ndarray, qd: np.ndarray, qdd: np.ndarray, rate: float,
-            row: np.ndarray, vmax: np.ndarray, amax: np.ndarray, jmax: np.ndarray,
-            exact_from: float, v_out: np.ndarray, a_out: np.ndarray, j_out: np.ndarray
-            ) -> None:
-    """Per interval, the largest ratio over the joints of the quintic join's speed bound,
-    peak |a| and peak |j| (:func:`_peaks`) to the limits of row ``row[k]`` of ``vmax``,
-    ``amax``, ``jmax`` (rows, dof), into the outputs (intervals,); NaN where an input of
-    the interval is not finite. A speed or acceleration ratio whose cheap bound lies
-    below ``exact_from`` is that bound (:func:`_screened_peaks`): every ratio of
+            at: np.ndarray, row: np.ndarray, vmax: np.ndarray, amax: np.ndarray,
+            jmax: np.ndarray, exact_from: float, v_out: np.ndarray, a_out: np.ndarray,
+            j_out: np.ndarray) -> None:
+    """Per interval ``at[i]``, the largest ratio over the joints of the quintic join's speed
+    bound, peak |a| and peak |j| (:func:`_peaks`) to the limits of row ``row[at[i]]`` of
+    ``vmax``, ``amax``, ``jmax`` (rows, dof), into the outputs (len(at),); NaN where an
+    input of the interval is not finite. A speed or acceleration ratio whose cheap bound
+    lies below ``exact_from`` is that bound (:func:`_screened_peaks`): every ratio of
     ``exact_from`` or more is the peaks' own."""
-    n, dof = t.size - 1, q.shape[1]
-    for k in range(n):
+    dof = q.shape[1]
+    for i in range(at.size):
+        k = at[i]
         h = t[k + 1] - t[k]
         m = max(4, int(math.ceil(h * rate)) + 1)
         i3, i4, i5 = _inverse_powers(h)
@@ -226,7 +227,7 @@ def _ratios(t: np.ndarray, q: np.ndarray, qd: np.ndarray, qdd: np.ndarray, rate:
             rj = _larger(rj, jp / jmax[r, d])
         if inputs - inputs != 0.0:  # a NaN or an infinity among them
             rv = ra = rj = np.nan
-        v_out[k], a_out[k], j_out[k] = rv, ra, rj
+        v_out[i], a_out[i], j_out[i] = rv, ra, rj
 
 
 def _sample(t: np.ndarray, q: np.ndarray, qd: np.ndarray, qdd: np.ndarray,
@@ -288,17 +289,20 @@ def peaks(t: np.ndarray, q: np.ndarray, qd: np.ndarray, qdd: np.ndarray, rate: f
 
 def ratios(t: np.ndarray, q: np.ndarray, qd: np.ndarray, qdd: np.ndarray, rate: float,
            row: np.ndarray, vmax: np.ndarray, amax: np.ndarray, jmax: np.ndarray,
-           exact_from: float = 0.0) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Per interval, the largest speed, acceleration and jerk ratio of the quintic join of
-    the points to the limits of row ``row[k]`` of ``vmax``, ``amax``, ``jmax``; speed and
-    acceleration ratios below ``exact_from`` may be bounds of them (see :func:`_ratios`)."""
+           exact_from: float = 0.0, at: np.ndarray | None = None
+           ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Per interval (those listed in ``at``, else all), the largest speed, acceleration and
+    jerk ratio of the quintic join of the points to the limits of row ``row[k]`` of
+    ``vmax``, ``amax``, ``jmax``; speed and acceleration ratios below ``exact_from`` may be
+    bounds of them (see :func:`_ratios`)."""
     kernel = compiled_kernels()["ratios"]
     t, q, qd, qdd, vmax, amax, jmax = (np.ascontiguousarray(x, dtype=np.float64)
                                        for x in (t, q, qd, qdd, vmax, amax, jmax))
-    n = t.size - 1
-    v, a, j = np.empty(n), np.empty(n), np.empty(n)
-    kernel(t, q, qd, qdd, float(rate), np.ascontiguousarray(row, dtype=np.int64), vmax, amax,
-           jmax, float(exact_from), v, a, j)
+    at = np.arange(t.size - 1, dtype=np.int64) if at is None else \
+        np.ascontiguousarray(at, dtype=np.int64)
+    v, a, j = np.empty(at.size), np.empty(at.size), np.empty(at.size)
+    kernel(t, q, qd, qdd, float(rate), at, np.ascontiguousarray(row, dtype=np.int64), vmax,
+           amax, jmax, float(exact_from), v, a, j)
     return v, a, j
 
 

@@ -135,7 +135,7 @@ class Interpolation:
 
     def ratios(self, t: np.ndarray, q: np.ndarray, qd: np.ndarray, qdd: np.ndarray,
                rate: float, row: np.ndarray, vmax: np.ndarray, amax: np.ndarray,
-               jmax: np.ndarray, *, exact_from: float = 0.0
+               jmax: np.ndarray, *, exact_from: float = 0.0, at: np.ndarray | None = None
                ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Per interval, the largest speed, acceleration and jerk ratio over the joints of
         the joined motion (:meth:`peaks`) to the limits in row ``row[k]`` (N-1,) of
@@ -146,11 +146,12 @@ class Interpolation:
         A caller that needs the ratios only where they reach ``exact_from`` lets the
         quintic's pass skip the exact peaks below it: every ratio of ``exact_from`` or
         more is exact; a smaller speed or acceleration ratio may instead be a bound of it
-        that is still below ``exact_from``."""
+        that is still below ``exact_from``. With ``at``, only the intervals it lists
+        (each (len(at),))."""
         if self.order == 5:
             from ._joinkernel import ratios
 
-            return ratios(t, q, qd, qdd, rate, row, vmax, amax, jmax, exact_from)
+            return ratios(t, q, qd, qdd, rate, row, vmax, amax, jmax, exact_from, at)
         peaks = self.peaks(t, q, qd, qdd, rate)
         # numpy reduces a short last axis slowly; across the long one it is ~10x faster.
         out = tuple(np.max(np.ascontiguousarray((x / lim[row]).T), axis=0)
@@ -160,6 +161,8 @@ class Interpolation:
         if not finite.all():
             for x in out:
                 x[~(finite[:-1] & finite[1:])] = np.nan
+        if at is not None:
+            return tuple(x[at] for x in out)  # type: ignore[return-value]
         return out  # type: ignore[return-value]
 
 

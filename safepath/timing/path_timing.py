@@ -453,15 +453,39 @@ def _jerk_window(profile: _topp.Profile, limits: PathLimits, options: TimingOpti
 
 
 def _interval_ratios(t: np.ndarray, q: np.ndarray, qd: np.ndarray, qdd: np.ndarray,
-                     segment: np.ndarray, limits: PathLimits
+                     segment: np.ndarray, limits: PathLimits, at: np.ndarray | None = None
                      ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Per knot interval, the knots' join's largest speed, acceleration and jerk ratio
-    (limits of the smaller-scaled of its two knots' segments)."""
+    """Per knot interval (those in ``at``, else all), the knots' join's largest speed,
+    acceleration and jerk ratio (limits of the smaller-scaled of its two knots'
+    segments)."""
     seg = np.where(limits.vmax_seg[segment[:-1], 0] <= limits.vmax_seg[segment[1:], 0],
                    segment[:-1], segment[1:])
     return limits.interpolation.ratios(t, q, qd, qdd, CHECK_RATE, seg, limits.vmax_seg,
                                        limits.amax_seg, limits.jmax_seg,
-                                       exact_from=_EXACT_FROM)
+                                       exact_from=_EXACT_FROM, at=at)
+
+
+def _stretched_ratios(ratios: Sequence[np.ndarray], k: float, t: np.ndarray, q: np.ndarray,
+                      qd: np.ndarray, qdd: np.ndarray, segment: np.ndarray,
+                      limits: PathLimits) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The interval ratios of knots ``(t, q, qd, qdd)`` that are knots of ``ratios``
+    stretched in time by ``k`` (:func:`stretch_knots`): computed again where ``ratios``
+    scaled by the stretch reach :data:`_EXACT_FROM` (or are NaN), elsewhere those scaled.
+
+    A uniform stretch scales the join exactly (its speeds by ``1/k``, accelerations by
+    ``1/k^2``, jerks by ``1/k^3``), so a bound of the unstretched join's peak, scaled, is
+    a bound of the stretched one's; the knots' rounding moves a peak by ~1e-11 of it, far
+    inside the 1e-3 below :data:`_EXACT_FROM`, and every ratio of :data:`_EXACT_FROM` or
+    more is computed from the stretched knots themselves."""
+    scaled = np.stack([np.asarray(ratios[0]) / k, np.asarray(ratios[1]) / (k * k),
+                       np.asarray(ratios[2]) / (k * k * k)])
+    top = scaled.max(axis=0)
+    at = np.flatnonzero(~(top < _EXACT_FROM))  # NaN too
+    if at.size:
+        exact = _interval_ratios(t, q, qd, qdd, segment, limits, at=at)
+        for row, values in zip(scaled, exact, strict=True):
+            row[at] = values
+    return scaled[0], scaled[1], scaled[2]
 
 
 def _tighten(f_acc: np.ndarray, f_x: np.ndarray, grid: np.ndarray, run: _Run) -> None:
@@ -547,7 +571,7 @@ def _release(run: _Run, limits: PathLimits, options: TimingOptions, where: str,
         log.debug("timing up to %.4f %% over a limit; stretching time by %.6f",
                   (max(float(run.ratios.max()), v_tcp) - 1) * 100, k)
         t, qd, qdd, k = stretch_knots(t, qd, qdd, k)
-        ratios = _interval_ratios(t, run.q, qd, qdd, run.segment, limits)
+        ratios = _stretched_ratios(ratios, k, t, run.q, qd, qdd, run.segment, limits)
         v_tcp = tcp_ratio()
     worst = _worst(ratios, v_tcp)
     for _ in range(3):
@@ -556,8 +580,8 @@ def _release(run: _Run, limits: PathLimits, options: TimingOptions, where: str,
         if worst <= 1.0 or not worst < 1.0 + RETIME_ABOVE:
             break
         v, a, j = (float(r.max()) if r.size else 0.0 for r in ratios)
-        t, qd, qdd, _ = stretch_knots(t, qd, qdd, _stretch(max(v, v_tcp), a, j))
-        ratios = _interval_ratios(t, run.q, qd, qdd, run.segment, limits)
+        t, qd, qdd, more = stretch_knots(t, qd, qdd, _stretch(max(v, v_tcp), a, j))
+        ratios = _stretched_ratios(ratios, more, t, run.q, qd, qdd, run.segment, limits)
         v_tcp = tcp_ratio()
         worst = _worst(ratios, v_tcp)
     if not worst <= 1.0:  # also NaN

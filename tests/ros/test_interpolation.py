@@ -150,6 +150,50 @@ def test_per_interval_ratios_are_the_peaks_over_each_intervals_limits(interpolat
         field[7, 2] = 0.0
 
 
+@pytest.mark.parametrize("interpolation", [QUINTIC, CUBIC, LINEAR])
+def test_ratios_of_listed_intervals_are_those_of_the_whole_pass(interpolation) -> None:
+    """``at`` lists the intervals to compute: their ratios are the whole pass's at those
+    intervals, bit for bit, in the listed order (a NaN one too)."""
+    t, q, qd, qdd, row, (vmax, amax, jmax) = _random_knots(5, 60, 4, (1.0, 10.0, 1e3))
+    q[20, 1] = np.nan
+    whole = interpolation.ratios(t, q, qd, qdd, 1000.0, row, vmax, amax, jmax, exact_from=0.5)
+    at = np.array([58, 0, 19, 20, 33, 33, 7])
+    got = interpolation.ratios(t, q, qd, qdd, 1000.0, row, vmax, amax, jmax, exact_from=0.5,
+                               at=at)
+    for x, y in zip(got, whole, strict=True):
+        assert x.shape == at.shape
+        assert np.array_equal(x, y[at], equal_nan=True)
+    assert np.isnan(got[0][2]) and np.isnan(got[0][3]) and not np.isnan(got[0][4])
+
+
+def test_a_uniform_stretch_scales_the_quintic_join_exactly() -> None:
+    """What the timing's release relies on to recompute only the ratios near a limit
+    after stretching its knots in time (``stretch_knots``): the join's peak speed,
+    acceleration and jerk ratios scale by ``1/k^2`` and ``1/k^3``, to 1e-9 of the largest,
+    and the speed bound, scaled by ``1/k``, still bounds the stretched join's speed
+    (sampled at 200 kHz; the bound itself samples a longer interval once more)."""
+    rng = np.random.default_rng(17)
+    n = 300
+    t = np.arange(n) * 0.004
+    q, qd, qdd = (np.cumsum(rng.normal(0.0, s, (n, 3)), axis=0) for s in (0.002, 0.05, 2.0))
+    row = np.zeros(n - 1, dtype=np.int64)
+    lim = [np.ones((1, 3)) * x for x in (1.0, 10.0, 1e3)]
+    before = QUINTIC.ratios(t, q, qd, qdd, 1000.0, row, *lim)
+    for k in (1.0004, 1.07, 1.3):
+        t2, qd2, qdd2, k2 = safepath.timing.stretch_knots(t, qd, qdd, k)
+        assert k2 >= k
+        after = QUINTIC.ratios(t2, q, qd2, qdd2, 1000.0, row, *lim)
+        for power, (x, y) in enumerate(zip(before[1:], after[1:], strict=True), start=2):
+            np.testing.assert_allclose(y, x / k2 ** power, rtol=0, atol=1e-9 * x.max())
+        dense = np.linspace(t2[0], t2[-1], int((t2[-1] - t2[0]) * 200_000))
+        at = np.clip(np.searchsorted(t2, dense, side="right") - 1, 0, n - 2)
+        v = QUINTIC.evaluate(t2, q, qd2, qdd2, at, (dense - t2[at])[:, None])[1]
+        peak = np.zeros(n - 1)
+        np.maximum.at(peak, at, np.max(np.abs(v), axis=1))
+        assert np.all(before[0] / k2 >= peak * (1 - 1e-9))
+        assert np.all(after[0] >= peak * (1 - 1e-9))
+
+
 def test_ratios_below_the_exact_threshold_are_bounds_above_it_the_peaks() -> None:
     """With ``exact_from``, the quintic's pass skips the exact peaks where a cheap bound
     stays below the threshold: every ratio at or above it is still the peaks' own, bit for
