@@ -21,6 +21,7 @@ from ._path_limits import PathLimits, PathSpline, path_limits
 from ._spline import CubicPath
 from .path_timing import (
     RETIME_ABOVE,
+    RETRY_ABOVE,
     TimedPiece,
     TimingOptions,
     rest_to_rest_time,
@@ -31,6 +32,7 @@ from .path_timing import (
 
 __all__ = [
     "RETIME_ABOVE",
+    "RETRY_ABOVE",
     "CubicPath",
     "PathLimits",
     "PathSpline",

@@ -33,6 +33,7 @@ from safepath.timing import (
     PathSpline,
     TimedPiece,
     _path_limits,
+    _smooth,
     _topp,
     rest_to_rest_time,
     spline_path,
@@ -287,7 +288,7 @@ def test_timing_is_deterministic(bundled_cell: Cell) -> None:
         assert getattr(runs[0], name).tobytes() == getattr(runs[1], name).tobytes(), name
 
 
-@pytest.mark.parametrize("seed", [0, 1, 2])
+@pytest.mark.parametrize("seed", [0, 1, 3])  # paths that the default timing re-times
 @pytest.mark.parametrize("retries", [1, 3])
 def test_bounded_ratios_time_as_the_exact_ones(bundled_cell: Cell, seed: int, retries: int,
                                                monkeypatch: pytest.MonkeyPatch) -> None:
@@ -313,6 +314,36 @@ def test_bounded_ratios_time_as_the_exact_ones(bundled_cell: Cell, seed: int, re
         assert step > (1 + timing.RETIME_ABOVE) * TimingOptions().knot_period
     for name in ("t", "q", "qd", "qdd", "s", "segment"):
         assert getattr(pieces[0], name).tobytes() == getattr(pieces[1], name).tobytes(), name
+
+
+def test_a_retry_averages_at_least_as_wide_as_the_run_before(
+        bundled_cell: Cell, monkeypatch: pytest.MonkeyPatch) -> None:
+    """A run timed again with tightened limits measures its own profile's swings: its
+    first moving average is as wide as they need and never narrower than the run
+    before's (a tightened profile with wider swings kept the first run's width, and its
+    jerk went up). Over random blended paths: the widths never shrink from run to run,
+    and some retry widens them."""
+    robot = bundled_cell.robot
+    smooth = _smooth.smooth
+    widths: list[float] = []
+
+    def spy(profile: Any, tau_a: float, tau_b: float) -> Any:
+        widths.append(tau_a)
+        return smooth(profile, tau_a, tau_b)
+
+    monkeypatch.setattr(_smooth, "smooth", spy)
+    grew = 0
+    for seed in range(12):
+        rng = np.random.default_rng(900 + seed)
+        n = int(rng.integers(2, 5))
+        path, s_way, _ = spline_path(_random_polyline(robot, rng, n), 0.06,
+                                     corners=[(k, 0.3) for k in range(1, n)], blend="g2")
+        widths.clear()
+        piece = time_path(robot, path, s_way, scales=[1.0] * n, tcp_speeds=[None] * n)
+        assert len(widths) == piece.runs
+        assert all(b >= a for a, b in zip(widths, widths[1:], strict=False)), widths
+        grew += any(b > a for a, b in zip(widths, widths[1:], strict=False))
+    assert grew > 0
 
 
 def test_the_grid_follows_the_spline_pieces() -> None:
