@@ -75,7 +75,7 @@ def _optimum(robot: safepath.Robot, call: dict[str, Any]) -> float:
     limits = _path_limits.path_limits(robot, call["path"], call["s_way"], call["scales"],
                                       call["tcp_speeds"], speed_scale=options.speed_scale,
                                       grid_step=options.grid_step, jerk_scale=1e30)
-    x = _topp.solve(limits.grid, limits.at_grid.xmax, *limits.rows(np.ones(limits.grid.size)))
+    x = _topp.solve(limits.grid, limits.at_grid.xmax, *limits.rows)
     return float("nan") if x is None else _topp.parametrize(limits.grid, x).duration
 
 

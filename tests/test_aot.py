@@ -131,6 +131,7 @@ def recorded() -> dict[str, list[tuple[Any, ...]]]:
     kernels["knots"] = recorder("topp_knots", saved["knots"])
     kernels["jerk_shift"] = recorder("topp_jerk_shift", saved["jerk_shift"])
     kernels["jerk_rows"] = recorder("topp_jerk_rows", saved["jerk_rows"])
+    kernels["tighten"] = recorder("topp_tighten", saved["tighten"])
     join = _joinkernel.compiled_kernels()
     saved_join = dict(join)
     join["peaks"] = recorder("join_peaks", saved_join["peaks"])

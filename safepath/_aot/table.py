@@ -134,8 +134,9 @@ ENTRIES: dict[str, Entry] = {
     "monitor_linked_cells": Entry(_MONITOR, "linked_cells", (I1, I1, INT, INT, B1), "void"),
     # TOPP-RA's two passes, the spline solve, the smoothed knots, the jerk window
     # (safepath.timing._topp_kernels).
-    "topp_backward": Entry(_TOPP, "backward", (F1, F1, F2, F2, F2, F1, F1), INT),
-    "topp_forward": Entry(_TOPP, "forward", (F1, F1, F2, F2, F2, F1, F1, F1), "void"),
+    "topp_backward": Entry(_TOPP, "backward", (F1, F1, F2, F2, F2, F1, F1, F1), INT),
+    "topp_forward": Entry(_TOPP, "forward", (F1, F1, F2, F2, F2, F1, F1, F1, F1), "void"),
+    "topp_tighten": Entry(_TOPP, "tighten", (I1, I1, F1, F1, F1, F1, F1, F1), "void"),
     "topp_tridiagonal": Entry(_TOPP, "tridiagonal", (F1, F1, F1, F2), INT),
     "topp_knots": Entry(_TOPP, "knots", (F1, F1, F1, F1, F1, F1, F1, FLOAT, FLOAT, F1, F3, F1,
                                           F1, F1, F2, F2, F2), "void"),

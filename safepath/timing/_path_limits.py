@@ -104,20 +104,12 @@ class PathLimits:
     tcp_rate: np.ndarray | None = None
 
     @cached_property
-    def _unit_rows(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """The rows with the limits as they are (the path's part is the same in every
-        run; only the limits' factor changes)."""
+    def rows(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """TOPP-RA's rows ``|a u + b x| <= c`` of each interval, the acceleration limits as
+        they are (the same in every run; :func:`~safepath.timing._topp.solve` scales
+        them by a factor per gridpoint)."""
         at = self.at_grid
         return _topp.acceleration_rows(self.grid, at.dq, at.ddq, at.alim)
-
-    def rows(self, factor: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """TOPP-RA's rows ``|a u + b x| <= c`` of each interval, with the acceleration
-        limits at each gridpoint scaled by ``factor``."""
-        a, b, c = self._unit_rows
-        if np.all(factor == 1.0):
-            return a, b, c
-        half = c.shape[1] // 2  # the limits at s_i, then at s_{i+1}
-        return a, b, c * np.repeat(np.stack([factor[:-1], factor[1:]], axis=1), half, axis=1)
 
 
 def path_limits(robot: Robot, path: PathSpline, s_way: np.ndarray, scales: Sequence[float],

@@ -86,15 +86,16 @@ def acceleration_rows(grid: np.ndarray, dq: np.ndarray, ddq: np.ndarray, alim: n
     return a, b, c
 
 
-def solve(grid: np.ndarray, xmax: np.ndarray, a: np.ndarray, b: np.ndarray, c: np.ndarray
-          ) -> np.ndarray | None:
+def solve(grid: np.ndarray, xmax: np.ndarray, a: np.ndarray, b: np.ndarray, c: np.ndarray,
+          factor: np.ndarray | None = None) -> np.ndarray | None:
     """The time-optimal rest-to-rest squared path speeds at the gridpoints.
 
     Args:
         grid: Gridpoints (N+1,), strictly increasing.
         xmax: Bound on ``x = sdot^2`` at each gridpoint (N+1,) (velocity limits).
         a, b, c: Rows ``|a u_i + b x_i| <= c`` of each interval (N, m), ``c > 0``
-            (from :func:`acceleration_rows`).
+            (from :func:`acceleration_rows`: the limits at ``s_i``, then at ``s_{i+1}``).
+        factor: Scale of the limits ``c`` at each gridpoint (N+1,) (1 by default).
 
     Returns:
         ``x`` at the gridpoints (N+1,), or None when no timing exists: the controllable
@@ -103,7 +104,9 @@ def solve(grid: np.ndarray, xmax: np.ndarray, a: np.ndarray, b: np.ndarray, c: n
     """
     kernels = compiled_kernels()
     delta = np.ascontiguousarray(np.diff(grid), dtype=np.float64)
-    args = [np.ascontiguousarray(v, dtype=np.float64) for v in (xmax, a, b, c)]
+    if factor is None:
+        factor = np.ones(grid.size)
+    args = [np.ascontiguousarray(v, dtype=np.float64) for v in (xmax, a, b, c, factor)]
     if not all(np.isfinite(v).all() for v in (delta, *args)):
         return None
     lo = np.empty(grid.size)
@@ -160,5 +163,6 @@ def compiled_kernels() -> dict[str, Callable[..., Any]]:
 
             _compiled.update(backward=kernels.backward, forward=kernels.forward,
                              tridiagonal=kernels.tridiagonal, knots=kernels.knots,
-                             jerk_rows=kernels.jerk_rows, jerk_shift=kernels.jerk_shift)
+                             jerk_rows=kernels.jerk_rows, jerk_shift=kernels.jerk_shift,
+                             tighten=kernels.tighten)
         return _compiled

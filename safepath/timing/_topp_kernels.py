@@ -21,8 +21,11 @@ _inlined = njit(cache=True, nogil=True, inline="always")
 
 
 @njit(cache=True, nogil=True)
-def backward(delta, xmax, a, b, c, lo, hi):
+def backward(delta, xmax, a, b, c, f, lo, hi):
     """Controllable sets ``[lo_i, hi_i]``; returns -1, or the first stage found empty.
+
+    The rows' limits ``c`` hold scaled by ``f`` (per gridpoint): on interval ``i`` the
+    first half of its rows (the limits at ``s_i``) by ``f[i]``, the second by ``f[i+1]``.
 
     Each row ``|a u + b x| <= c`` is an upper and a lower bound on ``u``; so is the next
     set, ``lo_{i+1} <= x + 2 delta u <= hi_{i+1}``. Every pair of an upper and a lower bound
@@ -35,14 +38,15 @@ def backward(delta, xmax, a, b, c, lo, hi):
     n = xmax.size
     an = np.empty(a.shape[1])
     bn = np.empty(a.shape[1])
+    cn = np.empty(a.shape[1])
     lo[n - 1] = 0.0
     hi[n - 1] = 0.0
     for i in range(n - 2, -1, -1):
-        if not (xmax[i] >= 0.0) or not _rows_with_a_up(a, b, c, i, an, bn):  # also NaN
+        if not (xmax[i] >= 0.0) or not _rows_with_a_up(a, b, c, f, i, an, bn, cn):  # NaN
             return i
         k_lo = lo[i + 1]
         k_hi = hi[i + 1]
-        x_lo, x_hi = _stage_set(2.0 * delta[i], xmax[i], an, bn, c, i, k_lo, k_hi)
+        x_lo, x_hi = _stage_set(2.0 * delta[i], xmax[i], an, bn, cn, k_lo, k_hi)
         if k_hi < k_lo or not (x_hi >= 0.0):
             return i
         x_hi = _rounded_point(x_lo, x_hi)
@@ -56,9 +60,10 @@ def backward(delta, xmax, a, b, c, lo, hi):
 
 
 @_inlined
-def _rows_with_a_up(a, b, c, i, an, bn):
-    """Stage ``i``'s rows with their sign flipped so that ``a >= 0`` into ``an``, ``bn``;
-    False when a row's ``c`` is negative (or NaN): no ``u`` meets it."""
+def _rows_with_a_up(a, b, c, f, i, an, bn, cn):
+    """Stage ``i``'s rows with their sign flipped so that ``a >= 0`` into ``an``, ``bn``,
+    and their limits scaled (:func:`_limit`) into ``cn``; False when a row's limit is
+    negative (or NaN): no ``u`` meets it."""
     for p in range(a.shape[1]):
         if a[i, p] >= 0.0:
             an[p] = a[i, p]
@@ -66,36 +71,44 @@ def _rows_with_a_up(a, b, c, i, an, bn):
         else:
             an[p] = -a[i, p]
             bn[p] = -b[i, p]
-        if not (c[i, p] >= 0.0):
+        cn[p] = _limit(c, f, i, p)
+        if not (cn[p] >= 0.0):
             return False
     return True
 
 
 @_inlined
-def _stage_set(d2, x_cap, an, bn, c, i, k_lo, k_hi):
-    """Bounds ``(x_lo, x_hi)`` of the controllable set of stage ``i`` (``d2`` twice its
-    interval, ``x_cap`` its velocity bound, ``[k_lo, k_hi]`` the next stage's set): every
-    pair of rows, and every row with the next set."""
+def _limit(c, f, i, p):
+    """Row ``p``'s limit on interval ``i``, scaled by the factor of the gridpoint it holds
+    at: ``s_i`` for the first half of the rows, ``s_{i+1}`` for the second."""
+    return c[i, p] * f[i] if p < c.shape[1] // 2 else c[i, p] * f[i + 1]
+
+
+@_inlined
+def _stage_set(d2, x_cap, an, bn, cn, k_lo, k_hi):
+    """Bounds ``(x_lo, x_hi)`` of the controllable set of a stage (``d2`` twice its
+    interval, ``x_cap`` its velocity bound, its rows ``an, bn, cn``, ``[k_lo, k_hi]`` the
+    next stage's set): every pair of rows, and every row with the next set."""
     f_hi = x_cap  # x <= f_hi / e_hi
     e_hi = 1.0
     x_lo = 0.0
     for p in range(an.size):
-        f_hi, e_hi = _row_pairs(an, bn, c, i, p, f_hi, e_hi)
-        f_hi, e_hi, x_lo = _row_with_next(d2, an[p], bn[p], c[i, p], k_lo, k_hi, f_hi, e_hi,
+        f_hi, e_hi = _row_pairs(an, bn, cn, p, f_hi, e_hi)
+        f_hi, e_hi, x_lo = _row_with_next(d2, an[p], bn[p], cn[p], k_lo, k_hi, f_hi, e_hi,
                                           x_lo)
     return x_lo, f_hi / e_hi
 
 
 @_inlined
-def _row_pairs(an, bn, c, i, p, f_hi, e_hi):
+def _row_pairs(an, bn, cn, p, f_hi, e_hi):
     """The tightest upper bound ``f_hi / e_hi`` on ``x`` after pairing row ``p`` with each
     later row."""
     ap = an[p]
     bp = bn[p]
-    cp = c[i, p]
+    cp = cn[p]
     for q in range(p + 1, an.size):
         e = abs(an[q] * bp - ap * bn[q])
-        f = ap * c[i, q] + an[q] * cp
+        f = ap * cn[q] + an[q] * cp
         if e > 0.0 and f * e_hi < f_hi * e:
             f_hi = f
             e_hi = e
@@ -132,8 +145,9 @@ def _rounded_point(x_lo, x_hi):
 
 
 @njit(cache=True, nogil=True)
-def forward(delta, xmax, a, b, c, lo, hi, x):
-    """Greedy forward pass: the largest controllable ``x_{i+1}`` from ``x_i``."""
+def forward(delta, xmax, a, b, c, f, lo, hi, x):
+    """Greedy forward pass: the largest controllable ``x_{i+1}`` from ``x_i`` (the rows'
+    limits scaled by ``f`` as in :func:`backward`)."""
     n = xmax.size
     m = a.shape[1]
     x[0] = 0.0
@@ -145,7 +159,7 @@ def forward(delta, xmax, a, b, c, lo, hi, x):
             ap = abs(a[i, p])
             if ap > 0.0:
                 bp = b[i, p] if a[i, p] > 0.0 else -b[i, p]
-                u = min(u, (c[i, p] - bp * xi) / ap)
+                u = min(u, (_limit(c, f, i, p) - bp * xi) / ap)
         nxt = xi + d2 * u
         x[i + 1] = min(max(nxt, lo[i + 1]), hi[i + 1])
     x[n - 1] = 0.0
@@ -280,6 +294,20 @@ def _shift_fits(f, m, dt):
             if abs(f[i + m, j] - f[i, j]) > bound:
                 return False
     return True
+
+
+@njit(cache=True, nogil=True)
+def tighten(g_lo, g_hi, acc, xs, t_acc, t_x, f_acc, f_x):
+    """Scale ``f_acc`` and ``f_x`` (in place) at every gridpoint by the smallest ``acc``
+    and ``xs`` of the windows ``[g_lo[w], g_hi[w])`` over it (1 where none); ``t_acc``,
+    ``t_x`` are scratch of ones, as long as ``f_acc``."""
+    for w in range(g_lo.size):
+        for g in range(g_lo[w], g_hi[w]):
+            t_acc[g] = min(t_acc[g], acc[w])
+            t_x[g] = min(t_x[g], xs[w])
+    for g in range(f_acc.size):
+        f_acc[g] *= t_acc[g]
+        f_x[g] *= t_x[g]
 
 
 @njit(cache=True, nogil=True)

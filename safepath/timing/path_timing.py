@@ -401,7 +401,7 @@ def _time_once(path: PathSpline, limits: PathLimits, f_acc: np.ndarray, f_x: np.
     not measured when ``tau_a`` already spreads the largest swing the limits allow
     (:func:`_swing_window`): tightened limits may move the profile's swings, never widen
     them past that."""
-    x = _topp.solve(limits.grid, limits.at_grid.xmax * f_x, *limits.rows(f_acc))
+    x = _topp.solve(limits.grid, limits.at_grid.xmax * f_x, *limits.rows, f_acc)
     if x is None:
         raise TimingError("TOPP-RA found no feasible timing" + where)
     profile = _topp.parametrize(limits.grid, x)
@@ -522,8 +522,9 @@ def _tighten(f_acc: np.ndarray, f_x: np.ndarray, grid: np.ndarray, run: _Run) ->
     width = sm.tau_a + sm.tau_b
     end = sm.profile.duration
     # (np.minimum/np.maximum: np.clip checks its arguments' types on every call.)
-    s_lo = _topp.evaluate(sm.profile, np.minimum(np.maximum(run.t[over] - width, 0.0), end))[0]
-    s_hi = _topp.evaluate(sm.profile, np.minimum(np.maximum(run.t[over + 1], 0.0), end))[0]
+    ends = np.concatenate([run.t[over] - width, run.t[over + 1]])
+    s_ends = _topp.evaluate(sm.profile, np.minimum(np.maximum(ends, 0.0), end))[0]
+    s_lo, s_hi = s_ends[:over.size], s_ends[over.size:]
     g_lo = interval_index(grid, s_lo, grid.size)
     g_hi = np.minimum(np.maximum(np.searchsorted(grid, s_hi, side="left") + 1, 1), grid.size)
     pad = 1.0 + RETIME_ABOVE
@@ -532,16 +533,8 @@ def _tighten(f_acc: np.ndarray, f_x: np.ndarray, grid: np.ndarray, run: _Run) ->
     acc = 1.0 / (np.maximum(np.maximum(a[over], j[over]), 1.0) * pad)
     xs = np.minimum(1.0 / np.maximum(v[over], 1.0) ** 2,
                     1.0 / np.maximum(j[over], 1.0) ** (2.0 / 3.0)) / pad
-    # Every gridpoint of every window, at once.
-    count = np.maximum(g_hi - g_lo, 0)
-    window = np.repeat(np.arange(over.size), count)
-    point = g_lo[window] + np.arange(window.size) - np.repeat(np.cumsum(count) - count, count)
-    t_acc = np.ones(grid.size)
-    t_x = np.ones(grid.size)
-    np.minimum.at(t_acc, point, acc[window])
-    np.minimum.at(t_x, point, xs[window])
-    f_acc *= t_acc
-    f_x *= t_x
+    _topp.compiled_kernels()["tighten"](g_lo.astype(np.int64), g_hi.astype(np.int64), acc, xs,
+                                        np.ones(grid.size), np.ones(grid.size), f_acc, f_x)
 
 
 def stretch_knots(t: np.ndarray, qd: np.ndarray, qdd: np.ndarray, k: float

@@ -346,6 +346,28 @@ def test_a_retry_averages_at_least_as_wide_as_the_run_before(
     assert grew > 0
 
 
+def test_the_tightening_kernel_takes_the_smallest_factor_of_the_windows_over_each_point(
+        ) -> None:
+    """Each gridpoint's factors are scaled by the smallest of the windows over it (1 where
+    none): as ``np.minimum.at`` over every point of every window, bit for bit; empty
+    windows (``hi <= lo``) scale nothing."""
+    rng = np.random.default_rng(3)
+    n = 500
+    for trial in range(20):
+        lo = rng.integers(0, n, 30)
+        hi = np.minimum(lo + rng.integers(-3, 80, 30), n)
+        acc, xs = rng.uniform(0.3, 1.0, 30), rng.uniform(0.3, 1.0, 30)
+        f_acc, f_x = rng.uniform(0.5, 1.0, n), rng.uniform(0.5, 1.0, n)
+        want_acc, want_x = np.ones(n), np.ones(n)
+        for w in range(30):
+            np.minimum.at(want_acc, np.arange(lo[w], max(hi[w], lo[w])), acc[w])
+            np.minimum.at(want_x, np.arange(lo[w], max(hi[w], lo[w])), xs[w])
+        want_acc *= f_acc
+        want_x *= f_x
+        _topp.compiled_kernels()["tighten"](lo, hi, acc, xs, np.ones(n), np.ones(n), f_acc, f_x)
+        assert np.array_equal(f_acc, want_acc) and np.array_equal(f_x, want_x), trial
+
+
 def test_the_grid_follows_the_spline_pieces() -> None:
     """Gridpoints: strictly increasing, at most ``step`` apart, on every spline knot and
     exactly on every segment boundary (so each knot knows its segment's limits)."""
