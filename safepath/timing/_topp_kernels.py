@@ -63,7 +63,7 @@ def backward(delta, xmax, a, b, c, f, lo, hi):
 def _rows_with_a_up(a, b, c, f, i, an, bn, cn):
     """Stage ``i``'s rows with their sign flipped so that ``a >= 0`` into ``an``, ``bn``,
     and their limits scaled (:func:`_limit`) into ``cn``; False when a row's limit is
-    negative (or NaN): no ``u`` meets it."""
+    negative (no ``u`` meets it) or a row is not finite."""
     for p in range(a.shape[1]):
         if a[i, p] >= 0.0:
             an[p] = a[i, p]
@@ -72,7 +72,7 @@ def _rows_with_a_up(a, b, c, f, i, an, bn, cn):
             an[p] = -a[i, p]
             bn[p] = -b[i, p]
         cn[p] = _limit(c, f, i, p)
-        if not (cn[p] >= 0.0):
+        if not (cn[p] >= 0.0) or an[p] + bn[p] + cn[p] - (an[p] + bn[p] + cn[p]) != 0.0:
             return False
     return True
 

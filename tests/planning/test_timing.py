@@ -463,9 +463,15 @@ def test_the_kernel_reports_what_it_cannot_time() -> None:
     grid = np.linspace(0.0, 1.0, 11)
     ones = np.ones((10, 2))
     assert _topp.solve(grid, np.ones(11), ones, ones, ones) is not None
-    nan = ones.copy()
-    nan[4, 1] = np.nan
-    assert _topp.solve(grid, np.ones(11), ones, nan, ones) is None
+    for bad in (np.nan, np.inf, -np.inf):  # in any row, its limit or their factor
+        for which in range(3):
+            rows = [ones.copy(), ones.copy(), ones.copy()]
+            rows[which][4, 1] = bad
+            assert _topp.solve(grid, np.ones(11), *rows) is None, (bad, which)
+        factor = np.ones(11)
+        factor[5] = bad
+        assert _topp.solve(grid, np.ones(11), ones, ones, ones, factor) is None, bad
+    assert _topp.solve(grid, np.where(grid == 0.5, np.nan, 1.0), ones, ones, ones) is None
     # No acceleration at all: the path cannot start.
     assert _topp.solve(grid, np.ones(11), ones, ones, 0 * ones) is None
 
