@@ -209,7 +209,7 @@ def _polyline(segments: list[Segment], blend: float
     corners: list[tuple[int, float]] = []
     lengths: list[float] = [
         float(np.sum(np.linalg.norm(np.diff(np.asarray(s.waypoints), axis=0), axis=1)))
-        for s in segments]
+        for s in segments] if blend > 0 else []  # (only the corners use them)
     seg_of_poly: list[int] = []
     for n, seg in enumerate(segments):
         if waypoints and n > 0 and blend > 0:
@@ -244,17 +244,14 @@ def _check_spline(cell: Cell, path: object, s_way: np.ndarray, seg_of_poly: Sequ
     n = max(2, int(np.ceil(length / 0.02)) + 1)
     s = np.linspace(0.0, length, n)
     Q = path(s)  # type: ignore[operator]
-    poly = interval_index(s_way, s, len(seg_of_poly))
-    step_of = [seg_of_poly[p] for p in poly]
+    step_of = np.asarray(seg_of_poly)[interval_index(s_way, s, len(seg_of_poly))]
     # Consecutive chords of the same step share a checker: check them as one polyline.
-    start = 0
-    for k in range(1, n + 1):
-        if k == n or step_of[k] != step_of[start]:
-            checker = cache.checker(world, segments[step_of[start]].allowed)
-            chords = Q[start:min(k + 1, n)]
-            if not _repeats.spline_free(checker, chords, _path_check(checker, chords)):
-                raise _NotFree()
-            start = k
+    starts = [0, *(np.flatnonzero(step_of[1:] != step_of[:-1]) + 1).tolist(), n]
+    for start, k in zip(starts[:-1], starts[1:], strict=True):
+        checker = cache.checker(world, segments[int(step_of[start])].allowed)
+        chords = Q[start:min(k + 1, n)]
+        if not _repeats.spline_free(checker, chords, _path_check(checker, chords)):
+            raise _NotFree()
     # The chords between samples are checked; the spline between two samples deviates
     # from its chord by far less than the verifier's resolution, which re-checks the
     # timed result anyway.
