@@ -165,5 +165,5 @@ def compiled_kernels() -> dict[str, Callable[..., Any]]:
             _compiled.update(backward=kernels.backward, forward=kernels.forward,
                              tridiagonal=kernels.tridiagonal, knots=kernels.knots,
                              jerk_rows=kernels.jerk_rows, jerk_shift=kernels.jerk_shift,
-                             tighten=kernels.tighten)
+                             tighten=kernels.tighten, jet=kernels.jet)
         return _compiled

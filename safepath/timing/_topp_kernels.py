@@ -297,6 +297,22 @@ def _shift_fits(f, m, dt):
 
 
 @njit(cache=True, nogil=True)
+def jet(breaks, coef, s, q, dq, ddq):
+    """Values, first and second derivatives of the cubic pieces ``coef`` (pieces, 4, d:
+    ``y, m, c2, c3`` in the offset from each piece's start ``breaks``) at the points ``s``
+    into ``q``, ``dq``, ``ddq`` (len(s), d): :meth:`safepath.timing.CubicPath.jet`, the
+    same sums in the same order."""
+    for k in range(s.size):
+        i = piece_of(breaks, s[k])
+        t = s[k] - breaks[i]
+        for j in range(coef.shape[2]):
+            y, m, c2, c3 = coef[i, 0, j], coef[i, 1, j], coef[i, 2, j], coef[i, 3, j]
+            q[k, j] = y + t * (m + t * (c2 + t * c3))
+            dq[k, j] = m + t * (2.0 * c2 + 3.0 * t * c3)
+            ddq[k, j] = 2.0 * c2 + 6.0 * t * c3
+
+
+@njit(cache=True, nogil=True)
 def tighten(g_lo, g_hi, acc, xs, t_acc, t_x, f_acc, f_x):
     """Scale ``f_acc`` and ``f_x`` (in place) at every gridpoint by the smallest ``acc``
     and ``xs`` of the windows ``[g_lo[w], g_hi[w])`` over it (1 where none); ``t_acc``,
