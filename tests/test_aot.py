@@ -133,6 +133,7 @@ def recorded() -> dict[str, list[tuple[Any, ...]]]:
     kernels["jerk_rows"] = recorder("topp_jerk_rows", saved["jerk_rows"])
     kernels["tighten"] = recorder("topp_tighten", saved["tighten"])
     kernels["jet"] = recorder("topp_jet", saved["jet"])
+    kernels["evaluate"] = recorder("topp_evaluate", saved["evaluate"])
     join = _joinkernel.compiled_kernels()
     saved_join = dict(join)
     join["peaks"] = recorder("join_peaks", saved_join["peaks"])

@@ -138,6 +138,7 @@ ENTRIES: dict[str, Entry] = {
     "topp_forward": Entry(_TOPP, "forward", (F1, F1, F2, F2, F2, F1, F1, F1, F1), "void"),
     "topp_tighten": Entry(_TOPP, "tighten", (I1, I1, F1, F1, F1, F1, F1, F1), "void"),
     "topp_jet": Entry(_TOPP, "jet", (F1, F3, F1, F2, F2, F2), "void"),
+    "topp_evaluate": Entry(_TOPP, "evaluate", (F1, F1, F1, F1, F1, F1, F1, F1), "void"),
     "topp_tridiagonal": Entry(_TOPP, "tridiagonal", (F1, F1, F1, F2), INT),
     "topp_knots": Entry(_TOPP, "knots", (F1, F1, F1, F1, F1, F1, F1, FLOAT, FLOAT, F1, F3, F1,
                                           F1, F1, F2, F2, F2), "void"),

@@ -31,8 +31,6 @@ from typing import Any
 
 import numpy as np
 
-from ..model._knots import interval_index
-
 __all__ = ["Profile", "acceleration_rows", "compiled_kernels", "evaluate", "parametrize",
            "solve"]
 
@@ -140,18 +138,13 @@ def parametrize(grid: np.ndarray, x: np.ndarray) -> Profile:
 def evaluate(profile: Profile, t: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Path parameter, speed and acceleration at times ``t`` [s] in [0, duration].
 
-    The last time is taken as the end of the path (at rest), exactly.
+    The last time is taken as the end of the path (at rest), exactly. Compiled
+    (``_topp_kernels.evaluate``).
     """
-    k = interval_index(profile.t, t, profile.u.size)
-    dt = t - profile.t[k]
-    u = profile.u[k]
-    sd0 = profile.sd[k]
-    s = profile.grid[k] + dt * sd0 + 0.5 * dt * dt * u
-    sd = sd0 + dt * u
-    s = np.minimum(np.maximum(s, profile.grid[0]), profile.grid[-1])
-    sd = np.maximum(sd, 0.0)
-    if t.size and t[-1] >= profile.t[-1]:
-        s[-1], sd[-1] = profile.grid[-1], 0.0
+    t = np.ascontiguousarray(t, dtype=np.float64)
+    s, sd, u = np.empty(t.size), np.empty(t.size), np.empty(t.size)
+    compiled_kernels()["evaluate"](*(np.ascontiguousarray(x, dtype=np.float64) for x in (
+        profile.t, profile.grid, profile.sd, profile.u)), t, s, sd, u)
     return s, sd, u
 
 
@@ -165,5 +158,6 @@ def compiled_kernels() -> dict[str, Callable[..., Any]]:
             _compiled.update(backward=kernels.backward, forward=kernels.forward,
                              tridiagonal=kernels.tridiagonal, knots=kernels.knots,
                              jerk_rows=kernels.jerk_rows, jerk_shift=kernels.jerk_shift,
-                             tighten=kernels.tighten, jet=kernels.jet)
+                             tighten=kernels.tighten, jet=kernels.jet,
+                             evaluate=kernels.evaluate)
         return _compiled

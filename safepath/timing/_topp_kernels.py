@@ -297,6 +297,27 @@ def _shift_fits(f, m, dt):
 
 
 @njit(cache=True, nogil=True)
+def evaluate(tp, grid, sdp, up, t, s, sd, u):
+    """Path parameter, speed and acceleration of the profile (times ``tp``, gridpoints
+    ``grid``, speeds ``sdp``, accelerations ``up``) at the times ``t``, into ``s``, ``sd``,
+    ``u``: :func:`safepath.timing._topp.evaluate`, the same sums in the same order (and
+    numpy's ``maximum``/``minimum``: the first argument when they are equal)."""
+    last = up.size - 1
+    for i in range(t.size):
+        k = min(piece_of(tp, t[i]), last)
+        dt = t[i] - tp[k]
+        s_i = grid[k] + dt * sdp[k] + 0.5 * dt * dt * up[k]
+        sd_i = sdp[k] + dt * up[k]
+        s_i = s_i if (s_i >= grid[0] or s_i != s_i) else grid[0]
+        s[i] = s_i if (s_i <= grid[-1] or s_i != s_i) else grid[-1]
+        sd[i] = sd_i if (sd_i >= 0.0 or sd_i != sd_i) else 0.0
+        u[i] = up[k]
+    if t.size and t[t.size - 1] >= tp[tp.size - 1]:
+        s[t.size - 1] = grid[grid.size - 1]
+        sd[t.size - 1] = 0.0
+
+
+@njit(cache=True, nogil=True)
 def jet(breaks, coef, s, q, dq, ddq):
     """Values, first and second derivatives of the cubic pieces ``coef`` (pieces, 4, d:
     ``y, m, c2, c3`` in the offset from each piece's start ``breaks``) at the points ``s``

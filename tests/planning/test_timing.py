@@ -368,6 +368,32 @@ def test_the_tightening_kernel_takes_the_smallest_factor_of_the_windows_over_eac
         assert np.array_equal(f_acc, want_acc) and np.array_equal(f_x, want_x), trial
 
 
+def test_the_profile_is_evaluated_as_numpy_evaluates_it() -> None:
+    """The compiled evaluation of a TOPP-RA profile gives numpy's sums bit for bit: inside,
+    at the gridpoints' times, before the start and after the end (clamped), with the last
+    time at or past the end taken as the end at rest."""
+    rng = np.random.default_rng(8)
+    for trial in range(10):
+        grid = np.concatenate([[0.0], np.cumsum(rng.uniform(0.001, 0.01, 300))])
+        x = np.concatenate([[0.0], rng.uniform(0.01, 4.0, 299), [0.0]])
+        profile = _topp.parametrize(grid, x)
+        end = profile.duration
+        t = np.sort(np.concatenate([rng.uniform(-0.1, end + 0.1, 500), profile.t]))
+        if trial % 2:
+            t = t[t < end]
+        k = np.minimum(np.maximum(np.searchsorted(profile.t, t, side="right") - 1, 0),
+                       profile.u.size - 1)
+        dt = t - profile.t[k]
+        want_s = np.minimum(np.maximum(profile.grid[k] + dt * profile.sd[k]
+                                       + 0.5 * dt * dt * profile.u[k], grid[0]), grid[-1])
+        want_sd = np.maximum(profile.sd[k] + dt * profile.u[k], 0.0)
+        if t[-1] >= profile.t[-1]:
+            want_s[-1], want_sd[-1] = grid[-1], 0.0
+        s, sd, u = _topp.evaluate(profile, t)
+        for got, want in ((s, want_s), (sd, want_sd), (u, profile.u[k])):
+            assert got.tobytes() == want.tobytes(), trial
+
+
 def test_the_grid_follows_the_spline_pieces() -> None:
     """Gridpoints: strictly increasing, at most ``step`` apart, on every spline knot and
     exactly on every segment boundary (so each knot knows its segment's limits)."""
