@@ -296,6 +296,18 @@ def _shift_fits(f, m, dt):
     return True
 
 
+@_inlined
+def _piece_after(breaks, x, i, k):
+    """:func:`~safepath.model._joinkernel.piece_of` of ``x[i]``, walking on from piece
+    ``k`` (that of ``x[i - 1]``) when ``x`` has not decreased since, else by bisection:
+    the same piece, in a few steps along increasing values."""
+    if i == 0 or not x[i] >= x[i - 1]:
+        return piece_of(breaks, x[i])
+    while k + 2 < breaks.size and breaks[k + 1] <= x[i]:
+        k += 1
+    return k
+
+
 @njit(cache=True, nogil=True)
 def evaluate(tp, grid, sdp, up, t, s, sd, u):
     """Path parameter, speed and acceleration of the profile (times ``tp``, gridpoints
@@ -303,8 +315,9 @@ def evaluate(tp, grid, sdp, up, t, s, sd, u):
     ``u``: :func:`safepath.timing._topp.evaluate`, the same sums in the same order (and
     numpy's ``maximum``/``minimum``: the first argument when they are equal)."""
     last = up.size - 1
+    k = 0
     for i in range(t.size):
-        k = min(piece_of(tp, t[i]), last)
+        k = min(_piece_after(tp, t, i, k), last)
         dt = t[i] - tp[k]
         s_i = grid[k] + dt * sdp[k] + 0.5 * dt * dt * up[k]
         sd_i = sdp[k] + dt * up[k]
@@ -359,9 +372,10 @@ def jerk_rows(s, sd, u, s_way, jmax_seg, grid, dq, ddq, f):
     for j in range(dof):
         f[0, j] = 0.0
         f[s.size + 1, j] = 0.0
+    seg = g = 0
     for i in range(s.size):
-        seg = piece_of(s_way, s[i])
-        g = piece_of(grid, s[i])
+        seg = _piece_after(s_way, s, i, seg)
+        g = _piece_after(grid, s, i, g)
         w = (s[i] - grid[g]) / (grid[g + 1] - grid[g])
         x = sd[i] * sd[i]
         for j in range(dof):

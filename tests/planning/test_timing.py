@@ -371,7 +371,7 @@ def test_the_tightening_kernel_takes_the_smallest_factor_of_the_windows_over_eac
 def test_the_profile_is_evaluated_as_numpy_evaluates_it() -> None:
     """The compiled evaluation of a TOPP-RA profile gives numpy's sums bit for bit: inside,
     at the gridpoints' times, before the start and after the end (clamped), with the last
-    time at or past the end taken as the end at rest."""
+    time at or past the end taken as the end at rest; the times in order or not."""
     rng = np.random.default_rng(8)
     for trial in range(10):
         grid = np.concatenate([[0.0], np.cumsum(rng.uniform(0.001, 0.01, 300))])
@@ -392,6 +392,10 @@ def test_the_profile_is_evaluated_as_numpy_evaluates_it() -> None:
         s, sd, u = _topp.evaluate(profile, t)
         for got, want in ((s, want_s), (sd, want_sd), (u, profile.u[k])):
             assert got.tobytes() == want.tobytes(), trial
+        mixed = rng.permutation(t.size - 1)  # in any order (the last one stays last)
+        s, sd, u = _topp.evaluate(profile, np.append(t[mixed], t[-1]))
+        for got, want in ((s, want_s), (sd, want_sd), (u, profile.u[k])):
+            assert got.tobytes() == np.append(want[mixed], want[-1]).tobytes(), trial
 
 
 def test_the_grid_follows_the_spline_pieces() -> None:
