@@ -101,6 +101,8 @@ ENTRIES: dict[str, Entry] = {
          INT, INT),  # where to start
         "UniTuple(i8, 3)"),
     "verify_grid": Entry(_VERIFY, "grid", (F2, F2, FLOAT), f"Tuple(({I1}, {F1}, {F2}, {F2}))"),
+    "verify_body_poses": Entry(_VERIFY, "body_poses",
+                               (F2, (I1, F3, I1, F2, I1, I1, F3, I1), INT, F3), "void"),
     "verify_axis_bound": Entry(_VERIFY_DISTANCE, "axis_bound_entry", (_SHAPE, _SHAPE, _HULLS),
                                "UniTuple(f8, 4)"),
     "verify_gjk_bound": Entry(_VERIFY_DISTANCE, "gjk_bound_entry",

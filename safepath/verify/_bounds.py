@@ -19,7 +19,7 @@ from __future__ import annotations
 import copy
 import functools
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -627,29 +627,25 @@ class Layer:
             return out
         done = cache.jdone[samples, joint]
         out[done] = cache.jpose[samples[done], joint] @ T_joint_geom
-        for k in np.flatnonzero(~done):
-            out[k] = self.pose_at(grid.state(q, int(samples[k])), m)
+        if not done.all():
+            out[~done] = self.poses_at(grid.states(q, samples[~done]), m)
         return out
 
     def pose_at(self, q: np.ndarray, m: int) -> np.ndarray:
         """World pose (3 x 4) of moving body ``m``'s geometry frame at the joint positions
-        ``q`` [rad] (pinocchio's kinematics: for states off the grid)."""
-        import pinocchio as pin
+        ``q`` [rad] (:meth:`poses_at` of one state)."""
+        return self.poses_at(np.asarray(q, dtype=float).reshape(1, -1), m)[0]
 
-        joint = int(self._kin[5][m])
-        T_joint_geom = self._homogeneous[m]
-        if joint == 0:
-            return T_joint_geom[:3]
-        data = self._fk_data
-        pin.forwardKinematics(self._model, data, np.asarray(q, dtype=float))
-        return np.asarray(data.oMi[joint].homogeneous[:3] @ T_joint_geom)
+    def poses_at(self, states: np.ndarray, m: int) -> np.ndarray:
+        """World poses (states x 3 x 4) of moving body ``m``'s geometry frame at the joint
+        positions ``states`` [rad] (states x dof): for states off the grid, with the
+        walk's own kinematics and operations (the kernel's ``body_poses``)."""
+        from . import _kernel as kernel
 
-    @functools.cached_property
-    def _fk_data(self) -> Any:
-        """Pinocchio's workspace for :meth:`pose_at`, made once per layer (one thread
-        walks a layer at a time, as for :attr:`_scratch`; forward kinematics overwrites
-        every joint placement it reads)."""
-        return self._model.createData()
+        states = np.ascontiguousarray(states, dtype=float)
+        out = np.empty((states.shape[0], 3, 4))
+        kernel.body_poses(states, self._kin, int(m), out)
+        return out
 
     @functools.cached_property
     def _homogeneous(self) -> np.ndarray:

@@ -226,6 +226,44 @@ def _accumulated(cum: np.ndarray, step: np.ndarray, knot_of: np.ndarray, frac: n
     return out
 
 
+@njit(cache=True)
+def body_poses(states: np.ndarray, kin: tuple, m: int, out: np.ndarray) -> None:
+    """Moving body ``m``'s geometry frame in the world at each joint state of ``states``
+    (states x dof [rad] or [m]), into ``out`` (states x 3 x 4): the states off the grid
+    that the check between samples measures, placed with the walk's operations
+    (:func:`_placed_motion` joint after joint from the base, then the body's placement):
+    at a state of the grid, the joint poses are the walk's, bit for bit.
+
+    ``kin`` is the :class:`Kinematics` record's fields in order (the ahead-of-time
+    guards take plain tuples)."""
+    k = Kinematics(*kin)
+    chain = np.empty(k.parent.size, dtype=np.int64)
+    count, j = 0, k.m_joint[m]
+    while j > 0:
+        chain[count] = j
+        count += 1
+        j = k.parent[j]
+    P = _pose_of(k.m_place[m])
+    for i in range(states.shape[0]):
+        T = P
+        if count:
+            T = _placed_motion(k, chain[count - 1], states[i, k.iq[chain[count - 1]]])
+            for c in range(count - 2, -1, -1):
+                T = _times_pose(T, _placed_motion(k, chain[c], states[i, k.iq[chain[c]]]))
+            T = _times_pose(T, P)
+        _store(out[i], T)
+
+
+@_step
+def _times_pose(A: Pose, M: Pose) -> Pose:
+    """The pose ``A`` times the pose ``M`` (both in locals): as :func:`_times` multiplies
+    an array's pose, the same operations."""
+    r00, r01, r02, t0 = _row_times(A.r00, A.r01, A.r02, A.t0, M)
+    r10, r11, r12, t1 = _row_times(A.r10, A.r11, A.r12, A.t1, M)
+    r20, r21, r22, t2 = _row_times(A.r20, A.r21, A.r22, A.t2, M)
+    return Pose(r00, r01, r02, t0, r10, r11, r12, t1, r20, r21, r22, t2)
+
+
 # -- the walk's steps: forward kinematics ----------------------------------------------------
 @_step
 def _joint_value(g: Samples, col: int, s: int) -> float:

@@ -524,7 +524,7 @@ class _Run:
         (states x dof [rad]; off the grid: pinocchio's kinematics place its body)."""
         i, j, _, _ = self.v._pairs[p]
         self._placed[i], self.pair_checks = -1, self.pair_checks + len(states)
-        poses = (self.v._layer.pose_at(q, i) for q in states)
+        poses = self.v._layer.poses_at(states, i)
         return self.v._movers[i].distances(self.v._env[j], poses)
 
     def _fails(self, p: int, s: int) -> bool:

@@ -868,8 +868,9 @@ def test_a_staged_check_asked_again_answers_as_before_without_checking_again(
 def test_the_layers_own_kinematics_place_the_bodies_as_pinocchio_does(
         bundled_cell: Cell, seed: int) -> None:
     """The layer's forward kinematics (a turn about a joint's own x, y or z written out,
-    any other axis by Rodrigues) place every body where pinocchio does: random toy arms
-    (z, x and an unaligned axis; y, x and z) and the Ned3 Pro (z axes)."""
+    any other axis by Rodrigues) place every body where pinocchio does, on the grid and at
+    states off it (the check between samples): random toy arms (z, x and an unaligned
+    axis; y, x and z) and the Ned3 Pro (z axes)."""
     rng = np.random.default_rng(seed)
     robot, scene = _toy_arm(rng), _toy_scene(rng)
     other = _toy_arm(rng, [pin.JointModelRY(), pin.JointModelRX(), pin.JointModelRZ()])
@@ -884,3 +885,11 @@ def test_the_layers_own_kinematics_place_the_bodies_as_pinocchio_does(
             for m, body in enumerate(verifier.movers[:len(poses)]):
                 want = (data.oMi[body.joint].homogeneous @ body.T)[:3]
                 np.testing.assert_allclose(poses[m], want, atol=1e-12)
+        # States off the grid (the check between samples), many at once.
+        states = np.array([pin.randomConfiguration(model) for _ in range(6)])
+        for m, body in enumerate(verifier.movers):
+            placed = verifier._layer.poses_at(states, m)
+            for q, got in zip(states, placed, strict=True):
+                pin.forwardKinematics(model, data, q)
+                want = (data.oMi[body.joint].homogeneous @ body.T)[:3]
+                np.testing.assert_allclose(got, want, atol=1e-12)
