@@ -19,13 +19,13 @@ TOPP-RA enforces the limits at its gridpoints (which follow the spline's pieces,
 Knots whose excess would take a time stretch of more than :data:`RETRY_ABOVE` get the
 limits tightened around them (each window at least as wide as the run's before) and the
 path is timed again (``retries`` runs in all); what is left is removed by stretching time
-uniformly, which divides velocities by ``k`` and
-accelerations by ``k^2``. No released knot exceeds a limit: the ratios of the released
-knots are checked, and a :class:`~safepath.errors.TimingError` is raised rather than
-release one over 1.0. The same holds for the TCP's speed where a step limits it: the
-knots' join (as the robot's controller joins them: ``controller.yaml``'s interpolation,
-a quintic for points with accelerations) is sampled at >= 1 kHz (forward kinematics with
-velocities) and stretched in time until every sample is within its step's limit.
+uniformly, which divides velocities by ``k`` and accelerations by ``k^2``. No released
+knot exceeds a limit: the ratios of the released knots are checked, and a
+:class:`~safepath.errors.TimingError` is raised rather than release one over 1.0. The
+same holds for the TCP's speed where a step limits it: the knots' join (as the robot's
+controller joins them: ``controller.yaml``'s interpolation, a quintic for points with
+accelerations) is sampled at >= 1 kHz (forward kinematics with velocities) and stretched
+in time until every sample is within its step's limit.
 """
 
 from __future__ import annotations
@@ -458,8 +458,8 @@ def _jerk_window(profile: _topp.Profile, limits: PathLimits, options: TimingOpti
     acceleration along TOPP-RA's profile changes by more than its jerk limit times the
     width (the average spreads every change over the width), times
     ``options.jerk_window``. The profile is sampled once per knot period, as the knots
-    sample the motion (half that, as before, changed the motion time by under 0.1 % on
-    200 seeded via paths of five arms, for 5-12 % more of the timing's work)."""
+    sample the motion (sampling it twice as often changed the motion time by under 0.1 %
+    on 200 seeded via paths of five arms, for 5-12 % more of the timing's work)."""
     dt = options.knot_period
     t = np.arange(0.0, profile.duration, dt)
     # Along the profile; the path's tangent and curvature between gridpoints linear in s
