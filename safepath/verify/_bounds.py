@@ -606,7 +606,7 @@ class Layer:
     def pose(self, q: np.ndarray, grid: Grid, cache: PoseCache, s: int, m: int
              ) -> np.ndarray:
         """World pose (3 x 4) of moving body ``m``'s geometry frame at sample ``s``: from
-        the layer's joint poses, or pinocchio's where the layer never looked."""
+        the layer's joint poses, or :meth:`pose_at` where the walk never looked."""
         joint = int(self._kin[5][m])
         T_joint_geom = self._homogeneous[m]
         if joint == 0:

@@ -521,7 +521,7 @@ class _Run:
 
     def distances_at(self, p: int, states: np.ndarray) -> np.ndarray:
         """FCL distances of environment pair p at the joint positions ``states`` [m]
-        (states x dof [rad]; off the grid: pinocchio's kinematics place its body)."""
+        (states x dof [rad]; off the grid: the layer places its body, :meth:`Layer.poses_at`)."""
         i, j, _, _ = self.v._pairs[p]
         self._placed[i], self.pair_checks = -1, self.pair_checks + len(states)
         poses = self.v._layer.poses_at(states, i)
