@@ -168,6 +168,13 @@ def _helpers(cell: safepath.Cell) -> None:
     _fastkernels.classify_many(Q, layer.F, layer.I, np.empty(len(Q), dtype=np.int64))
     for q in Q[:20]:
         checker.check(q)  # the sphere layer's pair bounds
+    # The release check's placement of states off its grid (the check between samples,
+    # which the bundled plans do not need).
+    from safepath.verify import FclVerifier
+
+    verifier = FclVerifier(robot, cell.scene)
+    for m in range(len(verifier.movers)):
+        verifier._layer.poses_at(Q[:20], m)
     chain = line_chain(robot)
     args = (chain.joint_f, chain.joint_i, chain.frame_f)
     for q in Q[:20]:
