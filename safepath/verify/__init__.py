@@ -25,8 +25,7 @@ from __future__ import annotations
 
 from ._bodies import Body, check_verifiable, fcl_shape, prepare_verifiers, unverifiable
 from ._bounds import Grid
-from ._staged import StagedVerifier
-from .verifier import CheckedPair, FclVerifier, StateBounds, VerifyResult
+from .verifier import CheckedPair, FclVerifier, StagedVerifier, StateBounds, VerifyResult
 
 __all__ = [
     "Body",

@@ -830,40 +830,6 @@ def test_a_pair_in_consecutive_stages_is_walked_across_their_boundary(bundled: P
         StagedVerifier([first, second]).verify(t, q, [0])
 
 
-def test_a_staged_check_asked_again_answers_as_before_without_checking_again(
-        bundled: Plans) -> None:
-    """A planner retrying a blend that times to the same piece asks the same check twice:
-    the second answer is the first one (the very result, or the very refusal), equal to
-    what a new check of the same input finds; any other input is checked anew."""
-    from safepath.verify import StagedVerifier
-
-    cell = bundled.cell
-    t, q, start = _two_steps(bundled, STEP, "4 line low1")
-    first = _verifier(cell)
-    second = first.with_allowed(cell.scene.contacts_at("low1"))
-    staged = StagedVerifier([first, second])
-    result = staged.verify(t, q, [0, start], steps=["s"] * len(t))
-    assert staged.verify(t.copy(), q.copy(), [0, start], steps=["s"] * len(t)) is result
-    assert StagedVerifier([first, second]).verify(t, q, [0, start],
-                                                  steps=["s"] * len(t)) == result
-    # Another input (here what it is told of the clearance) is checked anew.
-    known = result.min_clearance + 0.01
-    again = staged.verify(t, q, [0, start], steps=["s"] * len(t), known=known)
-    assert again is not result and again.pair_checks > 0
-    # The put-down under the first stage's rules alone is refused, as often as asked.
-    alone = StagedVerifier([first])
-    refusals = []
-    for _ in range(2):
-        with pytest.raises(VerificationError) as info:
-            alone.verify(t, q, [0])
-        refusals.append(info.value)
-    assert refusals[1] is refusals[0]
-    with pytest.raises(VerificationError) as info:
-        StagedVerifier([first]).verify(t, q, [0])
-    assert (info.value.time, info.value.pairs) == (refusals[0].time, refusals[0].pairs)
-    np.testing.assert_array_equal(info.value.q, refusals[0].q)
-
-
 @pytest.mark.parametrize("seed", range(4))
 def test_the_layers_own_kinematics_place_the_bodies_as_pinocchio_does(
         bundled_cell: Cell, seed: int) -> None:
