@@ -84,13 +84,16 @@ def time_chunk(cell: Cell, segments: list[Segment], world: WorldState, options: 
     smaller, then passing exactly); if no blend is collision-free, can be timed and passes
     the independent re-check, stop at the step boundaries, then at every corner. ``known``:
     the smallest clearance of the route so far [m] (see ``FclVerifier.verify``); a
-    piece's result says inf unless it comes closer."""
+    piece's result says inf unless it comes closer. A piece the release check refused is
+    refused again without a second check when a later try times to the same piece (a
+    smaller blend cut down to the same corners: ``timed`` hands back the same timing)."""
+    verify = _Checks(world, cache, labels).verify
     if len(segments) > 1 or len(segments[0].waypoints) > 2:
         for blend in options.timing.blend_radii:
             try:
                 piece, seg_steps = time_segments(cell, segments, world, options, cache,
                                                   blend=blend, timed=timed)
-                return [verify_piece(piece, seg_steps, segments, world, cache, labels, known)]
+                return [verify(piece, seg_steps, segments, known)]
             except _NotFree:
                 log.debug("blend %.3f rad not collision-free", blend)
             except VerificationError as exc:
@@ -102,7 +105,7 @@ def time_chunk(cell: Cell, segments: list[Segment], world: WorldState, options: 
         try:
             piece, seg_steps = time_segments(cell, [seg], world, options, cache, blend=0.0,
                                               timed=timed)
-            out.append(verify_piece(piece, seg_steps, [seg], world, cache, labels, known))
+            out.append(verify(piece, seg_steps, [seg], known))
             known = min(known, out[-1][2].min_clearance)
             continue
         except (_NotFree, VerificationError) as exc:
@@ -116,9 +119,37 @@ def time_chunk(cell: Cell, segments: list[Segment], world: WorldState, options: 
             part = Segment(seg.step_index, seg.step, [a, b], seg.allowed)
             piece, seg_steps = time_segments(cell, [part], world, options, cache, check=False,
                                               timed=timed)
-            out.append(verify_piece(piece, seg_steps, [part], world, cache, labels, known))
+            out.append(verify(piece, seg_steps, [part], known))
             known = min(known, out[-1][2].min_clearance)
     return out
+
+
+class _Checks:
+    """The release checks of one chunk's pieces (:func:`verify_piece` in one world), and
+    the pieces they refused with what each was asked (the steps of its knots, their
+    allowed contacts, the clearance known): the same piece asked the same is refused as
+    before (the check is deterministic), without checking it again. Nothing is kept
+    after the chunk, and a piece that passes is never answered from here: every
+    released piece was checked."""
+
+    def __init__(self, world: WorldState, cache: CheckerCache, labels: list[str]) -> None:
+        self._world, self._cache, self._labels = world, cache, labels
+        self._refused: list[tuple[TimedPiece, tuple[object, ...], VerificationError]] = []
+
+    def verify(self, piece: TimedPiece, seg_steps: list[int], segments: list[Segment],
+               known: float) -> tuple[TimedPiece, list[int], VerifyResult]:
+        """:func:`verify_piece` of ``piece``, or the refusal of the same piece asked the
+        same before."""
+        asked = (tuple(seg_steps), tuple((s.step_index, s.allowed) for s in segments), known)
+        for before, what, refusal in self._refused:
+            if before is piece and what == asked:
+                raise refusal
+        try:
+            return verify_piece(piece, seg_steps, segments, self._world, self._cache,
+                                self._labels, known)
+        except VerificationError as exc:
+            self._refused.append((piece, asked, exc))
+            raise
 
 
 def verify_piece(piece: TimedPiece, seg_steps: list[int], segments: list[Segment],
