@@ -294,7 +294,8 @@ def ratios(t: np.ndarray, q: np.ndarray, qd: np.ndarray, qdd: np.ndarray, rate: 
     """Per interval (those listed in ``at``, else all), the largest speed, acceleration and
     jerk ratio of the quintic join of the points to the limits of row ``row[k]`` of
     ``vmax``, ``amax``, ``jmax``; speed and acceleration ratios below ``exact_from`` may be
-    bounds of them (see :func:`_ratios`)."""
+    bounds of them (see :func:`_ratios`); ``at`` is not checked (see
+    :meth:`safepath.model.interpolation.Interpolation.ratios`)."""
     kernel = compiled_kernels()["ratios"]
     t, q, qd, qdd, vmax, amax, jmax = (np.ascontiguousarray(x, dtype=np.float64)
                                        for x in (t, q, qd, qdd, vmax, amax, jmax))

@@ -147,7 +147,16 @@ class Interpolation:
         quintic's pass skip the exact peaks below it: every ratio of ``exact_from`` or
         more is exact; a smaller speed or acceleration ratio may instead be a bound of it
         that is still below ``exact_from``. With ``at``, only the intervals it lists
-        (each (len(at),))."""
+        (each (len(at),)).
+
+        Raises:
+            ValueError: An interval of ``at`` that the points do not have.
+        """
+        if at is not None:
+            at = np.asarray(at, dtype=np.int64)
+            if at.size and not (0 <= at.min() and at.max() < len(t) - 1):
+                raise ValueError(f"at: intervals 0 .. {len(t) - 2}, got {at.min()} .. "
+                                 f"{at.max()}")
         if self.order == 5:
             from ._joinkernel import ratios
 

@@ -99,11 +99,16 @@ def solve(grid: np.ndarray, xmax: np.ndarray, a: np.ndarray, b: np.ndarray, c: n
         ``x`` at the gridpoints (N+1,), or None when no timing exists: the controllable
         sets are empty, the inputs are not finite, or the path would have to rest over
         a whole grid interval (which takes forever).
+
+    Raises:
+        ValueError: ``factor`` not one per gridpoint.
     """
     kernels = compiled_kernels()
     delta = np.ascontiguousarray(np.diff(grid), dtype=np.float64)
     if factor is None:
         factor = np.ones(grid.size)
+    elif np.shape(factor) != np.shape(grid):
+        raise ValueError(f"factor: one per gridpoint ({grid.size}), got {np.shape(factor)}")
     args = [np.ascontiguousarray(v, dtype=np.float64) for v in (xmax, a, b, c, factor)]
     # (The backward pass refuses a row or a factor that is not finite.)
     if not (np.isfinite(delta).all() and np.isfinite(args[0]).all()):

@@ -41,12 +41,13 @@ import numpy as np
 
 from ..errors import TimingError
 from ..model._knots import interval_index
-from ..model.execution import CHECK_RATE, join
+from ..model.execution import CHECK_RATE
 from ..model.robot import Robot
 from . import _scurve, _smooth, _topp
 from ._blend import blended_points, corner_pieces, resampled
 from ._path_limits import PathLimits, PathSpline, jet, path_limits, tcp_limits
 from ._spline import CubicPath
+from ._tcp_check import TcpLimits
 
 __all__ = ["TimingOptions", "TimedPiece", "PathSpline", "spline_path", "time_path",
            "stretch_knots",
@@ -356,7 +357,7 @@ def time_path(robot: Robot, path: PathSpline, s_way: np.ndarray, *, scales: Sequ
         _tighten(f_acc, f_x, limits.grid, run)
     assert best is not None  # options.retries >= 1
     # The path's TCP rate is estimated only where a segment limits the TCP's speed.
-    tcp = None if limits.tcp_rate is None else _TcpLimits(
+    tcp = None if limits.tcp_rate is None else TcpLimits(
         robot, tcp_limits(tcp_speeds), max(1, int(np.ceil(options.knot_period * CHECK_RATE))),
         limits.grid, limits.tcp_rate)
     return dataclasses.replace(_release(best, limits, options, where, tcp), runs=runs)
@@ -568,7 +569,7 @@ def _worst(ratios: Sequence[np.ndarray], v_tcp: float) -> float:
 
 
 def _release(run: _Run, limits: PathLimits, options: TimingOptions, where: str,
-             tcp: _TcpLimits | None = None) -> TimedPiece:
+             tcp: TcpLimits | None = None) -> TimedPiece:
     """The run stretched in time just enough that its knots' join is within every
     limit (the TCP's speed limits too, ``tcp``), checked."""
     t, qd, qdd = run.t, run.qd, run.qdd
@@ -604,94 +605,6 @@ def _release(run: _Run, limits: PathLimits, options: TimingOptions, where: str,
         raise TimingError(f"the {limits.interpolation} join of the timed knots is at "
                           f"{worst!r} of a limit" + where)
     return TimedPiece(t, run.q, qd, qdd, run.s, run.segment)
-
-
-#: Share of its TCP speed limit below which a knot interval's two ends keep its inside
-#: unsampled (:meth:`_TcpLimits.ratio`).
-_TCP_NEAR = 0.95
-#: Share of its TCP speed limit below which the estimate of a knot interval's two ends
-#: keeps the interval from being measured at all. The estimate (the path's rate from
-#: finite differences on a 15 mrad grid, linear in between) was at most 8.6 % off the
-#: forward kinematics at the knots over half their limit in the bundled cells' plans.
-_TCP_SCREEN = 0.7
-#: How far below the largest sampled TCP speed ratio a sample's interval is sampled again,
-#: :data:`_TCP_FINER` times as densely (:meth:`_TcpLimits.ratio`).
-_TCP_REFINE = 1e-3
-_TCP_FINER = 8
-
-
-@dataclass(frozen=True)
-class _TcpLimits:
-    """The TCP speed limits of a path's segments, checked on the knots' executed motion.
-
-    Attributes:
-        robot: Kinematics.
-        v_seg: Each segment's TCP speed limit [m/s] (inf: none).
-        grid: TOPP-RA's gridpoints.
-        rate: The TCP's speed per path speed there, estimated [m/rad].
-        samples: Knot intervals are cut into this many parts (inside the ones near
-            their limit, sampled at the cuts as well as at their ends), so that a
-            stretch in time samples the same fractions of each interval.
-    """
-
-    robot: Robot
-    v_seg: np.ndarray
-    samples: int
-    grid: np.ndarray
-    rate: np.ndarray
-
-    def ratio(self, t: np.ndarray, q: np.ndarray, qd: np.ndarray, qdd: np.ndarray,
-              segment: np.ndarray, s: np.ndarray, sd: np.ndarray) -> float:
-        """The largest TCP speed of the knots' join over its limit (the smaller
-        of its two knots' segments' limits on each interval); 0 where none limits it.
-
-        The knots lie on the path (``qd = q'(s) sdot``): their TCP speed is the path's
-        rate ``|dp/ds|`` times ``sdot`` (``s``, ``sd``), whose estimate on TOPP-RA's grid
-        screens out the intervals whose ends are both below :data:`_TCP_SCREEN` of their
-        limit; the others are measured by forward kinematics."""
-        per_knot = self.v_seg[segment]
-        limit = np.minimum(per_knot[:-1], per_knot[1:])
-        estimate = np.interp(s, self.grid, self.rate) * sd
-        near = np.maximum(estimate[:-1], estimate[1:]) >= _TCP_SCREEN * limit
-        at = np.flatnonzero(np.isfinite(limit) & near)
-        if at.size == 0:
-            return float(np.max(estimate[:-1] / limit, initial=0.0))
-        # The knots first: inside an interval whose ends are both below _TCP_NEAR of its
-        # limit, the speed could only reach the limit if it bent away from the line
-        # between them by that share of it (its second derivative, times the interval
-        # squared over 8: kilometres per second cubed for a few milliseconds).
-        ends = np.zeros(t.size, dtype=bool)
-        ends[at] = ends[at + 1] = True
-        knots = np.flatnonzero(ends)
-        at_knot = np.zeros(t.size)
-        at_knot[knots] = self.robot.tcp_speeds(q[knots], qd[knots])
-        ends = np.maximum(at_knot[at], at_knot[at + 1]) / limit[at]
-        worst = float(ends.max())
-        at = at[ends >= _TCP_NEAR]
-        if at.size == 0:
-            return worst
-        parts = max(2, self.samples)
-        sampled = self._sampled(t, q, qd, qdd, at, limit[at], parts)
-        worst = max(worst, float(sampled.max()))
-        # The largest speed lies between samples: where a sample comes within
-        # _TCP_REFINE of the worst, the interval is sampled _TCP_FINER times as densely
-        # (a smooth peak's sampling error shrinks with the square of the spacing).
-        top = np.flatnonzero(sampled >= worst - _TCP_REFINE) // (parts - 1)  # sorted
-        if top.size == 0:  # the worst is at a knot
-            return worst
-        top = top[np.concatenate([[True], top[1:] != top[:-1]])]
-        finer = self._sampled(t, q, qd, qdd, at[top], limit[at][top], _TCP_FINER * parts)
-        return max(worst, float(finer.max()))
-
-    def _sampled(self, t: np.ndarray, q: np.ndarray, qd: np.ndarray, qdd: np.ndarray,
-                 at: np.ndarray, limit: np.ndarray, parts: int) -> np.ndarray:
-        """The TCP's speed over its limit inside knot intervals ``at`` (their limits
-        ``limit``), each cut into ``parts`` (the cuts sampled): (len(at) * (parts - 1),),
-        interval by interval."""
-        frac = np.linspace(0.0, 1.0, parts + 1)[1:-1]
-        times = (t[at, None] + (t[at + 1] - t[at])[:, None] * frac).ravel()
-        p, v, _, _ = join(t, q, qd, qdd, times, interpolation=self.robot.controller.interpolation)
-        return self.robot.tcp_speeds(p, v) / np.repeat(limit, frac.size)
 
 
 def rest_to_rest_time(delta: np.ndarray, vmax: np.ndarray, amax: np.ndarray) -> float:

@@ -502,6 +502,8 @@ def test_the_kernel_reports_what_it_cannot_time() -> None:
         factor[5] = bad
         assert _topp.solve(grid, np.ones(11), ones, ones, ones, factor) is None, bad
     assert _topp.solve(grid, np.where(grid == 0.5, np.nan, 1.0), ones, ones, ones) is None
+    with pytest.raises(ValueError, match="one per gridpoint"):
+        _topp.solve(grid, np.ones(11), ones, ones, ones, np.ones(10))
     # No acceleration at all: the path cannot start.
     assert _topp.solve(grid, np.ones(11), ones, ones, 0 * ones) is None
 

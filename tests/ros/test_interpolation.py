@@ -164,6 +164,10 @@ def test_ratios_of_listed_intervals_are_those_of_the_whole_pass(interpolation) -
         assert x.shape == at.shape
         assert np.array_equal(x, y[at], equal_nan=True)
     assert np.isnan(got[0][2]) and np.isnan(got[0][3]) and not np.isnan(got[0][4])
+    for bad in ([59], [-1]):  # 60 points: intervals 0 .. 58
+        with pytest.raises(ValueError, match="intervals 0 .. 58"):
+            interpolation.ratios(t, q, qd, qdd, 1000.0, row, vmax, amax, jmax,
+                                 at=np.array(bad))
 
 
 def test_a_uniform_stretch_scales_the_quintic_join_exactly() -> None:
