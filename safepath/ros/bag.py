@@ -50,14 +50,15 @@ from ..errors import RosError, TrajectoryError
 from ..model._knots import interval_index
 from ..model.controller_spec import ControllerSpec
 from ..model.trajectory import GripperEvent, Trajectory
+from ._cdr import joint_states_cdr
 from .goals import (
+    _joint_trajectory_cdr,
     controller_of,
     follow_joint_trajectory_goal,
-    joint_trajectory,
     split_at_gripper_events,
 )
 from .gripper import gripper_command_goal
-from .messages import MessageFactory, deserialize, serialize, written_typestore
+from .messages import deserialize, serialize, written_typestore
 
 if TYPE_CHECKING:
     from ..model._locked import LockedJoint
@@ -173,12 +174,11 @@ def _locked_states(locked: Sequence[LockedJoint], names: tuple[str, ...], spec: 
 
 def _joint_states(trajs: Sequence[Trajectory], starts_ns: Sequence[int], total_ns: int,
                   rate: float, names: tuple[str, ...], start_time_ns: int,
-                  spec: ControllerSpec, locked: Sequence[LockedJoint]) -> list[tuple[int, Any]]:
+                  spec: ControllerSpec, locked: Sequence[LockedJoint]
+                  ) -> list[tuple[int, bytes]]:
     """``/joint_states`` every 1/``rate`` over the whole cycle, from the true motion; with
     the gripper joint of ``spec``'s ``gripper`` section and the robot's ``locked`` joints
-    (:func:`_locked_states`: RViz draws the fingers from them)."""
-    header_cls, time_cls, state_cls = (written_typestore().types[name] for name in (
-        "std_msgs/msg/Header", "builtin_interfaces/msg/Time", "sensor_msgs/msg/JointState"))
+    (:func:`_locked_states`: RViz draws the fingers from them): (stamp [ns], CDR bytes)."""
     step_ns = round(_NS / rate)
     times = np.arange(0, total_ns + step_ns, step_ns, dtype=np.int64)
     which = interval_index(np.asarray(starts_ns), times, len(trajs))
@@ -187,7 +187,7 @@ def _joint_states(trajs: Sequence[Trajectory], starts_ns: Sequence[int], total_n
     held = _locked_states(locked, names, spec, fingers, times.size)
     all_names = [*names, *held]
     held_q = np.column_stack([*held.values()]) if held else np.zeros((times.size, 0))
-    out: list[tuple[int, Any]] = []
+    out: list[tuple[int, bytes]] = []
     for k, traj in enumerate(trajs):
         mine = times[which == k]
         if mine.size == 0:
@@ -196,15 +196,15 @@ def _joint_states(trajs: Sequence[Trajectory], starts_ns: Sequence[int], total_n
         q, qd, _ = traj.sample(traj.t[0] + (mine - starts_ns[k]) / _NS)
         q = np.column_stack([q[:, cols], held_q[which == k]])
         qd = np.column_stack([qd[:, cols], np.zeros((mine.size, len(held)))])
-        rows = MessageFactory("rosbags").float_rows  # views of one array per field
-        for t_ns, position, velocity, effort in zip(mine.tolist(), rows(q), rows(qd),
-                                                    rows(q[:, :0]), strict=True):
-            stamp_ns = start_time_ns + t_ns
-            header = header_cls(stamp=time_cls(sec=stamp_ns // _NS, nanosec=stamp_ns % _NS),
-                                frame_id="")
-            out.append((stamp_ns, state_cls(header=header, name=all_names, position=position,
-                                            velocity=velocity, effort=effort)))
+        stamps = start_time_ns + mine
+        out.extend(zip(stamps.tolist(), joint_states_cdr(stamps, all_names, q, qd),
+                       strict=True))
     return out
+
+
+def _serialized(msg: Any, typename: str) -> bytes:
+    """The CDR bytes of a record's message (kept as bytes already, or rosbags')."""
+    return msg if isinstance(msg, bytes) else serialize(msg, typename)
 
 
 def _check_joins(trajs: Sequence[Trajectory], names: tuple[str, ...]) -> None:
@@ -246,15 +246,14 @@ def _cycle_records(trajs: Sequence[Trajectory], names: tuple[str, ...], period: 
                     records.append((t_ns, 2, GRIPPER_GOAL_TOPIC, gripper_command_goal(
                         spec, part.action, backend="rosbags")))
                 continue
-            msg = joint_trajectory(part, period=period, robot_joint_names=names,
-                                   stamp_ns=t_ns, backend="rosbags")
-            records.append((t_ns, 0, TRAJECTORY_TOPIC, msg))
+            data, last_ns = _joint_trajectory_cdr(part, period=period,
+                                                  robot_joint_names=names, stamp_ns=t_ns)
+            records.append((t_ns, 0, TRAJECTORY_TOPIC, data))
             if goals:
                 records.append((t_ns, 1, ARM_GOAL_TOPIC, follow_joint_trajectory_goal(
                     part, period=period, robot_joint_names=names, controller=spec,
                     backend="rosbags")))
-            last = msg.points[-1].time_from_start
-            clock_ns += last.sec * _NS + last.nanosec
+            clock_ns += last_ns
     return records, starts_ns, clock_ns
 
 
@@ -305,9 +304,10 @@ def write_bag(path: str | Path, trajectories: Iterable[Trajectory], *,
     if start_time_ns is None:
         start_time_ns = time.time_ns()
     if isinstance(start_time_ns, bool) or not isinstance(start_time_ns, (int, np.integer)) \
-            or start_time_ns < 0:
-        raise TrajectoryError(f"expected an integer >= 0 [ns since the epoch], got "
-                              f"{start_time_ns!r}", key="start_time_ns")
+            or not 0 <= start_time_ns < 2**31 * _NS:
+        raise TrajectoryError(f"expected an integer >= 0 [ns since the epoch] whose seconds "
+                              f"fit a ROS 2 Time (< 2^31), got {start_time_ns!r}",
+                              key="start_time_ns")
     start_time_ns = int(start_time_ns)
     if not trajs:
         raise TrajectoryError("no trajectories to write", key="trajectories")
@@ -350,7 +350,7 @@ def write_bag(path: str | Path, trajectories: Iterable[Trajectory], *,
                                                   typestore=written_typestore())
                      for topic, msgtype in types.items()}
             for time_ns, _, topic, msg in records:
-                writer.write(conns[topic], time_ns, serialize(msg, types[topic]))
+                writer.write(conns[topic], time_ns, _serialized(msg, types[topic]))
         os.rename(tmp_bag, path)
     except (WriterError, OSError) as exc:
         raise RosError(f"cannot write bag {path}: {exc}") from None

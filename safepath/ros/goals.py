@@ -36,7 +36,7 @@ from typing import Any, Literal
 
 import numpy as np
 
-from ..errors import InputError, TrajectoryError
+from ..errors import InputError, RosError, TrajectoryError
 from ..files._io import check_names
 from ..model._knots import interval_index
 from ..model.controller_spec import ControllerSpec, controller_for
@@ -45,7 +45,8 @@ from ..model.interpolation import Interpolation
 from ..model.limits import MotionLimits
 from ..model.robot import Robot
 from ..model.trajectory import GripperEvent, Trajectory
-from .messages import Backend, MessageFactory, message_factory
+from ._cdr import joint_trajectory_cdr
+from .messages import Backend, MessageFactory, message_factory, serialize
 
 __all__ = [
     "CLOSE_GRIPPER",
@@ -78,7 +79,8 @@ REST_SPEED = 1e-3
 
 _NS = 1_000_000_000
 _NIRYO = "niryo_ned_ros2_interfaces"
-_JT_TYPES = ("trajectory_msgs/msg/JointTrajectory", "trajectory_msgs/msg/JointTrajectoryPoint",
+_JT = "trajectory_msgs/msg/JointTrajectory"
+_JT_TYPES = (_JT, "trajectory_msgs/msg/JointTrajectoryPoint",
              "std_msgs/msg/Header", "builtin_interfaces/msg/Time",
              "builtin_interfaces/msg/Duration")
 
@@ -228,14 +230,20 @@ def _duration(f: MessageFactory, time_ns: int) -> Any:
     return f.new("builtin_interfaces/msg/Duration", sec=sec, nanosec=nanosec)
 
 
+def _fields(pts: _Points) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """The points' positions, velocities, accelerations and efforts as their message
+    carries them: the fields the controller's interpolation reads, no others (a
+    controller joins points carrying accelerations as quintics, whatever it was
+    configured for)."""
+    qd = pts.qd if pts.interpolation.uses_velocities else pts.qd[:, :0]
+    qdd = pts.qdd if pts.interpolation.uses_accelerations else pts.qdd[:, :0]
+    return pts.q, qd, qdd, pts.q[:, :0]
+
+
 def _build_joint_trajectory(f: MessageFactory, pts: _Points, stamp_ns: int) -> Any:
     sec, nanosec = divmod(int(stamp_ns), _NS)
     header = f.new("std_msgs/msg/Header", frame_id="",
                    stamp=f.new("builtin_interfaces/msg/Time", sec=sec, nanosec=nanosec))
-    # The fields the controller's interpolation reads, no others: a controller joins
-    # points carrying accelerations as quintics, whatever it was configured for.
-    qd = pts.qd if pts.interpolation.uses_velocities else pts.qd[:, :0]
-    qdd = pts.qdd if pts.interpolation.uses_accelerations else pts.qdd[:, :0]
     # Thousands of points per goal: the classes are looked up once, the arrays cut into
     # rows once.
     point, duration = (f.cls(name) for name in ("trajectory_msgs/msg/JointTrajectoryPoint",
@@ -244,12 +252,32 @@ def _build_joint_trajectory(f: MessageFactory, pts: _Points, stamp_ns: int) -> A
         point(positions=q, velocities=v, accelerations=a, effort=e,
               time_from_start=duration(sec=sec, nanosec=nanosec))
         for q, v, a, e, (sec, nanosec) in zip(
-            f.float_rows(pts.q), f.float_rows(qd), f.float_rows(qdd),
-            f.float_rows(pts.q[:, :0]), (divmod(int(t), _NS) for t in pts.time_ns),
-            strict=True)
+            *(f.float_rows(x) for x in _fields(pts)),
+            (divmod(int(t), _NS) for t in pts.time_ns), strict=True)
     ]
-    return f.new("trajectory_msgs/msg/JointTrajectory", header=header,
-                 joint_names=list(pts.names), points=points)
+    return f.new(_JT, header=header, joint_names=list(pts.names), points=points)
+
+
+def _joint_trajectory_cdr(traj: Trajectory, *, period: float | None,
+                          robot_joint_names: Sequence[str] | None, stamp_ns: int
+                          ) -> tuple[bytes, int]:
+    """The CDR bytes of :func:`joint_trajectory`'s rosbags message (the same bytes, its
+    points laid out at once: :mod:`._cdr`, for a bag's thousands of points), checked and
+    refused as :func:`joint_trajectory` checks and refuses, and its last point's
+    ``time_from_start`` [ns].
+
+    Raises:
+        RosError: ``stamp_ns`` past what a ROS 2 Time holds; as :func:`joint_trajectory`.
+    """
+    if not 0 <= stamp_ns < 2**31 * _NS:
+        raise RosError(f"header.stamp {stamp_ns} ns: its seconds must fit a ROS 2 Time "
+                       f"(0 .. 2^31 - 1)")
+    _refuse_events_inside(traj)
+    pts = _points(traj, period, robot_joint_names, None)
+    none = dataclasses.replace(pts, time_ns=pts.time_ns[:0], q=pts.q[:0], qd=pts.qd[:0],
+                               qdd=pts.qdd[:0])
+    prefix = serialize(_build_joint_trajectory(MessageFactory("rosbags"), none, stamp_ns), _JT)
+    return joint_trajectory_cdr(prefix, _fields(pts), pts.time_ns), int(pts.time_ns[-1])
 
 
 def joint_trajectory(traj: Trajectory, *, period: float | None = None,

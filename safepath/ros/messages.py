@@ -14,6 +14,7 @@ import array
 import functools
 import importlib
 import logging
+import struct
 from collections.abc import Iterable, Sequence
 from typing import Any, Literal
 
@@ -102,7 +103,8 @@ def serialize(message: Any, typename: str | None = None) -> bytes:
         return bytes(_store_of(name).serialize_cdr(message, name))
     except (KeyError, TypesysError) as exc:
         raise RosError(f"unknown message type '{name}' ({exc})") from None
-    except (SerdeError, AttributeError, TypeError, ValueError, OverflowError) as exc:
+    except (SerdeError, AttributeError, TypeError, ValueError, OverflowError,
+            struct.error) as exc:  # (struct: a number that does not fit its field)
         raise RosError(f"cannot serialize '{name}': {exc}") from None
 
 

@@ -149,16 +149,16 @@ def test_bad_input_leaves_nothing(tmp_path: Path) -> None:
 
 def test_failure_while_writing_removes_the_temporary_bag(tmp_path: Path,
                                                          monkeypatch: pytest.MonkeyPatch) -> None:
-    real = bag_module.serialize
+    real = bag_module.Writer.write
     calls = {"n": 0}
 
-    def failing(msg: object, typename: str | None = None) -> bytes:
+    def failing(self: object, *args: object) -> None:
         calls["n"] += 1
         if calls["n"] == 50:
             raise OSError("disk full")
-        return real(msg, typename)
+        real(self, *args)
 
-    monkeypatch.setattr(bag_module, "serialize", failing)
+    monkeypatch.setattr(bag_module.Writer, "write", failing)
     with pytest.raises(RosError, match="disk full"):
         write_bag(tmp_path / "cut", [phase1(), phase2("unsafe")])
     assert calls["n"] == 50
@@ -168,3 +168,39 @@ def test_failure_while_writing_removes_the_temporary_bag(tmp_path: Path,
 def test_read_bag_errors(tmp_path: Path) -> None:
     with pytest.raises(RosError):
         read_bag(tmp_path / "missing")
+
+
+def test_joint_states_are_the_bytes_rosbags_serialises() -> None:
+    """The cycle's ``/joint_states`` are laid out at once (``_cdr``): each is
+    byte for byte what rosbags serialises for the same ``JointState`` (names of any
+    length and count, stamps over the whole range of a ROS 2 Time)."""
+    from safepath.ros import _cdr
+    from safepath.ros.messages import serialize, written_typestore
+
+    store = written_typestore()
+    header, stamp, state = (store.types[n] for n in (
+        "std_msgs/msg/Header", "builtin_interfaces/msg/Time", "sensor_msgs/msg/JointState"))
+    rng = np.random.default_rng(4)
+    for names in (["joint_1"], ["a", "bb", "ccc", "dddd", "eeeee"], list(NED_JOINT_NAMES),
+                  [f"joint_{k}" for k in range(12)]):
+        rows = 15
+        stamps = rng.integers(0, (2**31 - 1) * 10**9, rows)
+        stamps[0] = 0
+        q, qd = rng.normal(0.0, 2.0, (rows, len(names))), rng.normal(0.0, 2.0, (rows, len(names)))
+        got = _cdr.joint_states_cdr(stamps, names, q, qd)
+        for k in range(rows):
+            msg = state(header=header(stamp=stamp(sec=int(stamps[k] // 10**9),
+                                                  nanosec=int(stamps[k] % 10**9)), frame_id=""),
+                        name=list(names), position=q[k], velocity=qd[k], effort=np.zeros(0))
+            assert got[k] == serialize(msg, "sensor_msgs/msg/JointState"), (names, k)
+
+
+def test_a_start_past_what_a_ros_time_holds_is_refused_before_writing(tmp_path: Path) -> None:
+    with pytest.raises(TrajectoryError, match="ROS 2 Time") as info:
+        write_bag(tmp_path / "late", [phase1()], start_time_ns=2**31 * 10**9)
+    assert info.value.key == "start_time_ns"
+    assert list(tmp_path.iterdir()) == []
+    # A cycle that starts in time but ends past it: its states cannot be stamped either.
+    with pytest.raises(RosError, match="ROS 2 Time"):
+        write_bag(tmp_path / "later", [phase1()], start_time_ns=2**31 * 10**9 - 10**9)
+    assert list(tmp_path.iterdir()) == []
