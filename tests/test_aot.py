@@ -174,7 +174,7 @@ def _helpers(cell: safepath.Cell) -> None:
 
     verifier = FclVerifier(robot, cell.scene)
     for m in range(len(verifier.movers)):
-        verifier._layer.poses_at(Q[:20], m)
+        verifier.poses_at(Q[:20], m)
     chain = line_chain(robot)
     args = (chain.joint_f, chain.joint_i, chain.frame_f)
     for q in Q[:20]:

@@ -168,7 +168,7 @@ class FclVerifier:
         held_ones = held_bodies(robot, scene, held)
         self._movers = bodies + held_ones
         self._env = environment_bodies(scene, held, resting)
-        self._set_pairs(allowed)
+        self._use_pairs(self._pair_list(allowed))
         self._weights = np.vstack([weights, motion_weights(
             robot.model, [b.joint for b in held_ones], [b.T for b in held_ones],
             [b.spec for b in held_ones])])
@@ -181,15 +181,11 @@ class FclVerifier:
         one (to be used in the same thread); the pairs, their weights and what each must
         keep are made anew. Judges as a new verifier does (tested)."""
         new = copy.copy(self)
-        new._set_pairs(allowed)
+        new._use_pairs(new._pair_list(allowed))
         same = np.array_equal(new._table[:, :3], self._table[:, :3])
         new._layer = (self._layer.with_clearance(new._tracked) if same
                       else new._conservative_layer(self._layer))
         return new
-
-    def _set_pairs(self, allowed: Iterable[AllowedContact]) -> None:
-        """The pairs to check and what each must keep."""
-        self._use_pairs(self._pair_list(allowed))
 
     def _use_pairs(self, table: np.ndarray) -> None:
         """Check the pairs of ``table`` (see :meth:`_pair_list`): what each must keep."""
@@ -203,8 +199,7 @@ class FclVerifier:
         self._bound_theta = np.where(depth > 0.0, 0.0, self._theta)
         self._tracked = env & (depth == 0.0)
 
-    def _thresholds(self, other: np.ndarray, env: np.ndarray, depth: np.ndarray
-                    ) -> np.ndarray:
+    def _thresholds(self, other: np.ndarray, env: np.ndarray, depth: np.ndarray) -> np.ndarray:
         """What each pair (its second body or object ``other``, whether that is an
         environment object, its allowed depth [m]) must keep: its signed distance must
         not fall below this [m] (minus the allowed depth of a contact, the object's
@@ -288,6 +283,11 @@ class FclVerifier:
         collision)."""
         bounds, poses = self._layer.bounds_at(q)
         return StateBounds(bounds, poses)
+
+    def poses_at(self, states: np.ndarray, mover: int) -> np.ndarray:
+        """Where the verifier's own kinematics place :attr:`movers` ``mover`` (its geometry
+        frame in the world, states x 3 x 4 [m]) at ``states`` [rad], off its grid."""
+        return self._layer.poses_at(states, mover)
 
     def _conservative_layer(self, like: Layer | None = None) -> Layer:
         """The layer that bounds every pair's distance from below (``_bounds``);

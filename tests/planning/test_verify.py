@@ -854,7 +854,7 @@ def test_the_layers_own_kinematics_place_the_bodies_as_pinocchio_does(
         # States off the grid (the check between samples), many at once.
         states = np.array([pin.randomConfiguration(model) for _ in range(6)])
         for m, body in enumerate(verifier.movers):
-            placed = verifier._layer.poses_at(states, m)
+            placed = verifier.poses_at(states, m)
             for q, got in zip(states, placed, strict=True):
                 pin.forwardKinematics(model, data, q)
                 want = (data.oMi[body.joint].homogeneous @ body.T)[:3]
