@@ -20,11 +20,24 @@ import numpy as np
 
 from ..errors import RosError
 
-__all__ = ["joint_states_cdr", "joint_trajectory_cdr"]
+__all__ = ["check_seconds", "joint_states_cdr", "joint_trajectory_cdr"]
 
 #: CDR, little endian (the encapsulation header).
 _HEADER = b"\x00\x01\x00\x00"
 _NS = 1_000_000_000
+
+
+def check_seconds(ns: np.ndarray | int, what: str) -> None:
+    """Refuse times [ns] whose seconds a ROS 2 Time or Duration (``int32 sec``, from 0
+    here) cannot hold.
+
+    Raises:
+        RosError: Naming ``what`` and the times' range.
+    """
+    ns = np.asarray(ns, dtype=np.int64)
+    if ns.size and not (ns.min() >= 0 and ns.max() // _NS <= np.iinfo(np.int32).max):
+        raise RosError(f"{what} from {ns.min()} to {ns.max()} ns: their seconds must fit "
+                       f"a ROS 2 Time or Duration (0 .. 2^31 - 1)")
 
 
 def _layout(names: Sequence[str], count: int) -> tuple[bytearray, int, int]:
@@ -53,7 +66,8 @@ def _layout(names: Sequence[str], count: int) -> tuple[bytearray, int, int]:
     starts = []
     for _ in range(2):  # position, velocity
         u32(count)
-        align(8)
+        if count:
+            align(8)
         starts.append(len(_HEADER) + len(out))
         out.extend(b"\x00" * (8 * count))
     u32(0)  # effort: none
@@ -72,9 +86,7 @@ def joint_states_cdr(stamps_ns: np.ndarray, names: Sequence[str], position: np.n
     """
     stamps = np.asarray(stamps_ns, dtype=np.int64)
     rows, count = len(stamps), len(names)
-    if rows and not (stamps.min() >= 0 and stamps.max() // _NS <= np.iinfo(np.int32).max):
-        raise RosError(f"/joint_states stamps from {stamps.min()} to {stamps.max()} ns: "
-                       f"their seconds must fit a ROS 2 Time (0 .. 2^31 - 1)")
+    check_seconds(stamps, "/joint_states stamps")
     template, at_position, at_velocity = _layout(names, count)
     buf = np.tile(np.frombuffer(bytes(template), dtype=np.uint8), (rows, 1))
     header = len(_HEADER)
@@ -136,9 +148,7 @@ def joint_trajectory_cdr(prefix: bytes, fields: Sequence[np.ndarray],
     header = len(_HEADER)
     if len(prefix) < header + 4 or prefix[-4:] != bytes(4) or len(prefix) % 4:
         raise RosError("the message without points must end in an empty sequence")
-    if rows and not (times.min() >= 0 and times.max() // _NS <= np.iinfo(np.int32).max):
-        raise RosError(f"time_from_start from {times.min()} to {times.max()} ns: its seconds "
-                       f"must fit a ROS 2 Duration (0 .. 2^31 - 1)")
+    check_seconds(times, "time_from_start")
     counts = [int(np.shape(f)[1]) for f in fields]
     layouts = {parity: _point_layout(parity, counts) for parity in (0, 4)}
     first = len(prefix) - header

@@ -36,7 +36,7 @@ from typing import Any, Literal
 
 import numpy as np
 
-from ..errors import InputError, RosError, TrajectoryError
+from ..errors import InputError, TrajectoryError
 from ..files._io import check_names
 from ..model._knots import interval_index
 from ..model.controller_spec import ControllerSpec, controller_for
@@ -45,7 +45,7 @@ from ..model.interpolation import Interpolation
 from ..model.limits import MotionLimits
 from ..model.robot import Robot
 from ..model.trajectory import GripperEvent, Trajectory
-from ._cdr import joint_trajectory_cdr
+from ._cdr import check_seconds, joint_trajectory_cdr
 from .messages import Backend, MessageFactory, message_factory, serialize
 
 __all__ = [
@@ -269,9 +269,7 @@ def _joint_trajectory_cdr(traj: Trajectory, *, period: float | None,
     Raises:
         RosError: ``stamp_ns`` past what a ROS 2 Time holds; as :func:`joint_trajectory`.
     """
-    if not 0 <= stamp_ns < 2**31 * _NS:
-        raise RosError(f"header.stamp {stamp_ns} ns: its seconds must fit a ROS 2 Time "
-                       f"(0 .. 2^31 - 1)")
+    check_seconds(stamp_ns, "header.stamp")
     _refuse_events_inside(traj)
     pts = _points(traj, period, robot_joint_names, None)
     none = dataclasses.replace(pts, time_ns=pts.time_ns[:0], q=pts.q[:0], qd=pts.qd[:0],
