@@ -228,10 +228,7 @@ def knots(t, tp, grid, sd, u, S1, S2, tau_a, tau_b, breaks, coef, path_s, path_s
         lo = piece_of(breaks, s)
         x = s - breaks[lo]
         for j in range(dof):
-            y, m, c2, c3 = coef[lo, 0, j], coef[lo, 1, j], coef[lo, 2, j], coef[lo, 3, j]
-            q[i, j] = y + x * (m + x * (c2 + x * c3))
-            d1 = m + x * (2.0 * c2 + 3.0 * x * c3)
-            d2 = 2.0 * c2 + 6.0 * x * c3
+            q[i, j], d1, d2 = _cubic(coef, lo, j, x)
             qd[i, j] = d1 * v
             qdd[i, j] = d2 * v * v + d1 * a
 
@@ -340,10 +337,16 @@ def jet(breaks, coef, s, q, dq, ddq):
         i = piece_of(breaks, s[k])
         t = s[k] - breaks[i]
         for j in range(coef.shape[2]):
-            y, m, c2, c3 = coef[i, 0, j], coef[i, 1, j], coef[i, 2, j], coef[i, 3, j]
-            q[k, j] = y + t * (m + t * (c2 + t * c3))
-            dq[k, j] = m + t * (2.0 * c2 + 3.0 * t * c3)
-            ddq[k, j] = 2.0 * c2 + 6.0 * t * c3
+            q[k, j], dq[k, j], ddq[k, j] = _cubic(coef, i, j, t)
+
+
+@_inlined
+def _cubic(coef, i, j, x):
+    """Value, first and second derivative of piece ``i`` of joint ``j`` of the cubic
+    pieces ``coef`` (``y + m x + c2 x^2 + c3 x^3``) at the offset ``x`` into it."""
+    y, m, c2, c3 = coef[i, 0, j], coef[i, 1, j], coef[i, 2, j], coef[i, 3, j]
+    return (y + x * (m + x * (c2 + x * c3)), m + x * (2.0 * c2 + 3.0 * x * c3),
+            2.0 * c2 + 6.0 * x * c3)
 
 
 @njit(cache=True, nogil=True)
