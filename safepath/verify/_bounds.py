@@ -457,7 +457,6 @@ class Layer:
     """Lower bounds on the distance of every checked pair, on a whole grid at once.
 
     Args:
-        model: The robot's kinematic model (joint placements and axes are read once).
         joints: Joint of each moving body.
         T_joint_geom: Geometry frame of each moving body in its joint frame (4 x 4).
         movers: Shape of each moving body.
@@ -467,16 +466,15 @@ class Layer:
             or the rows of an array).
         weights: Motion weights of each pair (:func:`pair_weights`).
         clearance: Whether each pair counts for the clearance.
-        tables: :func:`joint_tables` of ``model`` (read only; shared by the robot's
+        tables: :func:`joint_tables` of the robot's model (read only; shared by its
             verifiers).
     """
 
-    def __init__(self, model: pin.Model, joints: list[int], T_joint_geom: list[np.ndarray],
+    def __init__(self, joints: list[int], T_joint_geom: list[np.ndarray],
                  movers: list[ShapeSpec], T_world_env: list[np.ndarray],
                  env: list[ShapeSpec], pairs: list[tuple[int, int, bool]] | np.ndarray,
                  weights: np.ndarray, clearance: np.ndarray,
                  tables: tuple[np.ndarray, ...]) -> None:
-        self._model = model
         parents, place, kind, axis, iq, joint_of, upstream = tables
         self._kin = (parents, place, kind, axis, iq, np.array(joints, dtype=np.int64),
                      np.array([np.asarray(T)[:3] for T in T_joint_geom]).reshape(-1, 3, 4),

@@ -298,7 +298,7 @@ class FclVerifier:
         weights = pair_weights(self.robot.model, joints, self._weights, pairs)
         if like is not None:
             return like.with_pairs(pairs, weights, self._tracked)
-        return Layer(self.robot.model, joints, [b.T for b in self._movers],
+        return Layer(joints, [b.T for b in self._movers],
                      [b.spec for b in self._movers], [b.T for b in self._env],
                      [b.spec for b in self._env], pairs, weights, self._tracked,
                      self._joint_tables)

@@ -411,7 +411,7 @@ def _layer_of(verifier: FclVerifier) -> Layer:
     verifier makes its own."""
     model = verifier.robot.model
     movers, env, pairs = verifier.movers, verifier.environment, verifier.pairs
-    return Layer(model, [b.joint for b in movers], [b.T for b in movers],
+    return Layer([b.joint for b in movers], [b.T for b in movers],
                  [b.spec for b in movers], [b.T for b in env], [b.spec for b in env],
                  [(p.first, p.second, p.environment) for p in pairs],
                  verifier.pair_weights.copy(),  # the kernels take writeable arrays
