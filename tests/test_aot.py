@@ -139,6 +139,7 @@ def recorded() -> dict[str, list[tuple[Any, ...]]]:
     join["peaks"] = recorder("join_peaks", saved_join["peaks"])
     join["sample"] = recorder("join_sample", saved_join["sample"])
     join["ratios"] = recorder("join_ratios", saved_join["ratios"])
+    join["screen"] = recorder("join_screen", saved_join["screen"])
     try:
         for folder in (CELL, PANDA):
             cell = safepath.load_cell(folder)

@@ -152,6 +152,8 @@ ENTRIES: dict[str, Entry] = {
     "join_ratios": Entry(_JOIN, "_ratios", (F1, F2, F2, F2, FLOAT, I1, I1, F2, F2, F2, FLOAT, F1,
                                              F1, F1),
                          "void"),
+    "join_screen": Entry(_JOIN, "_screen", (F1, F2, F2, F2, FLOAT, I1, F2, F2, F2, FLOAT, F1,
+                                             F1, F1, F3), "void"),
 }
 
 #: The modules whose source the ahead-of-time module is compiled from: it is used only

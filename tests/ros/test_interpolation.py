@@ -170,6 +170,42 @@ def test_ratios_of_listed_intervals_are_those_of_the_whole_pass(interpolation) -
                                  at=np.array(bad))
 
 
+@pytest.mark.parametrize("seed", range(6))
+def test_the_quintics_whole_pass_is_the_per_interval_pass_bit_for_bit(seed: int) -> None:
+    """Every interval with ``exact_from`` runs the vectorised pass (bounds along the
+    intervals a joint at a time, blocks of 128, the exact peaks only where a bound reaches
+    the threshold): its ratios are the per-interval pass's (``at`` listing every interval)
+    bit for bit, across block ends, with screened and exact ratios mixed, knots on a
+    4 ms grid and not, non-finite points (NaN for their intervals) and several rows."""
+    rng = np.random.default_rng(seed)
+    for n in (2, 3, 128, 129, 130, 257, 300):
+        dof = int(rng.integers(1, 9))
+        t, q, qd, qdd, row, (vmax, amax, jmax) = _random_knots(
+            int(rng.integers(1 << 30)), n, dof, (1.0, 10.0, 1e3))
+        if seed % 2:
+            t = np.arange(n) * 0.004 + 0.5  # equal intervals, as the timing's knots
+        for field in (q, qd, qdd)[: seed % 4]:
+            field[int(rng.integers(n)), int(rng.integers(dof))] = (np.nan, np.inf)[seed % 2]
+        every = np.arange(n - 1)
+        middle = float(np.nanmedian(QUINTIC.ratios(t, q, qd, qdd, 1000.0, row, vmax, amax,
+                                                   jmax)[0]))
+        for exact_from in (1e-3, 0.999, middle, 1e3):
+            whole = QUINTIC.ratios(t, q, qd, qdd, 1000.0, row, vmax, amax, jmax,
+                                   exact_from=exact_from)
+            one_by_one = QUINTIC.ratios(t, q, qd, qdd, 1000.0, row, vmax, amax, jmax,
+                                        exact_from=exact_from, at=every)
+            for x, y in zip(whole, one_by_one, strict=True):
+                assert x.shape == (n - 1,)
+                assert np.array_equal(x, y, equal_nan=True)
+    # The mix happened: some ratios are bounds (screened), some exact.
+    exact = QUINTIC.ratios(t, q, qd, qdd, 1000.0, row, vmax, amax, jmax)[0]
+    screened = QUINTIC.ratios(t, q, qd, qdd, 1000.0, row, vmax, amax, jmax,
+                              exact_from=middle)[0]
+    finite = np.isfinite(exact)
+    assert np.any(screened[finite] != exact[finite])
+    assert np.any(screened[finite] == exact[finite])
+
+
 def test_a_uniform_stretch_scales_the_quintic_join_exactly() -> None:
     """What the timing's release relies on to recompute only the ratios near a limit
     after stretching its knots in time (``stretch_knots``): the join's peak speed,
