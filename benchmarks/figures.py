@@ -327,6 +327,18 @@ def _timing_quality(d: dict[str, Any]) -> list[Row]:
     ]
 
 
+def _timing_suite(d: dict[str, Any]) -> list[Row]:
+    robots = d["robots"]
+    paths = sum(v["paths"] for v in robots.values())
+    over = sum(v["overruns"] for v in robots.values())
+    worst = max(v["worst"] for v in robots.values())
+    retimed = ", ".join(f"{k} {100 * v['retimed']:.0f} %" for k, v in robots.items())
+    return [(f"randomized timing suite: random via-point paths with their own speed scales "
+             f"and TCP limits on {', '.join(robots)} ({d['problems']})",
+             f"{paths:,} paths; over a limit as executed {over} (aim 0, {_met(over == 0)}); "
+             f"worst ratio {worst:.7f}; timed more than once: {retimed}")]
+
+
 #: Results file, command that writes it, its reader (in the table's order).
 SOURCES: list[tuple[str, str, Reader]] = [
     ("collision_checks.json", "benchmarks/collision_checks.py --save", _collision_checks),
@@ -334,6 +346,8 @@ SOURCES: list[tuple[str, str, Reader]] = [
     ("plan_cycle.json", "benchmarks/plan_cycle.py --save", _plan_cycle),
     ("timing_quality.json", "benchmarks/timing_quality.py --paths 40 --save",
      _timing_quality),
+    ("timing_suite.json", "benchmarks/timing_suite.py --paths 20000 --out out/timing --save",
+     _timing_suite),
     ("panda_set.json", "benchmarks/panda_set.py --save", _panda_set),
     ("peers.json", "make bench-peers", _peers),
     ("cold_start.json", "benchmarks/cold_start.py --save", _cold_start),

@@ -17,7 +17,10 @@ overruns with the Wilson 95 % interval on their rate and the seed of each, which
 ``--paths 1 --seed S --out DIR2`` replays alone.
 
 Run: ``.venv/bin/python benchmarks/timing_suite.py [--paths 1000] [--seed 0]``, or
-``.venv/bin/python benchmarks/timing_suite.py --paths 100000 --out out/timing [--cluster auto]``.
+``.venv/bin/python benchmarks/timing_suite.py --paths 20000 --out out/timing [--cluster auto]``
+(100,000 paths on the five bundled arms; about 70 minutes on one core here). ``--save``
+writes the figures to ``benchmarks/results/timing_suite.json`` (run again on the same
+``--out`` to save a finished sweep: no seed runs twice).
 """
 
 from __future__ import annotations
@@ -52,10 +55,14 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser.add_argument("--workers", type=int, default=None,
                         help="sweep: local processes (default: the CPUs)")
     parser.add_argument("--cluster", default=None, help="sweep: 'auto' or ray://HOST:PORT")
+    parser.add_argument("--save", action="store_true",
+                        help="write the figures to benchmarks/results/timing_suite.json and "
+                             "rewrite benchmarks/results/FIGURES.md")
     args = parser.parse_args(argv)
     names = args.robots.split(",") if args.robots else robot_names()
+    load_before = os.getloadavg()[0] if hasattr(os, "getloadavg") else None
     if args.out:
-        return _sweep(args, names)
+        return _sweep(args, names, load_before)
     print(f"timing_suite: python {platform.python_version()} on {platform.machine()}, "
           f"{os.cpu_count()} cores, load average {_load()}; {args.paths} random via-point "
           f"paths per robot, seed {args.seed}")
@@ -64,23 +71,44 @@ def main(argv: Sequence[str] | None = None) -> int:
     print(header)
     print("-" * len(header))
     overruns = 0
+    robots = {}
     for name in names:
         t0 = time.perf_counter()
         outcomes = run_suite(name, args.paths, args.seed)
         seconds = time.perf_counter() - t0
-        worst = np.array([o.worst for o in outcomes])
-        runs = np.array([o.runs for o in outcomes])
-        over = int(np.sum(worst > 1.0))
+        robots[name] = _figures([o.worst for o in outcomes], [o.runs for o in outcomes])
+        over = robots[name]["overruns"]
         overruns += over
-        print(f"{name:<10} {len(outcomes):6d} {over:8d} {worst.max():11.6f} "
-              f"{runs.mean():12.2f} {np.mean(runs > 1):8.0%} {seconds:7.1f}")
+        print(f"{name:<10} {len(outcomes):6d} {over:8d} {robots[name]['worst']:11.6f} "
+              f"{robots[name]['runs']:12.2f} {robots[name]['retimed']:8.0%} {seconds:7.1f}")
     print("(overruns: paths whose quintic join exceeds a velocity, acceleration or jerk "
           "limit of their steps; worst ratio: the largest seen, <= 1 required)")
     print(f"overruns in all: {overruns}; load average at the end {_load()}")
+    if args.save:
+        _save(robots, f"seed {args.seed}, {args.paths} paths per robot", load_before)
     return 1 if overruns else 0
 
 
-def _sweep(args: argparse.Namespace, names: list[str]) -> int:
+def _figures(worst: Sequence[float], runs: Sequence[float]) -> dict[str, float | int]:
+    """One robot's figures: its paths, overruns, largest ratio, TOPP-RA runs per path and
+    the share timed more than once."""
+    w, r = np.asarray(worst, dtype=float), np.asarray(runs, dtype=float)
+    return {"paths": int(w.size), "overruns": int(np.sum(~(w <= 1.0))),
+            "worst": float(np.max(w)), "runs": float(np.mean(r)),
+            "retimed": float(np.mean(r > 1))}
+
+
+def _save(robots: dict[str, dict[str, float | int]], problems: str,
+          load_before: float | None) -> None:
+    """Write ``benchmarks/results/timing_suite.json`` (and FIGURES.md); ``problems`` says
+    which."""
+    from _results import save
+
+    figures = {"problems": problems, "robots": robots}
+    print(f"saved {save('timing_suite', figures, load_before=load_before)}")
+
+
+def _sweep(args: argparse.Namespace, names: list[str], load_before: float | None) -> int:
     """The suite as a sweep into ``--out``: the report's lines, then the overruns per robot
     with the Wilson interval on their rate and their seeds."""
     from safepath.sweeps import SweepOptions, run_sweep, wilson_interval
@@ -115,6 +143,13 @@ def _sweep(args: argparse.Namespace, names: list[str]) -> int:
               + (" ..." if len(seeds) > 20 else ""))
     print(f"overruns in all: {overruns}; ran {len(outcome.ran)} of {args.paths} seeds on "
           f"{outcome.backend}; load average at the end {_load()}")
+    if args.save:
+        results = outcome.results.values()
+        _save({name: _figures([float(r.figures[f"{name}.worst_ratio"]) for r in results],
+                              [float(r.figures[f"{name}.toppra_runs"]) for r in results])
+               for name in names},
+              f"seeds {args.seed}-{args.seed + args.paths - 1}, one path per robot each",
+              load_before)
     return 1 if overruns else 0
 
 
