@@ -398,31 +398,30 @@ def peaks(t: np.ndarray, q: np.ndarray, qd: np.ndarray, qdd: np.ndarray, rate: f
 
 def ratios(t: np.ndarray, q: np.ndarray, qd: np.ndarray, qdd: np.ndarray, rate: float,
            row: np.ndarray, vmax: np.ndarray, amax: np.ndarray, jmax: np.ndarray,
-           exact_from: float = 0.0, at: np.ndarray | None = None
-           ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+           exact_from: float = 0.0, at: np.ndarray | None = None) -> np.ndarray:
     """Per interval (those listed in ``at``, else all), the largest speed, acceleration and
     jerk ratio of the quintic join of the points to the limits of row ``row[k]`` of
-    ``vmax``, ``amax``, ``jmax``; speed and acceleration ratios below ``exact_from`` may be
-    bounds of them (see :func:`_ratios`); ``at`` is not checked (see
-    :meth:`safepath.model.interpolation.Interpolation.ratios`). Every interval with an
-    ``exact_from`` over 0: the vectorised pass (:func:`_screen`), the same ratios bit for
-    bit."""
-    kernel = compiled_kernels()["ratios"]
+    ``vmax``, ``amax``, ``jmax`` (rows of one array, (3, intervals)); speed and
+    acceleration ratios below ``exact_from`` may be bounds of them (see :func:`_ratios`);
+    ``at`` is not checked (see :meth:`safepath.model.interpolation.Interpolation.ratios`).
+    Every interval with an ``exact_from`` over 0: the vectorised pass (:func:`_screen`),
+    the same ratios bit for bit."""
     t, q, qd, qdd, vmax, amax, jmax = (np.ascontiguousarray(x, dtype=np.float64)
                                        for x in (t, q, qd, qdd, vmax, amax, jmax))
     row = np.ascontiguousarray(row, dtype=np.int64)
     if at is None and exact_from > 0.0:
-        v, a, j = np.empty(t.size - 1), np.empty(t.size - 1), np.empty(t.size - 1)
+        out = np.empty((3, max(t.size - 1, 0)))
         if t.size > 1:
             compiled_kernels()["screen"](t, q, qd, qdd, float(rate), row, vmax, amax, jmax,
-                                         float(exact_from), v, a, j,
+                                         float(exact_from), out[0], out[1], out[2],
                                          np.empty((_SCRATCH, q.shape[1], _BLOCK + 1)))
-        return v, a, j
+        return out
     at = np.arange(t.size - 1, dtype=np.int64) if at is None else \
         np.ascontiguousarray(at, dtype=np.int64)
-    v, a, j = np.empty(at.size), np.empty(at.size), np.empty(at.size)
-    kernel(t, q, qd, qdd, float(rate), at, row, vmax, amax, jmax, float(exact_from), v, a, j)
-    return v, a, j
+    out = np.empty((3, at.size))
+    compiled_kernels()["ratios"](t, q, qd, qdd, float(rate), at, row, vmax, amax, jmax,
+                                 float(exact_from), out[0], out[1], out[2])
+    return out
 
 
 def compiled_kernels() -> dict[str, Callable[..., Any]]:

@@ -136,12 +136,12 @@ class Interpolation:
     def ratios(self, t: np.ndarray, q: np.ndarray, qd: np.ndarray, qdd: np.ndarray,
                rate: float, row: np.ndarray, vmax: np.ndarray, amax: np.ndarray,
                jmax: np.ndarray, *, exact_from: float = 0.0, at: np.ndarray | None = None
-               ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+               ) -> np.ndarray:
         """Per interval, the largest speed, acceleration and jerk ratio over the joints of
         the joined motion (:meth:`peaks`) to the limits in row ``row[k]`` (N-1,) of
-        ``vmax`` [rad/s], ``amax`` [rad/s^2], ``jmax`` [rad/s^3] (rows, dof); each (N-1,),
-        NaN on every interval next to a point that is not finite (whatever the
-        interpolation's sums make of it). Compiled for quintics, in one pass.
+        ``vmax`` [rad/s], ``amax`` [rad/s^2], ``jmax`` [rad/s^3] (rows, dof): the rows of
+        one array (3, N-1), NaN on every interval next to a point that is not finite
+        (whatever the interpolation's sums make of it). Compiled for quintics, in one pass.
 
         A caller that needs the ratios only where they reach ``exact_from`` lets the
         quintic's pass skip the exact peaks below it: every ratio of ``exact_from`` or
@@ -163,16 +163,13 @@ class Interpolation:
             return ratios(t, q, qd, qdd, rate, row, vmax, amax, jmax, exact_from, at)
         peaks = self.peaks(t, q, qd, qdd, rate)
         # numpy reduces a short last axis slowly; across the long one it is ~10x faster.
-        out = tuple(np.max(np.ascontiguousarray((x / lim[row]).T), axis=0)
-                    for x, lim in zip(peaks, (vmax, amax, jmax), strict=True))
+        out = np.stack([np.max(np.ascontiguousarray((x / lim[row]).T), axis=0)
+                        for x, lim in zip(peaks, (vmax, amax, jmax), strict=True)])
         finite = np.isfinite(t) & np.isfinite(q).all(axis=1) & np.isfinite(qd).all(axis=1) \
             & np.isfinite(qdd).all(axis=1)
         if not finite.all():
-            for x in out:
-                x[~(finite[:-1] & finite[1:])] = np.nan
-        if at is not None:
-            return tuple(x[at] for x in out)  # type: ignore[return-value]
-        return out  # type: ignore[return-value]
+            out[:, ~(finite[:-1] & finite[1:])] = np.nan
+        return out if at is None else out[:, at]
 
 
 #: Position, velocity and acceleration matched at both points.

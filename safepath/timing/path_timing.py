@@ -388,8 +388,8 @@ def _time_straight(path: PathSpline, limits: PathLimits, options: TimingOptions,
     qd[0] = qd[-1] = 0.0  # at rest (not -0.0)
     qdd[0] = qdd[-1] = 0.0
     segment = np.zeros(t.size, dtype=np.int64)
-    ratios = np.array(_interval_ratios(t, q, qd, qdd, segment, limits))
-    return _Run(t, s, sd, q, qd, qdd, segment, ratios, None)
+    return _Run(t, s, sd, q, qd, qdd, segment, _interval_ratios(t, q, qd, qdd, segment, limits),
+                None)
 
 
 def _time_once(path: PathSpline, limits: PathLimits, f_acc: np.ndarray, f_x: np.ndarray,
@@ -428,8 +428,8 @@ def _time_once(path: PathSpline, limits: PathLimits, f_acc: np.ndarray, f_x: np.
     qd[0] = qd[-1] = 0.0  # at rest (not -0.0)
     qdd[0] = qdd[-1] = 0.0
     segment = interval_index(limits.s_way, s, limits.vmax_seg.shape[0])
-    ratios = np.array(_interval_ratios(t, q, qd, qdd, segment, limits))
-    return _Run(t, s, sd, q, qd, qdd, segment, ratios, sm)
+    return _Run(t, s, sd, q, qd, qdd, segment, _interval_ratios(t, q, qd, qdd, segment, limits),
+                sm)
 
 
 def _widest_window(robot: Robot, options: TimingOptions) -> float:
@@ -478,10 +478,10 @@ def _jerk_window(profile: _topp.Profile, limits: PathLimits, options: TimingOpti
 
 def _interval_ratios(t: np.ndarray, q: np.ndarray, qd: np.ndarray, qdd: np.ndarray,
                      segment: np.ndarray, limits: PathLimits, at: np.ndarray | None = None
-                     ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+                     ) -> np.ndarray:
     """Per knot interval (those in ``at``, else all), the knots' join's largest speed,
     acceleration and jerk ratio (limits of the smaller-scaled of its two knots'
-    segments)."""
+    segments), (3, intervals)."""
     seg = np.where(limits.vmax_seg[segment[:-1], 0] <= limits.vmax_seg[segment[1:], 0],
                    segment[:-1], segment[1:])
     return limits.interpolation.ratios(t, q, qd, qdd, CHECK_RATE, seg, limits.vmax_seg,
@@ -489,27 +489,25 @@ def _interval_ratios(t: np.ndarray, q: np.ndarray, qd: np.ndarray, qdd: np.ndarr
                                        exact_from=_EXACT_FROM, at=at)
 
 
-def _stretched_ratios(ratios: Sequence[np.ndarray], k: float, t: np.ndarray, q: np.ndarray,
+def _stretched_ratios(ratios: np.ndarray, k: float, t: np.ndarray, q: np.ndarray,
                       qd: np.ndarray, qdd: np.ndarray, segment: np.ndarray,
-                      limits: PathLimits) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """The interval ratios of knots ``(t, q, qd, qdd)`` that are knots of ``ratios``
-    stretched in time by ``k`` (:func:`stretch_knots`): computed again where ``ratios``
-    scaled by the stretch reach :data:`_EXACT_FROM` (or are NaN), elsewhere those scaled.
+                      limits: PathLimits) -> np.ndarray:
+    """The interval ratios (3, intervals) of knots ``(t, q, qd, qdd)`` that are knots of
+    ``ratios`` stretched in time by ``k`` (:func:`stretch_knots`), in place of ``ratios``:
+    computed again where ``ratios`` scaled by the stretch reach :data:`_EXACT_FROM` (or
+    are NaN), elsewhere those scaled.
 
     A uniform stretch scales the join exactly (its speeds by ``1/k``, accelerations by
     ``1/k^2``, jerks by ``1/k^3``), so a bound of the unstretched join's peak, scaled, is
     a bound of the stretched one's; the knots' rounding moves a peak by ~1e-11 of it, far
     inside the 1e-3 below :data:`_EXACT_FROM`, and every ratio of :data:`_EXACT_FROM` or
     more is computed from the stretched knots themselves."""
-    scaled = np.stack([np.asarray(ratios[0]) / k, np.asarray(ratios[1]) / (k * k),
-                       np.asarray(ratios[2]) / (k * k * k)])
-    top = scaled.max(axis=0)
-    at = np.flatnonzero(~(top < _EXACT_FROM))  # NaN too
+    for row, power in zip(ratios, (k, k * k, k * k * k), strict=True):
+        np.divide(row, power, out=row)
+    at = np.flatnonzero(~(ratios.max(axis=0) < _EXACT_FROM))  # NaN too
     if at.size:
-        exact = _interval_ratios(t, q, qd, qdd, segment, limits, at=at)
-        for row, values in zip(scaled, exact, strict=True):
-            row[at] = values
-    return scaled[0], scaled[1], scaled[2]
+        ratios[:, at] = _interval_ratios(t, q, qd, qdd, segment, limits, at=at)
+    return ratios
 
 
 def _tighten(f_acc: np.ndarray, f_x: np.ndarray, grid: np.ndarray, run: _Run) -> None:
@@ -546,10 +544,26 @@ def stretch_knots(t: np.ndarray, qd: np.ndarray, qdd: np.ndarray, k: float
     over ``k'``, accelerations over ``k'^2`` (their quintic join's jerks over ``k'^3``),
     where ``k'`` is ``k`` rounded up so that the knots stay a whole number of nanoseconds
     apart. Returns the new ``t, qd, qdd`` and ``k'``."""
+    stretched_ns, k = _rounded_stretch(t, k)
+    return _ns_grid(t.size, stretched_ns), qd / k, qdd / (k * k), k
+
+
+def _rounded_stretch(t: np.ndarray, k: float) -> tuple[int, float]:
+    """The knot step [ns] of evenly spaced knots ``t`` stretched by at least ``k``, and
+    the stretch that gives it (``k`` rounded up to a whole nanosecond of step)."""
     step_ns = round(float(t[1] - t[0]) * _NS) if t.size > 1 else 1
     stretched_ns = int(np.ceil(step_ns * k))
-    k = stretched_ns / step_ns
-    return _ns_grid(t.size, stretched_ns), qd / k, qdd / (k * k), k
+    return stretched_ns, stretched_ns / step_ns
+
+
+def _stretch_in_place(t: np.ndarray, qd: np.ndarray, qdd: np.ndarray, k: float) -> float:
+    """:func:`stretch_knots` into the knots' own arrays (the release's: the large arrays of
+    a long path are not allocated again); returns ``k'``."""
+    stretched_ns, k = _rounded_stretch(t, k)
+    np.divide(np.arange(t.size, dtype=np.int64) * stretched_ns, _NS, out=t)
+    np.divide(qd, k, out=qd)
+    np.divide(qdd, k * k, out=qdd)
+    return k
 
 
 def _ns_grid(n: int, step_ns: int) -> np.ndarray:
@@ -563,31 +577,33 @@ def _stretch(v_peak: float, a_peak: float, j_peak: float = 0.0) -> float:
                float(np.cbrt(j_peak / (1.0 - _SLACK))))
 
 
-def _worst(ratios: Sequence[np.ndarray], v_tcp: float) -> float:
-    """The largest of the interval ratios and the TCP's ratio; NaN if any is NaN."""
-    return float(np.max([v_tcp, *(float(np.max(r)) for r in ratios if r.size)]))
+def _worst(ratios: np.ndarray, v_tcp: float) -> float:
+    """The largest of the interval ratios (3, intervals) and the TCP's ratio; NaN if any
+    is NaN."""
+    return float(np.max(ratios, initial=v_tcp)) if ratios.size else v_tcp
 
 
 def _release(run: _Run, limits: PathLimits, options: TimingOptions, where: str,
              tcp: TcpLimits | None = None) -> TimedPiece:
     """The run stretched in time just enough that its knots' join is within every
-    limit (the TCP's speed limits too, ``tcp``), checked."""
-    t, qd, qdd = run.t, run.qd, run.qdd
+    limit (the TCP's speed limits too, ``tcp``), checked. The run's knots and ratios are
+    stretched in place: it is not used after its release."""
+    t, qd, qdd, ratios = run.t, run.qd, run.qdd, run.ratios
+    duration = float(t[-1])
 
     def tcp_ratio() -> float:
         if tcp is None:
             return 0.0
-        sd = run.sd * (float(run.t[-1]) / float(t[-1])) if t[-1] > 0 else run.sd
+        sd = run.sd * (duration / float(t[-1])) if t[-1] > 0 else run.sd
         return tcp.ratio(t, run.q, qd, qdd, run.segment, run.s, sd)
 
     # Unstretched, the released knots are the run's own: their ratios are known already.
-    ratios: Sequence[np.ndarray] = tuple(run.ratios)
     v_tcp = tcp_ratio()
     k = max(run.stretch, _stretch(v_tcp, 0.0))
     if k > 1.0:
         log.debug("timing up to %.4f %% over a limit; stretching time by %.6f",
-                  (max(float(run.ratios.max()), v_tcp) - 1) * 100, k)
-        t, qd, qdd, k = stretch_knots(t, qd, qdd, k)
+                  (max(float(ratios.max()), v_tcp) - 1) * 100, k)
+        k = _stretch_in_place(t, qd, qdd, k)
         ratios = _stretched_ratios(ratios, k, t, run.q, qd, qdd, run.segment, limits)
         v_tcp = tcp_ratio()
     worst = _worst(ratios, v_tcp)
@@ -597,7 +613,7 @@ def _release(run: _Run, limits: PathLimits, options: TimingOptions, where: str,
         if worst <= 1.0 or not worst < 1.0 + RETIME_ABOVE:
             break
         v, a, j = (float(r.max()) if r.size else 0.0 for r in ratios)
-        t, qd, qdd, more = stretch_knots(t, qd, qdd, _stretch(max(v, v_tcp), a, j))
+        more = _stretch_in_place(t, qd, qdd, _stretch(max(v, v_tcp), a, j))
         ratios = _stretched_ratios(ratios, more, t, run.q, qd, qdd, run.segment, limits)
         v_tcp = tcp_ratio()
         worst = _worst(ratios, v_tcp)
