@@ -134,6 +134,9 @@ def recorded() -> dict[str, list[tuple[Any, ...]]]:
     kernels["tighten"] = recorder("topp_tighten", saved["tighten"])
     kernels["jet"] = recorder("topp_jet", saved["jet"])
     kernels["evaluate"] = recorder("topp_evaluate", saved["evaluate"])
+    kernels["grid_peaks"] = recorder("topp_grid_peaks", saved["grid_peaks"])
+    kernels["acceleration_rows"] = recorder("topp_acceleration_rows",
+                                            saved["acceleration_rows"])
     join = _joinkernel.compiled_kernels()
     saved_join = dict(join)
     join["peaks"] = recorder("join_peaks", saved_join["peaks"])

@@ -146,6 +146,9 @@ ENTRIES: dict[str, Entry] = {
                                           F1, F1, F2, F2, F2), "void"),
     "topp_jerk_rows": Entry(_TOPP, "jerk_rows", (F1, F1, F1, F1, F2, F1, F2, F2, F2), "void"),
     "topp_jerk_shift": Entry(_TOPP, "jerk_shift", (F2, FLOAT), INT),
+    "topp_grid_peaks": Entry(_TOPP, "grid_peaks", (F1, F1, F3, F2, F1, F1, F1, F1), "void"),
+    "topp_acceleration_rows": Entry(_TOPP, "acceleration_rows", (F1, F2, F2, F2, F2, F2, F2),
+                                    "void"),
     # The peaks of a controller's quintic join (safepath.model._joinkernel).
     "join_peaks": Entry(_JOIN, "_peaks", (F1, F2, F2, F2, FLOAT, F2, F2, F2), "void"),
     "join_sample": Entry(_JOIN, "_sample", (F1, F2, F2, F2, F1, F2, F2, F2), "void"),

@@ -180,12 +180,23 @@ class _Bounds:
 
     def __init__(self, robot: Robot, path: PathSpline, s_way: np.ndarray, grid: np.ndarray,
                  dq: np.ndarray, jerk_scale: float, tcp: bool) -> None:
-        d3 = _third_derivative(path, grid)
         # Per gridpoint, the largest joint speed per path speed over its limit, and the
         # largest q''' over its share of the jerk limit: the bounds scale them (computed
         # once, whatever the scales).
-        self._v_peak = row_max(np.abs(dq) / robot.velocity_limits)
-        self._j_peak = row_max(d3 / (JERK_SPEED_SHARE * jerk_scale * robot.jerk_limits))
+        jden = JERK_SPEED_SHARE * jerk_scale * robot.jerk_limits
+        coef = getattr(path, "coefficients", None)
+        if coef is None:
+            self._v_peak = row_max(np.abs(dq) / robot.velocity_limits)
+            self._j_peak = row_max(_third_derivative(path, grid) / jden)
+        else:
+            self._v_peak, self._j_peak = np.empty(grid.size), np.empty(grid.size)
+            # (The robot's limits are read-only: a writable copy, as the kernel's
+            # signature takes.)
+            _topp.compiled_kernels()["grid_peaks"](
+                *(np.ascontiguousarray(x, dtype=np.float64)
+                  for x in (grid, path.x, coef, dq)),
+                np.array(robot.velocity_limits, dtype=np.float64), jden,
+                self._v_peak, self._j_peak)
         self._joint: tuple[np.ndarray, np.ndarray] | None = None  # (scale, its bound)
         self.rate = _tcp_rate(robot, path, s_way, grid) if tcp else None
 
@@ -220,19 +231,11 @@ class _Bounds:
 
 
 def _third_derivative(path: PathSpline, grid: np.ndarray) -> np.ndarray:
-    """``|q'''|`` at the gridpoints, the larger of the pieces' on both sides of each
-    (points, dof): read off a :class:`~safepath.timing.CubicPath`'s coefficients (the
-    gridpoints include its breakpoints), else evaluated just before and at each."""
-    coef = getattr(path, "coefficients", None)
-    if coef is None:
-        eps = 1e-9 * max(1.0, float(grid[-1]))
-        return np.maximum(np.abs(path(grid, 3)), np.abs(path(np.maximum(grid - eps, 0.0), 3)))
-    last = coef.shape[0] - 1
-    after = interval_index(path.x, grid, last + 1)
-    # A gridpoint on a breakpoint also ends the piece before it.
-    before = np.minimum(np.maximum(np.searchsorted(path.x, grid, side="left") - 1, 0), last)
-    c3 = np.abs(coef[:, 3, :])
-    return 6.0 * np.maximum(c3[after], c3[before])
+    """``|q'''|`` at the gridpoints (points, dof) of a path that does not offer its pieces'
+    coefficients (a :class:`~safepath.timing.CubicPath`'s are read off by the kernel
+    ``grid_peaks``): the larger of the values just before and at each gridpoint."""
+    eps = 1e-9 * max(1.0, float(grid[-1]))
+    return np.maximum(np.abs(path(grid, 3)), np.abs(path(np.maximum(grid - eps, 0.0), 3)))
 
 
 def tcp_limits(tcp_speeds: Sequence[float | None]) -> np.ndarray:

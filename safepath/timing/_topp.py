@@ -77,10 +77,11 @@ def acceleration_rows(grid: np.ndarray, dq: np.ndarray, ddq: np.ndarray, alim: n
         ``a, b, c`` of shape (N, 2 dof): on interval ``i``, ``|a u_i + b x_i| <= c`` row-wise
         (first the limits at ``s_i``, then those at ``s_{i+1}`` with ``x_{i+1}`` expanded).
     """
-    delta = np.diff(grid)[:, None]
-    a = np.hstack([dq[:-1], dq[1:] + 2.0 * delta * ddq[1:]])
-    b = np.hstack([ddq[:-1], ddq[1:]])
-    c = np.hstack([alim[:-1], alim[1:]])
+    grid, dq, ddq, alim = (np.ascontiguousarray(x, dtype=np.float64)
+                           for x in (grid, dq, ddq, alim))
+    shape = (grid.size - 1, 2 * dq.shape[1])
+    a, b, c = np.empty(shape), np.empty(shape), np.empty(shape)
+    compiled_kernels()["acceleration_rows"](grid, dq, ddq, alim, a, b, c)
     return a, b, c
 
 
@@ -164,5 +165,6 @@ def compiled_kernels() -> dict[str, Callable[..., Any]]:
                              tridiagonal=kernels.tridiagonal, knots=kernels.knots,
                              jerk_rows=kernels.jerk_rows, jerk_shift=kernels.jerk_shift,
                              tighten=kernels.tighten, jet=kernels.jet,
-                             evaluate=kernels.evaluate)
+                             evaluate=kernels.evaluate, grid_peaks=kernels.grid_peaks,
+                             acceleration_rows=kernels.acceleration_rows)
         return _compiled

@@ -408,3 +408,53 @@ def jerk_shift(f, dt):
         else:
             lo = mid + 1
     return lo
+
+
+@_inlined
+def _larger(x, y):
+    """``np.maximum(x, y)`` of two floats: NaN if either is."""
+    return x if (x > y or x != x) else y
+
+
+@njit(cache=True, nogil=True)
+def grid_peaks(grid, breaks, coef, dq, vlim, jden, v_peak, j_peak):  # noqa: N803
+    """Per gridpoint (increasing ``grid``): the largest ``|q'| / vlim`` over the joints
+    into ``v_peak``, and the largest ``|q'''| / jden``, ``|q'''|`` the larger of the cubic
+    pieces' (``breaks``, ``coef`` (pieces, 4, dof)) on both sides of the gridpoint (one on
+    a breakpoint also ends the piece before), into ``j_peak``: the sums of
+    :func:`safepath.timing._path_limits._third_derivative` and ``row_max``, the pieces
+    found walking along the grid. numpy's divisions (``np.true_divide``: numba's ``/``
+    tests every divisor for zero, which made this kernel three times slower)."""
+    last = coef.shape[0] - 1
+    dof = dq.shape[1]
+    k = -1  # the last break at or before the gridpoint
+    for i in range(grid.size):
+        x = grid[i]
+        while k + 1 < breaks.size and breaks[k + 1] <= x:
+            k += 1
+        after = min(max(k, 0), last)
+        before = min(max(k - 1 if (k >= 0 and breaks[k] == x) else k, 0), last)
+        v = -np.inf
+        j = -np.inf
+        for d in range(dof):
+            v = _larger(v, np.true_divide(abs(dq[i, d]), vlim[d]))
+            d3 = 6.0 * _larger(abs(coef[after, 3, d]), abs(coef[before, 3, d]))
+            j = _larger(j, np.true_divide(d3, jden[d]))
+        v_peak[i] = v
+        j_peak[i] = j
+
+
+@njit(cache=True, nogil=True)
+def acceleration_rows(grid, dq, ddq, alim, a, b, c):
+    """:func:`safepath.timing._topp.acceleration_rows` into ``a``, ``b``, ``c`` (N, 2 dof):
+    the same sums."""
+    dof = dq.shape[1]
+    for i in range(grid.size - 1):
+        delta = grid[i + 1] - grid[i]
+        for d in range(dof):
+            a[i, d] = dq[i, d]
+            a[i, dof + d] = dq[i + 1, d] + 2.0 * delta * ddq[i + 1, d]
+            b[i, d] = ddq[i, d]
+            b[i, dof + d] = ddq[i + 1, d]
+            c[i, d] = alim[i, d]
+            c[i, dof + d] = alim[i + 1, d]

@@ -611,3 +611,51 @@ def test_a_timing_that_would_take_forever_is_refused_not_made() -> None:
     assert piece.t[-1] > 0.5
     with pytest.raises(ConfigError, match="max_duration"):
         TimingOptions(max_duration=0.0)
+
+
+@pytest.mark.parametrize("blend", ["g2", "gap"])
+def test_the_gridpoints_peaks_are_numpys_bit_for_bit(blend: str) -> None:
+    """The compiled per-gridpoint peaks of the path limits (``grid_peaks``): the largest
+    ``|q'| / v_max`` and the largest ``|q'''| / j`` over the joints, ``|q'''|`` the larger
+    of the cubic pieces' on both sides of a gridpoint (one on a breakpoint ends the piece
+    before it too), give numpy's values bit for bit, on TOPP-RA's own grids."""
+    rng = np.random.default_rng(21)
+    kernel = _topp.compiled_kernels()["grid_peaks"]
+    for trial in range(12):
+        dof = int(rng.integers(2, 8))
+        points = rng.uniform(-2.0, 2.0, (int(rng.integers(2, 6)), dof))
+        corners = [(k, 0.2) for k in range(1, len(points) - 1)]
+        path, s_way, _ = spline_path(points, 0.06, corners=corners, blend=blend)
+        grid = _path_limits.gridpoints(path.x, s_way, 0.005,
+                                       _path_limits.straight_pieces(path))
+        dq = path(grid, 1)
+        vmax, jden = rng.uniform(0.5, 3.0, dof), rng.uniform(10.0, 500.0, dof)
+        coef = path.coefficients
+        last = coef.shape[0] - 1
+        after = np.minimum(np.maximum(np.searchsorted(path.x, grid, side="right") - 1, 0),
+                           last)
+        before = np.minimum(np.maximum(np.searchsorted(path.x, grid, side="left") - 1, 0),
+                            last)
+        c3 = np.abs(coef[:, 3, :])
+        want_v = np.max(np.abs(dq) / vmax, axis=1)
+        want_j = np.max(6.0 * np.maximum(c3[after], c3[before]) / jden, axis=1)
+        assert np.isin(path.x, grid).all()  # breakpoints among the gridpoints
+        v, j = np.empty(grid.size), np.empty(grid.size)
+        kernel(grid, path.x, np.ascontiguousarray(coef), np.ascontiguousarray(dq), vmax, jden,
+               v, j)
+        assert v.tobytes() == want_v.tobytes() and j.tobytes() == want_j.tobytes(), trial
+
+
+def test_topp_ras_rows_are_the_limits_at_both_ends_of_each_interval() -> None:
+    """``acceleration_rows``: on interval ``i``, the limits at ``s_i`` then those at
+    ``s_{i+1}`` with ``x_{i+1} = x_i + 2 delta u_i`` expanded, bit for bit the stacked
+    numpy sums."""
+    rng = np.random.default_rng(5)
+    n, dof = 400, 6
+    grid = np.concatenate([[0.0], np.cumsum(rng.uniform(0.001, 0.005, n - 1))])
+    dq, ddq, alim = (rng.normal(0.0, 1.0, (n, dof)) for _ in range(3))
+    a, b, c = _topp.acceleration_rows(grid, dq, ddq, alim)
+    delta = np.diff(grid)[:, None]
+    for got, want in ((a, np.hstack([dq[:-1], dq[1:] + 2.0 * delta * ddq[1:]])),
+                      (b, np.hstack([ddq[:-1], ddq[1:]])), (c, np.hstack([alim[:-1], alim[1:]]))):
+        assert got.shape == (n - 1, 2 * dof) and got.tobytes() == want.tobytes()
