@@ -47,10 +47,18 @@ def _coefficients(q, qd, qdd, k, d, h, i3, i4, i5):
     velocity and acceleration of points ``k`` and ``k + 1`` of joint ``d`` (``h`` the
     interval's length, ``i3``, ``i4``, ``i5`` its inverse third, fourth and fifth
     powers: :func:`_inverse_powers`)."""
-    v0, acc0 = qd[k, d], qdd[k, d]
-    dp = q[k + 1, d] - q[k, d] - v0 * h - acc0 * h * h / 2.0
-    dv = qd[k + 1, d] - v0 - acc0 * h
-    da = qdd[k + 1, d] - acc0
+    return _quintic(q[k, d], q[k + 1, d], qd[k, d], qd[k + 1, d], qdd[k, d], qdd[k + 1, d],
+                    h, i3, i4, i5)
+
+
+@njit(cache=True, nogil=True, _nrt=False, inline="always")
+def _quintic(p0, p1, v0, v1, acc0, acc1, h, i3, i4, i5):
+    """``c1 .. c5`` of the quintic ``p0 + c1 t + ... + c5 t^5`` from position, velocity
+    and acceleration ``p0, v0, acc0`` at 0 and ``p1, v1, acc1`` at ``h`` (``i3``, ``i4``,
+    ``i5``: the inverse third, fourth and fifth powers of ``h``)."""
+    dp = p1 - p0 - v0 * h - acc0 * h * h / 2.0
+    dv = v1 - v0 - acc0 * h
+    da = acc1 - acc0
     c3 = (10.0 * dp - 4.0 * dv * h + da * h * h / 2.0) * i3
     c4 = (-15.0 * dp + 7.0 * dv * h - da * h * h) * i4
     c5 = (6.0 * dp - 3.0 * dv * h + da * h * h / 2.0) * i5
@@ -171,6 +179,18 @@ _SCREEN_MARGIN = 1.0 + 1e-9
 
 
 @njit(cache=True, nogil=True, _nrt=False, inline="always")
+def _cheap_bounds(c1, v1, a0, a1, j0, j1, jp, h, dt):
+    """Bounds of the quintic's |v| and |a| on ``[0, h]`` (see :func:`_screened_peaks`):
+    the largest Bernstein coefficients of its speed plus ``jp dt^2 / 8`` (``dt`` the
+    speed's sample spacing, :func:`_speed_bound`), and of its acceleration, from its ends
+    (:func:`_ends`) and peak |j| ``jp``."""
+    ap = max(max(abs(a0), abs(a1)), max(abs(a0 + j0 * h / 3.0), abs(a1 - j1 * h / 3.0)))
+    vp = max(max(abs(c1), abs(v1)), max(abs(c1 + a0 * h / 4.0), abs(v1 - a1 * h / 4.0)),
+             abs(c1 + a0 * h / 2.0 + j0 * h * h / 12.0)) + jp * dt * dt / 8.0
+    return vp, ap
+
+
+@njit(cache=True, nogil=True, _nrt=False, inline="always")
 def _screened_peaks(c1, c2, c3, c4, c5, h, m, v_below, a_below):
     """The quintic's speed bound, peak |a| and peak |j| on ``[0, h]`` as
     :func:`_interval_peaks` gives them, except that a speed or acceleration whose cheap
@@ -183,10 +203,7 @@ def _screened_peaks(c1, c2, c3, c4, c5, h, m, v_below, a_below):
     the sampled bound of :func:`_speed_bound` too."""
     v1, a0, a1, j0, j1 = _ends(c1, c2, c3, c4, c5, h)
     jp = _jerk_peak(c3, c4, c5, h, j0, j1)
-    ap = max(max(abs(a0), abs(a1)), max(abs(a0 + j0 * h / 3.0), abs(a1 - j1 * h / 3.0)))
-    dt = h / (m - 1)
-    vp = max(max(abs(c1), abs(v1)), max(abs(c1 + a0 * h / 4.0), abs(v1 - a1 * h / 4.0)),
-             abs(c1 + a0 * h / 2.0 + j0 * h * h / 12.0)) + jp * dt * dt / 8.0
+    vp, ap = _cheap_bounds(c1, v1, a0, a1, j0, j1, jp, h, h / (m - 1))
     a_exact = not ap * _SCREEN_MARGIN < a_below
     v_exact = not vp * _SCREEN_MARGIN < v_below
     if a_exact or v_exact:
@@ -249,24 +266,17 @@ def _screen_joint(t, k0, n, q, qd, qdd, vl, al, rate, exact_from, rv, ra, rj, jl
         i1 = np.true_divide(1.0, h)
         i3 = i1 * i1 * i1
         i4, i5 = i3 * i1, i3 * i1 * i1
-        v0, acc0 = qd[k], qdd[k]
-        dp = q[k + 1] - q[k] - v0 * h - acc0 * h * h / 2.0
-        dv = qd[k + 1] - v0 - acc0 * h
-        da = qdd[k + 1] - acc0
-        c3 = (10.0 * dp - 4.0 * dv * h + da * h * h / 2.0) * i3
-        c4 = (-15.0 * dp + 7.0 * dv * h - da * h * h) * i4
-        c5 = (6.0 * dp - 3.0 * dv * h + da * h * h / 2.0) * i5
-        c1, c2 = v0, acc0 / 2.0
+        c1, c2, c3, c4, c5 = _quintic(q[k], q[k + 1], qd[k], qd[k + 1], qdd[k], qdd[k + 1],
+                                      h, i3, i4, i5)
         v1, a0, a1, j0, j1 = _ends(c1, c2, c3, c4, c5, h)
+        # _jerk_peak's vertex, chosen without a branch.
         jp = max(abs(j0), abs(j1))
         tv = np.true_divide(-24.0 * c4, 120.0 * c5)
         jv = abs(6.0 * c3 + tv * (24.0 * c4 + 60.0 * c5 * tv))
         if c5 != 0.0 and 0.0 < tv and tv < h and jv > jp:
             jp = jv
-        ap = max(max(abs(a0), abs(a1)), max(abs(a0 + j0 * h / 3.0), abs(a1 - j1 * h / 3.0)))
-        dt = np.true_divide(h, float(m - 1))
-        vp = max(max(abs(c1), abs(v1)), max(abs(c1 + a0 * h / 4.0), abs(v1 - a1 * h / 4.0)),
-                 abs(c1 + a0 * h / 2.0 + j0 * h * h / 12.0)) + jp * dt * dt / 8.0
+        vp, ap = _cheap_bounds(c1, v1, a0, a1, j0, j1, jp, h,
+                               np.true_divide(h, float(m - 1)))
         screened = vp * _SCREEN_MARGIN < exact_from * vl[k] and \
             ap * _SCREEN_MARGIN < exact_from * al[k]
         flag[k] = 0.0 if screened else 1.0

@@ -13,7 +13,7 @@ from __future__ import annotations
 import numpy as np
 
 from .._aot import njit
-from ..model._joinkernel import piece_of
+from ..model._joinkernel import _larger, piece_of
 
 __all__ = ["backward", "forward", "jerk_rows", "jerk_shift", "knots", "tridiagonal"]
 
@@ -410,20 +410,13 @@ def jerk_shift(f, dt):
     return lo
 
 
-@_inlined
-def _larger(x, y):
-    """``np.maximum(x, y)`` of two floats: NaN if either is."""
-    return x if (x > y or x != x) else y
-
-
 @njit(cache=True, nogil=True)
 def grid_peaks(grid, breaks, coef, dq, vlim, jden, v_peak, j_peak):  # noqa: N803
     """Per gridpoint (increasing ``grid``): the largest ``|q'| / vlim`` over the joints
     into ``v_peak``, and the largest ``|q'''| / jden``, ``|q'''|`` the larger of the cubic
     pieces' (``breaks``, ``coef`` (pieces, 4, dof)) on both sides of the gridpoint (one on
-    a breakpoint also ends the piece before), into ``j_peak``: the sums of
-    :func:`safepath.timing._path_limits._third_derivative` and ``row_max``, the pieces
-    found walking along the grid."""
+    a breakpoint also ends the piece before), into ``j_peak``; the pieces found walking
+    along the grid. NaN where a value is (as numpy's ``max``)."""
     last = coef.shape[0] - 1
     dof = dq.shape[1]
     k = -1  # the last break at or before the gridpoint

@@ -163,11 +163,8 @@ def _row_times(a0: float, a1: float, a2: float, a3: float, M: Pose
 
 @_step
 def _times(T: np.ndarray, M: Pose) -> Pose:
-    """The pose ``T`` (a 3 x 4 array) times the pose ``M``."""
-    r00, r01, r02, t0 = _row_times(T[0, 0], T[0, 1], T[0, 2], T[0, 3], M)
-    r10, r11, r12, t1 = _row_times(T[1, 0], T[1, 1], T[1, 2], T[1, 3], M)
-    r20, r21, r22, t2 = _row_times(T[2, 0], T[2, 1], T[2, 2], T[2, 3], M)
-    return Pose(r00, r01, r02, t0, r10, r11, r12, t1, r20, r21, r22, t2)
+    """The pose ``T`` (a 3 x 4 array) times the pose ``M`` (:func:`_times_pose`)."""
+    return _times_pose(_pose_of(T), M)
 
 
 @_step
@@ -256,8 +253,7 @@ def body_poses(states: np.ndarray, kin: tuple, m: int, out: np.ndarray) -> None:
 
 @_step
 def _times_pose(A: Pose, M: Pose) -> Pose:
-    """The pose ``A`` times the pose ``M`` (both in locals): as :func:`_times` multiplies
-    an array's pose, the same operations."""
+    """The pose ``A`` times the pose ``M`` (both in locals)."""
     r00, r01, r02, t0 = _row_times(A.r00, A.r01, A.r02, A.t0, M)
     r10, r11, r12, t1 = _row_times(A.r10, A.r11, A.r12, A.t1, M)
     r20, r21, r22, t2 = _row_times(A.r20, A.r21, A.r22, A.t2, M)
