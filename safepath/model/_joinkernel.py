@@ -247,25 +247,24 @@ def _ratios(t: np.ndarray, q: np.ndarray, qd: np.ndarray, qdd: np.ndarray, rate:
         v_out[i], a_out[i], j_out[i] = rv, ra, rj
 
 
-#: Intervals the screening pass (:func:`_screen`) takes at a time: their points, limits and
-#: ratios fit its scratch (:data:`_SCRATCH` rows of ``(dof, _BLOCK + 1)``, under 100 kB).
+#: Intervals the screening pass (:func:`_screen`) takes at a time: their points, limits,
+#: lengths and ratios fit its scratch (:data:`_SCRATCH` rows of ``(dof, _BLOCK + 1)``,
+#: about 110 kB for seven joints).
 _BLOCK = 128
-_SCRATCH = 10
+_SCRATCH = 15
 
 
 @njit(cache=True, nogil=True, _nrt=False, inline="always")
-def _screen_joint(t, k0, n, q, qd, qdd, vl, al, rate, exact_from, rv, ra, rj, jl, flag):
-    """The cheap bounds' speed and acceleration ratios and the jerk ratio of intervals
-    ``k0 .. k0 + n`` of one joint, from its points ``q, qd, qdd`` (from point ``k0``) and
-    the intervals' limits (from ``k0``), into ``rv, ra, rj``; ``flag`` 1.0 where a bound
-    may not stand in for the peak (:func:`_screened_peaks`), else 0.0. One straight loop
-    that the compiler vectorises: numpy's divisions (``np.true_divide``, no zero test)."""
+def _screen_joint(n, q, qd, qdd, vl, al, hs, i3s, i4s, i5s, dts, exact_from, rv, ra, rj, jl,
+                  flag):
+    """The cheap bounds' speed and acceleration ratios and the jerk ratio of ``n``
+    intervals of one joint, from its points ``q, qd, qdd``, the intervals' limits and their
+    lengths ``hs``, inverse powers ``i3s, i4s, i5s`` and speed sample spacings ``dts``
+    (:func:`_interval_terms`), into ``rv, ra, rj``; ``flag`` 1.0 where a bound may not
+    stand in for the peak (:func:`_screened_peaks`), else 0.0. One straight loop that the
+    compiler vectorises: numpy's divisions (``np.true_divide``, no zero test)."""
     for k in range(n):
-        h = t[k0 + k + 1] - t[k0 + k]
-        m = max(4, int(math.ceil(h * rate)) + 1)
-        i1 = np.true_divide(1.0, h)
-        i3 = i1 * i1 * i1
-        i4, i5 = i3 * i1, i3 * i1 * i1
+        h, i3, i4, i5 = hs[k], i3s[k], i4s[k], i5s[k]
         c1, c2, c3, c4, c5 = _quintic(q[k], q[k + 1], qd[k], qd[k + 1], qdd[k], qdd[k + 1],
                                       h, i3, i4, i5)
         v1, a0, a1, j0, j1 = _ends(c1, c2, c3, c4, c5, h)
@@ -275,8 +274,7 @@ def _screen_joint(t, k0, n, q, qd, qdd, vl, al, rate, exact_from, rv, ra, rj, jl
         jv = abs(6.0 * c3 + tv * (24.0 * c4 + 60.0 * c5 * tv))
         if c5 != 0.0 and 0.0 < tv and tv < h and jv > jp:
             jp = jv
-        vp, ap = _cheap_bounds(c1, v1, a0, a1, j0, j1, jp, h,
-                               np.true_divide(h, float(m - 1)))
+        vp, ap = _cheap_bounds(c1, v1, a0, a1, j0, j1, jp, h, dts[k])
         screened = vp * _SCREEN_MARGIN < exact_from * vl[k] and \
             ap * _SCREEN_MARGIN < exact_from * al[k]
         flag[k] = 0.0 if screened else 1.0
@@ -285,18 +283,38 @@ def _screen_joint(t, k0, n, q, qd, qdd, vl, al, rate, exact_from, rv, ra, rj, jl
         rj[k] = np.true_divide(jp, jl[k])
 
 
+@njit(cache=True, nogil=True, _nrt=False, inline="always")
+def _interval_terms(t, k0, n, rate, scratch):
+    """Of intervals ``k0 .. k0 + n``, what every joint's bounds use (:func:`_screen_joint`),
+    into ``scratch`` rows 10-14 (of joint 0): the lengths ``h``, ``1 / h^3``, ``1 / h^4``,
+    ``1 / h^5`` and the spacing of ``m`` speed samples (:func:`_interval_peaks`), once per
+    interval rather than per joint."""
+    for k in range(n):
+        h = t[k0 + k + 1] - t[k0 + k]
+        m = max(4, int(math.ceil(h * rate)) + 1)
+        i1 = np.true_divide(1.0, h)
+        i3 = i1 * i1 * i1
+        scratch[10, 0, k] = h
+        scratch[11, 0, k] = i3
+        scratch[12, 0, k] = i3 * i1
+        scratch[13, 0, k] = i3 * i1 * i1
+        scratch[14, 0, k] = np.true_divide(h, float(m - 1))
+
+
 def _screen(t: np.ndarray, q: np.ndarray, qd: np.ndarray, qdd: np.ndarray, rate: float,
             row: np.ndarray, vmax: np.ndarray, amax: np.ndarray, jmax: np.ndarray,
             exact_from: float, v_out: np.ndarray, a_out: np.ndarray, j_out: np.ndarray,
             scratch: np.ndarray) -> None:
     """:func:`_ratios` of every interval, bit for bit, faster: :data:`_BLOCK` intervals at
     a time, their points and limits transposed into ``scratch`` (:data:`_SCRATCH`, dof,
-    ``_BLOCK + 1``), each joint's bounds along the intervals in one vectorised loop
+    ``_BLOCK + 1``) beside their lengths' terms (:func:`_interval_terms`), each joint's
+    bounds along the intervals in one vectorised loop
     (:func:`_screen_joint`), then, where a bound may not stand in, the peaks of
     :func:`_ratios` (:func:`_screened_peaks`), and the largest ratio over the joints."""
     n_all, dof = t.size - 1, q.shape[1]
     for k0 in range(0, n_all, _BLOCK):
         n = min(_BLOCK, n_all - k0)
+        _interval_terms(t, k0, n, rate, scratch)
         for d in range(dof):
             for k in range(n + 1):
                 scratch[0, d, k] = q[k0 + k, d]
@@ -307,8 +325,9 @@ def _screen(t: np.ndarray, q: np.ndarray, qd: np.ndarray, qdd: np.ndarray, rate:
                 scratch[3, d, k] = vmax[r, d]
                 scratch[4, d, k] = amax[r, d]
                 scratch[5, d, k] = jmax[r, d]
-            _screen_joint(t, k0, n, scratch[0, d], scratch[1, d], scratch[2, d],
-                          scratch[3, d], scratch[4, d], rate, exact_from, scratch[6, d],
+            _screen_joint(n, scratch[0, d], scratch[1, d], scratch[2, d], scratch[3, d],
+                          scratch[4, d], scratch[10, 0], scratch[11, 0], scratch[12, 0],
+                          scratch[13, 0], scratch[14, 0], exact_from, scratch[6, d],
                           scratch[7, d], scratch[8, d], scratch[5, d], scratch[9, d])
         for d in range(dof):  # the exact peaks where a bound may not stand in
             for k in range(n):
