@@ -226,7 +226,8 @@ class Monitor:
             self._spheres[held] = RobotSpheres.build(self.cell.robot, self.cell.scene, held,
                                                      cell=self.options.sphere_cell)
         self._path = MonitoredPath(traj, self.cell.robot)
-        self._sweep = PathSweep.build(self.cell.robot, self._spheres[held], traj.t, traj.q,
+        tau, q = self._path.knots[:2]
+        self._sweep = PathSweep.build(self.cell.robot, self._spheres[held], tau, q,
                                       spacing=self.options.sweep_spacing)
         # The goal is the motion as verified, from ``start`` on: followed with no lead,
         # the path parameter at monitor time t is exactly t - start (a motion starts at

@@ -1,6 +1,7 @@
 """Path-consistent re-timing: the same knots, a new speed along them.
 
-The path is the knots of a verified trajectory, parametrised by its own time ``tau``.
+The path is the knots of a verified trajectory, parametrised by its own time ``tau``
+(with states of their join between knots more than :data:`FINE_ABOVE` x 4 ms apart).
 A :class:`Timing` is a new speed profile ``r = dtau/dt`` in [0, 1] along it (1: the
 verified timing), built by the greedy pass of :func:`safepath.monitor._kernels.march`:
 toward a speed scale as fast as the joint acceleration limits allow, or braking as hard
@@ -176,6 +177,9 @@ JERK_SHARE = 0.25
 #: replacement keeps the path's spacing, so that where it follows the verified timing its
 #: knots are the path's own and the controller's join is the verified one exactly.
 KNOT_NS = 4_000_000
+#: Knots further apart than this many :data:`KNOT_NS` get states of their join between
+#: them in the knots profiles march over (:func:`_fine_knots`).
+FINE_ABOVE = 1.25
 
 
 class MonitoredPath:
@@ -205,11 +209,19 @@ class MonitoredPath:
             steps[0] <= 2 * KNOT_NS / 1e9 else KNOT_NS / 1e9
         self.width = max(3 * KNOT_NS / 1e9, float(np.max(
             BRAKE_SCALE * robot.acceleration_limits / (JERK_SHARE * robot.jerk_limits))))
+        self._knots = _fine_knots(traj)
 
     @property
     def end(self) -> float:
         """Path parameter of the last knot [s]."""
         return float(self.traj.t[-1])
+
+    @property
+    def knots(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """The knots profiles march over (:meth:`grid`): path parameters, positions,
+        velocities and accelerations; the trajectory's own, with states of their join
+        between those more than :data:`FINE_ABOVE` knot spacings apart."""
+        return self._knots
 
     def states(self, tau: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Positions, velocities and accelerations of the verified trajectory at path
@@ -226,13 +238,13 @@ class MonitoredPath:
 
     def grid(self, tau0: float) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         """Knots from ``tau0`` on: (tau, q, Q', Q''); the first is the state at ``tau0``."""
-        tr = self.traj
-        tau0 = min(max(float(tau0), float(tr.t[0])), float(tr.t[-1]))
-        k = int(np.searchsorted(tr.t, tau0 + 1e-9, side="right"))
+        t, q, qd, qdd = self.knots
+        tau0 = min(max(float(tau0), float(t[0])), float(t[-1]))
+        k = int(np.searchsorted(t, tau0 + 1e-9, side="right"))
         q0, qd0, qdd0 = self.sample(tau0)
-        tau = np.concatenate([[tau0], tr.t[k:]])
-        return (tau, np.vstack([q0, tr.q[k:]]), np.vstack([qd0, tr.qd[k:]]),
-                np.vstack([qdd0, tr.qdd[k:]]))
+        tau = np.concatenate([[tau0], t[k:]])
+        return (tau, np.vstack([q0, q[k:]]), np.vstack([qd0, qd[k:]]),
+                np.vstack([qdd0, qdd[k:]]))
 
     def march(self, start: float, tau0: float, r0: float, scale: float, brake_after: float,
               *, limit: int | None = None, before: Timing | None = None,
@@ -467,6 +479,27 @@ class MonitoredPath:
         return Trajectory(tr.joint_names, t, q, v, a, tr.step_index[knot],
                           tr.steps, (), tr.robot, tr.route, info, self.robot.motion_limits,
                           tr.interpolation)
+
+
+def _fine_knots(traj: Trajectory) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """The knots profiles march over (:meth:`MonitoredPath.grid`): the trajectory's own,
+    and where two lie more than :data:`FINE_ABOVE` knot spacings apart, states of their
+    join between them, evenly, at most :data:`KNOT_NS` apart (the same motion: a
+    profile's braking is only as fine as the knots it is marched over)."""
+    t = np.asarray(traj.t, dtype=float)
+    parts = np.ones(max(t.size - 1, 0), dtype=np.int64)
+    steps = np.diff(t)
+    wide = steps > FINE_ABOVE * KNOT_NS / 1e9
+    if not np.any(wide):
+        return t, traj.q, traj.qd, traj.qdd
+    parts[wide] = np.ceil(steps[wide] / (KNOT_NS / 1e9) - 1e-9).astype(np.int64)
+    first = np.concatenate([[0], np.cumsum(parts)])  # each knot's index among the fine
+    fine = np.repeat(t[:-1], parts) + (np.arange(int(first[-1])) - np.repeat(
+        first[:-1], parts)) * np.repeat(steps / parts, parts)
+    fine = np.append(fine, t[-1])
+    q, qd, qdd = traj.interpolation.states(t, traj.q, traj.qd, traj.qdd, fine)
+    q[first], qd[first], qdd[first] = traj.q, traj.qd, traj.qdd  # its own knots exactly
+    return fine, q, qd, qdd
 
 
 class _Earliest:

@@ -11,10 +11,12 @@ import numpy as np
 import pytest
 from quintic_join import quintic_peaks as _quintic_peaks
 
-from safepath import Cell, SafepathError, Trajectory
+from safepath import Cell, PlanOptions, SafepathError, Trajectory, load_routes, plan_cell
+from safepath.monitor.profile import KNOT_NS
 from safepath.monitor.replan import replan
 from safepath.monitor.simulation import FclSeparation, MovingSphere, SimResult, simulate
 from safepath.ros import split_at_gripper_events
+from safepath.timing import TimingOptions
 from safepath.verify import FclVerifier
 
 from .conftest import CAMERA, Phase1, make_monitor
@@ -73,6 +75,35 @@ def test_approach_slows_stops_keeps_separation_and_resumes(cell: Cell, phase1: P
     path = np.vstack([m.q for m, _ in phase1.motions])
     gaps = [np.min(np.max(np.abs(path - q), axis=1)) for q in res.q[::25]]
     assert max(gaps) < 0.02
+
+
+@pytest.mark.parametrize("knot_period", [0.006, 0.01])
+def test_knots_further_apart_are_followed_as_finely(cell: Cell, knot_period: float) -> None:
+    """A motion timed with knots further apart than 4 ms (``TimingOptions.knot_period``)
+    is assessed and re-timed as finely: the profiles march over states of its join
+    between its knots. Marched over its own knots, the bundled cell's phase 1 timed at
+    6 ms was slowed, and at 10 ms stopped, at the first decision, the body 1 m away."""
+    routes = load_routes(cell.folder / "routes.yaml", poses=list(cell.poses),
+                         objects=list(cell.scene.objects))
+    options = PlanOptions(timing=TimingOptions(knot_period=knot_period))
+    traj = plan_cell(cell, options, routes={"phase1": routes["phase1"]})["phase1"]
+    assert np.diff(traj.t).min() > 1.25 * KNOT_NS / 1e9
+    parts = [m for m in split_at_gripper_events(traj) if isinstance(m, Trajectory)]
+    motions = [(parts[0], "vial"), (parts[1], None)]
+    monitor = make_monitor(cell, hold_time=0.5)
+    speed, travel = 0.8, 1.0
+    t_stop = 0.2 + travel / speed
+    obstacle = MovingSphere.approach(TARGET + [travel, 0.0, 0.0], TARGET, speed, 0.2, t_stop,
+                                     leave_at=t_stop + 1.0)
+    res = simulate(monitor, motions, obstacle, sensor="cam", sensor_pose=CAMERA,
+                   until=t_stop + 1.0 + travel / speed + 20.0)
+    kinds = [d.kind for d in res.decisions]
+    first_stop = kinds.index("stop")
+    assert kinds[:2] == ["continue", "continue"], kinds[:5]
+    assert _true_separation(cell, res, obstacle.radius).min() >= monitor.options.min_separation
+    _check_replacements(cell, res)
+    assert "resume" in kinds[first_stop:]
+    np.testing.assert_allclose(res.q[-1], parts[-1].q[-1], atol=1e-9)
 
 
 def test_scan_sees_the_obstacle_too(cell: Cell, phase1: Phase1) -> None:
