@@ -163,8 +163,10 @@ def _switches(d: dict[str, Any]) -> list[Row]:
 def _stop_search(d: dict[str, Any]) -> list[Row]:
     sources = d["sources"]
     forced = sum(f["forced"] for f in sources.values())
+    knots = "" if d.get("knot_period") is None else \
+        f", motions timed with knots {d['knot_period'] * 1e3:g} ms apart"
     return [(f"monitor stops from random instants, braking and speeding up ({d['stops']} "
-             f"stops on {len(sources)} cells and robots, seed {d['seed']})",
+             f"stops on {len(sources)} cells and robots, seed {d['seed']}{knots})",
              f"beyond a limit as executed {d['over_limit']} (aim 0, "
              f"{_met(d['over_limit'] == 0)}); worst ratio {d['worst_ratio']:.7f}; "
              f"{forced} needed the fall-back search")]

@@ -44,15 +44,17 @@ CELLS = ("quality_check_cell", "pouring_cell")
 ROBOTS = ("ned3pro", "panda", "ur5", "gen3", "gen3_lite")
 
 
-def motions(source: str, seed: int, paths: int):  # noqa: ANN201
+def motions(source: str, seed: int, paths: int, knot_period: float | None = None
+            ):  # noqa: ANN201
     """The robot and the motions of ``source``: a cell's routes, or ``paths`` random
-    via-point paths on a robot."""
+    via-point paths on a robot (knots ``knot_period`` [s] apart, default the timing's)."""
     if source in CELLS:
-        return cell_motions(source)
+        return cell_motions(source, knot_period)
     from safepath.description.robot_folder import load_robot
 
     robot = load_robot(source)
-    return robot, [via_point_motion(robot, path_rng(seed, source, p)) for p in range(paths)]
+    return robot, [via_point_motion(robot, path_rng(seed, source, p), knot_period)
+                   for p in range(paths)]
 
 
 def main() -> None:
@@ -65,13 +67,16 @@ def main() -> None:
     parser.add_argument("--bags", default=None, help="write forced stops' chains here")
     parser.add_argument("--late", type=float, default=None,
                         help="chains start in the motions' last LATE seconds")
+    parser.add_argument("--knot-period", type=float, default=None,
+                        help="time the motions with knots this far apart [s] "
+                             "(TimingOptions.knot_period; default the timing's)")
     parser.add_argument("--save", action="store_true",
                         help="write benchmarks/results/stop_search.json")
     args = parser.parse_args()
     load_before = os.getloadavg()[0]
     if args.only:
         source, motion, chain = args.only.split(":")
-        robot, trajs = motions(source, args.seed, int(motion) + 1)
+        robot, trajs = motions(source, args.seed, int(motion) + 1, args.knot_period)
         stops, _ = random_chain(trajs[int(motion)], robot,
                                 chain_rng(args.seed, source, int(motion), int(chain)),
                                 late=args.late)
@@ -80,7 +85,9 @@ def main() -> None:
         return
     print(f"stop_search: seed {args.seed}, {args.chains} chains per motion"
           f"{'' if args.late is None else f' in its last {args.late:g} s'}, {args.paths} "
-          f"random paths per robot; load {load_before:.2f} on {os.cpu_count()} cores")
+          f"random paths per robot"
+          f"{'' if args.knot_period is None else f', knots {args.knot_period:g} s apart'}; "
+          f"load {load_before:.2f} on {os.cpu_count()} cores")
     header = (f"{'source':<20} {'motions':>7} {'stops':>6} {'forced':>6} {'held':>5} "
               f"{'over':>5} {'worst':>10} {'s':>6}")
     print(f"{header}\n{'-' * len(header)}")
@@ -96,7 +103,7 @@ def main() -> None:
         from _results import save
 
         save("stop_search", {"seed": args.seed, "chains": args.chains, "paths": args.paths,
-                             "late": args.late,
+                             "late": args.late, "knot_period": args.knot_period,
                              "sources": figures, "stops": tried, "over_limit": total,
                              "worst_ratio": worst}, load_before=load_before)
 
@@ -104,7 +111,7 @@ def main() -> None:
 def _run(source: str, args: argparse.Namespace) -> dict[str, object]:
     """The chains on ``source``'s motions; prints its line and each stop beyond a limit."""
     started = time.perf_counter()
-    robot, trajs = motions(source, args.seed, args.paths)
+    robot, trajs = motions(source, args.seed, args.paths, args.knot_period)
     stops: list[tuple[str, Stop]] = []
     for m, traj in enumerate(trajs):
         for c in range(args.chains):

@@ -165,25 +165,33 @@ def path_rng(seed: int, robot: str, path: int) -> np.random.Generator:
     return np.random.default_rng([seed, zlib.crc32(robot.encode()), path, 1 << 20])
 
 
-def via_point_motion(robot: Robot, rng: np.random.Generator) -> Trajectory:
+def via_point_motion(robot: Robot, rng: np.random.Generator,
+                     knot_period: float | None = None) -> Trajectory:
     """A random via-point path of the timing suite (``tests/timing_suite.py``: 2-4 route
     steps with their own speed scales and TCP speed limits, blended at the via points),
-    timed by :func:`~safepath.timing.time_path`, as one motion."""
+    timed by :func:`~safepath.timing.time_path` (knots ``knot_period`` [s] apart, default
+    the timing's), as one motion."""
     from timing_suite import timed_problem
 
-    piece, _ = timed_problem(robot, rng)
+    piece, _ = timed_problem(robot, rng, knot_period)
     return Trajectory(robot.joint_names, piece.t, piece.q, piece.qd, piece.qdd,
                       np.zeros(piece.t.size, dtype=int), ("move",), robot=robot.name,
                       limits=robot.motion_limits, interpolation=robot.controller.interpolation)
 
 
-def cell_motions(name: str) -> tuple[Robot, list[Trajectory]]:
+def cell_motions(name: str, knot_period: float | None = None
+                 ) -> tuple[Robot, list[Trajectory]]:
     """The motions (between gripper events) of every route of the bundled cell ``name``,
-    planned (seed 0), and its robot."""
-    from safepath import load_cell, plan_cell
+    planned (seed 0; knots ``knot_period`` [s] apart, default the timing's), and its
+    robot."""
+    from safepath import PlanOptions, load_cell, plan_cell
     from safepath.ros import split_at_gripper_events
+    from safepath.timing import TimingOptions
 
     cell = load_cell(ROOT / "scenes" / name)
-    motions = [m for traj in plan_cell(cell).values() for m in split_at_gripper_events(traj)
+    options = PlanOptions() if knot_period is None else \
+        PlanOptions(timing=TimingOptions(knot_period=knot_period))
+    motions = [m for traj in plan_cell(cell, options).values()
+               for m in split_at_gripper_events(traj)
                if isinstance(m, Trajectory) and m.t.size > 2]
     return cell.robot, motions

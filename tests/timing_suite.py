@@ -59,8 +59,10 @@ def sampling_box(robot: Robot) -> tuple[np.ndarray, np.ndarray]:
             np.where(bounded, robot.upper * 0.8, np.pi))
 
 
-def timed_problem(robot: Robot, rng: np.random.Generator) -> tuple[TimedPiece, np.ndarray]:
-    """One random problem timed: the piece and each segment's speed scale."""
+def timed_problem(robot: Robot, rng: np.random.Generator, knot_period: float | None = None
+                  ) -> tuple[TimedPiece, np.ndarray]:
+    """One random problem timed: the piece and each segment's speed scale (knots
+    ``knot_period`` [s] apart, default the timing's)."""
     segments = int(rng.integers(2, 5))
     lo, hi = sampling_box(robot)
     points = [lo + rng.random(robot.dof) * (hi - lo) for _ in range(segments + 1)]
@@ -73,7 +75,8 @@ def timed_problem(robot: Robot, rng: np.random.Generator) -> tuple[TimedPiece, n
     tcp = [float(v) if rng.random() < 0.3 else None
            for v in rng.uniform(0.05, 0.5, segments)]
     path, s_way, _ = spline_path(points, 0.06, corners=corners, blend=blend)
-    options = TimingOptions(corner_blend=blend, limits_ahead=bool(rng.random() < 0.5))
+    options = TimingOptions(corner_blend=blend, limits_ahead=bool(rng.random() < 0.5),
+                            knot_period=knot_period or TimingOptions.knot_period)
     piece = time_path(robot, path, s_way, scales=scales.tolist(), tcp_speeds=tcp,
                       options=options)
     return piece, scales
