@@ -33,7 +33,7 @@ def test_every_switch_continues_the_running_motion_within_the_limits(
     rng = np.random.default_rng(seed)
     kinds: dict[str, int] = {}
     worst_step, worst = 0.0, np.zeros(3)
-    for run in range(10):
+    for run in range(30):
         traj, held = phase1.motions[run % 2]
         monitor = make_monitor(cell, hold_time=0.1)
         monitor.follow(traj, start=0.0, held=held)
