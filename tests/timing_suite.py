@@ -76,7 +76,8 @@ def timed_problem(robot: Robot, rng: np.random.Generator, knot_period: float | N
            for v in rng.uniform(0.05, 0.5, segments)]
     path, s_way, _ = spline_path(points, 0.06, corners=corners, blend=blend)
     options = TimingOptions(corner_blend=blend, limits_ahead=bool(rng.random() < 0.5),
-                            knot_period=knot_period or TimingOptions.knot_period)
+                            knot_period=TimingOptions.knot_period if knot_period is None
+                            else knot_period)
     piece = time_path(robot, path, s_way, scales=scales.tolist(), tcp_speeds=tcp,
                       options=options)
     return piece, scales

@@ -152,6 +152,13 @@ def _inverse_powers(h):
 
 
 @njit(cache=True, nogil=True, _nrt=False, inline="always")
+def _speed_samples(h, rate):
+    """How many points the speed of an interval ``h`` [s] long is sampled at where it
+    may peak inside: at least ``rate`` per second, and 4."""
+    return max(4, int(math.ceil(h * rate)) + 1)
+
+
+@njit(cache=True, nogil=True, _nrt=False, inline="always")
 def _larger(best, x):
     """The larger of ``best`` and ``x``, NaN once either is NaN (as numpy's max)."""
     return x if (x > best or x != x) else best
@@ -166,7 +173,7 @@ def _peaks(t: np.ndarray, q: np.ndarray, qd: np.ndarray, qdd: np.ndarray, rate: 
     n, dof = t.size - 1, q.shape[1]
     for k in range(n):
         h = t[k + 1] - t[k]
-        m = max(4, int(math.ceil(h * rate)) + 1)
+        m = _speed_samples(h, rate)
         i3, i4, i5 = _inverse_powers(h)
         for d in range(dof):
             v_out[k, d], a_out[k, d], j_out[k, d] = _interval_peaks(q, qd, qdd, k, d, m, h,
@@ -229,7 +236,7 @@ def _ratios(t: np.ndarray, q: np.ndarray, qd: np.ndarray, qdd: np.ndarray, rate:
     for i in range(at.size):
         k = at[i]
         h = t[k + 1] - t[k]
-        m = max(4, int(math.ceil(h * rate)) + 1)
+        m = _speed_samples(h, rate)
         i3, i4, i5 = _inverse_powers(h)
         r = row[k]
         rv = ra = rj = -np.inf
@@ -291,7 +298,7 @@ def _interval_terms(t, k0, n, rate, scratch):
     interval rather than per joint."""
     for k in range(n):
         h = t[k0 + k + 1] - t[k0 + k]
-        m = max(4, int(math.ceil(h * rate)) + 1)
+        m = _speed_samples(h, rate)
         i1 = np.true_divide(1.0, h)
         i3 = i1 * i1 * i1
         scratch[10, 0, k] = h
@@ -334,7 +341,7 @@ def _screen(t: np.ndarray, q: np.ndarray, qd: np.ndarray, qdd: np.ndarray, rate:
                 if scratch[9, d, k] != 0.0:
                     kk, r = k0 + k, row[k0 + k]
                     h = t[kk + 1] - t[kk]
-                    m = max(4, int(math.ceil(h * rate)) + 1)
+                    m = _speed_samples(h, rate)
                     i3, i4, i5 = _inverse_powers(h)
                     c1, c2, c3, c4, c5 = _coefficients(q, qd, qdd, kk, d, h, i3, i4, i5)
                     vp, ap, jp = _screened_peaks(c1, c2, c3, c4, c5, h, m,

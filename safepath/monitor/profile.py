@@ -178,7 +178,7 @@ JERK_SHARE = 0.25
 #: knots are the path's own and the controller's join is the verified one exactly.
 KNOT_NS = 4_000_000
 #: Knots further apart than this many :data:`KNOT_NS` get states of their join between
-#: them in the knots profiles march over (:func:`_fine_knots`).
+#: them in the knots profiles march over (:meth:`MonitoredPath.knots`).
 FINE_ABOVE = 1.25
 
 
@@ -209,7 +209,7 @@ class MonitoredPath:
             steps[0] <= 2 * KNOT_NS / 1e9 else KNOT_NS / 1e9
         self.width = max(3 * KNOT_NS / 1e9, float(np.max(
             BRAKE_SCALE * robot.acceleration_limits / (JERK_SHARE * robot.jerk_limits))))
-        self._knots = _fine_knots(traj)
+        self._knots = self._fine_knots()
 
     @property
     def end(self) -> float:
@@ -220,8 +220,30 @@ class MonitoredPath:
     def knots(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         """The knots profiles march over (:meth:`grid`): path parameters, positions,
         velocities and accelerations; the trajectory's own, with states of their join
-        between those more than :data:`FINE_ABOVE` knot spacings apart."""
+        between those more than :data:`FINE_ABOVE` knot spacings apart
+        (:meth:`_fine_knots`)."""
         return self._knots
+
+    def _fine_knots(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """The knots profiles march over (:attr:`knots`): the trajectory's own, and where
+        two lie more than :data:`FINE_ABOVE` knot spacings apart, states of their join
+        between them (:meth:`states`), evenly, at most :data:`KNOT_NS` apart (the same
+        motion: a profile's braking is only as fine as the knots it is marched over)."""
+        tr = self.traj
+        t = np.asarray(tr.t, dtype=float)
+        parts = np.ones(max(t.size - 1, 0), dtype=np.int64)
+        steps = np.diff(t)
+        wide = steps > FINE_ABOVE * KNOT_NS / 1e9
+        if not np.any(wide):
+            return t, tr.q, tr.qd, tr.qdd
+        parts[wide] = np.ceil(steps[wide] / (KNOT_NS / 1e9) - 1e-9).astype(np.int64)
+        first = np.concatenate([[0], np.cumsum(parts)])  # each knot's index among the fine
+        fine = np.repeat(t[:-1], parts) + (np.arange(int(first[-1])) - np.repeat(
+            first[:-1], parts)) * np.repeat(steps / parts, parts)
+        fine = np.append(fine, t[-1])
+        q, qd, qdd = self.states(fine)
+        q[first], qd[first], qdd[first] = tr.q, tr.qd, tr.qdd  # its own knots exactly
+        return fine, q, qd, qdd
 
     def states(self, tau: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Positions, velocities and accelerations of the verified trajectory at path
@@ -479,27 +501,6 @@ class MonitoredPath:
         return Trajectory(tr.joint_names, t, q, v, a, tr.step_index[knot],
                           tr.steps, (), tr.robot, tr.route, info, self.robot.motion_limits,
                           tr.interpolation)
-
-
-def _fine_knots(traj: Trajectory) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-    """The knots profiles march over (:meth:`MonitoredPath.grid`): the trajectory's own,
-    and where two lie more than :data:`FINE_ABOVE` knot spacings apart, states of their
-    join between them, evenly, at most :data:`KNOT_NS` apart (the same motion: a
-    profile's braking is only as fine as the knots it is marched over)."""
-    t = np.asarray(traj.t, dtype=float)
-    parts = np.ones(max(t.size - 1, 0), dtype=np.int64)
-    steps = np.diff(t)
-    wide = steps > FINE_ABOVE * KNOT_NS / 1e9
-    if not np.any(wide):
-        return t, traj.q, traj.qd, traj.qdd
-    parts[wide] = np.ceil(steps[wide] / (KNOT_NS / 1e9) - 1e-9).astype(np.int64)
-    first = np.concatenate([[0], np.cumsum(parts)])  # each knot's index among the fine
-    fine = np.repeat(t[:-1], parts) + (np.arange(int(first[-1])) - np.repeat(
-        first[:-1], parts)) * np.repeat(steps / parts, parts)
-    fine = np.append(fine, t[-1])
-    q, qd, qdd = traj.interpolation.states(t, traj.q, traj.qd, traj.qdd, fine)
-    q[first], qd[first], qdd[first] = traj.q, traj.qd, traj.qdd  # its own knots exactly
-    return fine, q, qd, qdd
 
 
 class _Earliest:
