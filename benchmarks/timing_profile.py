@@ -37,10 +37,11 @@ STAGES = (
     ("  TOPP-RA solve", "_topp.py", "solve"),
     ("  smoothing", "_smooth.py", "smooth"),
     ("  knots along", "_smooth.py", "along"),
-    ("quintic check", "path_timing.py", "_interval_ratios"),
+    ("quintic check", "_release.py", "interval_ratios"),
     ("jerk window", "path_timing.py", "_jerk_window"),
     ("tighten (retry)", "path_timing.py", "_tighten"),
-    ("release", "path_timing.py", "_release"),
+    ("release", "_release.py", "release"),
+    ("  subdivision", "_release.py", "_subdivided"),
 )
 
 

@@ -367,11 +367,11 @@ class MonitoredPath:
         The candidates, in groups (a group only when none before is within the limits):
         the motion's own timing to its end and the assessed braking after a longer hold
         (:data:`GENTLE_HOLDS`); braking gentler than assessed (:data:`GENTLE_SCALES`);
-        then the running profile itself, followed as it is to where it rests (the path's
-        end, or where a running stop rests), and the earliest brake-out from it
-        (:meth:`brake_out`). The running profile is the verified motion or a replacement
-        that was within every limit as executed when it was sent, so this last group
-        always holds a stop within the limits (see docs/monitor.md, "the stop rule").
+        then the earliest brake-out from the running profile (:meth:`brake_out`). The
+        running profile itself, followed as it is to where it rests (the path's end, or
+        where a running stop rests), is always a candidate: it is the verified motion or a
+        replacement that was within every limit as executed when it was sent, so a stop
+        within the limits is always among them (see docs/monitor.md, "the stop rule").
         ``info["executed_ratios"]`` holds the speed, acceleration and jerk ratios to the
         limits as executed of the stop chosen, ``info["stop"]`` how it brakes
         (acceleration scale, hold [s]: how long it follows the running profile first).
@@ -389,19 +389,22 @@ class MonitoredPath:
                   [(a, h) for a in GENTLE_SCALES for h in (0.0, *GENTLE_HOLDS)])
         for k, group in enumerate(groups):
             if k and best.within:  # gentler braking only when none before is within
-                return best.chosen()
+                break
             for accel_scale, hold in group:
                 timing = self.stop_timing(start, accel_scale, hold, before=before,
                                           tau0=tau0, r0=r0)
                 best.consider(timing, self.trajectory(timing, kind="stop", scale=0.0,
                                                       check=False, t0=start),
                               {"accel_scale": accel_scale, "hold": hold})
-        if not best.within:
-            running = before if before is not None else \
-                self.march(start, tau0, r0, r0, np.inf)  # a steady speed, kept
-            best.consider(running, self.trajectory(running, kind="stop", scale=0.0,
-                                                   check=False, t0=start),
-                          {"accel_scale": 0.0, "hold": float("inf")})
+        within = best.within
+        running = before if before is not None else \
+            self.march(start, tau0, r0, r0, np.inf)  # a steady speed, kept
+        # Followed as it is, the running profile may rest before a stop found within the
+        # limits (one speeding up into the motion's end): it is a candidate too.
+        best.consider(running, self.trajectory(running, kind="stop", scale=0.0, check=False,
+                                               t0=start),
+                      {"accel_scale": 0.0, "hold": float("inf")})
+        if not within:
             found = self.brake_out(start, running)
             if found is not None:
                 best.consider(*found)

@@ -31,7 +31,6 @@ in time until every sample is within its step's limit.
 from __future__ import annotations
 
 import dataclasses
-import functools
 import logging
 from collections.abc import Sequence
 from dataclasses import dataclass
@@ -46,6 +45,16 @@ from ..model.robot import Robot
 from . import _scurve, _smooth, _topp
 from ._blend import blended_points, corner_pieces, resampled
 from ._path_limits import PathLimits, PathSpline, jet, path_limits, tcp_limits
+from ._release import (
+    _NS,
+    RETIME_ABOVE,
+    Run,
+    TimedPiece,
+    interval_ratios,
+    ns_grid,
+    release,
+    stretch_knots,
+)
 from ._spline import CubicPath
 from ._tcp_check import TcpLimits
 
@@ -58,26 +67,19 @@ log = logging.getLogger(__name__)
 CornerBlend = Literal["gap", "g2"]
 #: The ways a blended via point can be cut (:func:`spline_path`).
 CORNER_BLENDS: tuple[str, ...] = ("gap", "g2")
-#: Time stretch (relative, above 1) that the knots' excess over the limits would need,
-#: above which the path is re-timed with locally tightened limits; a smaller excess is
-#: removed by the uniform time stretch, which costs at most that fraction of the motion
-#: time (a jerk excess ``e`` needs a stretch of ``e^(1/3)``, an acceleration excess
-#: ``e^(1/2)``).
-RETIME_ABOVE = 1e-2
 #: Time stretch (relative, above 1) that a run's knots would need, above which the path
 #: is timed again with the limits tightened where they exceeded one. Below it the stretch
 #: is kept: on 150 seeded via-point paths of five arms, a second run won back at most
 #: 1.1 % of the motion time after a first run's stretch of under 2 % (none at all on the
 #: UR5), for the cost of a whole run.
 RETRY_ABOVE = 2e-2
-#: Margin the final stretch leaves below every limit (relative), so that the released
-#: ratios stay <= 1.0 however they are rounded.
-_SLACK = 1e-6
-#: The knots' ratios below this are only bounded (``Interpolation.ratios``' ``exact_from``):
-#: the timing reads them only where they are over ``1 - _SLACK`` (to stretch, to
-#: tighten, to release), so that it comes out the same as from the exact ones.
-_EXACT_FROM = 0.999
-_NS = 1_000_000_000
+#: The fewest knots a run is sampled at across the total width of its two moving averages
+#: (``TimingOptions.max_knot_spacing``): on 40 seeded via paths of five arms, knots 4
+#: knot periods apart where the averages spanned 64 ms or more left the median motion time
+#: within 0.2 % of knots one period apart (the Panda, whose averages span 16 ms, keeps one
+#: period: sampled every three it lost 0.4 %), and 6 periods apart re-timed a third of the
+#: UR5's and Gen3's paths.
+KNOTS_ACROSS_AVERAGES = 4
 #: Chord across a ``"gap"`` blend, relative to the way along the polyline it replaces,
 #: below which the corner counts as a turn-back and is passed through, not cut.
 _TURN_BACK = 1e-9
@@ -126,6 +128,12 @@ class TimingOptions:
             path that it can only pass almost at rest somewhere (a blend too tight for its
             grid) comes out finite but absurdly long; it is refused (``TimingError``, so a
             planner tries a smaller blend) before its knots are made.
+        max_knot_spacing: A run is timed and checked on knots up to this many knot
+            periods apart, as many as its moving averages leave room for
+            (:data:`KNOTS_ACROSS_AVERAGES` across their total width), and the released
+            knots are their quintic join at the knot period (the same motion: a quintic
+            matched at both ends of a part of a quintic is that part). 1: every run at
+            the knot period.
     """
 
     speed_scale: float = 1.0
@@ -141,6 +149,7 @@ class TimingOptions:
     limits_ahead: bool = False
     tcp_ahead: bool = True
     max_duration: float = 3600.0
+    max_knot_spacing: int = 4
 
     def __post_init__(self) -> None:
         from ..errors import ConfigError
@@ -165,34 +174,12 @@ class TimingOptions:
         if not self.max_duration > 0:
             raise ConfigError(f"max_duration must be > 0 [s], got {self.max_duration}",
                               key="max_duration")
+        if not (isinstance(self.max_knot_spacing, int) and self.max_knot_spacing >= 1):
+            raise ConfigError(f"max_knot_spacing must be an integer >= 1 [knot periods], "
+                              f"got {self.max_knot_spacing!r}", key="max_knot_spacing")
         if not self.jerk_smoothing >= 1:
             raise ConfigError(f"jerk_smoothing must be >= 1 [knot periods], got "
                               f"{self.jerk_smoothing}", key="jerk_smoothing")
-
-
-@dataclass(frozen=True)
-class TimedPiece:
-    """A rest-to-rest timed piece of path.
-
-    Attributes:
-        t: Knot times from 0 [s].
-        q: Positions [rad] (N, dof).
-        qd: Velocities [rad/s].
-        qdd: Accelerations [rad/s^2].
-        s: Path parameter of each knot.
-        segment: Index of the input polyline segment of each knot.
-        runs: TOPP-RA runs its timing took (1 when the first run's knots needed no more
-            than a small time stretch; 0 for a closed-form straight move or a piece not
-            timed by :func:`time_path`).
-    """
-
-    t: np.ndarray
-    q: np.ndarray
-    qd: np.ndarray
-    qdd: np.ndarray
-    s: np.ndarray
-    segment: np.ndarray
-    runs: int = 0
 
 
 def spline_path(waypoints: Sequence[np.ndarray], spacing: float, *,
@@ -262,46 +249,6 @@ def _gap_kept(P: np.ndarray, S: np.ndarray, s_way: np.ndarray,  # noqa: N803
     return keep
 
 
-@dataclass(frozen=True)
-class _Run:
-    """One timing: TOPP-RA, smoothed, sampled at the knots, and its executed peaks.
-
-    Attributes:
-        t: Knot times [s].
-        s: Path parameter of each knot.
-        sd: Path speed at each knot [1/s].
-        q: Positions [rad].
-        qd: Velocities [rad/s].
-        qdd: Accelerations [rad/s^2].
-        segment: Input segment of each knot.
-        ratios: Per interval between knots, the largest speed, acceleration and jerk
-            ratio of the quintic join (3, knots - 1).
-        smoothed: The smoothed profile (maps knot times back to the profile's path);
-            None for a closed-form straight motion.
-    """
-
-    t: np.ndarray
-    s: np.ndarray
-    sd: np.ndarray
-    q: np.ndarray
-    qd: np.ndarray
-    qdd: np.ndarray
-    segment: np.ndarray
-    ratios: np.ndarray
-    smoothed: _smooth.Smoothed | None
-
-    @functools.cached_property
-    def stretch(self) -> float:
-        """The time stretch that brings every ratio to just below 1 (at least 1)."""
-        v, a, j = (float(r.max()) if r.size else 0.0 for r in self.ratios)
-        return _stretch(v, a, j)
-
-    @property
-    def stretched(self) -> float:
-        """Its duration once stretched to meet every limit [s]."""
-        return float(self.t[-1]) * self.stretch
-
-
 def time_path(robot: Robot, path: PathSpline, s_way: np.ndarray, *, scales: Sequence[float],
               tcp_speeds: Sequence[float | None], options: TimingOptions = TimingOptions(),
               step: str | None = None) -> TimedPiece:
@@ -337,10 +284,10 @@ def time_path(robot: Robot, path: PathSpline, s_way: np.ndarray, *, scales: Sequ
                          if options.limits_ahead or options.tcp_ahead else 0.0,
                          scales_ahead=options.limits_ahead)
     if len(s_way) == 2 and tcp_speeds[0] is None and _straight(path, limits):
-        return _release(_time_straight(path, limits, options, where), limits, options, where)
+        return release(_time_straight(path, limits, options, where), limits, where)
     f_acc = np.ones(limits.grid.size)
     f_x = np.ones(limits.grid.size)
-    best: _Run | None = None
+    best: Run | None = None
     tau_a: float | None = None
     runs = 0
     for attempt in range(options.retries):
@@ -360,7 +307,7 @@ def time_path(robot: Robot, path: PathSpline, s_way: np.ndarray, *, scales: Sequ
     tcp = None if limits.tcp_rate is None else TcpLimits(
         robot, tcp_limits(tcp_speeds), max(1, int(np.ceil(options.knot_period * CHECK_RATE))),
         limits.grid, limits.tcp_rate)
-    return dataclasses.replace(_release(best, limits, options, where, tcp), runs=runs)
+    return dataclasses.replace(release(best, limits, where, tcp), runs=runs)
 
 
 def _straight(path: PathSpline, limits: PathLimits) -> bool:
@@ -370,7 +317,7 @@ def _straight(path: PathSpline, limits: PathLimits) -> bool:
 
 
 def _time_straight(path: PathSpline, limits: PathLimits, options: TimingOptions,
-                   where: str) -> _Run:
+                   where: str) -> Run:
     """The time-optimal jerk-limited motion along a straight path in closed form
     (:mod:`._scurve`): the joint limits projected on the line, the phases whole knot
     periods, so that the knots' quintic join is the motion itself."""
@@ -388,12 +335,12 @@ def _time_straight(path: PathSpline, limits: PathLimits, options: TimingOptions,
     qd[0] = qd[-1] = 0.0  # at rest (not -0.0)
     qdd[0] = qdd[-1] = 0.0
     segment = np.zeros(t.size, dtype=np.int64)
-    return _Run(t, s, sd, q, qd, qdd, segment, _interval_ratios(t, q, qd, qdd, segment, limits),
-                None)
+    return Run(t, s, sd, q, qd, qdd, segment, interval_ratios(t, q, qd, qdd, segment, limits),
+                None, sdd)
 
 
 def _time_once(path: PathSpline, limits: PathLimits, f_acc: np.ndarray, f_x: np.ndarray,
-               options: TimingOptions, tau_a: float | None, where: str) -> _Run:
+               options: TimingOptions, tau_a: float | None, where: str) -> Run:
     """One TOPP-RA run with the acceleration limits scaled by ``f_acc`` and the squared
     speed bounds by ``f_x`` per gridpoint, smoothed, sampled at knots and checked.
 
@@ -419,17 +366,31 @@ def _time_once(path: PathSpline, limits: PathLimits, f_acc: np.ndarray, f_x: np.
     tau_b = _second_window(tau_a, options)
     sm = _smooth.smooth(profile, tau_a, tau_b)
     duration = sm.duration
-    n = max(2, int(np.ceil(duration / options.knot_period)) + 1)
+    every = _spacing(tau_a + tau_b, limits, options)
+    n = max(2, int(np.ceil(duration / (every * options.knot_period))) + 1)
     # Knots a whole number of nanoseconds apart: a goal carries its times in integer
     # nanoseconds, and the quintic join of knots 4 ms apart is sensitive to a 1 ns shift
-    # (its jerk by ~0.2 %). The last knot may come a few ns after the motion's end (at rest).
-    t = _ns_grid(n, int(np.ceil(duration / (n - 1) * _NS)))
-    s, sd, _, q, qd, qdd = _smooth.along(sm, path, t)
+    # (its jerk by ~0.2 %); a multiple of ``every`` ns, so that their subdivision is too.
+    # The last knot may come a few ns after the motion's end (at rest).
+    t = ns_grid(n, every * int(np.ceil(duration / (n - 1) * _NS / every)))
+    s, sd, sdd, q, qd, qdd = _smooth.along(sm, path, t)
     qd[0] = qd[-1] = 0.0  # at rest (not -0.0)
     qdd[0] = qdd[-1] = 0.0
     segment = interval_index(limits.s_way, s, limits.vmax_seg.shape[0])
-    return _Run(t, s, sd, q, qd, qdd, segment, _interval_ratios(t, q, qd, qdd, segment, limits),
-                sm)
+    return Run(t, s, sd, q, qd, qdd, segment, interval_ratios(t, q, qd, qdd, segment, limits),
+                sm, sdd, every)
+
+
+def _spacing(width: float, limits: PathLimits, options: TimingOptions) -> int:
+    """How many knot periods apart a run's knots lie: at least
+    :data:`KNOTS_ACROSS_AVERAGES` knots across its moving averages' total ``width`` [s],
+    at most ``options.max_knot_spacing`` periods; one where a step limits the TCP's speed
+    (its check is tuned to knots one period apart) or the controller's join is not a
+    quintic."""
+    if limits.tcp_rate is not None or limits.interpolation.order != 5:
+        return 1
+    fit = int(np.floor(width / (KNOTS_ACROSS_AVERAGES * options.knot_period) + 1e-9))
+    return max(1, min(options.max_knot_spacing, fit))
 
 
 def _widest_window(robot: Robot, options: TimingOptions) -> float:
@@ -476,41 +437,7 @@ def _jerk_window(profile: _topp.Profile, limits: PathLimits, options: TimingOpti
     return max(lo * dt * options.jerk_window, options.knot_period)
 
 
-def _interval_ratios(t: np.ndarray, q: np.ndarray, qd: np.ndarray, qdd: np.ndarray,
-                     segment: np.ndarray, limits: PathLimits, at: np.ndarray | None = None
-                     ) -> np.ndarray:
-    """Per knot interval (those in ``at``, else all), the knots' join's largest speed,
-    acceleration and jerk ratio (limits of the smaller-scaled of its two knots'
-    segments), (3, intervals)."""
-    seg = np.where(limits.vmax_seg[segment[:-1], 0] <= limits.vmax_seg[segment[1:], 0],
-                   segment[:-1], segment[1:])
-    return limits.interpolation.ratios(t, q, qd, qdd, CHECK_RATE, seg, limits.vmax_seg,
-                                       limits.amax_seg, limits.jmax_seg,
-                                       exact_from=_EXACT_FROM, at=at)
-
-
-def _stretched_ratios(ratios: np.ndarray, k: float, t: np.ndarray, q: np.ndarray,
-                      qd: np.ndarray, qdd: np.ndarray, segment: np.ndarray,
-                      limits: PathLimits) -> np.ndarray:
-    """The interval ratios (3, intervals) of knots ``(t, q, qd, qdd)`` that are knots of
-    ``ratios`` stretched in time by ``k`` (:func:`stretch_knots`), in place of ``ratios``:
-    computed again where ``ratios`` scaled by the stretch reach :data:`_EXACT_FROM` (or
-    are NaN), elsewhere those scaled.
-
-    A uniform stretch scales the join exactly (its speeds by ``1/k``, accelerations by
-    ``1/k^2``, jerks by ``1/k^3``), so a bound of the unstretched join's peak, scaled, is
-    a bound of the stretched one's; the knots' rounding moves a peak by ~1e-11 of it, far
-    inside the 1e-3 below :data:`_EXACT_FROM`, and every ratio of :data:`_EXACT_FROM` or
-    more is computed from the stretched knots themselves."""
-    for row, power in zip(ratios, (k, k * k, k * k * k), strict=True):
-        np.divide(row, power, out=row)
-    at = np.flatnonzero(~(ratios.max(axis=0) < _EXACT_FROM))  # NaN too
-    if at.size:
-        ratios[:, at] = _interval_ratios(t, q, qd, qdd, segment, limits, at=at)
-    return ratios
-
-
-def _tighten(f_acc: np.ndarray, f_x: np.ndarray, grid: np.ndarray, run: _Run) -> None:
+def _tighten(f_acc: np.ndarray, f_x: np.ndarray, grid: np.ndarray, run: Run) -> None:
     """Tighten the limits (in place) along the part of the path each interval over a limit
     averaged: its window of the profile, ``tau_a + tau_b`` before it to its end. Each
     gridpoint takes the largest excess of the windows over it, once."""
@@ -536,91 +463,6 @@ def _tighten(f_acc: np.ndarray, f_x: np.ndarray, grid: np.ndarray, run: _Run) ->
                     1.0 / np.maximum(j[over], 1.0) ** (2.0 / 3.0)) / pad
     _topp.compiled_kernels()["tighten"](g_lo.astype(np.int64), g_hi.astype(np.int64), acc, xs,
                                         np.ones(grid.size), np.ones(grid.size), f_acc, f_x)
-
-
-def stretch_knots(t: np.ndarray, qd: np.ndarray, qdd: np.ndarray, k: float
-                  ) -> tuple[np.ndarray, np.ndarray, np.ndarray, float]:
-    """Evenly spaced knots slowed down by at least ``k`` >= 1: times times ``k'``, speeds
-    over ``k'``, accelerations over ``k'^2`` (their quintic join's jerks over ``k'^3``),
-    where ``k'`` is ``k`` rounded up so that the knots stay a whole number of nanoseconds
-    apart. Returns the new ``t, qd, qdd`` and ``k'``."""
-    stretched_ns, k = _rounded_stretch(t, k)
-    return _ns_grid(t.size, stretched_ns), qd / k, qdd / (k * k), k
-
-
-def _rounded_stretch(t: np.ndarray, k: float) -> tuple[int, float]:
-    """The knot step [ns] of evenly spaced knots ``t`` stretched by at least ``k``, and
-    the stretch that gives it (``k`` rounded up to a whole nanosecond of step)."""
-    step_ns = round(float(t[1] - t[0]) * _NS) if t.size > 1 else 1
-    stretched_ns = int(np.ceil(step_ns * k))
-    return stretched_ns, stretched_ns / step_ns
-
-
-def _stretch_in_place(t: np.ndarray, qd: np.ndarray, qdd: np.ndarray, k: float) -> float:
-    """:func:`stretch_knots` into the knots' own arrays (the release's: the large arrays of
-    a long path are not allocated again); returns ``k'``."""
-    stretched_ns, k = _rounded_stretch(t, k)
-    np.divide(np.arange(t.size, dtype=np.int64) * stretched_ns, _NS, out=t)
-    np.divide(qd, k, out=qd)
-    np.divide(qdd, k * k, out=qdd)
-    return k
-
-
-def _ns_grid(n: int, step_ns: int) -> np.ndarray:
-    """``n`` times [s] from 0, ``step_ns`` nanoseconds apart (exact in nanoseconds)."""
-    return np.arange(n, dtype=np.int64) * step_ns / _NS
-
-
-def _stretch(v_peak: float, a_peak: float, j_peak: float = 0.0) -> float:
-    """The time stretch that brings the peak ratios to just below 1 (at least 1)."""
-    return max(1.0, v_peak / (1.0 - _SLACK), float(np.sqrt(a_peak / (1.0 - _SLACK))),
-               float(np.cbrt(j_peak / (1.0 - _SLACK))))
-
-
-def _worst(ratios: np.ndarray, v_tcp: float) -> float:
-    """The largest of the interval ratios (3, intervals) and the TCP's ratio; NaN if any
-    is NaN."""
-    return float(np.max(ratios, initial=v_tcp)) if ratios.size else v_tcp
-
-
-def _release(run: _Run, limits: PathLimits, options: TimingOptions, where: str,
-             tcp: TcpLimits | None = None) -> TimedPiece:
-    """The run stretched in time just enough that its knots' join is within every
-    limit (the TCP's speed limits too, ``tcp``), checked. The run's knots and ratios are
-    stretched in place: it is not used after its release."""
-    t, qd, qdd, ratios = run.t, run.qd, run.qdd, run.ratios
-    duration = float(t[-1])
-
-    def tcp_ratio() -> float:
-        if tcp is None:
-            return 0.0
-        sd = run.sd * (duration / float(t[-1])) if t[-1] > 0 else run.sd
-        return tcp.ratio(t, run.q, qd, qdd, run.segment, run.s, sd)
-
-    # Unstretched, the released knots are the run's own: their ratios are known already.
-    v_tcp = tcp_ratio()
-    k = max(run.stretch, _stretch(v_tcp, 0.0))
-    if k > 1.0:
-        log.debug("timing up to %.4f %% over a limit; stretching time by %.6f",
-                  (max(float(ratios.max()), v_tcp) - 1) * 100, k)
-        k = _stretch_in_place(t, qd, qdd, k)
-        ratios = _stretched_ratios(ratios, k, t, run.q, qd, qdd, run.segment, limits)
-        v_tcp = tcp_ratio()
-    worst = _worst(ratios, v_tcp)
-    for _ in range(3):
-        # The speed bound samples each interval at >= 1 kHz: a stretched interval may get
-        # one more sample, which moves the bound by ~1e-7; stretch that much more.
-        if worst <= 1.0 or not worst < 1.0 + RETIME_ABOVE:
-            break
-        v, a, j = (float(r.max()) if r.size else 0.0 for r in ratios)
-        more = _stretch_in_place(t, qd, qdd, _stretch(max(v, v_tcp), a, j))
-        ratios = _stretched_ratios(ratios, more, t, run.q, qd, qdd, run.segment, limits)
-        v_tcp = tcp_ratio()
-        worst = _worst(ratios, v_tcp)
-    if not worst <= 1.0:  # also NaN
-        raise TimingError(f"the {limits.interpolation} join of the timed knots is at "
-                          f"{worst!r} of a limit" + where)
-    return TimedPiece(t, run.q, qd, qdd, run.s, run.segment)
 
 
 def rest_to_rest_time(delta: np.ndarray, vmax: np.ndarray, amax: np.ndarray) -> float:
