@@ -281,16 +281,26 @@ def tridiagonal(dl, d, du, b):
 
 @_inlined
 def _shift_fits(f, m, dt):
-    """Whether no column of ``f`` changes by more than ``m dt`` over ``m`` rows."""
-    n, dof = f.shape
+    """Whether no row of ``f`` (dof, n) changes by more than ``m dt`` over ``m`` columns:
+    the largest change of each block of :data:`_SHIFT_BLOCK` columns (a loop the compiler
+    vectorises), then the next block only while none is over."""
+    dof, n = f.shape
     if m >= n:
         return True
     bound = m * dt
-    for i in range(n - m):
-        for j in range(dof):
-            if abs(f[i + m, j] - f[i, j]) > bound:
+    for j in range(dof):
+        row = f[j]
+        for b in range(0, n - m, _SHIFT_BLOCK):
+            worst = 0.0
+            for i in range(b, min(b + _SHIFT_BLOCK, n - m)):
+                worst = max(worst, abs(row[i + m] - row[i]))
+            if worst > bound:
                 return False
     return True
+
+
+#: Columns :func:`_shift_fits` compares at a time before it may stop.
+_SHIFT_BLOCK = 64
 
 
 @_inlined
@@ -364,39 +374,79 @@ def tighten(g_lo, g_hi, acc, xs, t_acc, t_x, f_acc, f_x):
 
 
 @njit(cache=True, nogil=True)
-def jerk_rows(s, sd, u, s_way, jmax_seg, grid, dq, ddq, f):
-    """Each joint's acceleration along TOPP-RA's profile, at its path parameters ``s``,
-    speeds ``sd`` and path accelerations ``u`` (:func:`safepath.timing._topp.evaluate`),
-    over the jerk limit of the segment (bounded by ``s_way``) it is in, into rows 1.. of
-    ``f`` (rows 0 and ``s.size + 1``: at rest, 0); the path's tangent ``dq`` and
-    curvature ``ddq`` linear between the gridpoints ``grid``.
-    :func:`safepath.timing.path_timing._jerk_window`'s sums, one sample at a time."""
+def jerk_rows(tp, grid_p, sdp, up, dt, s_way, jmax_seg, grid, dq, ddq, num, f):
+    """Each joint's acceleration along TOPP-RA's profile (times ``tp``, gridpoints
+    ``grid_p``, speeds ``sdp``, accelerations ``up``) every ``dt`` [s] from 0 to before its
+    end (:func:`evaluate` there), over the jerk limit of the segment (bounded by
+    ``s_way``) it is in, into columns 1.. of ``f`` (dof, samples + 2; columns 0 and
+    ``samples + 1``: at rest, 0); the path's tangent ``dq`` and curvature ``ddq`` linear
+    between the gridpoints ``grid``; ``num`` (dof) is scratch.
+    :func:`safepath.timing.path_timing._jerk_window`'s sums, one sample at a time, each
+    joint's along a row (:func:`jerk_shift` reads them so)."""
     dof = dq.shape[1]
+    n = f.shape[1] - 2
     for j in range(dof):
-        f[0, j] = 0.0
-        f[s.size + 1, j] = 0.0
-    seg = g = 0
-    for i in range(s.size):
-        seg = _piece_after(s_way, s, i, seg)
-        g = _piece_after(grid, s, i, g)
-        w = (s[i] - grid[g]) / (grid[g + 1] - grid[g])
-        x = sd[i] * sd[i]
+        f[j, 0] = 0.0
+        f[j, n + 1] = 0.0
+    last = up.size - 1
+    k = seg = g = 0
+    s_prev = -np.inf
+    for i in range(n):
+        # The profile at t = i dt (as evaluate): the times increase, so its piece walks on.
+        ti = i * dt
+        k = min(_piece_at(tp, ti, k), last)
+        d = ti - tp[k]
+        s_i = grid_p[k] + d * sdp[k] + 0.5 * d * d * up[k]
+        sd_i = sdp[k] + d * up[k]
+        s_i = s_i if (s_i >= grid_p[0] or s_i != s_i) else grid_p[0]
+        s_i = s_i if (s_i <= grid_p[-1] or s_i != s_i) else grid_p[-1]
+        sd_i = sd_i if (sd_i >= 0.0 or sd_i != sd_i) else 0.0
+        if i == n - 1 and ti >= tp[tp.size - 1]:
+            s_i, sd_i = grid_p[grid_p.size - 1], 0.0
+        seg = _piece_walk(s_way, s_i, s_prev, seg)
+        g = _piece_walk(grid, s_i, s_prev, g)
+        s_prev = s_i
+        w = (s_i - grid[g]) / (grid[g + 1] - grid[g])
+        x = sd_i * sd_i
+        u = up[k]
         for j in range(dof):
             ps = dq[g, j] + w * (dq[g + 1, j] - dq[g, j])
             pss = ddq[g, j] + w * (ddq[g + 1, j] - ddq[g, j])
-            f[i + 1, j] = (ps * u[i] + pss * x) / jmax_seg[seg, j]
+            num[j] = ps * u + pss * x
+        for j in range(dof):
+            f[j, i + 1] = num[j] / jmax_seg[seg, j]
+
+
+@_inlined
+def _piece_at(breaks, x, k):
+    """The last piece ``k' >= k`` of ``breaks`` whose start is at or before ``x`` (the
+    first piece when none), walking on from ``k``: :func:`_piece_after` along increasing
+    values."""
+    while k + 2 < breaks.size and breaks[k + 1] <= x:
+        k += 1
+    return k
+
+
+@_inlined
+def _piece_walk(breaks, x, x_prev, k):
+    """:func:`~safepath.model._joinkernel.piece_of` of ``x``, walking on from piece ``k``
+    (that of ``x_prev``) when ``x`` has not decreased since, else by bisection
+    (:func:`_piece_after` for one value at a time)."""
+    if not x >= x_prev:
+        return piece_of(breaks, x)
+    return _piece_at(breaks, x, k)
 
 
 @njit(cache=True, nogil=True)
 def jerk_shift(f, dt):
-    """The fewest rows ``m >= 1`` over which no column of ``f`` (n, dof) changes by more
+    """The fewest columns ``m >= 1`` over which no row of ``f`` (dof, n) changes by more
     than ``m dt``, by bisection from ``ceil(2 max|f| / dt)`` (or ``n``, the whole: it then
     fits by definition); :func:`safepath.timing.path_timing._jerk_window`'s search."""
-    n = f.shape[0]
+    n = f.shape[1]
     peak = 0.0
-    for i in range(n):
-        for j in range(f.shape[1]):
-            peak = max(peak, abs(f[i, j]))
+    for j in range(f.shape[0]):
+        for i in range(n):
+            peak = max(peak, abs(f[j, i]))
     hi = max(1, int(np.ceil(2.0 * peak / dt)))
     lo = 1
     if not _shift_fits(f, hi, dt):

@@ -567,7 +567,7 @@ def test_the_jerk_window_kernel_finds_the_fewest_rows(seed: int) -> None:
     f[rng.integers(0, n):] += rng.normal(0.0, 1.0, dof)  # a switch
     f = np.vstack([np.zeros((1, dof)), f, np.zeros((1, dof))])
     dt = float(rng.uniform(0.001, 0.05))
-    assert compiled_kernels()["jerk_shift"](np.ascontiguousarray(f), dt) == \
+    assert compiled_kernels()["jerk_shift"](np.ascontiguousarray(f.T), dt) == \
         _shift_reference(f, dt)
 
 
