@@ -131,6 +131,7 @@ def recorded() -> dict[str, list[tuple[Any, ...]]]:
     kernels["knots"] = recorder("topp_knots", saved["knots"])
     kernels["jerk_shift"] = recorder("topp_jerk_shift", saved["jerk_shift"])
     kernels["jerk_rows"] = recorder("topp_jerk_rows", saved["jerk_rows"])
+    kernels["fill_grid"] = recorder("topp_fill_grid", saved["fill_grid"])
     kernels["tighten"] = recorder("topp_tighten", saved["tighten"])
     kernels["jet"] = recorder("topp_jet", saved["jet"])
     kernels["evaluate"] = recorder("topp_evaluate", saved["evaluate"])

@@ -147,6 +147,7 @@ ENTRIES: dict[str, Entry] = {
     "topp_jerk_rows": Entry(_TOPP, "jerk_rows", (F1, F1, F1, F1, FLOAT, F1, F2, F1, F2, F2, F1,
                                                  F2), "void"),
     "topp_jerk_shift": Entry(_TOPP, "jerk_shift", (F2, FLOAT), INT),
+    "topp_fill_grid": Entry(_TOPP, "fill_grid", (F1, I1, F1), "void"),
     "topp_grid_peaks": Entry(_TOPP, "grid_peaks", (F1, F1, F3, F2, F1, F1, F1, F1), "void"),
     "topp_acceleration_rows": Entry(_TOPP, "acceleration_rows", (F1, F2, F2, F2, F2, F2, F2),
                                     "void"),

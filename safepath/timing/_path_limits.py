@@ -286,10 +286,11 @@ def gridpoints(breaks: np.ndarray, s_way: np.ndarray, step: float,
     step = min(step, length / 19)
     pieces = np.diff(breaks)
     steps = step if straight is None else np.where(straight, STRAIGHT_STEPS * step, step)
-    counts = np.maximum(1, np.ceil(pieces / steps - 1e-9).astype(int))
-    piece = np.repeat(np.arange(pieces.size), counts)
-    j = np.arange(piece.size) - np.repeat(np.cumsum(counts) - counts, counts)
-    grid = np.append(breaks[piece] + pieces[piece] * (j / counts[piece]), length)
+    counts = np.maximum(1, np.ceil(pieces / steps - 1e-9).astype(np.int64))
+    grid = np.empty(int(counts.sum()) + 1)
+    _topp.compiled_kernels()["fill_grid"](np.ascontiguousarray(breaks, dtype=np.float64),
+                                          counts, grid)
+    grid[-1] = length
     # A segment boundary replaces a gridpoint it (almost) falls on, or is added.
     near = 1e-9 * max(1.0, length)
     after = np.minimum(np.maximum(np.searchsorted(grid, s_way), 1), grid.size - 1)

@@ -166,5 +166,6 @@ def compiled_kernels() -> dict[str, Callable[..., Any]]:
                              jerk_rows=kernels.jerk_rows, jerk_shift=kernels.jerk_shift,
                              tighten=kernels.tighten, jet=kernels.jet,
                              evaluate=kernels.evaluate, grid_peaks=kernels.grid_peaks,
-                             acceleration_rows=kernels.acceleration_rows)
+                             acceleration_rows=kernels.acceleration_rows,
+                             fill_grid=kernels.fill_grid)
         return _compiled

@@ -15,7 +15,8 @@ import numpy as np
 from .._aot import njit
 from ..model._joinkernel import _larger, piece_of
 
-__all__ = ["backward", "forward", "jerk_rows", "jerk_shift", "knots", "tridiagonal"]
+__all__ = ["backward", "fill_grid", "forward", "jerk_rows", "jerk_shift", "knots",
+           "tridiagonal"]
 
 _inlined = njit(cache=True, nogil=True, inline="always")
 
@@ -374,20 +375,25 @@ def tighten(g_lo, g_hi, acc, xs, t_acc, t_x, f_acc, f_x):
 
 
 @njit(cache=True, nogil=True)
-def jerk_rows(tp, grid_p, sdp, up, dt, s_way, jmax_seg, grid, dq, ddq, num, f):
+def jerk_rows(tp, grid_p, sdp, up, dt, s_way, jmax_seg, grid, dq, ddq, inverse, f):
     """Each joint's acceleration along TOPP-RA's profile (times ``tp``, gridpoints
     ``grid_p``, speeds ``sdp``, accelerations ``up``) every ``dt`` [s] from 0 to before its
     end (:func:`evaluate` there), over the jerk limit of the segment (bounded by
     ``s_way``) it is in, into columns 1.. of ``f`` (dof, samples + 2; columns 0 and
     ``samples + 1``: at rest, 0); the path's tangent ``dq`` and curvature ``ddq`` linear
-    between the gridpoints ``grid``; ``num`` (dof) is scratch.
-    :func:`safepath.timing.path_timing._jerk_window`'s sums, one sample at a time, each
-    joint's along a row (:func:`jerk_shift` reads them so)."""
+    between the gridpoints ``grid``; ``inverse`` (segments x dof) is scratch for the jerk
+    limits' inverses (a product, not a division, per sample and joint: within a rounding
+    of the quotient, and the same windows on the 75 seeded via paths of five arms and the
+    bundled cells tried). :func:`safepath.timing.path_timing._jerk_window`'s sums, one
+    sample at a time, each joint's along a row (:func:`jerk_shift` reads them so)."""
     dof = dq.shape[1]
     n = f.shape[1] - 2
     for j in range(dof):
         f[j, 0] = 0.0
         f[j, n + 1] = 0.0
+    for r in range(jmax_seg.shape[0]):
+        for j in range(dof):
+            inverse[r * dof + j] = 1.0 / jmax_seg[r, j]
     last = up.size - 1
     k = seg = g = 0
     s_prev = -np.inf
@@ -412,9 +418,7 @@ def jerk_rows(tp, grid_p, sdp, up, dt, s_way, jmax_seg, grid, dq, ddq, num, f):
         for j in range(dof):
             ps = dq[g, j] + w * (dq[g + 1, j] - dq[g, j])
             pss = ddq[g, j] + w * (ddq[g + 1, j] - ddq[g, j])
-            num[j] = ps * u + pss * x
-        for j in range(dof):
-            f[j, i + 1] = num[j] / jmax_seg[seg, j]
+            f[j, i + 1] = (ps * u + pss * x) * inverse[seg * dof + j]
 
 
 @_inlined
@@ -458,6 +462,19 @@ def jerk_shift(f, dt):
         else:
             lo = mid + 1
     return lo
+
+
+@njit(cache=True, nogil=True)
+def fill_grid(breaks, counts, grid):
+    """Piece ``p`` of ``breaks`` cut evenly into ``counts[p]`` parts: the parts' starts
+    into ``grid`` in order (``sum(counts)``; the caller appends the end), as
+    :func:`safepath.timing._path_limits.gridpoints` sums them."""
+    i = 0
+    for p in range(counts.size):
+        start, width, count = breaks[p], breaks[p + 1] - breaks[p], counts[p]
+        for j in range(count):
+            grid[i] = start + width * (j / count)
+            i += 1
 
 
 @njit(cache=True, nogil=True)

@@ -436,7 +436,7 @@ def _jerk_window(profile: _topp.Profile, limits: PathLimits, options: TimingOpti
         profile.t, profile.grid, profile.sd, profile.u)), float(dt),
         *(np.ascontiguousarray(x, dtype=np.float64) for x in (
             limits.s_way, limits.jmax_seg, limits.grid, at.dq, at.ddq)),
-        np.empty(at.dq.shape[1]), f)
+        np.empty(limits.jmax_seg.size), f)
     lo = kernels["jerk_shift"](f, float(dt))
     return max(lo * dt * options.jerk_window, options.knot_period)
 
