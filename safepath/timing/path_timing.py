@@ -256,14 +256,16 @@ def time_path(robot: Robot, path: PathSpline, s_way: np.ndarray, *, scales: Sequ
               step: str | None = None) -> TimedPiece:
     """Time a spline path rest to rest, jerk-limited, within the limits as executed.
 
-    TOPP-RA's profile is smoothed by two moving averages (:mod:`._smooth`), sampled every
-    ``options.knot_period``, and the join of the knots (as the robot's trajectory
-    controller executes them, ``PathLimits.interpolation``) is checked against the joint
-    speed, acceleration and jerk limits on every interval. Where it exceeds one, the
-    limits along the part of the path that interval averaged are tightened and the path
-    is timed again (``options.retries`` runs in all); what is left is removed by
-    stretching time uniformly, which scales the join exactly (speeds by ``1/k``,
-    accelerations by ``1/k^2``, jerks by ``1/k^3``).
+    TOPP-RA's profile is smoothed by two moving averages (:mod:`._smooth`), sampled at
+    knots up to ``options.max_knot_spacing`` knot periods apart (as far as the averages'
+    width allows), and the join of the knots (as the robot's trajectory controller
+    executes them, ``PathLimits.interpolation``) is checked against the joint speed,
+    acceleration and jerk limits on every interval. Where it exceeds one, the limits
+    along the part of the path that interval averaged are tightened and the path is timed
+    again (``options.retries`` runs in all); what is left is removed by stretching time
+    uniformly, which scales the join exactly (speeds by ``1/k``, accelerations by
+    ``1/k^2``, jerks by ``1/k^3``). The released knots are that join every
+    ``options.knot_period`` (:mod:`._release`).
 
     Args:
         robot: Limits and kinematics.
