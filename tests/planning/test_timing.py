@@ -231,6 +231,49 @@ def test_timing_options_are_validated() -> None:
         TimingOptions(speed_scale=0.0)
     with pytest.raises(ConfigError, match="knot_period"):
         TimingOptions(knot_period=0.0)
+    for bad in (0, 2.0, "4"):
+        with pytest.raises(ConfigError, match="max_knot_spacing") as info:
+            TimingOptions(max_knot_spacing=bad)  # type: ignore[arg-type]
+        assert info.value.key == "max_knot_spacing"
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_knots_timed_further_apart_are_released_as_their_join(bundled_cell: Cell,
+                                                              seed: int) -> None:
+    """The Ned3 Pro's moving averages span 64 ms or more, so a run is timed on knots four
+    knot periods apart and released at the knot period: every fourth released knot is a
+    timed one (on the spline), the others are the timed knots' quintic join at their
+    times (to rounding), and the released join stays within every limit; with
+    ``max_knot_spacing=1`` every knot lies on the spline."""
+    from safepath.model.interpolation import QUINTIC
+
+    robot = bundled_cell.robot
+    rng = np.random.default_rng(700 + seed)
+    n = int(rng.integers(2, 5))
+    path, s_way, _ = spline_path(_random_polyline(robot, rng, n), 0.06,
+                                 corners=[(k, 0.3) for k in range(1, n)], blend="g2")
+    timed = {m: time_path(robot, path, s_way, scales=[1.0] * n, tcp_speeds=[None] * n,
+                          options=TimingOptions(max_knot_spacing=m)) for m in (1, 4)}
+    one, four = timed[1], timed[4]
+    assert np.allclose(one.q, path(one.s), rtol=0, atol=1e-12)
+    step = np.diff(four.t)
+    # Evenly spaced about a knot period apart (longer by a stretch), not four.
+    assert np.allclose(step, step[0], rtol=0, atol=1e-12)
+    assert step[0] < 1.5 * TimingOptions().knot_period
+    coarse = slice(None, None, 4)
+    assert (four.t.size - 1) % 4 == 0
+    assert np.allclose(four.q[coarse], path(four.s[coarse]), rtol=0, atol=1e-12)
+    inner = np.arange(four.t.size) % 4 != 0
+    assert not np.allclose(four.q[inner], path(four.s[inner]), rtol=0, atol=1e-12)
+    p, v, a = QUINTIC.states(four.t[coarse], four.q[coarse], four.qd[coarse],
+                             four.qdd[coarse], four.t)
+    for mine, joined in ((four.q, p), (four.qd, v), (four.qdd, a)):
+        assert np.allclose(mine, joined, rtol=0, atol=1e-9)
+    v, a, j = _quintic_peaks(four.t, four.q, four.qd, four.qdd)
+    assert max(np.max(v / robot.velocity_limits), np.max(a / robot.acceleration_limits),
+               np.max(j / robot.jerk_limits)) <= 1.0 + 1e-9
+    # Both near the optimum: the coarser timing costs little motion time.
+    assert four.t[-1] <= one.t[-1] * 1.02
 
 
 # -- strict limits --------------------------------------------------------------------------
