@@ -18,6 +18,7 @@ from typing import Any
 import numpy as np
 
 from .._aot import njit
+from .interpolation import SAMPLE_SLACK
 
 __all__ = ["compiled_kernels", "peaks", "piece_of", "ratios", "sample"]
 
@@ -154,8 +155,9 @@ def _inverse_powers(h):
 @njit(cache=True, nogil=True, _nrt=False, inline="always")
 def _speed_samples(h, rate):
     """How many points the speed of an interval ``h`` [s] long is sampled at where it
-    may peak inside: at least ``rate`` per second, and 4."""
-    return max(4, int(math.ceil(h * rate)) + 1)
+    may peak inside: at least ``rate`` per second (to :data:`SAMPLE_SLACK` of a
+    spacing), and 4."""
+    return max(4, int(math.ceil(h * rate - SAMPLE_SLACK)) + 1)
 
 
 @njit(cache=True, nogil=True, _nrt=False, inline="always")
