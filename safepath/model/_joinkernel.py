@@ -18,7 +18,7 @@ from typing import Any
 import numpy as np
 
 from .._aot import njit
-from .interpolation import SAMPLE_SLACK
+from ._sampling import SAMPLE_SLACK
 
 __all__ = ["compiled_kernels", "peaks", "piece_of", "ratios", "sample"]
 

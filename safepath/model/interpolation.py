@@ -26,19 +26,10 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import ConfigError
+from ._sampling import SAMPLE_SLACK
 
 __all__ = ["Interpolation", "QUINTIC", "CUBIC", "LINEAR", "INTERPOLATIONS", "SAMPLE_SLACK",
            "interpolation_named", "as_interpolation"]
-
-
-#: Share of a sample spacing by which an interval may be longer than a whole number of
-#: them and keep that number of speed samples (``_joinkernel._speed_samples``, and
-#: :func:`interval_peaks`): the same points at times rounded to whole nanoseconds (a
-#: goal's) and as floats (1e-16 s off) are then sampled alike (one sample more moved the
-#: bound by ~1e-6 of a limit, across 1.0 for a replacement the monitor had checked on its
-#: float times); a spacing that much longer than ``1 / rate`` is still bounded, the bound
-#: adding ``|jerk| dt^2 / 8`` for the spacing ``dt`` it has.
-SAMPLE_SLACK = 1e-9
 
 
 @dataclass(frozen=True)
