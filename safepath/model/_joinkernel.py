@@ -432,17 +432,16 @@ def _subdivide(q: np.ndarray, qd: np.ndarray, qdd: np.ndarray, s: np.ndarray,
     _subdivided(p, v, a, dof, m, weights[:, 2], a, qdd_out.ravel(), scratch)
     _subdivided(s, sd, sdd, 1, m, weights[:, 0], s, s_out, scratch)
     fine_ns = step_ns // m
-    count = s_way.size - 1
     for j in range(t_out.size):
         t_out[j] = float(j * fine_ns) / 1e9
         k = j // m
         if j == k * m or segment[k] == segment[k + 1]:
             segment_out[j] = segment[k]
-        else:  # the last boundary at or before s, among the intervals' own
-            g = segment[k + 1]
+        else:  # the last boundary at or before s, among the intervals' own (a segment
+            g = segment[k + 1]  # is below len(s_way) - 1, and g stops at 0)
             while g > 0 and s_out[j] < s_way[g]:
                 g -= 1
-            segment_out[j] = min(max(g, 0), count - 1)
+            segment_out[j] = g
 
 
 @njit(cache=True, nogil=True, _nrt=False, inline="always")

@@ -165,11 +165,11 @@ def stretch_knots(t: np.ndarray, qd: np.ndarray, qdd: np.ndarray, k: float
     over ``k'``, accelerations over ``k'^2`` (their quintic join's jerks over ``k'^3``),
     where ``k'`` is ``k`` rounded up so that the knots stay a whole number of nanoseconds
     apart. Returns the new ``t, qd, qdd`` and ``k'``."""
-    stretched_ns, k = _roundedstretch(t, k)
+    stretched_ns, k = _rounded_stretch(t, k)
     return ns_grid(t.size, stretched_ns), qd / k, qdd / (k * k), k
 
 
-def _roundedstretch(t: np.ndarray, k: float, every: int = 1) -> tuple[int, float]:
+def _rounded_stretch(t: np.ndarray, k: float, every: int = 1) -> tuple[int, float]:
     """The knot step [ns] of evenly spaced knots ``t`` stretched by at least ``k``, and
     the stretch that gives it (``k`` rounded up to a whole multiple of ``every`` ns of
     step)."""
@@ -188,7 +188,7 @@ def _stretch_in_place(t: np.ndarray, qd: np.ndarray, qdd: np.ndarray, k: float,
     """:func:`stretch_knots` into the knots' own arrays (the release's: the large arrays of
     a long path are not allocated again), the step a multiple of ``every`` ns; returns
     ``k'``."""
-    stretched_ns, k = _roundedstretch(t, k, every)
+    stretched_ns, k = _rounded_stretch(t, k, every)
     np.divide(np.arange(t.size, dtype=np.int64) * stretched_ns, _NS, out=t)
     np.divide(qd, k, out=qd)
     np.divide(qdd, k * k, out=qdd)

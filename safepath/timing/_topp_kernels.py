@@ -311,9 +311,7 @@ def _piece_after(breaks, x, i, k):
     the same piece, in a few steps along increasing values."""
     if i == 0 or not x[i] >= x[i - 1]:
         return piece_of(breaks, x[i])
-    while k + 2 < breaks.size and breaks[k + 1] <= x[i]:
-        k += 1
-    return k
+    return _piece_at(breaks, x[i], k)
 
 
 @njit(cache=True, nogil=True)
@@ -424,8 +422,8 @@ def jerk_rows(tp, grid_p, sdp, up, dt, s_way, jmax_seg, grid, dq, ddq, inverse, 
 @_inlined
 def _piece_at(breaks, x, k):
     """The last piece ``k' >= k`` of ``breaks`` whose start is at or before ``x`` (the
-    first piece when none), walking on from ``k``: :func:`_piece_after` along increasing
-    values."""
+    first piece when none), walking on from ``k``: the walk of :func:`_piece_after` and
+    :func:`_piece_walk` along increasing values."""
     while k + 2 < breaks.size and breaks[k + 1] <= x:
         k += 1
     return k

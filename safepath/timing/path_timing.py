@@ -427,7 +427,7 @@ def _jerk_window(profile: _topp.Profile, limits: PathLimits, options: TimingOpti
     sample the motion (sampling it twice as often changed the motion time by under 0.1 %
     on 200 seeded via paths of five arms, for 5-12 % more of the timing's work)."""
     dt = options.knot_period
-    samples = np.arange(0.0, profile.duration, dt).size
+    samples = max(0, int(np.ceil(profile.duration / dt)))  # np.arange(0, duration, dt)
     # Along the profile; the path's tangent and curvature between gridpoints linear in s
     # (a cubic's are quadratic and linear; gridpoints lie <= grid_step apart). At rest
     # (zero acceleration) before and after: the first and last changes count.
