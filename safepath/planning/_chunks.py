@@ -81,8 +81,12 @@ def time_chunk(cell: Cell, segments: list[Segment], world: WorldState, options: 
                 timed: TimedPieces | None = None
                 ) -> list[tuple[TimedPiece, list[int], VerifyResult]]:
     """Time and verify a chunk: blended through its via points (large blends first, then
-    smaller, then passing exactly); if no blend is collision-free, can be timed and passes
-    the independent re-check, stop at the step boundaries, then at every corner. ``known``:
+    smaller, then passing exactly); if no blend can be timed and passes the independent
+    re-check, stop at the step boundaries, then at every corner. A blended spline is not
+    checked by the planner's checker before it is timed: the re-check of the timed piece
+    (the motion as executed, at the verifier's resolution, under the same margins) is
+    what lets it out, and a blend that is not free fails there and gives way to the next
+    one as it would have failed the planner's check. ``known``:
     the smallest clearance of the route so far [m] (see ``FclVerifier.verify``); a
     piece's result says inf unless it comes closer. A piece the release check refused is
     refused again without a second check when a later try times to the same piece (a
@@ -92,10 +96,8 @@ def time_chunk(cell: Cell, segments: list[Segment], world: WorldState, options: 
         for blend in options.timing.blend_radii:
             try:
                 piece, seg_steps = time_segments(cell, segments, world, options, cache,
-                                                  blend=blend, timed=timed)
+                                                  blend=blend, check=False, timed=timed)
                 return [verify(piece, seg_steps, segments, known)]
-            except _NotFree:
-                log.debug("blend %.3f rad not collision-free", blend)
             except VerificationError as exc:
                 log.debug("blend %.3f rad failed the re-check: %s", blend, exc)
             except TimingError as exc:  # e.g. a blend cut down to millimetres: too tight
@@ -201,7 +203,8 @@ def time_segments(cell: Cell, segments: list[Segment], world: WorldState,
                    ) -> tuple[TimedPiece, list[int]]:
     """Time the segments as one piece, blended at their via poses (and a planned
     detour's vertices) by ``blend`` [rad]; the spline checked for collisions first
-    (``check``, raising _NotFree), its timing taken from ``timed`` where it was timed
+    (``check``, raising _NotFree: the unblended fallbacks, so that a line whose spline
+    is not free is named as such), its timing taken from ``timed`` where it was timed
     before. Returns the piece and the step index of each polyline segment."""
     waypoints, corners, seg_of_poly = _polyline(segments, blend)
     seg_steps = [segments[n].step_index for n in seg_of_poly]

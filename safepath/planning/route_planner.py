@@ -2,11 +2,11 @@
 
 For each motion step: the direct joint segment if it is free, else OMPL (``move``), or
 a straight TCP line by inverse kinematics (``line``). Motion steps between two stops
-are timed together with TOPPRA through a spline that blends through the via poses;
-if the blended path is not collision-free, the robot stops at the step boundaries
-instead (and, if still needed, at every corner of the checked polyline). Every timed
-piece is then re-checked by the independent FCL verifier; only a trajectory that
-passes leaves :func:`plan_route`.
+are timed together with TOPPRA through a spline that blends through the via poses.
+Every timed piece is then re-checked by the independent FCL verifier; where a blended
+piece fails (the blend is not collision-free), smaller blends are tried, then the robot
+stops at the step boundaries (and, if still needed, at every corner of the checked
+polyline). Only a trajectory that passes leaves :func:`plan_route`.
 """
 
 from __future__ import annotations

@@ -300,3 +300,58 @@ def test_a_blend_that_times_to_a_refused_piece_is_refused_without_a_second_check
     assert all(any(r is p and not ok for p, ok in checked) for r in repeats)
     released = [p for p, ok in checked if ok]
     assert released and traj.info["clearance_bound"] >= 0.0
+
+
+def test_a_blend_into_an_object_is_refused_by_the_release_check_and_a_smaller_one_released(
+        tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """Problem p05 of the Panda set drawn with seed 97001: its detour's corners rounded by
+    0.6 rad bring the hand into the crossbar. The planner's checker is not asked about a
+    blended spline; the release check of the timed piece refuses it (a sample in
+    contact), the 0.3 rad blend is timed, checked and released, and the motion as
+    executed keeps the bound released with (coal, 1 kHz)."""
+    from safepath.planning import _chunks
+
+    problems = _peer_problems().generate_panda_problems(seed=97001)
+    cell, routes, listed = _panda_cell(tmp_path, problems)
+    blends: list[float] = []
+    checked: list[tuple[float, bool, str]] = []
+    refused: list[Any] = []
+    splines: list[object] = []
+    time_segments, verify_piece = _chunks.time_segments, _chunks.verify_piece
+    check_spline = _chunks._check_spline
+
+    def timing(*args: Any, blend: float = 0.0, **kwargs: Any) -> Any:
+        blends.append(blend)
+        return time_segments(*args, blend=blend, **kwargs)
+
+    def checking(piece: Any, *args: Any, **kwargs: Any) -> Any:
+        try:
+            out = verify_piece(piece, *args, **kwargs)
+        except safepath.VerificationError as exc:
+            checked.append((blends[-1], False, str(exc)))
+            refused.append(piece)
+            raise
+        checked.append((blends[-1], True, ""))
+        return out
+
+    def spline_check(*args: Any, **kwargs: Any) -> None:
+        splines.append(args)
+        check_spline(*args, **kwargs)
+
+    monkeypatch.setattr(_chunks, "time_segments", timing)
+    monkeypatch.setattr(_chunks, "verify_piece", checking)
+    monkeypatch.setattr(_chunks, "_check_spline", spline_check)
+    problem = listed[5]
+    traj = safepath.plan_route(cell, routes[problem["id"]],
+                               PlanOptions(planner=PlannerOptions(seed=int(problem["seed"]))))
+    assert not splines  # no blended spline checked by the planner's checker
+    assert checked[0][:2] == (0.6, False) and "in collision" in checked[0][2]
+    assert "crossbar" in checked[0][2]
+    assert checked[-1][:2] == (0.3, True) and len(checked) == 2
+    # The refused blend's knots touch the crossbar as the planner's checker sees it too.
+    checker = cell.checker()
+    assert any("crossbar" in {a, b} for qk in refused[0].q
+               for a, b in checker.check(qk).collisions)
+    assert traj.info["clearance_bound"] >= 0.0
+    q, _, _ = traj.sample(np.arange(0.0, traj.duration, 0.001))
+    assert min(checker.check(qk).clearance for qk in q) >= traj.info["clearance_bound"]
