@@ -318,7 +318,7 @@ def test_a_blend_into_an_object_is_refused_by_the_release_check_and_a_smaller_on
     refused: list[Any] = []
     splines: list[object] = []
     time_segments, verify_piece = _chunks.time_segments, _chunks.verify_piece
-    check_spline = _chunks._check_spline
+    check_path = safepath.CollisionChecker.check_path
 
     def timing(*args: Any, blend: float = 0.0, **kwargs: Any) -> Any:
         blends.append(blend)
@@ -334,13 +334,13 @@ def test_a_blend_into_an_object_is_refused_by_the_release_check_and_a_smaller_on
         checked.append((blends[-1], True, ""))
         return out
 
-    def spline_check(*args: Any, **kwargs: Any) -> None:
-        splines.append(args)
-        check_spline(*args, **kwargs)
+    def path_check(self: Any, path: Any, *args: Any, **kwargs: Any) -> Any:
+        splines.append(path)  # a move plans by segments: only a spline check asks this
+        return check_path(self, path, *args, **kwargs)
 
     monkeypatch.setattr(_chunks, "time_segments", timing)
     monkeypatch.setattr(_chunks, "verify_piece", checking)
-    monkeypatch.setattr(_chunks, "_check_spline", spline_check)
+    monkeypatch.setattr(safepath.CollisionChecker, "check_path", path_check)
     problem = listed[5]
     traj = safepath.plan_route(cell, routes[problem["id"]],
                                PlanOptions(planner=PlannerOptions(seed=int(problem["seed"]))))
