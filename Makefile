@@ -16,9 +16,13 @@ setup: $(STAMP) kernels
 
 ## The numba kernels compiled ahead of time into the user cache (15-60 s; nothing to do
 ## when the build of the current sources exists). If it fails, numba's JIT compiles them
-## on first use (tests/test_aot.py then fails, saying why).
+## on first use (tests/test_aot.py then fails, saying why). Then safepath's own Python
+## bytecode (an editable install has none, and a process started with
+## PYTHONDONTWRITEBYTECODE set never writes it: each would compile every module it
+## imports, ~0.15 s a process).
 kernels: $(STAMP)
 	$(BIN)/safepath build-kernels || echo "kernels not compiled ahead of time: numba's JIT will compile them"
+	$(BIN)/python -m compileall -q safepath
 
 ## Debian's Chromium for the browser test of the review session (needs root).
 browser:
