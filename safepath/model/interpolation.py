@@ -28,7 +28,7 @@ import numpy as np
 from ..errors import ConfigError
 from ._sampling import SAMPLE_SLACK
 
-__all__ = ["Interpolation", "QUINTIC", "CUBIC", "LINEAR", "INTERPOLATIONS", "SAMPLE_SLACK",
+__all__ = ["Interpolation", "QUINTIC", "CUBIC", "LINEAR", "INTERPOLATIONS",
            "interpolation_named", "as_interpolation"]
 
 

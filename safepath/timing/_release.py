@@ -153,10 +153,16 @@ def _stretched_ratios(ratios: np.ndarray, k: float, t: np.ndarray, q: np.ndarray
     more is computed from the stretched knots themselves."""
     for row, power in zip(ratios, (k, k * k, k * k * k), strict=True):
         np.divide(row, power, out=row)
-    at = np.flatnonzero(~(ratios.max(axis=0) < _EXACT_FROM))  # NaN too
+    at = _near_limit(ratios)
     if at.size:
         ratios[:, at] = interval_ratios(t, q, qd, qdd, segment, limits, at=at)
     return ratios
+
+
+def _near_limit(ratios: np.ndarray) -> np.ndarray:
+    """The intervals whose ratios (3, intervals) reach :data:`_EXACT_FROM` or are NaN:
+    those whose ratios are only bounds below it are left out."""
+    return np.flatnonzero(~(ratios.max(axis=0) < _EXACT_FROM))
 
 
 def stretch_knots(t: np.ndarray, qd: np.ndarray, qdd: np.ndarray, k: float
@@ -295,7 +301,7 @@ def _subdivided(run: Run, t: np.ndarray, qd: np.ndarray, qdd: np.ndarray, sd: np
     t, q, qd, qdd, s, segment = limits.interpolation.subdivided(
         run.q, qd, qdd, run.s, sd, sdd, run.segment, limits.s_way, _step_ns(t), m)
     qd[0] = qd[-1] = qdd[0] = qdd[-1] = 0.0  # at rest (not -0.0)
-    near = np.flatnonzero(~(ratios.max(axis=0) < _EXACT_FROM))  # NaN too
+    near = _near_limit(ratios)
     if near.size == 0:
         return t, q, qd, qdd, s, segment, None
     at = (near[:, None] * m + np.arange(m)).ravel()
