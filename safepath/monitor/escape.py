@@ -16,6 +16,15 @@ body's points. Two steps make the start clear, in this order:
    ``margin`` + :data:`START_SLACK` clear. The re-plan plans that stretch with the
    margin it has at rest (less :data:`START_SLACK`), the rest of the way from its end
    with the full margin.
+
+A cut is for the start only. A monitor stops a robot that comes closer to a body at rest
+than ``C + Z_d + Z_r`` unless it comes no closer than it is, so a route that leaves the
+body and later comes back within the cut-away part of the box is stopped there. When the
+box was cut (by the monitor or by :func:`start_box`), the first stretch away therefore
+goes on (up the gradient of the distance to the cut box) until the robot is ``margin`` +
+:data:`START_SLACK` clear of the *whole* box (the body's box inflated by the request's
+``inflation`` on every side), and the rest of the route keeps the margin from that
+(:func:`safepath.monitor.replan.replan`).
 """
 
 from __future__ import annotations
@@ -38,7 +47,7 @@ START_SLACK = 1e-3
 #: distance from the joint axes times this).
 ESCAPE_STEP = 0.004
 #: Most steps of the first stretch away.
-_ESCAPE_STEPS = 100
+_ESCAPE_STEPS = 250
 #: Within this of the scene, a step of the first stretch away never goes toward it [m].
 _NEAR = 0.02
 _BOX = "replan_box"
@@ -137,22 +146,26 @@ def _least_cut(clearance_with: Callable[[int, float], float], side: int, face: f
 
 
 def escape_state(cell: Cell, q: np.ndarray, lo: np.ndarray, hi: np.ndarray, *,
-                 held: str | None, resting: Mapping[str, np.ndarray], margin: float
-                 ) -> np.ndarray | None:
+                 held: str | None, resting: Mapping[str, np.ndarray], margin: float,
+                 until: tuple[np.ndarray, np.ndarray] | None = None) -> np.ndarray | None:
     """The end of a first stretch away from the box (lo, hi) [m] from ``q`` [rad] (see the
-    module doc): a state ``margin`` + START_SLACK clear of it, within the joint limits;
-    None when the walk finds none (a local maximum of the distance, or a joint limit).
+    module doc): a state ``margin`` + START_SLACK clear of it (of the box ``until``, its
+    lower and upper corner [m], when given: the walk goes up the gradient of the distance
+    to (lo, hi) until that box is that clear), within the joint limits (a joint within a
+    step of its limit stops going toward it); None when the walk finds none (a local
+    maximum of the distance, or :data:`_ESCAPE_STEPS` steps).
 
     Where the robot is within :data:`_NEAR` of the rest of the scene (the objects of
     ``cell``, the movable ones at ``resting``; a vial on its support, jaws around it),
     a step never goes toward it: the part of the step that would is taken out."""
     box = box_clearance(cell, lo, hi, held=held)
+    goal = box if until is None else box_clearance(cell, *until, held=held)
     scene = CollisionChecker(cell.robot, cell.scene, held=held, resting=dict(resting))
     robot = cell.robot
     need = margin + START_SLACK
     q = np.asarray(q, dtype=float).copy()
     for _ in range(_ESCAPE_STEPS):
-        if box.clearance(q)[0] >= need:
+        if goal.clearance(q)[0] >= need:
             return q
         step = _gradient(box, q)
         if scene.clearance(q)[0] < _NEAR:
@@ -160,12 +173,13 @@ def escape_state(cell: Cell, q: np.ndarray, lo: np.ndarray, hi: np.ndarray, *,
             toward = float(step @ away)
             if toward < 0.0 and float(away @ away) > 0.0:
                 step = step - toward / float(away @ away) * away
+        # A joint within a step of its limit does not go on toward it.
+        step[((q >= robot.upper - ESCAPE_STEP) & (step > 0.0))
+             | ((q <= robot.lower + ESCAPE_STEP) & (step < 0.0))] = 0.0
         norm = float(np.linalg.norm(step))
         if norm < 1e-9:
             return None
         q = q + ESCAPE_STEP * step / norm
-        if np.any(q < robot.lower) or np.any(q > robot.upper):
-            return None
     return None
 
 

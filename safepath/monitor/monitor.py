@@ -88,6 +88,8 @@ class ReplanRequest:
         body_size: Its edge lengths [m]; None: not measured.
         body_speed: The body's speed by the rest rule when asked [m/s].
         shrunk: Which sides of the box were cut back to the robot, in words ("": none).
+        inflation: ``C + Z_d``, the body's box inflated by it before any cut [m]; None:
+            not known (a request made by hand: the obstacle box is taken whole).
     """
 
     time: float
@@ -100,6 +102,7 @@ class ReplanRequest:
     body_size: np.ndarray | None = None
     body_speed: float = 0.0
     shrunk: str = ""
+    inflation: float | None = None
 
 
 @dataclass(frozen=True)
@@ -611,9 +614,8 @@ class Monitor:
         centers, _ = spheres.place(self.cell.robot, q[None])
         lo, hi, shrunk = shrink_box(rest.lo - d, rest.hi + d, rest.lo, rest.hi, centers[0],
                                     spheres.radii)
-        request = ReplanRequest(now, q, tau, self._path.traj.step_at(tau), (lo + hi) / 2,
-                                hi - lo, (rest.lo + rest.hi) / 2, rest.hi - rest.lo,
-                                rest.speed, shrunk)
+        request = ReplanRequest(now, q, tau, self._path.traj.step_at(tau), (lo + hi) / 2, hi - lo,
+                                (rest.lo + rest.hi) / 2, rest.hi - rest.lo, rest.speed, shrunk, d)
         self._asked = [*self._asked[-3:], request]
         return request
 

@@ -35,7 +35,12 @@ facing the robot at rest are cut back as little as needed, never inside the body
 box (``request.body_center``, ``body_size``); when even that box is closer than the
 margin, the route begins with a first stretch away from it (step
 :data:`ESCAPE_SUFFIX`), planned with the clearance the robot has at rest, and the ways
-are tried from its end. The box planned around is in ``info["replan"]["box"]``.
+are tried from its end. A cut is for the start only: when the box was cut and the robot
+may leave its step, the first stretch goes on until the robot is the margin clear of the
+whole box (the body's box inflated by ``request.inflation``), and the ways keep the
+margin from that; when that finds no way, the ways from the cut box follow
+(:func:`_clear_start`). The box the ways planned around is in ``info["replan"]["box"]``,
+the first stretch's in ``info["replan"]["escape"]["box"]``.
 
 Step names (:func:`rest_step`): the re-planned trajectory's steps carry the original
 route's labels (``4 line low1``), the rest of the step the robot stopped in too; an
@@ -58,7 +63,7 @@ from ..errors import InputError, PlanningError, SafepathError
 from ..model.scene import SceneObject, Shape
 from ..model.trajectory import Trajectory
 from ..planning import PlanOptions, WorldState, initial_world, plan_route
-from .escape import START_SLACK, escape_state, start_box
+from .escape import START_SLACK, box_clearance, escape_state, start_box
 from .monitor import ReplanRequest
 
 __all__ = ["replan", "ways", "step_role", "world_at", "obstacle_scene", "start_pose",
@@ -374,8 +379,10 @@ def replan(cell: Cell, route_name: str, request: ReplanRequest, *, held: str | N
     The result's ``info["replan"]`` holds the way taken (``way``, ``joins``: the
     original step rejoined), why the ways before it failed (``failed``) and the box
     planned around (``box``: ``center``, ``size`` [m], ``shrunk``: what the monitor and
-    :func:`start_box` cut back, in words). Its steps carry the original route's labels
-    (see the module doc), so that a request made in it re-plans again.
+    :func:`start_box` cut back, in words); with a first stretch away, ``escape``: where
+    it ends (``to``), the margin it keeps (``margin``) and from which box (``box``). Its
+    steps carry the original route's labels (see the module doc), so that a request made
+    in it re-plans again.
 
     Args:
         cell: The cell the route belongs to.
@@ -410,73 +417,118 @@ def replan(cell: Cell, route_name: str, request: ReplanRequest, *, held: str | N
                                   for o in cell.scene.objects.values()
                                   if o.movable and o.name != held})
     options = options or PlanOptions()
-    request, escape = _clear_start(cell, routes, route, first, request, held=held,
-                                   world=world, margin=margin)
-    head = None
-    if escape is not None:
-        head = _plan_escape(cell, route, first, request, escape, world, options)
-        request = replace(request, q=escape[0])
-    traj, way = _plan_ways(cell, routes, route, first, in_move, request, margin, world,
-                           options)
+    starts = _clear_start(cell, routes, route, first, request, held=held, world=world,
+                          margin=margin)
+    failed: list[str] = []
+    for n, (ways_request, stretch) in enumerate(starts):
+        try:
+            head = None if stretch is None else _plan_escape(cell, route, first, stretch,
+                                                               world, options)
+            traj, way = _plan_ways(cell, routes, route, first, in_move, ways_request, margin,
+                                   world, options)
+        except PlanningError as exc:
+            if n == len(starts) - 1:
+                raise
+            failed.append(f"keeping the margin from the whole box: {exc}")
+            continue
+        break
     traj = _named(traj, way.labels)
     traj.info["replan"] = {"way": way.description, "joins": route.labels()[way.joins],
-                           "failed": traj.info.pop("replan_failed"),
-                           "box": {"center": request.obstacle_center.tolist(),
-                                   "size": request.obstacle_size.tolist(),
-                                   "shrunk": request.shrunk}}
+                           "failed": [*failed, *traj.info.pop("replan_failed")],
+                           "box": _box_info(ways_request)}
     if head is not None:
-        assert escape is not None
+        assert stretch is not None
         traj = _joined(head, traj, route.labels()[first] + ESCAPE_SUFFIX)
-        traj.info["replan"]["escape"] = {"to": escape[0].tolist(), "margin": escape[1]}
+        traj.info["replan"]["escape"] = {"to": stretch.to.tolist(), "margin": stretch.margin,
+                                         "box": _box_info(stretch.request)}
     return traj
+
+
+@dataclass(frozen=True)
+class _Stretch:
+    """A first stretch away from the rest state: to ``to`` [rad], keeping ``margin`` [m]
+    from the box of ``request``."""
+
+    to: np.ndarray
+    margin: float
+    request: ReplanRequest
+
+
+def _box_info(request: ReplanRequest) -> dict[str, object]:
+    return {"center": request.obstacle_center.tolist(), "size": request.obstacle_size.tolist(),
+            "shrunk": request.shrunk}
 
 
 def _clear_start(cell: Cell, routes: Mapping[str, Route], route: Route, first: int,
                  request: ReplanRequest, *, held: str | None, world: WorldState,
-                 margin: float) -> tuple[ReplanRequest, tuple[np.ndarray, float] | None]:
-    """The request with its box cut back from the rest state (:func:`start_box`), and,
-    when that does not make the start clear, the end of a first stretch away with the
-    margin it is planned with [m] (:func:`escape_state`)."""
+                 margin: float) -> list[tuple[ReplanRequest, _Stretch | None]]:
+    """Where the ways may start, in the order to try them: the request the ways are
+    planned with (its box, its rest state) and the first stretch away before them, if
+    any (:mod:`safepath.monitor.escape`).
+
+    The box is cut back from the rest state (:func:`start_box`). When the box was cut (by
+    the monitor or here) and the robot may leave its step, the first stretch goes on
+    until the robot is clear of the whole box, and the ways keep the margin from that;
+    when no such stretch is found or no way plans from it, the ways from the cut box
+    follow (a first stretch away when even that is needed: :func:`escape_state`)."""
     lo, hi = _corners(request.obstacle_center, request.obstacle_size)
     body = None if request.body_center is None or request.body_size is None else \
         _corners(request.body_center, request.body_size)
+    whole = (lo, hi) if body is None or request.inflation is None else \
+        (body[0] - request.inflation, body[1] + request.inflation)
     q = np.asarray(request.q, dtype=float)
+    need = margin + START_SLACK
     box = start_box(cell, q, lo, hi, body, held=held, margin=margin)
-    request = replace(request, obstacle_center=(box.lo + box.hi) / 2,
-                      obstacle_size=box.hi - box.lo,
-                      shrunk="; ".join(w for w in (request.shrunk, box.cut) if w))
-    if box.clearance >= margin + START_SLACK:
-        return request, None
-    what = "the body's own box (as measured)" if body is not None else \
-        "the obstacle box (the request has no measured body to cut it back to)"
-    why = (f"the rest state is {1000 * box.clearance:.0f} mm from {what}, within the "
-           f"margin {1000 * margin:.0f} mm")
-    if box.clearance <= START_SLACK:
-        raise PlanningError(f"{why}: no first stretch away from inside it",
-                            step=request.step)
-    if step_role(routes, route, first) == "approach":
-        raise PlanningError(f"{why}, in an approach line (it is not left): no first "
-                            "stretch away", step=request.step)
+    cut = replace(request, obstacle_center=(box.lo + box.hi) / 2,
+                  obstacle_size=box.hi - box.lo,
+                  shrunk="; ".join(w for w in (request.shrunk, box.cut) if w))
+    whole_request = replace(request, obstacle_center=(whole[0] + whole[1]) / 2,
+                            obstacle_size=whole[1] - whole[0], shrunk="")
+    if box_clearance(cell, *whole, held=held).clearance(q)[0] >= need:
+        return [(whole_request, None)]
+    approach = step_role(routes, route, first) == "approach"
+    if box.clearance < need:
+        what = "the body's own box (as measured)" if body is not None else \
+            "the obstacle box (the request has no measured body to cut it back to)"
+        why = (f"the rest state is {1000 * box.clearance:.0f} mm from {what}, within the "
+               f"margin {1000 * margin:.0f} mm")
+        if box.clearance <= START_SLACK:
+            raise PlanningError(f"{why}: no first stretch away from inside it",
+                                step=request.step)
+        if approach:
+            raise PlanningError(f"{why}, in an approach line (it is not left): no first "
+                                "stretch away", step=request.step)
+    elif approach:
+        return [(cut, None)]
+    kept = min(margin, box.clearance - START_SLACK)  # the stretch's margin
+    starts: list[tuple[ReplanRequest, _Stretch | None]] = []
+    away = escape_state(cell, q, box.lo, box.hi, held=held, resting=world.resting,
+                        margin=margin, until=whole)
+    if away is not None:
+        starts.append((replace(whole_request, q=away), _Stretch(away, kept, cut)))
+    if box.clearance >= need:
+        return [*starts, (cut, None)]
     away = escape_state(cell, q, box.lo, box.hi, held=held, resting=world.resting,
                         margin=margin)
     if away is None:
+        if starts:
+            return starts
         raise PlanningError(f"{why}, and no first stretch away was found (the distance "
-                            "to the box stops growing, or a joint reaches its limit)",
+                            "to the box stops growing within the joint limits)",
                             step=request.step)
-    return request, (away, box.clearance - START_SLACK)
+    return [*starts, (replace(cut, q=away), _Stretch(away, kept, cut))]
 
 
-def _plan_escape(cell: Cell, route: Route, first: int, request: ReplanRequest,
-                 escape: tuple[np.ndarray, float], world: WorldState, options: PlanOptions
-                 ) -> Trajectory:
-    """The first stretch away from the rest state to ``escape[0]``, keeping the margin
-    ``escape[1]`` [m] from the box (the clearance it has at rest): a straight TCP line
-    when the robot rests in a line (the contacts allowed where that line began hold on
-    it: a vial just lifted off its support), else a free move."""
+def _plan_escape(cell: Cell, route: Route, first: int, stretch: _Stretch, world: WorldState,
+                 options: PlanOptions) -> Trajectory:
+    """The first stretch away from the rest state to ``stretch.to``, keeping
+    ``stretch.margin`` [m] from its box (at most the clearance it has at rest): a straight
+    TCP line when the robot rests in a line (the contacts allowed where that line began
+    hold on it: a vial just lifted off its support), else a free move."""
     own = route.steps[first]
     start = start_pose(route, first) if own.kind == "line" else None
-    temp = obstacle_scene(cell, request, margin=escape[1], keep_contacts_of=start,
-                          extra_poses={ESCAPE_POSE: escape[0]})
+    temp = obstacle_scene(cell, stretch.request, margin=stretch.margin,
+                          keep_contacts_of=start, extra_poses={ESCAPE_POSE: stretch.to})
     step = Step("line" if own.kind == "line" else "move", Target(ESCAPE_POSE), None,
                 own.speed, own.tcp_speed, True)
     try:
@@ -484,8 +536,8 @@ def _plan_escape(cell: Cell, route: Route, first: int, request: ReplanRequest,
                           world=world)
     except SafepathError as exc:
         raise PlanningError(f"the first stretch away from the body "
-                            f"({1000 * escape[1]:.0f} mm from it): {exc}",
-                            step=request.step) from None
+                            f"({1000 * stretch.margin:.0f} mm from it): {exc}",
+                            step=stretch.request.step) from None
 
 
 def _plan_ways(cell: Cell, routes: Mapping[str, Route], route: Route, first: int,
