@@ -83,6 +83,9 @@ MOVE_SUFFIX = " (re-planned move)"
 ESCAPE_SUFFIX = " (re-planned escape)"
 #: Name of the temporary pose the first stretch away ends at.
 ESCAPE_POSE = "monitor_escape"
+#: Thinnest edge of a body's box [m]: a body seen in one plane (a planar scan) has a box
+#: of no height, and a box cut back to it keeps this much (a box needs edges > 0).
+THINNEST = 1e-3
 #: Lengths of the partial lines tried from a rest in a line that may be left [m].
 PARTIAL_LINES = (0.01, 0.02, 0.04)
 
@@ -473,7 +476,7 @@ def _clear_start(cell: Cell, routes: Mapping[str, Route], route: Route, first: i
     follow (a first stretch away when even that is needed: :func:`escape_state`)."""
     lo, hi = _corners(request.obstacle_center, request.obstacle_size)
     body = None if request.body_center is None or request.body_size is None else \
-        _corners(request.body_center, request.body_size)
+        _corners(request.body_center, np.maximum(request.body_size, THINNEST))
     whole = (lo, hi) if body is None or request.inflation is None else \
         (body[0] - request.inflation, body[1] + request.inflation)
     q = np.asarray(request.q, dtype=float)

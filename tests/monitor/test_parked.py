@@ -17,6 +17,7 @@ import pytest
 
 from safepath import Cell, PlanOptions, SafepathError, Trajectory, plan_cell
 from safepath.collision import CheckOptions, CollisionChecker
+from safepath.errors import PlanningError
 from safepath.model.scene import SceneObject, Shape
 from safepath.monitor import Cloud, Decision, Monitor, ReplanRequest
 from safepath.monitor import parked as parked_module
@@ -29,7 +30,14 @@ from safepath.monitor.parked import (
     blocking_body,
     shrink_box,
 )
-from safepath.monitor.replan import ESCAPE_SUFFIX, replan, rest_step, step_role, world_at
+from safepath.monitor.replan import (
+    ESCAPE_SUFFIX,
+    THINNEST,
+    replan,
+    rest_step,
+    step_role,
+    world_at,
+)
 from safepath.monitor.simulation import FclSeparation, MovingSphere, camera_cloud
 from safepath.monitor.sweep import RobotSpheres
 from safepath.ros import split_at_gripper_events
@@ -526,6 +534,44 @@ def test_a_start_within_the_margin_of_the_body_moves_away_first(
     assert whole[0] < MARGIN  # (the whole box was within the margin at rest)
     # A request made in the first stretch away names a step the route knows.
     assert rest_step(cell.route_table()["phase1"], new.step_at(0.1)) == (3, True)
+
+
+def test_a_body_seen_in_one_plane_is_planned_around_or_refused_by_name(
+        cell: Cell, planned: dict[str, Trajectory]) -> None:
+    """A body whose box has no depth along one axis (a planar scan's points), 20 mm from
+    the arm on either side along each axis: the box cut back to it keeps
+    :data:`~safepath.monitor.replan.THINNEST`, so each re-plan either keeps its margins
+    (a first stretch away) or says why no way works (a box of an edge 0 raised
+    ``ConfigError`` "size[2] must be > 0" in the live-safety suite)."""
+    traj = planned["phase1"]
+    knots = np.flatnonzero(np.array([traj.steps[s] for s in traj.step_index])
+                           == "3 move high2")
+    k = int(knots[int(0.3 * knots.size)])
+    q, tcp = traj.q[k], cell.robot.tcp_position(traj.q[k])
+    world = world_at(cell, [traj], float(traj.t[k]))
+    planned_around = 0
+    for axis, sign in ((a, s) for a in range(3) for s in (1.0, -1.0)):
+        size = np.full(3, 0.08)
+        size[axis] = 0.0
+        lo_s, hi_s = 0.0, 0.5
+        for _ in range(30):  # the body 20 mm from the arm along +-axis from the TCP
+            c = tcp + (lo_s + hi_s) / 2 * sign * np.eye(3)[axis]
+            near = box_clearance(cell, c - size / 2 - 1e-4, c + size / 2 + 1e-4,
+                                 held="vial").clearance(q)[0] < 0.02
+            lo_s, hi_s = ((lo_s + hi_s) / 2, hi_s) if near else (lo_s, (lo_s + hi_s) / 2)
+        c = tcp + hi_s * sign * np.eye(3)[axis]
+        request = ReplanRequest(0.0, q, float(traj.t[k]), "3 move high2", c, size + 0.14, c,
+                                size, 0.0, "", 0.07)
+        try:
+            new = replan(cell, "phase1", request, held="vial", margin=MARGIN, world=world)
+        except SafepathError as exc:
+            assert isinstance(exc, PlanningError), exc
+            continue
+        planned_around += 1
+        escape = new.info["replan"]["escape"]
+        assert THINNEST - 1e-9 <= min(escape["box"]["size"])
+        assert escape["margin"] == pytest.approx(0.02 - START_SLACK, abs=2e-3)
+    assert planned_around >= 2
 
 
 def test_the_second_of_two_parked_bodies_moving_is_dropped(
