@@ -12,8 +12,9 @@ body's points. Two steps make the start clear, in this order:
    (by 1 mm at least) goes to the body's box and the others are tried again.
 2. **A first stretch away** (:func:`escape_state`): when even the body's own box is
    closer than that, the robot first moves away from it: from the rest state, small joint
-   steps (:data:`ESCAPE_STEP`) up the gradient of its distance to the box, until it is
-   ``margin`` + :data:`START_SLACK` clear. The re-plan plans that stretch with the
+   steps (:data:`ESCAPE_STEP`, :data:`_SAME_GRADIENT` of them along each gradient) up the
+   gradient of its distance to the box, until it is ``margin`` + :data:`START_SLACK`
+   clear. The re-plan plans that stretch with the
    margin it has at rest (less :data:`START_SLACK`), the rest of the way from its end
    with the full margin.
 
@@ -47,7 +48,12 @@ START_SLACK = 1e-3
 #: distance from the joint axes times this).
 ESCAPE_STEP = 0.004
 #: Most steps of the first stretch away.
-_ESCAPE_STEPS = 250
+_ESCAPE_STEPS = 400
+#: The walk gives up when the clearance it walks for has not grown by :data:`_GAIN` [m]
+#: in :data:`_STALL` steps.
+_GAIN, _STALL = 1e-3, 40
+#: Steps taken along one gradient (its central differences are most of a step's work).
+_SAME_GRADIENT = 4
 #: Within this of the scene, a step of the first stretch away never goes toward it [m].
 _NEAR = 0.02
 _BOX = "replan_box"
@@ -153,7 +159,8 @@ def escape_state(cell: Cell, q: np.ndarray, lo: np.ndarray, hi: np.ndarray, *,
     lower and upper corner [m], when given: the walk goes up the gradient of the distance
     to (lo, hi) until that box is that clear), within the joint limits (a joint within a
     step of its limit stops going toward it); None when the walk finds none (a local
-    maximum of the distance, or :data:`_ESCAPE_STEPS` steps).
+    maximum of the distance, no 1 mm of it gained in :data:`_STALL` steps, or
+    :data:`_ESCAPE_STEPS` steps).
 
     Where the robot is within :data:`_NEAR` of the rest of the scene (the objects of
     ``cell``, the movable ones at ``resting``; a vial on its support, jaws around it),
@@ -164,15 +171,22 @@ def escape_state(cell: Cell, q: np.ndarray, lo: np.ndarray, hi: np.ndarray, *,
     robot = cell.robot
     need = margin + START_SLACK
     q = np.asarray(q, dtype=float).copy()
-    for _ in range(_ESCAPE_STEPS):
-        if goal.clearance(q)[0] >= need:
-            return q
-        step = _gradient(box, q)
-        if scene.clearance(q)[0] < _NEAR:
-            away = _gradient(scene, q)
-            toward = float(step @ away)
-            if toward < 0.0 and float(away @ away) > 0.0:
-                step = step - toward / float(away @ away) * away
+    best, since = -np.inf, 0  # the goal's best clearance, and the steps since it grew
+    step = np.zeros(q.size)
+    for k in range(_ESCAPE_STEPS):
+        if k % _SAME_GRADIENT == 0:  # (the walk's state is judged where it turns)
+            now = goal.clearance(q)[0]
+            if now >= need:
+                return q
+            best, since = (now, 0) if now >= best + _GAIN else (best, since + _SAME_GRADIENT)
+            if since > _STALL:
+                return None
+            step = _gradient(box, q)
+            if scene.clearance(q)[0] < _NEAR:
+                away = _gradient(scene, q)
+                toward = float(step @ away)
+                if toward < 0.0 and float(away @ away) > 0.0:
+                    step = step - toward / float(away @ away) * away
         # A joint within a step of its limit does not go on toward it.
         step[((q >= robot.upper - ESCAPE_STEP) & (step > 0.0))
              | ((q <= robot.lower + ESCAPE_STEP) & (step < 0.0))] = 0.0
@@ -180,7 +194,7 @@ def escape_state(cell: Cell, q: np.ndarray, lo: np.ndarray, hi: np.ndarray, *,
         if norm < 1e-9:
             return None
         q = q + ESCAPE_STEP * step / norm
-    return None
+    return q if goal.clearance(q)[0] >= need else None
 
 
 def _gradient(checker: CollisionChecker, q: np.ndarray, h: float = 1e-4) -> np.ndarray:
