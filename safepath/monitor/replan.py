@@ -52,7 +52,7 @@ re-planned trajectory therefore names a step of the original route, and re-plans
 
 from __future__ import annotations
 
-from collections.abc import Mapping, Sequence
+from collections.abc import Iterator, Mapping, Sequence
 from dataclasses import dataclass, replace
 from typing import Literal
 
@@ -423,18 +423,21 @@ def replan(cell: Cell, route_name: str, request: ReplanRequest, *, held: str | N
     starts = _clear_start(cell, routes, route, first, request, held=held, world=world,
                           margin=margin)
     failed: list[str] = []
-    for n, (ways_request, stretch) in enumerate(starts):
+    last: PlanningError | None = None  # why the start tried last found no way
+    for ways_request, stretch in starts:
+        if last is not None:
+            failed.append(f"keeping the margin from the whole box: {last}")
         try:
             head = None if stretch is None else _plan_escape(cell, route, first, stretch,
                                                                world, options)
             traj, way = _plan_ways(cell, routes, route, first, in_move, ways_request, margin,
                                    world, options)
+            break
         except PlanningError as exc:
-            if n == len(starts) - 1:
-                raise
-            failed.append(f"keeping the margin from the whole box: {exc}")
-            continue
-        break
+            last = exc
+    else:
+        assert last is not None  # (_clear_start yields a start or raises)
+        raise last
     traj = _named(traj, way.labels)
     traj.info["replan"] = {"way": way.description, "joins": route.labels()[way.joins],
                            "failed": [*failed, *traj.info.pop("replan_failed")],
@@ -464,10 +467,10 @@ def _box_info(request: ReplanRequest) -> dict[str, object]:
 
 def _clear_start(cell: Cell, routes: Mapping[str, Route], route: Route, first: int,
                  request: ReplanRequest, *, held: str | None, world: WorldState,
-                 margin: float) -> list[tuple[ReplanRequest, _Stretch | None]]:
-    """Where the ways may start, in the order to try them: the request the ways are
-    planned with (its box, its rest state) and the first stretch away before them, if
-    any (:mod:`safepath.monitor.escape`).
+                 margin: float) -> Iterator[tuple[ReplanRequest, _Stretch | None]]:
+    """Where the ways may start, in the order to try them (each worked out only once the
+    one before found no way): the request the ways are planned with (its box, its rest
+    state) and the first stretch away before them, if any (:mod:`safepath.monitor.escape`).
 
     The box is cut back from the rest state (:func:`start_box`). When the box was cut (by
     the monitor or here) and the robot may leave its step, the first stretch goes on
@@ -485,10 +488,12 @@ def _clear_start(cell: Cell, routes: Mapping[str, Route], route: Route, first: i
     cut = replace(request, obstacle_center=(box.lo + box.hi) / 2,
                   obstacle_size=box.hi - box.lo,
                   shrunk="; ".join(w for w in (request.shrunk, box.cut) if w))
-    whole_request = replace(request, obstacle_center=(whole[0] + whole[1]) / 2,
-                            obstacle_size=whole[1] - whole[0], shrunk="")
+    whole_request = request if whole[0] is lo else replace(
+        request, obstacle_center=(whole[0] + whole[1]) / 2, obstacle_size=whole[1] - whole[0],
+        shrunk="")
     if box_clearance(cell, *whole, held=held).clearance(q)[0] >= need:
-        return [(whole_request, None)]
+        yield whole_request, None
+        return
     approach = step_role(routes, route, first) == "approach"
     if box.clearance < need:
         what = "the body's own box (as measured)" if body is not None else \
@@ -502,24 +507,24 @@ def _clear_start(cell: Cell, routes: Mapping[str, Route], route: Route, first: i
             raise PlanningError(f"{why}, in an approach line (it is not left): no first "
                                 "stretch away", step=request.step)
     elif approach:
-        return [(cut, None)]
+        yield cut, None
+        return
     kept = min(margin, box.clearance - START_SLACK)  # the stretch's margin
-    starts: list[tuple[ReplanRequest, _Stretch | None]] = []
-    away = escape_state(cell, q, box.lo, box.hi, held=held, resting=world.resting,
-                        margin=margin, until=whole)
-    if away is not None:
-        starts.append((replace(whole_request, q=away), _Stretch(away, kept, cut)))
+    whole_away = escape_state(cell, q, box.lo, box.hi, held=held, resting=world.resting,
+                              margin=margin, until=whole)
+    if whole_away is not None:
+        yield replace(whole_request, q=whole_away), _Stretch(whole_away, kept, cut)
     if box.clearance >= need:
-        return [*starts, (cut, None)]
+        yield cut, None
+        return
     away = escape_state(cell, q, box.lo, box.hi, held=held, resting=world.resting,
                         margin=margin)
-    if away is None:
-        if starts:
-            return starts
+    if away is not None:
+        yield replace(cut, q=away), _Stretch(away, kept, cut)
+    elif whole_away is None:
         raise PlanningError(f"{why}, and no first stretch away was found (the distance "
                             "to the box stops growing within the joint limits)",
                             step=request.step)
-    return [*starts, (replace(cut, q=away), _Stretch(away, kept, cut))]
 
 
 def _plan_escape(cell: Cell, route: Route, first: int, stretch: _Stretch, world: WorldState,
