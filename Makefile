@@ -14,9 +14,10 @@ $(STAMP): pyproject.toml
 
 setup: $(STAMP) kernels
 
-## The numba kernels compiled ahead of time into the user cache (15-60 s; nothing to do
-## when the build of the current sources exists). If it fails, numba's JIT compiles them
-## on first use (tests/test_aot.py then fails, saying why). Then safepath's own Python
+## The numba kernels compiled ahead of time into the venv's cache, .venv/var/cache/safepath
+## (30-95 s; nothing to do when the build of the current sources exists), and the bundled
+## cells' robot parts made there. If it fails, numba's JIT compiles them on first use
+## (tests/test_aot.py then fails, saying why). Then safepath's own Python
 ## bytecode (an editable install has none, and a process started with
 ## PYTHONDONTWRITEBYTECODE set never writes it: each would compile every module it
 ## imports, ~0.15 s a process).

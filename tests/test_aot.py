@@ -3,7 +3,7 @@ signature table agrees with numba, a stale build is never used, and a process th
 plans with a current build never imports numba.
 
 The build itself is what ``make setup`` / ``safepath build-kernels`` writes to the
-user cache; the ``built`` fixture makes it if it is missing (about a minute).
+cache (the virtual environment's); the ``built`` fixture makes it if it is missing (about a minute).
 """
 
 from __future__ import annotations
@@ -319,6 +319,22 @@ def test_a_new_process_plans_the_cell_without_numba(built: Build) -> None:
     assert routes == str(sorted(safepath.load_cell(CELL).route_table()))
 
 
+@pytest.mark.skipif(sys.prefix == sys.base_prefix, reason="not run in a virtual environment")
+def test_the_build_is_found_under_any_home_directory(built: Build, tmp_path: Path) -> None:
+    # In a virtual environment the build is kept in it: a process run by another user or
+    # under an empty home directory (no ~/.cache) still plans on it, never importing numba.
+    env = {k: v for k, v in os.environ.items() if k not in ("SAFEPATH_KERNEL_CACHE",
+                                                            "XDG_CACHE_HOME")}
+    env["HOME"] = str(tmp_path)
+    out = subprocess.run([sys.executable, "-c", _PLAN], cwd=ROOT, capture_output=True,
+                         text=True, timeout=600, env=env)
+    assert out.returncode == 0, out.stderr[-3000:]
+    status, modules = out.stdout.split("\n")[:2]
+    assert built.path.is_relative_to(Path(sys.prefix))
+    assert status == f"ahead-of-time ({built.path})" and modules == "False False"
+    assert not any(tmp_path.iterdir())
+
+
 def test_without_a_build_the_kernels_run_on_numba(tmp_path: Path) -> None:
     status, modules, _ = _child(_PLAN, SAFEPATH_KERNEL_CACHE=str(tmp_path))[:3]
     assert status.startswith("numba JIT (no build for these sources in")
@@ -384,9 +400,20 @@ def test_build_kernels_command(built: Build, tmp_path: Path, monkeypatch: pytest
     """Up to date: says where the build is. A cache it cannot write: one line, exit 2,
     nothing written."""
     from safepath.cli import main
+    from safepath.files._paths import SCENES_DIR
+    from safepath.files.derived import disk_folder
 
+    monkeypatch.setenv("SAFEPATH_CACHE", str(tmp_path / "cache"))
     assert main(["build-kernels"]) == 0
-    assert capsys.readouterr().out.strip() == f"kernels up to date: {built.path}"
+    out = capsys.readouterr().out.strip().splitlines()
+    assert out[0] == f"kernels up to date: {built.path}"
+    # ... and the bundled cells' first plans are prepared: their robots' parts and the
+    # bag's message classes are on disk (made by a new process, the build loaded).
+    cells = sorted(f.name for f in SCENES_DIR.iterdir() if (f / "scene.yaml").is_file())
+    assert out[1] == f"prepared the bundled cells' first plans: {', '.join(cells)}"
+    parts = disk_folder()
+    assert parts is not None and len(list(parts.glob("*.part"))) == len(cells)
+    assert len(list((tmp_path / "cache" / "ros-types").glob("*.py"))) == 1
     blocker = tmp_path / "file"
     blocker.write_text("")
     monkeypatch.setenv("SAFEPATH_KERNEL_CACHE", str(blocker / "kernels"))

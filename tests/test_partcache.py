@@ -7,6 +7,7 @@ the checkers and verifiers take from the robot, before the first plan."""
 from __future__ import annotations
 
 import logging
+import os
 from pathlib import Path
 from typing import Any
 
@@ -190,3 +191,35 @@ def test_a_robot_the_verifier_cannot_check_loads_and_planning_refuses_it(cell: C
     with pytest.raises(ConfigError) as caught:
         check_verifiable(odd, cell.scene)
     assert caught.value.key == geom.name
+
+
+def test_the_default_cache_belongs_to_the_virtual_environment(
+        tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    # In a virtual environment the default cache is in it (any home directory finds what
+    # it holds); outside one, or in one that cannot be written, the user's cache.
+    import sys
+
+    from safepath._aot import cache_root
+    from safepath.files._home import cache_base
+
+    monkeypatch.delenv(CACHE_ENV, raising=False)
+    monkeypatch.delenv("SAFEPATH_KERNEL_CACHE", raising=False)
+    monkeypatch.setenv("XDG_CACHE_HOME", str(tmp_path / "xdg"))
+    venv = tmp_path / "venv"
+    venv.mkdir()
+    monkeypatch.setattr(sys, "prefix", str(venv))
+    monkeypatch.setattr(sys, "base_prefix", str(tmp_path / "python"))
+    assert cache_base() == venv / "var" / "cache" / "safepath"
+    assert disk_folder() == venv / "var" / "cache" / "safepath" / "robot-parts"
+    assert cache_root() == venv / "var" / "cache" / "safepath" / "kernels"
+    venv.chmod(0o555)
+    try:
+        if not os.access(venv, os.W_OK):  # (root writes anywhere)
+            assert cache_base() == tmp_path / "xdg" / "safepath"
+    finally:
+        venv.chmod(0o755)
+    monkeypatch.setattr(sys, "base_prefix", str(venv))
+    assert cache_base() == tmp_path / "xdg" / "safepath"
+    monkeypatch.delenv("XDG_CACHE_HOME")
+    monkeypatch.setenv("HOME", str(tmp_path / "home"))
+    assert cache_base() == tmp_path / "home" / ".cache" / "safepath"

@@ -16,8 +16,10 @@ use, or load from numba's on-disk cache, as before. A build made from other sour
 never found (its key differs), so a stale extension is never used.
 
 Environment:
-    SAFEPATH_KERNEL_CACHE: Where builds are kept (default: ``$XDG_CACHE_HOME/safepath/
-        kernels``, else ``~/.cache/safepath/kernels``).
+    SAFEPATH_KERNEL_CACHE: Where builds are kept (default: the ``kernels`` folder of
+        :func:`safepath.files._home.cache_base`: in a virtual environment
+        ``<venv>/var/cache/safepath/kernels``, else ``$XDG_CACHE_HOME/safepath/kernels``
+        or ``~/.cache/safepath/kernels``).
     SAFEPATH_AOT: ``0`` to always use numba's JIT.
     SAFEPATH_AOT_STRICT: ``1`` to raise (TypeError) when a call's arguments do not match
         its kernel's signature, instead of running the JIT kernel (the test suite).
@@ -39,6 +41,7 @@ from types import ModuleType
 from typing import Any
 
 from ..files._digest import sha256
+from ..files._home import cache_base
 from .table import ENTRIES, MODULES, PLANNING_MODULES
 
 __all__ = ["njit", "compiled", "status", "source_key", "build_dir", "cache_root",
@@ -67,8 +70,7 @@ def cache_root() -> Path:
     env = os.environ.get(ENV_CACHE)
     if env:
         return Path(env)
-    base = os.environ.get("XDG_CACHE_HOME") or str(Path.home() / ".cache")
-    return Path(base) / "safepath" / "kernels"
+    return cache_base() / "kernels"
 
 
 def _module_path(name: str, root: Path) -> Path:

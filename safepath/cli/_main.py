@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import argparse
 import logging
+import subprocess
 import sys
 from collections.abc import Callable, Sequence
 from pathlib import Path
@@ -152,6 +153,14 @@ def cmd_build_kernels(args: argparse.Namespace) -> int:
         print(f"built {len(ENTRIES)} kernels in {result.seconds:.0f} s: {result.path}")
     else:
         print(f"kernels up to date: {result.path}")
+    # A new process loads the build just made, so the bundled cells' parts are made
+    # where they are kept (safepath.cli._prepare); a failure there is the cells' own.
+    done = subprocess.run([sys.executable, "-m", "safepath.cli._prepare"],
+                          capture_output=True, text=True, check=False)
+    if done.returncode != 0:
+        lines = (done.stderr.strip() or "no output").splitlines()
+        raise SafepathError(f"kernels built, but preparing the bundled cells failed: {lines[-1]}")
+    print(f"prepared the bundled cells' first plans: {done.stdout.strip()}")
     return 0
 
 

@@ -24,9 +24,11 @@ concurrent processes never read half of one; a cache that cannot be written is o
 logged.
 
 Environment:
-    SAFEPATH_CACHE: The cache folder (default ``$XDG_CACHE_HOME/safepath``, else
-        ``~/.cache/safepath``); entries go to its ``robot-parts`` folder (and the classes
-        of the ROS 2 messages safepath writes to ``ros-types``, see
+    SAFEPATH_CACHE: The cache folder (default: in a virtual environment
+        ``<venv>/var/cache/safepath``, else ``$XDG_CACHE_HOME/safepath`` or
+        ``~/.cache/safepath``, see :func:`safepath.files._home.cache_base`); entries go
+        to its ``robot-parts`` folder (and the classes of the ROS 2 messages safepath
+        writes to ``ros-types``, see
         :mod:`safepath.ros._type_cache`). ``0`` or an empty value: no disk cache.
 """
 
@@ -45,6 +47,7 @@ import numpy as np
 
 from ..errors import InputError
 from ._digest import blake2b, sha256
+from ._home import cache_base
 from ._io import read_bytes
 
 __all__ = ["DerivedKind", "StoredKind", "Derived", "DerivedValues", "CACHE_ENV",
@@ -182,8 +185,7 @@ def cache_folder(name: str) -> Path | None:
     env = os.environ.get(CACHE_ENV)
     if env is not None:
         return Path(env) / name if env not in ("", "0") else None
-    base = os.environ.get("XDG_CACHE_HOME") or str(Path.home() / ".cache")
-    return Path(base) / "safepath" / name
+    return cache_base() / name
 
 
 def disk_folder() -> Path | None:
