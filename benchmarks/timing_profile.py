@@ -41,7 +41,6 @@ STAGES = (
     ("jerk window", "path_timing.py", "_jerk_window"),
     ("tighten (retry)", "path_timing.py", "_tighten"),
     ("release", "_release.py", "release"),
-    ("  subdivision", "_release.py", "_subdivided"),
 )
 
 

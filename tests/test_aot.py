@@ -144,7 +144,6 @@ def recorded() -> dict[str, list[tuple[Any, ...]]]:
     join["sample"] = recorder("join_sample", saved_join["sample"])
     join["ratios"] = recorder("join_ratios", saved_join["ratios"])
     join["screen"] = recorder("join_screen", saved_join["screen"])
-    join["subdivide"] = recorder("join_subdivide", saved_join["subdivide"])
     try:
         for folder in (CELL, PANDA):
             cell = safepath.load_cell(folder)

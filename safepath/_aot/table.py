@@ -159,8 +159,6 @@ ENTRIES: dict[str, Entry] = {
                          "void"),
     "join_screen": Entry(_JOIN, "_screen", (F1, F2, F2, F2, FLOAT, I1, F2, F2, F2, FLOAT, F1,
                                              F1, F1, F3), "void"),
-    "join_subdivide": Entry(_JOIN, "_subdivide", (F2, F2, F2, F1, F1, F1, I1, F1, INT, INT, F1,
-                                                   F2, F2, F2, F1, I1, F3, F1), "void"),
 }
 
 #: The modules whose source the ahead-of-time module is compiled from: it is used only

@@ -406,94 +406,6 @@ def _sample(t: np.ndarray, q: np.ndarray, qd: np.ndarray, qdd: np.ndarray,
             a_out[i, d] = acc0 + s * (6.0 * c3 + s * (12.0 * c4 + 20.0 * c5 * s))
 
 
-def _subdivide(q: np.ndarray, qd: np.ndarray, qdd: np.ndarray, s: np.ndarray,
-               sd: np.ndarray, sdd: np.ndarray, segment: np.ndarray, s_way: np.ndarray,
-               step_ns: int, m: int, t_out: np.ndarray, q_out: np.ndarray,
-               qd_out: np.ndarray, qdd_out: np.ndarray, s_out: np.ndarray,
-               segment_out: np.ndarray, weights: np.ndarray, scratch: np.ndarray) -> None:
-    """Points ``step_ns`` nanoseconds apart at ``m`` times as many points (``step_ns`` a
-    multiple of ``m``; see :func:`subdivide`), into the outputs ((points - 1) m + 1, ...):
-    the times, the points themselves every ``m``-th and between them their quintic join's
-    position, velocity and acceleration, the position of the scalar join of ``s, sd,
-    sdd``, and the segment of each (the interval of ``s_way`` holding it, as
-    :func:`safepath.model._knots.interval_index` counts ``len(s_way) - 1`` of them, from
-    ``segment`` where an interval's two points share theirs). ``weights`` (m, 3, 6) and
-    ``scratch`` ((points - 1) dof) are its work space.
-
-    Each value is a weighted sum of the six values at the interval's two points (the
-    quintic Hermite basis at the part's offset, :func:`_hermite_weights`), computed for one
-    offset along all the intervals at once (a straight loop the compiler vectorises), then
-    placed in the outputs' rows."""
-    _hermite_weights(step_ns / 1e9, m, weights)
-    p, v, a = q.ravel(), qd.ravel(), qdd.ravel()
-    dof = q.shape[1]
-    _subdivided(p, v, a, dof, m, weights[:, 0], p, q_out.ravel(), scratch)
-    _subdivided(p, v, a, dof, m, weights[:, 1], v, qd_out.ravel(), scratch)
-    _subdivided(p, v, a, dof, m, weights[:, 2], a, qdd_out.ravel(), scratch)
-    _subdivided(s, sd, sdd, 1, m, weights[:, 0], s, s_out, scratch)
-    fine_ns = step_ns // m
-    for j in range(t_out.size):
-        t_out[j] = float(j * fine_ns) / 1e9
-        k = j // m
-        if j == k * m or segment[k] == segment[k + 1]:
-            segment_out[j] = segment[k]
-        else:  # the last boundary at or before s, among the intervals' own (a segment
-            g = segment[k + 1]  # is below len(s_way) - 1, and g stops at 0)
-            while g > 0 and s_out[j] < s_way[g]:
-                g -= 1
-            segment_out[j] = g
-
-
-@njit(cache=True, nogil=True, _nrt=False, inline="always")
-def _subdivided(p, v, a, dof, m, weights, own, out, scratch):
-    """One of :func:`_subdivide`'s outputs ``out`` (flat) from the flat points ``p, v, a``
-    (``dof`` per point): the points' own values ``own`` every ``m``-th row, between them
-    the weighted sums with ``weights`` (m, 6)."""
-    n = p.size // dof - 1
-    size = n * dof
-    for k in range(n + 1):
-        for d in range(dof):
-            out[k * m * dof + d] = own[k * dof + d]
-    for i in range(1, m):
-        w0, w1, w2, w3, w4, w5 = (weights[i, 0], weights[i, 1], weights[i, 2], weights[i, 3],
-                                  weights[i, 4], weights[i, 5])
-        _weighted(p[:size], v[:size], a[:size], p[dof:], v[dof:], a[dof:], w0, w1, w2, w3, w4,
-                  w5, scratch)
-        for k in range(n):
-            row = (k * m + i) * dof
-            for d in range(dof):
-                out[row + d] = scratch[k * dof + d]
-
-
-@njit(cache=True, nogil=True, _nrt=False)
-def _weighted(p0, v0, a0, p1, v1, a1, w0, w1, w2, w3, w4, w5, out):
-    """``out = w0 p0 + w1 v0 + ... + w5 a1``, element by element (a loop the compiler
-    vectorises: its own function, whose arrays it treats as separate)."""
-    for e in range(out.size if out.size < p0.size else p0.size):
-        out[e] = w0 * p0[e] + w1 * v0[e] + w2 * a0[e] + w3 * p1[e] + w4 * v1[e] + w5 * a1[e]
-
-
-@njit(cache=True, nogil=True, _nrt=False, inline="always")
-def _hermite_weights(h, m, weights):
-    """The quintic join's position, velocity and acceleration at ``i h / m`` into an
-    interval ``h`` long as weights of the six values at its ends
-    ``(p0, v0, a0, p1, v1, a1)``, into ``weights`` (m, 3, 6): :func:`_quintic` of each
-    unit vector."""
-    i3, i4, i5 = _inverse_powers(h)
-    for r in range(6):
-        c1, c2, c3, c4, c5 = _quintic(1.0 if r == 0 else 0.0, 1.0 if r == 3 else 0.0,
-                                      1.0 if r == 1 else 0.0,
-                                      1.0 if r == 4 else 0.0, 1.0 if r == 2 else 0.0,
-                                      1.0 if r == 5 else 0.0, h, i3, i4, i5)
-        for i in range(m):
-            x = h * i / m
-            p = x * (c1 + x * (c2 + x * (c3 + x * (c4 + x * c5))))
-            weights[i, 0, r] = p + (1.0 if r == 0 else 0.0)
-            weights[i, 1, r] = c1 + x * (2.0 * c2 + x * (3.0 * c3 + x * (4.0 * c4
-                                                                        + 5.0 * c5 * x)))
-            weights[i, 2, r] = 2.0 * c2 + x * (6.0 * c3 + x * (12.0 * c4 + 20.0 * c5 * x))
-
-
 def sample(t: np.ndarray, q: np.ndarray, qd: np.ndarray, qdd: np.ndarray,
            times: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Position, velocity and acceleration of the quintic join of the points at ``times``
@@ -508,37 +420,6 @@ def sample(t: np.ndarray, q: np.ndarray, qd: np.ndarray, qdd: np.ndarray,
     p, v, a = np.empty(shape), np.empty(shape), np.empty(shape)
     compiled_kernels()["sample"](t, q, qd, qdd, times, p, v, a)
     return p, v, a
-
-
-def subdivide(q: np.ndarray, qd: np.ndarray, qdd: np.ndarray, s: np.ndarray,
-              sd: np.ndarray, sdd: np.ndarray, segment: np.ndarray, s_way: np.ndarray,
-              step_ns: int, m: int) -> tuple[np.ndarray, ...]:
-    """Points ``step_ns`` nanoseconds apart (a multiple of ``m``) at ``m`` times as many
-    points: their times from 0 [s]; the points themselves every ``m``-th and between them
-    the quintic join's positions, velocities and accelerations ((len(q) - 1) m + 1, dof
-    each); the positions of the scalar quintic join of ``(s, sd, sdd)`` likewise; and the
-    segment of each new point (``segment``: the points' own, of the intervals of
-    ``s_way``).
-
-    The join of the new points is the join of the old, to rounding: the quintic matched
-    to position, velocity and acceleration at both ends of a part of a quintic is that
-    part.
-
-    Returns:
-        ``t, q, qd, qdd, s, segment`` of the new points.
-    """
-    q, qd, qdd, s, sd, sdd, s_way = (np.ascontiguousarray(x, dtype=np.float64)
-                                     for x in (q, qd, qdd, s, sd, sdd, s_way))
-    n, dof = q.shape[0] - 1, q.shape[1]
-    size = n * m + 1
-    out, s_out, t_out = np.empty((3, size, dof)), np.empty(size), np.empty(size)
-    segment_out = np.empty(size, dtype=np.int64)
-    compiled_kernels()["subdivide"](q, qd, qdd, s, sd, sdd,
-                                    np.ascontiguousarray(segment, dtype=np.int64), s_way,
-                                    int(step_ns), int(m), t_out, out[0], out[1], out[2],
-                                    s_out, segment_out, np.empty((m, 3, 6)),
-                                    np.empty(max(n * dof, 1)))
-    return t_out, out[0], out[1], out[2], s_out, segment_out
 
 
 def peaks(t: np.ndarray, q: np.ndarray, qd: np.ndarray, qdd: np.ndarray, rate: float
@@ -592,5 +473,4 @@ def compiled_kernels() -> dict[str, Callable[..., Any]]:
             _compiled["sample"] = njit(cache=True, nogil=True)(_sample)
             _compiled["ratios"] = njit(cache=True, nogil=True)(_ratios)
             _compiled["screen"] = njit(cache=True, nogil=True)(_screen)
-            _compiled["subdivide"] = njit(cache=True, nogil=True)(_subdivide)
         return _compiled

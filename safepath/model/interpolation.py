@@ -122,23 +122,6 @@ class Interpolation:
         p, v, a, _ = self.evaluate(t, q, qd, qdd, k, (times - t[k])[:, None])
         return p, v, a
 
-    def subdivided(self, q: np.ndarray, qd: np.ndarray, qdd: np.ndarray, s: np.ndarray,
-                   sd: np.ndarray, sdd: np.ndarray, segment: np.ndarray, s_way: np.ndarray,
-                   step_ns: int, m: int) -> tuple[np.ndarray, ...]:
-        """Points ``step_ns`` nanoseconds apart as ``m`` times as many points, the join
-        itself: see :func:`safepath.model._joinkernel.subdivide` (``t, q, qd, qdd, s,
-        segment`` of the new points). Quintics only: a quintic matched at both ends of a
-        part of a quintic is that part.
-
-        Raises:
-            ValueError: Not a quintic join.
-        """
-        if self.order != 5:
-            raise ValueError(f"only a quintic join is subdivided, not a {self.name} one")
-        from ._joinkernel import subdivide
-
-        return subdivide(q, qd, qdd, s, sd, sdd, segment, s_way, step_ns, m)
-
     def peaks(self, t: np.ndarray, q: np.ndarray, qd: np.ndarray, qdd: np.ndarray,
               rate: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Per interval and joint: bound of ``|v|`` [rad/s], exact max ``|a|`` [rad/s^2] and

@@ -1,13 +1,12 @@
 """Releasing a timed run: the knots stretched in time until their join is within every
-limit as executed, checked, and subdivided to the knot period where they were timed
-further apart (:mod:`safepath.timing.path_timing` times the runs).
+limit as executed, and checked (:mod:`safepath.timing.path_timing` times the runs).
 
 A uniform stretch in time scales the join exactly (speeds by ``1/k``, accelerations by
 ``1/k^2``, jerks by ``1/k^3``); the knots stay a whole number of nanoseconds apart, as a
-goal carries them. Knots timed ``every`` knot periods apart are released as their quintic
-join at ``every`` times as many points: the same motion (a quintic matched at both ends of
-a part of a quintic is that part), whose intervals near a limit are checked again on the
-new points themselves.
+goal carries them. Knots timed several knot periods apart are released as they are:
+their join is the motion checked, and a goal adds points of that join where its
+controller wants them closer (:func:`safepath.ros.joint_trajectory`: a quintic matched at
+both ends of a part of a quintic is that part, so the motion stays the same).
 """
 
 from __future__ import annotations
@@ -88,8 +87,6 @@ class Run:
         smoothed: The smoothed profile (maps knot times back to the profile's path);
             None for a closed-form straight motion.
         sdd: Path acceleration at each knot [1/s^2].
-        every: The knots lie this many knot periods apart; the released knots are their
-            join subdivided as many times (:func:`_subdivided`).
     """
 
     t: np.ndarray
@@ -102,7 +99,6 @@ class Run:
     ratios: np.ndarray
     smoothed: _smooth.Smoothed | None
     sdd: np.ndarray
-    every: int = 1
 
     @functools.cached_property
     def stretch(self) -> float:
@@ -175,12 +171,11 @@ def stretch_knots(t: np.ndarray, qd: np.ndarray, qdd: np.ndarray, k: float
     return ns_grid(t.size, stretched_ns), qd / k, qdd / (k * k), k
 
 
-def _rounded_stretch(t: np.ndarray, k: float, every: int = 1) -> tuple[int, float]:
+def _rounded_stretch(t: np.ndarray, k: float) -> tuple[int, float]:
     """The knot step [ns] of evenly spaced knots ``t`` stretched by at least ``k``, and
-    the stretch that gives it (``k`` rounded up to a whole multiple of ``every`` ns of
-    step)."""
+    the stretch that gives it (``k`` rounded up to a whole ns of step)."""
     step_ns = _step_ns(t)
-    stretched_ns = every * int(np.ceil(step_ns * k / every))
+    stretched_ns = int(np.ceil(step_ns * k))
     return stretched_ns, stretched_ns / step_ns
 
 
@@ -189,12 +184,10 @@ def _step_ns(t: np.ndarray) -> int:
     return round(float(t[1] - t[0]) * _NS) if t.size > 1 else 1
 
 
-def _stretch_in_place(t: np.ndarray, qd: np.ndarray, qdd: np.ndarray, k: float,
-                      every: int = 1) -> float:
+def _stretch_in_place(t: np.ndarray, qd: np.ndarray, qdd: np.ndarray, k: float) -> float:
     """:func:`stretch_knots` into the knots' own arrays (the release's: the large arrays of
-    a long path are not allocated again), the step a multiple of ``every`` ns; returns
-    ``k'``."""
-    stretched_ns, k = _rounded_stretch(t, k, every)
+    a long path are not allocated again); returns ``k'``."""
+    stretched_ns, k = _rounded_stretch(t, k)
     np.divide(np.arange(t.size, dtype=np.int64) * stretched_ns, _NS, out=t)
     np.divide(qd, k, out=qd)
     np.divide(qdd, k * k, out=qdd)
@@ -221,11 +214,10 @@ def _worst(ratios: np.ndarray, v_tcp: float) -> float:
 def release(run: Run, limits: PathLimits, where: str, tcp: TcpLimits | None = None
             ) -> TimedPiece:
     """The run stretched in time just enough that its knots' join is within every
-    limit (the TCP's speed limits too, ``tcp``), checked, and subdivided to the knot
-    period (:func:`_subdivided`) when its knots lie further apart. The run's knots and
-    ratios are stretched in place: it is not used after its release."""
+    limit (the TCP's speed limits too, ``tcp``), and checked. The run's knots and ratios
+    are stretched in place: it is not used after its release."""
     t, qd, qdd, ratios = run.t, run.qd, run.qdd, run.ratios
-    duration, step_ns = float(t[-1]), _step_ns(t)
+    duration = float(t[-1])
 
     def tcp_ratio() -> float:
         if tcp is None:
@@ -239,33 +231,25 @@ def release(run: Run, limits: PathLimits, where: str, tcp: TcpLimits | None = No
     if k > 1.0:
         log.debug("timing up to %.4f %% over a limit; stretching time by %.6f",
                   (max(float(ratios.max()), v_tcp) - 1) * 100, k)
-        k = _stretch_in_place(t, qd, qdd, k, run.every)
+        k = _stretch_in_place(t, qd, qdd, k)
         ratios = _stretched_ratios(ratios, k, t, run.q, qd, qdd, run.segment, limits)
         v_tcp = tcp_ratio()
     ratios, v_tcp = _settle(t, run.q, qd, qdd, run.segment, ratios, v_tcp, limits,
-                            tcp_ratio, run.every)
-    q, s, segment = run.q, run.s, run.segment
+                            tcp_ratio)
     worst = _worst(ratios, v_tcp)
-    if run.every > 1 and worst <= 1.0:
-        k = _step_ns(t) / step_ns
-        t, q, qd, qdd, s, segment, fine = _subdivided(
-            run, t, qd, qdd, run.sd / k, run.sdd / (k * k), ratios, limits)
-        if fine is not None:  # rounding took the new points' join over a limit
-            ratios, v_tcp = _settle(t, q, qd, qdd, segment, fine, v_tcp, limits, tcp_ratio, 1)
-            worst = _worst(ratios, v_tcp)
     if not worst <= 1.0:  # also NaN
         raise TimingError(f"the {limits.interpolation} join of the timed knots is at "
                           f"{worst!r} of a limit" + where)
-    return TimedPiece(t, q, qd, qdd, s, segment)
+    return TimedPiece(t, run.q, qd, qdd, run.s, run.segment)
 
 
 def _settle(t: np.ndarray, q: np.ndarray, qd: np.ndarray, qdd: np.ndarray,
             segment: np.ndarray, ratios: np.ndarray, v_tcp: float, limits: PathLimits,
-            tcp_ratio: Callable[[], float], every: int) -> tuple[np.ndarray, float]:
+            tcp_ratio: Callable[[], float]) -> tuple[np.ndarray, float]:
     """The knots stretched in place by the little more that rounding may still need (a
-    stretch rounded to whole nanoseconds of step, a subdivision, a speed bound's sample
-    count): up to three times, while the worst ratio lies in ``(1, 1 + RETIME_ABOVE)``;
-    returns their ratios and TCP ratio."""
+    stretch rounded to whole nanoseconds of step, a speed bound's sample count): up to
+    three times, while the worst ratio lies in ``(1, 1 + RETIME_ABOVE)``; returns their
+    ratios and TCP ratio."""
     worst = _worst(ratios, v_tcp)
     for _ in range(3):
         # The speed bound samples each interval at >= 1 kHz: a stretched interval may get
@@ -273,41 +257,9 @@ def _settle(t: np.ndarray, q: np.ndarray, qd: np.ndarray, qdd: np.ndarray,
         if worst <= 1.0 or not worst < 1.0 + RETIME_ABOVE:
             break
         v, a, j = (float(r.max()) if r.size else 0.0 for r in ratios)
-        more = _stretch_in_place(t, qd, qdd, stretch(max(v, v_tcp), a, j), every)
+        more = _stretch_in_place(t, qd, qdd, stretch(max(v, v_tcp), a, j))
         ratios = _stretched_ratios(ratios, more, t, q, qd, qdd, segment, limits)
         v_tcp = tcp_ratio()
         worst = _worst(ratios, v_tcp)
     return ratios, v_tcp
 
-
-def _subdivided(run: Run, t: np.ndarray, qd: np.ndarray, qdd: np.ndarray, sd: np.ndarray,
-                sdd: np.ndarray, ratios: np.ndarray, limits: PathLimits
-                ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray,
-                           np.ndarray, np.ndarray | None]:
-    """The released knots ``t, run.q, qd, qdd`` (``run.every`` knot periods apart; path
-    speeds ``sd`` and accelerations ``sdd`` as stretched) at ``run.every`` times as many
-    points: their quintic join's (``Interpolation.subdivided``), the path parameter's
-    likewise, and the segments of the new points; and the new intervals' ratios, or None
-    when none is over 1.
-
-    The new points' join is the old join to rounding (~1e-7 of a ratio, against the 1e-3
-    below :data:`_EXACT_FROM`): each new interval takes its old interval's ratios, and
-    those of :data:`_EXACT_FROM` or more are computed from the new points themselves.
-
-    Returns:
-        ``t, q, qd, qdd, s, segment, ratios`` of the new points.
-    """
-    m = run.every
-    t, q, qd, qdd, s, segment = limits.interpolation.subdivided(
-        run.q, qd, qdd, run.s, sd, sdd, run.segment, limits.s_way, _step_ns(t), m)
-    qd[0] = qd[-1] = qdd[0] = qdd[-1] = 0.0  # at rest (not -0.0)
-    near = _near_limit(ratios)
-    if near.size == 0:
-        return t, q, qd, qdd, s, segment, None
-    at = (near[:, None] * m + np.arange(m)).ravel()
-    exact = interval_ratios(t, q, qd, qdd, segment, limits, at=at)
-    if not np.max(exact) > 1.0:  # NaN too
-        return t, q, qd, qdd, s, segment, None
-    fine = np.repeat(ratios, m, axis=1)
-    fine[:, at] = exact
-    return t, q, qd, qdd, s, segment, fine

@@ -91,7 +91,8 @@ class TimingOptions:
 
     Attributes:
         speed_scale: Global fraction of the velocity and acceleration limits, in (0, 1].
-        knot_period: Period of the output knots [s] (longer by the final stretch, if any).
+        knot_period: Period of the knots [s] (longer by the final stretch, if any): a
+            run's knots lie one or more of it apart (``max_knot_spacing``).
         spacing: Spacing of the spline's interpolation points along the path [rad].
         grid_step: Largest spacing of TOPP-RA's gridpoints along the path [rad] (each
             spline piece is cut evenly). The moving averages spread the profile over tens
@@ -130,12 +131,12 @@ class TimingOptions:
             path that it can only pass almost at rest somewhere (a blend too tight for its
             grid) comes out finite but absurdly long; it is refused (``TimingError``, so a
             planner tries a smaller blend) before its knots are made.
-        max_knot_spacing: A run is timed and checked on knots up to this many knot
-            periods apart, as many as its moving averages leave room for
-            (:data:`KNOTS_ACROSS_AVERAGES` across their total width), and the released
-            knots are their quintic join at the knot period (the same motion: a quintic
-            matched at both ends of a part of a quintic is that part). 1: every run at
-            the knot period.
+        max_knot_spacing: A run is timed, checked and released on knots up to this many
+            knot periods apart, as many as its moving averages leave room for
+            (:data:`KNOTS_ACROSS_AVERAGES` across their total width). Their join is the
+            motion; a goal adds points of it where its controller wants them closer
+            (a quintic matched at both ends of a part of a quintic is that part). 1:
+            every run at the knot period.
     """
 
     speed_scale: float = 1.0
@@ -264,8 +265,9 @@ def time_path(robot: Robot, path: PathSpline, s_way: np.ndarray, *, scales: Sequ
     along the part of the path that interval averaged are tightened and the path is timed
     again (``options.retries`` runs in all); what is left is removed by stretching time
     uniformly, which scales the join exactly (speeds by ``1/k``, accelerations by
-    ``1/k^2``, jerks by ``1/k^3``). The released knots are that join every
-    ``options.knot_period`` (:mod:`._release`).
+    ``1/k^2``, jerks by ``1/k^3``). The released knots are those knots, stretched
+    (:mod:`._release`): their join is the motion checked, and a goal adds points of it
+    where its controller wants them closer (:func:`safepath.ros.joint_trajectory`).
 
     Args:
         robot: Limits and kinematics.
@@ -374,15 +376,15 @@ def _time_once(path: PathSpline, limits: PathLimits, f_acc: np.ndarray, f_x: np.
     n = max(2, int(np.ceil(duration / (every * options.knot_period))) + 1)
     # Knots a whole number of nanoseconds apart: a goal carries its times in integer
     # nanoseconds, and the quintic join of knots 4 ms apart is sensitive to a 1 ns shift
-    # (its jerk by ~0.2 %); a multiple of ``every`` ns, so that their subdivision is too.
-    # The last knot may come a few ns after the motion's end (at rest).
-    t = ns_grid(n, every * int(np.ceil(duration / (n - 1) * _NS / every)))
+    # (its jerk by ~0.2 %). The last knot may come a few ns after the motion's end (at
+    # rest).
+    t = ns_grid(n, int(np.ceil(duration / (n - 1) * _NS)))
     s, sd, sdd, q, qd, qdd = _smooth.along(sm, path, t)
     qd[0] = qd[-1] = 0.0  # at rest (not -0.0)
     qdd[0] = qdd[-1] = 0.0
     segment = interval_index(limits.s_way, s, limits.vmax_seg.shape[0])
     return Run(t, s, sd, q, qd, qdd, segment, interval_ratios(t, q, qd, qdd, segment, limits),
-                sm, sdd, every)
+                sm, sdd)
 
 
 def _spacing(width: float, limits: PathLimits, options: TimingOptions) -> int:

@@ -238,16 +238,20 @@ def test_timing_options_are_validated() -> None:
 
 
 @pytest.mark.parametrize("seed", range(4))
-def test_knots_timed_further_apart_are_released_as_their_join(bundled_cell: Cell,
-                                                              seed: int) -> None:
+def test_knots_timed_further_apart_are_released_as_timed_and_a_goal_joins_them_alike(
+        bundled_cell: Cell, seed: int) -> None:
     """The Ned3 Pro's moving averages span 64 ms or more, so a run is timed on knots four
-    knot periods apart and released at the knot period: every fourth released knot is a
-    timed one (on the spline), the others are the timed knots' quintic join at their
-    times (to rounding), and the released join stays within every limit; with
-    ``max_knot_spacing=1`` every knot lies on the spline."""
-    from safepath.model.interpolation import QUINTIC
+    knot periods apart and released as timed: every knot on the spline, their join within
+    every limit. A goal for a controller that wants points one knot period apart gets
+    points of that join between them: its own join is the same motion (to rounding).
+    With ``max_knot_spacing=1`` the knots lie one period apart."""
+    from quintic_join import quintic_state
+
+    from safepath.model.trajectory import Trajectory
+    from safepath.ros import joint_trajectory
 
     robot = bundled_cell.robot
+    period = TimingOptions().knot_period
     rng = np.random.default_rng(700 + seed)
     n = int(rng.integers(2, 5))
     path, s_way, _ = spline_path(_random_polyline(robot, rng, n), 0.06,
@@ -255,23 +259,31 @@ def test_knots_timed_further_apart_are_released_as_their_join(bundled_cell: Cell
     timed = {m: time_path(robot, path, s_way, scales=[1.0] * n, tcp_speeds=[None] * n,
                           options=TimingOptions(max_knot_spacing=m)) for m in (1, 4)}
     one, four = timed[1], timed[4]
-    assert np.allclose(one.q, path(one.s), rtol=0, atol=1e-12)
-    step = np.diff(four.t)
-    # Evenly spaced about a knot period apart (longer by a stretch), not four.
-    assert np.allclose(step, step[0], rtol=0, atol=1e-12)
-    assert step[0] < 1.5 * TimingOptions().knot_period
-    coarse = slice(None, None, 4)
-    assert (four.t.size - 1) % 4 == 0
-    assert np.allclose(four.q[coarse], path(four.s[coarse]), rtol=0, atol=1e-12)
-    inner = np.arange(four.t.size) % 4 != 0
-    assert not np.allclose(four.q[inner], path(four.s[inner]), rtol=0, atol=1e-12)
-    p, v, a = QUINTIC.states(four.t[coarse], four.q[coarse], four.qd[coarse],
-                             four.qdd[coarse], four.t)
-    for mine, joined in ((four.q, p), (four.qd, v), (four.qdd, a)):
-        assert np.allclose(mine, joined, rtol=0, atol=1e-9)
-    v, a, j = _quintic_peaks(four.t, four.q, four.qd, four.qdd)
-    assert max(np.max(v / robot.velocity_limits), np.max(a / robot.acceleration_limits),
-               np.max(j / robot.jerk_limits)) <= 1.0 + 1e-9
+    for piece, m in ((one, 1), (four, 4)):
+        assert np.allclose(piece.q, path(piece.s), rtol=0, atol=1e-12)
+        step = np.diff(piece.t)  # evenly spaced, m periods apart (longer by a stretch)
+        assert np.allclose(step, step[0], rtol=0, atol=1e-12)
+        assert m * period <= step[0] < 1.05 * m * period
+        v, a, j = _quintic_peaks(piece.t, piece.q, piece.qd, piece.qdd)
+        assert max(np.max(v / robot.velocity_limits), np.max(a / robot.acceleration_limits),
+                   np.max(j / robot.jerk_limits)) <= 1.0 + 1e-9
+    traj = Trajectory(robot.joint_names, four.t, four.q, four.qd, four.qdd,
+                      np.zeros(four.t.size, dtype=int), ("move",), robot=robot.name,
+                      limits=robot.motion_limits)
+    msg = joint_trajectory(traj, period=period, controller=robot.controller,
+                           backend="rosbags")
+    t = np.array([p.time_from_start.sec + p.time_from_start.nanosec * 1e-9
+                  for p in msg.points])
+    P, V, A = (np.array([list(getattr(p, f)) for p in msg.points])  # noqa: N806
+               for f in ("positions", "velocities", "accelerations"))
+    parts = int(np.ceil(float(four.t[1]) / period - 1e-9))  # 5: 16 ms stretched a bit
+    assert t.size == parts * (four.t.size - 1) + 1 and np.max(np.diff(t)) <= period + 1e-9
+    assert np.array_equal(P[::parts], four.q)
+    for at in np.linspace(0.0, float(four.t[-1]), 801):
+        for mine, theirs in zip(quintic_state(t, P, V, A, at),
+                                quintic_state(four.t, four.q, four.qd, four.qdd, at),
+                                strict=True):
+            assert np.allclose(mine, theirs, rtol=0, atol=1e-8)
     # Both near the optimum: the coarser timing costs little motion time.
     assert four.t[-1] <= one.t[-1] * 1.02
 
