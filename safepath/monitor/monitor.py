@@ -40,6 +40,7 @@ from ..model.execution import ControllerModel, Switch
 from ..model.interpolation import Interpolation
 from ..model.trajectory import Trajectory
 from .elements import OBSTACLES, scene_arrays, to_elements
+from .lost import LostBodies
 from .observations import Counts, ObservationError
 from .options import MonitorOptions
 from .parked import REPLAN_MOVED, ParkedBody, Rest, RestHistory, blocking_body, extent, shrink_box
@@ -56,13 +57,8 @@ DecisionKind = Literal["continue", "slow", "stop", "resume", "replan"]
 
 @dataclass(frozen=True)
 class _GoalStart:
-    """Where a goal sent at a decision takes effect (computed once per decision).
-
-    Attributes:
-        time: When it starts [s] (:meth:`Monitor._switch_time`).
-        tau: The path parameter there [s].
-        r: The path speed there, in [0, 1].
-    """
+    """Where a goal sent at a decision takes effect (once per decision): when [s]
+    (:meth:`Monitor._switch_time`), the path parameter [s] and path speed (0-1) there."""
 
     time: float
     tau: float
@@ -185,6 +181,7 @@ class Monitor:
         self._parked: list[ParkedBody] = []  # bodies re-planned around, still watched
         self._asked: list[ReplanRequest] = []  # the latest requests (add_static_box)
         self._parked_note = ""  # why a parked body was dropped, for the next stop
+        self._lost = LostBodies(self.options.approach_speed, self.options.replan_cluster)
         self._last_stamp: dict[str, float] = {}
         self.last: Decision = Decision(0.0, "continue", "not started", 1.0)
         #: The controller as the monitor's goals drive it (None before the first
@@ -367,9 +364,9 @@ class Monitor:
         self._replan_failed = (request, str(reason))
 
     def reset(self) -> None:
-        """Release the kill switch; motion resumes by the hold-time rule."""
-        self._latched = False
-        self._clear_since = None
+        """Release the kill switch, forget a body lost from view; resume by the hold time."""
+        self._latched, self._clear_since = False, None
+        self._lost.clear()
 
     # -- deciding --------------------------------------------------------------------
     def _decide(self, now: float, counts: Counts) -> Decision:
@@ -398,6 +395,10 @@ class Monitor:
         if o.self_filter is not None and len(E):
             E = self._without_robot(E, now - age, tau_c)  # noqa: N806
             counts = replace(counts, robot=self._self_filtered)
+        E, lost = self._lost.fill(E, [] if silent else [self._sources[s].stamp for s in fresh])
+        if lost:  # a body vanished from view: kept where it was seen (.lost)
+            self._parked_note = f"{self._parked_note}; {lost}".lstrip("; ")
+            self.stats["lost"] = self.stats.get("lost", 0) + 1
         parked = self._parked_mask(E)
         switch = self._switch_time(now + o.command_latency)
         goal = _GoalStart(switch, *self.state_at(switch))
@@ -407,6 +408,9 @@ class Monitor:
         raw = current.raw_state(switch + self._path.width / 2) \
             if current is not None else (goal.tau, goal.r)
         a = self._assess(E, parked, age, tau_c, raw)
+        if a.closest is not None and a.scale < 1.0:  # kept should it vanish (.lost)
+            self._lost.seen([self._sources[s].stamp for s in fresh], E, a.closest,
+                            self._sources[OBSTACLES].elements if OBSTACLES in fresh else None)
         base = dict(separation_now=a.separation_now, separation_path=a.separation_path,
                     protective_distance=a.protective_distance,
                     separation_kept=a.separation_kept, stopping_time=a.stopping_time,
@@ -634,12 +638,10 @@ class Monitor:
                        f"{self.options.rest_window:g} s){shrunk}: {decision.reason}")
 
     def _record_rest(self, a: Assessment, E: np.ndarray) -> None:  # noqa: N803
-        """Add the blocking body, as the newest observation shows it, to the rest rule's
-        history."""
-        if a.closest is None or not self._sources:
-            return
-        stamp = max(s.stamp for s in self._sources.values())
-        self._rest.add(stamp, blocking_body(E, a.closest, self.options.replan_cluster))
+        """Add the blocking body, as the newest observation shows it, to the rest rule."""
+        if a.closest is not None and self._sources:
+            self._rest.add(max(s.stamp for s in self._sources.values()),
+                           blocking_body(E, a.closest, self.options.replan_cluster))
 
     def _elements(self) -> np.ndarray:
         """The latest elements of every source (n, 4) [m]."""
@@ -647,9 +649,8 @@ class Monitor:
         return np.vstack(parts) if parts else np.zeros((0, 4))
 
     def _parked_mask(self, E: np.ndarray) -> np.ndarray:  # noqa: N803
-        """Which elements of ``E`` belong to the parked bodies that stay; a parked body
-        that moved is dropped (an obstacle like any other again) and the next stop says
-        so."""
+        """Which elements of ``E`` belong to the parked bodies that stay; one that moved
+        is dropped (an obstacle like any other again) and the next stop says so."""
         parked = np.zeros(len(E), dtype=bool)
         for body in list(self._parked):
             mask, moved = body.watch(E)
@@ -687,8 +688,7 @@ class Monitor:
         still = test(np.ascontiguousarray(E[parked]), o.parked_approach_speed)
         tight = min((others, still), key=lambda x: (x.scale, x.separation_kept
                                                     - x.protective_distance))
-        return replace(tight, separation_now=min(others.separation_now,
-                                                 still.separation_now),
+        return replace(tight, separation_now=min(others.separation_now, still.separation_now),
                        separation_path=min(others.separation_path, still.separation_path))
 
 
