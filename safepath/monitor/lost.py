@@ -9,11 +9,11 @@ the monitor does not take such a place as clear: it keeps the body where it was 
   the newest observations show them (:func:`~safepath.monitor.parked.blocking_body`) and
   the oldest of those observations' stamps are kept.
 * **Lost**: at a later observation with every sensor speaking, no element lies within
-  ``link`` plus how far a body walks at ``speed`` in the time since of where it was seen:
-  it went nowhere the sensors could see. Its last elements are then added to every
-  observation, as observed, until an element is seen within that reach, grown at
-  ``speed`` for at most :data:`TRACK` more (the body is in view again near where it
-  vanished: the sensors' own elements decide from then on), or the monitor is reset.
+  ``link`` plus :data:`SPREAD` plus how far a body walks at ``speed`` in the time since of
+  where it was seen: it went nowhere the sensors could see. Its last elements are then
+  added to every observation, as observed, until an element is seen within that reach,
+  grown at ``speed`` for at most :data:`TRACK` more (the body is in view again near where
+  it vanished: the sensors' own elements decide from then on), or the monitor is reset.
   The robot stays stopped or slowed for it, and, once it is at rest, a re-plan goes
   around it as around any parked body.
 
@@ -30,11 +30,17 @@ import numpy as np
 
 from .parked import blocking_body
 
-__all__ = ["TRACK", "LostBodies"]
+__all__ = ["TRACK", "SPREAD", "LostBodies"]
 
 #: Longest time [s] over which the reach of a lost body grows (at ``speed``) after it was
 #: lost: an element farther away is another body, not that one.
 TRACK = 0.25
+#: How far apart [m] two observations may show a body's elements nearest the robot when
+#: it has not moved: a sensor's rays fall on another part of it (the live-safety suite's
+#: 1 m tall cylinders, seen from above, gave a single element near the floor in one camera
+#: frame and none within 0.23 m of it in the next). A body is lost only when nothing at
+#: all is seen this close to where it was, beyond where it could have walked.
+SPREAD = 0.5
 
 
 class LostBodies:
@@ -84,8 +90,8 @@ class LostBodies:
             return elements, ""  # nothing held back, or no observation since the sighting
         if self.lost:  # found again only near where it vanished
             reach = self._reach + self.speed * min(stamp - self._lost_at, TRACK)
-        else:  # wherever it could have walked since it was seen
-            reach = self.link + self.speed * (stamp - self._stamp)
+        else:  # wherever it could have walked since it was seen, or been seen otherwise
+            reach = self.link + SPREAD + self.speed * (stamp - self._stamp)
         if len(elements):
             gap = np.linalg.norm(elements[:, None, :3] - self._body[None, :, :3], axis=2)
             gap -= elements[:, None, 3] + self._body[None, :, 3]

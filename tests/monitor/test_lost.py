@@ -10,7 +10,7 @@ import numpy as np
 
 from safepath import Cell
 from safepath.monitor import Cloud, Decision, Monitor
-from safepath.monitor.lost import TRACK, LostBodies
+from safepath.monitor.lost import SPREAD, TRACK, LostBodies
 from safepath.monitor.simulation import MovingSphere, camera_cloud
 
 from .conftest import CAMERA, Phase1, make_monitor
@@ -114,16 +114,16 @@ def test_the_reach_of_a_body_grows_at_walking_speed_and_once_lost_for_a_while() 
     lost = LostBodies(speed=1.6, link=0.1)
     body = np.array([[0.0, 0.0, 0.5, 0.02]])
     lost.seen([1.0], body, body[0])
-    far = np.array([[1.0, 0.0, 0.5, 0.02]])
-    E, note = lost.fill(far, [1.05])  # 1 m away, 50 ms on: not where it could have walked
+    far = np.array([[1.5, 0.0, 0.5, 0.02]])
+    E, note = lost.fill(far, [1.05])  # 1.5 m away, 50 ms on: not where it could have been
     assert lost.lost and "vanished" in note and len(E) == 2
     assert np.array_equal(E[1], body[0])
     E, note = lost.fill(far, [1.1])  # still lost, said once
     assert lost.lost and note == "" and len(E) == 2
     other = np.array([[5.0, 5.0, 5.0, 0.1]])
     lost.seen([1.2], other, other[0])  # while lost, what holds the robot back is its own
-    # Lost with a reach of 0.1 + 1.6 * 0.05 m, grown for TRACK more: no farther.
-    reach = 0.1 + 1.6 * 0.05 + 1.6 * TRACK
+    # Lost with a reach of 0.1 + SPREAD + 1.6 * 0.05 m, grown for TRACK more: no farther.
+    reach = 0.1 + SPREAD + 1.6 * 0.05 + 1.6 * TRACK
     beyond = np.array([[reach + 0.04 + 0.01, 0.0, 0.5, 0.02]])
     E, note = lost.fill(beyond, [3.0])
     assert lost.lost and len(E) == 2
@@ -138,7 +138,7 @@ def test_the_reach_of_a_body_grows_at_walking_speed_and_once_lost_for_a_while() 
     assert not lost.lost and len(E) == 1
     # Not lost yet after a second without every sensor speaking: found wherever it could
     # have walked since it was seen.
-    E, note = lost.fill(np.array([[1.5, 0.0, 0.5, 0.02]]), [5.0])
+    E, note = lost.fill(np.array([[2.0, 0.0, 0.5, 0.02]]), [5.0])
     assert not lost.lost and len(E) == 1
     # A body user code declares (Obstacles) is gone when it no longer declares it.
     lost.seen([6.0], body, body[0], declared=body)
