@@ -28,7 +28,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .parked import blocking_body
+from .parked import blocking_body, extent
 
 __all__ = ["TRACK", "SPREAD", "LostBodies"]
 
@@ -92,10 +92,10 @@ class LostBodies:
             reach = self._reach + self.speed * min(stamp - self._lost_at, TRACK)
         else:  # wherever it could have walked since it was seen, or been seen otherwise
             reach = self.link + SPREAD + self.speed * (stamp - self._stamp)
-        if len(elements):
-            gap = np.linalg.norm(elements[:, None, :3] - self._body[None, :, :3], axis=2)
-            gap -= elements[:, None, 3] + self._body[None, :, 3]
-            if float(gap.min()) <= reach:
+        if len(elements):  # the gap to its box (elements' radii included): O(elements)
+            lo, hi = extent(self._body)
+            outside = np.maximum(np.maximum(lo - elements[:, :3], elements[:, :3] - hi), 0.0)
+            if float(np.min(np.linalg.norm(outside, axis=1) - elements[:, 3])) <= reach:
                 self.clear()  # in view (again): the sensors decide
                 return elements, ""
         note = ""
