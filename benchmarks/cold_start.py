@@ -178,8 +178,7 @@ def main(argv: Sequence[str] | None = None) -> int:
                              "type store afresh (SAFEPATH_CACHE=0)")
     parser.add_argument("--new-home", action="store_true",
                         help="children run under a new, empty home directory with no "
-                             "XDG_CACHE_HOME (as another user would, or a check that "
-                             "clears ~/.cache)")
+                             "XDG_CACHE_HOME (as a check that clears ~/.cache would)")
     parser.add_argument("--save", action="store_true",
                         help="write the figures to benchmarks/results/cold_start.json and "
                              "rewrite benchmarks/results/FIGURES.md")

@@ -320,8 +320,8 @@ def test_a_new_process_plans_the_cell_without_numba(built: Build) -> None:
 
 @pytest.mark.skipif(sys.prefix == sys.base_prefix, reason="not run in a virtual environment")
 def test_the_build_is_found_under_any_home_directory(built: Build, tmp_path: Path) -> None:
-    # In a virtual environment the build is kept in it: a process run by another user or
-    # under an empty home directory (no ~/.cache) still plans on it, never importing numba.
+    # In a virtual environment the build is kept in it: a process under an empty home
+    # directory (no ~/.cache) still plans on it, never importing numba.
     env = {k: v for k, v in os.environ.items() if k not in ("SAFEPATH_KERNEL_CACHE",
                                                             "XDG_CACHE_HOME")}
     env["HOME"] = str(tmp_path)

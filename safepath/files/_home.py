@@ -16,8 +16,9 @@ def cache_base() -> Path:
     In a virtual environment it is ``<venv>/var/cache/safepath``: what is kept there
     (kernels compiled for that environment's Python and numba, the parts its safepath
     makes from a robot, the message classes of its rosbags) belongs to the environment.
-    Whoever runs it, under whatever home directory, finds it, and it goes when the
-    environment is deleted. Outside one, or in one that cannot be written and holds no
+    A process under any home directory (a check that clears ``~/.cache``) finds it, and
+    it goes when the environment is deleted (its files are the owner's: the kernel
+    build's folder is private to them). Outside one, or in one that cannot be written and holds no
     such folder: ``$XDG_CACHE_HOME/safepath``, else ``~/.cache/safepath``.
     """
     if sys.prefix != sys.base_prefix:
