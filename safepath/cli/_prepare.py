@@ -10,8 +10,6 @@ before. Nothing here changes a plan: it only moves work out of the first one.
 
 from __future__ import annotations
 
-import sys
-
 __all__ = ["prepare"]
 
 
@@ -32,4 +30,3 @@ def prepare() -> list[str]:
 
 if __name__ == "__main__":
     print(", ".join(prepare()))
-    sys.exit(0)

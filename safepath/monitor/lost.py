@@ -28,7 +28,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .parked import blocking_body, extent
+from .parked import extent
 
 __all__ = ["TRACK", "SPREAD", "LostBodies"]
 
@@ -63,22 +63,24 @@ class LostBodies:
         """Forget the body (the monitor was reset)."""
         self._body, self.lost = np.zeros((0, 4)), False
 
-    def seen(self, stamps: list[float], elements: np.ndarray, closest: np.ndarray,
+    def seen(self, stamps: list[float], body: np.ndarray | None, closest: np.ndarray | None,
              declared: np.ndarray | None = None) -> None:
-        """The body of ``elements`` (n, 4: x, y, z, radius) [m] nearest ``closest`` holds
-        the robot back in the observations of ``stamps`` [s] (those its elements may come
-        from; the oldest counts). A lost body's own elements (added by :meth:`fill`) do
-        not see it again, and a body user code declares (``closest`` among ``declared``,
-        the elements of :class:`~safepath.monitor.observations.Obstacles`) is not kept:
-        it is gone when no longer declared."""
-        if self.lost or not stamps or not len(elements):
+        """The body (n, 4: x, y, z, radius) [m] of the element ``closest``
+        (:func:`~safepath.monitor.parked.blocking_body`) holds the robot back in the
+        observations of ``stamps`` [s] (those its elements may come from; the oldest
+        counts); None: nothing holds it back at this decision (what was kept stays). A
+        lost body's own elements (added by :meth:`fill`) do not see it again, and a body
+        user code declares (``closest`` among ``declared``, the elements of
+        :class:`~safepath.monitor.observations.Obstacles`) is not kept: it is gone when
+        no longer declared."""
+        if self.lost or not stamps or body is None or closest is None or not len(body):
             return
         if declared is not None and len(declared) and \
                 bool(np.any(np.all(declared[:, :4] == np.asarray(closest)[:4], axis=1))):
             self._body = np.zeros((0, 4))
             return
         self._stamp = min(stamps)
-        self._body = np.array(blocking_body(elements, closest, self.link)[:, :4])
+        self._body = np.array(body[:, :4], dtype=float)
 
     def fill(self, elements: np.ndarray, stamps: list[float]) -> tuple[np.ndarray, str]:
         """The elements (n, 4) of the observations of ``stamps`` [s] (one per sensor;

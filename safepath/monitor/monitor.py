@@ -408,9 +408,10 @@ class Monitor:
         raw = current.raw_state(switch + self._path.width / 2) \
             if current is not None else (goal.tau, goal.r)
         a = self._assess(E, parked, age, tau_c, raw)
-        if a.closest is not None and a.scale < 1.0:  # kept should it vanish (.lost)
-            self._lost.seen([self._sources[s].stamp for s in fresh], E, a.closest,
-                            self._sources[OBSTACLES].elements if OBSTACLES in fresh else None)
+        body = blocking_body(E, a.closest, o.replan_cluster) \
+            if a.closest is not None and a.scale < 1.0 else None  # what holds the robot back
+        self._lost.seen([self._sources[s].stamp for s in fresh], body, a.closest,  # (.lost)
+                        self._sources[OBSTACLES].elements if OBSTACLES in fresh else None)
         base = dict(separation_now=a.separation_now, separation_path=a.separation_path,
                     protective_distance=a.protective_distance,
                     separation_kept=a.separation_kept, stopping_time=a.stopping_time,
@@ -420,7 +421,7 @@ class Monitor:
             why = ("kill switch (latched until reset)" if self._latched
                    else "sensor silence: " + ", ".join(silent))
             return self._stop(now, goal, why, base)
-        return self._choose(now, a, goal, base, E)
+        return self._choose(now, a, goal, base, body)
 
     def _without_robot(self, E: np.ndarray, captured: float, tau_c: float  # noqa: N803
                        ) -> np.ndarray:
@@ -440,7 +441,7 @@ class Monitor:
         return np.ascontiguousarray(E[~on_robot])
 
     def _choose(self, now: float, a: Assessment, goal: _GoalStart, base: dict[str, Any],
-                E: np.ndarray) -> Decision:  # noqa: N803
+                body: np.ndarray | None) -> Decision:
         o = self.options
         if a.scale <= 0.0:
             why = (f"no speed scale >= {o.min_scale:g} keeps the protective distance; "
@@ -451,7 +452,7 @@ class Monitor:
             if self._blocked_since is None:
                 self._blocked_since = now
             decision = self._stop(now, goal, why, base)
-            self._record_rest(a, E)
+            self._record_rest(body)
             if self._replan_sent and self._replan_failed is not None and goal.r == 0.0:
                 return self._retry(decision, now, goal.tau)
             if (self._blocked_since is not None and not self._replan_sent
@@ -637,11 +638,10 @@ class Monitor:
                        reason=f"obstacle stays (at rest: {rest.speed:.3f} m/s over the last "
                        f"{self.options.rest_window:g} s){shrunk}: {decision.reason}")
 
-    def _record_rest(self, a: Assessment, E: np.ndarray) -> None:  # noqa: N803
+    def _record_rest(self, body: np.ndarray | None) -> None:
         """Add the blocking body, as the newest observation shows it, to the rest rule."""
-        if a.closest is not None and self._sources:
-            self._rest.add(max(s.stamp for s in self._sources.values()),
-                           blocking_body(E, a.closest, self.options.replan_cluster))
+        if body is not None:
+            self._rest.add(max(s.stamp for s in self._sources.values()), body)
 
     def _elements(self) -> np.ndarray:
         """The latest elements of every source (n, 4) [m]."""

@@ -86,7 +86,6 @@ class Run:
             ratio of the quintic join (3, knots - 1).
         smoothed: The smoothed profile (maps knot times back to the profile's path);
             None for a closed-form straight motion.
-        sdd: Path acceleration at each knot [1/s^2].
     """
 
     t: np.ndarray
@@ -98,7 +97,6 @@ class Run:
     segment: np.ndarray
     ratios: np.ndarray
     smoothed: _smooth.Smoothed | None
-    sdd: np.ndarray
 
     @functools.cached_property
     def stretch(self) -> float:

@@ -342,7 +342,7 @@ def _time_straight(path: PathSpline, limits: PathLimits, options: TimingOptions,
     qdd[0] = qdd[-1] = 0.0
     segment = np.zeros(t.size, dtype=np.int64)
     return Run(t, s, sd, q, qd, qdd, segment, interval_ratios(t, q, qd, qdd, segment, limits),
-                None, sdd)
+               None)
 
 
 def _time_once(path: PathSpline, limits: PathLimits, f_acc: np.ndarray, f_x: np.ndarray,
@@ -379,12 +379,12 @@ def _time_once(path: PathSpline, limits: PathLimits, f_acc: np.ndarray, f_x: np.
     # (its jerk by ~0.2 %). The last knot may come a few ns after the motion's end (at
     # rest).
     t = ns_grid(n, int(np.ceil(duration / (n - 1) * _NS)))
-    s, sd, sdd, q, qd, qdd = _smooth.along(sm, path, t)
+    s, sd, _, q, qd, qdd = _smooth.along(sm, path, t)
     qd[0] = qd[-1] = 0.0  # at rest (not -0.0)
     qdd[0] = qdd[-1] = 0.0
     segment = interval_index(limits.s_way, s, limits.vmax_seg.shape[0])
     return Run(t, s, sd, q, qd, qdd, segment, interval_ratios(t, q, qd, qdd, segment, limits),
-                sm, sdd)
+               sm)
 
 
 def _spacing(width: float, limits: PathLimits, options: TimingOptions) -> int:
